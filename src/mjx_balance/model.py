@@ -1,0 +1,146 @@
+"""MuJoCo model of the three-segment body, generated from BodyParams (SPEC §1).
+
+The foot is free in the sagittal plane (slide x, slide z, pitch about y at the sole centre O)
+and touches the floor through four load-cell spheres at the sole corners. The lower body hangs
+on the ankle hinge, the upper body on the hip hinge; each hinge has a torque motor (gear 1).
+
+``mjcf(body, physics_dt)`` returns the MJCF text; ``build_model`` compiles it. With
+``foot="fixed"`` the foot has no joints (welded flat to the world): that copy is what the
+linearisation is checked against. The default model ships as ``data/balance.xml``.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from typing import NamedTuple
+
+import mujoco
+import numpy as np
+
+from .params import BodyParams
+
+FOOT_JOINTS = ("foot_x", "foot_z", "foot_pitch")
+LOAD_CELLS = ("cell_front_left", "cell_front_right", "cell_back_left", "cell_back_right")
+
+
+def mjcf(body: BodyParams = BodyParams(), physics_dt: float = 0.002, foot: str = "free") -> str:
+    """MJCF text of the body. ``foot`` is "free" (planar joints, contacts) or "fixed"."""
+    if foot not in ("free", "fixed"):
+        raise ValueError(f"foot must be 'free' or 'fixed', got {foot!r}")
+    b = body
+    r = b.contact_radius
+    hx, hy = b.foot_length / 2, b.foot_width / 2
+    foot_inertia = (
+        b.foot_mass * (b.foot_width**2 + b.foot_thickness**2) / 12,
+        b.foot_inertia,
+        b.foot_mass * (b.foot_length**2 + b.foot_width**2) / 12,
+    )
+    # Rods: only the pitch inertia matters in the plane; the other axes get the same value
+    # (a rod's roll inertia) and a small yaw value that keeps MuJoCo's triangle inequality.
+    lower_i = (b.lower_inertia, b.lower_inertia, 1e-3 * b.lower_inertia)
+    upper_i = (b.upper_inertia, b.upper_inertia, 1e-3 * b.upper_inertia)
+    foot_joints = ""
+    if foot == "free":
+        foot_joints = (
+            '      <joint name="foot_x" type="slide" axis="1 0 0"/>\n'
+            '      <joint name="foot_z" type="slide" axis="0 0 1"/>\n'
+            '      <joint name="foot_pitch" type="hinge" axis="0 1 0"/>\n'
+        )
+    cells = "".join(
+        f'      <geom name="{name}" class="load_cell" pos="{sx * hx:.6g} {sy * hy:.6g} {r:.6g}"/>\n'
+        for name, sx, sy in zip(LOAD_CELLS, (1, 1, -1, -1), (1, -1, 1, -1))
+    )
+
+    def fmt(values: tuple[float, ...]) -> str:
+        return " ".join(f"{v:.9g}" for v in values)
+
+    return f"""<mujoco model="three_link_balance">
+  <compiler angle="radian" autolimits="true"/>
+  <option timestep="{physics_dt:.9g}" gravity="0 0 {-b.gravity:.9g}" integrator="Euler"/>
+  <default>
+    <geom contype="0" conaffinity="0" rgba="0.8 0.6 0.4 1"/>
+    <default class="load_cell">
+      <geom type="sphere" size="{r:.6g}" contype="1" conaffinity="0" condim="3"
+            friction="{b.friction:.6g} 0.005 0.0001" rgba="0.9 0.2 0.2 1"/>
+    </default>
+  </default>
+  <worldbody>
+    <light pos="0 -3 3" dir="0 1 -1"/>
+    <geom name="floor" type="plane" size="3 3 0.1" contype="0" conaffinity="1" condim="3"
+          friction="{b.friction:.6g} 0.005 0.0001" rgba="0.85 0.85 0.85 1"/>
+    <body name="foot" pos="0 0 0">
+{foot_joints}      <inertial pos="0 0 {b.foot_thickness / 2:.9g}" mass="{b.foot_mass:.9g}" diaginertia="{fmt(foot_inertia)}"/>
+      <geom name="sole" type="box" size="{hx:.6g} {hy:.6g} {b.foot_thickness / 2:.6g}" pos="0 0 {b.foot_thickness / 2:.6g}" rgba="0.3 0.3 0.3 1"/>
+{cells}      <body name="lower" pos="0 0 {b.ankle_height:.9g}">
+        <joint name="ankle" type="hinge" axis="0 1 0"/>
+        <inertial pos="0 0 {b.lower_com:.9g}" mass="{b.lower_mass:.9g}" diaginertia="{fmt(lower_i)}"/>
+        <geom name="lower_rod" type="capsule" fromto="0 0 0 0 0 {b.lower_length:.9g}" size="0.04"/>
+        <body name="upper" pos="0 0 {b.lower_length:.9g}">
+          <joint name="hip" type="hinge" axis="0 1 0"/>
+          <inertial pos="0 0 {b.upper_com:.9g}" mass="{b.upper_mass:.9g}" diaginertia="{fmt(upper_i)}"/>
+          <geom name="upper_rod" type="capsule" fromto="0 0 0 0 0 {b.upper_length:.9g}" size="0.05"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor name="ankle_motor" joint="ankle" gear="1"/>
+    <motor name="hip_motor" joint="hip" gear="1"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def build_model(body: BodyParams = BodyParams(), physics_dt: float = 0.002,
+                foot: str = "free") -> mujoco.MjModel:
+    """Compile the generated MJCF."""
+    return mujoco.MjModel.from_xml_string(mjcf(body, physics_dt, foot))
+
+
+def default_model_path() -> str:
+    """Path of the shipped default model (opens in MuJoCo's viewer)."""
+    return str(resources.files("mjx_balance") / "data" / "balance.xml")
+
+
+class Indices(NamedTuple):
+    """Addresses into qpos/qvel/bodies/geoms of a free-foot model."""
+
+    foot_x: int
+    foot_z: int
+    foot_pitch: int
+    ankle_qpos: int
+    hip_qpos: int
+    ankle_dof: int
+    hip_dof: int
+    foot_body: int
+    lower_body: int
+    upper_body: int
+    floor_geom: int
+    cell_geoms: tuple[int, ...]
+
+
+def indices(model: mujoco.MjModel) -> Indices:
+    def jnt(name: str) -> int:
+        return int(model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)])
+
+    def dof(name: str) -> int:
+        return int(model.jnt_dofadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)])
+
+    def bid(name: str) -> int:
+        return int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name))
+
+    def gid(name: str) -> int:
+        return int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name))
+
+    return Indices(
+        foot_x=jnt("foot_x"), foot_z=jnt("foot_z"), foot_pitch=jnt("foot_pitch"),
+        ankle_qpos=jnt("ankle"), hip_qpos=jnt("hip"), ankle_dof=dof("ankle"), hip_dof=dof("hip"),
+        foot_body=bid("foot"), lower_body=bid("lower"), upper_body=bid("upper"),
+        floor_geom=gid("floor"), cell_geoms=tuple(gid(n) for n in LOAD_CELLS),
+    )
+
+
+def cell_x(body: BodyParams) -> np.ndarray:
+    """Sole-frame x of the four load cells, in LOAD_CELLS order."""
+    hx = body.foot_length / 2
+    return np.array([hx, hx, -hx, -hx])

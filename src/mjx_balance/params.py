@@ -1,0 +1,353 @@
+"""Body, controller and scenario parameters (SPEC §1–4) as frozen dataclasses.
+
+Every number the package computes with comes from one of these three records. They are plain
+frozen dataclasses (hashable, so they can be static arguments under ``jax.jit``), validated on
+construction, and loaded from / saved to TOML with the layout::
+
+    [body]        # BodyParams
+    [controller]  # ControllerParams
+    [scenario]    # ScenarioParams
+
+Conventions (SPEC §2): ``paper`` uses absolute segment tilts x = [q1, q2, dq1, dq2] and
+generalised forces u = [tau1, tau2]; ``joint`` uses joint angles x = [q_a, q_h, dq_a, dq_h] and
+motor torques u = [tau_ankle, tau_hip].
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+CONVENTIONS = ("paper", "joint")
+
+
+class ParameterError(ValueError):
+    """A parameter value breaks a rule; the message names the field and the rule."""
+
+
+def _fail(record: str, name: str, rule: str, value: Any) -> None:
+    raise ParameterError(f"{record}.{name} = {value!r}: {rule}")
+
+
+def _check_finite(record: str, obj: Any) -> None:
+    for f in fields(obj):
+        value = getattr(obj, f.name)
+        items = value if isinstance(value, tuple) else (value,)
+        for v in items:
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                continue
+            if not math.isfinite(v):
+                _fail(record, f.name, "must be a finite number", value)
+
+
+def _check_positive(record: str, obj: Any, names: tuple[str, ...]) -> None:
+    for name in names:
+        value = getattr(obj, name)
+        if not value > 0:
+            _fail(record, name, "must be > 0", value)
+
+
+def _check_bounds(record: str, name: str, bounds: tuple[float, float]) -> None:
+    if len(bounds) != 2:
+        _fail(record, name, "must be a pair [lower, upper]", bounds)
+    if bounds[0] > bounds[1]:
+        _fail(record, name, "lower bound must not exceed upper bound", bounds)
+
+
+@dataclass(frozen=True)
+class BodyParams:
+    """The three-segment body (SPEC §1, the study's Table 1). SI units."""
+
+    foot_mass: float = 1.3
+    foot_length: float = 0.30  # sole length; load cells at x = ±foot_length/2
+    foot_width: float = 0.10  # load cells at y = ±foot_width/2
+    foot_thickness: float = 0.02  # slab height; the foot's CoM sits half of it above the sole
+    lower_mass: float = 30.0
+    lower_length: float = 1.0
+    lower_com: float = 0.5  # CoM distance above the ankle
+    upper_mass: float = 35.0
+    upper_length: float = 0.6
+    upper_com: float = 0.3  # CoM distance above the hip
+    ankle_height: float = 0.0  # ankle above the sole (the study's equations: 0)
+    gravity: float = 9.81
+    friction: float = 1.0  # sole–floor Coulomb friction coefficient
+    contact_radius: float = 0.005  # radius of the four load-cell spheres
+
+    def __post_init__(self) -> None:
+        _check_finite("body", self)
+        _check_positive(
+            "body",
+            self,
+            (
+                "foot_mass", "foot_length", "foot_width", "foot_thickness", "lower_mass",
+                "lower_length", "upper_mass", "upper_length", "gravity", "friction",
+                "contact_radius",
+            ),
+        )
+        for name, length in (("lower_com", self.lower_length), ("upper_com", self.upper_length)):
+            value = getattr(self, name)
+            if not 0 <= value <= length:
+                _fail("body", name, f"must lie on the segment, in [0, {length}]", value)
+        if self.ankle_height < 0:
+            _fail("body", "ankle_height", "must be >= 0", self.ankle_height)
+
+    @property
+    def total_mass(self) -> float:
+        return self.foot_mass + self.lower_mass + self.upper_mass
+
+    @property
+    def lower_inertia(self) -> float:
+        """Pitch inertia of the lower body about its CoM (uniform rod, m L^2 / 12)."""
+        return self.lower_mass * self.lower_length**2 / 12.0
+
+    @property
+    def upper_inertia(self) -> float:
+        return self.upper_mass * self.upper_length**2 / 12.0
+
+    @property
+    def foot_inertia(self) -> float:
+        """Pitch inertia of the foot slab about its CoM."""
+        return self.foot_mass * (self.foot_length**2 + self.foot_thickness**2) / 12.0
+
+
+@dataclass(frozen=True)
+class ControllerParams:
+    """The constrained MPC (SPEC §2–3) and its solver settings.
+
+    Weights are diagonals: Q = diag(q_diag), R = diag(r_diag). Bounds are [lower, upper] pairs
+    in the chosen convention's variables.
+    """
+
+    convention: str = "paper"
+    horizon: int = 20
+    q_diag: tuple[float, ...] = (1e3, 1e3, 1e3, 1e3)
+    r_diag: tuple[float, ...] = (1e-1, 1e-4)  # 1e-4 * diag(1000, 1)
+    input1_bounds: tuple[float, float] = (-20.0, 20.0)  # tau1 (paper) or tau_ankle (joint)
+    input2_bounds: tuple[float, float] = (-100.0, 100.0)  # tau2 (paper) or tau_hip (joint)
+    state1_bounds: tuple[float, float] = (-0.26, 0.5)  # q1 (paper) or q_a (joint), rad
+    state2_bounds: tuple[float, float] = (-0.35, 1.4)  # q2 (paper) or q_h (joint), rad
+    cop_bounds: tuple[float, float] = (-0.15, 0.15)  # m
+    com_bounds: tuple[float, float] = (-0.15, 0.15)  # m
+    # Reference QP solver (OSQP).
+    osqp_eps: float = 1e-8
+    osqp_max_iter: int = 20000
+    # Batched ADMM solver (admm.py); static under jit.
+    admm_rho: float = 0.1
+    admm_sigma: float = 1e-6
+    admm_alpha: float = 1.6
+    admm_max_iter: int = 200
+    admm_check_every: int = 10
+    admm_eps_abs: float = 1e-4
+    admm_eps_rel: float = 1e-4
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "q_diag", tuple(float(v) for v in self.q_diag))
+        object.__setattr__(self, "r_diag", tuple(float(v) for v in self.r_diag))
+        for name in ("input1_bounds", "input2_bounds", "state1_bounds", "state2_bounds",
+                     "cop_bounds", "com_bounds"):
+            object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
+        _check_finite("controller", self)
+        if self.convention not in CONVENTIONS:
+            _fail("controller", "convention", f"must be one of {CONVENTIONS}", self.convention)
+        if not isinstance(self.horizon, int) or self.horizon < 1:
+            _fail("controller", "horizon", "must be an integer >= 1", self.horizon)
+        if len(self.q_diag) != 4 or min(self.q_diag) < 0:
+            _fail("controller", "q_diag", "must be 4 non-negative numbers", self.q_diag)
+        if len(self.r_diag) != 2 or min(self.r_diag) <= 0:
+            _fail("controller", "r_diag", "must be 2 positive numbers", self.r_diag)
+        for name in ("input1_bounds", "input2_bounds", "state1_bounds", "state2_bounds",
+                     "cop_bounds", "com_bounds"):
+            _check_bounds("controller", name, getattr(self, name))
+        _check_positive("controller", self, ("osqp_eps", "admm_rho", "admm_sigma",
+                                             "admm_eps_abs", "admm_eps_rel"))
+        if not 0 < self.admm_alpha < 2:
+            _fail("controller", "admm_alpha", "must lie in (0, 2)", self.admm_alpha)
+        for name in ("osqp_max_iter", "admm_max_iter", "admm_check_every"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < 1:
+                _fail("controller", name, "must be an integer >= 1", value)
+
+    @property
+    def input_bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        return (self.input1_bounds, self.input2_bounds)
+
+    @property
+    def state_bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        return (self.state1_bounds, self.state2_bounds)
+
+
+@dataclass(frozen=True)
+class ScenarioParams:
+    """The push protocol and outcome thresholds (SPEC §4)."""
+
+    force: float = 0.0  # N, + forward
+    duration: float = 0.1  # s
+    t_end: float = 12.0  # s after push onset
+    physics_dt: float = 0.002  # s
+    control_dt: float = 0.01  # s
+    push_body: str = "upper"  # "upper": the upper body's CoM; "hip": at the hip joint
+    # Outcome thresholds.
+    foot_pitch_limit: float = 0.05  # rad
+    foot_lift_limit: float = 0.005  # m
+    bound_violation_limit: float = 0.05  # rad beyond a state bound
+    lower_tilt_limit: float = 0.5  # rad
+    settle_angle_tol: float = 0.01  # rad
+    settle_rate_tol: float = 0.05  # rad/s
+    controller_delay: float = 0.0  # s; the controller sees the state this late
+
+    def __post_init__(self) -> None:
+        _check_finite("scenario", self)
+        _check_positive("scenario", self, ("t_end", "physics_dt", "control_dt",
+                                           "foot_pitch_limit", "foot_lift_limit",
+                                           "bound_violation_limit", "lower_tilt_limit",
+                                           "settle_angle_tol", "settle_rate_tol"))
+        if self.duration < 0:
+            _fail("scenario", "duration", "must be >= 0", self.duration)
+        if self.duration > self.t_end:
+            _fail("scenario", "duration", f"must not exceed t_end = {self.t_end}", self.duration)
+        ratio = self.control_dt / self.physics_dt
+        if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
+            _fail("scenario", "control_dt",
+                  f"must be a whole multiple of physics_dt = {self.physics_dt}", self.control_dt)
+        steps = self.t_end / self.control_dt
+        if abs(steps - round(steps)) > 1e-6:
+            _fail("scenario", "t_end",
+                  f"must be a whole multiple of control_dt = {self.control_dt}", self.t_end)
+        if self.push_body not in ("upper", "hip"):
+            _fail("scenario", "push_body", "must be 'upper' or 'hip'", self.push_body)
+        if self.controller_delay < 0:
+            _fail("scenario", "controller_delay", "must be >= 0", self.controller_delay)
+        delay_steps = self.controller_delay / self.physics_dt
+        if abs(delay_steps - round(delay_steps)) > 1e-6:
+            _fail("scenario", "controller_delay",
+                  f"must be a whole multiple of physics_dt = {self.physics_dt}",
+                  self.controller_delay)
+
+    @property
+    def substeps(self) -> int:
+        """Physics steps per control period."""
+        return int(round(self.control_dt / self.physics_dt))
+
+    @property
+    def n_control(self) -> int:
+        """Control periods in one scenario."""
+        return int(round(self.t_end / self.control_dt))
+
+    @property
+    def delay_steps(self) -> int:
+        return int(round(self.controller_delay / self.physics_dt))
+
+
+@dataclass(frozen=True)
+class Config:
+    """Everything one run needs: body, controller, scenario."""
+
+    body: BodyParams = field(default_factory=BodyParams)
+    controller: ControllerParams = field(default_factory=ControllerParams)
+    scenario: ScenarioParams = field(default_factory=ScenarioParams)
+
+    def replace(self, **sections: Any) -> "Config":
+        """Return a copy with fields replaced, e.g. ``cfg.replace(controller={"horizon": 10})``."""
+        updated = {}
+        for name, changes in sections.items():
+            if name not in ("body", "controller", "scenario"):
+                raise ParameterError(f"unknown section {name!r}")
+            current = getattr(self, name)
+            updated[name] = _build(type(current), name, {**dataclasses.asdict(current), **changes})
+        return dataclasses.replace(self, **updated)
+
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        return {
+            name: {k: (list(v) if isinstance(v, tuple) else v)
+                   for k, v in dataclasses.asdict(getattr(self, name)).items()}
+            for name in ("body", "controller", "scenario")
+        }
+
+
+_SECTIONS = {"body": BodyParams, "controller": ControllerParams, "scenario": ScenarioParams}
+
+
+def _build(cls: type, section: str, values: dict[str, Any]) -> Any:
+    known = {f.name: f for f in fields(cls)}
+    unknown = sorted(set(values) - set(known))
+    if unknown:
+        raise ParameterError(
+            f"{section}: unknown key(s) {', '.join(unknown)}; known keys: {', '.join(known)}")
+    coerced = {}
+    for key, value in values.items():
+        default = known[key].default
+        if isinstance(default, tuple):
+            if not isinstance(value, (list, tuple)):
+                raise ParameterError(f"{section}.{key} = {value!r}: must be a list of numbers")
+            value = tuple(value)
+        elif isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        elif isinstance(default, (int, float)) and not isinstance(default, bool):
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ParameterError(f"{section}.{key} = {value!r}: must be a number")
+        elif isinstance(default, str) and not isinstance(value, str):
+            raise ParameterError(f"{section}.{key} = {value!r}: must be a string")
+        coerced[key] = value
+    return cls(**coerced)
+
+
+def config_from_dict(data: dict[str, Any]) -> Config:
+    """Build a validated Config from a nested dict (missing keys take their defaults)."""
+    unknown = sorted(set(data) - set(_SECTIONS))
+    if unknown:
+        raise ParameterError(
+            f"unknown section(s) {', '.join(unknown)}; known sections: body, controller, scenario")
+    parts = {}
+    for name, cls in _SECTIONS.items():
+        section = data.get(name, {})
+        if not isinstance(section, dict):
+            raise ParameterError(f"section {name!r} must be a table")
+        parts[name] = _build(cls, name, section)
+    return Config(**parts)
+
+
+def load_config(path: str | Path) -> Config:
+    """Load a TOML configuration file; every value not given takes its default."""
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            data = tomllib.load(fh)
+    except FileNotFoundError:
+        raise ParameterError(f"configuration file not found: {path}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"{path}: not valid TOML: {exc}") from None
+    try:
+        return config_from_dict(data)
+    except ParameterError as exc:
+        raise ParameterError(f"{path}: {exc}") from None
+
+
+def dumps_config(config: Config) -> str:
+    """The configuration as TOML text (every field written)."""
+    lines = []
+    for name, values in config.to_dict().items():
+        lines.append(f"[{name}]")
+        for key, value in values.items():
+            lines.append(f"{key} = {_toml_value(value)}")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+def save_config(config: Config, path: str | Path) -> None:
+    Path(path).write_text(dumps_config(config))
