@@ -1,0 +1,77 @@
+"""The ``mjx-balance`` command line.
+
+This module only parses arguments; each command's work lives beside the code it drives:
+
+    simulate      reference.simulate_command   scalar MuJoCo C + OSQP, one scenario at a time
+    bench solver  bench.solver_command         batched ADMM vs OSQP vs CasADi/IPOPT
+    sweep         sweep.sweep_command          force x duration region map (MJX + ADMM)
+    table         sweep.table_command          max acting time per force (batched bisection)
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from .params import CONVENTIONS, ParameterError
+
+
+def _common(p: argparse.ArgumentParser, out_required: bool = True) -> None:
+    p.add_argument("--convention", choices=CONVENTIONS, default=None,
+                   help="controller convention (default: the configuration's, 'paper')")
+    p.add_argument("--config", default=None, help="TOML configuration file (body, controller, scenario)")
+    p.add_argument("--out", required=out_required, default=None, help="output folder")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="mjx-balance",
+        description="Standing-balance recovery under constrained MPC: pushes, sweeps, tables.")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("simulate", help="scalar reference closed loop (MuJoCo C + OSQP) for a few pushes")
+    p.add_argument("--force", default="0,20,50,80,100,120", help="comma-separated forces [N]")
+    p.add_argument("--duration", default="0.1", help="comma-separated push durations [s]")
+    _common(p)
+    p.set_defaults(target="mjx_balance.reference:simulate_command")
+
+    bench = sub.add_parser("bench", help="benchmarks").add_subparsers(dest="bench", required=True)
+    p = bench.add_parser("solver", help="batched ADMM vs OSQP vs CasADi/IPOPT, solves per second")
+    p.add_argument("--batch", default="1,16,256,4096,16384", help="comma-separated batch sizes")
+    p.add_argument("--states", type=int, default=4096, help="number of test states")
+    p.add_argument("--dtype", choices=("float32", "float64"), default="float32")
+    p.add_argument("--json", action="store_true", help="print a final JSON line with the figures")
+    _common(p, out_required=False)
+    p.set_defaults(target="mjx_balance.bench:solver_command")
+
+    p = sub.add_parser("sweep", help="recoverable region over a force x duration grid")
+    p.add_argument("--forces", default=None, help="start:stop:step or a comma list [N]")
+    p.add_argument("--durations", default=None, help="start:stop:step or a comma list [s]")
+    p.add_argument("--sweep", default=None, help="sweep definition TOML (see sweeps/)")
+    p.add_argument("--chunk", type=int, default=None, help="scenarios per chunk (default: from memory budget)")
+    p.add_argument("--reference", default=None, help="CSV of points (force, duration) to draw over the map")
+    _common(p)
+    p.set_defaults(target="mjx_balance.sweep:sweep_command")
+
+    p = sub.add_parser("table", help="max acting time per force (robustness table)")
+    p.add_argument("--forces", default="5,10,15,20,30,40,50,60,80,100,120", help="comma list [N]")
+    p.add_argument("--sweep", default=None, help="sweep definition TOML (see sweeps/)")
+    _common(p)
+    p.set_defaults(target="mjx_balance.sweep:table_command")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    module, func = args.target.split(":")
+    command = getattr(importlib.import_module(module), func)
+    try:
+        return int(command(args) or 0)
+    except ParameterError as exc:
+        print(f"mjx-balance: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
