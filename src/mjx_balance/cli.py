@@ -6,6 +6,7 @@ This module only parses arguments; each command's work lives beside the code it 
     bench solver  bench.solver_command         batched ADMM vs OSQP vs CasADi/IPOPT
     sweep         sweep.sweep_command          force x duration region map (MJX + ADMM)
     table         sweep.table_command          max acting time per force (batched bisection)
+    animate       animate.animate_command      stick-figure GIF of one push (reference simulation)
 """
 
 from __future__ import annotations
@@ -14,14 +15,23 @@ import argparse
 import importlib
 import sys
 
-from .params import CONVENTIONS, ParameterError
+from .params import CONVENTIONS, Config, ParameterError, load_config
 
 
-def _common(p: argparse.ArgumentParser, out_required: bool = True) -> None:
+def load_run_config(args: argparse.Namespace) -> Config:
+    """The run's configuration: --config file (or defaults), then --convention on top."""
+    config = load_config(args.config) if getattr(args, "config", None) else Config()
+    if getattr(args, "convention", None):
+        config = config.replace(controller={"convention": args.convention})
+    return config
+
+
+def _common(p: argparse.ArgumentParser, out_required: bool = True,
+            out_help: str = "output folder") -> None:
     p.add_argument("--convention", choices=CONVENTIONS, default=None,
                    help="controller convention (default: the configuration's, 'paper')")
     p.add_argument("--config", default=None, help="TOML configuration file (body, controller, scenario)")
-    p.add_argument("--out", required=out_required, default=None, help="output folder")
+    p.add_argument("--out", required=out_required, default=None, help=out_help)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -59,6 +69,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sweep", default=None, help="sweep definition TOML (see sweeps/)")
     _common(p)
     p.set_defaults(target="mjx_balance.sweep:table_command")
+
+    p = sub.add_parser("animate", help="stick-figure GIF of one push (matplotlib, no OpenGL)")
+    p.add_argument("--force", type=float, required=True, help="push force [N]")
+    p.add_argument("--duration", type=float, default=0.1, help="push duration [s]")
+    p.add_argument("--fps", type=float, default=25.0, help="frames per second")
+    p.add_argument("--t-end", type=float, default=None, help="simulate only this long [s]")
+    _common(p, out_help="output GIF file")
+    p.set_defaults(target="mjx_balance.animate:animate_command")
     return parser
 
 
