@@ -1,12 +1,35 @@
 """Measurements of one closed-loop run (SPEC §4–5), numpy.
 
-Names shared with the batched rollout: ``OUTCOMES`` (index = the integer outcome code used in
-JAX) and ``SUMMARY_COLUMNS`` (the per-scenario summary row, in table order).
+This module is the written form of the team's shared definitions; the batched rollout computes
+the same quantities in JAX and must agree with it.
+
+Samples. Metrics are evaluated after every physics step i = 0..n-1, at time t = (i+1) dt. Joint
+angles, foot pose, load-cell heights and the CoM are those of the state at t (the reference
+refreshes positions with ``mj_kinematics`` + ``mj_comPos`` after ``mj_step``); the load-cell
+forces are the contact forces that acted during step i (as ``mj_step`` leaves them in ``data``).
+
+Fall. The first sample where the foot pitches beyond ``foot_pitch_limit``, a load-cell sphere's
+lowest point rises above ``foot_lift_limit``, a position state x[0] or x[1] leaves its bound by
+more than ``bound_violation_limit``, or the lower body's absolute tilt |foot_pitch + q_a| exceeds
+``lower_tilt_limit``. Everything is accumulated up to and including that sample and nothing after
+it; control periods count if their control instant lies before the fall sample's time.
+
+Outcome codes: ``OUTCOMES[code]`` (0 recovered, 1 not_settled, 2 fell, 3 diverged). Diverged (a
+non-finite state, torque or solver output) takes precedence over everything else.
 """
 
 from __future__ import annotations
 
+import math
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from .params import ControllerParams, ScenarioParams
+
 OUTCOMES = ("recovered", "not_settled", "fell", "diverged")
+RECOVERED, NOT_SETTLED, FELL, DIVERGED = range(4)
 
 SUMMARY_COLUMNS = [
     "force", "duration", "convention", "outcome", "settle_time", "fall_time",
@@ -18,3 +41,209 @@ SUMMARY_COLUMNS = [
     "energy_u1", "energy_u2",
     "nonconverged_solves", "max_residual", "max_bound_violation",
 ]
+
+SATURATION_TOL = 1e-6  # relative to the input's range
+
+
+# --- measurements from MuJoCo C data -------------------------------------------------------
+
+def load_cell_cop(model: mujoco.MjModel, data: mujoco.MjData,
+                  cell_geoms: tuple[int, ...]) -> tuple[float, float]:
+    """(CoP x, total normal force) from the contacts that involve a load-cell geom.
+
+    CoP = sum F_i x_i / sum F_i (the study's eq. 18), F_i the contact normal force
+    (``mj_contactForce``, first component of the contact frame), x_i the contact point's world x.
+    NaN when the load cells carry no load (sum F_i <= 0).
+    """
+    cells = set(cell_geoms)
+    wrench = np.zeros(6)
+    moment = 0.0
+    total = 0.0
+    for i in range(data.ncon):
+        contact = data.contact[i]
+        if contact.geom1 in cells or contact.geom2 in cells:
+            mujoco.mj_contactForce(model, data, i, wrench)
+            moment += wrench[0] * contact.pos[0]
+            total += wrench[0]
+    return (moment / total if total > 0 else math.nan), total
+
+
+def whole_body_com(data: mujoco.MjData, foot_body: int) -> float:
+    """Horizontal CoM of the whole body (the foot's subtree), world x (the study's eq. 19)."""
+    return float(data.subtree_com[foot_body, 0])
+
+
+def cell_heights(model: mujoco.MjModel, data: mujoco.MjData,
+                 cell_geoms: tuple[int, ...]) -> np.ndarray:
+    """Lowest point (centre z - radius) of each load-cell sphere [4]."""
+    cells = list(cell_geoms)
+    return data.geom_xpos[cells, 2] - model.geom_size[cells, 0]
+
+
+# --- per-sample rules ----------------------------------------------------------------------
+
+def bound_excess(x: np.ndarray, controller: ControllerParams) -> np.ndarray:
+    """Largest excess of x[0], x[1] beyond their state bounds, rad, >= 0. x: [..., 4] -> [...]."""
+    (l1, h1), (l2, h2) = controller.state_bounds
+    pos = np.asarray(x)[..., :2]
+    lower = np.array([l1, l2])
+    upper = np.array([h1, h2])
+    excess = np.maximum(np.maximum(lower - pos, pos - upper), 0.0)
+    return excess.max(axis=-1)
+
+
+def fall_flags(foot_pitch: np.ndarray, cell_low_z: np.ndarray, x: np.ndarray, q_ankle: np.ndarray,
+               scenario: ScenarioParams, controller: ControllerParams) -> np.ndarray:
+    """Per-sample fall test. foot_pitch, q_ankle: [n]; cell_low_z: [n, 4]; x: [n, 4] -> bool [n]."""
+    foot_pitch = np.asarray(foot_pitch)
+    return (
+        (np.abs(foot_pitch) > scenario.foot_pitch_limit)
+        | (np.asarray(cell_low_z).max(axis=-1) > scenario.foot_lift_limit)
+        | (bound_excess(x, controller) > scenario.bound_violation_limit)
+        | (np.abs(foot_pitch + np.asarray(q_ankle)) > scenario.lower_tilt_limit)
+    )
+
+
+def in_settle_band(q: np.ndarray, dq: np.ndarray, scenario: ScenarioParams) -> np.ndarray:
+    """Joint angles within settle_angle_tol and rates within settle_rate_tol. [n, 2] -> bool [n]."""
+    return ((np.abs(q) <= scenario.settle_angle_tol).all(axis=-1)
+            & (np.abs(dq) <= scenario.settle_rate_tol).all(axis=-1))
+
+
+def settle_time(time: np.ndarray, q: np.ndarray, dq: np.ndarray,
+                scenario: ScenarioParams) -> float:
+    """Time of the last sample outside the settle band (0.0 if never outside)."""
+    outside = ~in_settle_band(q, dq, scenario)
+    if not outside.any():
+        return 0.0
+    return float(np.asarray(time)[np.flatnonzero(outside)[-1]])
+
+
+def saturation_fraction(u: np.ndarray, lower: float, upper: float) -> float:
+    """Fraction of entries of u within SATURATION_TOL * (upper - lower) of a bound."""
+    u = np.asarray(u)
+    if u.size == 0:
+        return math.nan
+    tol = SATURATION_TOL * (upper - lower)
+    return float(np.mean((u <= lower + tol) | (u >= upper - tol)))
+
+
+def classify(diverged: bool, fell: bool, settled_at_end: bool) -> int:
+    """Outcome code (index into OUTCOMES)."""
+    if diverged:
+        return DIVERGED
+    if fell:
+        return FELL
+    return RECOVERED if settled_at_end else NOT_SETTLED
+
+
+# --- the summary row -----------------------------------------------------------------------
+
+def _increments(initial: np.ndarray, series: np.ndarray) -> np.ndarray:
+    return np.diff(np.concatenate([np.asarray(initial)[None], series]), axis=0)
+
+
+def _nanmax_abs(values: np.ndarray) -> float:
+    values = np.abs(np.asarray(values, float))
+    values = values[np.isfinite(values)]
+    return float(values.max()) if values.size else math.nan
+
+
+def _finite_min_max(values: np.ndarray) -> tuple[float, float]:
+    values = np.asarray(values, float)
+    values = values[np.isfinite(values)]
+    if not values.size:
+        return math.nan, math.nan
+    return float(values.min()), float(values.max())
+
+
+def summarize(*, force: float, duration: float, convention: str,
+              scenario: ScenarioParams, controller: ControllerParams,
+              time: np.ndarray, q: np.ndarray, dq: np.ndarray, x: np.ndarray,
+              foot_pitch: np.ndarray, cell_low_z: np.ndarray, cop: np.ndarray, com: np.ndarray,
+              tau: np.ndarray, u: np.ndarray, q0: np.ndarray, x0: np.ndarray,
+              u_control: np.ndarray, converged: np.ndarray, residual: np.ndarray,
+              completed: bool, diverged: bool = False) -> dict[str, Any]:
+    """The per-scenario summary row (keys = SUMMARY_COLUMNS) from the sample series.
+
+    Sample series (one entry per physics step, time = (i+1) dt): time [n]; q, dq [n, 2] joint
+    angles/rates; x [n, 4] the convention state; foot_pitch [n]; cell_low_z [n, 4]; cop, com [n]
+    (cop NaN where the load cells carry nothing); tau [n, 2] motor torques and u [n, 2] the
+    convention's input held during step i. q0 [2], x0 [4]: the state at t = 0.
+    Control series (one entry per control instant k, t_k = k control_dt): u_control [K, 2] the
+    clipped input; converged [K] bool; residual [K] primal residual.
+    completed: the series reach t_end (False when the caller stopped early at a fall or a
+    non-finite value). Series may run past a fall; they are cut at the first fall sample.
+    """
+    time = np.asarray(time, float)
+    q, dq, x = np.asarray(q, float), np.asarray(dq, float), np.asarray(x, float)
+    tau, u = np.asarray(tau, float), np.asarray(u, float)
+    n = time.shape[0]
+
+    finite = (np.isfinite(q).all(axis=-1) & np.isfinite(dq).all(axis=-1)
+              & np.isfinite(tau).all(axis=-1) & np.isfinite(x).all(axis=-1))
+    diverged = bool(diverged or not finite.all()
+                    or not np.isfinite(np.asarray(u_control, float)).all())
+
+    flags = fall_flags(foot_pitch, cell_low_z, x, q[:, 0], scenario, controller) if n else \
+        np.zeros(0, bool)
+    fell = bool(flags.any())
+    end = int(np.flatnonzero(flags)[0]) + 1 if fell else n  # samples kept: [0, end)
+    fall_time = float(time[end - 1]) if fell else math.nan
+
+    # control periods whose instant precedes the last kept sample's time
+    n_ctrl = len(u_control)
+    if fell:
+        n_ctrl = min(n_ctrl, int(math.ceil(fall_time / scenario.control_dt - 1e-9)))
+    u_control = np.asarray(u_control, float)[:n_ctrl]
+    converged = np.asarray(converged, bool)[:n_ctrl]
+    residual = np.asarray(residual, float)[:n_ctrl]
+
+    sl = slice(0, end)
+    dq_step = _increments(q0, q)[sl]
+    dx_step = _increments(x0, x)[sl]
+    tau_k, u_k = tau[sl], u[sl]
+    power_ankle = tau_k[:, 0] * dq_step[:, 0]
+    power_hip = tau_k[:, 1] * dq_step[:, 1]
+
+    settled = bool(completed and n and in_settle_band(q[-1:], dq[-1:], scenario)[0])
+    code = classify(diverged, fell, settled and not fell)
+    settle = settle_time(time, q, dq, scenario) if code == RECOVERED else math.nan
+
+    (l1, h1), (l2, h2) = controller.input_bounds
+    cop_min, cop_max = _finite_min_max(np.asarray(cop, float)[sl])
+    com_min, com_max = _finite_min_max(np.asarray(com, float)[sl])
+    energy_ankle = float(np.nansum(np.abs(power_ankle)))
+    energy_hip = float(np.nansum(np.abs(power_hip)))
+    excess = bound_excess(x[sl], controller) if end else np.zeros(0)
+    excess = excess[np.isfinite(excess)]
+    res = residual[np.isfinite(residual)]
+    return {
+        "force": float(force),
+        "duration": float(duration),
+        "convention": convention,
+        "outcome": OUTCOMES[code],
+        "settle_time": settle,
+        "fall_time": fall_time if code == FELL else math.nan,
+        "peak_ankle": _nanmax_abs(q[sl, 0]),
+        "peak_hip": _nanmax_abs(q[sl, 1]),
+        "peak_foot_pitch": _nanmax_abs(np.asarray(foot_pitch, float)[sl]),
+        "cop_min": cop_min,
+        "cop_max": cop_max,
+        "com_min": com_min,
+        "com_max": com_max,
+        "peak_tau_ankle": _nanmax_abs(tau_k[:, 0]),
+        "peak_tau_hip": _nanmax_abs(tau_k[:, 1]),
+        "ankle_saturation_fraction": saturation_fraction(u_control[:, 0], l1, h1),
+        "hip_saturation_fraction": saturation_fraction(u_control[:, 1], l2, h2),
+        "energy_ankle": energy_ankle,
+        "energy_hip": energy_hip,
+        "energy_total": energy_ankle + energy_hip,
+        "work_ankle": float(np.nansum(power_ankle)),
+        "work_hip": float(np.nansum(power_hip)),
+        "energy_u1": float(np.nansum(np.abs(u_k[:, 0] * dx_step[:, 0]))),
+        "energy_u2": float(np.nansum(np.abs(u_k[:, 1] * dx_step[:, 1]))),
+        "nonconverged_solves": int(np.count_nonzero(~converged)),
+        "max_residual": float(res.max()) if res.size else math.nan,
+        "max_bound_violation": float(excess.max()) if excess.size else 0.0,
+    }
