@@ -65,7 +65,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(target="mjx_balance.sweep:sweep_command")
 
     p = sub.add_parser("table", help="max acting time per force (robustness table)")
-    p.add_argument("--forces", default="5,10,15,20,30,40,50,60,80,100,120", help="comma list [N]")
+    p.add_argument("--forces", default=None,
+                   help="comma list or start:stop:step [N] (default: the --sweep file's table_forces, "
+                        "else the study's 5,10,15,20,30,40,50,60,80,100,120)")
     p.add_argument("--sweep", default=None, help="sweep definition TOML (see sweeps/)")
     _common(p)
     p.set_defaults(target="mjx_balance.sweep:table_command")

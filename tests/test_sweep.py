@@ -1,0 +1,410 @@
+"""Sweep engine: grids, chunking, resumable result files, batched bisection, figures, commands.
+
+The bookkeeping is tested with FakeThresholdBatch, an analytic stand-in for the rollout (a push
+recovers iff |F| * T < c). It says nothing about balance; it only makes the expected cells,
+thresholds and outcomes known exactly. The last test runs the real MJX rollout on a tiny
+configuration through the command line.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from mjx_balance import sweep
+from mjx_balance.metrics import OUTCOMES, SUMMARY_COLUMNS
+from mjx_balance.params import Config, ParameterError, config_from_dict, save_config
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+class FakeThresholdBatch:
+    """FAKE batch function for bookkeeping tests only: recovered iff |F| * T < c (else fell);
+    optionally also recovered for T in ``window`` (a non-monotone fake). Returns a dict of summary
+    columns with integer outcome codes, like BatchRunner.run. Counts calls; can raise on call k."""
+
+    def __init__(self, c: float = 30.0, window: tuple[float, float] | None = None,
+                 fail_on_call: int | None = None):
+        self.c, self.window, self.fail_on_call = c, window, fail_on_call
+        self.calls: list[int] = []
+
+    def recovered(self, forces, durations):
+        ok = np.abs(forces) * durations < self.c
+        if self.window is not None:
+            ok |= (durations >= self.window[0]) & (durations <= self.window[1])
+        return ok
+
+    def __call__(self, forces, durations):
+        if self.fail_on_call is not None and len(self.calls) + 1 == self.fail_on_call:
+            self.calls.append(-1)
+            raise KeyboardInterrupt("fake interruption")
+        self.calls.append(len(forces))
+        forces = np.asarray(forces, dtype=np.float32)  # like a float32 rollout
+        durations = np.asarray(durations, dtype=np.float32)
+        ok = self.recovered(forces.astype(np.float64), durations.astype(np.float64))
+        out = {c: np.zeros(forces.size) for c in SUMMARY_COLUMNS if c not in ("convention",)}
+        out["force"], out["duration"] = forces, durations
+        out["outcome"] = np.where(ok, 0, 2).astype(np.int32)
+        out["settle_time"] = np.where(ok, 1.0 + durations, np.nan)
+        out["fall_time"] = np.where(ok, np.nan, durations)
+        out["energy_ankle"] = np.abs(forces) * durations
+        out["energy_hip"] = 2 * np.abs(forces) * durations
+        out["energy_total"] = 3 * np.abs(forces) * durations
+        return out
+
+
+def tiny_config(**scenario) -> Config:
+    return Config().replace(scenario={"t_end": 2.0, **scenario})
+
+
+# --- grids -----------------------------------------------------------------------------------
+
+
+def test_parse_grid_ranges_include_stop_and_are_exact():
+    np.testing.assert_array_equal(sweep.parse_grid("0:1:0.1"), np.round(np.arange(11) * 0.1, 12))
+    assert sweep.parse_grid("0:1:0.1")[3] == 0.3
+    assert sweep.parse_grid("0:0.95:0.1")[-1] == 0.9
+    durations = sweep.parse_grid("0.05:10:0.05")
+    assert durations.size == 200 and durations[-1] == 10.0 and durations[0] == 0.05
+    assert sweep.parse_grid("0:150:2").size == 76
+    np.testing.assert_array_equal(sweep.parse_grid("-20:20:20"), [-20.0, 0.0, 20.0])
+    np.testing.assert_array_equal(sweep.parse_grid("50, -10,0"), [-10.0, 0.0, 50.0])
+    np.testing.assert_array_equal(sweep.parse_grid([5, 10]), [5.0, 10.0])
+    np.testing.assert_array_equal(sweep.parse_grid(7), [7.0])
+
+
+@pytest.mark.parametrize("spec, message", [
+    ("", "empty"), ("1:0:0.1", "empty"), ("0:1:0", "step"), ("0:1:-0.1", "step"),
+    ("0:1", "start:stop:step"), ("nan,1", "finite"), ("0:inf:1", "finite"), ("1,2,1", "more than once"),
+    ("a,b", "not a number"), ([], "empty"),
+])
+def test_parse_grid_errors(spec, message):
+    with pytest.raises(ParameterError, match=message):
+        sweep.parse_grid(spec, "forces")
+
+
+def test_duration_limits():
+    with pytest.raises(ParameterError, match=">= 0"):
+        sweep.check_durations(sweep.parse_grid("-0.1,0.1"), 12.0)
+    with pytest.raises(ParameterError, match="t_end"):
+        sweep.check_durations(sweep.parse_grid("0.1,12.5"), 12.0)
+    sweep.check_durations(sweep.parse_grid("0:12:0.1"), 12.0)  # t_end itself is allowed
+
+
+def test_bad_grid_fails_before_any_work(tmp_path):
+    fake = FakeThresholdBatch()
+    with pytest.raises(ParameterError, match="t_end"):
+        sweep.run_sweep(tmp_path / "out", tiny_config(), "0:10:5", "0.5,3", run_batch=fake,
+                        progress=False, log=None)
+    assert fake.calls == [] and not (tmp_path / "out").exists()
+
+
+# --- chunking --------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("n, size", [(1, 1), (10, 3), (160, 64), (256, 256), (257, 256)])
+def test_chunks_cover_every_cell_once(n, size):
+    size = sweep.balanced_chunk_size(n, size)
+    covered = np.concatenate([np.arange(n)[s] for s in sweep.chunk_slices(n, size)])
+    np.testing.assert_array_equal(covered, np.arange(n))
+
+
+def test_balanced_chunk_size_and_budget():
+    assert sweep.balanced_chunk_size(257, 256) == 129
+    assert sweep.balanced_chunk_size(100, 1000) == 100
+    config = Config()
+    assert 10_000 < sweep.scenario_bytes(config) < 10_000_000
+    assert 1 <= sweep.default_chunk_size(config, 5000) <= 5000
+
+
+# --- resumable sweep -------------------------------------------------------------------------
+
+
+GRID = ("-20:100:20", "0.1,0.5,1,1.5,2")  # 7 forces x 5 durations = 35 cells
+
+
+def sweep_fake(out, fake, chunk=8, config=None):
+    return sweep.run_sweep(out, config or tiny_config(), *GRID, run_batch=fake, chunk_size=chunk,
+                           progress=False, log=None)
+
+
+def test_sweep_every_cell_once_with_known_outcomes(tmp_path):
+    fake = FakeThresholdBatch()
+    result = sweep_fake(tmp_path, fake)
+    region = pd.read_parquet(tmp_path / "region.parquet")
+    assert list(region.columns[:len(SUMMARY_COLUMNS)]) == SUMMARY_COLUMNS
+    assert len(region) == 35 and not region.duplicated(["force", "duration"]).any()
+    assert fake.calls == [8] * 5  # every call padded to the chunk size
+    expected = np.where(fake.recovered(region["force"].to_numpy(), region["duration"].to_numpy()),
+                        "recovered", "fell")
+    np.testing.assert_array_equal(region["outcome"].to_numpy(), expected)
+    assert set(region["duration"]) == {0.1, 0.5, 1.0, 1.5, 2.0}  # exact values, not float32
+    assert (region["convention"] == "paper").all()
+    assert result.computed_chunks == 5 and not result.already_complete
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["version"] and manifest["region"]["cells"] == 35
+    assert (tmp_path / "config.toml").exists()
+
+
+def test_interrupted_sweep_resumes_to_the_same_region(tmp_path):
+    sweep_fake(tmp_path / "whole", FakeThresholdBatch())
+    with pytest.raises(KeyboardInterrupt):
+        sweep_fake(tmp_path / "cut", FakeThresholdBatch(fail_on_call=3))
+    assert len(list((tmp_path / "cut" / "chunks").glob("chunk-*.parquet"))) == 2
+    assert not list((tmp_path / "cut" / "chunks").glob("*.tmp"))
+    assert not (tmp_path / "cut" / "region.parquet").exists()
+    resumed = FakeThresholdBatch()
+    result = sweep_fake(tmp_path / "cut", resumed)
+    assert resumed.calls == [8] * 3 and result.reused_chunks == 2
+    pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "cut" / "region.parquet"),
+                                  pd.read_parquet(tmp_path / "whole" / "region.parquet"))
+
+
+def test_finished_sweep_rerun_does_nothing(tmp_path, capsys):
+    sweep_fake(tmp_path, FakeThresholdBatch())
+    idle = FakeThresholdBatch(fail_on_call=1)
+    result = sweep.run_sweep(tmp_path, tiny_config(), *GRID, run_batch=idle, progress=False)
+    assert result.already_complete and idle.calls == []
+    assert "nothing to do" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("damage", ["garbage", "truncated", "other_cells"])
+def test_damaged_chunk_is_recomputed_not_merged(tmp_path, damage):
+    sweep_fake(tmp_path, FakeThresholdBatch())
+    good = pd.read_parquet(tmp_path / "region.parquet")
+    (tmp_path / "region.parquet").unlink()
+    chunk = tmp_path / "chunks" / "chunk-00002.parquet"
+    if damage == "garbage":
+        chunk.write_bytes(b"PAR1 not really parquet")
+    elif damage == "truncated":
+        pd.read_parquet(chunk).iloc[:5].to_parquet(chunk)
+    else:
+        frame = pd.read_parquet(chunk)
+        frame["duration"] = frame["duration"] + 0.01
+        frame.to_parquet(chunk)
+    fake = FakeThresholdBatch()
+    result = sweep_fake(tmp_path, fake)
+    assert fake.calls == [8] and result.recomputed_chunks == 1
+    pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "region.parquet"), good)
+
+
+def test_damaged_region_file_is_rebuilt_from_chunks(tmp_path):
+    sweep_fake(tmp_path, FakeThresholdBatch())
+    good = pd.read_parquet(tmp_path / "region.parquet")
+    (tmp_path / "region.parquet").write_bytes(b"broken")
+    idle = FakeThresholdBatch(fail_on_call=1)
+    sweep_fake(tmp_path, idle)
+    assert idle.calls == []
+    pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "region.parquet"), good)
+
+
+def test_other_configuration_or_grid_is_refused(tmp_path):
+    sweep_fake(tmp_path, FakeThresholdBatch())
+    other = tiny_config().replace(controller={"horizon": 10})
+    with pytest.raises(ParameterError, match="different configuration.*controller.horizon"):
+        sweep_fake(tmp_path, FakeThresholdBatch(), config=other)
+    with pytest.raises(ParameterError, match="another grid"):
+        sweep.run_sweep(tmp_path, tiny_config(), "0:100:20", GRID[1], run_batch=FakeThresholdBatch(),
+                        progress=False, log=None)
+
+
+def test_resume_keeps_the_folders_chunk_size(tmp_path):
+    with pytest.raises(KeyboardInterrupt):
+        sweep_fake(tmp_path, FakeThresholdBatch(fail_on_call=2))
+    fake = FakeThresholdBatch()
+    sweep_fake(tmp_path, fake, chunk=100)
+    assert fake.calls == [8] * 4
+
+
+# --- max acting time -------------------------------------------------------------------------
+
+
+def expected_max_time(force, c, t_end, resolution=0.01):
+    steps = np.arange(1, int(round(t_end / resolution)) + 1)
+    ok = abs(force) * np.round(steps * resolution, 12) < c
+    return 0.0 if not ok[0] else float(np.round(steps[np.argmin(ok) - 1 if not ok.all() else -1]
+                                               * resolution, 12))
+
+
+def test_bisection_finds_the_fake_threshold_to_0_01_s():
+    config = Config()  # t_end = 12 s
+    forces = [1, 5, 10, 15, 20, 30, 40, 50, 60, 80, 100, 120, 4000]
+    fake = FakeThresholdBatch(c=30.0)
+    result = sweep.max_acting_time(forces, config, run_batch=fake, progress=False, log=None)
+    table = result.table.set_index("force")
+    for force in forces:
+        assert table.loc[force, "max_acting_time"] == pytest.approx(
+            expected_max_time(force, 30.0, 12.0), abs=1e-9), force
+    assert table["monotone"].all()
+    # Every call after the coarse scan is one batch of one midpoint per force.
+    n_coarse = sweep.coarse_steps(12.0, 0.01).size
+    assert fake.calls[0] == len(forces) * n_coarse
+    assert all(n == len(forces) for n in fake.calls[1:])
+    assert len(fake.calls) - 1 <= math.ceil(math.log2(400)) + 1
+    # Recovers up to t_end; fails at the shortest push; an ordinary force.
+    assert table.loc[1, "max_acting_time"] == 12.0 and table.loc[1, "ending_outcome"] == ""
+    assert "up to t_end" in table.loc[1, "note"]
+    assert table.loc[4000, "max_acting_time"] == 0.0 and "shortest push" in table.loc[4000, "note"]
+    assert math.isnan(table.loc[4000, "energy_total_max"])
+    row = table.loc[20]  # 20 N: 20 T < 30 -> T <= 1.49
+    assert row["max_acting_time"] == 1.49 and row["ending_outcome"] == "fell"
+    assert row["energy_total_01"] == pytest.approx(3 * 20 * 0.1, rel=1e-6)
+    assert row["energy_total_max"] == pytest.approx(3 * 20 * 1.49, rel=1e-6)
+    assert row["outcome_01"] == "recovered"
+    assert list(result.table.columns) == sweep.TABLE_COLUMNS
+    assert len(result.runs) == result.table["evaluations"].sum()  # padding dropped
+
+
+def test_bisection_flags_a_non_monotone_force():
+    fake = FakeThresholdBatch(c=30.0, window=(3.5, 4.5))  # fails from 1.5 s, recovers again at 4 s
+    result = sweep.max_acting_time([20, 5], Config(), run_batch=fake, progress=False, log=None)
+    table = result.table.set_index("force")
+    assert not table.loc[20, "monotone"]
+    assert table.loc[20, "recovered_beyond_failure"] == 4.0
+    assert table.loc[20, "max_acting_time"] == 1.49
+    assert "not monotone" in table.loc[20, "note"]
+    assert table.loc[5, "monotone"] and math.isnan(table.loc[5, "recovered_beyond_failure"])
+
+
+def test_negative_forces_in_the_table():
+    result = sweep.max_acting_time([-20, 20], Config(), run_batch=FakeThresholdBatch(),
+                                   progress=False, log=None)
+    assert list(result.table["max_acting_time"]) == [1.49, 1.49]
+
+
+def test_run_table_writes_and_skips_when_done(tmp_path, capsys):
+    fake = FakeThresholdBatch()
+    sweep.run_table(tmp_path, Config(), "20,50", run_batch=fake, progress=False)
+    table = pd.read_csv(tmp_path / "table.csv")
+    assert list(table["max_acting_time"]) == [1.49, 0.59]
+    assert (tmp_path / "table_runs.parquet").exists()
+    idle = FakeThresholdBatch(fail_on_call=1)
+    assert sweep.run_table(tmp_path, Config(), "20,50", run_batch=idle, progress=False) is None
+    assert "nothing to do" in capsys.readouterr().out
+
+
+# --- sweep definitions, figures, commands ----------------------------------------------------
+
+
+def test_sweep_definitions_load_and_default_matches_builtin():
+    for path in sorted((REPO / "sweeps").glob("*.toml")):
+        definition = sweep.load_sweep(path, Config())
+        assert definition.forces is not None or definition.table_forces is not None, path
+        for grid in (definition.forces, definition.table_forces):
+            if grid is not None:
+                sweep.parse_grid(grid)
+        if definition.durations is not None:
+            sweep.check_durations(sweep.parse_grid(definition.durations),
+                                  definition.config.scenario.t_end)
+    default = sweep.load_sweep(REPO / "sweeps" / "default.toml", Config())
+    assert (default.forces, default.durations, default.table_forces) == (
+        sweep.DEFAULT_SWEEP["forces"], sweep.DEFAULT_SWEEP["durations"],
+        sweep.DEFAULT_SWEEP["table_forces"])
+    joint = sweep.load_sweep(REPO / "sweeps" / "study_table_joint.toml", Config())
+    assert joint.config.controller.convention == "joint"
+
+
+def test_sweep_definition_errors(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[sweep]\nforce = "0:10:1"\n')
+    with pytest.raises(ParameterError, match="unknown key"):
+        sweep.load_sweep(bad, Config())
+    bad.write_text('[controller]\nhorizont = 3\n')
+    with pytest.raises(ParameterError, match="horizont"):
+        sweep.load_sweep(bad, Config())
+
+
+def test_figures_from_fake_results(tmp_path):
+    from mjx_balance import region_plots
+
+    sweep.run_sweep(tmp_path, Config(), "-20:120:10", "0.05:2:0.05",
+                    run_batch=FakeThresholdBatch(window=(1.5, 1.6)), progress=False, log=None)
+    region = pd.read_parquet(tmp_path / "region.parquet")
+    reference = pd.DataFrame({"force": [20, 50], "duration": [1.4, 0.55]})
+    for name, plot, kwargs in (("region.png", region_plots.plot_region, {"reference": reference}),
+                               ("energy.png", region_plots.plot_energy, {})):
+        plot(region, tmp_path / name, config=Config(), **kwargs)
+        assert (tmp_path / name).stat().st_size > 10_000
+    boundary = region_plots.recovery_boundary(region).set_index("force")
+    assert boundary.loc[30, "boundary"] == 0.95 and not boundary.loc[30, "monotone"]
+    assert boundary.loc[10, "boundary"] == 2.0 and boundary.loc[10, "monotone"]
+    result = sweep.max_acting_time([1, 5, 20, 50, 120, 4000], Config(),
+                                   run_batch=FakeThresholdBatch(), progress=False, log=None)
+    region_plots.plot_table(result.table, tmp_path / "table.png", config=Config())
+    assert (tmp_path / "table.png").stat().st_size > 10_000
+
+
+def test_reference_points_file(tmp_path):
+    from mjx_balance import region_plots
+
+    good = tmp_path / "points.csv"
+    good.write_text("force,duration\n20,1.4\n50,0.5\n")
+    assert len(region_plots.load_reference(good)) == 2
+    bad = tmp_path / "bad.csv"
+    bad.write_text("F,T\n1,2\n")
+    with pytest.raises(ParameterError, match="force, duration"):
+        region_plots.load_reference(bad)
+
+
+def test_default_sweep_command_writes_region_and_table(tmp_path, monkeypatch):
+    from mjx_balance.cli import main
+
+    monkeypatch.setattr(sweep, "default_batch", lambda config: FakeThresholdBatch())
+    out = tmp_path / "default"
+    assert main(["sweep", "--out", str(out)]) == 0
+    for name in ("region.parquet", "region.png", "energy.png", "table.csv", "table.png",
+                 "manifest.json", "config.toml"):
+        assert (out / name).exists(), name
+    region = pd.read_parquet(out / "region.parquet")
+    assert len(region) == (sweep.parse_grid(sweep.DEFAULT_SWEEP["forces"]).size
+                           * sweep.parse_grid(sweep.DEFAULT_SWEEP["durations"]).size)
+    monkeypatch.setattr(sweep, "default_batch", lambda config: FakeThresholdBatch(fail_on_call=1))
+    assert main(["sweep", "--out", str(out)]) == 0  # finished: nothing to do, no batch called
+    assert main(["sweep", "--out", str(out), "--convention", "joint"]) == 2  # other configuration
+    assert main(["sweep", "--forces", "0:10:5", "--durations", "0.1,20", "--out",
+                 str(tmp_path / "bad")]) == 2
+    assert not (tmp_path / "bad").exists()
+
+
+def test_cli_overrides_sweep_file(tmp_path, monkeypatch):
+    from mjx_balance.cli import main
+
+    monkeypatch.setattr(sweep, "default_batch", lambda config: FakeThresholdBatch())
+    definition = tmp_path / "s.toml"
+    definition.write_text('[scenario]\nt_end = 3.0\n[controller]\nconvention = "joint"\n'
+                          '[sweep]\nforces = "0:40:20"\ndurations = [0.5, 1.0]\ntable_forces = [10]\n')
+    out = tmp_path / "o"
+    assert main(["table", "--sweep", str(definition), "--forces", "20,40", "--out", str(out)]) == 0
+    table = pd.read_csv(out / "table.csv")
+    assert list(table["force"]) == [20, 40] and (table["convention"] == "joint").all()
+    assert json.loads((out / "manifest.json").read_text())["config"]["scenario"]["t_end"] == 3.0
+    assert main(["sweep", "--sweep", str(definition), "--durations", "0.25", "--out",
+                 str(tmp_path / "o2"), "--convention", "paper"]) == 0
+    region = pd.read_parquet(tmp_path / "o2" / "region.parquet")
+    assert list(region["duration"].unique()) == [0.25] and (region["convention"] == "paper").all()
+    assert (tmp_path / "o2" / "table.csv").exists()  # the sweep file's table_forces
+
+
+# --- end to end with the real rollout --------------------------------------------------------
+
+
+def test_cli_end_to_end_with_the_mjx_rollout(tmp_path):
+    """The real BatchRunner on a tiny configuration: a sweep of 4 cells and a table of 2 forces."""
+    pytest.importorskip("mjx_balance.rollout", reason="rollout.py not available")
+    from mjx_balance.cli import main
+
+    config = tmp_path / "tiny.toml"
+    save_config(config_from_dict({"scenario": {"t_end": 0.5}}), config)
+    out = tmp_path / "e2e"
+    assert main(["sweep", "--config", str(config), "--forces", "0,300", "--durations", "0.1,0.3",
+                 "--out", str(out)]) == 0
+    region = pd.read_parquet(out / "region.parquet")
+    assert len(region) == 4 and set(region["outcome"]) <= set(OUTCOMES)
+    assert (region.loc[region["force"] == 0, "outcome"] == "recovered").all()
+    assert (out / "region.png").exists() and (out / "energy.png").exists()
