@@ -261,6 +261,17 @@ def test_bisection_finds_the_fake_threshold_to_0_01_s():
     assert len(result.runs) == result.table["evaluations"].sum()  # padding dropped
 
 
+@pytest.mark.parametrize("k", [2, 3, 7])
+def test_k_section_finds_the_same_thresholds(k):
+    forces = [1, 5, 20, 50, 120, 4000]
+    fake = FakeThresholdBatch(c=30.0)
+    result = sweep.max_acting_time(forces, Config(), run_batch=fake, points_per_round=k,
+                                   progress=False, log=None)
+    expected = [expected_max_time(f, 30.0, 12.0) for f in forces]
+    np.testing.assert_allclose(result.table["max_acting_time"], expected, atol=1e-9)
+    assert all(n == len(forces) * k for n in fake.calls[1:])
+
+
 def test_bisection_flags_a_non_monotone_force():
     fake = FakeThresholdBatch(c=30.0, window=(3.5, 4.5))  # fails from 1.5 s, recovers again at 4 s
     result = sweep.max_acting_time([20, 5], Config(), run_batch=fake, progress=False, log=None)

@@ -244,6 +244,19 @@ def default_batch(config: Config) -> RunBatch:
     return BatchRunner(config).run_frame
 
 
+class LazyBatch:
+    """The default batch function, built on its first call (a finished sweep builds nothing)."""
+
+    def __init__(self, config: Config):
+        self.config = config
+        self._run: RunBatch | None = None
+
+    def __call__(self, forces: np.ndarray, durations: np.ndarray):
+        if self._run is None:
+            self._run = default_batch(self.config)
+        return self._run(forces, durations)
+
+
 def evaluate(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarray, config: Config,
              pad_to: int | None = None) -> pd.DataFrame:
     """Summary rows for the scenarios (forces[i], durations[i]), in order.
@@ -599,7 +612,8 @@ def coarse_steps(t_end: float, resolution: float,
 
 def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, *,
                     run_batch: RunBatch | None = None, resolution: float = 0.01,
-                    coarse: Iterable[float] = COARSE_DURATIONS, progress: bool = True,
+                    coarse: Iterable[float] = COARSE_DURATIONS, points_per_round: int = 1,
+                    progress: bool = True,
                     log: Callable[[str], None] | None = print) -> TableResult:
     """Max acting time of every force (SPEC §4): the largest T, a multiple of ``resolution`` in
     [0, t_end], such that the push (F, T) recovers and so does every duration tried below it.
@@ -612,6 +626,9 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
     2. Bisection: every round evaluates the midpoint of each force's bracket, all forces in one
        batch of a fixed size, until every bracket is one resolution step wide. This assumes
        monotone recovery inside a bracket (the coarse scan found no exception there).
+       ``points_per_round = k > 1`` evaluates k evenly spaced points per bracket per round
+       instead (k-section: fewer, larger batches; worth it where a batch of n_f * k scenarios
+       costs about as much as one of n_f, as on a GPU).
 
     A force whose shortest push (one resolution step) fails gets max_acting_time 0; one that
     recovers up to t_end gets t_end and no ending outcome. The energies "_01" are at T = 0.1 s
@@ -623,6 +640,8 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
     t_end = config.scenario.t_end
     if not resolution > 0:
         raise ParameterError(f"resolution must be > 0, got {resolution}")
+    if not (isinstance(points_per_round, int) and points_per_round >= 1):
+        raise ParameterError(f"points_per_round must be an integer >= 1, got {points_per_round!r}")
     steps = coarse_steps(t_end, resolution, coarse)
     n_max = int(math.floor(t_end / resolution + 1e-9))
     run_batch = run_batch or default_batch(config)
@@ -662,24 +681,39 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
                     monotone[i] = False
                     beyond[i] = steps[j + 1 + later[-1]] * resolution
 
-        # 2. Bisection, one batch per round, fixed batch size n_f.
+        # 2. Bisection (k-section for points_per_round = k > 1): one batch per round, of the
+        #    fixed size n_f * k; a force's bracket (lo, hi) shrinks to the gap around its first
+        #    failing point.
+        k_points = int(points_per_round)
         for _round in range(64):
             active = np.flatnonzero((hi - lo > 1) & (hi <= n_max))
             if active.size == 0:
                 break
-            mid = (lo[active] + hi[active]) // 2
-            frame = evaluate(run_batch, forces[active], np.round(mid * resolution, 12), config,
-                             pad_to=n_f)
+            owner, points = [], []
+            for i in active:
+                split = lo[i] + (hi[i] - lo[i]) * np.arange(1, k_points + 1) // (k_points + 1)
+                split = np.unique(split[(split > lo[i]) & (split < hi[i])])
+                owner += [i] * split.size
+                points += split.tolist()
+            owner, points = np.asarray(owner), np.asarray(points, dtype=np.int64)
+            frame = evaluate(run_batch, forces[owner], np.round(points * resolution, 12), config,
+                             pad_to=n_f * k_points)
             runs.append(frame)
-            bar.update(active.size)
+            bar.update(points.size)
             ok = frame["outcome"].to_numpy() == RECOVERED
-            for k, i in enumerate(active):
-                row = frame.iloc[k].to_dict()
-                evaluations[i] += 1
-                if ok[k]:
-                    lo[i], lo_row[i] = mid[k], row
+            rows = frame.to_dict("records")
+            for i in active:
+                mine = np.flatnonzero(owner == i)  # ascending durations
+                evaluations[i] += mine.size
+                failing = mine[~ok[mine]]
+                if failing.size:
+                    first = failing[0]
+                    hi[i], hi_row[i] = points[first], rows[first]
+                    below = mine[mine < first]
                 else:
-                    hi[i], hi_row[i] = mid[k], row
+                    below = mine
+                if below.size:
+                    lo[i], lo_row[i] = points[below[-1]], rows[below[-1]]
         else:  # pragma: no cover - the bracket halves every round
             raise RuntimeError("bisection did not converge")
     finally:
@@ -854,10 +888,7 @@ def sweep_command(args: Any) -> int:
               f"table forces {DEFAULT_SWEEP['table_forces']} N)")
 
     out = Path(args.out)
-    run_batch = None
-    if not _region_done(out, forces, durations) or (
-            table_forces is not None and not _table_done(out, table_forces)):
-        run_batch = default_batch(config)
+    run_batch = LazyBatch(config)  # built (and compiled) only if a scenario must run
     result = run_sweep(out, config, forces, durations, run_batch=run_batch, chunk_size=chunk)
     _make_region_figures(out, result.region, config, reference, force=not result.already_complete)
     if table_forces is not None:
@@ -879,25 +910,9 @@ def table_command(args: Any) -> int:
         forces = list(STUDY_TABLE_FORCES)
     forces = parse_grid(forces, "forces")
     out = Path(args.out)
-    table = run_table(out, config, forces)
+    table = run_table(out, config, forces, run_batch=LazyBatch(config))
     _make_table_figure(out, config, force=table is not None)
     return 0
-
-
-def _region_done(out: Path, forces: np.ndarray, durations: np.ndarray) -> bool:
-    try:
-        region = pd.read_parquet(out / REGION)
-        _check_region(region, forces, durations)
-        return True
-    except Exception:  # noqa: BLE001
-        return False
-
-
-def _table_done(out: Path, forces: np.ndarray) -> bool:
-    try:
-        return _same_values(pd.read_csv(out / TABLE)["force"], forces)
-    except Exception:  # noqa: BLE001
-        return False
 
 
 def _make_region_figures(out: Path, region: pd.DataFrame, config: Config,
