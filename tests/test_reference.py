@@ -168,3 +168,16 @@ def test_settle_time_and_saturation():
     assert metrics.OUTCOMES[metrics.classify(True, True, True)] == "diverged"
     assert metrics.OUTCOMES[metrics.classify(False, True, True)] == "fell"
     assert metrics.OUTCOMES[metrics.classify(False, False, False)] == "not_settled"
+
+
+@pytest.mark.parametrize("scenario", [{"push_body": "hip"}, {"controller_delay": 0.02}],
+                         ids=["push_at_hip", "controller_delay"])
+def test_scenario_variants_run(scenario):
+    config = Config().replace(scenario={"t_end": 1.0, **scenario})
+    base, _ = simulate_scenario(Config().replace(scenario={"t_end": 1.0}), 40.0, 0.1)
+    summary, frame = simulate_scenario(config, 40.0, 0.1)
+    assert summary["outcome"] in metrics.OUTCOMES and summary["outcome"] != "diverged"
+    assert len(frame) == 500
+    assert summary["peak_ankle"] != base["peak_ankle"]  # the variant changes the run
+    if "push_body" in scenario:  # same force lower down: less lean
+        assert summary["peak_hip"] < base["peak_hip"]
