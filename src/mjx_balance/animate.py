@@ -98,6 +98,7 @@ def animate_timeseries(ts: pd.DataFrame, out: str | Path, body: BodyParams = Bod
         title.set_text(f"F = {force:g} N for {duration:g} s    t = {times[i]:5.2f} s")
         return foot_line, body_line, cop_dot, com_dot, arrow, title
 
+    fig.tight_layout()
     anim = FuncAnimation(fig, draw, frames=len(times), blit=False)
     out.parent.mkdir(parents=True, exist_ok=True)
     anim.save(out, writer=PillowWriter(fps=fps), dpi=dpi)
