@@ -5,11 +5,16 @@ computes is checked against this module.
 
 Timing (shared definitions). Physics step dt = scenario.physics_dt, control period
 scenario.control_dt, substeps = control_dt / dt. At each control instant t_k = k control_dt the
-controller measures the joint state (``controller_delay`` earlier if set), converts it to the
-convention state, solves the condensed QP (``qp.py``) and holds the first input, clipped to its
-bounds, as motor torques for ``substeps`` physics steps. The push (force along x on the upper
-body's CoM, or at the hip) acts during physics steps i < ceil(T / dt - 1e-9). The run starts at
-upright rest and stops at the first fall sample or non-finite value (see ``metrics.py``).
+controller measures the joint state, converts it to the convention state, solves the condensed
+QP (``qp.py``) and holds the first input, clipped to its bounds, as motor torques for
+``substeps`` physics steps. The push (force along x, see ``push_wrench``) acts during physics
+steps i < ceil(T / dt - 1e-9). The run starts at upright rest and stops at the first fall sample
+or non-finite value (see ``metrics.py``).
+
+Sensorimotor delay (scenario.controller_delay = D, d = D / dt physics steps): the controller at
+t_k sees the joint state (q_a, q_h, dq_a, dq_h) of time t_k - D, i.e. the state after physics
+step k * substeps - d; before t = 0 that is the initial upright rest state. The plant, the push
+and the metrics run undelayed; d = 0 is the undelayed loop.
 """
 
 from __future__ import annotations
@@ -109,6 +114,24 @@ class ReferenceMPC:
         return self.qp.clip_input(z[:2]), z, bool(status_ok), prim_res
 
 
+def push_wrench(data: mujoco.MjData, upper: int, force: float, push_body: str) -> np.ndarray:
+    """The push as ``xfrc_applied`` of the upper body [6] (force, torque; MuJoCo applies it at
+    the body's CoM ``xipos``), from the current kinematics in ``data``.
+
+    "upper": force (F, 0, 0) at the upper body's CoM, no torque. "hip": the same force at the
+    hip joint point (the upper body's frame origin ``xpos``), i.e. force F plus the moment
+    (xpos - xipos) x F about the CoM. A force through the hip axis does no work on the hip
+    joint, so applying it to the upper or to the lower body there is the same generalised force.
+    """
+    wrench = np.zeros(6)
+    wrench[0] = force
+    if push_body == "hip":
+        wrench[3:] = np.cross(data.xpos[upper] - data.xipos[upper], wrench[:3])
+    elif push_body != "upper":
+        raise ValueError(f"push_body must be 'upper' or 'hip', got {push_body!r}")
+    return wrench
+
+
 @functools.lru_cache(maxsize=8)
 def _mpc(controller: ControllerParams, body, control_dt: float) -> ReferenceMPC:
     return ReferenceMPC(build_qp(controller, body, control_dt), controller)
@@ -142,7 +165,6 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
     n_push = math.ceil(duration / dt - 1e-9)
     joints_q = [ix.ankle_qpos, ix.hip_qpos]
     joints_v = [ix.ankle_dof, ix.hip_dof]
-    push = np.array([force, 0.0, 0.0])
     upper = ix.upper_body
 
     # sample buffers (index i: after physics step i)
@@ -184,12 +206,8 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
         data.ctrl[:] = torques
         for j in range(substeps):
             i = k * substeps + j
-            data.xfrc_applied[upper] = 0.0
-            if i < n_push:
-                data.xfrc_applied[upper, :3] = push
-                if sc.push_body == "hip":  # force at the hip joint = force + moment at the CoM
-                    data.xfrc_applied[upper, 3:] = np.cross(data.xpos[upper] - data.xipos[upper],
-                                                            push)
+            push = push_wrench(data, upper, force, sc.push_body) if i < n_push else 0.0
+            data.xfrc_applied[upper] = push
             mujoco.mj_step(model, data)
             # positions at t = (i+1) dt; contacts/forces stay those of step i
             mujoco.mj_kinematics(model, data)
