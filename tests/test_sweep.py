@@ -272,6 +272,27 @@ def test_k_section_finds_the_same_thresholds(k):
     assert all(n == len(forces) * k for n in fake.calls[1:])
 
 
+@pytest.mark.parametrize("batch", [8, 32, 64])
+def test_table_in_batches_of_one_size(batch):
+    forces = [1, 5, 20, 50, 120, 4000]
+    fake = FakeThresholdBatch(c=30.0)
+    result = sweep.max_acting_time(forces, Config(), run_batch=fake, batch=batch, progress=False,
+                                   log=None)
+    expected = [expected_max_time(f, 30.0, 12.0) for f in forces]
+    np.testing.assert_allclose(result.table["max_acting_time"], expected, atol=1e-9)
+    assert set(fake.calls) == {batch}
+
+
+def test_power_of_two_chunks():
+    assert sweep.power_of_two_chunk(160, 256) == 64  # 3 x 64: 20 % padding, < 25 %
+    assert sweep.power_of_two_chunk(160, 256, waste=0.1) == 32
+    assert sweep.power_of_two_chunk(256, 256) == 256
+    assert sweep.power_of_two_chunk(5000, 256) == 256
+    assert sweep.power_of_two_chunk(3, 256) == 8
+    assert sweep.power_of_two_chunk(20, 256) == 32
+    assert sweep.power_of_two_chunk(15200, 16384) == 16384 or 15200 * 1.1 >= 16384
+
+
 def test_bisection_flags_a_non_monotone_force():
     fake = FakeThresholdBatch(c=30.0, window=(3.5, 4.5))  # fails from 1.5 s, recovers again at 4 s
     result = sweep.max_acting_time([20, 5], Config(), run_batch=fake, progress=False, log=None)
@@ -314,9 +335,9 @@ def test_sweep_definitions_load_and_default_matches_builtin():
             sweep.check_durations(sweep.parse_grid(definition.durations),
                                   definition.config.scenario.t_end)
     default = sweep.load_sweep(REPO / "sweeps" / "default.toml", Config())
-    assert (default.forces, default.durations, default.table_forces) == (
+    assert (default.forces, default.durations, default.table_forces, default.chunk) == (
         sweep.DEFAULT_SWEEP["forces"], sweep.DEFAULT_SWEEP["durations"],
-        sweep.DEFAULT_SWEEP["table_forces"])
+        sweep.DEFAULT_SWEEP["table_forces"], sweep.DEFAULT_SWEEP["chunk"])
     joint = sweep.load_sweep(REPO / "sweeps" / "study_table_joint.toml", Config())
     assert joint.config.controller.convention == "joint"
 

@@ -63,8 +63,9 @@ COARSE_DURATIONS = (0.01, 0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
 # region map and a short table that finish in a few minutes on a 2-core CPU.
 DEFAULT_SWEEP = {
     "forces": "0:150:10",
-    "durations": "0.05,0.1,0.15,0.2,0.3,0.4,0.5,0.75,1.0,1.5",
+    "durations": "0.05,0.1,0.15,0.2,0.3,0.5,1.0,1.5",
     "table_forces": "20,50,80,100,120",
+    "chunk": 64,
 }
 
 MANIFEST = "manifest.json"
@@ -205,18 +206,37 @@ def _is_cpu() -> bool:
         return True
 
 
-# On a CPU the throughput stops growing at a few hundred scenarios per batch, and a smaller chunk
-# shows progress sooner and loses less when interrupted.
-CPU_CHUNK_CAP = 256
+# On a CPU the throughput stops growing at about 64 scenarios per batch (2-core CPU, 12 s
+# scenarios: 14 simulated s/s at 8, 41 at 64, 34 at 256), and a smaller chunk shows progress
+# sooner and loses less when interrupted.
+CPU_CHUNK_CAP = 128
 ACCELERATOR_CHUNK_CAP = 16384
 
 
-def default_chunk_size(config: Config, n_cells: int) -> int:
-    """Scenarios per chunk from the memory budget, capped (see CPU_CHUNK_CAP) and balanced so
-    that all chunks are (nearly) the same size."""
+def batch_limit(config: Config) -> int:
+    """Most scenarios per batch call: what fits the memory budget, capped (CPU_CHUNK_CAP)."""
     fit = max(1, memory_budget() // scenario_bytes(config))
-    cap = CPU_CHUNK_CAP if _is_cpu() else ACCELERATOR_CHUNK_CAP
-    return balanced_chunk_size(n_cells, min(fit, cap))
+    return min(fit, CPU_CHUNK_CAP if _is_cpu() else ACCELERATOR_CHUNK_CAP)
+
+
+def default_chunk_size(config: Config, n_cells: int) -> int:
+    """Scenarios per chunk: a power of two within ``batch_limit`` (the rollout compiles one
+    function per power-of-two batch size and pads to it, and every chunk call is padded to the
+    chunk size, so one size is compiled and little is wasted), see ``power_of_two_chunk``."""
+    return power_of_two_chunk(n_cells, batch_limit(config))
+
+
+def power_of_two_chunk(n_cells: int, limit: int, minimum: int = 32, waste: float = 0.25) -> int:
+    """The largest power of two c (minimum <= c <= limit, as far as possible) whose chunks,
+    all padded to c, evaluate at most ``(1 + waste) * n_cells`` scenarios; if none does, the
+    one that wastes least."""
+    limit = max(1, int(limit))
+    sizes = [1 << e for e in range(0, max(1, limit).bit_length()) if (1 << e) <= limit]
+    small = 1 << max(3, math.ceil(math.log2(max(n_cells, 1))))  # a batch as small as the grid
+    sizes = [c for c in sizes if c >= min(minimum, small, sizes[-1])]
+    cost = {c: math.ceil(n_cells / c) * c for c in sizes}
+    good = [c for c in sizes if cost[c] <= (1 + waste) * n_cells]
+    return max(good) if good else min(sizes, key=lambda c: (cost[c], -c))
 
 
 def balanced_chunk_size(n_cells: int, limit: int) -> int:
@@ -255,6 +275,22 @@ class LazyBatch:
         if self._run is None:
             self._run = default_batch(self.config)
         return self._run(forces, durations)
+
+    def prepare(self, batch: int, log: Callable[[str], None] | None = print) -> None:
+        """Build the rollout and compile it for ``batch`` scenarios now (before a progress bar
+        starts, so that its rate and time left are those of the runs)."""
+        say = log or (lambda _msg: None)
+        start = time.perf_counter()
+        if self._run is None:
+            say("building the MJX rollout ...")
+            self._run = default_batch(self.config)
+        runner = getattr(self._run, "__self__", None)
+        if hasattr(runner, "compiled"):  # rollout.BatchRunner: one function per power of two
+            size = 1 << max(3, math.ceil(math.log2(max(batch, 1))))
+            if size not in getattr(runner, "_compiled_fns", {}):
+                say(f"compiling the rollout for batches of {size} scenarios ...")
+            runner.compiled(size)
+        say(f"rollout ready ({time.perf_counter() - start:.0f} s)")
 
 
 def evaluate(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarray, config: Config,
@@ -532,7 +568,9 @@ def run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np
         f"{len(slices)} chunks of {chunk_size}; convention {convention}; output {folder.path}")
 
     if todo:
-        run_batch = run_batch or default_batch(config)
+        run_batch = run_batch or LazyBatch(config)
+        if hasattr(run_batch, "prepare"):
+            run_batch.prepare(chunk_size, log=log)
         bar = _progress_bar(n_cells, n_cells - remaining, progress)
         try:
             for index in todo:
@@ -610,10 +648,27 @@ def coarse_steps(t_end: float, resolution: float,
     return np.array(sorted(s for s in steps if 1 <= s <= n_max), dtype=np.int64)
 
 
+def table_batch_size(config: Config, n_forces: int, resolution: float = 0.01) -> int:
+    """Default batch of the table: the coarse scan in one call (rounded up to a power of two,
+    as the rollout compiles), within ``batch_limit``."""
+    n = n_forces * coarse_steps(config.scenario.t_end, resolution).size
+    limit = batch_limit(config)
+    return min(1 << max(3, math.ceil(math.log2(max(n, 1)))), max(limit, n_forces))
+
+
+def _evaluate_batches(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarray,
+                      config: Config, batch: int | None) -> pd.DataFrame:
+    """``evaluate`` in calls of exactly ``batch`` scenarios (padded), or one call if None."""
+    if batch is None:
+        return evaluate(run_batch, forces, durations, config)
+    return pd.concat([evaluate(run_batch, forces[s], durations[s], config, pad_to=batch)
+                      for s in chunk_slices(forces.size, batch)], ignore_index=True)
+
+
 def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, *,
                     run_batch: RunBatch | None = None, resolution: float = 0.01,
-                    coarse: Iterable[float] = COARSE_DURATIONS, points_per_round: int = 1,
-                    progress: bool = True,
+                    coarse: Iterable[float] = COARSE_DURATIONS, batch: int | None = None,
+                    points_per_round: int | None = None, progress: bool = True,
                     log: Callable[[str], None] | None = print) -> TableResult:
     """Max acting time of every force (SPEC §4): the largest T, a multiple of ``resolution`` in
     [0, t_end], such that the push (F, T) recovers and so does every duration tried below it.
@@ -628,7 +683,12 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
        monotone recovery inside a bracket (the coarse scan found no exception there).
        ``points_per_round = k > 1`` evaluates k evenly spaced points per bracket per round
        instead (k-section: fewer, larger batches; worth it where a batch of n_f * k scenarios
-       costs about as much as one of n_f, as on a GPU).
+       costs about as much as one of n_f, as on a GPU, or to reuse a compiled batch size).
+
+    batch: if given, every call has exactly this many scenarios (padded, or split), so a
+    rollout compiles one function for the whole table; points_per_round then defaults to
+    max(1, batch // n_f). Without it, the coarse scan is one call of n_f * n_coarse and every
+    round one call of n_f * points_per_round (default 1: bisection).
 
     A force whose shortest push (one resolution step) fails gets max_acting_time 0; one that
     recovers up to t_end gets t_end and no ending outcome. The energies "_01" are at T = 0.1 s
@@ -640,22 +700,31 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
     t_end = config.scenario.t_end
     if not resolution > 0:
         raise ParameterError(f"resolution must be > 0, got {resolution}")
+    if batch is not None and not (isinstance(batch, int) and batch >= 1):
+        raise ParameterError(f"batch must be an integer >= 1, got {batch!r}")
+    if points_per_round is None:
+        points_per_round = max(1, batch // forces.size) if batch else 1
     if not (isinstance(points_per_round, int) and points_per_round >= 1):
         raise ParameterError(f"points_per_round must be an integer >= 1, got {points_per_round!r}")
     steps = coarse_steps(t_end, resolution, coarse)
     n_max = int(math.floor(t_end / resolution + 1e-9))
-    run_batch = run_batch or default_batch(config)
+    run_batch = run_batch or LazyBatch(config)
     n_f, n_c = forces.size, steps.size
-    rounds_cap = math.ceil(math.log2(max(2, int(np.diff(np.concatenate([[0], steps])).max())))) + 1
-    bar = _progress_bar(n_f * (n_c + rounds_cap), 0, progress)
-    say(f"table: {n_f} forces; coarse scan of {n_c} durations, then bisection to "
-        f"{resolution:g} s; convention {config.controller.convention}")
+    if hasattr(run_batch, "prepare"):
+        run_batch.prepare(batch or n_f * n_c, log=log)
+    widest = int(np.diff(np.concatenate([[0], steps])).max())
+    rounds = math.ceil(math.log(max(2, widest)) / math.log(points_per_round + 1))
+    bar = _progress_bar(n_f * (n_c + rounds * points_per_round), 0, progress)
+    say(f"table: {n_f} forces; coarse scan of {n_c} durations, then "
+        + ("bisection" if points_per_round == 1 else f"{points_per_round + 1}-section")
+        + f" to {resolution:g} s" + (f" in batches of {batch}" if batch else "")
+        + f"; convention {config.controller.convention}")
     runs: list[pd.DataFrame] = []
     try:
         # 1. Coarse scan, one batch.
         grid_f = np.repeat(forces, n_c)
         grid_d = np.tile(steps * resolution, n_f)
-        coarse_frame = evaluate(run_batch, grid_f, np.round(grid_d, 12), config)
+        coarse_frame = _evaluate_batches(run_batch, grid_f, np.round(grid_d, 12), config, batch)
         runs.append(coarse_frame)
         bar.update(n_f * n_c)
         recovered = (coarse_frame["outcome"].to_numpy() == RECOVERED).reshape(n_f, n_c)
@@ -696,8 +765,10 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
                 owner += [i] * split.size
                 points += split.tolist()
             owner, points = np.asarray(owner), np.asarray(points, dtype=np.int64)
-            frame = evaluate(run_batch, forces[owner], np.round(points * resolution, 12), config,
-                             pad_to=n_f * k_points)
+            durations = np.round(points * resolution, 12)
+            frame = (_evaluate_batches(run_batch, forces[owner], durations, config, batch)
+                     if batch else evaluate(run_batch, forces[owner], durations, config,
+                                            pad_to=n_f * k_points))
             runs.append(frame)
             bar.update(points.size)
             ok = frame["outcome"].to_numpy() == RECOVERED
@@ -869,7 +940,8 @@ def sweep_command(args: Any) -> int:
     use_default = args.sweep is None and args.forces is None and args.durations is None
     definition = load_sweep(args.sweep, _config_from_args(args))
     if args.sweep is None and not use_default:
-        definition.table_forces = None  # a grid from the command line: the region only
+        # A grid from the command line: the region only, chunk size from the memory budget.
+        definition.table_forces = definition.chunk = None
     config = _with_convention(definition.config, args.convention)
     forces = args.forces if args.forces is not None else (
         definition.forces if definition.forces is not None else DEFAULT_SWEEP["forces"])
@@ -892,7 +964,9 @@ def sweep_command(args: Any) -> int:
     result = run_sweep(out, config, forces, durations, run_batch=run_batch, chunk_size=chunk)
     _make_region_figures(out, result.region, config, reference, force=not result.already_complete)
     if table_forces is not None:
-        table = run_table(out, config, table_forces, run_batch=run_batch)
+        # The table in calls of the sweep's chunk size: the rollout compiled for it already.
+        chunk_used = json.loads((out / MANIFEST).read_text())["region"]["chunk_size"]
+        table = run_table(out, config, table_forces, run_batch=run_batch, batch=int(chunk_used))
         _make_table_figure(out, config, force=table is not None)
     return 0
 
@@ -910,7 +984,8 @@ def table_command(args: Any) -> int:
         forces = list(STUDY_TABLE_FORCES)
     forces = parse_grid(forces, "forces")
     out = Path(args.out)
-    table = run_table(out, config, forces, run_batch=LazyBatch(config))
+    table = run_table(out, config, forces, run_batch=LazyBatch(config),
+                      batch=table_batch_size(config, forces.size))
     _make_table_figure(out, config, force=table is not None)
     return 0
 
