@@ -22,6 +22,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
+from matplotlib.ticker import FuncFormatter  # noqa: E402
 
 from .metrics import OUTCOMES  # noqa: E402
 from .params import Config, ParameterError  # noqa: E402
@@ -208,7 +209,12 @@ def plot_table(table: pd.DataFrame, path: str | Path, *, config: Config | None =
     if zero.any():
         ax.plot(force[zero], np.full(zero.sum(), floor), "x", color="C3", ms=8,
                 label="fails at the shortest push (0.01 s)")
-    ax.set_yscale("log")
+    shown = tmax[np.isfinite(tmax) & (tmax > 0)]
+    if zero.any() or (shown.size and shown.max() / shown.min() > 30):
+        ax.set_yscale("log")  # from 0.01 s to t_end: a log axis keeps both ends readable
+        ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+    else:
+        ax.set_ylim(0, 1.1 * shown.max() if shown.size else 1.0)
     ax.set_xlabel("push force F [N]")
     ax.set_ylabel("max acting time [s]  (resolution 0.01 s)")
     ax.grid(True, which="both", alpha=0.3)
@@ -227,6 +233,7 @@ def plot_table(table: pd.DataFrame, path: str | Path, *, config: Config | None =
         if ok.any():
             ax2.plot(force[ok], values[ok], style, label=label)
     ax2.set_yscale("log")
+    ax2.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
     ax2.set_xlabel("push force F [N]")
     ax2.set_ylabel("joint energy [J]  (∫|τ·dq/dt| dt)")
     ax2.grid(True, which="both", alpha=0.3)
