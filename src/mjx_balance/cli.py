@@ -7,6 +7,7 @@ This module only parses arguments; each command's work lives beside the code it 
     sweep         sweep.sweep_command          force x duration region map (MJX + ADMM)
     table         sweep.table_command          max acting time per force (batched bisection)
     animate       animate.animate_command      stick-figure GIF of one push (reference simulation)
+    report        report.report_command        HTML report: the study's experiments and studies
 """
 
 from __future__ import annotations
@@ -79,6 +80,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--t-end", type=float, default=None, help="simulate only this long [s]")
     _common(p, out_help="output GIF file")
     p.set_defaults(target="mjx_balance.animate:animate_command")
+
+    p = sub.add_parser("report", help="HTML report: the study's experiments (both conventions) "
+                                      "and the studies beyond it, with their saved tables")
+    p.add_argument("--scale", choices=("tiny", "default", "dense"), default="default",
+                   help="tiny: 2 s runs on tiny grids (tests); default: the study's table and "
+                        "coarse region maps; dense: dense region maps (GPU)")
+    p.add_argument("--backend", choices=("mjx", "reference"), default=None,
+                   help="batch function of the table and region maps (default: mjx; tiny: reference)")
+    p.add_argument("--studies", default="all",
+                   help="comma list of studies (ankle_only, backward, delay, older_adult, "
+                        "push_height), 'all' or 'none'")
+    p.add_argument("--conventions", default=None, help="experiments' conventions (default: paper,joint)")
+    p.add_argument("--sweeps", default=None, help="folder of the study sweep definitions (default: sweeps/)")
+    p.add_argument("--html-only", action="store_true",
+                   help="redraw figures and report.html from the tables saved in --out")
+    _common(p, out_help="output folder (tables, figures, report.html)")
+    p.set_defaults(target="mjx_balance.report:report_command")
     return parser
 
 
