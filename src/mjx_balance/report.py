@@ -288,9 +288,6 @@ def run_report(out: str | Path, config: Config = Config(), plan: Plan = PLANS["d
 
 def weight_figure(weights: pd.DataFrame, convention: str):
     """Bar charts: ankle, hip and total energy for each Q (left) and each R (right) setting."""
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.4), layout="constrained")
@@ -324,9 +321,6 @@ def weight_figure(weights: pd.DataFrame, convention: str):
 
 def conventions_figure(tables: dict[str, pd.DataFrame]):
     """Max acting time against force, one line per convention."""
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 4.2), layout="constrained")
