@@ -427,16 +427,24 @@ def test_cli_overrides_sweep_file(tmp_path, monkeypatch):
 
 
 def test_cli_end_to_end_with_the_mjx_rollout(tmp_path):
-    """The real BatchRunner on a tiny configuration: a sweep of 4 cells and a table of 2 forces."""
+    """The real BatchRunner through the command line on a tiny configuration (t_end = 0.5 s):
+    a 2 x 2 region and a 2-force table, all in batches of 8 (one compiled batch size)."""
     pytest.importorskip("mjx_balance.rollout", reason="rollout.py not available")
     from mjx_balance.cli import main
 
-    config = tmp_path / "tiny.toml"
-    save_config(config_from_dict({"scenario": {"t_end": 0.5}}), config)
+    definition = tmp_path / "tiny.toml"
+    definition.write_text('[scenario]\nt_end = 0.5\n[sweep]\nforces = "0,300"\n'
+                          'durations = [0.1, 0.3]\ntable_forces = [0, 300]\n')
     out = tmp_path / "e2e"
-    assert main(["sweep", "--config", str(config), "--forces", "0,300", "--durations", "0.1,0.3",
-                 "--out", str(out)]) == 0
+    assert main(["sweep", "--sweep", str(definition), "--out", str(out)]) == 0
     region = pd.read_parquet(out / "region.parquet")
     assert len(region) == 4 and set(region["outcome"]) <= set(OUTCOMES)
     assert (region.loc[region["force"] == 0, "outcome"] == "recovered").all()
-    assert (out / "region.png").exists() and (out / "energy.png").exists()
+    assert (region.loc[region["force"] == 300, "outcome"] != "recovered").all()
+    assert json.loads((out / "manifest.json").read_text())["region"]["chunk_size"] == 8
+    table = pd.read_csv(out / "table.csv").set_index("force")
+    assert table.loc[0, "max_acting_time"] == 0.5  # no force: recovers up to t_end
+    assert 0 <= table.loc[300, "max_acting_time"] < 0.1
+    assert table.loc[300, "ending_outcome"] in OUTCOMES[1:]
+    for name in ("region.png", "energy.png", "table.png"):
+        assert (out / name).exists(), name

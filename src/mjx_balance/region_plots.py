@@ -198,8 +198,12 @@ def plot_table(table: pd.DataFrame, path: str | Path, *, config: Config | None =
     floor = 0.005
     ax.plot(force[np.isfinite(tmax) & ~zero], tmax[np.isfinite(tmax) & ~zero], "-", color="C0",
             lw=1, alpha=0.6)
-    ax.plot(force[regular & monotone], tmax[regular & monotone], "o", color="C0",
-            label="max acting time")
+    window = (table["ending_outcome"].astype(str) == "not_settled").to_numpy() & regular
+    ax.plot(force[regular & monotone & ~window], tmax[regular & monotone & ~window], "o",
+            color="C0", label="max acting time")
+    if (window & monotone).any():
+        ax.plot(force[window & monotone], tmax[window & monotone], "s", mfc="white", mec="C0",
+                mew=1.5, label="max acting time (longer pushes do not settle by t_end)")
     if (regular & ~monotone).any():
         ax.plot(force[regular & ~monotone], tmax[regular & ~monotone], "o", mfc="white", mec="C3",
                 mew=1.5, label="not monotone (recovers again later)")

@@ -714,11 +714,11 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
         run_batch.prepare(batch or n_f * n_c, log=log)
     widest = int(np.diff(np.concatenate([[0], steps])).max())
     rounds = math.ceil(math.log(max(2, widest)) / math.log(points_per_round + 1))
-    bar = _progress_bar(n_f * (n_c + rounds * points_per_round), 0, progress)
     say(f"table: {n_f} forces; coarse scan of {n_c} durations, then "
         + ("bisection" if points_per_round == 1 else f"{points_per_round + 1}-section")
         + f" to {resolution:g} s" + (f" in batches of {batch}" if batch else "")
         + f"; convention {config.controller.convention}")
+    bar = _progress_bar(n_f * (n_c + rounds * points_per_round), 0, progress)
     runs: list[pd.DataFrame] = []
     try:
         # 1. Coarse scan, one batch.
@@ -800,6 +800,9 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
             note = f"fails at the shortest push tried ({steps[0] * resolution:g} s)"
         elif hi[i] > n_max:
             note = f"recovers for every duration up to t_end = {t_end:g} s"
+        elif hi_row[i] is not None and hi_row[i]["outcome"] == "not_settled":
+            note = (f"a longer push does not fall but is not settled by t_end = {t_end:g} s "
+                    "(limited by the time window)")
         if not monotone[i]:
             note = (note + "; " if note else "") + (
                 f"not monotone: fails at {hi[i] * resolution:g} s but recovers again at "
