@@ -27,6 +27,7 @@ import base64
 import dataclasses
 import html
 import json
+import shutil
 import sys
 import time
 from dataclasses import dataclass
@@ -56,6 +57,7 @@ class Plan:
     backend: str = "mjx"
     t_end: float | None = None  # override scenario.t_end
     osqp_max_iter: int | None = None  # override controller.osqp_max_iter (reference solver)
+    osqp_eps: float | None = None  # override controller.osqp_eps
     timeseries_forces: tuple[float, ...] = (0, 20, 50, 80, 100, 120)
     push_duration: float = 0.1
     weight_force: float = 100.0
@@ -71,12 +73,12 @@ class Plan:
 
 PLANS = {
     # For tests and a first look: 2 s scenarios, few forces, scalar reference loop.
-    "tiny": Plan("tiny", backend="reference", t_end=2.0, osqp_max_iter=400,
+    "tiny": Plan("tiny", backend="reference", t_end=2.0, osqp_max_iter=200, osqp_eps=1e-6,
                  timeseries_forces=(0, 50, 120), q_scales=(1e3, 1e5, 1e7),
                  r_scales=(1e-4, 1e-6, 1e-8), table_forces=(20, 100),
                  region_forces="0:120:60", region_durations="0.05,0.2",
-                 study_forces="0:120:120", study_durations="0.05,0.2",
-                 backward_forces="-120:120:120"),
+                 study_forces="0:120:60", study_durations="0.05,0.2",
+                 backward_forces="-120:120:60"),
     # The study's experiments (table forces, six time series), coarse region maps.
     "default": Plan("default"),
     # The dense region maps of sweeps/region_dense_*.toml (meant for a GPU).
@@ -116,6 +118,32 @@ def batch_function(config: Config, backend: str):
     raise ParameterError(f"backend must be 'mjx' or 'reference', got {backend!r}")
 
 
+class _Batches:
+    """One batch function per configuration (an MJX runner compiles once per configuration and
+    batch size), and the region maps already computed, by (configuration, grid)."""
+
+    def __init__(self, backend: str):
+        self.backend = backend
+        self._runs: dict[Config, Any] = {}
+        self._regions: dict[tuple, Path] = {}
+
+    def __call__(self, config: Config):
+        if config not in self._runs:
+            self._runs[config] = batch_function(config, self.backend)
+        return self._runs[config]
+
+    def sweep(self, folder: Path, config: Config, forces: np.ndarray, durations: np.ndarray,
+              chunk: int, quiet: bool) -> None:
+        """run_sweep, or a copy of an identical sweep made earlier in this report."""
+        key = (config, tuple(forces), tuple(durations))
+        done = self._regions.get(key)
+        if done is not None and not (folder / "region.parquet").exists():
+            shutil.copytree(done, folder, dirs_exist_ok=True)
+        run_sweep(folder, config, forces, durations, run_batch=self(config), chunk_size=chunk,
+                  progress=not quiet, log=None if quiet else print)
+        self._regions.setdefault(key, folder)
+
+
 def _chunk(config: Config, backend: str, n_cells: int) -> int:
     return 8 if backend == "reference" else default_chunk_size(config, n_cells)
 
@@ -127,7 +155,8 @@ def _chunk(config: Config, backend: str, n_cells: int) -> int:
 def plan_config(config: Config, plan: Plan) -> Config:
     """The base configuration with the plan's overrides."""
     scenario = {"t_end": plan.t_end} if plan.t_end is not None else {}
-    controller = {"osqp_max_iter": plan.osqp_max_iter} if plan.osqp_max_iter is not None else {}
+    controller = {key: getattr(plan, key) for key in ("osqp_max_iter", "osqp_eps")
+                  if getattr(plan, key) is not None}
     return config.replace(scenario=scenario, controller=controller)
 
 
@@ -216,6 +245,11 @@ def run_report(out: str | Path, config: Config = Config(), plan: Plan = PLANS["d
     n_variants = sum(len(s.variants) for s in study_list)
     log = _Log(4 * len(conventions) + n_variants, quiet)
     sweep_log = None if quiet else print
+    batches = _Batches(backend)
+    forces = parse_grid(plan.region_forces, "region forces")
+    durations = parse_grid(plan.region_durations, "region durations")
+    # One batch size for every sweep and table: the MJX runner compiles once per configuration.
+    chunk = _chunk(config, backend, forces.size * durations.size)
     from .reference import simulate_many
 
     for convention in conventions:
@@ -242,15 +276,10 @@ def run_report(out: str | Path, config: Config = Config(), plan: Plan = PLANS["d
                lambda cfg=cfg, folder=folder: run_weights(cfg, plan).to_csv(
                    folder / "weights.csv", index=False))
 
-        run_batch = batch_function(cfg, backend)
-        forces = parse_grid(plan.region_forces, "region forces")
-        durations = parse_grid(plan.region_durations, "region durations")
-        chunk = _chunk(cfg, backend, forces.size * durations.size)
         log.stage(f"{convention}: region map, {forces.size} x {durations.size} cells ({backend})")
-        run_sweep(folder / "region", cfg, forces, durations, run_batch=run_batch,
-                  chunk_size=chunk, progress=not quiet, log=sweep_log)
+        batches.sweep(folder / "region", cfg, forces, durations, chunk, quiet)
         log.stage(f"{convention}: robustness table, {len(plan.table_forces)} forces ({backend})")
-        run_table(folder / "table", cfg, list(plan.table_forces), run_batch=run_batch,
+        run_table(folder / "table", cfg, list(plan.table_forces), run_batch=batches(cfg),
                   batch=None if backend == "reference" else chunk, progress=not quiet,
                   log=sweep_log)
 
@@ -260,14 +289,12 @@ def run_report(out: str | Path, config: Config = Config(), plan: Plan = PLANS["d
             definition = studies.variant_definition(st, variant, config, sweeps)
             grid_f = (plan.backward_forces if st.signed else plan.study_forces) or definition.forces
             grid_d = plan.study_durations or definition.durations
-            forces = parse_grid(grid_f, "study forces")
-            durations = parse_grid(grid_d, "study durations")
+            study_f = parse_grid(grid_f, "study forces")
+            study_d = parse_grid(grid_d, "study durations")
             vcfg = definition.config
-            log.stage(f"study {st.key}: {variant.label}, {forces.size} x {durations.size} cells")
-            folder = out / "studies" / st.key / variant.key
-            run_sweep(folder, vcfg, forces, durations, run_batch=batch_function(vcfg, backend),
-                      chunk_size=_chunk(vcfg, backend, forces.size * durations.size),
-                      progress=not quiet, log=sweep_log)
+            log.stage(f"study {st.key}: {variant.label}, {study_f.size} x {study_d.size} cells")
+            batches.sweep(out / "studies" / st.key / variant.key, vcfg, study_f, study_d, chunk,
+                          quiet)
             entry["variants"].append({"key": variant.key, "label": variant.label,
                                       "file": variant.file, "config": vcfg.to_dict()})
         regions = {v["key"]: pd.read_parquet(out / "studies" / st.key / v["key"] / "region.parquet")
