@@ -290,7 +290,9 @@ class LazyBatch:
             if size not in getattr(runner, "_compiled_fns", {}):
                 say(f"compiling the rollout for batches of {size} scenarios ...")
             runner.compiled(size)
-        say(f"rollout ready ({time.perf_counter() - start:.0f} s)")
+        seconds = time.perf_counter() - start
+        if seconds > 1:
+            say(f"rollout ready ({seconds:.0f} s)")
 
 
 def evaluate(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarray, config: Config,
@@ -787,6 +789,9 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
                     lo[i], lo_row[i] = points[below[-1]], rows[below[-1]]
         else:  # pragma: no cover - the bracket halves every round
             raise RuntimeError("bisection did not converge")
+        if not isinstance(bar, _NoBar):
+            bar.total = bar.n  # the round count was an upper estimate
+            bar.refresh()
     finally:
         bar.close()
 
