@@ -133,7 +133,8 @@ def test_region_area_and_reading():
     table = studies.compare({"a": base, "b": var}, {"a": "ankle–hip (base)", "b": "ankle only"})
     assert list(table.lost_cells) == [0, 2]
     text = studies.reading(studies.study("ankle_only"), table, base)
-    assert "shrinks the area to 4.75 N·s" in text and "The hip adds +1.25 N·s" in text
+    assert "Ankle only: 4.75 N·s, 1.25 N·s smaller (-1.25 N·s, -21%)" in text
+    assert "The hip adds +1.25 N·s" in text and "2 lost" in text
     signed = _region({**{(-f, d): o for (f, d), o in weaker.items()}, **grid})
     halves = studies.signed_halves(signed)
     assert list(halves.variant) == ["backward", "forward"]

@@ -203,13 +203,17 @@ def _grid_text(region: pd.DataFrame) -> str:
 
 
 def _fmax(value: float) -> str:
-    return f"{value:g} N" if np.isfinite(value) else "no force"
+    if not np.isfinite(value):
+        return "no force"
+    return "F = 0 only (no push)" if value == 0 else f"{value:g} N"
 
 
-def _change_word(change: float, scale: float) -> str:
+def _change_text(change: float, relative: float, scale: float) -> str:
     if abs(change) <= 1e-9 * max(scale, 1.0):
-        return "leaves the area unchanged"
-    return "grows the area" if change > 0 else "shrinks the area"
+        return "unchanged"
+    word = "larger" if change > 0 else "smaller"
+    rel = f", {relative:+.0%}" if np.isfinite(relative) else ""
+    return f"{abs(change):.3g} N·s {word} ({change:+.3g} N·s{rel})"
 
 
 def reading(st: Study, numbers: pd.DataFrame, region: pd.DataFrame) -> str:
@@ -230,17 +234,14 @@ def reading(st: Study, numbers: pd.DataFrame, region: pd.DataFrame) -> str:
             f"Mirrored cell by cell, {back['gained_cells']} (|F|, T) cells recover only backward "
             f"and {back['lost_cells']} only forward.")
     base = rows[0]
-    text = (f"On {grid}, the {base['label']} recovers {base['area']:.3g} N·s "
+    text = (f"On {grid}, the base variant ({base['label'].replace(' (base)', '')}) recovers {base['area']:.3g} N·s "
             f"({base['fraction']:.0%} of the grid, {base['recovered_cells']} of {base['cells']} "
             f"cells; at T = {t_ref:g} s up to {_fmax(base['f_max_ref'])}).")
     for row in rows[1:]:
-        rel = row["relative_change"]
-        text += (f" {row['label'][0].upper() + row['label'][1:]} "
-                 f"{_change_word(row['area_change'], base['area'])} to {row['area']:.3g} N·s "
-                 f"({row['area_change']:+.3g} N·s"
-                 + (f", {rel:+.0%}" if np.isfinite(rel) else "")
-                 + f"; at T = {t_ref:g} s up to {_fmax(row['f_max_ref'])}; "
-                 f"{row['gained_cells']} cells gained, {row['lost_cells']} lost).")
+        text += (f" {row['label'][0].upper() + row['label'][1:]}: {row['area']:.3g} N·s, "
+                 f"{_change_text(row['area_change'], row['relative_change'], base['area'])}; "
+                 f"at T = {t_ref:g} s up to {_fmax(row['f_max_ref'])}; "
+                 f"{row['gained_cells']} cells gained, {row['lost_cells']} lost.")
     if st.key == "ankle_only" and len(rows) == 2:
         added = base["area"] - rows[1]["area"]
         text += f" The hip adds {added:+.3g} N·s to the ankle-only region."
