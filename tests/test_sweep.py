@@ -110,14 +110,11 @@ def test_bad_grid_fails_before_any_work(tmp_path):
 
 @pytest.mark.parametrize("n, size", [(1, 1), (10, 3), (160, 64), (256, 256), (257, 256)])
 def test_chunks_cover_every_cell_once(n, size):
-    size = sweep.balanced_chunk_size(n, size)
     covered = np.concatenate([np.arange(n)[s] for s in sweep.chunk_slices(n, size)])
     np.testing.assert_array_equal(covered, np.arange(n))
 
 
-def test_balanced_chunk_size_and_budget():
-    assert sweep.balanced_chunk_size(257, 256) == 129
-    assert sweep.balanced_chunk_size(100, 1000) == 100
+def test_memory_budget_and_chunk_size():
     config = Config()
     assert 10_000 < sweep.scenario_bytes(config) < 10_000_000
     assert 1 <= sweep.default_chunk_size(config, 5000) <= 5000

@@ -14,7 +14,8 @@ with outcome strings or a dict of columns with integer outcome codes). By defaul
 bookkeeping (chunking, resume, bisection) can be tested with a cheap stand-in.
 
 The region sweep is resumable. The grid (force-major: all durations of the first force, then the
-next force) is split into chunks of equal size; each chunk is written to
+next force) is split into chunks of one size (a power of two that fits the memory budget; every
+call padded to it, so the rollout compiles one function); each chunk is written to
 ``DIR/chunks/chunk-NNNNN.parquet`` atomically (temporary file in the same folder, then
 ``os.replace``), so a chunk file is either complete or absent. On restart, chunk files that read
 back with exactly their cells are kept and the others (damaged, partial, from another grid) are
@@ -25,7 +26,13 @@ grid is refused.
 The table uses a batched bisection: one coarse scan of durations for all forces in one batch
 (it brackets the max acting time and checks that recovery is monotone in duration), then rounds
 that each evaluate one midpoint per force, all forces in one batch, until the bracket is one
-``resolution`` step wide.
+``resolution`` step wide. Given a fixed batch size (the commands use one), each round evaluates
+several points per bracket instead (k-section), so every call has that size.
+
+Commands: ``sweep_command`` (region.parquet, region.png, energy.png; with no grid given, the
+built-in DEFAULT_SWEEP, which also writes the table) and ``table_command`` (table.csv,
+table.png). A sweep definition (sweeps/*.toml) holds [body]/[controller]/[scenario] overrides
+and a [sweep] table; the command line overrides both.
 """
 
 from __future__ import annotations
@@ -237,13 +244,6 @@ def power_of_two_chunk(n_cells: int, limit: int, minimum: int = 32, waste: float
     cost = {c: math.ceil(n_cells / c) * c for c in sizes}
     good = [c for c in sizes if cost[c] <= (1 + waste) * n_cells]
     return max(good) if good else min(sizes, key=lambda c: (cost[c], -c))
-
-
-def balanced_chunk_size(n_cells: int, limit: int) -> int:
-    """The smallest chunk size <= limit that splits n_cells into as few chunks as limit does."""
-    limit = max(1, int(limit))
-    n_chunks = max(1, math.ceil(n_cells / limit))
-    return math.ceil(n_cells / n_chunks)
 
 
 def chunk_slices(n_cells: int, chunk_size: int) -> list[slice]:
