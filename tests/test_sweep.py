@@ -413,8 +413,10 @@ def test_cli_overrides_sweep_file(tmp_path, monkeypatch):
     table = pd.read_csv(out / "table.csv")
     assert list(table["force"]) == [20, 40] and (table["convention"] == "joint").all()
     assert json.loads((out / "manifest.json").read_text())["config"]["scenario"]["t_end"] == 3.0
+    points = tmp_path / "points.csv"
+    points.write_text("force,duration\n20,0.25\n")
     assert main(["sweep", "--sweep", str(definition), "--durations", "0.25", "--out",
-                 str(tmp_path / "o2"), "--convention", "paper"]) == 0
+                 str(tmp_path / "o2"), "--convention", "paper", "--reference", str(points)]) == 0
     region = pd.read_parquet(tmp_path / "o2" / "region.parquet")
     assert list(region["duration"].unique()) == [0.25] and (region["convention"] == "paper").all()
     assert (tmp_path / "o2" / "table.csv").exists()  # the sweep file's table_forces
