@@ -20,9 +20,10 @@ by :func:`build_admm`, then cast to the working dtype:
   changes; it cuts the iterations for the default accuracy about threefold against Ruiz alone
   (measured on closed-loop states, see bench.py).
 - The reduced KKT system (P̄ + σI + ρ ĀᵀĀ) x̃ = σx - q̄ + Āᵀ(ρz - y) (OSQP eq. 23) has a fixed
-  matrix K; its inverse is folded into Mw = K⁻¹Āᵀ (n x m), Mx = σK⁻¹ and g = -K⁻¹q̄ = G x0.
+  matrix K; its inverse is folded into Mw = K⁻¹Āᵀ diag(ρ) (n x m), Mx = σK⁻¹ and
+  g = -K⁻¹q̄ = G x0; the iteration carries y / ρ in place of y.
 
-One iteration therefore costs two dense products, x̃ = Mw (ρz - y) + g (+ Mx x when σ > 0) and
+One iteration therefore costs two dense products, x̃ = Mw (z - y/ρ) + g (+ Mx x when σ > 0) and
 z̃ = Ā x̃, i.e. 4 n m = 19,200 flops for N = 20 (σ = 0), plus O(m) elementwise work. Products
 are written row-vector first (``w @ Mwᵀ``) so that under ``vmap`` they become [B, m] x [m, n]
 matrix-matrix products (GEMMs) shared by the whole batch. Per solve only q = F x0 and the bounds
@@ -103,7 +104,7 @@ def settings_from_controller(controller: ControllerParams) -> ADMMSettings:
 class ADMMData(NamedTuple):
     """Everything precomputed once per controller configuration (arrays; row-vector layout)."""
 
-    MwT: jax.Array  # [m, n]  (K⁻¹ Āᵀ)ᵀ
+    MwT: jax.Array  # [m, n]  (K⁻¹ Āᵀ diag(ρ))ᵀ
     MxT: jax.Array  # [n, n]  (σ K⁻¹)ᵀ
     GT: jax.Array  # [4, n]  x̃ offset -K⁻¹ q̄ = x0 @ GT
     AT: jax.Array  # [n, m]  Āᵀ
@@ -199,7 +200,7 @@ def build_admm(qp: CondensedQP, settings: ADMMSettings, dtype=jnp.float32) -> AD
     q_x0 = c * T.T @ qp.F  # q̄ = q_x0 @ x0
     z_idx, y_idx = shift_index(qp.rows, n, m, qp.horizon)
     arrays = dict(
-        MwT=(K_inv @ As.T).T, MxT=(sigma * K_inv).T, GT=(-K_inv @ q_x0).T, AT=As.T,
+        MwT=(K_inv @ As.T @ np.diag(rho)).T, MxT=(sigma * K_inv).T, GT=(-K_inv @ q_x0).T, AT=As.T,
         l0=E * qp.lower0, u0=E * qp.upper0, bT=(E[:, None] * qp.E).T, rho=rho, E=E,
         cost_scale=np.array(c), T=T, T_inv=np.linalg.inv(T), H=H, CT=C.T, FT=qp.F.T,
         input_lower=qp.input_lower, input_upper=qp.input_upper,
@@ -217,7 +218,7 @@ def initial_warm(data: ADMMData) -> ADMMWarm:
 def flops_per_iteration(n: int, m: int, sigma: float = 0.0) -> int:
     """Floating-point operations of one ADMM iteration (products + elementwise, approx.)."""
     products = 2 * n * m + 2 * m * n + (2 * n * n if sigma > 0 else 0)
-    return products + 3 * n + 10 * m
+    return products + 3 * n + 7 * m
 
 
 def flops_per_check(n: int, m: int) -> int:
@@ -236,8 +237,8 @@ def _inf_norm(v: jax.Array) -> jax.Array:
 class _Carry(NamedTuple):
     x: jax.Array  # [n] scaled decision variable
     s: jax.Array  # [m] scaled constraint value (OSQP's z)
-    y: jax.Array  # [m] scaled dual
-    y_check: jax.Array  # [m] y at the previous check (for δy)
+    y: jax.Array  # [m] scaled dual divided by ρ
+    y_check: jax.Array  # [m] the same at the previous check (for δy)
     chunk: jax.Array  # int32 chunks done
     done: jax.Array  # bool converged
     prim_res: jax.Array
@@ -256,7 +257,7 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
     alpha = jnp.asarray(settings.alpha, dtype)
     eps_abs = jnp.asarray(settings.eps_abs, dtype)
     eps_rel = jnp.asarray(settings.eps_rel, dtype)
-    rho, rho_inv = data.rho, 1.0 / data.rho
+    rho = data.rho
     E, E_inv, c = data.E, 1.0 / data.E, data.cost_scale
 
     # Per-solve data: only q and the bounds move with x0.
@@ -266,9 +267,11 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
     lo, hi = data.l0 - shift, data.u0 - shift  # scaled bounds
 
     def iteration(_, state):
-        x, s, y = state
-        # OSQP alg. 1, line 4: solve the reduced KKT system (eq. 23) for x̃, z̃ = Ā x̃.
-        x_tilde = (rho * s - y) @ data.MwT + g
+        # The loop carries the dual divided by ρ, v = y / ρ (ρ is folded into MwT).
+        x, s, v = state
+        # OSQP alg. 1, line 4: solve the reduced KKT system (eq. 23) for x̃, z̃ = Ā x̃;
+        # its right-hand side σx - q̄ + Āᵀ(ρz - y) = σx - q̄ + Āᵀ ρ(z - v).
+        x_tilde = (s - v) @ data.MwT + g
         if settings.sigma > 0:
             x_tilde = x_tilde + x @ data.MxT
         s_tilde = x_tilde @ data.AT
@@ -276,10 +279,10 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
         x_next = alpha * x_tilde + (1.0 - alpha) * x
         # line 6: z ← Π_[l,u](α z̃ + (1 - α) z + y / ρ)
         s_relaxed = alpha * s_tilde + (1.0 - alpha) * s
-        s_next = jnp.clip(s_relaxed + rho_inv * y, lo, hi)
-        # line 7: y ← y + ρ (α z̃ + (1 - α) z - z)
-        y_next = y + rho * (s_relaxed - s_next)
-        return x_next, s_next, y_next
+        s_next = jnp.clip(s_relaxed + v, lo, hi)
+        # line 7: y ← y + ρ (α z̃ + (1 - α) z - z), i.e. v ← v + (α z̃ + (1 - α) z - z)
+        v_next = v + (s_relaxed - s_next)
+        return x_next, s_next, v_next
 
     def residuals(x, s, y):
         """Unscaled primal/dual residuals and OSQP's termination test (§3.4)."""
@@ -302,12 +305,12 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
     def body(carry: _Carry):
         x, s, y = jax.lax.fori_loop(0, settings.check_every, iteration,
                                     (carry.x, carry.s, carry.y))
-        prim, dual, converged = residuals(x, s, y)
+        prim, dual, converged = residuals(x, s, rho * y)
         return _Carry(x, s, y, carry.y, carry.chunk + 1, converged, prim, dual)
 
     # Warm start (unscaled -> scaled): x̄ = T⁻¹ z, ȳ = c Ē⁻¹ y, z̄ = Ā x̄ (as OSQP's warm start).
     x_start = jnp.asarray(warm.z, dtype) @ data.T_inv.T
-    y_start = c * E_inv * jnp.asarray(warm.y, dtype)
+    y_start = c * E_inv * jnp.asarray(warm.y, dtype) / rho  # carried as y / ρ
     s_start = x_start @ data.AT
     zero = jnp.zeros((), dtype)
     carry = _Carry(x_start, s_start, y_start, y_start, jnp.zeros((), jnp.int32),
@@ -316,7 +319,7 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
 
     # Primal infeasibility certificate on δy over the last chunk (OSQP §3.4, unscaled terms;
     # the test is homogeneous in δy, so c drops out).
-    dy = E * (carry.y - carry.y_check)
+    dy = E * rho * (carry.y - carry.y_check)
     dy_norm = _inf_norm(dy)
     eps_pinf = jnp.asarray(settings.eps_prim_inf, dtype)
     certificate = (
@@ -328,7 +331,7 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
     status = jnp.where(carry.done, SOLVED, jnp.where(certificate, PRIMAL_INFEASIBLE, MAX_ITER))
 
     z = carry.x @ data.T.T
-    y = E * carry.y / c
+    y = E * rho * carry.y / c
     u0 = jnp.clip(z[:2], data.input_lower, data.input_upper)
     return ADMMResult(
         z=z, u0=u0, status=status.astype(jnp.int32), prim_res=carry.prim_res,
