@@ -79,7 +79,8 @@ def test_push_wrench_acts_at_the_chosen_point():
     F = 75.0
     force = np.array([F, 0.0, 0.0])
     hip_point = data.xpos[ix.upper_body].copy()
-    lower_hip_point = data.xpos[ix.lower_body] + data.xmat[ix.lower_body].reshape(3, 3) @ [0, 0, 1.0]
+    lower_frame = data.xmat[ix.lower_body].reshape(3, 3)
+    lower_hip_point = data.xpos[ix.lower_body] + lower_frame @ [0, 0, 1.0]  # top of the rod
     np.testing.assert_allclose(hip_point, lower_hip_point, atol=1e-12)
 
     def generalised(wrench):  # what MuJoCo does with xfrc_applied (at xipos)

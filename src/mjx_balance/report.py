@@ -236,7 +236,8 @@ def run_report(out: str | Path, config: Config = Config(), plan: Plan = PLANS["d
     if record.get("config") not in (None, config.to_dict()):
         raise ParameterError(f"{out} holds a report made with another configuration; "
                              "use another --out folder")
-    record.update({"package": "mjx_balance", "version": __version__, "plan": dataclasses.asdict(plan),
+    record.update({"package": "mjx_balance", "version": __version__,
+                   "plan": dataclasses.asdict(plan),
                    "backend": backend, "config": config.to_dict(),
                    "conventions": list(conventions), "studies": []})
     save_config(config, out / "config.toml")
@@ -421,7 +422,8 @@ nav ul { columns: 2; font-size: 0.9em; }
 def _img(path: Path, caption: str = "") -> str:
     data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
     cap = f"<figcaption>{html.escape(caption)}</figcaption>" if caption else ""
-    return f'<figure><img alt="{html.escape(caption or path.stem)}" src="data:image/png;base64,{data}">{cap}</figure>'
+    alt = html.escape(caption or Path(path).stem)
+    return f'<figure><img alt="{alt}" src="data:image/png;base64,{data}">{cap}</figure>'
 
 
 def _row(*figures: str) -> str:
@@ -499,7 +501,8 @@ def build_report(out: str | Path) -> Path:
         "centre of mass for T seconds. Outcomes: recovered (every angle within 0.01 rad and rate "
         "within 0.05 rad/s of upright at t_end), not settled, fell (foot pitch, foot lift, a "
         "state bound exceeded by 0.05 rad, or lower-body tilt beyond 0.5 rad), diverged. Energies "
-        "are ∫|τ·dq/dt| dt of the ankle and hip motors; for the paper convention energy_u1/u2 are "
+        "are ∫|τ·dq/dt| dt of the ankle and hip motors; for the paper convention energy_u1/u2 "
+        "are "
         "those of the generalised pairs (τ1, q1), (τ2, q2).</p>",
         "<nav><ul>" + "".join(f'<li><a href="#{k}">{html.escape(h)}</a></li>'
                               for k, h in headings.items() if k != "overview") + "</ul></nav>")
@@ -513,7 +516,8 @@ def build_report(out: str | Path) -> Path:
                 _params(f"Reference loop, {convention} convention, F = "
                         f"{', '.join(f'{f:g}' for f in plan['timeseries_forces'])} N, "
                         f"T = {plan['push_duration']:g} s, t_end = {cfg.scenario.t_end:g} s."),
-                _row(_img(paths["ankle_angle"], "ankle angle"), _img(paths["hip_angle"], "hip angle")),
+                _row(_img(paths["ankle_angle"], "ankle angle"),
+                     _img(paths["hip_angle"], "hip angle")),
                 _row(_img(paths["phase_ankle"], "ankle phase portrait"),
                      _img(paths["phase_hip"], "hip phase portrait")),
                 _row(_img(paths["cop"], "CoP"), _img(paths["com"], "CoM")),
@@ -523,7 +527,8 @@ def build_report(out: str | Path) -> Path:
                 _table(res["summary"], SUMMARY_SHOWN))
 
         weights = res["weights"]
-        path = save_figure(weight_figure(weights, convention), figures / f"weights_{convention}.png")
+        path = save_figure(weight_figure(weights, convention),
+                           figures / f"weights_{convention}.png")
         section(f"weights-{convention}",
                 _params(f"Reference loop, {convention} convention, F = {plan['weight_force']:g} N, "
                         f"T = {plan['push_duration']:g} s; Q = s·I4 for s in "
@@ -570,7 +575,8 @@ def build_report(out: str | Path) -> Path:
         images = []
         for vkey, region in res["regions"].items():
             vcfg = config_from_dict(res["variants"][list(labels).index(vkey)]["config"])
-            path = region_plots.plot_region(region, figures / f"study_{key}_{vkey}.png", config=vcfg)
+            path = region_plots.plot_region(region, figures / f"study_{key}_{vkey}.png",
+                                            config=vcfg)
             images.append(_img(path, labels[vkey]))
         first = next(iter(res["regions"].values()))
         numbers = res["numbers"]

@@ -234,7 +234,8 @@ def reading(st: Study, numbers: pd.DataFrame, region: pd.DataFrame) -> str:
             f"Mirrored cell by cell, {back['gained_cells']} (|F|, T) cells recover only backward "
             f"and {back['lost_cells']} only forward.")
     base = rows[0]
-    text = (f"On {grid}, the base variant ({base['label'].replace(' (base)', '')}) recovers {base['area']:.3g} N·s "
+    name = base["label"].replace(" (base)", "")
+    text = (f"On {grid}, the base variant ({name}) recovers {base['area']:.3g} N·s "
             f"({base['fraction']:.0%} of the grid, {base['recovered_cells']} of {base['cells']} "
             f"cells; at T = {t_ref:g} s up to {_fmax(base['f_max_ref'])}).")
     for row in rows[1:]:
