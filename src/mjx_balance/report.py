@@ -474,6 +474,46 @@ def sections(out: str | Path) -> list[tuple[str, str]]:
     return ids
 
 
+def key_numbers(results: dict[str, Any]) -> list[str]:
+    """Headline numbers of a report, one line each, from the saved tables."""
+    lines = []
+    tables = {c: res["table"] for c, res in results["conventions"].items()}
+    if tables:
+        parts = []
+        for convention, table in tables.items():
+            t = table.sort_values("force")
+            pairs = ", ".join(f"{f:g} N: {m:g} s" for f, m in zip(t["force"], t["max_acting_time"]))
+            parts.append(f"{convention}: {pairs}")
+        lines.append("Max acting time — " + "; ".join(parts) + ".")
+        for convention, res in results["conventions"].items():
+            n = studies.region_numbers(res["region"])
+            lines.append(f"Recoverable region ({convention}): {n['area']:.3g} N·s, "
+                         f"{n['fraction']:.0%} of the grid.")
+    st = results["studies"]
+    if "ankle_only" in st:
+        rows = st["ankle_only"]["numbers"]
+        added = rows["area"].iloc[0] - rows["area"].iloc[1]
+        rel = added / rows["area"].iloc[1] if rows["area"].iloc[1] > 0 else float("nan")
+        lines.append(f"The hip adds {added:+.3g} N·s to the ankle-only region"
+                     + (f" ({rel:+.0%})." if np.isfinite(rel) else "."))
+    if "delay" in st:
+        rows = st["delay"]["numbers"]
+        lines.append("Delay changes the area by " + ", ".join(
+            f"{c:+.3g} N·s ({r:+.0%}) at {label}" for c, r, label in
+            zip(rows["area_change"].iloc[1:], rows["relative_change"].iloc[1:],
+                rows["label"].iloc[1:])) + ".")
+    for key in ("older_adult", "push_height"):
+        if key in st:
+            rows = st[key]["numbers"]
+            lines.append(f"{studies.study(key).title}: " + ", ".join(
+                f"{label} {a:.3g} N·s" for label, a in zip(rows["label"], rows["area"])) + ".")
+    if "backward" in st:
+        rows = st["backward"]["numbers"]
+        lines.append(f"Backward vs forward pushes: {rows['area'].iloc[0]:.3g} vs "
+                     f"{rows['area'].iloc[1]:.3g} N·s.")
+    return lines
+
+
 def build_report(out: str | Path) -> Path:
     """Draw the figures (DIR/figures) and write DIR/report.html from the saved tables."""
     from . import plots, region_plots
@@ -504,6 +544,8 @@ def build_report(out: str | Path) -> Path:
         "are ∫|τ·dq/dt| dt of the ankle and hip motors; for the paper convention energy_u1/u2 "
         "are "
         "those of the generalised pairs (τ1, q1), (τ2, q2).</p>",
+        "<h3>Key numbers</h3><ul>" + "".join(f"<li>{html.escape(line)}</li>"
+                                             for line in key_numbers(results)) + "</ul>",
         "<nav><ul>" + "".join(f'<li><a href="#{k}">{html.escape(h)}</a></li>'
                               for k, h in headings.items() if k != "overview") + "</ul></nav>")
 
