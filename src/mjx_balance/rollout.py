@@ -27,11 +27,15 @@ Times are carried as integer step indices and turned into seconds on the host in
 MJX options (:data:`MJX_OPTIONS`), chosen for speed on the CPU and justified by the agreement
 tests in tests/test_rollout.py:
 
-- Newton solver (MuJoCo's default, so the reference uses it too) with ``iterations = 2`` and
-  ``ls_iterations = 4``: the contact problem here is four sphere-plane contacts on a
-  five-dof chain, warm-started from the previous step's accelerations; Newton converges in one
-  or two iterations. In float32, the 100-iteration / 1e-8 default never meets its tolerance, so
-  under ``vmap`` every step ran all 100 iterations (2.3x slower for the physics alone).
+- Newton solver (MuJoCo's default, so the reference uses it too) with ``iterations = 4`` and
+  ``ls_iterations = 8``. The contact problem is four sphere-plane contacts on a five-dof chain,
+  warm-started from the previous step's accelerations; the C solver needs 1.06 iterations on
+  average and at most 3 on a rocking-foot open-loop test (tests/test_rollout.py). With 3 or
+  more iterations MJX matches ``mj_step`` as closely as with 100 (float32 rounding dominates);
+  with 2 the rocking foot drifts by 0.2 rad in the hip within 1 s. The tolerance stays at
+  MuJoCo's 1e-8, which float32 never meets, so every step runs the capped 4 iterations (under
+  ``vmap`` the loop runs for the slowest element anyway); the 100-iteration default would cost
+  ~2x for no gain.
 - pyramidal friction cone (MuJoCo's default; the elliptic cone is ~2x slower in MJX).
 - disabled: Euler damping, springs, dampers, friction loss, joint limits, equality constraints,
   control clamping -- the model has none of them, so these flags only skip dead code.
@@ -60,8 +64,8 @@ from .qp import build_qp
 
 MJX_OPTIONS: dict[str, Any] = {
     "solver": int(mujoco.mjtSolver.mjSOL_NEWTON),
-    "iterations": 2,
-    "ls_iterations": 4,
+    "iterations": 4,
+    "ls_iterations": 8,
     "cone": int(mujoco.mjtCone.mjCONE_PYRAMIDAL),
 }
 
@@ -192,6 +196,47 @@ def cell_heights(mx: mjx.Model, d: mjx.Data, sn: Sensors) -> jax.Array:
     return d.geom_xpos[sn.cells, 2] - mx.geom_size[sn.cells, 0]
 
 
+def advance(mx: mjx.Model, sn: Sensors, d: mjx.Data, torques: jax.Array, force: jax.Array,
+            push_at_hip: bool = False) -> mjx.Data:
+    """One physics step with motor ``torques`` [2] and the push ``force`` [] (N, along x).
+
+    The push acts on the upper body through ``xfrc_applied`` (a wrench at its CoM, xipos); at
+    the hip it is the same force plus the moment (xpos - xipos) x F. After ``mjx.step`` the
+    positions are refreshed (``mjx.kinematics``), so body/geom positions are those at the new
+    time while the contacts and constraint forces stay those that acted during the step (as
+    the reference leaves them after ``mj_step`` + ``mj_kinematics``).
+    """
+    dtype = d.qpos.dtype
+    push = jnp.zeros(d.xfrc_applied.shape, dtype).at[sn.upper_body, 0].set(force)
+    if push_at_hip:
+        r = d.xpos[sn.upper_body] - d.xipos[sn.upper_body]
+        moment = jnp.cross(r, jnp.stack([force, 0 * force, 0 * force]).astype(dtype))
+        push = push.at[sn.upper_body, 3:].set(moment)
+    d = d.replace(ctrl=torques.astype(dtype), xfrc_applied=push)
+    d = mjx.step(mx, d)
+    d = mjx.kinematics(mx, d)
+    return cast_floats(d, dtype)
+
+
+def open_loop(mx: mjx.Model, sn: Sensors, d0: mjx.Data, torques: jax.Array, force: jax.Array,
+              n_push: jax.Array, push_at_hip: bool = False) -> dict[str, jax.Array]:
+    """Physics only: motor ``torques`` [n, 2] applied at steps i = 0..n-1, the push on for
+    i < n_push. Returns per-step samples at t = (i+1) dt: qpos [n, nq], qvel [n, nv], cop [n],
+    com [n], cell_low [n, 4]. Jit with ``sn`` and ``push_at_hip`` static."""
+    dtype = d0.qpos.dtype
+    force = jnp.asarray(force, dtype)
+
+    def body(d, inputs):
+        i, tau = inputs
+        d = advance(mx, sn, d, tau, jnp.where(i < n_push, force, 0 * force), push_at_hip)
+        cop, _ = load_cell_cop(d, sn)
+        return d, dict(qpos=d.qpos, qvel=d.qvel, cop=cop, com=whole_body_com(mx, d, sn),
+                       cell_low=cell_heights(mx, d, sn))
+
+    steps = jnp.arange(torques.shape[0], dtype=jnp.int32)
+    return jax.lax.scan(body, d0, (steps, jnp.asarray(torques, dtype)))[1]
+
+
 # --------------------------------------------------------------------------------------------
 # One scenario
 
@@ -311,7 +356,6 @@ def scenario(ar: Arrays, sn: Sensors, st: Static, force: jax.Array,
     u_hi = jnp.asarray(st.input_upper, dtype)
     sat_tol = metrics.SATURATION_TOL * (u_hi - u_lo)
     zero_warm = admm_mod.initial_warm(ar.qp)
-    nbody = ar.d0.xfrc_applied.shape[0]
 
     def joints(d):
         return d.qpos[sn.joints_q], d.qvel[sn.joints_v]
@@ -322,20 +366,12 @@ def scenario(ar: Arrays, sn: Sensors, st: Static, force: jax.Array,
     def physics_step(carry: Carry, i: jax.Array, torques: jax.Array, u: jax.Array):
         d, acc = carry.d, carry.acc
         f = jnp.where(i < n_push, force, jnp.zeros((), dtype))
-        push = jnp.zeros((nbody, 6), dtype).at[sn.upper_body, 0].set(f)
-        if st.push_at_hip:  # force at the hip = same force + moment (xpos - xipos) x F at the CoM
-            r = d.xpos[sn.upper_body] - d.xipos[sn.upper_body]
-            push = push.at[sn.upper_body, 3:].set(jnp.cross(r, jnp.stack([f, 0 * f, 0 * f])))
-        d = d.replace(ctrl=torques, xfrc_applied=push)
-        d = mjx.step(ar.mx, d)
-        d = mjx.kinematics(ar.mx, d)  # positions at t = (i+1) dt; contacts stay step i's
-        d = cast_floats(d, dtype)
-
+        d = advance(ar.mx, sn, d, torques, f, st.push_at_hip)
         q, dq = joints(d)
         x = state(q, dq)
         pitch = d.qpos[sn.foot_pitch]
         low = cell_heights(ar.mx, d, sn)
-        cop, load = load_cell_cop(d, sn)
+        cop, _ = load_cell_cop(d, sn)
         com = whole_body_com(ar.mx, d, sn)
         excess = jnp.max(jnp.maximum(jnp.maximum(s_lo - x[:2], x[:2] - s_hi), 0))
 
