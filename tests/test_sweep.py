@@ -281,8 +281,9 @@ def test_table_in_batches_of_one_size(batch):
 
 
 def test_power_of_two_chunks():
-    assert sweep.power_of_two_chunk(160, 256) == 64  # 3 x 64: 20 % padding, < 25 %
-    assert sweep.power_of_two_chunk(160, 256, waste=0.1) == 32
+    assert sweep.power_of_two_chunk(160, 256) == 64  # 3 x 64: least padding of sizes >= 64
+    assert sweep.power_of_two_chunk(312, 128) == 64  # 5 x 64 = 320 rather than 3 x 128 = 384
+    assert sweep.power_of_two_chunk(160, 256, minimum=8) == 32
     assert sweep.power_of_two_chunk(256, 256) == 256
     assert sweep.power_of_two_chunk(5000, 256) == 256
     assert sweep.power_of_two_chunk(3, 256) == 8

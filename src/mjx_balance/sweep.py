@@ -233,7 +233,7 @@ def default_chunk_size(config: Config, n_cells: int) -> int:
     return power_of_two_chunk(n_cells, batch_limit(config))
 
 
-def power_of_two_chunk(n_cells: int, limit: int, minimum: int = 32, waste: float = 0.25) -> int:
+def power_of_two_chunk(n_cells: int, limit: int, minimum: int = 64, waste: float = 0.1) -> int:
     """The largest power of two c (minimum <= c <= limit, as far as possible) whose chunks,
     all padded to c, evaluate at most ``(1 + waste) * n_cells`` scenarios; if none does, the
     one that wastes least."""
