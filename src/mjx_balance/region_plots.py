@@ -169,10 +169,15 @@ def plot_energy(region: pd.DataFrame, path: str | Path, *, config: Config | None
         vmin = max(positive.min(), vmax * 1e-4)
         if vmin >= vmax:
             vmin = vmax / 10
-        mesh = ax.pcolormesh(fx, dy, np.ma.masked_invalid(np.clip(energy, vmin, None)),
-                             cmap="viridis", norm=LogNorm(vmin=vmin, vmax=vmax), shading="flat")
+        cmap = plt.get_cmap("viridis").with_extremes(under="white")
+        mesh = ax.pcolormesh(fx, dy, np.ma.masked_invalid(energy), cmap=cmap,
+                             norm=LogNorm(vmin=vmin, vmax=vmax), shading="flat")
         fig.colorbar(mesh, ax=ax, label="total joint energy [J]  (ankle + hip, ∫|τ·dq/dt| dt)")
-    ax.legend(handles=[Patch(color="#d9d9d9", label="not recovered")], loc="upper right", fontsize=8)
+    handles = [Patch(color="#d9d9d9", label="not recovered")]
+    if positive.size and np.nanmin(energy) < vmin:
+        handles.append(Patch(facecolor="white", edgecolor="black", lw=0.5,
+                             label=f"< {vmin:.2g} J (about 0, e.g. F = 0)"))
+    ax.legend(handles=handles, loc="upper right", fontsize=8)
     ax.set_xlabel("push force F [N]  (+ forward)")
     ax.set_ylabel("push duration T [s]")
     ax.set_xlim(fx[0], fx[-1])
