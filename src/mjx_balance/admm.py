@@ -81,7 +81,7 @@ class ADMMSettings(NamedTuple):
     alpha: float = 1.6  # over-relaxation
     max_iter: int = 100
     check_every: int = 10
-    eps_abs: float = 3e-6
+    eps_abs: float = 1e-7
     eps_rel: float = 3e-6
     scaling_iters: int = 3  # Ruiz equilibration passes (after whitening)
     whiten: bool = True  # change of variables with H^(-1/2) before Ruiz

@@ -141,13 +141,14 @@ class ControllerParams:
     # OSQP at 1e-9 on every solve of the bench states within 60 iterations; the cap is 100 so
     # that those solves also meet eps and report SOLVED (at 60, 15% of them after large pushes
     # still report MAX_ITER; at 100, 0.2%). sigma = 0 because H is positive definite (saves a
-    # product per iteration); eps 3e-6 because 1e-5 stops some solves short of that accuracy.
+    # product per iteration); eps_rel 3e-6 because 1e-5 stops some solves short of that accuracy;
+    # eps_abs 1e-7 so that near-upright states (tiny q) are solved to the same relative accuracy.
     admm_rho: float = 0.1
     admm_sigma: float = 0.0
     admm_alpha: float = 1.6
     admm_max_iter: int = 100
     admm_check_every: int = 10
-    admm_eps_abs: float = 3e-6
+    admm_eps_abs: float = 1e-7
     admm_eps_rel: float = 3e-6
 
     def __post_init__(self) -> None:
