@@ -58,12 +58,13 @@ def test_report_saves_its_tables(out):
         assert len(region) == 3 * 2
         assert (region.convention == convention).all()
     delay = pd.read_csv(out / "studies" / "delay" / "numbers.csv")
-    assert list(delay.variant) == ["delay_000ms", "delay_050ms", "delay_100ms", "delay_150ms"]
+    assert list(delay.variant) == ["delay_000ms", "delay_010ms", "delay_020ms", "delay_050ms",
+                                   "delay_100ms", "delay_150ms"]
     signed = pd.read_parquet(out / "studies" / "backward" / "signed" / "region.parquet")
     assert signed.force.min() < 0 < signed.force.max()
     # the saved configurations of the variants are the study's
     variants = {e["key"]: e["variants"] for e in record["studies"]}
-    assert variants["delay"][2]["config"]["scenario"]["controller_delay"] == 0.1
+    assert variants["delay"][4]["config"]["scenario"]["controller_delay"] == 0.1
     assert variants["push_height"][1]["config"]["scenario"]["push_body"] == "hip"
     assert variants["ankle_only"][1]["config"]["controller"]["input2_bounds"] == [0.0, 0.0]
 

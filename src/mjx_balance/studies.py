@@ -14,6 +14,8 @@ area       the recovered part of the grid in the (F, T) plane [N s]: every recov
 fraction   area / full grid area
 f_max_ref  the largest force that recovers at the reference duration (the grid duration closest
            to 0.1 s, the study's push), NaN if none does
+rest_recovered  1 if every unpushed cell (F = 0) recovers, 0 if not (the loop does not even
+           hold upright rest), NaN without F = 0 on the grid
 
 The one-paragraph readings (``reading``) are written from these numbers, not from expectations.
 """
@@ -62,9 +64,11 @@ STUDIES: tuple[Study, ...] = (
           "(x1 in [-0.26, 0.5] rad, x2 in [-0.35, 1.4] rad by default).",
           (Variant("signed", "signed forces", "study_backward.toml"),), signed=True),
     Study("delay", "Sensorimotor delay",
-          "The controller sees the joint state 0, 50, 100 or 150 ms late; the plant keeps "
-          "running (before the push it sees upright rest).",
+          "The controller sees the joint state 0, 10, 20, 50, 100 or 150 ms late; the plant "
+          "keeps running (before the push it sees upright rest).",
           (Variant("delay_000ms", "0 ms (base)", None),
+           Variant("delay_010ms", "10 ms", "study_delay_010ms.toml"),
+           Variant("delay_020ms", "20 ms", "study_delay_020ms.toml"),
            Variant("delay_050ms", "50 ms", "study_delay_050ms.toml"),
            Variant("delay_100ms", "100 ms", "study_delay_100ms.toml"),
            Variant("delay_150ms", "150 ms", "study_delay_150ms.toml"))),
@@ -139,6 +143,7 @@ def region_numbers(region: pd.DataFrame) -> dict[str, float]:
     total = float(sum(wf.values()) * sum(wd.values()))
     t_ref = float(durations[np.argmin(np.abs(durations - REFERENCE_DURATION))])
     at_ref = region[(region["duration"] == t_ref) & (region["outcome"] == RECOVERED)]
+    rest = region[region["force"] == 0]
     return {
         "area": float(weight[ok].sum()),
         "fraction": float(weight[ok].sum() / total) if total > 0 else float(ok.mean()),
@@ -146,6 +151,9 @@ def region_numbers(region: pd.DataFrame) -> dict[str, float]:
         "cells": int(len(region)),
         "t_ref": t_ref,
         "f_max_ref": float(at_ref["force"].abs().max()) if len(at_ref) else float("nan"),
+        # every F = 0 cell recovered (1), some not (0), no F = 0 on the grid (NaN)
+        "rest_recovered": (float((rest["outcome"] == RECOVERED).all()) if len(rest)
+                           else float("nan")),
     }
 
 
@@ -238,11 +246,20 @@ def reading(st: Study, numbers: pd.DataFrame, region: pd.DataFrame) -> str:
     text = (f"On {grid}, the base variant ({name}) recovers {base['area']:.3g} N·s "
             f"({base['fraction']:.0%} of the grid, {base['recovered_cells']} of {base['cells']} "
             f"cells; at T = {t_ref:g} s up to {_fmax(base['f_max_ref'])}).")
+    if base.get("rest_recovered") == 0:
+        text += " Even the unpushed base (F = 0) does not stay upright."
     for row in rows[1:]:
         text += (f" {row['label'][0].upper() + row['label'][1:]}: {row['area']:.3g} N·s, "
                  f"{_change_text(row['area_change'], row['relative_change'], base['area'])}; "
                  f"at T = {t_ref:g} s up to {_fmax(row['f_max_ref'])}; "
-                 f"{row['gained_cells']} cells gained, {row['lost_cells']} lost.")
+                 f"{row['gained_cells']} cells gained, {row['lost_cells']} lost"
+                 + ("; even F = 0 fails: this loop does not hold upright rest"
+                    if row.get("rest_recovered") == 0 else "") + ".")
+    unstable = [r["label"] for r in rows[1:] if r.get("rest_recovered") == 0]
+    stable = [r["label"] for r in rows[1:] if r.get("rest_recovered") == 1]
+    if unstable and stable:
+        text += (f" Upright rest holds with {', '.join(stable)} but not with "
+                 f"{', '.join(unstable)}.")
     if st.key == "ankle_only" and len(rows) == 2:
         added = base["area"] - rows[1]["area"]
         text += f" The hip adds {added:+.3g} N·s to the ankle-only region."
