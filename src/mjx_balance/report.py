@@ -335,11 +335,17 @@ def weight_figure(weights: pd.DataFrame, convention: str):
                             ha="center", va="top", fontsize=8, color="C3",
                             xytext=(0, -4), textcoords="offset points")
         ax.set_xticks(x, [f"{s:.0e}" for s in rows["scale"]])
-        ax.set_yscale("log")
+        values = rows[[c for c, _, _ in parts]].to_numpy(float)
+        positive = values[np.isfinite(values) & (values > 0)]
+        if positive.size and positive.max() / positive.min() > 100:
+            ax.set_yscale("log")  # the energies span decades
+        else:
+            ax.set_ylim(0, 1.15 * (positive.max() if positive.size else 1.0))
         ax.set_xlabel(f"s, {label}")
         ax.set_ylabel(r"joint energy $\int|\tau\,\dot q|\,dt$ [J]")
         ax.grid(axis="y", which="both", alpha=0.3)
-        ax.legend(fontsize=8, loc="lower right")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=3, fontsize=8, frameon=False)
     force = weights["force"].iloc[0]
     duration = weights["duration"].iloc[0]
     fig.suptitle(f"Weight study, {convention} convention: F = {force:g} N, T = {duration:g} s "
@@ -578,6 +584,8 @@ def build_report(out: str | Path) -> Path:
                         f"R = s·diag(1000, 1) for s in "
                         f"{', '.join(f'{s:g}' for s in plan['r_scales'])} (Q default)."),
                 _img(path, "ankle, hip and total energy per weight setting"),
+                f"<p>{(weights['outcome'] == 'recovered').sum()} of {len(weights)} settings "
+                "recover; for a push that falls the energies are those up to the fall.</p>",
                 _table(weights, ["weight", "scale", "outcome", "settle_time", "fall_time",
                                  "energy_ankle", "energy_hip", "energy_total", "energy_u1",
                                  "energy_u2", "peak_tau_ankle", "peak_tau_hip",
