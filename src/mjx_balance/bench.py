@@ -26,11 +26,13 @@ when |u0 - u0_truth| exceeds 1e-3 of the input's range for either input.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import osqp
@@ -327,7 +329,7 @@ def solver_command(args: argparse.Namespace) -> int:
     config = load_config(args.config) if args.config else Config()
     controller = config.controller
     if args.convention:
-        controller = ControllerParams(**{**controller.__dict__, "convention": args.convention})
+        controller = dataclasses.replace(controller, convention=args.convention)
     body = config.body
     qp = build_qp(controller, body, config.scenario.control_dt)
     settings = admm.settings_from_controller(controller)
@@ -463,12 +465,18 @@ def solver_command(args: argparse.Namespace) -> int:
           f"{ref['gflops']:.2f} GFLOP/s = {100 * ref['gflops'] / peak:.1f}% of peak "
           f"{peak:.0f} GFLOP/s ({peak_note}); flops per iteration {it_flops}, per check "
           f"{chk_flops}; total run {time.perf_counter() - t_start:.0f} s")
+    figures = dict(
+        states=S, convention=controller.convention, dtype=args.dtype,
+        admm_misses=admm_miss, solved=int(truth.solved.sum()),
+        infeasible=int(truth.infeasible.sum()), saturated=int(truth.saturated.sum()),
+        admm=rows, osqp=osqp_rows, osqp_chosen_eps=chosen["eps"],
+        ipopt_seconds_per_solve=ipopt_per_solve, peak_gflops=peak,
+        settings=settings._asdict())
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "bench_solver.json").write_text(json.dumps(figures, indent=1))
+        print(f"figures written to {out / 'bench_solver.json'}")
     if args.json:
-        print(json.dumps(dict(
-            states=S, convention=controller.convention, dtype=args.dtype,
-            admm_misses=admm_miss, solved=int(truth.solved.sum()),
-            infeasible=int(truth.infeasible.sum()), saturated=int(truth.saturated.sum()),
-            admm=rows, osqp=osqp_rows, osqp_chosen_eps=chosen["eps"],
-            ipopt_seconds_per_solve=ipopt_per_solve, peak_gflops=peak,
-            settings=settings._asdict())))
+        print(json.dumps(figures))
     return 0
