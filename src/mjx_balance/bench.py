@@ -13,7 +13,8 @@ All three solve the MPC of the same states in one run, so the figures are ratios
   shifted one step (one sequential pass makes those warm starts); then jitted + vmapped solves of
   batches 1..16384 of those (state, warm start) pairs, compiled ahead of time, warmed up, timed
   with block_until_ready, median of repeats.
-- OSQP: a Python loop, warm-started from its own shifted previous solution, at the loosest eps
+- OSQP: a Python loop, warm-started from its own previous solution shifted one step (inputs
+  and duals, the duals row group by row group as admm.shift_index), at the loosest eps
   whose first-control misses do not exceed the ADMM's (measured here on the same states), with
   its infeasibility detection on (OSQP's fastest setting).
 - CasADi/IPOPT: the study's formulation (multiple shooting, RK4 on the continuous linear model
@@ -189,13 +190,16 @@ def admm_along_trajectories(qp: CondensedQP, trajectories: list[np.ndarray], set
 
 def osqp_loop(qp: CondensedQP, trajectories: list[np.ndarray], eps: float,
               max_iter: int = 4000) -> tuple[np.ndarray, float, np.ndarray]:
-    """OSQP in a Python loop, warm-started from its shifted previous solution.
+    """OSQP in a Python loop, warm-started from its shifted previous solution (primal and dual).
 
     Returns (u0 [S, 2], seconds per solve, iterations [S]). OSQP's infeasibility detection is
     on here (its fastest setting: an infeasible state stops at the certificate instead of running
     to max_iter as in the closed-loop policy), which favours OSQP in the comparison.
     """
+    from .admm import shift_index
+
     solver = osqp_solver(qp, eps, max_iter, detect_infeasible=True)
+    _, y_shift = shift_index(qp.rows, qp.n, qp.m, qp.horizon)
     u0, iters = [], []
     t0 = time.perf_counter()
     for traj in trajectories:
@@ -204,7 +208,7 @@ def osqp_loop(qp: CondensedQP, trajectories: list[np.ndarray], eps: float,
             res = osqp_solve(solver, qp, x0)
             u0.append(qp.clip_input(res.x[:2]))
             iters.append(res.info.iter)
-            solver.warm_start(x=shift_warm_start(res.x))
+            solver.warm_start(x=shift_warm_start(res.x), y=res.y[y_shift])
     elapsed = time.perf_counter() - t0
     return np.array(u0), elapsed / len(u0), np.array(iters)
 
@@ -362,7 +366,7 @@ def solver_command(args: argparse.Namespace) -> int:
     admm_miss = int(np.sum(truth.solved & ~(err <= ACCURACY)))
     print(f"ADMM ({args.dtype}, rho {settings.rho}, alpha {settings.alpha}, sigma "
           f"{settings.sigma}, cap {settings.iteration_cap} iterations, check every "
-          f"{settings.check_every}, eps {settings.eps_abs:g}): misses {admm_miss}/"
+          f"{settings.check_every}, eps_abs {settings.eps_abs:g}, eps_rel {settings.eps_rel:g}): misses {admm_miss}/"
           f"{truth.solved.sum()} ({100 * admm_miss / max(1, truth.solved.sum()):.2f}%), max "
           f"first-control error {np.nanmax(err[truth.solved]):.2e} of range (both solved: "
           f"{np.nanmax(err[both]):.2e}), mean iterations {seq['iters'].mean():.1f}, status "
