@@ -13,7 +13,7 @@ One scenario (shared definitions, ``metrics.py``) is a pure function of (force, 
 The per-scenario summary (outcome, settle/fall step, peaks, CoP/CoM extremes, saturation
 counts, energies, solver statistics) lives in the scan carry (:class:`Accumulators`), so a batch
 never stores trajectories unless asked (``trajectories=True``). Batching is one ``jax.vmap`` in
-:meth:`BatchRunner._compiled`; everything else is written for a single scenario.
+:meth:`BatchRunner._batched`; everything else is written for a single scenario.
 
 Fall / divergence. From the first fall sample (or non-finite value) on, nothing accumulates. The
 scenario keeps stepping (a batch runs in lock-step), but at the next control instant its physics
@@ -450,7 +450,8 @@ def scenario(ar: Arrays, sn: Sensors, st: Static, force: jax.Array,
             control_periods=acc.control_periods + counted,
             saturated_ankle=acc.saturated_ankle + (counted & saturated[0]),
             saturated_hip=acc.saturated_hip + (counted & saturated[1]),
-            nonconverged_solves=acc.nonconverged_solves + (counted & (res.status != admm_mod.SOLVED)),
+            nonconverged_solves=(acc.nonconverged_solves
+                                 + (counted & (res.status != admm_mod.SOLVED))),
             max_residual=jnp.where(residual_ok,
                                    jnp.maximum(acc.max_residual, res.prim_res.astype(dtype)),
                                    acc.max_residual),
