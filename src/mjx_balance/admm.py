@@ -72,13 +72,13 @@ class ADMMSettings(NamedTuple):
     :func:`admm_solve`.
     """
 
-    rho: float = 0.1
+    rho: float = 0.07
     # ρ of each row group (RHO_GROUPS) = rho x factor, as OSQP's per-row ρ. Measured: a larger ρ
     # on the CoP rows (often active during a push) and the input rows removes the slow tail of
     # warm-started solves after large pushes (misses 3.1% -> 0% on the bench states).
     rho_scale: tuple[float, float, float, float] = (3.0, 1.0, 30.0, 1.0)
     sigma: float = 0.0  # proximal term; H ≻ 0, so 0 is allowed and saves one product
-    alpha: float = 1.6  # over-relaxation
+    alpha: float = 1.8  # over-relaxation
     max_iter: int = 100
     check_every: int = 10
     eps_abs: float = 1e-7

@@ -136,16 +136,19 @@ class ControllerParams:
     osqp_eps: float = 1e-8
     osqp_max_iter: int = 20000
     # Batched ADMM solver (admm.py); static under jit. Defaults measured on closed-loop states
-    # (bench.py, tests/test_admm.py): with H whitened, rho = 0.1 (x3 on input rows, x30 on CoP
-    # rows, admm.ADMMSettings.rho_scale) and warm starts reach 1e-3 of each torque range against
-    # OSQP at 1e-9 on every solve of the bench states within 60 iterations; the cap is 100 so
-    # that those solves also meet eps and report SOLVED (at 60, 15% of them after large pushes
-    # still report MAX_ITER; at 100, 0.2%). sigma = 0 because H is positive definite (saves a
-    # product per iteration); eps_rel 3e-6 because 1e-5 stops some solves short of that accuracy;
+    # (bench.py, tests/test_admm.py): with H whitened, rho = 0.07 (x3 on input rows, x30 on CoP
+    # rows, admm.ADMMSettings.rho_scale), alpha = 1.8 and warm starts reach 1e-3 of each torque
+    # range against OSQP at 1e-9 on every solve of the bench states (5650 paper, 4583 joint);
+    # rho 0.05..0.15, alpha 1.6/1.8 and CoP factors 10..50 were compared: this pair needs the
+    # fewest iterations (mean 43 paper, 53 joint) with a 2x margin on the error. The cap is 100
+    # so that those solves also meet eps and report SOLVED (at 60, ~15% of them after large
+    # pushes still report MAX_ITER; at 100, 0.3% paper, 1.9% joint). sigma = 0 because H is
+    # positive definite (saves a product per iteration); eps_rel 3e-6 because 1e-5 stops some
+    # solves short of that accuracy;
     # eps_abs 1e-7 so that near-upright states (tiny q) are solved to the same relative accuracy.
-    admm_rho: float = 0.1
+    admm_rho: float = 0.07
     admm_sigma: float = 0.0
-    admm_alpha: float = 1.6
+    admm_alpha: float = 1.8
     admm_max_iter: int = 100
     admm_check_every: int = 10
     admm_eps_abs: float = 1e-7
