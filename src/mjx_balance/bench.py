@@ -128,7 +128,8 @@ def truth_solutions(qp: CondensedQP, states: np.ndarray, eps: float = 1e-9,
         if solved[i]:
             u0[i] = qp.clip_input(res.x[:2])
     span = qp.input_upper - qp.input_lower
-    at_bound = (np.abs(u0 - qp.input_lower) <= 1e-6 * span) | (np.abs(u0 - qp.input_upper) <= 1e-6 * span)
+    at_bound = ((np.abs(u0 - qp.input_lower) <= 1e-6 * span)
+                | (np.abs(u0 - qp.input_upper) <= 1e-6 * span))
     return Truth(u0=u0, solved=solved, infeasible=infeasible, saturated=at_bound.any(axis=1))
 
 
@@ -366,7 +367,8 @@ def solver_command(args: argparse.Namespace) -> int:
     admm_miss = int(np.sum(truth.solved & ~(err <= ACCURACY)))
     print(f"ADMM ({args.dtype}, rho {settings.rho}, alpha {settings.alpha}, sigma "
           f"{settings.sigma}, cap {settings.iteration_cap} iterations, check every "
-          f"{settings.check_every}, eps_abs {settings.eps_abs:g}, eps_rel {settings.eps_rel:g}): misses {admm_miss}/"
+          f"{settings.check_every}, eps_abs {settings.eps_abs:g}, eps_rel {settings.eps_rel:g}): "
+          f"misses {admm_miss}/"
           f"{truth.solved.sum()} ({100 * admm_miss / max(1, truth.solved.sum()):.2f}%), max "
           f"first-control error {np.nanmax(err[truth.solved]):.2e} of range (both solved: "
           f"{np.nanmax(err[both]):.2e}), mean iterations {seq['iters'].mean():.1f}, status "
