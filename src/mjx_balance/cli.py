@@ -95,7 +95,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sweeps", default=None, help="folder of the study sweep definitions (default: sweeps/)")
     p.add_argument("--html-only", action="store_true",
                    help="redraw figures and report.html from the tables saved in --out")
-    _common(p, out_help="output folder (tables, figures, report.html)")
+    p.add_argument("--convention", choices=CONVENTIONS, default=None,
+                   help="the studies' convention (default: the configuration's, 'paper'); the "
+                        "study's experiments run every convention of --conventions")
+    p.add_argument("--config", default=None, help="TOML configuration file (body, controller, scenario)")
+    p.add_argument("--out", required=True, help="output folder (tables, figures, report.html)")
     p.set_defaults(target="mjx_balance.report:report_command")
     return parser
 
