@@ -501,13 +501,19 @@ def key_numbers(results: dict[str, Any]) -> list[str]:
         added = rows["area"].iloc[0] - rows["area"].iloc[1]
         rel = added / rows["area"].iloc[1] if rows["area"].iloc[1] > 0 else float("nan")
         lines.append(f"The hip adds {added:+.3g} N·s to the ankle-only region"
-                     + (f" ({rel:+.0%})." if np.isfinite(rel) else "."))
+                     + (f" ({rel:+.0%})" if np.isfinite(rel) else "")
+                     + ("; with the hip torque at zero even upright rest is lost."
+                        if rows.get("rest_recovered", pd.Series([1, 1])).iloc[1] == 0 else "."))
     if "delay" in st:
         rows = st["delay"]["numbers"]
         lines.append("Delay changes the area by " + ", ".join(
             f"{c:+.3g} N·s ({r:+.0%}) at {label}" for c, r, label in
             zip(rows["area_change"].iloc[1:], rows["relative_change"].iloc[1:],
                 rows["label"].iloc[1:])) + ".")
+        if "rest_recovered" in rows:
+            lost = rows["label"][rows["rest_recovered"] == 0].tolist()
+            if lost:
+                lines.append(f"Upright rest (F = 0) is not held with a delay of {', '.join(lost)}.")
     for key in ("older_adult", "push_height"):
         if key in st:
             rows = st[key]["numbers"]
@@ -541,7 +547,8 @@ def build_report(out: str | Path) -> Path:
         f"mjx_balance {html.escape(str(record['version']))}, plan <b>{plan['name']}</b>, "
         f"batch backend <b>{record['backend']}</b> (table and region maps; the time series and "
         f"the weight study use the scalar reference loop, MuJoCo C + OSQP)"
-        + (f", run time {record['seconds']:.0f} s" if "seconds" in record else "")
+        + (f", last run {record['seconds']:.0f} s (stages already saved are not rerun)"
+           if "seconds" in record else "")
         + ". Base configuration: " + html.escape(_config_text(config)) + "."),
         "<p>Pushes start at upright rest: a horizontal force F (+ forward) on the upper body's "
         "centre of mass for T seconds. Outcomes: recovered (every angle within 0.01 rad and rate "
