@@ -588,12 +588,14 @@ class BatchRunner:
         return acc, series
 
     def run(self, forces, durations) -> dict[str, np.ndarray]:
-        """Summary of each scenario (SUMMARY_COLUMNS except force/duration/convention, plus
-        ``admm_iterations``): numpy arrays, one entry per scenario, outcome as int codes
-        (``metrics.OUTCOMES``). With ``trajectories=True`` the per-physics-step series of the
-        batch are left in ``self.last_trajectories`` (arrays [B, n_steps, ...], plus time)."""
+        """Summary of each scenario (SUMMARY_COLUMNS except convention, plus
+        ``admm_iterations``, the ADMM iterations summed over the counted control periods):
+        numpy arrays, one entry per scenario, outcome as int codes (``metrics.OUTCOMES``).
+        With ``trajectories=True`` the per-physics-step series of the batch are left in
+        ``self.last_trajectories`` (arrays [B, n_steps, ...], plus time [n_steps])."""
+        forces, durations = self._inputs(forces, durations)
         acc, series = self.run_raw(forces, durations)
-        summary = summarize(acc, self.config)
+        summary = {"force": forces, "duration": durations, **summarize(acc, self.config)}
         if series is not None:
             sc = self.config.scenario
             n_steps = sc.n_control * sc.substeps
