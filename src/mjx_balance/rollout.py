@@ -39,6 +39,15 @@ tests in tests/test_rollout.py:
 - pyramidal friction cone (MuJoCo's default; the elliptic cone is ~2x slower in MJX).
 - disabled: Euler damping, springs, dampers, friction loss, joint limits, equality constraints,
   control clamping -- the model has none of them, so these flags only skip dead code.
+
+Throughput measured on the 2-core CPU (shared with other jobs at the time, so +-40 %), 12-s
+scenarios with pushes of 0-150 N for 0.05-0.3 s: 3-5 scenarios/s at batches of 64, 256 and
+1024; compile 30-65 s per batch size. MJX physics alone runs 40-55k steps/s whatever the batch
+(~7 scenarios/s); at batch 64 capping the ADMM at one 10-iteration chunk halves the run time,
+so physics and controller take about half each. The controller's share comes from ``vmap``:
+each control period's ADMM ``while_loop`` runs until the slowest scenario of the batch stops
+(200 iterations whenever one of them faces an infeasible QP), while the mean over scenarios is
+13-24 iterations per period.
 """
 
 from __future__ import annotations
