@@ -3,6 +3,7 @@
 This module only parses arguments; each command's work lives beside the code it drives:
 
     simulate      reference.simulate_command   scalar MuJoCo C + OSQP, one scenario at a time
+    bench         bench_pipeline.pipeline_command  whole closed loop: MJX + ADMM vs reference vs IPOPT
     bench solver  bench.solver_command         batched ADMM vs OSQP vs CasADi/IPOPT
     sweep         sweep.sweep_command          force x duration region map (MJX + ADMM)
     table         sweep.table_command          max acting time per force (batched bisection)
@@ -35,6 +36,12 @@ def _common(p: argparse.ArgumentParser, out_required: bool = True,
     p.add_argument("--out", required=out_required, default=None, help=out_help)
 
 
+def _bench_pipeline_arguments(p: argparse.ArgumentParser) -> None:
+    from .bench_pipeline import add_arguments  # numpy only at import time
+
+    add_arguments(p)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mjx-balance",
@@ -47,7 +54,12 @@ def build_parser() -> argparse.ArgumentParser:
     _common(p)
     p.set_defaults(target="mjx_balance.reference:simulate_command")
 
-    bench = sub.add_parser("bench", help="benchmarks").add_subparsers(dest="bench", required=True)
+    p = sub.add_parser("bench", help="pipeline benchmark: batched MJX + ADMM vs the scalar reference "
+                                     "vs CasADi/IPOPT, scenarios per second (or: bench solver)")
+    _bench_pipeline_arguments(p)
+    _common(p, out_required=False)
+    p.set_defaults(target="mjx_balance.bench_pipeline:pipeline_command")
+    bench = p.add_subparsers(dest="bench", required=False)
     p = bench.add_parser("solver", help="batched ADMM vs OSQP vs CasADi/IPOPT, solves per second")
     p.add_argument("--batch", default="1,16,256,4096,16384", help="comma-separated batch sizes")
     p.add_argument("--states", type=int, default=4096, help="number of test states")
