@@ -157,12 +157,12 @@ def _run_batched(config: Config, forces: np.ndarray, durations: np.ndarray, chun
                  repeats: int) -> dict[str, Any]:
     import jax
 
-    from .rollout import BatchRunner, _bucket
+    from .rollout import BatchRunner
 
     t0 = time.perf_counter()
     runner = BatchRunner(config)
     build_s = time.perf_counter() - t0
-    batch = _bucket(min(chunk, len(forces)))
+    batch = runner.padded_batch(min(chunk, len(forces)))
     t0 = time.perf_counter()
     runner.compiled(batch)
     compile_s = time.perf_counter() - t0

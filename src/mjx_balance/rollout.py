@@ -118,10 +118,19 @@ def mjx_model(model: mujoco.MjModel, dtype=jnp.float32) -> mjx.Model:
     return cast_floats(mjx.put_model(model, impl="jax"), dtype)
 
 
-def rest_data(mx: mjx.Model, dtype=jnp.float32) -> mjx.Data:
-    """Upright rest (qpos = qvel = 0) with positions computed (as ``mj_forward`` leaves them)."""
-    d = cast_floats(mjx.make_data(mx, impl="jax"), dtype)
-    return cast_floats(jax.jit(mjx.forward)(mx, d), dtype)
+def rest_data(model: mujoco.MjModel, dtype=jnp.float32) -> mjx.Data:
+    """Upright rest (qpos = qvel = 0) with positions computed: ``mj_forward`` in C, then
+    ``mjx.put_data``.
+
+    Computing it with a jitted ``mjx.forward`` instead cost a 13-18 s compile per
+    configuration (measured, 2-core CPU) for one call. The two differ only in fields that every
+    ``mjx.step`` recomputes before use (the factor ``qLD`` and ``efc_D`` are laid out
+    differently); one ``mjx.step`` from either gives bit-identical data (checked when this was
+    changed), and the contact layout read by :func:`sensors` is the same.
+    """
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    return cast_floats(mjx.put_data(model, data, impl="jax"), dtype)
 
 
 # --------------------------------------------------------------------------------------------
@@ -500,22 +509,29 @@ def _bucket(n: int, minimum: int = 8) -> int:
     return max(minimum, 1 << max(0, math.ceil(math.log2(max(n, 1)))))
 
 
+# Compiled batch functions shared by every BatchRunner of this process, keyed by
+# BatchRunner._shape_key (all that is baked into the executable).
+_COMPILED: dict[tuple, Any] = {}
+
+
 class BatchRunner:
     """Closed-loop scenarios of one configuration, batched (MJX physics + ADMM MPC).
 
     The MuJoCo model, the QP and the ADMM matrices are built once; one compiled function per
     padded batch size (the next power of two, at least 8; padding cells are F = 0, T = 0).
+    With several local JAX devices (``devices``, default ``jax.local_devices()``) each batch
+    is split over them along the scenario axis (a 1-D mesh, NamedSharding, shard_map).
     """
 
     def __init__(self, config: Config, *, dtype=jnp.float32, trajectories: bool = False,
-                 mjx_options: dict[str, Any] | None = None):
+                 mjx_options: dict[str, Any] | None = None, devices: list | None = None):
         self.config = config
         self.dtype = jnp.dtype(dtype)
         self.trajectories = trajectories
         body, ctrl, sc = config.body, config.controller, config.scenario
         self.model = mj_model(config, mjx_options)
         mx = mjx_model(self.model, self.dtype)
-        d0 = rest_data(mx, self.dtype)
+        d0 = rest_data(self.model, self.dtype)
         self.sensors = sensors(self.model, d0)
         qp = build_qp(ctrl, body, sc.control_dt)
         self.qp = qp
@@ -539,6 +555,11 @@ class BatchRunner:
             input_lower=(ctrl.input1_bounds[0], ctrl.input2_bounds[0]),
             input_upper=(ctrl.input1_bounds[1], ctrl.input2_bounds[1]),
         )
+        devices = list(jax.local_devices() if devices is None else devices)
+        self.mesh = (jax.sharding.Mesh(np.array(devices), ("batch",)) if len(devices) > 1
+                     else None)
+        if self.mesh is not None:  # the shared arrays, replicated on every device once
+            self.arrays = jax.device_put(self.arrays, self._shardings()[1])
         self._compiled_fns: dict[int, Any] = {}
         self.compile_seconds: dict[int, float] = {}
         self.last_trajectories: dict[str, np.ndarray] | None = None
@@ -552,19 +573,65 @@ class BatchRunner:
             one = functools.partial(scenario, arrays, sn, st)
             return jax.vmap(one)(force, n_push)  # the one place batching is added
 
-        return jax.jit(run_batch)
+        mesh = self.mesh
+        if mesh is None:
+            return jax.jit(run_batch)
+        # Several devices: each runs ``run_batch`` on its slice of the batch (shard_map), so
+        # its loops (the ADMM while_loop, the contact solver) stop for its own scenarios only
+        # and no device waits on another inside the scan.
+        P = jax.sharding.PartitionSpec
+        sharded = jax.shard_map(run_batch, mesh=mesh, in_specs=(P(), P("batch"), P("batch")),
+                                out_specs=P("batch"), check_vma=False)
+        return jax.jit(sharded)
+
+    def _shape_key(self, batch: int) -> tuple:
+        """What the compiled function depends on besides the traced arrays' values: their
+        tree structure, shapes and dtypes, the static addresses and settings, the batch."""
+        leaves, treedef = jax.tree.flatten(self.arrays)
+        sn = tuple(tuple(np.asarray(v).ravel().tolist()) + (np.shape(v),) for v in self.sensors)
+        devices = None if self.mesh is None else tuple(d.id for d in self.mesh.devices.flat)
+        return (treedef, tuple((np.shape(v), str(v.dtype)) for v in leaves), sn, self.static,
+                batch, devices, jax.config.jax_enable_x64)
 
     def compiled(self, batch: int):
-        """The compiled batch function for a padded batch size (compiled ahead of time)."""
+        """The compiled batch function for a padded batch size (compiled ahead of time).
+
+        The model, QP and ADMM data are traced arguments, so configurations of equal shapes
+        (another body, convention, weights, bounds; the same horizon, delay, t_end, ADMM
+        settings and thresholds) share one compiled function (:data:`_COMPILED`)."""
         fn = self._compiled_fns.get(batch)
         if fn is None:
             t0 = _time.perf_counter()
-            force = jax.ShapeDtypeStruct((batch,), self.dtype)
-            n_push = jax.ShapeDtypeStruct((batch,), jnp.int32)
-            fn = self._batched().lower(self.arrays, force, n_push).compile()
+            key = self._shape_key(batch)
+            fn = _COMPILED.get(key)
+            if fn is None:
+                split, whole = self._shardings()
+                force = jax.ShapeDtypeStruct((batch,), self.dtype, sharding=split)
+                n_push = jax.ShapeDtypeStruct((batch,), jnp.int32, sharding=split)
+                fn = self._batched().lower(self.arrays, force, n_push).compile()
+                _COMPILED[key] = fn
             self.compile_seconds[batch] = _time.perf_counter() - t0
             self._compiled_fns[batch] = fn
         return fn
+
+    def _shardings(self):
+        """(batch axis split over the devices, replicated) NamedShardings; (None, None) on
+        one device."""
+        if self.mesh is None:
+            return None, None
+        P = jax.sharding.PartitionSpec
+        return (jax.sharding.NamedSharding(self.mesh, P("batch")),
+                jax.sharding.NamedSharding(self.mesh, P()))
+
+    def padded_batch(self, n: int) -> int:
+        """The compiled batch size for n scenarios: the number of devices times the next
+        power of two (>= 8) of each device's share. Scenarios fill the devices in order and
+        padding goes to the end, so with one device's share of b scenarios a device computes
+        exactly what one device computes for a batch of b (bit for bit; tests/test_sharding.py):
+        XLA's CPU kernels round differently for different batch shapes, so a shard of 4 would
+        differ from a batch of 8 by float32 rounding."""
+        devices = 1 if self.mesh is None else self.mesh.devices.size
+        return devices * _bucket(-(-n // devices))
 
     # -- running --------------------------------------------------------------------------
 
@@ -584,13 +651,18 @@ class BatchRunner:
         """Device results as numpy (accumulators, series), padding removed."""
         forces, durations = self._inputs(forces, durations)
         n = forces.shape[0]
-        batch = _bucket(n)
+        batch = self.padded_batch(n)
         f = np.zeros(batch, np.float64)
         f[:n] = forces
         steps = np.zeros(batch, np.int32)
         steps[:n] = push_steps(durations, self.config.scenario.physics_dt)
         fn = self.compiled(batch)
-        acc, series = fn(self.arrays, jnp.asarray(f, self.dtype), jnp.asarray(steps))
+        split, _ = self._shardings()
+        f = np.asarray(f, self.dtype)
+        if split is None:
+            acc, series = fn(self.arrays, jnp.asarray(f), jnp.asarray(steps))
+        else:  # the batch axis split over the devices (padding cells F = 0, T = 0)
+            acc, series = fn(self.arrays, jax.device_put(f, split), jax.device_put(steps, split))
         acc = Accumulators(*(np.asarray(v)[:n] for v in acc))
         if series is not None:
             series = {k: np.asarray(v)[:n] for k, v in series.items()}
