@@ -48,9 +48,12 @@ def rel_err(a: np.ndarray, b: np.ndarray) -> float:
 
 @pytest.mark.parametrize("convention", CONVENTIONS)
 @pytest.mark.parametrize("body", [BodyParams(), BodyParams(lower_mass=40.0, upper_length=0.8,
-                                                           upper_com=0.35)],
-                         ids=["default", "scaled"])
+                                                           upper_com=0.35),
+                                  BodyParams(hip_servo_stiffness=2.0e4, hip_servo_damping=580.0)],
+                         ids=["default", "scaled", "hip_servo"])
 def test_linearisation_matches_finite_differences(convention, body):
+    """mj_forward's qacc includes the joint spring and damper (passive forces), so the servo
+    body checks the stiffness and the velocity (damping) block of Ac as well."""
     lm = linear_model(body, convention, 0.01)
     d_q, d_dq, d_ctrl = fd_joint_jacobians(body)
     # convention coordinates y = T q with T = P^-1 S; inputs ctrl = torque_map u

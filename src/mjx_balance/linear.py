@@ -15,10 +15,18 @@ both M y'' = G y + u with M = P^T M_abs P and G = P^T G_abs P:
     paper: P = I  (y = theta, u = [tau1, tau2]; tau_ankle = tau1 + tau2, tau_hip = tau2)
     joint: P = S  (y = q,     u = [tau_ankle, tau_hip])
 
+Hip servo (BodyParams.hip_servo_stiffness K, hip_servo_damping D; both 0 by default): a passive
+spring-damper in the plant with generalised force -K q_h - D dq_h on the hip joint, i.e.
+-Kj q - Dj q' with Kj = diag(0, K), Dj = diag(0, D) in joint coordinates. With q = W y,
+W = S^-1 P, virtual work gives the force W^T (-Kj q - Dj q') on y, so
+
+    M y'' = (G - Ks) y - Ds y' + u,   Ks = W^T Kj W,  Ds = W^T Dj W.
+
 State x = [y, y'] (4,), input u (2,). Continuous: x' = Ac x + Bc u; discrete (exact
 zero-order hold over the control period): x+ = A x + B u.
 
-CoP (foot in static equilibrium, moments about the ankle at height h above the sole):
+CoP (foot in static equilibrium, moments about the ankle at height h above the sole; the hip
+servo acts between lower and upper body, not on the foot):
     cop = -(tau_ankle + h Fx) / (M g),  Fx = sum_i m_i x_i''  (linearised)
 CoM (horizontal, all three segments, foot CoM at x = 0):  com = sum_i m_i x_i / M.
 Both are linear: cop = cop_x @ x + cop_u @ u, com = com_x @ x.
@@ -79,6 +87,14 @@ def mass_gravity_abs(body: BodyParams) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return M, G, J
 
 
+def servo_matrices(body: BodyParams, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(Ks, Ds) [2, 2]: the hip servo's stiffness and damping in coordinates y (theta = P y)."""
+    W = np.linalg.solve(S, P)  # q = W y
+    Kj = np.diag([0.0, body.hip_servo_stiffness])
+    Dj = np.diag([0.0, body.hip_servo_damping])
+    return W.T @ Kj @ W, W.T @ Dj @ W
+
+
 def zoh(Ac: np.ndarray, Bc: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Exact zero-order-hold discretisation via the matrix exponential of [[Ac, Bc], [0, 0]]."""
     n, m = Bc.shape
@@ -102,18 +118,20 @@ def linear_model(body: BodyParams, convention: str, dt: float) -> LinearModel:
     M_abs, G_abs, J_abs = mass_gravity_abs(body)
     M = P.T @ M_abs @ P
     G = P.T @ G_abs @ P
+    Ks, Ds = servo_matrices(body, P)
     Minv = np.linalg.inv(M)
-    Ac = np.block([[np.zeros((2, 2)), np.eye(2)], [Minv @ G, np.zeros((2, 2))]])
+    Ac = np.block([[np.zeros((2, 2)), np.eye(2)], [Minv @ (G - Ks), -Minv @ Ds]])
     Bc = np.vstack([np.zeros((2, 2)), Minv])
     A, B = zoh(Ac, Bc, dt)
 
     J = J_abs @ P  # sum m_i x_i = J y
     total_weight = body.total_mass * body.gravity
     h = body.ankle_height
-    # cop = -(tau_ankle + h J y'') / (M g), y'' = Minv (G y + u)
-    cop_y = -h * (J @ Minv @ G) / total_weight
+    # cop = -(tau_ankle + h J y'') / (M g), y'' = Minv ((G - Ks) y - Ds y' + u)
+    cop_y = -h * (J @ Minv @ (G - Ks)) / total_weight
+    cop_dy = h * (J @ Minv @ Ds) / total_weight
     cop_u = -(torque_map[0] + h * (J @ Minv)) / total_weight
-    cop_x = np.concatenate([cop_y, np.zeros(2)])
+    cop_x = np.concatenate([cop_y, cop_dy])
     com_x = np.concatenate([J / body.total_mass, np.zeros(2)])
     return LinearModel(convention=convention, dt=dt, Ac=Ac, Bc=Bc, A=A, B=B, cop_x=cop_x,
                        cop_u=cop_u, com_x=com_x, P=P, torque_map=torque_map)

@@ -4,6 +4,9 @@ The foot is free in the sagittal plane (slide x, slide z, pitch about y at the s
 and touches the floor through four load-cell spheres at the sole corners. The lower body hangs
 on the ankle hinge, the upper body on the hip hinge; each hinge has a torque motor (gear 1).
 
+With ``hip_servo_stiffness`` or ``hip_servo_damping`` > 0 (BodyParams) the hip hinge gets
+MuJoCo's joint ``stiffness`` (springref 0) and ``damping``: a stiff position servo in the plant.
+
 ``mjcf(body, physics_dt)`` returns the MJCF text; ``build_model`` compiles it. With
 ``foot="fixed"`` the foot has no joints (welded flat to the world): that copy is what the
 linearisation is checked against. The default model ships as ``data/balance.xml``.
@@ -51,6 +54,12 @@ def mjcf(body: BodyParams = BodyParams(), physics_dt: float = 0.002, foot: str =
         for name, sx, sy in zip(LOAD_CELLS, (1, 1, -1, -1), (1, -1, 1, -1))
     )
 
+    hip_servo = ""
+    if b.hip_servo_stiffness > 0 or b.hip_servo_damping > 0:
+        # the hip servo (BodyParams): passive spring about q_h = 0 plus viscous damping
+        hip_servo = (f' stiffness="{b.hip_servo_stiffness:.9g}" springref="0"'
+                     f' damping="{b.hip_servo_damping:.9g}"')
+
     def fmt(values: tuple[float, ...]) -> str:
         return " ".join(f"{v:.9g}" for v in values)
 
@@ -76,7 +85,7 @@ def mjcf(body: BodyParams = BodyParams(), physics_dt: float = 0.002, foot: str =
         <inertial pos="0 0 {b.lower_com:.9g}" mass="{b.lower_mass:.9g}" diaginertia="{fmt(lower_i)}"/>
         <geom name="lower_rod" type="capsule" fromto="0 0 0 0 0 {b.lower_length:.9g}" size="0.04"/>
         <body name="upper" pos="0 0 {b.lower_length:.9g}">
-          <joint name="hip" type="hinge" axis="0 1 0"/>
+          <joint name="hip" type="hinge" axis="0 1 0"{hip_servo}/>
           <inertial pos="0 0 {b.upper_com:.9g}" mass="{b.upper_mass:.9g}" diaginertia="{fmt(upper_i)}"/>
           <geom name="upper_rod" type="capsule" fromto="0 0 0 0 0 {b.upper_length:.9g}" size="0.05"/>
         </body>

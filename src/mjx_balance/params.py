@@ -76,6 +76,11 @@ class BodyParams:
     gravity: float = 9.81
     friction: float = 1.0  # sole–floor Coulomb friction coefficient
     contact_radius: float = 0.005  # radius of the four load-cell spheres
+    # A stiff position servo at the hip, part of the plant: a passive spring-damper holding
+    # q_h at 0 (generalised force -K q_h - D dq_h on the hip joint), so that the hip motor
+    # can be switched off (ankle-only strategy). 0 = no servo (the default model).
+    hip_servo_stiffness: float = 0.0  # K [N m/rad]
+    hip_servo_damping: float = 0.0  # D [N m s/rad]
 
     def __post_init__(self) -> None:
         _check_finite("body", self)
@@ -94,6 +99,9 @@ class BodyParams:
                 _fail("body", name, f"must lie on the segment, in [0, {length}]", value)
         if self.ankle_height < 0:
             _fail("body", "ankle_height", "must be >= 0", self.ankle_height)
+        for name in ("hip_servo_stiffness", "hip_servo_damping"):
+            if not getattr(self, name) >= 0:
+                _fail("body", name, "must be >= 0", getattr(self, name))
 
     @property
     def total_mass(self) -> float:
