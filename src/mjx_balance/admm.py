@@ -90,6 +90,10 @@ class ADMMSettings(NamedTuple):
     scaling_iters: int = 3  # Ruiz equilibration passes (after whitening)
     whiten: bool = True  # change of variables with H^(-1/2) before Ruiz
     eps_prim_inf: float = 1e-4  # OSQP's primal infeasibility tolerance
+    # Stop a solve at the first check where OSQP's primal infeasibility certificate holds
+    # (instead of iterating to the cap). Off by default: the shared definitions run an
+    # infeasible QP to the cap and use its last iterate, as the reference's OSQP does.
+    stop_on_infeasible: bool = False
 
     @property
     def n_chunks(self) -> int:
@@ -252,6 +256,7 @@ class _Carry(NamedTuple):
     y_check: jax.Array  # [m] the same at the previous check (for δy)
     chunk: jax.Array  # int32 chunks done
     done: jax.Array  # bool converged
+    stop: jax.Array  # bool converged, or infeasible with settings.stop_on_infeasible
     prim_res: jax.Array
     dual_res: jax.Array
 
@@ -310,14 +315,29 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
             jnp.maximum(_inf_norm(Hz), _inf_norm(CTy)), _inf_norm(q))
         return prim, dual, (prim <= prim_tol) & (dual <= dual_tol)
 
+    eps_pinf = jnp.asarray(settings.eps_prim_inf, dtype)
+
+    def infeasible(y, y_check):
+        """OSQP's primal infeasibility certificate on δy (§3.4, unscaled terms; homogeneous
+        in δy, so c drops out)."""
+        dy = E * rho * (y - y_check)
+        dy_norm = _inf_norm(dy)
+        return ((dy_norm > 0)
+                & (_inf_norm(dy @ data.CT.T) <= eps_pinf * dy_norm)
+                & ((E_inv * hi) @ jnp.maximum(dy, 0) + (E_inv * lo) @ jnp.minimum(dy, 0)
+                   < eps_pinf * dy_norm))
+
     def cond(carry: _Carry):
-        return (~carry.done) & (carry.chunk < settings.n_chunks)
+        return (~carry.stop) & (carry.chunk < settings.n_chunks)
 
     def body(carry: _Carry):
         x, s, y = jax.lax.fori_loop(0, settings.check_every, iteration,
                                     (carry.x, carry.s, carry.y))
         prim, dual, converged = residuals(x, s, rho * y)
-        return _Carry(x, s, y, carry.y, carry.chunk + 1, converged, prim, dual)
+        stop = converged
+        if settings.stop_on_infeasible:
+            stop = stop | infeasible(y, carry.y)
+        return _Carry(x, s, y, carry.y, carry.chunk + 1, converged, stop, prim, dual)
 
     # Warm start (unscaled -> scaled): x̄ = T⁻¹ z, ȳ = c Ē⁻¹ y, z̄ = Ā x̄ (as OSQP's warm start).
     x_start = jnp.asarray(warm.z, dtype) @ data.T_inv.T
@@ -325,20 +345,11 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
     s_start = x_start @ data.AT
     zero = jnp.zeros((), dtype)
     carry = _Carry(x_start, s_start, y_start, y_start, jnp.zeros((), jnp.int32),
-                   jnp.zeros((), bool), zero, zero)
+                   jnp.zeros((), bool), jnp.zeros((), bool), zero, zero)
     carry = jax.lax.while_loop(cond, body, carry)
 
-    # Primal infeasibility certificate on δy over the last chunk (OSQP §3.4, unscaled terms;
-    # the test is homogeneous in δy, so c drops out).
-    dy = E * rho * (carry.y - carry.y_check)
-    dy_norm = _inf_norm(dy)
-    eps_pinf = jnp.asarray(settings.eps_prim_inf, dtype)
-    certificate = (
-        (dy_norm > 0)
-        & (_inf_norm(dy @ data.CT.T) <= eps_pinf * dy_norm)
-        & ((E_inv * hi) @ jnp.maximum(dy, 0) + (E_inv * lo) @ jnp.minimum(dy, 0)
-           < eps_pinf * dy_norm)
-    )
+    # Primal infeasibility certificate on δy over the last chunk.
+    certificate = infeasible(carry.y, carry.y_check)
     status = jnp.where(carry.done, SOLVED, jnp.where(certificate, PRIMAL_INFEASIBLE, MAX_ITER))
 
     z = carry.x @ data.T.T
