@@ -502,7 +502,8 @@ def key_numbers(results: dict[str, Any]) -> list[str]:
         rel = added / rows["area"].iloc[1] if rows["area"].iloc[1] > 0 else float("nan")
         lines.append(f"The hip adds {added:+.3g} N·s to the ankle-only region"
                      + (f" ({rel:+.0%})" if np.isfinite(rel) else "")
-                     + ("; with the hip torque at zero even upright rest is lost."
+                     + ("; with the hip held by its servo and the hip motor off even upright "
+                        "rest is lost."
                         if rows.get("rest_recovered", pd.Series([1, 1])).iloc[1] == 0 else "."))
     if "delay" in st:
         rows = st["delay"]["numbers"]

@@ -55,10 +55,13 @@ BASE = Variant("base", "base configuration", None)
 
 STUDIES: tuple[Study, ...] = (
     Study("ankle_only", "Ankle-only strategy vs ankle–hip",
-          "The hip motor's torque bound is set to zero, so the controller can use the ankle "
-          "only; the base controller uses both joints.",
+          "The hip is held at zero by a stiff position servo in the plant (a passive "
+          "spring-damper; stiffness and damping in study_ankle_only.toml) and the hip motor "
+          "is off (torque bound zero), so the controller can use the ankle only; the base "
+          "controller uses both joints.",
           (Variant("ankle_hip", "ankle–hip (base)", None),
-           Variant("ankle_only", "ankle only (hip torque bound 0)", "study_ankle_only.toml"))),
+           Variant("ankle_only", "ankle only (hip servo, hip motor off)",
+                   "study_ankle_only.toml"))),
     Study("backward", "Backward pushes (signed force)",
           "The push acts backward (F < 0) as well as forward; the state bounds are asymmetric "
           "(x1 in [-0.26, 0.5] rad, x2 in [-0.35, 1.4] rad by default).",
