@@ -10,7 +10,9 @@ low-discrepancy set, so outcomes are mixed) through
 3. the study's toolchain: the same MuJoCo C closed loop with the MPC solved by CasADi/IPOPT
    (``bench.ipopt_mpc``: multiple shooting, RK4 on the continuous linear model), on a subset.
 
-Subsets are prefixes of one scenario list, so (3) is inside (2) is inside (1), and the outcome
+The reference runs a prefix of the scenario list; the toolchain runs a subset of that prefix
+with the reference's outcome mix (``stratified_subset``: the scalar loops stop at a fall, so a
+subset of falls alone would flatter them). So (3) is inside (2) is inside (1), and the outcome
 agreement is counted on the scenarios each pair shares. Worker pools are started and warmed up
 (imports, model, QP) before timing, as the batched pipeline's compile is timed apart.
 
@@ -186,6 +188,24 @@ def _run_batched(config: Config, forces: np.ndarray, durations: np.ndarray, chun
                 batch=batch, devices=len(jax.devices()))
 
 
+def stratified_subset(outcomes: np.ndarray, n: int) -> np.ndarray:
+    """Indices of n scenarios whose outcome mix follows ``outcomes`` (the reference's): a
+    scenario that falls ends at its fall in the scalar loops, so a subset of only falls (or
+    only recoveries) would misstate the toolchain's throughput on the benchmark's mix. Each
+    outcome gets its proportional share (at least one if present, while n allows), earliest
+    scenarios first."""
+    outcomes = np.asarray(outcomes)
+    n = min(n, outcomes.size)
+    classes, counts = np.unique(outcomes, return_counts=True)
+    share = np.maximum(1, np.round(n * counts / counts.sum()).astype(int))
+    while share.sum() > n:
+        share[np.argmax(share)] -= 1
+    while share.sum() < n:
+        share[np.argmax(counts - share)] += 1
+    picks = [np.nonzero(outcomes == c)[0][:k] for c, k in zip(classes, share)]
+    return np.sort(np.concatenate(picks))
+
+
 def _agreement(a: np.ndarray, b: np.ndarray) -> tuple[int, int]:
     n = min(len(a), len(b))
     return int((a[:n] == b[:n]).sum()), n
@@ -276,14 +296,17 @@ def pipeline_command(args: argparse.Namespace) -> int:
                                       forces[:n_ref], durations[:n_ref], args.workers,
                                       f"reference (MuJoCo C + OSQP, max_iter {cap})")
         ref = dict(outcomes=out, seconds=seconds, per=per)
+    ipopt_idx = np.arange(n_ipopt)
+    if n_ipopt and ref is not None:
+        ipopt_idx = stratified_subset(ref["outcomes"], n_ipopt)
     if n_ipopt:
         try:
             import casadi  # noqa: F401
         except ImportError:
             print("  CasADi/IPOPT: casadi not installed, skipped")
         else:
-            out, seconds, per = _pool_run(_warm_ipopt, _run_ipopt, config, forces[:n_ipopt],
-                                          durations[:n_ipopt], args.workers,
+            out, seconds, per = _pool_run(_warm_ipopt, _run_ipopt, config, forces[ipopt_idx],
+                                          durations[ipopt_idx], args.workers,
                                           "study toolchain (MuJoCo C + CasADi/IPOPT)")
             ipopt = dict(outcomes=out, seconds=seconds, per=per)
     batched = _run_batched(config, forces, durations, args.chunk, args.repeats)
@@ -313,11 +336,11 @@ def pipeline_command(args: argparse.Namespace) -> int:
         agree["mjx_vs_reference"] = [a, n]
         print(f"outcome agreement MJX vs reference: {a}/{n}")
     if ipopt:
-        a, n = _agreement(batched["outcomes"], ipopt["outcomes"])
+        a, n = _agreement(batched["outcomes"][ipopt_idx], ipopt["outcomes"])
         agree["mjx_vs_ipopt"] = [a, n]
         print(f"outcome agreement MJX vs CasADi/IPOPT: {a}/{n}")
         if ref:
-            a, n = _agreement(ref["outcomes"], ipopt["outcomes"])
+            a, n = _agreement(ref["outcomes"][ipopt_idx], ipopt["outcomes"])
             agree["reference_vs_ipopt"] = [a, n]
             print(f"outcome agreement reference vs CasADi/IPOPT: {a}/{n}")
     rss_self = _peak_rss_mib(resource.RUSAGE_SELF)
@@ -354,8 +377,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenarios", type=int, default=64, help="scenarios through MJX + ADMM")
     p.add_argument("--reference", type=int, default=16,
                    help="of those, how many through the scalar reference (0: skip)")
-    p.add_argument("--ipopt", type=int, default=4,
-                   help="of those, how many through CasADi/IPOPT + MuJoCo C (0: skip)")
+    p.add_argument("--ipopt", type=int, default=8,
+                   help="of those, how many through CasADi/IPOPT + MuJoCo C, with the "
+                        "reference's outcome mix (0: skip)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 2,
                    help="worker processes of the reference and the study toolchain")
     p.add_argument("--chunk", type=int, default=64, help="MJX batch size (padded to 2^k)")
