@@ -91,3 +91,33 @@ def test_batched_matches_reference_on_servo_body(_float32):
         diff = np.abs(q - series[["q_a", "q_h"]].to_numpy()).max(axis=0)
         print(f"\nservo body, F = {force} N: {ref['outcome']}, max |q_a, q_h diff| {diff} rad")
         assert diff.max() < 5e-3
+
+
+@pytest.mark.parametrize("convention", ["paper", "joint"])
+def test_terminal_weight_uses_only_inputs_that_can_act(convention):
+    """With the hip motor off, Q_f is the DARE of the ankle input alone, and the unconstrained
+    MPC (first move of the condensed QP with u2 = 0) is a stable closed loop; with both motors
+    on Q_f is the plain DARE of (A, B, Q, R)."""
+    import scipy.linalg
+
+    from mjx_balance.params import Config
+    from mjx_balance.qp import build_qp
+
+    servo = Config().replace(
+        body={"hip_servo_stiffness": 2e4, "hip_servo_damping": 580.0},
+        controller={"convention": convention, "input2_bounds": [0.0, 0.0]})
+    qp = build_qp(servo.controller, servo.body, servo.scenario.control_dt)
+    lm = qp.linear
+    Q, R = np.diag(servo.controller.q_diag), np.diag(servo.controller.r_diag)
+    np.testing.assert_allclose(
+        qp.Qf, scipy.linalg.solve_discrete_are(lm.A, lm.B[:, :1], Q, R[:1, :1]), rtol=1e-10)
+    ankle = np.arange(0, qp.n, 2)
+    gain = -np.linalg.solve(qp.H[np.ix_(ankle, ankle)], qp.F[ankle])[0]
+    closed = lm.A + lm.B[:, :1] @ gain[None]
+    assert max(abs(np.linalg.eigvals(closed))) < 1.0
+
+    both = Config().replace(controller={"convention": convention})
+    qp_both = build_qp(both.controller, both.body, both.scenario.control_dt)
+    np.testing.assert_allclose(
+        qp_both.Qf, scipy.linalg.solve_discrete_are(qp_both.linear.A, qp_both.linear.B, Q, R),
+        rtol=1e-10)

@@ -15,7 +15,12 @@ F = Gammaᵀ Qbar Phi, and the constraint rows stacked in this order (m = 6N row
     com      com(x_k)         k = 1..N     (N rows)
 
 Only x0 changes between solves (and between scenarios): H, F, C, E, lower0, upper0 are fixed.
-Q_f solves the discrete algebraic Riccati equation for (A, B, Q, R).
+Q_f solves the discrete algebraic Riccati equation for (A, B_free, Q, R_free), where "free" are
+the inputs that can act: an input whose bounds are [0, 0] (a motor switched off, e.g. the hip in
+the ankle-only study) is left out, since the terminal weight is the cost-to-go of the LQR that
+the controller can actually apply; a Q_f that assumed the switched-off input would promise a
+cheap correction that never comes (with the paper convention's hip off it makes the closed loop
+unstable even at rest).
 """
 
 from __future__ import annotations
@@ -79,6 +84,15 @@ def shift_warm_start(z: np.ndarray) -> np.ndarray:
     return np.concatenate([z[..., 2:], z[..., -2:]], axis=-1)
 
 
+def terminal_weight(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray,
+                    input_bounds) -> np.ndarray:
+    """DARE solution for the inputs whose bounds are not [0, 0] (see the module docstring)."""
+    free = [i for i, (lo, hi) in enumerate(input_bounds) if not (lo == 0.0 and hi == 0.0)]
+    if not free:
+        raise ValueError("every input is bounded to [0, 0]: there is nothing to control with")
+    return scipy.linalg.solve_discrete_are(A, B[:, free], Q, R[np.ix_(free, free)])
+
+
 def build_qp(controller: ControllerParams, body: BodyParams, control_dt: float) -> CondensedQP:
     """Build the condensed QP of ``controller`` for ``body`` at the control period."""
     lm = linear_model(body, controller.convention, control_dt)
@@ -87,7 +101,7 @@ def build_qp(controller: ControllerParams, body: BodyParams, control_dt: float) 
     nx, nu = B.shape
     Q = np.diag(controller.q_diag)
     R = np.diag(controller.r_diag)
-    Qf = scipy.linalg.solve_discrete_are(A, B, Q, R)
+    Qf = terminal_weight(A, B, Q, R, controller.input_bounds)
 
     powers = [np.eye(nx)]
     for _ in range(N):
