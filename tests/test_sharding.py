@@ -22,7 +22,8 @@ import numpy as np
 # rounding only: the shard_map program is compiled differently from the one-device jit
 # (measured: the same two-device process with a one-device BatchRunner reproduces the
 # one-device numbers bit for bit, the sharded runner differs by ~1e-6 to 1e-5 relative, e.g. peak
-# ankle angle 7.223715e-3 vs 7.223705e-3 rad), not because a scenario sees its batch.
+# ankle angle 7.223715e-3 vs 7.223705e-3 rad, also with 8 scenarios per device), and each
+# device's batch (4 here) has another shape than the one-device batch (8).
 EXACT = ("force", "duration", "outcome", "settle_time", "fall_time", "nonconverged_solves")
 
 SCRIPT = r"""
