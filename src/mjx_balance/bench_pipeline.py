@@ -228,7 +228,11 @@ def _memory_child(cells: int, t_end: float, chunk: int | None, out: str) -> None
     result = sweep.run_sweep(out, config, forces, durations, chunk_size=chunk, progress=False,
                              log=None)
     seconds = time.perf_counter() - t0
-    counts = result.region["outcome"].value_counts().to_dict()
+    import pandas as pd
+
+    # Only the outcome column: reading the whole region back would add the table to the peak.
+    outcomes = pd.read_parquet(result.region_path, columns=["outcome"])["outcome"]
+    counts = outcomes.value_counts().to_dict()
     print(json.dumps(dict(cells=n_f * n_d, seconds=seconds,
                           peak_rss_mib=_peak_rss_mib(resource.RUSAGE_SELF),
                           chunks=result.computed_chunks, outcomes=counts)), flush=True)

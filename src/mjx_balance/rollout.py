@@ -60,7 +60,9 @@ them (:meth:`BatchRunner._batched`, shard_map over a 1-D mesh). Figures: BENCHMA
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import io
 import math
 import time as _time
 from typing import Any, NamedTuple
@@ -70,7 +72,11 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pandas as pd
-from mujoco import mjx
+
+# mujoco.mjx prints "Failed to import warp" when its GPU-only Warp backend is not installed;
+# the JAX implementation used here does not need it, so keep that line off the user's screen.
+with contextlib.redirect_stdout(io.StringIO()):
+    from mujoco import mjx
 
 from . import admm as admm_mod
 from . import metrics

@@ -449,12 +449,17 @@ class OutputFolder:
 
 @dataclass
 class SweepResult:
-    region: pd.DataFrame
+    region_path: Path  # region.parquet, every cell once, in grid order
     computed_chunks: int  # chunks evaluated in this call
     reused_chunks: int  # chunks read back from an earlier call
     recomputed_chunks: int  # damaged chunk files found and recomputed
     seconds: float
     already_complete: bool
+
+    @property
+    def region(self) -> pd.DataFrame:
+        """The merged table, read from disk on demand (the sweep itself never holds it all)."""
+        return pd.read_parquet(self.region_path)
 
 
 def _chunk_path(folder: Path, index: int) -> Path:
@@ -542,21 +547,20 @@ def run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np
     # A finished sweep: region.parquet that holds exactly the grid.
     if region_path.exists():
         try:
-            region = pd.read_parquet(region_path)
-            _check_region(region, forces, durations)
+            _check_region(pd.read_parquet(region_path, columns=["force", "duration"]),
+                          forces, durations)
             say(f"sweep already complete: {region_path} ({n_cells} cells); nothing to do")
-            return SweepResult(region, 0, len(slices), 0, time.perf_counter() - start, True)
+            return SweepResult(region_path, 0, len(slices), 0, time.perf_counter() - start, True)
         except Exception as exc:  # noqa: BLE001 - rebuild it from the chunks
             say(f"{region_path} is damaged ({exc}); rebuilding it")
 
     (folder.path / "chunks").mkdir(exist_ok=True)
-    frames: list[pd.DataFrame | None] = []
+    # Chunk files are checked one at a time and not kept: peak memory is one chunk, not the grid.
     todo: list[int] = []
     recomputed = 0
     for index, cells in enumerate(slices):
         path = _chunk_path(folder.path, index)
         frame, reason = read_chunk(path, cell_f[cells], cell_d[cells], convention)
-        frames.append(frame)
         if frame is None:
             todo.append(index)
             if reason != "missing":
@@ -579,17 +583,42 @@ def run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np
                 cells = slices[index]
                 frame = evaluate(run_batch, cell_f[cells], cell_d[cells], config, pad_to=chunk_size)
                 _write_parquet(frame, _chunk_path(folder.path, index))
-                frames[index] = frame
                 bar.update(cells.stop - cells.start)
         finally:
             bar.close()
 
-    region = pd.concat(frames, ignore_index=True)
-    _check_region(region, forces, durations)
-    _write_parquet(region, region_path)
+    write_atomic(region_path, lambda tmp: _merge_chunks(folder.path, slices, cell_f, cell_d,
+                                                        convention, tmp))
     seconds = time.perf_counter() - start
     say(f"wrote {region_path} ({n_cells} cells; {len(todo)} chunks computed in {seconds:.1f} s)")
-    return SweepResult(region, len(todo), reused, recomputed, seconds, False)
+    return SweepResult(region_path, len(todo), reused, recomputed, seconds, False)
+
+
+def _merge_chunks(folder: Path, slices: list[slice], cell_f: np.ndarray, cell_d: np.ndarray,
+                  convention: str, out: Path) -> None:
+    """Stream the chunk files into one parquet file, one chunk in memory at a time.
+
+    Each chunk is checked again against its slice of the grid (read_chunk), so the merged file
+    holds every cell exactly once and in grid order without ever being held whole.
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    writer = None
+    try:
+        for index, cells in enumerate(slices):
+            frame, reason = read_chunk(_chunk_path(folder, index), cell_f[cells], cell_d[cells],
+                                       convention)
+            if frame is None:
+                raise RuntimeError(f"chunk {index} changed while merging: {reason}")
+            table = pa.Table.from_pandas(frame, preserve_index=False)
+            if writer is None:
+                schema = table.schema
+                writer = pq.ParquetWriter(out, schema)
+            writer.write_table(table.cast(schema))
+    finally:
+        if writer is not None:
+            writer.close()
 
 
 def _describe(values: Sequence[float]) -> str:
