@@ -150,7 +150,19 @@ def rest_data(model: mujoco.MjModel, dtype=jnp.float32) -> mjx.Data:
     """
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    return cast_floats(mjx.put_data(model, data, impl="jax"), dtype)
+    d = cast_floats(mjx.put_data(model, data, impl="jax"), dtype)
+    # mjx.step builds some integer fields (the contacts' geom ids) in JAX's default integer width
+    # (int64 under jax_enable_x64) where put_data writes int32: give every integer leaf the type
+    # the step returns (traced abstractly, nothing compiled), so the state is a valid scan carry
+    # either way. (Floating leaves are cast back to ``dtype`` after every step.)
+    stepped = jax.eval_shape(mjx.step, mjx_model(model, dtype), d)
+
+    def match(x, s):
+        if jnp.issubdtype(x.dtype, jnp.integer) and x.dtype != s.dtype:
+            return x.astype(s.dtype)
+        return x
+
+    return jax.tree_util.tree_map(match, d, stepped)
 
 
 # --------------------------------------------------------------------------------------------
