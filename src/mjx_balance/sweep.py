@@ -604,7 +604,17 @@ def _merge_chunks(folder: Path, slices: list[slice], cell_f: np.ndarray, cell_d:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    writer = None
+    # Row groups of ~64k rows: one per chunk would make the file's metadata, which the writer
+    # holds until it closes, grow by ~50 kB per chunk (measured: +150 MiB at 400k cells).
+    rows_per_group = 65536
+    writer, schema, pending, pending_rows = None, None, [], 0
+
+    def flush() -> None:
+        nonlocal pending, pending_rows
+        if pending:
+            writer.write_table(pa.concat_tables(pending), row_group_size=rows_per_group)
+            pending, pending_rows = [], 0
+
     try:
         for index, cells in enumerate(slices):
             frame, reason = read_chunk(_chunk_path(folder, index), cell_f[cells], cell_d[cells],
@@ -615,7 +625,11 @@ def _merge_chunks(folder: Path, slices: list[slice], cell_f: np.ndarray, cell_d:
             if writer is None:
                 schema = table.schema
                 writer = pq.ParquetWriter(out, schema)
-            writer.write_table(table.cast(schema))
+            pending.append(table.cast(schema))
+            pending_rows += table.num_rows
+            if pending_rows >= rows_per_group:
+                flush()
+        flush()
     finally:
         if writer is not None:
             writer.close()
