@@ -27,7 +27,6 @@ when |u0 - u0_truth| exceeds 1e-3 of the input's range for either input.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import math
 import os
@@ -39,7 +38,7 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from .params import BodyParams, Config, ControllerParams, load_config
+from .params import BodyParams, ControllerParams
 from .qp import CondensedQP, build_qp, shift_warm_start
 
 ACCURACY = 1e-3  # of each input's range
@@ -332,10 +331,10 @@ def solver_command(args: argparse.Namespace) -> int:
     if args.dtype == "float64":
         jax.config.update("jax_enable_x64", True)
     dtype = jnp.float64 if args.dtype == "float64" else jnp.float32
-    config = load_config(args.config) if args.config else Config()
+    from .cli import load_run_config
+
+    config = load_run_config(args)
     controller = config.controller
-    if args.convention:
-        controller = dataclasses.replace(controller, convention=args.convention)
     body = config.body
     qp = build_qp(controller, body, config.scenario.control_dt)
     settings = admm.settings_from_controller(controller)

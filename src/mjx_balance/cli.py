@@ -20,9 +20,14 @@ import sys
 from .params import CONVENTIONS, Config, ParameterError, load_config
 
 
+def base_config(args: argparse.Namespace) -> Config:
+    """The --config file's configuration, or the defaults."""
+    return load_config(args.config) if getattr(args, "config", None) else Config()
+
+
 def load_run_config(args: argparse.Namespace) -> Config:
     """The run's configuration: --config file (or defaults), then --convention on top."""
-    config = load_config(args.config) if getattr(args, "config", None) else Config()
+    config = base_config(args)
     if getattr(args, "convention", None):
         config = config.replace(controller={"convention": args.convention})
     return config

@@ -53,7 +53,8 @@ import pandas as pd
 
 from . import __version__
 from .metrics import OUTCOMES, SUMMARY_COLUMNS
-from .params import Config, ParameterError, load_config, save_config
+from .cli import base_config
+from .params import Config, ParameterError, save_config
 
 RunBatch = Callable[[np.ndarray, np.ndarray], "pd.DataFrame | dict[str, np.ndarray]"]
 
@@ -972,10 +973,6 @@ def load_sweep(path: str | Path | None, base: Config) -> SweepDefinition:
                            sweep.get("table_forces"), chunk)
 
 
-def _config_from_args(args: Any) -> Config:
-    return load_config(args.config) if getattr(args, "config", None) else Config()
-
-
 def _with_convention(config: Config, convention: str | None) -> Config:
     return config.replace(controller={"convention": convention}) if convention else config
 
@@ -989,7 +986,7 @@ def sweep_command(args: Any) -> int:
     from . import region_plots
 
     use_default = args.sweep is None and args.forces is None and args.durations is None
-    definition = load_sweep(args.sweep, _config_from_args(args))
+    definition = load_sweep(args.sweep, base_config(args))
     if args.sweep is None and not use_default:
         # A grid from the command line: the region only, chunk size from the memory budget.
         definition.table_forces = definition.chunk = None
@@ -1024,8 +1021,8 @@ def sweep_command(args: Any) -> int:
 
 def table_command(args: Any) -> int:
     """``mjx-balance table``: table.csv and table.png in --out."""
-    definition = load_sweep(args.sweep, _config_from_args(args)) if args.sweep else None
-    config = _with_convention(definition.config if definition else _config_from_args(args),
+    definition = load_sweep(args.sweep, base_config(args)) if args.sweep else None
+    config = _with_convention(definition.config if definition else base_config(args),
                               args.convention)
     if args.forces is not None:
         forces = args.forces
