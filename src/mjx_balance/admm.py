@@ -68,32 +68,35 @@ STATUS_NAMES = {SOLVED: "solved", MAX_ITER: "max_iter", PRIMAL_INFEASIBLE: "prim
 _MIN_SCALING, _MAX_SCALING = 1e-4, 1e4  # OSQP's bounds on one Ruiz step
 
 
+_DEFAULTS = ControllerParams()  # the configuration holds the defaults of the shared settings
+
+
 class ADMMSettings(NamedTuple):
     """Solver hyper-parameters; hashable, passed as a static argument under jit.
 
-    rho, sigma, scaling_iters and whiten enter the matrices precomputed by :func:`build_admm`
-    (build the data with the same settings you solve with); the rest is used by
-    :func:`admm_solve`.
+    The settings a configuration can set take their defaults from ``ControllerParams``
+    (``admm_*``, where they are explained); the others are fixed here. rho, sigma,
+    scaling_iters and whiten enter the matrices precomputed by :func:`build_admm` (build the
+    data with the same settings you solve with); the rest is used by :func:`admm_solve`.
     """
 
-    rho: float = 0.07
+    rho: float = _DEFAULTS.admm_rho
     # ρ of each row group (RHO_GROUPS) = rho x factor, as OSQP's per-row ρ. Measured: a larger ρ
     # on the CoP rows (often active during a push) and the input rows removes the slow tail of
     # warm-started solves after large pushes (misses 3.1% -> 0% on the bench states).
     rho_scale: tuple[float, float, float, float] = (3.0, 1.0, 30.0, 1.0)
-    sigma: float = 0.0  # proximal term; H ≻ 0, so 0 is allowed and saves one product
-    alpha: float = 1.8  # over-relaxation
-    max_iter: int = 100
-    check_every: int = 10
-    eps_abs: float = 1e-7
-    eps_rel: float = 3e-6
+    sigma: float = _DEFAULTS.admm_sigma  # proximal term; H ≻ 0, so 0 is allowed
+    alpha: float = _DEFAULTS.admm_alpha  # over-relaxation
+    max_iter: int = _DEFAULTS.admm_max_iter
+    check_every: int = _DEFAULTS.admm_check_every
+    eps_abs: float = _DEFAULTS.admm_eps_abs
+    eps_rel: float = _DEFAULTS.admm_eps_rel
     scaling_iters: int = 3  # Ruiz equilibration passes (after whitening)
     whiten: bool = True  # change of variables with H^(-1/2) before Ruiz
     eps_prim_inf: float = 1e-4  # OSQP's primal infeasibility tolerance
     # Stop a solve at the first check where OSQP's primal infeasibility certificate holds
-    # (instead of iterating to the cap). Off by default: the shared definitions run an
-    # infeasible QP to the cap and use its last iterate, as the reference's OSQP does.
-    stop_on_infeasible: bool = False
+    # (instead of iterating to the cap).
+    stop_on_infeasible: bool = _DEFAULTS.admm_stop_on_infeasible
 
     @property
     def n_chunks(self) -> int:
@@ -111,6 +114,7 @@ def settings_from_controller(controller: ControllerParams) -> ADMMSettings:
         alpha=float(controller.admm_alpha), max_iter=int(controller.admm_max_iter),
         check_every=int(controller.admm_check_every), eps_abs=float(controller.admm_eps_abs),
         eps_rel=float(controller.admm_eps_rel),
+        stop_on_infeasible=bool(controller.admm_stop_on_infeasible),
     )
 
 

@@ -104,17 +104,3 @@ def animate_timeseries(ts: pd.DataFrame, out: str | Path, body: BodyParams = Bod
     anim.save(out, writer=PillowWriter(fps=fps), dpi=dpi)
     plt.close(fig)
     return len(times)
-
-
-def animate_command(args) -> int:
-    """``mjx-balance animate``: simulate one push with the reference and write a GIF."""
-    from .cli import load_run_config
-    from .reference import simulate_scenario
-
-    config = load_run_config(args)
-    if args.t_end is not None:
-        config = config.replace(scenario={"t_end": args.t_end})
-    _, ts = simulate_scenario(config, args.force, args.duration, record=True)
-    frames = animate_timeseries(ts, args.out, config.body, fps=args.fps)
-    print(f"wrote {args.out} ({frames} frames at {args.fps:g} fps)")
-    return 0

@@ -1,21 +1,16 @@
-"""Measurements of one closed-loop run (SPEC §4–5), numpy.
+"""Measurements of one closed-loop run from MuJoCo C data, and its summary row (numpy).
 
-This module is the written form of the team's shared definitions; the batched rollout computes
-the same quantities in JAX and must agree with it.
+The scalar reference (``reference.py``) samples a run with the functions of the first section
+and turns the sample series into one summary row with :func:`summarize`; the outcome rules
+(fall, settle band, saturation, classification) are those of ``outcomes.py``, shared with the
+batched closed loop.
 
 Samples. Metrics are evaluated after every physics step i = 0..n-1, at time t = (i+1) dt. Joint
 angles, foot pose, load-cell heights and the CoM are those of the state at t (the reference
 refreshes positions with ``mj_kinematics`` + ``mj_comPos`` after ``mj_step``); the load-cell
 forces are the contact forces that acted during step i (as ``mj_step`` leaves them in ``data``).
-
-Fall. The first sample where the foot pitches beyond ``foot_pitch_limit``, a load-cell sphere's
-lowest point rises above ``foot_lift_limit``, a position state x[0] or x[1] leaves its bound by
-more than ``bound_violation_limit``, or the lower body's absolute tilt |foot_pitch + q_a| exceeds
-``lower_tilt_limit``. Everything is accumulated up to and including that sample and nothing after
-it; control periods count if their control instant lies before the fall sample's time.
-
-Outcome codes: ``OUTCOMES[code]`` (0 recovered, 1 not_settled, 2 fell, 3 diverged). Diverged (a
-non-finite state, torque or solver output) takes precedence over everything else.
+Everything is accumulated up to and including the first fall sample and nothing after it;
+control periods count if their control instant lies before the fall sample's time.
 """
 
 from __future__ import annotations
@@ -26,23 +21,9 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from . import outcomes
+from .outcomes import FELL, OUTCOMES, RECOVERED, Limits
 from .params import ControllerParams, ScenarioParams
-
-OUTCOMES = ("recovered", "not_settled", "fell", "diverged")
-RECOVERED, NOT_SETTLED, FELL, DIVERGED = range(4)
-
-SUMMARY_COLUMNS = [
-    "force", "duration", "convention", "outcome", "settle_time", "fall_time",
-    "peak_ankle", "peak_hip", "peak_foot_pitch",
-    "cop_min", "cop_max", "com_min", "com_max",
-    "peak_tau_ankle", "peak_tau_hip",
-    "ankle_saturation_fraction", "hip_saturation_fraction",
-    "energy_ankle", "energy_hip", "energy_total", "work_ankle", "work_hip",
-    "energy_u1", "energy_u2",
-    "nonconverged_solves", "max_residual", "max_bound_violation",
-]
-
-SATURATION_TOL = 1e-6  # relative to the input's range
 
 
 # --- measurements from MuJoCo C data -------------------------------------------------------
@@ -80,61 +61,24 @@ def cell_heights(model: mujoco.MjModel, data: mujoco.MjData,
     return data.geom_xpos[cells, 2] - model.geom_size[cells, 0]
 
 
-# --- per-sample rules ----------------------------------------------------------------------
+# --- rules over a series ----------------------------------------------------------------
 
-def bound_excess(x: np.ndarray, controller: ControllerParams) -> np.ndarray:
-    """Largest excess of x[0], x[1] beyond their state bounds, rad, >= 0. x: [..., 4] -> [...]."""
-    (l1, h1), (l2, h2) = controller.state_bounds
-    pos = np.asarray(x)[..., :2]
-    lower = np.array([l1, l2])
-    upper = np.array([h1, h2])
-    excess = np.maximum(np.maximum(lower - pos, pos - upper), 0.0)
-    return excess.max(axis=-1)
-
-
-def fall_flags(foot_pitch: np.ndarray, cell_low_z: np.ndarray, x: np.ndarray, q_ankle: np.ndarray,
-               scenario: ScenarioParams, controller: ControllerParams) -> np.ndarray:
-    """Per-sample fall test. foot_pitch, q_ankle: [n]; cell_low_z: [n, 4]; x: [n, 4] -> bool [n]."""
-    foot_pitch = np.asarray(foot_pitch)
-    return (
-        (np.abs(foot_pitch) > scenario.foot_pitch_limit)
-        | (np.asarray(cell_low_z).max(axis=-1) > scenario.foot_lift_limit)
-        | (bound_excess(x, controller) > scenario.bound_violation_limit)
-        | (np.abs(foot_pitch + np.asarray(q_ankle)) > scenario.lower_tilt_limit)
-    )
-
-
-def in_settle_band(q: np.ndarray, dq: np.ndarray, scenario: ScenarioParams) -> np.ndarray:
-    """Joint angles within settle_angle_tol and rates within settle_rate_tol. [n, 2] -> bool [n]."""
-    return ((np.abs(q) <= scenario.settle_angle_tol).all(axis=-1)
-            & (np.abs(dq) <= scenario.settle_rate_tol).all(axis=-1))
-
-
-def settle_time(time: np.ndarray, q: np.ndarray, dq: np.ndarray,
-                scenario: ScenarioParams) -> float:
+def settle_time(time: np.ndarray, q: np.ndarray, dq: np.ndarray, limits: Limits) -> float:
     """Time of the last sample outside the settle band (0.0 if never outside)."""
-    outside = ~in_settle_band(q, dq, scenario)
+    outside = ~outcomes.in_settle_band(np, np.asarray(q), np.asarray(dq), limits)
     if not outside.any():
         return 0.0
     return float(np.asarray(time)[np.flatnonzero(outside)[-1]])
 
 
-def saturation_fraction(u: np.ndarray, lower: float, upper: float) -> float:
-    """Fraction of entries of u within SATURATION_TOL * (upper - lower) of a bound."""
-    u = np.asarray(u)
-    if u.size == 0:
-        return math.nan
-    tol = SATURATION_TOL * (upper - lower)
-    return float(np.mean((u <= lower + tol) | (u >= upper - tol)))
-
-
-def classify(diverged: bool, fell: bool, settled_at_end: bool) -> int:
-    """Outcome code (index into OUTCOMES)."""
-    if diverged:
-        return DIVERGED
-    if fell:
-        return FELL
-    return RECOVERED if settled_at_end else NOT_SETTLED
+def saturation_fractions(u: np.ndarray, limits: Limits) -> tuple[float, float]:
+    """Fraction of control periods with each input at a bound (outcomes.at_input_bound).
+    u: [K, 2]; NaN when K = 0."""
+    u = np.asarray(u, float).reshape(-1, 2)
+    if u.shape[0] == 0:
+        return math.nan, math.nan
+    at_bound = outcomes.at_input_bound(np, u, limits)
+    return float(np.mean(at_bound[:, 0])), float(np.mean(at_bound[:, 1]))
 
 
 # --- the summary row -----------------------------------------------------------------------
@@ -185,7 +129,9 @@ def summarize(*, force: float, duration: float, convention: str,
     diverged = bool(diverged or not finite.all()
                     or not np.isfinite(np.asarray(u_control, float)).all())
 
-    flags = fall_flags(foot_pitch, cell_low_z, x, q[:, 0], scenario, controller) if n else \
+    limits = Limits.from_params(scenario, controller)
+    flags = outcomes.falls(np, np.asarray(foot_pitch, float), np.asarray(cell_low_z, float),
+                           outcomes.bound_excess(np, x, limits), q[:, 0], limits) if n else \
         np.zeros(0, bool)
     fell = bool(flags.any())
     end = int(np.flatnonzero(flags)[0]) + 1 if fell else n  # samples kept: [0, end)
@@ -206,16 +152,16 @@ def summarize(*, force: float, duration: float, convention: str,
     power_ankle = tau_k[:, 0] * dq_step[:, 0]
     power_hip = tau_k[:, 1] * dq_step[:, 1]
 
-    settled = bool(completed and n and in_settle_band(q[-1:], dq[-1:], scenario)[0])
-    code = classify(diverged, fell, settled and not fell)
-    settle = settle_time(time, q, dq, scenario) if code == RECOVERED else math.nan
+    settled = bool(completed and n and outcomes.in_settle_band(np, q[-1:], dq[-1:], limits)[0])
+    code = int(outcomes.classify(np, diverged, fell, settled and not fell))
+    settle = settle_time(time, q, dq, limits) if code == RECOVERED else math.nan
 
-    (l1, h1), (l2, h2) = controller.input_bounds
+    saturation_ankle, saturation_hip = saturation_fractions(u_control, limits)
     cop_min, cop_max = _finite_min_max(np.asarray(cop, float)[sl])
     com_min, com_max = _finite_min_max(np.asarray(com, float)[sl])
     energy_ankle = float(np.nansum(np.abs(power_ankle)))
     energy_hip = float(np.nansum(np.abs(power_hip)))
-    excess = bound_excess(x[sl], controller) if end else np.zeros(0)
+    excess = outcomes.bound_excess(np, x[sl], limits) if end else np.zeros(0)
     excess = excess[np.isfinite(excess)]
     res = residual[np.isfinite(residual)]
     return {
@@ -234,8 +180,8 @@ def summarize(*, force: float, duration: float, convention: str,
         "com_max": com_max,
         "peak_tau_ankle": _nanmax_abs(tau_k[:, 0]),
         "peak_tau_hip": _nanmax_abs(tau_k[:, 1]),
-        "ankle_saturation_fraction": saturation_fraction(u_control[:, 0], l1, h1),
-        "hip_saturation_fraction": saturation_fraction(u_control[:, 1], l2, h2),
+        "ankle_saturation_fraction": saturation_ankle,
+        "hip_saturation_fraction": saturation_hip,
         "energy_ankle": energy_ankle,
         "energy_hip": energy_hip,
         "energy_total": energy_ankle + energy_hip,

@@ -161,6 +161,10 @@ class ControllerParams:
     admm_check_every: int = 10
     admm_eps_abs: float = 1e-7
     admm_eps_rel: float = 3e-6
+    # Stop a solve at the first check where OSQP's primal infeasibility certificate holds
+    # instead of iterating to the cap. Off by default: the shared definitions run an infeasible
+    # QP to the cap and use its last iterate, as the reference's OSQP does.
+    admm_stop_on_infeasible: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q_diag", tuple(float(v) for v in self.q_diag))
@@ -304,6 +308,9 @@ def _build(cls: type, section: str, values: dict[str, Any]) -> Any:
             if not isinstance(value, (list, tuple)):
                 raise ParameterError(f"{section}.{key} = {value!r}: must be a list of numbers")
             value = tuple(value)
+        elif isinstance(default, bool):
+            if not isinstance(value, bool):
+                raise ParameterError(f"{section}.{key} = {value!r}: must be true or false")
         elif isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)
         elif isinstance(default, (int, float)) and not isinstance(default, bool):
@@ -371,3 +378,14 @@ def _toml_value(value: Any) -> str:
 
 def save_config(config: Config, path: str | Path) -> None:
     Path(path).write_text(dumps_config(config))
+
+
+def with_convention(config: Config, convention: str | None) -> Config:
+    """``config`` with the controller's convention replaced (unchanged for None)."""
+    return config.replace(controller={"convention": convention}) if convention else config
+
+
+def run_config(path: str | Path | None = None, convention: str | None = None) -> Config:
+    """A run's configuration: the TOML file at ``path`` (or the defaults), then ``convention``
+    on top (None keeps the file's)."""
+    return with_convention(load_config(path) if path else Config(), convention)

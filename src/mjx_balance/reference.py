@@ -19,23 +19,21 @@ and the metrics run undelayed; d = 0 is the undelayed loop.
 
 from __future__ import annotations
 
-import argparse
 import functools
 import math
 import sys
-from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import mujoco
 import numpy as np
-import osqp
 import pandas as pd
-import scipy.sparse as sp
 
-from . import metrics
+from . import metrics, outcomes
 from .model import build_model, indices
-from .params import Config, ControllerParams, ParameterError, save_config
-from .qp import CondensedQP, build_qp, shift_warm_start
+from .osqp_mpc import ReferenceMPC
+from .outcomes import SUMMARY_COLUMNS, Limits
+from .params import BodyParams, Config, ControllerParams
+from .qp import CondensedQP, build_qp
 
 TIMESERIES_COLUMNS = [
     "scenario", "force", "duration", "convention", "time",
@@ -43,75 +41,6 @@ TIMESERIES_COLUMNS = [
     "foot_x", "foot_z", "foot_pitch", "u1", "u2", "tau_ankle", "tau_hip", "cop", "com",
     "energy_ankle", "energy_hip", "energy_total",
 ]
-
-
-class ReferenceMPC:
-    """The condensed MPC QP solved by OSQP, set up (and factorised) once, warm-started.
-
-    Settings (shared definitions): eps_abs = eps_rel = controller.osqp_eps, polishing off,
-    infeasibility detection disabled (eps_prim_inf = eps_dual_inf = 1e-30) so that an infeasible
-    QP runs to max_iter and returns its last iterate, max_iter = controller.osqp_max_iter.
-    """
-
-    INFEASIBILITY_EPS = 1e-30
-
-    def __init__(self, qp: CondensedQP, controller: ControllerParams):
-        self.qp = qp
-        self.controller = controller
-        self._P = sp.triu(sp.csc_matrix(qp.H), format="csc")
-        self._A = sp.csc_matrix(qp.C)
-        # Dual warm start shifts each constraint block by its per-step row count.
-        N = qp.horizon
-        self._dual_blocks = [(qp.rows["inputs"], 2), (qp.rows["states"], 2),
-                             (qp.rows["cop"], 1), (qp.rows["com"], 1)]
-        assert qp.n == 2 * N
-        self.reset()
-
-    def reset(self) -> None:
-        """Fresh solver (no warm start, initial rho): scenarios do not depend on each other."""
-        x0 = np.zeros(4)
-        lower, upper = self.qp.bounds(x0)
-        self._solver = osqp.OSQP()
-        self._solver.setup(
-            P=self._P, q=self.qp.linear_term(x0), A=self._A, l=lower, u=upper,
-            eps_abs=self.controller.osqp_eps, eps_rel=self.controller.osqp_eps,
-            eps_prim_inf=self.INFEASIBILITY_EPS, eps_dual_inf=self.INFEASIBILITY_EPS,
-            max_iter=self.controller.osqp_max_iter, polishing=False, warm_starting=True,
-            verbose=False,
-        )
-        self._z: np.ndarray | None = None
-        self._y: np.ndarray | None = None
-
-    def _shift_dual(self, y: np.ndarray) -> np.ndarray:
-        out = np.empty_like(y)
-        for rows, stride in self._dual_blocks:
-            block = y[rows]
-            out[rows] = np.concatenate([block[stride:], block[-stride:]])
-        return out
-
-    def solve(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool, float]:
-        """Solve the QP for measured state x0 [4].
-
-        Returns (u [2] first input clipped to its bounds, z [n] the solver's (last) iterate,
-        status_ok: OSQP reported SOLVED, primal residual). Never raises on a bad solve.
-        """
-        x0 = np.asarray(x0, float)
-        lower, upper = self.qp.bounds(x0)
-        self._solver.update(q=self.qp.linear_term(x0), l=lower, u=upper)
-        if self._z is None:
-            self._solver.warm_start(x=np.zeros(self.qp.n), y=np.zeros(self.qp.m))
-        else:
-            self._solver.warm_start(x=shift_warm_start(self._z), y=self._shift_dual(self._y))
-        result = self._solver.solve(raise_error=False)
-        z = np.array(result.x, dtype=float)
-        y = np.array(result.y, dtype=float)
-        status_ok = result.info.status_val == osqp.SolverStatus.OSQP_SOLVED
-        prim_res = float(result.info.prim_res)
-        if np.isfinite(z).all() and np.isfinite(y).all():
-            self._z, self._y = z, y
-        else:
-            self._z = self._y = None
-        return self.qp.clip_input(z[:2]), z, bool(status_ok), prim_res
 
 
 def push_wrench(data: mujoco.MjData, upper: int, force: float, push_body: str) -> np.ndarray:
@@ -132,8 +61,22 @@ def push_wrench(data: mujoco.MjData, upper: int, force: float, push_body: str) -
     return wrench
 
 
+class MPC(Protocol):
+    """What the closed loop needs of a controller (``osqp_mpc.ReferenceMPC`` is one)."""
+
+    qp: CondensedQP
+
+    def reset(self) -> None:
+        """Forget the warm start: scenarios do not depend on each other."""
+
+    def solve(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool, float]:
+        """(u [2] clipped first input, iterate, converged, primal residual) for state x0."""
+
+
 @functools.lru_cache(maxsize=8)
-def _mpc(controller: ControllerParams, body, control_dt: float) -> ReferenceMPC:
+def reference_mpc(controller: ControllerParams, body: BodyParams,
+                  control_dt: float) -> ReferenceMPC:
+    """The OSQP controller of a configuration (built once per process and configuration)."""
     return ReferenceMPC(build_qp(controller, body, control_dt), controller)
 
 
@@ -143,18 +86,22 @@ def _model(body, physics_dt: float) -> mujoco.MjModel:
 
 
 def simulate_scenario(config: Config, force: float, duration: float, *, record: bool = True,
-                      scenario_id: int = 0) -> tuple[dict[str, Any], pd.DataFrame | None]:
+                      scenario_id: int = 0,
+                      mpc: MPC | None = None) -> tuple[dict[str, Any], pd.DataFrame | None]:
     """Run one push scenario; return (summary row, long time series or None).
 
     ``force`` [N] (+ forward) and ``duration`` [s] override config.scenario's; the summary row
-    has the keys ``metrics.SUMMARY_COLUMNS``; the time series has ``TIMESERIES_COLUMNS``, one row
-    per physics step (time = (i+1) dt), ending at the fall sample if the body fell.
+    has the keys ``outcomes.SUMMARY_COLUMNS``; the time series has ``TIMESERIES_COLUMNS``, one
+    row per physics step (time = (i+1) dt), ending at the fall sample if the body fell.
+    ``mpc``: the controller (default: OSQP, :func:`reference_mpc`); it is reset first.
     """
     config = config.replace(scenario={"force": float(force), "duration": float(duration)})
     body, ctrl, sc = config.body, config.controller, config.scenario
     model = _model(body, sc.physics_dt)
-    mpc = _mpc(ctrl, body, sc.control_dt)
+    if mpc is None:
+        mpc = reference_mpc(ctrl, body, sc.control_dt)
     mpc.reset()
+    limits = Limits.from_params(sc, ctrl)
     lm = mpc.qp.linear
     ix = indices(model)
     data = mujoco.MjData(model)
@@ -226,8 +173,8 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
                 diverged = True
                 stop = True
                 break
-            if metrics.fall_flags(foot[i, 2], cell_low[i][None], x[i][None], q[i, 0],
-                                  sc, ctrl)[0]:
+            if outcomes.falls(np, foot[i, 2], cell_low[i], outcomes.bound_excess(np, x[i], limits),
+                              q[i, 0], limits):
                 stop = True
                 break
         if stop:
@@ -265,31 +212,7 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
     return summary, frame
 
 
-# --- the ``mjx-balance simulate`` command ----------------------------------------------------
-
-TABLE_COLUMNS = ["force", "duration", "convention", "outcome", "settle_time", "fall_time",
-                 "peak_ankle", "peak_hip", "peak_tau_ankle", "peak_tau_hip",
-                 "ankle_saturation_fraction", "energy_ankle", "energy_hip", "energy_total",
-                 "nonconverged_solves", "max_bound_violation"]
-
-
-def parse_values(text: str, name: str, *, nonnegative: bool = False) -> list[float]:
-    """Comma-separated finite numbers; ParameterError naming ``name`` otherwise."""
-    items = [item.strip() for item in str(text).split(",")]
-    if not any(items):
-        raise ParameterError(f"--{name}: give at least one value")
-    values = []
-    for item in items:
-        try:
-            value = float(item)
-        except ValueError:
-            raise ParameterError(f"--{name}: {item!r} is not a number") from None
-        if not math.isfinite(value):
-            raise ParameterError(f"--{name}: {item!r} must be a finite number")
-        if nonnegative and value < 0:
-            raise ParameterError(f"--{name}: {item!r} must be >= 0")
-        values.append(value)
-    return values
+# --- many scenarios -------------------------------------------------------------------------
 
 
 def simulate_many(config: Config, forces: list[float], durations: list[float], *,
@@ -307,30 +230,5 @@ def simulate_many(config: Config, forces: list[float], durations: list[float], *
         summary, frame = simulate_scenario(config, force, duration, scenario_id=scenario_id)
         rows.append(summary)
         frames.append(frame)
-    summary = pd.DataFrame(rows, columns=metrics.SUMMARY_COLUMNS)
+    summary = pd.DataFrame(rows, columns=SUMMARY_COLUMNS)
     return summary, pd.concat(frames, ignore_index=True)
-
-
-def simulate_command(args: argparse.Namespace) -> int:
-    """``mjx-balance simulate``: run the pushes, write tables, configuration and figures."""
-    from .cli import load_run_config
-    from .plots import timeseries_figures
-
-    forces = parse_values(args.force, "force")
-    durations = parse_values(args.duration, "duration", nonnegative=True)
-    config = load_run_config(args)
-    for duration in durations:  # fail before creating anything
-        config.replace(scenario={"duration": duration})
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    summary, series = simulate_many(config, forces, durations)
-    summary.to_csv(out / "summary.csv", index=False)
-    series.to_parquet(out / "timeseries.parquet", index=False)
-    save_config(config, out / "config.toml")
-    figures = timeseries_figures(series, out)
-    with pd.option_context("display.width", 200, "display.max_columns", None,
-                           "display.float_format", lambda v: f"{v:.4g}"):
-        print(summary[TABLE_COLUMNS].to_string(index=False))
-    print(f"wrote {out / 'summary.csv'}, {out / 'timeseries.parquet'}, {out / 'config.toml'} "
-          f"and {len(figures)} figures in {out}")
-    return 0

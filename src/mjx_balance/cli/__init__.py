@@ -1,36 +1,38 @@
-"""The ``mjx-balance`` command line.
+"""The ``mjx-balance`` command line: the top layer, which nothing in the library imports.
 
-This module only parses arguments; each command's work lives beside the code it drives:
+This module parses arguments and dispatches; each command lives in a module of this package
+and drives the library below it:
 
-    simulate      reference.simulate_command   scalar MuJoCo C + OSQP, one scenario at a time
-    bench         bench_pipeline.pipeline_command  whole closed loop: MJX + ADMM vs reference vs IPOPT
-    bench solver  bench.solver_command         batched ADMM vs OSQP vs CasADi/IPOPT
-    sweep         sweep.sweep_command          force x duration region map (MJX + ADMM)
-    table         sweep.table_command          max acting time per force (batched bisection)
-    animate       animate.animate_command      stick-figure GIF of one push (reference simulation)
-    report        report.report_command        HTML report: the study's experiments and studies
+    simulate      cli.simulate:simulate_command  scalar MuJoCo C + OSQP, one scenario at a time
+    bench         cli.bench:pipeline_command     whole closed loop: MJX + ADMM vs reference vs IPOPT
+    bench solver  cli.bench:solver_command       batched ADMM vs OSQP vs CasADi/IPOPT
+    sweep         cli.sweep:sweep_command        force x duration region map (MJX + ADMM)
+    table         cli.sweep:table_command        max acting time per force (batched bisection)
+    animate       cli.animate:animate_command    stick-figure GIF of one push (reference)
+    report        cli.report:report_command      HTML report: the study's experiments and studies
+
+A command module is imported only when its command runs (after :func:`use_host_cores`, which
+must see JAX not yet imported).
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
-from .params import CONVENTIONS, Config, ParameterError, load_config
+from ..params import CONVENTIONS, Config, ParameterError, run_config
 
 
 def base_config(args: argparse.Namespace) -> Config:
-    """The --config file's configuration, or the defaults."""
-    return load_config(args.config) if getattr(args, "config", None) else Config()
+    """The --config file's configuration, or the defaults (--convention not applied)."""
+    return run_config(getattr(args, "config", None))
 
 
 def load_run_config(args: argparse.Namespace) -> Config:
     """The run's configuration: --config file (or defaults), then --convention on top."""
-    config = base_config(args)
-    if getattr(args, "convention", None):
-        config = config.replace(controller={"convention": args.convention})
-    return config
+    return run_config(getattr(args, "config", None), getattr(args, "convention", None))
 
 
 def _common(p: argparse.ArgumentParser, out_required: bool = True,
@@ -42,9 +44,26 @@ def _common(p: argparse.ArgumentParser, out_required: bool = True,
 
 
 def _bench_pipeline_arguments(p: argparse.ArgumentParser) -> None:
-    from .bench_pipeline import add_arguments  # numpy only at import time
-
-    add_arguments(p)
+    """Options of ``mjx-balance bench`` (the pipeline benchmark)."""
+    p.add_argument("--scenarios", type=int, default=64, help="scenarios through MJX + ADMM")
+    p.add_argument("--reference", type=int, default=16,
+                   help="of those, how many through the scalar reference (0: skip)")
+    p.add_argument("--ipopt", type=int, default=8,
+                   help="of those, how many through CasADi/IPOPT + MuJoCo C, with the "
+                        "reference's outcome mix (0: skip)")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 2,
+                   help="worker processes of the reference and the study toolchain")
+    p.add_argument("--chunk", type=int, default=64, help="MJX batch size (padded to 2^k)")
+    p.add_argument("--repeats", type=int, default=1, help="timed MJX runs (median)")
+    p.add_argument("--t-end", type=float, default=None, help="scenario length [s] (default 12)")
+    p.add_argument("--osqp-max-iter", type=int, default=None,
+                   help="reference OSQP iteration cap (default: the configuration's, 20000)")
+    p.add_argument("--memory-scaling", type=lambda s: [int(float(v)) for v in s.split(",")],
+                   default=None, help="comma list of sweep sizes (cells), e.g. 10000,100000")
+    p.add_argument("--memory-t-end", type=float, default=0.02, help="t_end of those sweeps [s]")
+    p.add_argument("--memory-chunk", type=int, default=None, help="chunk size of those sweeps")
+    p.add_argument("--memory-timeout", type=float, default=900.0, help="seconds per sweep")
+    p.add_argument("--json", action="store_true", help="print a final JSON line with the figures")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -57,13 +76,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", default="0,20,50,80,100,120", help="comma-separated forces [N]")
     p.add_argument("--duration", default="0.1", help="comma-separated push durations [s]")
     _common(p)
-    p.set_defaults(target="mjx_balance.reference:simulate_command")
+    p.set_defaults(target="mjx_balance.cli.simulate:simulate_command")
 
     p = sub.add_parser("bench", help="pipeline benchmark: batched MJX + ADMM vs the scalar reference "
                                      "vs CasADi/IPOPT, scenarios per second (or: bench solver)")
     _bench_pipeline_arguments(p)
     _common(p, out_required=False)
-    p.set_defaults(target="mjx_balance.bench_pipeline:pipeline_command")
+    p.set_defaults(target="mjx_balance.cli.bench:pipeline_command")
     bench = p.add_subparsers(dest="bench", required=False)
     p = bench.add_parser("solver", help="batched ADMM vs OSQP vs CasADi/IPOPT, solves per second")
     p.add_argument("--batch", default="1,16,256,4096,16384", help="comma-separated batch sizes")
@@ -71,7 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dtype", choices=("float32", "float64"), default="float32")
     p.add_argument("--json", action="store_true", help="print a final JSON line with the figures")
     _common(p, out_required=False)
-    p.set_defaults(target="mjx_balance.bench:solver_command")
+    p.set_defaults(target="mjx_balance.cli.bench:solver_command")
 
     p = sub.add_parser("sweep", help="recoverable region over a force x duration grid")
     p.add_argument("--forces", default=None, help="start:stop:step or a comma list [N]")
@@ -80,7 +99,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--chunk", type=int, default=None, help="scenarios per chunk (default: from memory budget)")
     p.add_argument("--reference", default=None, help="CSV of points (force, duration) to draw over the map")
     _common(p)
-    p.set_defaults(target="mjx_balance.sweep:sweep_command")
+    p.set_defaults(target="mjx_balance.cli.sweep:sweep_command")
 
     p = sub.add_parser("table", help="max acting time per force (robustness table)")
     p.add_argument("--forces", default=None,
@@ -88,7 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "else the study's 5,10,15,20,30,40,50,60,80,100,120)")
     p.add_argument("--sweep", default=None, help="sweep definition TOML (see sweeps/)")
     _common(p)
-    p.set_defaults(target="mjx_balance.sweep:table_command")
+    p.set_defaults(target="mjx_balance.cli.sweep:table_command")
 
     p = sub.add_parser("animate", help="stick-figure GIF of one push (matplotlib, no OpenGL)")
     p.add_argument("--force", type=float, required=True, help="push force [N]")
@@ -96,7 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fps", type=float, default=25.0, help="frames per second")
     p.add_argument("--t-end", type=float, default=None, help="simulate only this long [s]")
     _common(p, out_help="output GIF file")
-    p.set_defaults(target="mjx_balance.animate:animate_command")
+    p.set_defaults(target="mjx_balance.cli.animate:animate_command")
 
     p = sub.add_parser("report", help="HTML report: the study's experiments (both conventions) "
                                       "and the studies beyond it, with their saved tables")
@@ -117,7 +136,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "study's experiments run every convention of --conventions")
     p.add_argument("--config", default=None, help="TOML configuration file (body, controller, scenario)")
     p.add_argument("--out", required=True, help="output folder (tables, figures, report.html)")
-    p.set_defaults(target="mjx_balance.report:report_command")
+    p.set_defaults(target="mjx_balance.cli.report:report_command")
     return parser
 
 
@@ -127,8 +146,6 @@ def use_host_cores() -> None:
     every core busy: XLA runs one device's rollout on one thread (BENCHMARKS.md: 13.3 vs 7.9
     scenarios/s on 2 cores). Skipped when XLA_FLAGS already sets a host device count, when JAX
     is already imported, or with MJX_BALANCE_HOST_DEVICES=1 (any value sets the count)."""
-    import os
-
     flags = os.environ.get("XLA_FLAGS", "")
     if "xla_force_host_platform_device_count" in flags or "jax" in sys.modules:
         return

@@ -1,0 +1,18 @@
+"""``mjx-balance animate``: a stick-figure GIF of one push (reference simulation)."""
+
+from __future__ import annotations
+
+from ..animate import animate_timeseries
+from ..reference import simulate_scenario
+from . import load_run_config
+
+
+def animate_command(args) -> int:
+    """``mjx-balance animate``: simulate one push with the reference and write a GIF."""
+    config = load_run_config(args)
+    if args.t_end is not None:
+        config = config.replace(scenario={"t_end": args.t_end})
+    _, ts = simulate_scenario(config, args.force, args.duration, record=True)
+    frames = animate_timeseries(ts, args.out, config.body, fps=args.fps)
+    print(f"wrote {args.out} ({frames} frames at {args.fps:g} fps)")
+    return 0

@@ -1,0 +1,146 @@
+"""The outcome rules of one push scenario and the summary schema, written once.
+
+Every rule here is a function of an array namespace ``xp`` (``numpy`` or ``jax.numpy``): the
+scalar reference (``metrics.summarize``, numpy, on whole sample series) and the batched closed
+loop (``rollout.kernel``, JAX, one sample at a time inside the scan) call the same functions,
+so the two paths cannot drift apart. Only elementwise operations and reductions over the last
+axis are used, so a rule applies to one sample or to a series of them alike.
+
+Samples. A sample is taken after every physics step i = 0..n-1, at time t = (i+1) dt: joint
+angles q = (q_a, q_h) and rates dq, the convention state x (4), the foot pitch, the lowest
+point of each load-cell sphere, and the inputs u held during step i.
+
+Fall. The first sample where the foot pitches beyond ``foot_pitch_limit``, a load-cell sphere's
+lowest point rises above ``foot_lift_limit``, a position state x[0] or x[1] leaves its bound by
+more than ``bound_violation_limit``, or the lower body's absolute tilt |foot_pitch + q_a| exceeds
+``lower_tilt_limit``.
+
+Settled. Every joint angle within ``settle_angle_tol`` and every joint rate within
+``settle_rate_tol``. A scenario that neither falls nor diverges is ``recovered`` when its last
+sample (at t_end) is in the band, else ``not_settled``.
+
+Outcome codes: ``OUTCOMES[code]``; diverged (a non-finite state, torque or solver output) takes
+precedence over fell, which takes precedence over the settle band.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping, NamedTuple
+
+import numpy as np
+import pandas as pd
+
+OUTCOMES = ("recovered", "not_settled", "fell", "diverged")
+RECOVERED, NOT_SETTLED, FELL, DIVERGED = range(4)
+
+# An input counts as saturated within SATURATION_TOL of its range from a bound.
+SATURATION_TOL = 1e-6
+
+# One summary row per scenario, in this order, in every path (reference, batched, sweeps).
+SUMMARY_COLUMNS = [
+    "force", "duration", "convention", "outcome", "settle_time", "fall_time",
+    "peak_ankle", "peak_hip", "peak_foot_pitch",
+    "cop_min", "cop_max", "com_min", "com_max",
+    "peak_tau_ankle", "peak_tau_hip",
+    "ankle_saturation_fraction", "hip_saturation_fraction",
+    "energy_ankle", "energy_hip", "energy_total", "work_ankle", "work_hip",
+    "energy_u1", "energy_u2",
+    "nonconverged_solves", "max_residual", "max_bound_violation",
+]
+
+
+class Limits(NamedTuple):
+    """The thresholds of the rules (python floats: hashable, static under jit)."""
+
+    foot_pitch_limit: float
+    foot_lift_limit: float
+    bound_violation_limit: float
+    lower_tilt_limit: float
+    settle_angle_tol: float
+    settle_rate_tol: float
+    state_lower: tuple[float, float]  # bounds of x[0], x[1]
+    state_upper: tuple[float, float]
+    input_lower: tuple[float, float]  # bounds of u[0], u[1]
+    input_upper: tuple[float, float]
+
+    @classmethod
+    def from_params(cls, scenario: Any, controller: Any) -> "Limits":
+        """From ``ScenarioParams`` (thresholds) and ``ControllerParams`` (bounds)."""
+        (s1l, s1h), (s2l, s2h) = controller.state_bounds
+        (u1l, u1h), (u2l, u2h) = controller.input_bounds
+        return cls(
+            foot_pitch_limit=scenario.foot_pitch_limit, foot_lift_limit=scenario.foot_lift_limit,
+            bound_violation_limit=scenario.bound_violation_limit,
+            lower_tilt_limit=scenario.lower_tilt_limit,
+            settle_angle_tol=scenario.settle_angle_tol, settle_rate_tol=scenario.settle_rate_tol,
+            state_lower=(s1l, s2l), state_upper=(s1h, s2h),
+            input_lower=(u1l, u2l), input_upper=(u1h, u2h),
+        )
+
+
+def bound_excess(xp: Any, x: Any, limits: Limits) -> Any:
+    """Largest excess of x[0], x[1] beyond their state bounds, >= 0. x: [..., 4] -> [...]."""
+    lower = xp.asarray(limits.state_lower, dtype=x.dtype)
+    upper = xp.asarray(limits.state_upper, dtype=x.dtype)
+    pos = x[..., :2]
+    return xp.max(xp.maximum(xp.maximum(lower - pos, pos - upper), 0), axis=-1)
+
+
+def falls(xp: Any, foot_pitch: Any, cell_low_z: Any, excess: Any, q_ankle: Any,
+          limits: Limits) -> Any:
+    """The fall test of a sample (or a series). foot_pitch, excess, q_ankle: [...];
+    cell_low_z: [..., 4] -> bool [...]."""
+    return ((xp.abs(foot_pitch) > limits.foot_pitch_limit)
+            | (xp.max(cell_low_z, axis=-1) > limits.foot_lift_limit)
+            | (excess > limits.bound_violation_limit)
+            | (xp.abs(foot_pitch + q_ankle) > limits.lower_tilt_limit))
+
+
+def in_settle_band(xp: Any, q: Any, dq: Any, limits: Limits) -> Any:
+    """Joint angles and rates within the settle band. q, dq: [..., 2] -> bool [...]."""
+    return (xp.all(xp.abs(q) <= limits.settle_angle_tol, axis=-1)
+            & xp.all(xp.abs(dq) <= limits.settle_rate_tol, axis=-1))
+
+
+def at_input_bound(xp: Any, u: Any, limits: Limits) -> Any:
+    """Each input within SATURATION_TOL of its range from a bound. u: [..., 2] -> bool [..., 2]."""
+    lower = xp.asarray(limits.input_lower, dtype=u.dtype)
+    upper = xp.asarray(limits.input_upper, dtype=u.dtype)
+    tol = SATURATION_TOL * (upper - lower)
+    return (u <= lower + tol) | (u >= upper - tol)
+
+
+def classify(xp: Any, diverged: Any, fell: Any, settled: Any) -> Any:
+    """Outcome codes (indices into OUTCOMES) from the three flags (arrays or scalars)."""
+    return xp.where(diverged, DIVERGED,
+                    xp.where(fell, FELL, xp.where(settled, RECOVERED, NOT_SETTLED)))
+
+
+def summary_frame(result: pd.DataFrame | Mapping[str, Any], convention: str, *,
+                  extra: bool = True) -> pd.DataFrame:
+    """Summary rows as a table: SUMMARY_COLUMNS in order (then any other columns of
+    ``result`` when ``extra``), outcome as strings.
+
+    ``result``: a DataFrame or a dict of equal-length columns, with outcome as strings or as
+    integer codes; ``convention`` fills the column when ``result`` lacks it. Raises
+    RuntimeError for a missing column or an unknown outcome.
+    """
+    frame = result.copy() if isinstance(result, pd.DataFrame) else pd.DataFrame(
+        {k: np.asarray(v) for k, v in result.items()})
+    if "convention" not in frame:
+        frame["convention"] = convention
+    missing = [c for c in SUMMARY_COLUMNS if c not in frame]
+    if missing:
+        raise RuntimeError(f"summary lacks column(s) {', '.join(missing)}")
+    if pd.api.types.is_numeric_dtype(frame["outcome"]):
+        codes = frame["outcome"].to_numpy()
+        if np.any((codes < 0) | (codes >= len(OUTCOMES))):
+            raise RuntimeError(f"summary has outcome codes outside 0..{len(OUTCOMES) - 1}")
+        frame["outcome"] = np.asarray(OUTCOMES, dtype=object)[codes.astype(int)]
+    bad = set(frame["outcome"]) - set(OUTCOMES)
+    if bad:
+        raise RuntimeError(f"summary has unknown outcome(s) {sorted(bad)}")
+    frame["outcome"] = frame["outcome"].astype(str)
+    frame["convention"] = frame["convention"].astype(str)
+    others = [c for c in frame.columns if c not in SUMMARY_COLUMNS] if extra else []
+    return frame[SUMMARY_COLUMNS + others].reset_index(drop=True)
