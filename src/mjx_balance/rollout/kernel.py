@@ -1,0 +1,297 @@
+"""The closed loop of one scenario: MJX physics + the ADMM MPC in one ``lax.scan``, pure JAX.
+
+One scenario is a pure function of (force, push steps) (:func:`scenario`):
+
+    for k in 0..n_control-1:                       # outer lax.scan, control periods
+        x_k = state_from_joints(measured joints)   # ``controller_delay`` earlier if set
+        u_k = admm_solve(x_k, warm_k)              # warm_{k+1} = its shifted solution
+        period_update(acc, solve)                  # saturation, solver statistics
+        for j in 0..substeps-1:                    # inner lax.scan, physics steps i = k S + j
+            advance(push if i < n_push)            # mjx.step + positions at t = (i+1) dt
+            sample = measure(d)                    # joints, state, foot, load cells, CoP, CoM
+            sample_update(acc, sample)             # fall test, settle band, peaks, energies
+
+The per-scenario summary lives in the scan carry (:class:`Accumulators`), so a batch never
+stores trajectories unless asked (``Static.trajectories``). The rules (fall, settle band,
+saturation) are those of ``outcomes.py``, shared with the scalar reference. Batching is added
+by the runner (``runner.py``); everything here is written for a single scenario, and the
+update steps are plain functions of arrays that can be called without a compile.
+
+Fall / divergence. From the first fall sample (or non-finite value) on, nothing accumulates.
+The scenario keeps stepping (a batch runs in lock-step), but at the next control instant its
+physics state is reset to upright rest and the controller is fed x = 0 from a cold start, so a
+dead scenario costs no extra ADMM or contact-solver iterations (``while_loop`` under ``vmap``
+runs until the slowest element is done) and cannot produce NaN.
+
+Times are carried as integer step indices and turned into seconds on the host in float64, so
+``fall_time`` and ``settle_time`` are exactly (i + 1) dt as in the reference.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from .. import admm as admm_mod
+from .. import outcomes
+from ..outcomes import Limits
+from .physics import Sensors, advance, cell_heights, load_cell_cop, mjx, whole_body_com
+
+
+class Accumulators(NamedTuple):
+    """The running summary of one scenario (scalars; steps are physics-step indices i)."""
+
+    alive: jax.Array  # bool: not fallen and not diverged
+    fell: jax.Array  # bool
+    fall_step: jax.Array  # int32, -1 unless fell
+    diverged: jax.Array  # bool
+    last_outside: jax.Array  # int32, last step outside the settle band (-1: never)
+    in_band: jax.Array  # bool, the latest sample is in the settle band
+    peak_ankle: jax.Array
+    peak_hip: jax.Array
+    peak_foot_pitch: jax.Array
+    cop_min: jax.Array
+    cop_max: jax.Array
+    com_min: jax.Array
+    com_max: jax.Array
+    peak_tau_ankle: jax.Array
+    peak_tau_hip: jax.Array
+    energy_ankle: jax.Array
+    energy_hip: jax.Array
+    work_ankle: jax.Array
+    work_hip: jax.Array
+    energy_u1: jax.Array
+    energy_u2: jax.Array
+    max_bound_violation: jax.Array
+    control_periods: jax.Array  # int32, periods counted (started before the fall)
+    saturated_ankle: jax.Array  # int32, counted periods with u[0] at a bound
+    saturated_hip: jax.Array  # int32
+    nonconverged_solves: jax.Array  # int32
+    max_residual: jax.Array
+    admm_iterations: jax.Array  # int32, total over counted periods
+
+    @staticmethod
+    def initial(dtype) -> "Accumulators":
+        def f(v):
+            return jnp.asarray(v, dtype)
+
+        i0 = jnp.zeros((), jnp.int32)
+        inf = math.inf
+        return Accumulators(
+            alive=jnp.asarray(True), fell=jnp.asarray(False), fall_step=i0 - 1,
+            diverged=jnp.asarray(False), last_outside=i0 - 1, in_band=jnp.asarray(True),
+            peak_ankle=f(-inf), peak_hip=f(-inf), peak_foot_pitch=f(-inf),
+            cop_min=f(inf), cop_max=f(-inf), com_min=f(inf), com_max=f(-inf),
+            peak_tau_ankle=f(-inf), peak_tau_hip=f(-inf),
+            energy_ankle=f(0), energy_hip=f(0), work_ankle=f(0), work_hip=f(0),
+            energy_u1=f(0), energy_u2=f(0), max_bound_violation=f(0),
+            control_periods=i0, saturated_ankle=i0, saturated_hip=i0,
+            nonconverged_solves=i0, max_residual=f(-inf), admm_iterations=i0,
+        )
+
+
+class Static(NamedTuple):
+    """Everything about a configuration that is fixed under jit (hashable numbers/flags)."""
+
+    n_control: int
+    substeps: int
+    delay_steps: int
+    push_at_hip: bool
+    settings: admm_mod.ADMMSettings
+    trajectories: bool
+    limits: Limits  # thresholds of the outcome rules and the state/input bounds
+
+
+class Arrays(NamedTuple):
+    """Per-configuration arrays shared by every scenario of a batch (not vmapped)."""
+
+    mx: mjx.Model
+    d0: mjx.Data  # upright rest
+    qp: admm_mod.ADMMData
+    to_state: jax.Array  # [2, 2] convention positions y = to_state @ [q_a, q_h]
+    torque_map: jax.Array  # [2, 2] [tau_ankle, tau_hip] = torque_map @ u
+
+
+class Sample(NamedTuple):
+    """What is read after one physics step (positions at t = (i+1) dt)."""
+
+    q: jax.Array  # [2] joint angles (ankle, hip)
+    dq: jax.Array  # [2] joint rates
+    x: jax.Array  # [4] the convention state
+    pitch: jax.Array  # foot pitch
+    cell_low: jax.Array  # [4] lowest point of each load-cell sphere
+    cop: jax.Array  # load-cell CoP x (NaN when unloaded)
+    com: jax.Array  # whole-body CoM x
+
+
+class Carry(NamedTuple):
+    d: mjx.Data
+    warm: admm_mod.ADMMWarm
+    history: jax.Array  # [delay+1, 4] joint (q, dq), newest first
+    q_prev: jax.Array  # [2] joint angles at the previous sample
+    x_prev: jax.Array  # [4] convention state at the previous sample
+    acc: Accumulators
+
+
+def _select(pred: jax.Array, a: Any, b: Any) -> Any:
+    return jax.tree_util.tree_map(lambda u, v: jnp.where(pred, u, v), a, b)
+
+
+def joints(sn: Sensors, d: mjx.Data) -> tuple[jax.Array, jax.Array]:
+    """Joint angles and rates (ankle, hip)."""
+    return d.qpos[sn.joints_q], d.qvel[sn.joints_v]
+
+
+def state(ar: Arrays, q: jax.Array, dq: jax.Array) -> jax.Array:
+    """The convention state x [4] of joint angles and rates."""
+    return jnp.concatenate([ar.to_state @ q, ar.to_state @ dq])
+
+
+def measure(ar: Arrays, sn: Sensors, d: mjx.Data) -> Sample:
+    """The sample of ``d`` (right after :func:`physics.advance`)."""
+    q, dq = joints(sn, d)
+    cop, _ = load_cell_cop(d, sn)
+    return Sample(q=q, dq=dq, x=state(ar, q, dq), pitch=d.qpos[sn.foot_pitch],
+                  cell_low=cell_heights(ar.mx, d, sn), cop=cop,
+                  com=whole_body_com(ar.mx, d, sn))
+
+
+def sample_update(acc: Accumulators, s: Sample, i: jax.Array, torques: jax.Array,
+                  u: jax.Array, q_prev: jax.Array, x_prev: jax.Array,
+                  limits: Limits) -> Accumulators:
+    """Fold the sample of physics step ``i`` into the accumulators: divergence, the fall test,
+    the settle band, peaks, extremes and energies. ``torques`` / ``u`` are held during step
+    i; ``q_prev`` / ``x_prev`` are the previous sample's joint angles and state. Nothing
+    changes once the scenario is dead (fallen or diverged)."""
+    excess = outcomes.bound_excess(jnp, s.x, limits)
+    finite = (jnp.isfinite(s.q).all() & jnp.isfinite(s.dq).all() & jnp.isfinite(s.x).all()
+              & jnp.isfinite(torques).all())
+    ok = acc.alive & finite
+    falls = outcomes.falls(jnp, s.pitch, s.cell_low, excess, s.q[0], limits)
+    band = outcomes.in_settle_band(jnp, s.q, s.dq, limits)
+    newly_fell = ok & falls
+
+    def upd(old, new):
+        return jnp.where(ok, new, old)
+
+    power = torques * (s.q - q_prev)
+    power_u = u * (s.x[:2] - x_prev[:2])
+    loaded = ok & jnp.isfinite(s.cop)
+    return acc._replace(
+        alive=ok & ~falls,
+        fell=acc.fell | newly_fell,
+        fall_step=jnp.where(newly_fell, i, acc.fall_step),
+        diverged=acc.diverged | (acc.alive & ~finite),
+        last_outside=jnp.where(ok & ~band, i, acc.last_outside),
+        in_band=band,
+        peak_ankle=upd(acc.peak_ankle, jnp.maximum(acc.peak_ankle, jnp.abs(s.q[0]))),
+        peak_hip=upd(acc.peak_hip, jnp.maximum(acc.peak_hip, jnp.abs(s.q[1]))),
+        peak_foot_pitch=upd(acc.peak_foot_pitch,
+                            jnp.maximum(acc.peak_foot_pitch, jnp.abs(s.pitch))),
+        cop_min=jnp.where(loaded, jnp.minimum(acc.cop_min, s.cop), acc.cop_min),
+        cop_max=jnp.where(loaded, jnp.maximum(acc.cop_max, s.cop), acc.cop_max),
+        com_min=upd(acc.com_min, jnp.minimum(acc.com_min, s.com)),
+        com_max=upd(acc.com_max, jnp.maximum(acc.com_max, s.com)),
+        peak_tau_ankle=upd(acc.peak_tau_ankle,
+                           jnp.maximum(acc.peak_tau_ankle, jnp.abs(torques[0]))),
+        peak_tau_hip=upd(acc.peak_tau_hip, jnp.maximum(acc.peak_tau_hip, jnp.abs(torques[1]))),
+        energy_ankle=upd(acc.energy_ankle, acc.energy_ankle + jnp.abs(power[0])),
+        energy_hip=upd(acc.energy_hip, acc.energy_hip + jnp.abs(power[1])),
+        work_ankle=upd(acc.work_ankle, acc.work_ankle + power[0]),
+        work_hip=upd(acc.work_hip, acc.work_hip + power[1]),
+        energy_u1=upd(acc.energy_u1, acc.energy_u1 + jnp.abs(power_u[0])),
+        energy_u2=upd(acc.energy_u2, acc.energy_u2 + jnp.abs(power_u[1])),
+        max_bound_violation=upd(acc.max_bound_violation,
+                                jnp.maximum(acc.max_bound_violation, excess)),
+    )
+
+
+def period_update(acc: Accumulators, res: admm_mod.ADMMResult, u: jax.Array,
+                  torques: jax.Array, limits: Limits) -> Accumulators:
+    """Fold one control period's solve into the accumulators (counted only while alive): a
+    non-finite input or torque diverges the scenario; saturation, non-converged solves, the
+    largest primal residual and the ADMM iterations are counted."""
+    dtype = acc.max_residual.dtype
+    alive = acc.alive
+    finite = jnp.isfinite(u).all() & jnp.isfinite(torques).all()
+    counted = alive
+    saturated = outcomes.at_input_bound(jnp, u, limits)
+    residual_ok = counted & jnp.isfinite(res.prim_res)
+    return acc._replace(
+        alive=alive & finite,
+        diverged=acc.diverged | (counted & ~finite),
+        control_periods=acc.control_periods + counted,
+        saturated_ankle=acc.saturated_ankle + (counted & saturated[0]),
+        saturated_hip=acc.saturated_hip + (counted & saturated[1]),
+        nonconverged_solves=(acc.nonconverged_solves
+                             + (counted & (res.status != admm_mod.SOLVED))),
+        max_residual=jnp.where(residual_ok,
+                               jnp.maximum(acc.max_residual, res.prim_res.astype(dtype)),
+                               acc.max_residual),
+        admm_iterations=acc.admm_iterations + jnp.where(counted, res.iters, 0),
+    )
+
+
+def scenario(ar: Arrays, sn: Sensors, st: Static, force: jax.Array,
+             n_push: jax.Array) -> tuple[Accumulators, dict[str, jax.Array] | None]:
+    """Run one scenario; pure, jit-able (``sn``, ``st`` static). force: [] N; n_push: [] int.
+
+    Returns the final accumulators and, with ``st.trajectories``, per-physics-step series
+    (qpos [n, nq], qvel [n, nv], tau [n, 2], u [n, 2], cop [n], com [n]; sample i is at
+    t = (i+1) dt; NaN after the fall sample).
+    """
+    dtype = ar.d0.qpos.dtype
+    force = jnp.asarray(force, dtype)
+    n_push = jnp.asarray(n_push, jnp.int32)
+    S = st.substeps
+    zero_warm = admm_mod.initial_warm(ar.qp)
+
+    def physics_step(carry: Carry, i: jax.Array, torques: jax.Array, u: jax.Array):
+        f = jnp.where(i < n_push, force, jnp.zeros((), dtype))
+        d = advance(ar.mx, sn, carry.d, torques, f, st.push_at_hip)
+        s = measure(ar, sn, d)
+        acc = sample_update(carry.acc, s, i, torques, u, carry.q_prev, carry.x_prev, st.limits)
+        history = jnp.concatenate([jnp.concatenate([s.q, s.dq])[None], carry.history[:-1]])
+        carry = Carry(d=d, warm=carry.warm, history=history, q_prev=s.q, x_prev=s.x, acc=acc)
+        out = None
+        if st.trajectories:  # NaN after the fall sample (the run is reset there)
+            out = dict(qpos=d.qpos, qvel=d.qvel, tau=torques, u=u, cop=s.cop, com=s.com)
+            out = {k: jnp.where(acc.alive, v, jnp.nan).astype(dtype) for k, v in out.items()}
+        return carry, out
+
+    q0, dq0 = joints(sn, ar.d0)
+    history0 = jnp.tile(jnp.concatenate([q0, dq0])[None], (st.delay_steps + 1, 1))
+
+    def control_period(carry: Carry, k: jax.Array):
+        alive = carry.acc.alive
+        # A dead scenario restarts from rest with a cold controller (see the module docstring).
+        d = _select(alive, carry.d, ar.d0)
+        warm = _select(alive, carry.warm, zero_warm)
+        measured = carry.history[st.delay_steps]
+        x_meas = jnp.where(alive, state(ar, measured[:2], measured[2:]), jnp.zeros(4, dtype))
+        res = admm_mod.admm_solve(ar.qp, x_meas, warm, st.settings)
+        u = res.u0.astype(dtype)
+        torques = ar.torque_map @ u
+        acc = period_update(carry.acc, res, u, torques, st.limits)
+        finite = jnp.isfinite(u).all() & jnp.isfinite(torques).all()
+        u = jnp.where(finite, u, jnp.zeros_like(u))
+        torques = jnp.where(finite, torques, jnp.zeros_like(torques))
+        warm = admm_mod.ADMMWarm(*(w.astype(dtype) for w in res.warm_next))
+        history = jnp.where(alive, carry.history, history0)
+        carry = carry._replace(d=d, warm=warm, history=history, acc=acc)
+
+        def sub(c, j):
+            return physics_step(c, k * S + j, torques, u)
+
+        return jax.lax.scan(sub, carry, jnp.arange(S, dtype=jnp.int32))
+
+    carry = Carry(d=ar.d0, warm=zero_warm, history=history0, q_prev=q0,
+                  x_prev=state(ar, q0, dq0), acc=Accumulators.initial(dtype))
+    carry, series = jax.lax.scan(control_period, carry,
+                                 jnp.arange(st.n_control, dtype=jnp.int32))
+    if series is not None:
+        series = {k: v.reshape((st.n_control * S,) + v.shape[2:]) for k, v in series.items()}
+    return carry.acc, series

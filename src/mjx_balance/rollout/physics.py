@@ -1,0 +1,246 @@
+"""MJX physics of the balance model and the measurements read out of ``mjx.Data``.
+
+A sample is read after every physics step, at t = (i+1) dt: :func:`advance` runs ``mjx.step``
+and then ``mjx.kinematics``, so body and geom positions are those at the new time while the
+contacts and constraint forces stay those that acted during the step (as the reference leaves
+them after ``mj_step`` + ``mj_kinematics``). The load-cell CoP, the whole-body CoM and the
+load-cell heights are then read with the static addresses of :class:`Sensors`.
+
+MJX options (:data:`MJX_OPTIONS`), chosen for speed on the CPU and justified by the agreement
+tests in tests/test_rollout.py:
+
+- Newton solver (MuJoCo's default, so the reference uses it too) with ``iterations = 4`` and
+  ``ls_iterations = 8``. The contact problem is four sphere-plane contacts on a five-dof chain,
+  warm-started from the previous step's accelerations; with 3 or more iterations MJX matches
+  ``mj_step`` as closely as with 100 (float32 rounding dominates); with 2 the rocking foot
+  drifts (tests/test_rollout.py states the figures). The tolerance stays at MuJoCo's 1e-8,
+  which float32 never meets, so every step runs the capped 4 iterations (under ``vmap`` the
+  loop runs for the slowest element anyway).
+- pyramidal friction cone (MuJoCo's default; the load-cell CoP decodes pyramidal forces).
+- disabled: Euler damping, springs, dampers, friction loss, joint limits, equality constraints,
+  control clamping -- the model has none of them, so these flags only skip dead code (springs,
+  dampers and Euler damping stay on for a body with the hip servo, which has them).
+
+The rest state comes from ``mj_forward`` in C (:func:`rest_data`), so building a runner
+compiles nothing.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+# mujoco.mjx prints "Failed to import warp" when its GPU-only Warp backend is not installed;
+# the JAX implementation used here does not need it, so keep that line off the user's screen.
+with contextlib.redirect_stdout(io.StringIO()):
+    from mujoco import mjx
+
+from ..model import build_model, indices
+from ..params import Config
+
+MJX_OPTIONS: dict[str, Any] = {
+    "solver": int(mujoco.mjtSolver.mjSOL_NEWTON),
+    "iterations": 4,
+    "ls_iterations": 8,
+    "cone": int(mujoco.mjtCone.mjCONE_PYRAMIDAL),
+}
+
+_DISABLE = (
+    mujoco.mjtDisableBit.mjDSBL_EULERDAMP | mujoco.mjtDisableBit.mjDSBL_SPRING
+    | mujoco.mjtDisableBit.mjDSBL_DAMPER
+    | mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS | mujoco.mjtDisableBit.mjDSBL_LIMIT
+    | mujoco.mjtDisableBit.mjDSBL_EQUALITY | mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL
+)
+
+
+# --------------------------------------------------------------------------------------------
+# Model and dtype
+
+
+def cast_floats(tree: Any, dtype) -> Any:
+    """Cast every floating leaf (jax or numpy array) of a pytree to ``dtype``; others unchanged."""
+
+    def cast(x):
+        if isinstance(x, jax.Array) and jnp.issubdtype(x.dtype, jnp.floating):
+            return x.astype(dtype)
+        if isinstance(x, np.ndarray) and np.issubdtype(x.dtype, np.floating):
+            return x.astype(dtype)
+        return x
+
+    return jax.tree_util.tree_map(cast, tree)
+
+
+def mj_model(config: Config, options: dict[str, Any] | None = None) -> mujoco.MjModel:
+    """The free-foot MuJoCo model of ``config`` with the MJX options applied (C side too)."""
+    model = build_model(config.body, config.scenario.physics_dt, foot="free")
+    opts = dict(MJX_OPTIONS if options is None else options)
+    for name, value in opts.items():
+        setattr(model.opt, name, value)
+    disable = _DISABLE
+    if (model.jnt_stiffness != 0).any() or (model.dof_damping != 0).any():
+        # a body with the hip servo (BodyParams): keep its spring and damper, and Euler's
+        # implicit damping, exactly as mj_step in the reference runs them
+        disable &= ~(mujoco.mjtDisableBit.mjDSBL_EULERDAMP | mujoco.mjtDisableBit.mjDSBL_SPRING
+                     | mujoco.mjtDisableBit.mjDSBL_DAMPER)
+    model.opt.disableflags |= int(disable)
+    return model
+
+
+def mjx_model(model: mujoco.MjModel, dtype=jnp.float32) -> mjx.Model:
+    """``mjx.put_model`` with every floating field cast to ``dtype``."""
+    return cast_floats(mjx.put_model(model, impl="jax"), dtype)
+
+
+def rest_data(model: mujoco.MjModel, dtype=jnp.float32) -> mjx.Data:
+    """Upright rest (qpos = qvel = 0) with positions computed: ``mj_forward`` in C, then
+    ``mjx.put_data``.
+
+    Computing it with a jitted ``mjx.forward`` instead would cost a compile per configuration
+    for one call. The two differ only in fields that every
+    ``mjx.step`` recomputes before use (the factor ``qLD`` and ``efc_D`` are laid out
+    differently); one ``mjx.step`` from either gives bit-identical data (checked when this was
+    changed), and the contact layout read by :func:`sensors` is the same.
+    """
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    d = cast_floats(mjx.put_data(model, data, impl="jax"), dtype)
+    # mjx.step builds some integer fields (the contacts' geom ids) in JAX's default integer width
+    # (int64 under jax_enable_x64) where put_data writes int32: give every integer leaf the type
+    # the step returns (traced abstractly, nothing compiled), so the state is a valid scan carry
+    # either way. (Floating leaves are cast back to ``dtype`` after every step.)
+    stepped = jax.eval_shape(mjx.step, mjx_model(model, dtype), d)
+
+    def match(x, s):
+        if jnp.issubdtype(x.dtype, jnp.integer) and x.dtype != s.dtype:
+            return x.astype(s.dtype)
+        return x
+
+    return jax.tree_util.tree_map(match, d, stepped)
+
+
+# --------------------------------------------------------------------------------------------
+# Reading a sample out of mjx.Data
+
+
+class Sensors(NamedTuple):
+    """Static (numpy) addresses for reading a sample out of mjx.Data."""
+
+    joints_q: np.ndarray  # [2] qpos addresses of ankle, hip
+    joints_v: np.ndarray  # [2] dof addresses of ankle, hip
+    foot_pitch: int  # qpos address
+    upper_body: int
+    subtree: np.ndarray  # [k] bodies of the foot's subtree (the whole body)
+    cells: np.ndarray  # [4] load-cell geoms
+    cell_radius: np.ndarray  # [4]
+    cell_contacts: np.ndarray  # [c] contacts that involve a load cell
+    contact_efc: np.ndarray  # [c, w] their efc rows (pyramid edges)
+
+
+def sensors(model: mujoco.MjModel, d0: mjx.Data) -> Sensors:
+    """Addresses of ``model``; the contact layout (fixed in MJX) is read from ``d0``."""
+    if model.opt.cone != mujoco.mjtCone.mjCONE_PYRAMIDAL:
+        raise ValueError("the load-cell CoP reads pyramidal contact forces; use cone=pyramidal")
+    ix = indices(model)
+    contact = d0._impl.contact
+    geom = np.asarray(contact.geom)
+    dim = np.asarray(contact.dim)
+    efc_address = np.asarray(contact.efc_address)
+    cells = np.array(ix.cell_geoms)
+    ids, rows = [], []
+    for c in range(geom.shape[0]):
+        if np.isin(geom[c], cells).any() and efc_address[c] >= 0:
+            # pyramidal cone: 2 (condim - 1) edges whose sum is the normal force
+            width = 1 if dim[c] == 1 else 2 * (int(dim[c]) - 1)
+            ids.append(c)
+            rows.append(efc_address[c] + np.arange(width))
+    if not rows or len({len(r) for r in rows}) != 1:
+        raise ValueError("expected load-cell contacts, all of one dimension")
+    body_ids = np.arange(model.nbody)
+    in_subtree = np.array([_is_descendant(model, b, ix.foot_body) for b in body_ids])
+    return Sensors(
+        joints_q=np.array([ix.ankle_qpos, ix.hip_qpos]),
+        joints_v=np.array([ix.ankle_dof, ix.hip_dof]),
+        foot_pitch=ix.foot_pitch, upper_body=ix.upper_body,
+        subtree=body_ids[in_subtree], cells=cells,
+        cell_radius=np.asarray(model.geom_size[cells, 0]),
+        cell_contacts=np.array(ids), contact_efc=np.stack(rows),
+    )
+
+
+def _is_descendant(model: mujoco.MjModel, body: int, root: int) -> bool:
+    while body != root and body > 0:
+        body = int(model.body_parentid[body])
+    return body == root
+
+
+def load_cell_cop(d: mjx.Data, sn: Sensors) -> tuple[jax.Array, jax.Array]:
+    """(CoP x, total normal force) of the load-cell contacts acting in ``d``.
+
+    As ``metrics.load_cell_cop``: sum F_i x_i / sum F_i, F_i the normal force of a pyramidal
+    contact (the sum of its edge forces, as ``mj_contactForce`` decodes it), x_i the contact
+    point found by the step's collision. NaN when the load cells carry nothing.
+    """
+    normal = d._impl.efc_force[sn.contact_efc].sum(axis=-1)
+    x = d._impl.contact.pos[sn.cell_contacts, 0]
+    total = normal.sum()
+    loaded = total > 0
+    cop = jnp.where(loaded, (normal * x).sum() / jnp.where(loaded, total, 1.0), jnp.nan)
+    return cop.astype(normal.dtype), total
+
+
+def whole_body_com(mx: mjx.Model, d: mjx.Data, sn: Sensors) -> jax.Array:
+    """Horizontal CoM of the foot's subtree from the current body positions (subtree_com x)."""
+    mass = mx.body_mass[sn.subtree]
+    return (mass * d.xipos[sn.subtree, 0]).sum() / mass.sum()
+
+
+def cell_heights(mx: mjx.Model, d: mjx.Data, sn: Sensors) -> jax.Array:
+    """Lowest point (centre z - radius) of each load-cell sphere [4]."""
+    return d.geom_xpos[sn.cells, 2] - mx.geom_size[sn.cells, 0]
+
+
+def advance(mx: mjx.Model, sn: Sensors, d: mjx.Data, torques: jax.Array, force: jax.Array,
+            push_at_hip: bool = False) -> mjx.Data:
+    """One physics step with motor ``torques`` [2] and the push ``force`` [] (N, along x).
+
+    The push acts on the upper body through ``xfrc_applied`` (a wrench at its CoM, xipos); at
+    the hip it is the same force plus the moment (xpos - xipos) x F. After ``mjx.step`` the
+    positions are refreshed (``mjx.kinematics``), so body/geom positions are those at the new
+    time while the contacts and constraint forces stay those that acted during the step (as
+    the reference leaves them after ``mj_step`` + ``mj_kinematics``).
+    """
+    dtype = d.qpos.dtype
+    push = jnp.zeros(d.xfrc_applied.shape, dtype).at[sn.upper_body, 0].set(force)
+    if push_at_hip:
+        r = d.xpos[sn.upper_body] - d.xipos[sn.upper_body]
+        moment = jnp.cross(r, jnp.stack([force, 0 * force, 0 * force]).astype(dtype))
+        push = push.at[sn.upper_body, 3:].set(moment)
+    d = d.replace(ctrl=torques.astype(dtype), xfrc_applied=push)
+    d = mjx.step(mx, d)
+    d = mjx.kinematics(mx, d)
+    return cast_floats(d, dtype)
+
+
+def open_loop(mx: mjx.Model, sn: Sensors, d0: mjx.Data, torques: jax.Array, force: jax.Array,
+              n_push: jax.Array, push_at_hip: bool = False) -> dict[str, jax.Array]:
+    """Physics only: motor ``torques`` [n, 2] applied at steps i = 0..n-1, the push on for
+    i < n_push. Returns per-step samples at t = (i+1) dt: qpos [n, nq], qvel [n, nv], cop [n],
+    com [n], cell_low [n, 4]. Jit with ``sn`` and ``push_at_hip`` static."""
+    dtype = d0.qpos.dtype
+    force = jnp.asarray(force, dtype)
+
+    def body(d, inputs):
+        i, tau = inputs
+        d = advance(mx, sn, d, tau, jnp.where(i < n_push, force, 0 * force), push_at_hip)
+        cop, _ = load_cell_cop(d, sn)
+        return d, dict(qpos=d.qpos, qvel=d.qvel, cop=cop, com=whole_body_com(mx, d, sn),
+                       cell_low=cell_heights(mx, d, sn))
+
+    steps = jnp.arange(torques.shape[0], dtype=jnp.int32)
+    return jax.lax.scan(body, d0, (steps, jnp.asarray(torques, dtype)))[1]

@@ -1,0 +1,269 @@
+"""The batch runner: many scenarios of one configuration through the compiled closed loop.
+
+:class:`BatchRunner` builds the MuJoCo model, the QP and the ADMM matrices once, compiles
+:func:`kernel.scenario` under ``jax.vmap`` for a padded batch size (the next power of two, at
+least 8) and turns the final accumulators into summary columns on the host in float64
+(:func:`summarize`). The model, QP and ADMM data are traced arguments of the compiled function,
+which is cached per shape key (:meth:`BatchRunner.compiled`): configurations that differ only in
+numbers (body, convention, weights, bounds) share one compile. With several local devices each
+batch is split over them (:meth:`BatchRunner._batched`, shard_map over a 1-D mesh).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time as _time
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pandas as pd
+
+from .. import admm as admm_mod
+from .. import outcomes
+from ..linear import S as JOINT_TO_ABS
+from ..outcomes import FELL, RECOVERED, Limits, summary_frame
+from ..params import Config
+from ..qp import build_qp
+from .kernel import Accumulators, Arrays, Static, scenario
+from .physics import mj_model, mjx_model, rest_data, sensors
+
+
+def push_steps(durations: np.ndarray, physics_dt: float) -> np.ndarray:
+    """n_push = ceil(T / dt - 1e-9) physics steps with the push on (float64 on the host)."""
+    return np.ceil(np.asarray(durations, np.float64) / physics_dt - 1e-9).astype(np.int32)
+
+
+def _bucket(n: int, minimum: int = 8) -> int:
+    """Padded batch size: the next power of two (>= minimum), so few sizes are compiled."""
+    return max(minimum, 1 << max(0, math.ceil(math.log2(max(n, 1)))))
+
+
+# Compiled batch functions shared by every BatchRunner of this process, keyed by
+# BatchRunner._shape_key (all that is baked into the executable).
+_COMPILED: dict[tuple, Any] = {}
+
+
+class BatchRunner:
+    """Closed-loop scenarios of one configuration, batched (MJX physics + ADMM MPC).
+
+    The MuJoCo model, the QP and the ADMM matrices are built once; one compiled function per
+    padded batch size (the next power of two, at least 8; padding cells are F = 0, T = 0).
+    With several local JAX devices (``devices``, default ``jax.local_devices()``) each batch
+    is split over them along the scenario axis (a 1-D mesh, NamedSharding, shard_map).
+    """
+
+    def __init__(self, config: Config, *, dtype=jnp.float32, trajectories: bool = False,
+                 mjx_options: dict[str, Any] | None = None, devices: list | None = None):
+        self.config = config
+        self.dtype = jnp.dtype(dtype)
+        self.trajectories = trajectories
+        body, ctrl, sc = config.body, config.controller, config.scenario
+        self.model = mj_model(config, mjx_options)
+        mx = mjx_model(self.model, self.dtype)
+        d0 = rest_data(self.model, self.dtype)
+        self.sensors = sensors(self.model, d0)
+        qp = build_qp(ctrl, body, sc.control_dt)
+        self.qp = qp
+        settings = admm_mod.settings_from_controller(ctrl)
+        lm = qp.linear
+        to_state = np.linalg.solve(lm.P, JOINT_TO_ABS)
+        self.arrays = Arrays(
+            mx=mx, d0=d0, qp=admm_mod.build_admm(qp, settings, dtype=self.dtype),
+            to_state=jnp.asarray(to_state, self.dtype),
+            torque_map=jnp.asarray(lm.torque_map, self.dtype),
+        )
+        self.static = Static(
+            n_control=sc.n_control, substeps=sc.substeps, delay_steps=sc.delay_steps,
+            push_at_hip=sc.push_body == "hip", settings=settings, trajectories=trajectories,
+            limits=Limits.from_params(sc, ctrl),
+        )
+        devices = list(jax.local_devices() if devices is None else devices)
+        self.mesh = (jax.sharding.Mesh(np.array(devices), ("batch",)) if len(devices) > 1
+                     else None)
+        if self.mesh is not None:  # the shared arrays, replicated on every device once
+            self.arrays = jax.device_put(self.arrays, self._shardings()[1])
+        self._compiled_fns: dict[int, Any] = {}
+        self.compile_seconds: dict[int, float] = {}
+        self.last_trajectories: dict[str, np.ndarray] | None = None
+
+    # -- compilation ----------------------------------------------------------------------
+
+    def _batched(self):
+        sn, st = self.sensors, self.static
+
+        def run_batch(arrays: Arrays, force: jax.Array, n_push: jax.Array):
+            one = functools.partial(scenario, arrays, sn, st)
+            return jax.vmap(one)(force, n_push)  # the one place batching is added
+
+        mesh = self.mesh
+        if mesh is None:
+            return jax.jit(run_batch)
+        # Several devices: each runs ``run_batch`` on its slice of the batch (shard_map), so
+        # its loops (the ADMM while_loop, the contact solver) stop for its own scenarios only
+        # and no device waits on another inside the scan.
+        P = jax.sharding.PartitionSpec
+        sharded = jax.shard_map(run_batch, mesh=mesh, in_specs=(P(), P("batch"), P("batch")),
+                                out_specs=P("batch"), check_vma=False)
+        return jax.jit(sharded)
+
+    def _shape_key(self, batch: int) -> tuple:
+        """What the compiled function depends on besides the traced arrays' values: their
+        tree structure, shapes and dtypes, the static addresses and settings, the batch."""
+        leaves, treedef = jax.tree.flatten(self.arrays)
+        sn = tuple(tuple(np.asarray(v).ravel().tolist()) + (np.shape(v),) for v in self.sensors)
+        devices = None if self.mesh is None else tuple(d.id for d in self.mesh.devices.flat)
+        return (treedef, tuple((np.shape(v), str(v.dtype)) for v in leaves), sn, self.static,
+                batch, devices, jax.config.jax_enable_x64)
+
+    def compiled(self, batch: int):
+        """The compiled batch function for a padded batch size (compiled ahead of time).
+
+        The model, QP and ADMM data are traced arguments, so configurations of equal shapes
+        (another body, convention, weights, bounds; the same horizon, delay, t_end, ADMM
+        settings and thresholds) share one compiled function (:data:`_COMPILED`)."""
+        fn = self._compiled_fns.get(batch)
+        if fn is None:
+            t0 = _time.perf_counter()
+            key = self._shape_key(batch)
+            fn = _COMPILED.get(key)
+            if fn is None:
+                split, whole = self._shardings()
+                force = jax.ShapeDtypeStruct((batch,), self.dtype, sharding=split)
+                n_push = jax.ShapeDtypeStruct((batch,), jnp.int32, sharding=split)
+                fn = self._batched().lower(self.arrays, force, n_push).compile()
+                _COMPILED[key] = fn
+            self.compile_seconds[batch] = _time.perf_counter() - t0
+            self._compiled_fns[batch] = fn
+        return fn
+
+    def is_compiled(self, batch: int) -> bool:
+        """Whether this runner already holds the compiled function for ``batch``."""
+        return batch in self._compiled_fns
+
+    def _shardings(self):
+        """(batch axis split over the devices, replicated) NamedShardings; (None, None) on
+        one device."""
+        if self.mesh is None:
+            return None, None
+        P = jax.sharding.PartitionSpec
+        return (jax.sharding.NamedSharding(self.mesh, P("batch")),
+                jax.sharding.NamedSharding(self.mesh, P()))
+
+    def padded_batch(self, n: int) -> int:
+        """The compiled batch size for n scenarios: the next power of two (>= 8), rounded up
+        to a multiple of the number of devices (unchanged for 1, 2, 4 or 8 devices, so a
+        sweep's chunk size is the compiled size)."""
+        devices = 1 if self.mesh is None else self.mesh.devices.size
+        return -(-_bucket(n) // devices) * devices
+
+    # -- running --------------------------------------------------------------------------
+
+    def _inputs(self, forces, durations) -> tuple[np.ndarray, np.ndarray]:
+        forces = np.atleast_1d(np.asarray(forces, np.float64))
+        durations = np.atleast_1d(np.asarray(durations, np.float64))
+        if forces.ndim != 1 or forces.shape != durations.shape:
+            raise ValueError(f"forces and durations must be 1-D arrays of one length, got "
+                             f"shapes {forces.shape} and {durations.shape}")
+        if not (np.isfinite(forces).all() and np.isfinite(durations).all()):
+            raise ValueError("forces and durations must be finite")
+        if (durations < 0).any():
+            raise ValueError("durations must be >= 0")
+        return forces, durations
+
+    def run_raw(self, forces, durations) -> tuple[Accumulators, dict[str, np.ndarray] | None]:
+        """Device results as numpy (accumulators, series), padding removed."""
+        forces, durations = self._inputs(forces, durations)
+        n = forces.shape[0]
+        batch = self.padded_batch(n)
+        f = np.zeros(batch, np.float64)
+        f[:n] = forces
+        steps = np.zeros(batch, np.int32)
+        steps[:n] = push_steps(durations, self.config.scenario.physics_dt)
+        fn = self.compiled(batch)
+        split, _ = self._shardings()
+        f = np.asarray(f, self.dtype)
+        if split is None:
+            acc, series = fn(self.arrays, jnp.asarray(f), jnp.asarray(steps))
+        else:  # the batch axis split over the devices (padding cells F = 0, T = 0)
+            acc, series = fn(self.arrays, jax.device_put(f, split), jax.device_put(steps, split))
+        acc = Accumulators(*(np.asarray(v)[:n] for v in acc))
+        if series is not None:
+            series = {k: np.asarray(v)[:n] for k, v in series.items()}
+        return acc, series
+
+    def run(self, forces, durations) -> dict[str, np.ndarray]:
+        """Summary of each scenario (SUMMARY_COLUMNS except convention, plus
+        ``admm_iterations``, the ADMM iterations summed over the counted control periods):
+        numpy arrays, one entry per scenario, outcome as int codes (``outcomes.OUTCOMES``).
+        With ``trajectories=True`` the per-physics-step series of the batch are left in
+        ``self.last_trajectories`` (arrays [B, n_steps, ...], plus time [n_steps])."""
+        forces, durations = self._inputs(forces, durations)
+        acc, series = self.run_raw(forces, durations)
+        summary = {"force": forces, "duration": durations, **summarize(acc, self.config)}
+        if series is not None:
+            sc = self.config.scenario
+            n_steps = sc.n_control * sc.substeps
+            series["time"] = (np.arange(n_steps) + 1) * sc.physics_dt
+        self.last_trajectories = series
+        return summary
+
+    def run_frame(self, forces, durations) -> pd.DataFrame:
+        """As :meth:`run`, as a table with columns ``outcomes.SUMMARY_COLUMNS`` (outcome as
+        strings)."""
+        summary = self.run(forces, durations)
+        return summary_frame(summary, self.config.controller.convention, extra=False)
+
+
+def summarize(acc: Accumulators, config: Config) -> dict[str, np.ndarray]:
+    """Summary columns from the final accumulators [B] (host side, float64)."""
+    sc = config.scenario
+    dt = sc.physics_dt
+
+    def f64(v):
+        return np.asarray(v, np.float64)
+
+    def finite_or_nan(v):
+        v = f64(v)
+        return np.where(np.isfinite(v), v, np.nan)
+
+    settled = np.asarray(acc.alive) & np.asarray(acc.in_band)
+    outcome = outcomes.classify(np, np.asarray(acc.diverged), np.asarray(acc.fell), settled)
+    outcome = outcome.astype(np.int32)
+    settle = np.where(acc.last_outside >= 0, (f64(acc.last_outside) + 1) * dt, 0.0)
+    settle = np.where(outcome == RECOVERED, settle, np.nan)
+    fall_time = np.where(outcome == FELL, (f64(acc.fall_step) + 1) * dt, np.nan)
+    periods = f64(acc.control_periods)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sat_ankle = np.where(periods > 0, f64(acc.saturated_ankle) / periods, np.nan)
+        sat_hip = np.where(periods > 0, f64(acc.saturated_hip) / periods, np.nan)
+    energy_ankle, energy_hip = f64(acc.energy_ankle), f64(acc.energy_hip)
+    return {
+        "outcome": outcome,
+        "settle_time": settle,
+        "fall_time": fall_time,
+        "peak_ankle": finite_or_nan(acc.peak_ankle),
+        "peak_hip": finite_or_nan(acc.peak_hip),
+        "peak_foot_pitch": finite_or_nan(acc.peak_foot_pitch),
+        "cop_min": finite_or_nan(acc.cop_min),
+        "cop_max": finite_or_nan(acc.cop_max),
+        "com_min": finite_or_nan(acc.com_min),
+        "com_max": finite_or_nan(acc.com_max),
+        "peak_tau_ankle": finite_or_nan(acc.peak_tau_ankle),
+        "peak_tau_hip": finite_or_nan(acc.peak_tau_hip),
+        "ankle_saturation_fraction": sat_ankle,
+        "hip_saturation_fraction": sat_hip,
+        "energy_ankle": energy_ankle,
+        "energy_hip": energy_hip,
+        "energy_total": energy_ankle + energy_hip,
+        "work_ankle": f64(acc.work_ankle),
+        "work_hip": f64(acc.work_hip),
+        "energy_u1": f64(acc.energy_u1),
+        "energy_u2": f64(acc.energy_u2),
+        "nonconverged_solves": np.asarray(acc.nonconverged_solves, np.int64),
+        "max_residual": finite_or_nan(acc.max_residual),
+        "max_bound_violation": f64(acc.max_bound_violation),
+        "admm_iterations": np.asarray(acc.admm_iterations, np.int64),
+    }

@@ -1,0 +1,102 @@
+"""Batch functions: how a sweep evaluates scenarios.
+
+A *batch function* ``run_batch(forces, durations)`` takes two equal-length float arrays and
+returns one summary row per scenario, in order (a DataFrame with outcome strings or a dict of
+columns with integer outcome codes). By default it is ``rollout.BatchRunner(config).run_frame``
+(:func:`default_batch`, built lazily by :class:`LazyBatch`); every sweep function takes it as
+an argument, so the bookkeeping (chunking, resume, bisection) can be tested with a cheap
+stand-in.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+import numpy as np
+import pandas as pd
+
+from ..outcomes import SUMMARY_COLUMNS, summary_frame
+from ..params import Config
+from .chunks import chunk_slices
+
+RunBatch = Callable[[np.ndarray, np.ndarray], "pd.DataFrame | dict[str, np.ndarray]"]
+
+
+def default_batch(config: Config) -> RunBatch:
+    """The MJX batched rollout for this configuration (compiled on first call)."""
+    from .rollout import BatchRunner
+
+    return BatchRunner(config).run_frame
+
+
+class LazyBatch:
+    """The default batch function, built on its first call (a finished sweep builds nothing)."""
+
+    def __init__(self, config: Config):
+        self.config = config
+        self._run: RunBatch | None = None
+
+    def __call__(self, forces: np.ndarray, durations: np.ndarray):
+        if self._run is None:
+            self._run = default_batch(self.config)
+        return self._run(forces, durations)
+
+    def prepare(self, batch: int, log: Callable[[str], None] | None = print) -> None:
+        """Build the rollout and compile it for ``batch`` scenarios now (before a progress bar
+        starts, so that its rate and time left are those of the runs)."""
+        say = log or (lambda _msg: None)
+        start = time.perf_counter()
+        if self._run is None:
+            say("building the MJX rollout ...")
+            self._run = default_batch(self.config)
+        runner = getattr(self._run, "__self__", None)
+        if hasattr(runner, "compiled"):  # rollout.BatchRunner: one function per padded size
+            size = runner.padded_batch(batch)
+            if not runner.is_compiled(size):
+                say(f"compiling the rollout for batches of {size} scenarios ...")
+            runner.compiled(size)
+        seconds = time.perf_counter() - start
+        if seconds > 1:
+            say(f"rollout ready ({seconds:.0f} s)")
+
+
+def evaluate(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarray, config: Config,
+             pad_to: int | None = None) -> pd.DataFrame:
+    """Summary rows for the scenarios (forces[i], durations[i]), in order.
+
+    The batch is padded to ``pad_to`` scenarios by repeating its last one (a batch of a fixed
+    size is compiled once), and the padding is dropped. The result has the SUMMARY_COLUMNS in
+    order (extra columns after them), outcome as strings, and force/duration equal to the values
+    asked for (a float32 rollout hands them back rounded).
+    """
+    forces = np.asarray(forces, dtype=np.float64)
+    durations = np.asarray(durations, dtype=np.float64)
+    count = forces.size
+    if count == 0:
+        return pd.DataFrame(columns=SUMMARY_COLUMNS)
+    if pad_to is not None and pad_to > count:
+        extra = pad_to - count
+        forces_in = np.concatenate([forces, np.full(extra, forces[-1])])
+        durations_in = np.concatenate([durations, np.full(extra, durations[-1])])
+    else:
+        forces_in, durations_in = forces, durations
+    frame = summary_frame(run_batch(forces_in, durations_in), config.controller.convention)
+    if len(frame) != forces_in.size:
+        raise RuntimeError(f"batch function returned {len(frame)} rows for {forces_in.size} scenarios")
+    frame = frame.iloc[:count].reset_index(drop=True)
+    for column, asked in (("force", forces), ("duration", durations)):
+        got = frame[column].to_numpy(dtype=np.float64)
+        if not np.allclose(got, asked, rtol=1e-5, atol=1e-6):
+            raise RuntimeError(f"batch function returned rows for other {column}s than asked")
+        frame[column] = asked
+    return frame
+
+
+def evaluate_batches(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarray,
+                     config: Config, batch: int | None) -> pd.DataFrame:
+    """``evaluate`` in calls of exactly ``batch`` scenarios (padded), or one call if None."""
+    if batch is None:
+        return evaluate(run_batch, forces, durations, config)
+    return pd.concat([evaluate(run_batch, forces[s], durations[s], config, pad_to=batch)
+                      for s in chunk_slices(forces.size, batch)], ignore_index=True)

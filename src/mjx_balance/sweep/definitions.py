@@ -1,0 +1,70 @@
+"""Sweep definitions: the built-in default sweep and the sweep TOML files (sweeps/*.toml).
+
+A sweep definition holds [body]/[controller]/[scenario] overrides of a base configuration and
+a [sweep] table (forces, durations, table_forces, chunk); the command line overrides both.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..params import Config, ParameterError
+
+# The robustness table of the study (SPEC §6.3).
+STUDY_TABLE_FORCES = (5, 10, 15, 20, 30, 40, 50, 60, 80, 100, 120)
+
+# The built-in default sweep (the README's main job; the same as sweeps/default.toml): a coarse
+# region map and a short table that finish in a few minutes on a 2-core CPU.
+DEFAULT_SWEEP = {
+    "forces": "0:150:10",
+    "durations": "0.05,0.1,0.15,0.2,0.3,0.5,1.0,1.5",
+    "table_forces": "20,50,80,100,120",
+    "chunk": 64,
+}
+
+_SWEEP_KEYS = ("forces", "durations", "table_forces", "chunk")
+
+
+@dataclass
+class SweepDefinition:
+    """A sweep TOML: configuration overrides plus the [sweep] table."""
+
+    config: Config
+    forces: Any = None
+    durations: Any = None
+    table_forces: Any = None
+    chunk: int | None = None
+
+
+def load_sweep(path: str | Path | None, base: Config) -> SweepDefinition:
+    """Read a sweep definition: optional [body]/[controller]/[scenario] (overriding ``base``)
+    and a [sweep] table with forces, durations, table_forces (grid strings or number lists) and
+    chunk. ``None`` gives the built-in default sweep (DEFAULT_SWEEP)."""
+    if path is None:
+        return SweepDefinition(base, **DEFAULT_SWEEP)
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise ParameterError(f"sweep definition not found: {path}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"{path}: not valid TOML: {exc}") from None
+    sweep = data.pop("sweep", {})
+    if not isinstance(sweep, dict):
+        raise ParameterError(f"{path}: [sweep] must be a table")
+    unknown = sorted(set(sweep) - set(_SWEEP_KEYS))
+    if unknown:
+        raise ParameterError(f"{path}: [sweep] has unknown key(s) {', '.join(unknown)}; "
+                             f"known: {', '.join(_SWEEP_KEYS)}")
+    try:
+        config = base.replace(**data) if data else base
+    except ParameterError as exc:
+        raise ParameterError(f"{path}: {exc}") from None
+    chunk = sweep.get("chunk")
+    if chunk is not None and (isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1):
+        raise ParameterError(f"{path}: [sweep] chunk must be an integer >= 1, got {chunk!r}")
+    return SweepDefinition(config, sweep.get("forces"), sweep.get("durations"),
+                           sweep.get("table_forces"), chunk)

@@ -1,0 +1,146 @@
+"""The recoverable region: every cell of a force x duration grid, resumably.
+
+The grid (force-major: all durations of the first force, then the next force) is split into
+chunks of one size (a power of two that fits the memory budget, ``chunks.py``; every call
+padded to it, so the rollout compiles one function); each chunk is written to its own file as
+soon as it is done (``store.py``). On restart, chunk files that read back with exactly their
+cells are kept and the others (damaged, partial, from another grid) are recomputed; a folder
+made with another configuration or grid is refused.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import pandas as pd
+
+from ..params import Config, ParameterError
+from .batch import LazyBatch, RunBatch, evaluate
+from .chunks import chunk_slices, default_chunk_size
+from .grid import check_durations, describe, grid_cells, parse_grid, same_values
+from .progress import progress_bar
+from .store import REGION, OutputFolder, chunk_path, merge_chunks, read_chunk, write_atomic, write_parquet
+
+
+@dataclass
+class SweepResult:
+    region_path: Path  # region.parquet, every cell once, in grid order
+    computed_chunks: int  # chunks evaluated in this call
+    reused_chunks: int  # chunks read back from an earlier call
+    recomputed_chunks: int  # damaged chunk files found and recomputed
+    seconds: float
+    already_complete: bool
+
+    @property
+    def region(self) -> pd.DataFrame:
+        """The merged table, read from disk on demand (the sweep itself never holds it all)."""
+        return pd.read_parquet(self.region_path)
+
+
+def check_region(region: pd.DataFrame, forces: np.ndarray, durations: np.ndarray) -> None:
+    """Every grid cell exactly once, in grid order."""
+    cell_f, cell_d = grid_cells(forces, durations)
+    if len(region) != cell_f.size:
+        raise RuntimeError(f"region has {len(region)} rows for {cell_f.size} cells")
+    if region.duplicated(["force", "duration"]).any():
+        raise RuntimeError("region has a repeated cell")
+    if not (same_values(region["force"], cell_f) and same_values(region["duration"], cell_d)):
+        raise RuntimeError("region cells differ from the grid")
+
+
+def run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np.ndarray, *,
+              run_batch: RunBatch | None = None, chunk_size: int | None = None,
+              progress: bool = True, log: Callable[[str], None] | None = print) -> SweepResult:
+    """Evaluate every (force, duration) cell, resumably, into ``out/region.parquet``.
+
+    run_batch: batch function (default: the MJX rollout of ``config``), called with at most
+    ``chunk_size`` scenarios at a time (every call padded to exactly chunk_size).
+    chunk_size: scenarios per chunk (default: from the memory budget). A folder keeps the chunk
+    size it was started with.
+    """
+    say = log or (lambda _msg: None)
+    start = time.perf_counter()
+    forces = parse_grid(forces, "forces")
+    durations = check_durations(parse_grid(durations, "durations"), config.scenario.t_end)
+    cell_f, cell_d = grid_cells(forces, durations)
+    n_cells = cell_f.size
+    folder = OutputFolder(out, config)
+    manifest = folder.open()
+    region_path = folder.path / REGION
+
+    recorded = manifest.get("region")
+    if recorded is not None:
+        if not (same_values(recorded["forces"], forces)
+                and same_values(recorded["durations"], durations)):
+            raise ParameterError(
+                f"{folder.path} holds a sweep over another grid (forces {describe(recorded['forces'])}, "
+                f"durations {describe(recorded['durations'])}); use another --out folder or the "
+                "same grid")
+        if chunk_size is not None and chunk_size != recorded["chunk_size"]:
+            say(f"note: {folder.path} was started with chunks of {recorded['chunk_size']} "
+                f"scenarios; keeping that (ignoring --chunk {chunk_size})")
+        chunk_size = int(recorded["chunk_size"])
+    else:
+        if chunk_size is None:
+            chunk_size = default_chunk_size(config, n_cells)
+        elif chunk_size < 1:
+            raise ParameterError(f"--chunk must be >= 1, got {chunk_size}")
+        manifest["region"] = {"forces": forces.tolist(), "durations": durations.tolist(),
+                              "chunk_size": int(chunk_size), "cells": int(n_cells)}
+        folder.write_manifest(manifest)
+
+    slices = chunk_slices(n_cells, chunk_size)
+    convention = config.controller.convention
+
+    # A finished sweep: region.parquet that holds exactly the grid.
+    if region_path.exists():
+        try:
+            check_region(pd.read_parquet(region_path, columns=["force", "duration"]),
+                          forces, durations)
+            say(f"sweep already complete: {region_path} ({n_cells} cells); nothing to do")
+            return SweepResult(region_path, 0, len(slices), 0, time.perf_counter() - start, True)
+        except Exception as exc:  # noqa: BLE001 - rebuild it from the chunks
+            say(f"{region_path} is damaged ({exc}); rebuilding it")
+
+    (folder.path / "chunks").mkdir(exist_ok=True)
+    # Chunk files are checked one at a time and not kept: peak memory is one chunk, not the grid.
+    todo: list[int] = []
+    recomputed = 0
+    for index, cells in enumerate(slices):
+        path = chunk_path(folder.path, index)
+        frame, reason = read_chunk(path, cell_f[cells], cell_d[cells], convention)
+        if frame is None:
+            todo.append(index)
+            if reason != "missing":
+                recomputed += 1
+                say(f"chunk {index} ({path.name}) is damaged: {reason}; recomputing it")
+    reused = len(slices) - len(todo)
+    remaining = sum(slices[i].stop - slices[i].start for i in todo)
+    if reused:
+        say(f"resuming: {reused} of {len(slices)} chunks already done, {remaining} cells to go")
+    say(f"sweep: {forces.size} forces x {durations.size} durations = {n_cells} cells in "
+        f"{len(slices)} chunks of {chunk_size}; convention {convention}; output {folder.path}")
+
+    if todo:
+        run_batch = run_batch or LazyBatch(config)
+        if hasattr(run_batch, "prepare"):
+            run_batch.prepare(chunk_size, log=log)
+        bar = progress_bar(n_cells, n_cells - remaining, progress)
+        try:
+            for index in todo:
+                cells = slices[index]
+                frame = evaluate(run_batch, cell_f[cells], cell_d[cells], config, pad_to=chunk_size)
+                write_parquet(frame, chunk_path(folder.path, index))
+                bar.update(cells.stop - cells.start)
+        finally:
+            bar.close()
+
+    write_atomic(region_path, lambda tmp: merge_chunks(folder.path, slices, cell_f, cell_d,
+                                                        convention, tmp))
+    seconds = time.perf_counter() - start
+    say(f"wrote {region_path} ({n_cells} cells; {len(todo)} chunks computed in {seconds:.1f} s)")
+    return SweepResult(region_path, len(todo), reused, recomputed, seconds, False)
