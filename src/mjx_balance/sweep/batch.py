@@ -25,7 +25,7 @@ RunBatch = Callable[[np.ndarray, np.ndarray], "pd.DataFrame | dict[str, np.ndarr
 
 def default_batch(config: Config) -> RunBatch:
     """The MJX batched rollout for this configuration (compiled on first call)."""
-    from .rollout import BatchRunner
+    from ..rollout import BatchRunner
 
     return BatchRunner(config).run_frame
 
