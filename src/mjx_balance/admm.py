@@ -18,13 +18,13 @@ by :func:`build_admm`, then cast to the working dtype:
   T = T0 D, P̄ = c Tᵀ H T, Ā = Ē C T, q̄ = c Tᵀ q, l̄ = Ē l, ū = Ē u. OSQP's cost scaling also
   looks at q; ours changes every solve, so c uses P only. Whitening is possible because H never
   changes; it cuts the iterations for the default accuracy about threefold against Ruiz alone
-  (measured on closed-loop states, see bench.py).
+  (measured on closed-loop states by ``mjx-balance bench solver``).
 - ρ is a vector over the constraint rows (as OSQP's per-row ρ): settings.rho times a factor per
   row group (inputs, states, CoP, CoM; ``rho_scale``), measured to favour the CoP rows.
 - The reduced KKT system (P̄ + σI + Āᵀ diag(ρ) Ā) x̃ = σx - q̄ + Āᵀ(ρz - y) (OSQP eq. 23) has a
   fixed matrix K; its inverse is folded into Mw = K⁻¹Āᵀ diag(ρ) (n x m), Mx = σK⁻¹ and
   g = -K⁻¹q̄ = G x0; the iteration carries y / ρ in place of y.
-- With the defaults (bench.py, tests/test_admm.py) warm-started solves of closed-loop states
+- With the defaults (``mjx-balance bench solver``, tests/test_admm.py) warm-started solves of closed-loop states
   reach 1e-3 of each input's range against OSQP at 1e-9 on every OSQP-solved state measured.
 
 One iteration therefore costs two dense products, x̃ = Mw (z - y/ρ) + g (+ Mx x when σ > 0) and

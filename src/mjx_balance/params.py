@@ -144,7 +144,7 @@ class ControllerParams:
     osqp_eps: float = 1e-8
     osqp_max_iter: int = 20000
     # Batched ADMM solver (admm.py); static under jit. Defaults measured on closed-loop states
-    # (bench.py, tests/test_admm.py): with H whitened, rho = 0.07 (x3 on input rows, x30 on CoP
+    # (`mjx-balance bench solver`, tests/test_admm.py): with H whitened, rho = 0.07 (x3 on input rows, x30 on CoP
     # rows, admm.ADMMSettings.rho_scale), alpha = 1.8 and warm starts reach 1e-3 of each torque
     # range against OSQP at 1e-9 on every solve of the bench states (5650 paper, 4583 joint);
     # rho 0.05..0.15, alpha 1.6/1.8 and CoP factors 10..50 were compared: this pair needs the

@@ -9,7 +9,7 @@ controller measures the joint state, converts it to the convention state, solves
 QP (``qp.py``) and holds the first input, clipped to its bounds, as motor torques for
 ``substeps`` physics steps. The push (force along x, see ``push_wrench``) acts during physics
 steps i < ceil(T / dt - 1e-9). The run starts at upright rest and stops at the first fall sample
-or non-finite value (see ``metrics.py``).
+or non-finite value (the rules of ``outcomes.py``).
 
 Sensorimotor delay (scenario.controller_delay = D, d = D / dt physics steps): the controller at
 t_k sees the joint state (q_a, q_h, dq_a, dq_h) of time t_k - D, i.e. the state after physics

@@ -24,7 +24,7 @@ from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm  # noqa: E40
 from matplotlib.patches import Patch  # noqa: E402
 from matplotlib.ticker import FuncFormatter  # noqa: E402
 
-from .metrics import OUTCOMES  # noqa: E402
+from .outcomes import OUTCOMES  # noqa: E402
 from .params import Config, ParameterError  # noqa: E402
 
 OUTCOME_COLOURS = {

@@ -159,7 +159,7 @@ def merge_chunks(folder: Path, slices: list[slice], cell_f: np.ndarray, cell_d: 
     import pyarrow.parquet as pq
 
     # Row groups of ~64k rows: one per chunk would make the file's metadata, which the writer
-    # holds until it closes, grow by ~50 kB per chunk (measured: +150 MiB at 400k cells).
+    # holds until it closes, grow with every chunk (BENCHMARKS.md, memory scaling).
     rows_per_group = 65536
     writer, schema, pending, pending_rows = None, None, [], 0
 
