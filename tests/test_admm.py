@@ -1,9 +1,9 @@
 """The batched ADMM (admm.py) against OSQP at eps 1e-9 on closed-loop states.
 
 States: closed-loop trajectories of the linear model under the OSQP MPC after pushes of
-20..120 N for 0.1 and 0.2 s (bench.closed_loop_states, 0.6 s each): about 1,300 per convention,
-including saturated first inputs and infeasible QPs. Each ADMM solve is warm-started from the
-previous state's shifted solution, as in the closed loop.
+20..120 N for 0.1 and 0.2 s (bench.states.closed_loop_states, 0.6 s each): about 1,300 per
+convention, including saturated first inputs and infeasible QPs. Each ADMM solve is
+warm-started from the previous state's shifted solution, as in the closed loop.
 """
 
 import jax
@@ -11,7 +11,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_balance import admm, bench
+from mjx_balance import admm
+from mjx_balance.bench.states import (ACCURACY, admm_along_trajectories, closed_loop_states,
+                                      first_control_error, misses, truth_solutions)
+from mjx_balance.osqp_mpc import osqp_solve, osqp_solver
 from mjx_balance.params import BodyParams, ControllerParams
 from mjx_balance.qp import build_qp
 
@@ -24,11 +27,11 @@ def case(request):
     controller = ControllerParams(convention=request.param)
     body = BodyParams()
     qp = build_qp(controller, body, 0.01)
-    trajectories = bench.closed_loop_states(qp, body, FORCES, DURATIONS, steps=60)
+    trajectories = closed_loop_states(qp, body, FORCES, DURATIONS, steps=60)
     states = np.concatenate(trajectories)
-    truth = bench.truth_solutions(qp, states, eps=1e-9)
+    truth = truth_solutions(qp, states, eps=1e-9)
     settings = admm.settings_from_controller(controller)
-    seq32 = bench.admm_along_trajectories(qp, trajectories, settings, jnp.float32)
+    seq32 = admm_along_trajectories(qp, trajectories, settings, jnp.float32)
     return dict(convention=request.param, controller=controller, qp=qp, settings=settings,
                 trajectories=trajectories, states=states, truth=truth, seq32=seq32)
 
@@ -44,15 +47,15 @@ def test_states_include_saturated_and_infeasible(case):
 
 def test_first_control_matches_osqp(case):
     qp, truth, seq = case["qp"], case["truth"], case["seq32"]
-    err = bench.first_control_error(qp, seq["u0"], truth)
+    err = first_control_error(qp, seq["u0"], truth)
     both = truth.solved & (seq["status"] == admm.SOLVED)
-    misses = int(np.sum(truth.solved & ~(err <= bench.ACCURACY)))
+    n_miss = misses(err, truth)
     print(f"\n{case['convention']} float32, cap {case['settings'].iteration_cap}: "
-          f"{misses}/{truth.solved.sum()} misses ({100 * misses / truth.solved.sum():.2f}%), "
+          f"{n_miss}/{truth.solved.sum()} misses ({100 * n_miss / truth.solved.sum():.2f}%), "
           f"max error {np.max(err[truth.solved]):.2e} (both solved: {np.max(err[both]):.2e}, "
           f"{both.sum()} solves), mean iterations {seq['iters'].mean():.1f}")
-    assert np.all(err[both] <= bench.ACCURACY)
-    assert misses < 0.01 * truth.solved.sum()
+    assert np.all(err[both] <= ACCURACY)
+    assert n_miss < 0.01 * truth.solved.sum()
     assert np.all(np.isfinite(seq["z"])) and np.all(np.isfinite(seq["u0"]))
 
 
@@ -60,8 +63,8 @@ def test_float32_agrees_with_float64(case):
     """float32 and float64 both stop at eps 1e-5 (relative), so their first controls differ by
     solver tolerance, not by rounding; 1e-4 of the range is 10x tighter than the OSQP test."""
     seq32 = case["seq32"]
-    seq64 = bench.admm_along_trajectories(case["qp"], case["trajectories"], case["settings"],
-                                          jnp.float64)
+    seq64 = admm_along_trajectories(case["qp"], case["trajectories"], case["settings"],
+                                    jnp.float64)
     both = (seq32["status"] == admm.SOLVED) & (seq64["status"] == admm.SOLVED)
     span = case["qp"].input_upper - case["qp"].input_lower
     diff = np.max(np.abs(seq32["u0"] - seq64["u0"]) / span, axis=-1)
@@ -72,8 +75,8 @@ def test_float32_agrees_with_float64(case):
 
 
 def test_warm_start_reduces_iterations(case):
-    cold = bench.admm_along_trajectories(case["qp"], case["trajectories"], case["settings"],
-                                         jnp.float32, warm=False)
+    cold = admm_along_trajectories(case["qp"], case["trajectories"], case["settings"],
+                                   jnp.float32, warm=False)
     # Infeasible states run to the cap either way; compare on the feasible (OSQP-solved) ones.
     feasible = case["truth"].solved
     warm_total = case["seq32"]["iters"][feasible].sum()
@@ -116,9 +119,9 @@ def test_infeasible_states_report_status_and_stay_finite(dtype):
     # can bring the tilts back inside, so the QP is infeasible.
     x0 = np.array([[0.7, 0.7, 2.0, 2.0], [-0.5, -0.6, -3.0, -3.0], [0.45, 1.5, 1.0, 4.0],
                    [0.0, 0.0, 10.0, -10.0]])
-    solver = bench.osqp_solver(qp, 1e-6, detect_infeasible=True)
+    solver = osqp_solver(qp, 1e-6, detect_infeasible=True)
     for x in x0:
-        assert "infeasible" in bench.osqp_solve(solver, qp, x).info.status
+        assert "infeasible" in osqp_solve(solver, qp, x).info.status
     res = admm.admm_solve_batch(data, jnp.asarray(x0, dtype),
                                 admm.ADMMWarm(z=jnp.zeros((4, qp.n), dtype),
                                               y=jnp.zeros((4, qp.m), dtype)), settings)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mjx_balance.bench_pipeline import scenario_set, stratified_subset
+from mjx_balance.bench.pipeline import scenario_set, stratified_subset
 from mjx_balance.cli import build_parser
 
 
@@ -33,7 +33,7 @@ def test_stratified_subset_follows_the_mix():
 def test_cli_bench_dispatch():
     parser = build_parser()
     args = parser.parse_args(["bench", "--scenarios", "8", "--json"])
-    assert args.target == "mjx_balance.bench_pipeline:pipeline_command"
+    assert args.target == "mjx_balance.cli.bench:pipeline_command"
     assert args.scenarios == 8 and args.json
     args = parser.parse_args(["bench", "solver", "--batch", "1"])
-    assert args.target == "mjx_balance.bench:solver_command" and args.batch == "1"
+    assert args.target == "mjx_balance.cli.bench:solver_command" and args.batch == "1"

@@ -1,11 +1,15 @@
 """``mjx-balance simulate`` end to end on short scenarios."""
 
+import numpy as np
 import pandas as pd
 import pytest
+from PIL import Image
 
-from mjx_balance import cli, metrics
+from mjx_balance import cli
+from mjx_balance.cli.simulate import PRINTED_COLUMNS, parse_values
+from mjx_balance.outcomes import SUMMARY_COLUMNS
 from mjx_balance.params import ParameterError, load_config
-from mjx_balance.reference import TIMESERIES_COLUMNS, parse_values
+from mjx_balance.reference import TIMESERIES_COLUMNS
 
 FIGURES = ["ankle_angle", "hip_angle", "phase_ankle", "phase_hip", "cop", "com", "ankle_torque",
            "hip_torque", "energy"]
@@ -18,28 +22,49 @@ def short_config(tmp_path):
     return path
 
 
+# Every (duration, force) pair, durations outermost; the joint convention over 0.5 s: no push
+# stays upright, 30 N for 0.1 s never leaves the settle band, 30 N for 0.2 s still sways at 0.5 s.
+EXPECTED_ROWS = [(0.0, 0.1, "recovered"), (30.0, 0.1, "recovered"), (0.0, 0.2, "recovered"),
+                 (30.0, 0.2, "not_settled")]
+
+
 def test_simulate_writes_every_file(tmp_path, short_config, capsys):
     out = tmp_path / "run"
-    code = cli.main(["simulate", "--force", "0,30", "--duration", "0.1", "--convention", "joint",
-                     "--config", str(short_config), "--out", str(out)])
+    code = cli.main(["simulate", "--force", "0,30", "--duration", "0.1,0.2", "--convention",
+                     "joint", "--config", str(short_config), "--out", str(out)])
     assert code == 0
     summary = pd.read_csv(out / "summary.csv")
-    assert list(summary.columns) == metrics.SUMMARY_COLUMNS
-    assert list(summary.force) == [0.0, 30.0]
+    assert list(summary.columns) == SUMMARY_COLUMNS
+    assert list(zip(summary.force, summary.duration, summary.outcome)) == EXPECTED_ROWS
     assert set(summary.convention) == {"joint"}
-    assert set(summary.outcome) <= set(metrics.OUTCOMES)
+    assert (summary.settle_time[summary.outcome == "recovered"] >= 0).all()
+    assert summary.settle_time[summary.outcome == "not_settled"].isna().all()
+
     series = pd.read_parquet(out / "timeseries.parquet")
     assert list(series.columns) == TIMESERIES_COLUMNS
-    assert sorted(series.scenario.unique()) == [0, 1]
-    assert len(series) == 2 * 250  # 0.5 s at 0.002 s, both scenarios ran to the end
+    assert sorted(series.scenario.unique()) == [0, 1, 2, 3]
+    for i, row in summary.iterrows():  # each scenario ran to the end: 0.5 s at 0.002 s
+        run = series[series.scenario == i]
+        assert len(run) == 250
+        np.testing.assert_allclose(run.time.to_numpy(), 0.002 * np.arange(1, 251))
+        assert (run.force == row.force).all() and (run.duration == row.duration).all()
+        assert run.energy_total.iloc[-1] == pytest.approx(row.energy_total, rel=1e-9, abs=1e-12)
+
     config = load_config(out / "config.toml")
     assert config.scenario.t_end == 0.5 and config.controller.convention == "joint"
     for name in FIGURES:
         path = out / f"{name}.png"
-        assert path.stat().st_size > 10_000
-        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    printed = capsys.readouterr().out
-    assert "outcome" in printed and "recovered" in printed
+        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 10_000
+        with Image.open(path) as image:
+            assert image.format == "PNG" and min(image.size) > 100
+            image.verify()  # a complete, uncorrupted file
+
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0].split() == PRINTED_COLUMNS
+    printed = [line.split() for line in lines[1:-1]]
+    assert [(float(r[0]), float(r[1]), r[3]) for r in printed] == EXPECTED_ROWS
+    assert all(r[2] == "joint" and len(r) == len(PRINTED_COLUMNS) for r in printed)
+    assert lines[-1].startswith(f"wrote {out / 'summary.csv'}") and "9 figures" in lines[-1]
 
 
 @pytest.mark.parametrize("option,value,message", [

@@ -1,10 +1,16 @@
-"""The notebook executes on a tiny report's saved results, with this interpreter's kernel."""
+"""The notebook executes on a tiny report's saved results, with this interpreter's kernel, only
+reads them, and shows the numbers of the saved tables."""
 
 import json
+import re
 import sys
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
+
+from mjx_balance import studies
 
 from tiny_report import tiny_report
 
@@ -35,7 +41,49 @@ def test_notebook_executes(tmp_path_factory, tmp_path, monkeypatch):
     code = [c for c in nb.cells if c.cell_type == "code"]
     errors = [o for c in code for o in c.outputs if o.output_type == "error"]
     assert not errors
-    assert "plan tiny" in code[0].outputs[0]["text"]
-    images = sum(1 for c in code for o in c.outputs if "image/png" in o.get("data", {}))
-    assert images >= 6  # time series, 2 weight charts, table curve, 2 region maps
     assert sorted(p.relative_to(out) for p in out.rglob("*")) == before  # only reads
+    images = [o for c in code for o in c.outputs if "image/png" in o.get("data", {})]
+    # time series, one weight chart per convention, table curve, one region map per convention
+    assert len(images) == 6
+
+    # What the cells print and display, against the saved tables read back here.
+    assert _text(code[0]) == (f"results in {out}: plan tiny, batch backend reference, "
+                              "conventions paper, joint, t_end = 2 s\n")
+    tables = {c: pd.read_csv(out / c / "table" / "table.csv") for c in ("paper", "joint")}
+    shown = _html_rows(code[3])
+    expected = np.column_stack([tables["paper"].force] + [
+        tables[c][k] for c in ("paper", "joint")
+        for k in ("max_acting_time", "energy_total_01", "energy_total_max")])
+    np.testing.assert_allclose(np.array(shown, dtype=float), expected, rtol=1e-5, atol=1e-6)
+
+    lines = []
+    for convention in ("paper", "joint"):
+        n = studies.region_numbers(pd.read_parquet(out / convention / "region" / "region.parquet"))
+        lines.append(f"{convention}: recovered area {n['area']:.3g} N s "
+                     f"({n['fraction']:.0%} of the grid)\n")
+    assert _text(code[4]) == "".join(lines)
+
+    record = json.loads((out / "report.json").read_text())
+    markdown = [o["data"]["text/markdown"] for o in code[5].outputs
+                if "text/markdown" in o.get("data", {})]
+    expected = []
+    for entry in record["studies"]:
+        st = studies.study(entry["key"])
+        folder = out / "studies" / st.key
+        first = pd.read_parquet(folder / entry["variants"][0]["key"] / "region.parquet")
+        expected += [f"### {st.title}\n{st.question}",
+                     "> " + studies.reading(st, pd.read_csv(folder / "numbers.csv"), first)]
+    assert markdown == expected
+
+
+def _text(cell) -> str:
+    """What a cell printed."""
+    return "".join(o["text"] for o in cell.outputs if o.output_type == "stream")
+
+
+def _html_rows(cell) -> list[list[str]]:
+    """The body rows (index column dropped) of the one table a cell displayed."""
+    (table,) = [o["data"]["text/html"] for o in cell.outputs if "text/html" in o.get("data", {})]
+    body = table.split("<tbody>", 1)[1]
+    return [re.findall(r"<td>(.*?)</td>", row, re.S)
+            for row in re.findall(r"<tr>(.*?)</tr>", body, re.S)]

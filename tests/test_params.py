@@ -8,7 +8,7 @@ import pytest
 from mjx_balance.model import default_model_path, mjcf
 from mjx_balance.params import (BodyParams, Config, ControllerParams, ParameterError,
                                 ScenarioParams, config_from_dict, dumps_config, load_config,
-                                save_config)
+                                run_config, save_config)
 
 
 @pytest.mark.parametrize("make,field", [
@@ -47,6 +47,9 @@ def test_bad_values_raise_naming_the_field(make, field):
     ("[body]\nlower_mas = 30.0\n", "lower_mas"),
     ("[controllers]\nhorizon = 10\n", "controllers"),
     ("[controller]\nhorizon = \"ten\"\n", "horizon"),
+    ("[controller]\nhorizon = true\n", "horizon"),  # a bool is not a number
+    ("[controller]\nadmm_stop_on_infeasible = 1\n", "admm_stop_on_infeasible"),
+    ("[controller]\nadmm_stop_on_infeasible = \"yes\"\n", "admm_stop_on_infeasible"),
 ])
 def test_bad_toml_raises_naming_the_field(tmp_path, text, field):
     path = tmp_path / "bad.toml"
@@ -87,6 +90,23 @@ def test_partial_toml_takes_defaults(tmp_path):
     config = load_config(path)
     assert config.scenario.t_end == 2.0
     assert config.body == BodyParams() and config.controller == ControllerParams()
+
+
+def test_run_config_file_then_convention(tmp_path):
+    """A run's configuration (what every command loads): the file or the defaults, then
+    --convention on top; None keeps the file's."""
+    path = tmp_path / "run.toml"
+    path.write_text("[controller]\nconvention = \"joint\"\nadmm_stop_on_infeasible = true\n"
+                    "[scenario]\nt_end = 3\n")
+    assert run_config() == Config()
+    assert run_config(None, "joint") == Config().replace(controller={"convention": "joint"})
+    from_file = run_config(path)
+    assert from_file.controller.convention == "joint" and from_file.scenario.t_end == 3.0
+    assert from_file.controller.admm_stop_on_infeasible is True
+    assert run_config(path, None) == from_file
+    assert run_config(path, "paper") == from_file.replace(controller={"convention": "paper"})
+    with pytest.raises(ParameterError, match="convention"):
+        run_config(path, "absolute")
 
 
 def test_replace_validates():

@@ -1,19 +1,29 @@
-"""The report: built on a tiny configuration, every section present, figures embedded, tables
-saved; the study sweep definitions load and run; the study numbers and readings."""
+"""The report: built on a tiny configuration through the command line; every section shows the
+numbers of the saved tables, report.json records the plan and the timings, the HTML is rebuilt
+from the tables alone; the study sweep definitions load and run; the study numbers and readings."""
 
+import dataclasses
+import html
 import json
 import re
+import shutil
+import subprocess
+import sys
 
 import numpy as np
 import pandas as pd
 import pytest
 
+import mjx_balance
 from mjx_balance import report, studies
-from mjx_balance.metrics import OUTCOMES
-from mjx_balance.params import Config
+from mjx_balance.cli import main
+from mjx_balance.outcomes import OUTCOMES
+from mjx_balance.params import Config, ParameterError, load_config
 from mjx_balance.sweep import load_sweep, parse_grid, run_sweep
 
 from tiny_report import tiny_report
+
+CONVENTIONS = ("paper", "joint")
 
 
 @pytest.fixture(scope="module")
@@ -21,18 +31,55 @@ def out(tmp_path_factory):
     return tiny_report(tmp_path_factory)
 
 
-def test_report_has_every_section_and_embedded_figures(out):
-    page = (out / "report.html").read_text(encoding="utf-8")
+@pytest.fixture(scope="module")
+def page(out):
+    return (out / "report.html").read_text(encoding="utf-8")
+
+
+def _section(page: str, key: str) -> str:
+    match = re.search(rf'<section id="{re.escape(key)}">(.*?)</section>', page, re.S)
+    assert match, f"no section {key}"
+    return match.group(1)
+
+
+def _tables(fragment: str) -> list[tuple[list[str], list[list[str]]]]:
+    """(header, rows of cell texts) of every HTML table in ``fragment``."""
+    tables = []
+    for table in re.findall(r"<table[^>]*>(.*?)</table>", fragment, re.S):
+        header = [html.unescape(h) for h in re.findall(r"<th>(.*?)</th>", table)]
+        body = table.split("<tbody>", 1)[1]
+        rows = [[html.unescape(c) for c in re.findall(r"<td>(.*?)</td>", row, re.S)]
+                for row in re.findall(r"<tr>(.*?)</tr>", body, re.S)]
+        tables.append((header, rows))
+    return tables
+
+
+def _assert_shows(table: tuple[list[str], list[list[str]]], frame: pd.DataFrame) -> None:
+    """The HTML table shows ``frame``: its columns, and every value to 4 significant digits."""
+    header, rows = table
+    assert header == list(frame.columns)
+    assert len(rows) == len(frame)
+    for row, (_, expected) in zip(rows, frame.iterrows()):
+        for cell, column in zip(row, frame.columns):
+            value = expected[column]
+            if isinstance(value, str):
+                assert cell == value, column
+            elif pd.isna(value):
+                assert cell == "–", column
+            else:
+                assert float(cell) == pytest.approx(float(value), rel=1e-3), column
+
+
+def test_report_has_every_section_and_embedded_figures(out, page):
     ids = [key for key, _ in report.sections(out)]
     expected = ["overview", "conventions"]
-    for convention in ("paper", "joint"):
+    for convention in CONVENTIONS:
         expected += [f"timeseries-{convention}", f"weights-{convention}", f"table-{convention}",
                      f"region-{convention}"]
     expected += [f"study-{s.key}" for s in studies.STUDIES]
     assert sorted(ids) == sorted(expected)
     for key, heading in report.sections(out):
-        assert f'<section id="{key}"><h2>' in page, key
-        assert heading.replace("&", "&amp;") in page or heading in page
+        assert f'<section id="{key}"><h2>{html.escape(heading)}</h2>' in page, key
     images = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
     # 9 time-series, weights, table, 2 region figures per convention; 1 + 2 side by side;
     # one region map per study variant
@@ -43,15 +90,102 @@ def test_report_has_every_section_and_embedded_figures(out):
     assert page.count('class="reading"') == len(studies.STUDIES) + 1
 
 
-def test_report_saves_its_tables(out):
+def test_experiment_sections_show_the_saved_tables(out, page):
+    for convention in CONVENTIONS:
+        folder = out / convention
+        summary = pd.read_csv(folder / "summary.csv")
+        (shown,) = _tables(_section(page, f"timeseries-{convention}"))
+        assert [float(r[0]) for r in shown[1]] == [0, 50, 120]  # the forces of the tiny plan
+        _assert_shows(shown, summary[report.html.SUMMARY_SHOWN])
+
+        weights = pd.read_csv(folder / "weights.csv")
+        text = _section(page, f"weights-{convention}")
+        recovered = int((weights.outcome == "recovered").sum())
+        assert f"<p>{recovered} of 6 settings recover;" in text
+        (shown,) = _tables(text)
+        assert [r[:2] for r in shown[1]] == [["Q", "1000"], ["Q", "1e+05"], ["Q", "1e+07"],
+                                             ["R", "0.0001"], ["R", "1e-06"], ["R", "1e-08"]]
+        _assert_shows(shown, weights[report.html.WEIGHTS_SHOWN])
+
+        table = pd.read_csv(folder / "table" / "table.csv")
+        (shown,) = _tables(_section(page, f"table-{convention}"))
+        assert [float(r[0]) for r in shown[1]] == [20, 100]
+        _assert_shows(shown, table[report.html.TABLE_SHOWN])
+
+        region = pd.read_parquet(folder / "region" / "region.parquet")
+        n = studies.region_numbers(region)
+        assert n["recovered_cells"] == (region.outcome == "recovered").sum()
+        assert (f"<p>Recovered area {n['area']:.3g} N·s ({n['fraction']:.0%} of the grid, "
+                f"{n['recovered_cells']} of 6 cells)") in _section(page, f"region-{convention}")
+
+
+def test_side_by_side_shows_both_conventions(out, page):
+    text = _section(page, "conventions")
+    tables = {c: pd.read_csv(out / c / "table" / "table.csv") for c in CONVENTIONS}
+    summaries = {c: pd.read_csv(out / c / "summary.csv") for c in CONVENTIONS}
+    merged = tables["paper"][["force"]].copy()
+    outcomes = summaries["paper"][["force"]].copy()
+    for c in CONVENTIONS:
+        for column in ("max_acting_time", "energy_total_01", "energy_total_max"):
+            merged[f"{column} ({c})"] = tables[c][column]
+        outcomes[f"outcome ({c})"] = summaries[c]["outcome"]
+        outcomes[f"energy_total ({c})"] = summaries[c]["energy_total"]
+    acting, pushes = _tables(text)
+    _assert_shows(acting, merged)
+    _assert_shows(pushes, outcomes)
+    longer = int((tables["paper"].max_acting_time > tables["joint"].max_acting_time).sum())
+    assert f"the paper convention has the longer max acting time for {longer} forces" in text
+
+
+def test_overview_states_the_run_and_the_key_numbers(out, page):
+    text = _section(page, "overview")
+    config = load_config(out / "config.toml")
+    assert "plan <b>tiny</b>, batch backend <b>reference</b>" in text
+    assert "recovery within t_end = 2 s" in text
+    scenario = config.scenario
+    assert (f"every angle within {scenario.settle_angle_tol:g} rad and rate within "
+            f"{scenario.settle_rate_tol:g} rad/s") in text
+    keys = [html.unescape(k) for k in re.findall(r"<li>([^<]*)</li>", text)]
+    parts = []
+    for convention in CONVENTIONS:
+        table = pd.read_csv(out / convention / "table" / "table.csv")
+        parts.append(f"{convention}: " + ", ".join(
+            f"{f:g} N: {m:g} s" for f, m in zip(table.force, table.max_acting_time)))
+    assert keys[0] == "Max acting time — " + "; ".join(parts) + "."
+    backward = pd.read_csv(out / "studies" / "backward" / "numbers.csv")
+    assert (f"Backward vs forward pushes: {backward.area[0]:.3g} vs {backward.area[1]:.3g} N·s."
+            in keys)
+    delay = pd.read_csv(out / "studies" / "delay" / "numbers.csv")
+    assert f"{delay.area_change[1]:+.3g} N·s ({delay.relative_change[1]:+.0%}) at 10 ms" in (
+        next(k for k in keys if k.startswith("Delay changes the area by")))
+    links = re.findall(r'<li><a href="#([^"]+)">', text)
+    assert links == [key for key, _ in report.sections(out) if key != "overview"]
+
+
+def test_study_sections_show_numbers_and_readings(out, page):
     record = json.loads((out / "report.json").read_text())
-    assert record["plan"]["name"] == "tiny" and record["backend"] == "reference"
-    for convention in ("paper", "joint"):
+    for entry in record["studies"]:
+        st = studies.study(entry["key"])
+        folder = out / "studies" / st.key
+        numbers = pd.read_csv(folder / "numbers.csv")
+        first = pd.read_parquet(folder / entry["variants"][0]["key"] / "region.parquet")
+        text = _section(page, f"study-{st.key}")
+        (shown,) = _tables(text)
+        _assert_shows(shown, numbers[report.html.STUDY_SHOWN])
+        reading = studies.reading(st, numbers, first)
+        assert f'<p class="reading">{html.escape(reading)}</p>' in text
+        captions = re.findall(r"<figcaption>([^<]*)</figcaption>", text)
+        assert captions == [html.escape(v.label) for v in st.variants]
+
+
+def test_report_saves_its_tables(out):
+    for convention in CONVENTIONS:
         summary = pd.read_csv(out / convention / "summary.csv")
         assert list(summary.force) == [0, 50, 120]
         assert set(summary.outcome) <= set(OUTCOMES)
         weights = pd.read_csv(out / convention / "weights.csv")
         assert list(weights.weight) == ["Q"] * 3 + ["R"] * 3
+        assert (weights.force == 100).all() and (weights.duration == 0.1).all()
         table = pd.read_csv(out / convention / "table" / "table.csv")
         assert list(table.force) == [20, 100]
         region = pd.read_parquet(out / convention / "region" / "region.parquet")
@@ -62,6 +196,24 @@ def test_report_saves_its_tables(out):
                                    "delay_100ms", "delay_150ms"]
     signed = pd.read_parquet(out / "studies" / "backward" / "signed" / "region.parquet")
     assert signed.force.min() < 0 < signed.force.max()
+
+
+def test_report_json_records_plan_configuration_and_timings(out):
+    record = json.loads((out / "report.json").read_text())
+    assert record["version"] == mjx_balance.__version__
+    assert record["plan"] == json.loads(json.dumps(dataclasses.asdict(report.PLANS["tiny"])))
+    assert record["backend"] == "reference" and record["conventions"] == list(CONVENTIONS)
+    assert record["config"] == load_config(out / "config.toml").to_dict()
+    assert record["config"]["scenario"]["t_end"] == 2.0  # the plan's override
+    stages = record["stages"]
+    assert set(stages) == {f"{c}/{s}" for c in CONVENTIONS for s in ("timeseries", "weights")}
+    assert stages["paper/timeseries"]["params"] == {"forces": [0, 50, 120], "duration": 0.1}
+    assert stages["joint/weights"]["params"] == {"force": 100.0, "q": [1e3, 1e5, 1e7],
+                                                 "r": [1e-4, 1e-6, 1e-8]}
+    seconds = [s["seconds"] for s in stages.values()]
+    assert all(s > 0 for s in seconds)
+    assert record["seconds"] >= sum(seconds)
+    assert [e["key"] for e in record["studies"]] == [s.key for s in studies.STUDIES]
     # the saved configurations of the variants are the study's
     variants = {e["key"]: e["variants"] for e in record["studies"]}
     assert variants["delay"][4]["config"]["scenario"]["controller_delay"] == 0.1
@@ -69,25 +221,43 @@ def test_report_saves_its_tables(out):
     assert variants["ankle_only"][1]["config"]["controller"]["input2_bounds"] == [0.0, 0.0]
 
 
-def test_html_is_rebuilt_from_saved_tables(out, tmp_path):
-    import shutil
-
+def test_html_is_rebuilt_from_saved_tables(out, page, tmp_path, capsys):
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)
     (copy / "report.html").unlink()
     shutil.rmtree(copy / "figures")
-    from mjx_balance.cli import main
-
     assert main(["report", "--out", str(copy), "--html-only"]) == 0
-    assert (copy / "report.html").stat().st_size > 100_000
+    assert capsys.readouterr().out == f"wrote {copy / 'report.html'}\n"
+    rebuilt = (copy / "report.html").read_text(encoding="utf-8")
+    no_images = re.compile(r"base64,[A-Za-z0-9+/=]+")
+    assert no_images.sub("", rebuilt) == no_images.sub("", page)
+    assert len(no_images.findall(rebuilt)) == len(no_images.findall(page))
+    assert (sorted(p.relative_to(copy) for p in (copy / "figures").rglob("*.png"))
+            == sorted(p.relative_to(out) for p in (out / "figures").rglob("*.png")))
+
+
+def test_report_command_errors(tmp_path, capsys):
+    target = tmp_path / "never"
+    assert main(["report", "--scale", "tiny", "--conventions", "paper,sideways",
+                 "--out", str(target)]) == 2
+    assert "--conventions: unknown sideways" in capsys.readouterr().err
+    assert not target.exists()  # checked before any work
+    assert main(["report", "--out", str(target), "--html-only"]) == 2
+    assert "report.json not found (run the report first)" in capsys.readouterr().err
 
 
 def test_report_refuses_another_configuration(out):
-    from mjx_balance.params import ParameterError
-
     with pytest.raises(ParameterError, match="another configuration"):
         report.run_report(out, Config().replace(body={"upper_mass": 40.0}), report.PLANS["tiny"],
                           study_list=[], quiet=True)
+
+
+def test_library_does_not_import_the_command_line():
+    code = ("import sys, mjx_balance.report, mjx_balance.studies; "
+            "print(sorted(m for m in sys.modules if m.startswith('mjx_balance.cli')))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True)
+    assert done.stdout.strip() == "[]"
 
 
 @pytest.mark.parametrize("path", studies.study_files(), ids=lambda p: p.stem)

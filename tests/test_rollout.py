@@ -1,16 +1,18 @@
-"""The batched MJX closed loop (rollout.py) against MuJoCo C and the scalar reference.
+"""The batched MJX closed loop (the rollout package) against MuJoCo C and the scalar reference.
 
 The whole module runs with ``jax_enable_x64`` off (conftest turns it on for the session), as a
 sweep does: with x64 on, MJX does some internal arithmetic in float64 even on a float32 model,
 which would make the agreement look better than what users get.
 
-Compiles are the expensive part (tens of seconds each on 2 cores), so each compiled function
-is built once per module: the batched closed loop (with trajectories, batch padded to 8), whose
-model the physics tests reuse with one compiled 500-step open-loop scan.
+Compiles are the expensive part (~13 s each on 2 cores), so the batched closed loop is the
+session's shared one (conftest ``batch_runner``: defaults with t_end = 2 s, trajectories on,
+batch padded to 8), whose model the physics tests reuse with one compiled 500-step open-loop
+scan. The slow tests compare outcomes at the study's t_end = 12 s and compile their own.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 
 import jax
@@ -21,9 +23,10 @@ import pytest
 
 from mjx_balance import metrics, reference, rollout
 from mjx_balance.model import build_model, indices
+from mjx_balance.outcomes import OUTCOMES, SUMMARY_COLUMNS
 from mjx_balance.params import Config
 
-CONFIG = Config()
+CONFIG = Config()  # the physics tests' body and time step; t_end comes from the runner
 DT = CONFIG.scenario.physics_dt
 
 # Positions MJX (float32, MJX_OPTIONS) vs mj_step (float64, MuJoCo's default 100-iteration
@@ -73,8 +76,11 @@ def _float32_session():
 
 
 @pytest.fixture(scope="module")
-def runner():
-    return rollout.BatchRunner(CONFIG, trajectories=True)
+def runner(batch_runner):
+    """The session's compiled runner (conftest): CONFIG with t_end = 2 s, trajectories on."""
+    assert batch_runner.config == CONFIG.replace(scenario={"t_end": 2.0})
+    assert batch_runner.trajectories
+    return batch_runner
 
 
 @pytest.fixture(scope="module")
@@ -122,9 +128,12 @@ def test_cop_and_com_match_c_side(physics):
     for i, tau in enumerate(torques):
         push = force if i < n_push else 0.0
         if i in (10, 60, 150, 260, 400):
-            d = d0.replace(qpos=jnp.asarray(data.qpos, jnp.float32),
-                           qvel=jnp.asarray(data.qvel, jnp.float32),
-                           qacc_warmstart=jnp.asarray(data.qacc_warmstart, jnp.float32))
+            # on d0's device, committed like d0's arrays: an uncommitted array would make
+            # jit compile the open loop a second time
+            put = functools.partial(jax.device_put, device=d0.qpos.sharding)
+            d = d0.replace(qpos=put(np.asarray(data.qpos, np.float32)),
+                           qvel=put(np.asarray(data.qvel, np.float32)),
+                           qacc_warmstart=put(np.asarray(data.qacc_warmstart, np.float32)))
             seq = np.roll(torques, -i, axis=0)
             out = run(mx, d, jnp.asarray(seq, jnp.float32), jnp.float32(push), jnp.int32(1))
         data.ctrl[:] = tau
@@ -152,32 +161,41 @@ def test_cop_and_com_match_c_side(physics):
 # Closed loop vs the reference
 
 
-def _reference_with_solver_flags(force: float, duration: float, config: Config = CONFIG):
-    """Reference run, also recording whether each OSQP solve converged."""
-    mpc = reference._mpc(config.controller, config.body, config.scenario.control_dt)
-    flags = []
-    solve = mpc.solve
+class RecordingMPC:
+    """The reference's OSQP controller (reference.reference_mpc), recording whether each solve
+    converged."""
 
-    def recording(x0):
-        result = solve(x0)
-        flags.append(result[2])
+    def __init__(self, config: Config):
+        sc = config.scenario
+        self.inner = reference.reference_mpc(config.controller, config.body, sc.control_dt)
+        self.qp = self.inner.qp
+        self.converged: list[bool] = []
+
+    def reset(self) -> None:
+        self.inner.reset()
+        self.converged.clear()
+
+    def solve(self, x0):
+        result = self.inner.solve(x0)
+        self.converged.append(result[2])
         return result
 
-    mpc.solve = recording
-    try:
-        summary, series = reference.simulate_scenario(config, force, duration, record=True)
-    finally:
-        del mpc.solve
-    return summary, series, np.asarray(flags)
+
+def _reference_with_solver_flags(force: float, duration: float, config: Config):
+    """Reference run, also recording whether each OSQP solve converged."""
+    mpc = RecordingMPC(config)
+    summary, series = reference.simulate_scenario(config, force, duration, record=True, mpc=mpc)
+    return summary, series, np.asarray(mpc.converged)
 
 
 @pytest.fixture(scope="module")
 def closed_loop(runner):
+    """0 N (rest), 50 N (recovers, settles by ~1.2 s), 100 N (falls at ~1.4 s) for 0.1 s."""
     forces = np.array([0.0, 50.0, 100.0])
     durations = np.full(3, 0.1)
     summary = runner.run(forces, durations)
     series = runner.last_trajectories
-    refs = [_reference_with_solver_flags(f, t) for f, t in zip(forces, durations)]
+    refs = [_reference_with_solver_flags(f, t, runner.config) for f, t in zip(forces, durations)]
     return forces, summary, series, refs
 
 
@@ -185,8 +203,9 @@ def test_closed_loop_matches_reference(closed_loop, runner):
     forces, summary, series, refs = closed_loop
     S = CONFIG.scenario.substeps
     ix = indices(runner.model)
+    assert [ref["outcome"] for ref, _, _ in refs] == ["recovered", "recovered", "fell"]
     for b, (force, (ref, ref_series, converged)) in enumerate(zip(forces, refs)):
-        outcome = metrics.OUTCOMES[summary["outcome"][b]]
+        outcome = OUTCOMES[summary["outcome"][b]]
         assert outcome == ref["outcome"], (force, outcome, ref["outcome"])
         n = len(ref_series)
         q = series["qpos"][b, :n][:, [ix.ankle_qpos, ix.hip_qpos]]
@@ -230,14 +249,14 @@ def test_summary_matches_reference_for_recovered_runs(closed_loop):
 
 def test_run_frame_columns_and_padding(runner):
     frame = runner.run_frame([20.0, -20.0], [0.1, 0.1])
-    assert list(frame.columns) == metrics.SUMMARY_COLUMNS
+    assert list(frame.columns) == SUMMARY_COLUMNS
     assert list(frame["outcome"]) == ["recovered", "recovered"]
     assert (frame["convention"] == CONFIG.controller.convention).all()
     # a backward push mirrors a forward one only approximately (the model is symmetric, the
     # float32 solver path is not exactly); the peak angles agree closely
     assert frame["peak_ankle"][0] == pytest.approx(frame["peak_ankle"][1], rel=1e-2)
-    assert runner.last_trajectories["qpos"].shape[:2] == (2, CONFIG.scenario.n_control
-                                                          * CONFIG.scenario.substeps)
+    sc = runner.config.scenario
+    assert runner.last_trajectories["qpos"].shape[:2] == (2, sc.n_control * sc.substeps)
 
 
 def test_bad_inputs_raise(runner):
@@ -260,12 +279,18 @@ BOUNDARY_GRID = [(80.0, 0.1), (85.0, 0.1), (90.0, 0.1), (95.0, 0.1),
 FORCE_MARGIN, DURATION_MARGIN = 0.02, 0.01
 
 
+@pytest.fixture(scope="module")
+def runner_12():
+    """A runner at the study's t_end = 12 s (recovery within 12 s), for the slow tests."""
+    return rollout.BatchRunner(CONFIG, trajectories=True)
+
+
 @pytest.mark.slow
-def test_outcomes_agree_on_grid_across_recovery_boundary(runner):
+def test_outcomes_agree_on_grid_across_recovery_boundary(runner_12):
     forces = np.array([f for f, _ in BOUNDARY_GRID])
     durations = np.array([t for _, t in BOUNDARY_GRID])
-    batched = runner.run(forces, durations)
-    outcomes = [metrics.OUTCOMES[c] for c in batched["outcome"]]
+    batched = runner_12.run(forces, durations)
+    outcomes = [OUTCOMES[c] for c in batched["outcome"]]
     ref = [reference.simulate_scenario(CONFIG, f, t, record=False)[0]["outcome"]
            for f, t in BOUNDARY_GRID]
     assert {"recovered", "fell"} <= set(ref)  # the grid does span the boundary
@@ -287,6 +312,7 @@ def test_outcomes_agree_on_grid_across_recovery_boundary(runner):
 @pytest.mark.slow
 def test_joint_convention_closed_loop_matches_reference():
     config = CONFIG.replace(controller={"convention": "joint"})
+    # the shapes of runner_12's: one compiled function for both slow tests
     runner = rollout.BatchRunner(config, trajectories=True)
     forces, durations = np.array([50.0, 80.0]), np.array([0.1, 0.1])
     summary = runner.run(forces, durations)
@@ -294,7 +320,7 @@ def test_joint_convention_closed_loop_matches_reference():
     S = config.scenario.substeps
     for b, (force, duration) in enumerate(zip(forces, durations)):
         ref, series, converged = _reference_with_solver_flags(force, duration, config)
-        assert metrics.OUTCOMES[summary["outcome"][b]] == ref["outcome"]
+        assert OUTCOMES[summary["outcome"][b]] == ref["outcome"]
         n = len(series)
         q = runner.last_trajectories["qpos"][b, :n][:, [ix.ankle_qpos, ix.hip_qpos]]
         diff = np.abs(q - series[["q_a", "q_h"]].to_numpy()).max(axis=1)

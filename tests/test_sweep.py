@@ -2,15 +2,17 @@
 
 The bookkeeping is tested with FakeThresholdBatch, an analytic stand-in for the rollout (a push
 recovers iff |F| * T < c). It says nothing about balance; it only makes the expected cells,
-thresholds and outcomes known exactly. The last test runs the real MJX rollout on a tiny
-configuration through the command line.
+thresholds and outcomes known exactly. The last test runs the real MJX rollout (the session's
+compiled runner, conftest ``batch_runner``) through the command line.
+
+The command-line tests replace the rollout by patching ``mjx_balance.sweep.batch.default_batch``,
+where LazyBatch looks it up when it first runs a batch.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -18,10 +20,11 @@ import pandas as pd
 import pytest
 
 from mjx_balance import sweep
-from mjx_balance.metrics import OUTCOMES, SUMMARY_COLUMNS
-from mjx_balance.params import Config, ParameterError, config_from_dict, save_config
+from mjx_balance.outcomes import SUMMARY_COLUMNS
+from mjx_balance.params import Config, ParameterError
 
 REPO = Path(__file__).resolve().parents[1]
+DEFAULT_BATCH = "mjx_balance.sweep.batch.default_batch"  # what LazyBatch calls
 
 
 class FakeThresholdBatch:
@@ -288,7 +291,9 @@ def test_power_of_two_chunks():
     assert sweep.power_of_two_chunk(5000, 256) == 256
     assert sweep.power_of_two_chunk(3, 256) == 8
     assert sweep.power_of_two_chunk(20, 256) == 32
-    assert sweep.power_of_two_chunk(15200, 16384) == 16384 or 15200 * 1.1 >= 16384
+    assert sweep.power_of_two_chunk(15200, 16384) == 16384  # 1 x 16384 <= 1.1 x 15200
+    # no size >= 64 within 10 % waste up to 2048 (5 x 2048 = 10240 > 9900): 9 x 1024 = 9216
+    assert sweep.power_of_two_chunk(9000, 16384) == 1024
 
 
 def test_bisection_flags_a_non_monotone_force():
@@ -385,7 +390,7 @@ def test_reference_points_file(tmp_path):
 def test_default_sweep_command_writes_region_and_table(tmp_path, monkeypatch):
     from mjx_balance.cli import main
 
-    monkeypatch.setattr(sweep, "default_batch", lambda config: FakeThresholdBatch())
+    monkeypatch.setattr(DEFAULT_BATCH, lambda config: FakeThresholdBatch())
     out = tmp_path / "default"
     assert main(["sweep", "--out", str(out)]) == 0
     for name in ("region.parquet", "region.png", "energy.png", "table.csv", "table.png",
@@ -394,7 +399,7 @@ def test_default_sweep_command_writes_region_and_table(tmp_path, monkeypatch):
     region = pd.read_parquet(out / "region.parquet")
     assert len(region) == (sweep.parse_grid(sweep.DEFAULT_SWEEP["forces"]).size
                            * sweep.parse_grid(sweep.DEFAULT_SWEEP["durations"]).size)
-    monkeypatch.setattr(sweep, "default_batch", lambda config: FakeThresholdBatch(fail_on_call=1))
+    monkeypatch.setattr(DEFAULT_BATCH, lambda config: FakeThresholdBatch(fail_on_call=1))
     assert main(["sweep", "--out", str(out)]) == 0  # finished: nothing to do, no batch called
     assert main(["sweep", "--out", str(out), "--convention", "joint"]) == 2  # other configuration
     assert main(["sweep", "--forces", "0:10:5", "--durations", "0.1,20", "--out",
@@ -405,7 +410,7 @@ def test_default_sweep_command_writes_region_and_table(tmp_path, monkeypatch):
 def test_cli_overrides_sweep_file(tmp_path, monkeypatch):
     from mjx_balance.cli import main
 
-    monkeypatch.setattr(sweep, "default_batch", lambda config: FakeThresholdBatch())
+    monkeypatch.setattr(DEFAULT_BATCH, lambda config: FakeThresholdBatch())
     definition = tmp_path / "s.toml"
     definition.write_text('[scenario]\nt_end = 3.0\n[controller]\nconvention = "joint"\n'
                           '[sweep]\nforces = "0:40:20"\ndurations = [0.5, 1.0]\ntable_forces = [10]\n')
@@ -426,25 +431,51 @@ def test_cli_overrides_sweep_file(tmp_path, monkeypatch):
 # --- end to end with the real rollout --------------------------------------------------------
 
 
-def test_cli_end_to_end_with_the_mjx_rollout(tmp_path):
-    """The real BatchRunner through the command line on a tiny configuration (t_end = 0.5 s):
-    a 2 x 2 region and a 2-force table, all in batches of 8 (one compiled batch size)."""
-    pytest.importorskip("mjx_balance.rollout", reason="rollout.py not available")
+def test_cli_end_to_end_with_the_mjx_rollout(tmp_path, monkeypatch, batch_runner, float32):
+    """The real BatchRunner through the command line on the session's configuration (defaults,
+    t_end = 2 s): a 2 x 2 region and a 2-force table, all in batches of 8 (the compiled size).
+
+    The sweep gets the session's compiled runner (a sweep's own BatchRunner would compile the
+    same closed loop again, without trajectories); the stand-in checks that the command asks for
+    exactly its configuration."""
     from mjx_balance.cli import main
 
+    t_end = batch_runner.config.scenario.t_end
+    asked = []
+
+    def shared_batch(config):
+        asked.append(config)
+        assert config == batch_runner.config
+        return batch_runner.run_frame
+
+    monkeypatch.setattr(DEFAULT_BATCH, shared_batch)
     definition = tmp_path / "tiny.toml"
-    definition.write_text('[scenario]\nt_end = 0.5\n[sweep]\nforces = "0,300"\n'
+    definition.write_text(f'[scenario]\nt_end = {t_end}\n[sweep]\nforces = "0,300"\n'
                           'durations = [0.1, 0.3]\ntable_forces = [0, 300]\n')
     out = tmp_path / "e2e"
     assert main(["sweep", "--sweep", str(definition), "--out", str(out)]) == 0
-    region = pd.read_parquet(out / "region.parquet")
-    assert len(region) == 4 and set(region["outcome"]) <= set(OUTCOMES)
-    assert (region.loc[region["force"] == 0, "outcome"] == "recovered").all()
-    assert (region.loc[region["force"] == 300, "outcome"] != "recovered").all()
+    assert len(asked) == 1  # one rollout for the region and the table
+    region = pd.read_parquet(out / "region.parquet").set_index(["force", "duration"])
+    assert len(region) == 4
+    # no push stays upright; 300 N at the upper body's CoM tips the body over within 0.3 s
+    # (measured: 0.25 s after a 0.1-s push, 0.19 s into a 0.3-s push)
+    assert list(region.loc[0.0, "outcome"]) == ["recovered", "recovered"]
+    assert list(region.loc[300.0, "outcome"]) == ["fell", "fell"]
+    fall_short, fall_long = region.loc[300.0, "fall_time"]
+    assert fall_long < 0.3 and fall_long < fall_short < 0.3
     assert json.loads((out / "manifest.json").read_text())["region"]["chunk_size"] == 8
     table = pd.read_csv(out / "table.csv").set_index("force")
-    assert table.loc[0, "max_acting_time"] == 0.5  # no force: recovers up to t_end
-    assert 0 <= table.loc[300, "max_acting_time"] < 0.1
-    assert table.loc[300, "ending_outcome"] in OUTCOMES[1:]
+    assert table.loc[0, "max_acting_time"] == t_end  # no force: recovers up to t_end
+    assert table.loc[0, "outcome_01"] == "recovered"
+    assert table.loc[300, "outcome_01"] == "fell"  # as in the region
+    # 300 N: the bisection ends where a direct run of 0.01..0.08-s pushes first fails to recover
+    # (measured: 0.01 s recovers, 0.02 s is not settled by 2 s, 0.03 s and longer fall)
+    durations = np.round(np.arange(1, 9) * 0.01, 12)
+    direct = batch_runner.run_frame(np.full(8, 300.0), durations)
+    first_failure = int(np.flatnonzero(direct["outcome"] != "recovered")[0])
+    assert table.loc[300, "max_acting_time"] == pytest.approx(
+        durations[first_failure - 1] if first_failure else 0.0, abs=1e-9)
+    assert table.loc[300, "ending_outcome"] == direct["outcome"][first_failure]
     for name in ("region.png", "energy.png", "table.png"):
-        assert (out / name).exists(), name
+        data = (out / name).read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000, name

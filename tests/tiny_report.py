@@ -1,17 +1,30 @@
 """One tiny report run shared by the report and notebook tests (a module-level cache, so one
 pytest session builds it once)."""
 
+import contextlib
+import io
 from pathlib import Path
 
 _CACHE: dict[str, Path] = {}
 
 
 def tiny_report(tmp_path_factory) -> Path:
-    """The output folder of ``mjx-balance report --scale tiny`` (through the command line)."""
+    """The output folder of ``mjx-balance report --scale tiny`` (through the command line),
+    after checking what the command printed: the numbered stages and the tables' folder (on
+    stderr), the page it wrote (on stdout)."""
     if "out" not in _CACHE:
         from mjx_balance.cli import main
+        from mjx_balance.studies import STUDIES
 
         out = tmp_path_factory.mktemp("tiny_report")
-        assert main(["report", "--scale", "tiny", "--out", str(out)]) == 0
+        stdout, stderr = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+            assert main(["report", "--scale", "tiny", "--out", str(out)]) == 0
+        stages = 4 * 2 + sum(len(s.variants) for s in STUDIES)  # both conventions, every variant
+        printed = stdout.getvalue()
+        assert printed.startswith("[report 1/")
+        assert f"[report {stages}/{stages}, " in printed
+        assert f"tables saved in {out} (" in stderr.getvalue()
+        assert printed.endswith(f"wrote {out / 'report.html'}\n")
         _CACHE["out"] = out
     return _CACHE["out"]

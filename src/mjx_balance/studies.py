@@ -28,10 +28,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .outcomes import OUTCOMES, RECOVERED
 from .params import Config, ParameterError
 from .sweep import SweepDefinition, load_sweep
 
-RECOVERED = "recovered"
 REFERENCE_DURATION = 0.1  # s, the study's push duration
 
 
@@ -126,6 +126,11 @@ def variant_definition(st: Study, variant: Variant, base: Config,
 # Numbers of a region map
 
 
+def is_recovered(region: pd.DataFrame) -> pd.Series:
+    """Which cells of a region map (or summary rows) recovered."""
+    return region["outcome"] == OUTCOMES[RECOVERED]
+
+
 def cell_widths(values: np.ndarray) -> np.ndarray:
     """Width of each grid value's cell: half-way to the neighbours, nothing beyond the ends."""
     values = np.sort(np.asarray(values, dtype=float))
@@ -141,11 +146,11 @@ def region_numbers(region: pd.DataFrame) -> dict[str, float]:
     durations = np.sort(region["duration"].unique())
     wf = dict(zip(forces, cell_widths(forces)))
     wd = dict(zip(durations, cell_widths(durations)))
-    ok = (region["outcome"] == RECOVERED).to_numpy()
+    ok = is_recovered(region).to_numpy()
     weight = region["force"].map(wf).to_numpy() * region["duration"].map(wd).to_numpy()
     total = float(sum(wf.values()) * sum(wd.values()))
     t_ref = float(durations[np.argmin(np.abs(durations - REFERENCE_DURATION))])
-    at_ref = region[(region["duration"] == t_ref) & (region["outcome"] == RECOVERED)]
+    at_ref = region[(region["duration"] == t_ref) & is_recovered(region)]
     rest = region[region["force"] == 0]
     return {
         "area": float(weight[ok].sum()),
@@ -155,8 +160,7 @@ def region_numbers(region: pd.DataFrame) -> dict[str, float]:
         "t_ref": t_ref,
         "f_max_ref": float(at_ref["force"].abs().max()) if len(at_ref) else float("nan"),
         # every F = 0 cell recovered (1), some not (0), no F = 0 on the grid (NaN)
-        "rest_recovered": (float((rest["outcome"] == RECOVERED).all()) if len(rest)
-                           else float("nan")),
+        "rest_recovered": float(is_recovered(rest).all()) if len(rest) else float("nan"),
     }
 
 
@@ -191,15 +195,15 @@ def signed_halves(region: pd.DataFrame) -> pd.DataFrame:
         rows.append({"variant": key, "label": label, **region_numbers(half)})
     frame = pd.DataFrame(rows)
     frame["area_change"] = frame["area"] - frame["area"].iloc[1]
-    both = set(map(tuple, back[back.outcome == RECOVERED][["force", "duration"]].to_numpy()))
-    fwd = set(map(tuple, forward[forward.outcome == RECOVERED][["force", "duration"]].to_numpy()))
+    both = set(map(tuple, back[is_recovered(back)][["force", "duration"]].to_numpy()))
+    fwd = set(map(tuple, forward[is_recovered(forward)][["force", "duration"]].to_numpy()))
     frame["gained_cells"] = [len(both - fwd), 0]
     frame["lost_cells"] = [len(fwd - both), 0]
     return frame
 
 
 def _recovered_cells(region: pd.DataFrame) -> set[tuple[float, float]]:
-    ok = region[region["outcome"] == RECOVERED]
+    ok = region[is_recovered(region)]
     return set(zip(ok["force"].round(9), ok["duration"].round(9)))
 
 
@@ -207,13 +211,15 @@ def _recovered_cells(region: pd.DataFrame) -> set[tuple[float, float]]:
 # Readings
 
 
-def _grid_text(region: pd.DataFrame) -> str:
+def grid_text(region: pd.DataFrame) -> str:
+    """The grid of a region map in words: how many forces and durations, and their ranges."""
     f, d = region["force"], region["duration"]
     return (f"{f.nunique()} forces ({f.min():g} to {f.max():g} N) x {d.nunique()} durations "
             f"({d.min():g} to {d.max():g} s)")
 
 
-def _fmax(value: float) -> str:
+def force_text(value: float) -> str:
+    """A largest recovered force in words (f_max_ref: NaN when no force recovers)."""
     if not np.isfinite(value):
         return "no force"
     return "F = 0 only (no push)" if value == 0 else f"{value:g} N"
@@ -230,7 +236,7 @@ def _change_text(change: float, relative: float, scale: float) -> str:
 def reading(st: Study, numbers: pd.DataFrame, region: pd.DataFrame) -> str:
     """One paragraph on a study's maps, written from ``numbers`` (``compare``/``signed_halves``)."""
     rows = numbers.to_dict("records")
-    grid = _grid_text(region)
+    grid = grid_text(region)
     t_ref = rows[0]["t_ref"]
     if st.signed:
         back, fwd = rows
@@ -241,20 +247,20 @@ def reading(st: Study, numbers: pd.DataFrame, region: pd.DataFrame) -> str:
             f"({fwd['recovered_cells']} cells) forward"
             + (f", {ratio:.2f} times the forward area" if np.isfinite(ratio) else "")
             + f". At T = {t_ref:g} s the largest backward force that recovers is "
-            f"{_fmax(back['f_max_ref'])}, forward {_fmax(fwd['f_max_ref'])}. "
+            f"{force_text(back['f_max_ref'])}, forward {force_text(fwd['f_max_ref'])}. "
             f"Mirrored cell by cell, {back['gained_cells']} (|F|, T) cells recover only backward "
             f"and {back['lost_cells']} only forward.")
     base = rows[0]
     name = base["label"].replace(" (base)", "")
     text = (f"On {grid}, the base variant ({name}) recovers {base['area']:.3g} N·s "
             f"({base['fraction']:.0%} of the grid, {base['recovered_cells']} of {base['cells']} "
-            f"cells; at T = {t_ref:g} s up to {_fmax(base['f_max_ref'])}).")
+            f"cells; at T = {t_ref:g} s up to {force_text(base['f_max_ref'])}).")
     if base.get("rest_recovered") == 0:
         text += " Even the unpushed base (F = 0) does not stay upright."
     for row in rows[1:]:
         text += (f" {row['label'][0].upper() + row['label'][1:]}: {row['area']:.3g} N·s, "
                  f"{_change_text(row['area_change'], row['relative_change'], base['area'])}; "
-                 f"at T = {t_ref:g} s up to {_fmax(row['f_max_ref'])}; "
+                 f"at T = {t_ref:g} s up to {force_text(row['f_max_ref'])}; "
                  f"{row['gained_cells']} cells gained, {row['lost_cells']} lost"
                  + ("; even F = 0 fails: this loop does not hold upright rest"
                     if row.get("rest_recovered") == 0 else "") + ".")

@@ -1,0 +1,245 @@
+"""``mjx-balance bench`` and ``mjx-balance bench solver``: run the benchmarks of
+``mjx_balance.bench`` step by step and print their figures as they come."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..bench import pipeline, solver
+from ..bench.states import PUSH_DURATIONS
+from ..qp import build_qp
+from . import load_run_config
+
+
+def pipeline_command(args: argparse.Namespace) -> int:
+    """``mjx-balance bench``: batched pipeline vs scalar reference vs the study's toolchain."""
+    config, ref_config = pipeline.benchmark_configs(load_run_config(args),
+                                                    getattr(args, "t_end", None),
+                                                    getattr(args, "osqp_max_iter", None))
+    sc = config.scenario
+    counts = pipeline.scenario_counts(args.scenarios, args.reference, args.ipopt)
+    n_mjx, n_ref, n_ipopt = counts
+    forces, durations = pipeline.scenario_set(n_mjx, sc.t_end)
+    load = os.getloadavg()
+    print(f"pipeline benchmark: {n_mjx} scenarios of {sc.t_end:g} s (forces 0-150 N, durations "
+          f"{durations.min():g}-{durations.max():g} s), convention {config.controller.convention}; "
+          f"reference on {n_ref}, CasADi/IPOPT on {n_ipopt}; {args.workers} worker processes; "
+          f"{os.cpu_count()} CPUs, load average {load[0]:.2f} at start", flush=True)
+
+    # Worker pools first: they are spawned (not forked) anyway, and this keeps JAX idle meanwhile.
+    ref = ipopt = None
+    if n_ref:
+        cap = ref_config.controller.osqp_max_iter
+        ref = pipeline.run_reference_pool(ref_config, forces[:n_ref], durations[:n_ref],
+                                          args.workers)
+        _print_pool(ref, args.workers, f"reference (MuJoCo C + OSQP, max_iter {cap})")
+    ipopt_idx = np.arange(n_ipopt)
+    if n_ipopt and ref is not None:
+        ipopt_idx = pipeline.stratified_subset(ref["outcomes"], n_ipopt)
+    if n_ipopt:
+        if not pipeline.casadi_available():
+            print("  CasADi/IPOPT: casadi not installed, skipped")
+        else:
+            ipopt = pipeline.run_ipopt_pool(config, forces[ipopt_idx], durations[ipopt_idx],
+                                            args.workers)
+            _print_pool(ipopt, args.workers, "study toolchain (MuJoCo C + CasADi/IPOPT)")
+
+    built = pipeline.build_batched(config, n_mjx, args.chunk)
+    print(f"  MJX + ADMM: build {built['build_s']:.1f} s, compile {built['compile_s']:.1f} s "
+          f"(batch {built['batch']}, {built['devices']} {built['platform']} device(s))", flush=True)
+    batched = pipeline.run_batched(built, config, forces, durations, args.repeats)
+    print(f"  MJX + ADMM: {n_mjx} scenarios in {batched['seconds']:.1f} s (median of "
+          f"{batched['repeats']}; {batched['physics_steps_per_s']:,.0f} physics steps/s, "
+          f"mean ADMM iterations per period {batched['admm_iterations_per_period']:.1f})",
+          flush=True)
+
+    cmp = pipeline.compare(counts, batched, ref, ipopt, ipopt_idx)
+    rss = dict(main=pipeline.peak_rss_mib(resource.RUSAGE_SELF),
+               workers=pipeline.peak_rss_mib(resource.RUSAGE_CHILDREN))
+    _print_pipeline_table(counts, built, batched, ref, ipopt, cmp, rss)
+    memory = _memory_scaling(args) if args.memory_scaling else None
+    if args.json:
+        print(json.dumps(pipeline.pipeline_figures(
+            counts=counts, t_end=sc.t_end, workers=args.workers, load_average=load[0],
+            built=built, batched=batched, ref=ref, ipopt=ipopt, ref_config=ref_config,
+            comparison=cmp, peak_rss_mib=rss, memory_scaling=memory)))
+    return 0
+
+
+def _print_pipeline_table(counts, built, batched, ref, ipopt, cmp, rss) -> None:
+    """The pipeline benchmark's closing table: rates, ratios, outcomes, memory, targets."""
+    n_mjx, n_ref, n_ipopt = counts
+    r_mjx, r_ref, r_ipopt = cmp["mjx"], cmp["reference"], cmp["ipopt"]
+    print()
+    print(f"{'system':44s} {'scenarios':>9s} {'seconds':>9s} {'scen/s':>9s} {'MJX ratio':>10s}")
+    print(f"{'MJX + ADMM (batched, this process)':44s} {n_mjx:9d} {batched['seconds']:9.1f} "
+          f"{r_mjx:9.2f} {1.0:10.1f}")
+    if ref:
+        print(f"{'MuJoCo C + OSQP (reference, processes)':44s} {n_ref:9d} {ref['seconds']:9.1f} "
+              f"{r_ref:9.3f} {r_mjx / r_ref:10.1f}")
+    if ipopt:
+        print(f"{'MuJoCo C + CasADi/IPOPT (study, processes)':44s} {n_ipopt:9d} "
+              f"{ipopt['seconds']:9.1f} {r_ipopt:9.3f} {r_mjx / r_ipopt:10.1f}")
+    print(f"outcomes (MJX, all {n_mjx}): {cmp['mix']}")
+    labels = dict(mjx_vs_reference="MJX vs reference", mjx_vs_ipopt="MJX vs CasADi/IPOPT",
+                  reference_vs_ipopt="reference vs CasADi/IPOPT")
+    for key, (a, n) in cmp["agreement"].items():
+        print(f"outcome agreement {labels[key]}: {a}/{n}")
+    print(f"compile {built['compile_s']:.1f} s, build {built['build_s']:.1f} s; peak RSS "
+          f"{rss['main']:.0f} MiB (this process), {rss['workers']:.0f} MiB (largest worker)")
+    print(f"targets: >= {pipeline.TARGET_SCENARIOS_PER_S} scen/s: {r_mjx:.2f} "
+          f"({_met(r_mjx >= pipeline.TARGET_SCENARIOS_PER_S)}); "
+          f">= {pipeline.TARGET_VS_REFERENCE}x reference: {r_mjx / r_ref:.1f}x "
+          f"({_met(r_mjx / r_ref >= pipeline.TARGET_VS_REFERENCE)}); "
+          f">= {pipeline.TARGET_VS_STUDY}x study toolchain: {r_mjx / r_ipopt:.1f}x "
+          f"({_met(r_mjx / r_ipopt >= pipeline.TARGET_VS_STUDY)})")
+
+
+def _met(ok: bool) -> str:
+    return "met" if ok else "NOT met"
+
+
+def _print_pool(result: dict, workers: int, label: str) -> None:
+    per = result["per"]
+    print(f"  {label}: {len(per)} scenarios in {result['seconds']:.1f} s on {workers} processes "
+          f"(warm-up {result['warm_s']:.1f} s; per scenario median {np.median(per):.2f} s, "
+          f"max {per.max():.2f} s)", flush=True)
+
+
+def _memory_scaling(args: argparse.Namespace) -> list[dict]:
+    rows = []
+    print(f"memory scaling: sweeps with t_end = {args.memory_t_end} s, each in a fresh process",
+          flush=True)
+    for cells in args.memory_scaling:
+        row, error = pipeline.memory_sweep(cells, args.memory_t_end, args.memory_chunk,
+                                           args.memory_timeout)
+        if row.get("timed_out"):
+            print(f"  {cells:>9,} cells: not finished within {args.memory_timeout:.0f} s",
+                  flush=True)
+        elif row.get("failed"):
+            print(f"  {cells:>9,} cells: failed ({error})", flush=True)
+        else:
+            print(f"  {row['cells']:>9,} cells: peak RSS {row['peak_rss_mib']:7.0f} MiB, "
+                  f"{row['seconds']:7.1f} s ({row['chunks']} chunks, "
+                  f"{row['cells'] / row['seconds']:,.0f} cells/s incl. compile)", flush=True)
+        rows.append(row)
+    return rows
+
+
+def solver_command(args: argparse.Namespace) -> int:
+    """``mjx-balance bench solver``: batched ADMM vs OSQP vs CasADi/IPOPT on the same states."""
+    from .. import admm  # JAX: imported when this command runs
+
+    dtype = solver.admm_dtype(args.dtype)
+    config = load_run_config(args)
+    controller, body = config.controller, config.body
+    qp = build_qp(controller, body, config.scenario.control_dt)
+    settings = admm.settings_from_controller(controller)
+    batches = [int(b) for b in args.batch.split(",") if b.strip()]
+    t_start = time.perf_counter()
+
+    trajectories, states, truth = solver.benchmark_states(qp, body, args.states)
+    S = len(states)
+    print(f"states: {S} from {len(trajectories)} closed-loop pushes (F 20..120 N, T "
+          f"{'/'.join(str(d) for d in PUSH_DURATIONS)} s), convention {controller.convention}: "
+          f"{truth.solved.sum()} solved by OSQP at 1e-9, {truth.infeasible.sum()} infeasible, "
+          f"{(~truth.solved & ~truth.infeasible).sum()} not solved in 4000 iterations, "
+          f"{truth.saturated.sum()} with a saturated first input")
+
+    acc = solver.admm_accuracy(qp, trajectories, truth, settings, dtype)
+    admm_miss = acc["misses"]
+    print(f"ADMM ({args.dtype}, rho {settings.rho}, alpha {settings.alpha}, sigma "
+          f"{settings.sigma}, cap {settings.iteration_cap} iterations, check every "
+          f"{settings.check_every}, eps_abs {settings.eps_abs:g}, eps_rel {settings.eps_rel:g}): "
+          f"misses {admm_miss}/"
+          f"{truth.solved.sum()} ({100 * admm_miss / max(1, truth.solved.sum()):.2f}%), max "
+          f"first-control error {acc['max_err']:.2e} of range (both solved: "
+          f"{acc['max_err_both']:.2e}), mean iterations {acc['mean_iters']:.1f}, status "
+          f"solved/max_iter/infeasible {acc['status_counts']} [{acc['seconds']:.1f} s]")
+
+    it_flops, chk_flops = solver.flops_per_solve_step(qp, settings)
+    peak, peak_note = solver.cpu_peak_gflops(args.dtype)
+    rows = []
+    for B in batches:
+        r = solver.time_admm_batch(qp, settings, dtype, states, acc["seq"], B)
+        rows.append(r)
+        print(f"  ADMM batch {B:6d} (tile {r['tile']:5d}): compile {r['compile_s']:5.2f} s, "
+              f"{r['seconds'] * 1e3:9.3f} ms/batch, {r['solves_per_s']:11.0f} solves/s, mean "
+              f"iterations {r['mean_iters']:5.1f}, {r['gflops']:6.2f} GFLOP/s", flush=True)
+
+    osqp_rows = []
+    for r in solver.osqp_search(qp, trajectories, truth, admm_miss):
+        osqp_rows.append(r)
+        per_solve, per_solved = r["seconds_per_solve"], r["seconds_per_solved"]
+        print(f"  OSQP eps {r['eps']:g}: misses {r['misses']}/{truth.solved.sum()}, max error "
+              f"{r['max_err']:.2e}, {per_solve * 1e6:8.1f} us/solve over all "
+              f"states ({1 / per_solve:6.0f} solves/s; iterations mean {r['mean_iters']:.1f}, "
+              f"median {r['median_iters']:.0f}: infeasible states run to 4000), "
+              f"{per_solved * 1e6:8.1f} us/solve over the OSQP-solved states "
+              f"({1 / per_solved:6.0f} solves/s)", flush=True)
+
+    ipopt_per_solve = float("nan")
+    try:
+        ip = solver.time_ipopt(qp, controller, trajectories, truth)
+    except ImportError:
+        print("  CasADi/IPOPT: casadi not installed, skipped")
+    else:
+        ipopt_per_solve, errs = ip["seconds_per_solve"], ip["errors"]
+        print(f"  CasADi/IPOPT (multiple shooting, RK4 on Ac, Bc): {ip['solves']} solves, "
+              f"{ipopt_per_solve * 1e3:.2f} ms/solve ({1 / ipopt_per_solve:.0f} solves/s); "
+              f"first control vs the ZOH QP: median {np.median(errs):.1e}, max {max(errs):.1e} "
+              f"of range (RK4 on Ac differs from exact ZOH)")
+
+    _print_solver_table(rows, osqp_rows[-1], ipopt_per_solve, peak, peak_note,
+                        (it_flops, chk_flops), time.perf_counter() - t_start)
+    figures = solver.solver_figures(
+        states=states, controller=controller, dtype=args.dtype, accuracy=acc, truth=truth,
+        admm_rows=rows, osqp_rows=osqp_rows, ipopt_seconds_per_solve=ipopt_per_solve,
+        peak_gflops=peak, settings=settings)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "bench_solver.json").write_text(json.dumps(figures, indent=1))
+        print(f"figures written to {out / 'bench_solver.json'}")
+    if args.json:
+        print(json.dumps(figures))
+    return 0
+
+
+def _print_solver_table(rows: list[dict], chosen: dict, ipopt_per_solve: float, peak: float,
+                        peak_note: str, flops: tuple[int, int], total_s: float) -> None:
+    """The solver benchmark's closing table: solves per second and the ratios between them."""
+    it_flops, chk_flops = flops
+    ref = next((r for r in rows if r["batch"] == 4096), rows[-1])
+    osqp_sps = 1 / chosen["seconds_per_solve"]
+    osqp_solved_sps = 1 / chosen["seconds_per_solved"]
+    ipopt_sps = 1 / ipopt_per_solve if ipopt_per_solve == ipopt_per_solve else float("nan")
+    print()
+    print("x OSQP: against OSQP over all states; x OSQPf: against OSQP over its solved states only"
+          " (the ADMM figures always include the infeasible states, run to the cap)")
+    print(f"{'solver':38s} {'solves/s':>12s} {'x OSQP':>8s} {'x OSQPf':>8s} {'x IPOPT':>9s} "
+          f"{'GFLOP/s':>8s}")
+    for r in rows:
+        print(f"{'ADMM batch ' + str(r['batch']):38s} {r['solves_per_s']:12.0f} "
+              f"{r['solves_per_s'] / osqp_sps:8.1f} {r['solves_per_s'] / osqp_solved_sps:8.1f} "
+              f"{r['solves_per_s'] / ipopt_sps:9.0f} {r['gflops']:8.2f}")
+    print(f"{'OSQP loop eps ' + format(chosen['eps'], 'g') + ', all states':38s} "
+          f"{osqp_sps:12.0f} {1.0:8.1f} {osqp_sps / osqp_solved_sps:8.2f} "
+          f"{osqp_sps / ipopt_sps:9.1f}")
+    print(f"{'OSQP loop eps ' + format(chosen['eps'], 'g') + ', solved states':38s} "
+          f"{osqp_solved_sps:12.0f} {osqp_solved_sps / osqp_sps:8.1f} {1.0:8.2f} "
+          f"{osqp_solved_sps / ipopt_sps:9.1f}")
+    print(f"{'CasADi/IPOPT':38s} {ipopt_sps:12.1f}")
+    print(f"ADMM at batch {ref['batch']}: {ref['solves_per_s'] / osqp_sps:.1f}x OSQP "
+          f"({ref['solves_per_s'] / osqp_solved_sps:.1f}x on its solved states; target 25x), "
+          f"{ref['solves_per_s'] / ipopt_sps:.0f}x IPOPT (target 1000x); "
+          f"{ref['gflops']:.2f} GFLOP/s = {100 * ref['gflops'] / peak:.1f}% of peak "
+          f"{peak:.0f} GFLOP/s ({peak_note}); flops per iteration {it_flops}, per check "
+          f"{chk_flops}; total run {total_s:.0f} s")

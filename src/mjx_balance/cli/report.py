@@ -1,0 +1,38 @@
+"""``mjx-balance report``: run (or resume) the report's experiments and studies, then write
+DIR/report.html (report.run_report, report.build_report)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+from ..params import CONVENTIONS, ParameterError
+from ..report import PLANS, REPORT_JSON, build_report, run_report, selected_studies
+from . import load_run_config
+
+
+def report_command(args: Any) -> int:
+    """Without --html-only: run everything missing in --out and say where the tables are (on
+    stderr); then, or with --html-only alone, draw the figures and report.html."""
+    out = Path(args.out)
+    if not getattr(args, "html_only", False):
+        conventions = _conventions(args.conventions)
+        record = run_report(out, load_run_config(args), PLANS[args.scale], backend=args.backend,
+                            study_list=selected_studies(args.studies), conventions=conventions,
+                            sweeps=Path(args.sweeps) if args.sweeps else None)
+        print(f"tables saved in {out} ({record['seconds']:.0f} s)", file=sys.stderr)
+    elif not (out / REPORT_JSON).exists():
+        raise ParameterError(f"--html-only: {out / REPORT_JSON} not found (run the report first)")
+    path = build_report(out)
+    print(f"wrote {path}")
+    return 0
+
+
+def _conventions(text: str | None) -> tuple[str, ...]:
+    """--conventions as a tuple (default: every convention); raises for an unknown one."""
+    conventions = tuple(text.split(",")) if text else CONVENTIONS
+    bad = [c for c in conventions if c not in CONVENTIONS]
+    if bad:
+        raise ParameterError(f"--conventions: unknown {', '.join(bad)}")
+    return conventions

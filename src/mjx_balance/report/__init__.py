@@ -1,0 +1,39 @@
+"""The study's experiments and the studies beyond it, as saved tables and one HTML report.
+
+:func:`run_report` runs, for both conventions, every experiment of SPEC §6 and then the studies
+of ``studies.py``, saving each result table in DIR before any figure is drawn:
+
+    DIR/report.json                    what was run: plan, base configuration, studies, timings
+    DIR/config.toml                    the base configuration
+    DIR/<convention>/summary.csv       experiment 1: one summary row per force (T = 0.1 s)
+    DIR/<convention>/timeseries.parquet            and the long time series (reference loop)
+    DIR/<convention>/weights.csv       experiment 2: summary rows of the Q and R settings
+    DIR/<convention>/table/table.csv   experiment 3: max acting time (sweep.run_table folder)
+    DIR/<convention>/region/region.parquet   experiment 4: region map (sweep.run_sweep folder)
+    DIR/studies/<study>/<variant>/region.parquet   one region map per study variant
+    DIR/studies/<study>/numbers.csv    areas and changes (studies.compare)
+    DIR/figures/*.png, DIR/report.html figures and the report, drawn from the saved tables
+
+:func:`build_report` redraws figures and HTML from the saved tables alone. The time series and
+the weight study use the scalar reference loop (reference.py); the table and the region maps
+use a batch function: the MJX rollout (backend ``mjx``) or the reference loop run scenario by
+scenario (backend ``reference``, what the ``tiny`` plan uses). A finished stage is not rerun
+(sweeps resume chunk by chunk; see the sweep package).
+
+    run.py    plans (Plan, PLANS), batch functions, one function per experiment and study,
+              run_report
+    html.py   load_results, the figures, one function per section, build_report
+"""
+
+from .html import (HTML, build_report, conventions_figure, key_numbers, load_results,
+                   save_figure, sections, weight_figure)
+from .run import (PLANS, Q_SCALES, R_SCALES, REPORT_JSON, Plan, ReferenceBatch,
+                  batch_function, plan_config, run_report, run_weights, selected_studies,
+                  weight_settings)
+
+__all__ = [
+    "HTML", "PLANS", "Plan", "Q_SCALES", "REPORT_JSON", "R_SCALES", "ReferenceBatch",
+    "batch_function", "build_report", "conventions_figure", "key_numbers", "load_results",
+    "plan_config", "run_report", "run_weights", "save_figure", "sections", "selected_studies",
+    "weight_figure", "weight_settings",
+]
