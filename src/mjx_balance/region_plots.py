@@ -24,8 +24,10 @@ from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm  # noqa: E40
 from matplotlib.patches import Patch  # noqa: E402
 from matplotlib.ticker import FuncFormatter  # noqa: E402
 
-from .outcomes import OUTCOMES  # noqa: E402
+from .outcomes import OUTCOMES, RECOVERED  # noqa: E402
 from .params import Config, ParameterError  # noqa: E402
+
+RECOVERED_TEXT = OUTCOMES[RECOVERED]
 
 OUTCOME_COLOURS = {
     "recovered": "#4daf4a",
@@ -90,7 +92,7 @@ def recovery_boundary(region: pd.DataFrame) -> pd.DataFrame:
     (0 if the shortest fails), and whether a longer duration recovers again (not monotone)."""
     rows = []
     for force, group in region.sort_values("duration").groupby("force"):
-        ok = (group["outcome"] == "recovered").to_numpy()
+        ok = (group["outcome"] == RECOVERED_TEXT).to_numpy()
         durations = group["duration"].to_numpy()
         first_fail = int(np.argmin(ok)) if not ok.all() else ok.size
         rows.append({"force": force,
@@ -157,7 +159,7 @@ def plot_region(region: pd.DataFrame, path: str | Path, *, config: Config | None
 
 def plot_energy(region: pd.DataFrame, path: str | Path, *, config: Config | None = None) -> Path:
     """Total joint energy (∫|τ_ankle dq_a| + |τ_hip dq_h| dt) of the recovered cells, log scale."""
-    recovered = region.assign(energy=np.where(region["outcome"] == "recovered",
+    recovered = region.assign(energy=np.where(region["outcome"] == RECOVERED_TEXT,
                                               region["energy_total"], np.nan))
     forces, durations, energy = _pivot(recovered, "energy")
     fig, ax = plt.subplots(figsize=(8.5, 6), layout="constrained")
@@ -230,7 +232,7 @@ def plot_table(table: pd.DataFrame, path: str | Path, *, config: Config | None =
     ax.legend(fontsize=8)
     ax.set_title("Longest push that still recovers", fontsize=10)
 
-    recovered_01 = (table["outcome_01"] == "recovered").to_numpy()
+    recovered_01 = (table["outcome_01"] == RECOVERED_TEXT).to_numpy()
     for column, style, label in (("energy_total_01", "s-", "total, T = 0.1 s"),
                                  ("energy_total_max", "o-", "total, T = max acting time"),
                                  ("energy_ankle_max", ".--", "ankle, T = max acting time"),

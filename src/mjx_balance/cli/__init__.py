@@ -143,9 +143,9 @@ def build_parser() -> argparse.ArgumentParser:
 def use_host_cores() -> None:
     """Give XLA's CPU platform one device per core (a power of two, at most 8) before JAX
     starts, so that the batched rollout, which shards each batch over the local devices, keeps
-    every core busy: XLA runs one device's rollout on one thread (BENCHMARKS.md: 13.3 vs 7.9
-    scenarios/s on 2 cores). Skipped when XLA_FLAGS already sets a host device count, when JAX
-    is already imported, or with MJX_BALANCE_HOST_DEVICES=1 (any value sets the count)."""
+    every core busy: XLA runs one device's rollout on one thread (BENCHMARKS.md, "Devices").
+    Skipped when XLA_FLAGS already sets a host device count, when JAX is already imported, or
+    with MJX_BALANCE_HOST_DEVICES=1 (any value sets the count)."""
     flags = os.environ.get("XLA_FLAGS", "")
     if "xla_force_host_platform_device_count" in flags or "jax" in sys.modules:
         return

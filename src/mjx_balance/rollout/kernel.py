@@ -241,7 +241,7 @@ def scenario(ar: Arrays, sn: Sensors, st: Static, force: jax.Array,
 
     Returns the final accumulators and, with ``st.trajectories``, per-physics-step series
     (qpos [n, nq], qvel [n, nv], tau [n, 2], u [n, 2], cop [n], com [n]; sample i is at
-    t = (i+1) dt; NaN after the fall sample).
+    t = (i+1) dt; NaN from the fall sample on, which the reference's series still holds).
     """
     dtype = ar.d0.qpos.dtype
     force = jnp.asarray(force, dtype)
@@ -257,7 +257,7 @@ def scenario(ar: Arrays, sn: Sensors, st: Static, force: jax.Array,
         history = jnp.concatenate([jnp.concatenate([s.q, s.dq])[None], carry.history[:-1]])
         carry = Carry(d=d, warm=carry.warm, history=history, q_prev=s.q, x_prev=s.x, acc=acc)
         out = None
-        if st.trajectories:  # NaN after the fall sample (the run is reset there)
+        if st.trajectories:  # NaN from the fall sample on (the run is reset)
             out = dict(qpos=d.qpos, qvel=d.qvel, tau=torques, u=u, cop=s.cop, com=s.com)
             out = {k: jnp.where(acc.alive, v, jnp.nan).astype(dtype) for k, v in out.items()}
         return carry, out

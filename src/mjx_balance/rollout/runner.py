@@ -5,7 +5,7 @@
 least 8) and turns the final accumulators into summary columns on the host in float64
 (:func:`summarize`). The model, QP and ADMM data are traced arguments of the compiled function,
 which is cached per shape key (:meth:`BatchRunner.compiled`): configurations that differ only in
-numbers (body, convention, weights, bounds) share one compile. With several local devices each
+numbers (body, convention, weights) share one compile. With several local devices each
 batch is split over them (:meth:`BatchRunner._batched`, shard_map over a 1-D mesh).
 """
 
@@ -122,8 +122,8 @@ class BatchRunner:
         """The compiled batch function for a padded batch size (compiled ahead of time).
 
         The model, QP and ADMM data are traced arguments, so configurations of equal shapes
-        (another body, convention, weights, bounds; the same horizon, delay, t_end, ADMM
-        settings and thresholds) share one compiled function (:data:`_COMPILED`)."""
+        (another body, convention or weights; the same horizon, delay, t_end, ADMM
+        settings, thresholds and bounds, which are static) share one compiled function (:data:`_COMPILED`)."""
         fn = self._compiled_fns.get(batch)
         if fn is None:
             t0 = _time.perf_counter()
