@@ -17,12 +17,33 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 CONVENTIONS = ("paper", "joint")
+
+# Plausible ranges: outside them the physics or the numerics break, so a value there is refused
+# rather than simulated (each message names the field and the range).
+# - physics_dt <= 0.01 s: MuJoCo's contacts (default solref, time constant 0.02 s) need a time
+#   step of at most half their time constant; with a longer step MuJoCo raises the time constant
+#   to two steps (its "refsafe" rule), so the floor is no longer the modelled one, and at
+#   physics_dt = 1 s every sweep cell diverges and the reference's OSQP fails.
+# - Masses in [1e-3, 1e4] kg and lengths in [1e-3, 10] m: far beyond any human or humanoid at
+#   both ends (the study's segments are 1.3-35 kg and 0.02-1 m). Below, MuJoCo refuses the model
+#   (a 1e-12 kg foot: "mass and inertia of moving bodies must be larger than mjMINVAL"); the
+#   smallest pitch inertia the ranges allow, 1e-3 kg (1e-3 m)^2 / 12 ~ 1e-10 kg m^2, is far above
+#   that limit (1e-15). Above, OSQP finds the condensed QP non-convex (a 1e6-kg lower body) and
+#   the forces overflow (1e308 kg ends in a numpy error). Bodies at the ends of both ranges
+#   (each end, mixed ends, both conventions; 1-s reference runs) simulate without an error or a
+#   MuJoCo warning.
+# - gravity <= 100 m/s^2 (10 g; Jupiter's is 25): at 1e6 OSQP's factorisation fails.
+MAX_PHYSICS_DT = 0.01  # s
+MASS_RANGE = (1e-3, 1e4)  # kg
+LENGTH_RANGE = (1e-3, 10.0)  # m
+MAX_GRAVITY = 100.0  # m/s^2
 
 
 class ParameterError(ValueError):
@@ -33,14 +54,44 @@ def _fail(record: str, name: str, rule: str, value: Any) -> None:
     raise ParameterError(f"{record}.{name} = {value!r}: {rule}")
 
 
+def _is_number(value: Any) -> bool:
+    """A real number; a bool is not one (TOML's ``true`` must not pass as 1)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def _check_types(record: str, obj: Any) -> None:
+    """Each field holds what its default is: a number (never a bool), a list of numbers (no
+    nested lists, no bools, no strings), a bool or a string."""
+    for f in fields(obj):
+        value, default = getattr(obj, f.name), f.default
+        if isinstance(default, bool):
+            if not isinstance(value, bool):
+                _fail(record, f.name, "must be true or false", value)
+        elif isinstance(default, str):
+            if not isinstance(value, str):
+                _fail(record, f.name, "must be a string", value)
+        elif isinstance(default, tuple):
+            if not isinstance(value, (list, tuple)) or not all(_is_number(v) for v in value):
+                _fail(record, f.name, "must be a list of numbers", value)
+        elif isinstance(default, (int, float)) and not _is_number(value):
+            _fail(record, f.name, "must be a number", value)
+
+
+def _check_range(record: str, obj: Any, names: tuple[str, ...], low: float, high: float,
+                 unit: str) -> None:
+    for name in names:
+        value = getattr(obj, name)
+        if not low <= value <= high:
+            _fail(record, name, f"must lie in [{low:g}, {high:g}] {unit} (plausible range)",
+                  value)
+
+
 def _check_finite(record: str, obj: Any) -> None:
     for f in fields(obj):
         value = getattr(obj, f.name)
         items = value if isinstance(value, tuple) else (value,)
         for v in items:
-            if isinstance(v, bool) or not isinstance(v, (int, float)):
-                continue
-            if not math.isfinite(v):
+            if _is_number(v) and not math.isfinite(v):
                 _fail(record, f.name, "must be a finite number", value)
 
 
@@ -83,6 +134,7 @@ class BodyParams:
     hip_servo_damping: float = 0.0  # D [N m s/rad]
 
     def __post_init__(self) -> None:
+        _check_types("body", self)
         _check_finite("body", self)
         _check_positive(
             "body",
@@ -93,12 +145,19 @@ class BodyParams:
                 "contact_radius",
             ),
         )
+        _check_range("body", self, ("foot_mass", "lower_mass", "upper_mass"), *MASS_RANGE, "kg")
+        _check_range("body", self, ("foot_length", "foot_width", "foot_thickness", "lower_length",
+                                    "upper_length", "contact_radius"), *LENGTH_RANGE, "m")
+        if self.gravity > MAX_GRAVITY:
+            _fail("body", "gravity", f"must be <= {MAX_GRAVITY:g} m/s^2 (plausible range)",
+                  self.gravity)
         for name, length in (("lower_com", self.lower_length), ("upper_com", self.upper_length)):
             value = getattr(self, name)
             if not 0 <= value <= length:
                 _fail("body", name, f"must lie on the segment, in [0, {length}]", value)
-        if self.ankle_height < 0:
-            _fail("body", "ankle_height", "must be >= 0", self.ankle_height)
+        if not 0 <= self.ankle_height <= LENGTH_RANGE[1]:
+            _fail("body", "ankle_height", f"must lie in [0, {LENGTH_RANGE[1]:g}] m",
+                  self.ankle_height)
         for name in ("hip_servo_stiffness", "hip_servo_damping"):
             if not getattr(self, name) >= 0:
                 _fail("body", name, "must be >= 0", getattr(self, name))
@@ -167,6 +226,7 @@ class ControllerParams:
     admm_stop_on_infeasible: bool = False
 
     def __post_init__(self) -> None:
+        _check_types("controller", self)
         object.__setattr__(self, "q_diag", tuple(float(v) for v in self.q_diag))
         object.__setattr__(self, "r_diag", tuple(float(v) for v in self.r_diag))
         for name in ("input1_bounds", "input2_bounds", "state1_bounds", "state2_bounds",
@@ -224,11 +284,16 @@ class ScenarioParams:
     controller_delay: float = 0.0  # s; the controller sees the state this late
 
     def __post_init__(self) -> None:
+        _check_types("scenario", self)
         _check_finite("scenario", self)
         _check_positive("scenario", self, ("t_end", "physics_dt", "control_dt",
                                            "foot_pitch_limit", "foot_lift_limit",
                                            "bound_violation_limit", "lower_tilt_limit",
                                            "settle_angle_tol", "settle_rate_tol"))
+        if self.physics_dt > MAX_PHYSICS_DT:
+            _fail("scenario", "physics_dt",
+                  f"must be <= {MAX_PHYSICS_DT:g} s (half the contact time constant, 0.02 s, "
+                  "for a stable contact)", self.physics_dt)
         if self.duration < 0:
             _fail("scenario", "duration", "must be >= 0", self.duration)
         if self.duration > self.t_end:
@@ -345,6 +410,13 @@ def load_config(path: str | Path) -> Config:
             data = tomllib.load(fh)
     except FileNotFoundError:
         raise ParameterError(f"configuration file not found: {path}") from None
+    except IsADirectoryError:
+        raise ParameterError(f"{path}: a folder, not a configuration file") from None
+    except OSError as exc:
+        raise ParameterError(f"{path}: cannot be read ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise ParameterError(f"{path}: not UTF-8 text (byte {exc.start}); a configuration "
+                             "file is TOML") from None
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError(f"{path}: not valid TOML: {exc}") from None
     try:

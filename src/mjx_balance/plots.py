@@ -17,6 +17,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from .sweep.store import write_figure  # noqa: E402
+
 # (file stem, title, x column, x label, y column, y label)
 _SINGLE = [
     ("ankle_angle", "Ankle angle", "time", "time [s]", "q_a", r"ankle angle $q_a$ [rad]"),
@@ -30,6 +32,14 @@ _SINGLE = [
     ("hip_torque", "Hip motor torque", "time", "time [s]", "tau_hip", r"$\tau_{hip}$ [N m]"),
 ]
 _ENERGY = [("energy_ankle", "ankle"), ("energy_hip", "hip"), ("energy_total", "total")]
+
+
+def _save(fig, path: str | Path, dpi: int) -> None:
+    """Write the figure atomically (the file is whole or absent), then close it."""
+    try:
+        write_figure(fig, path, dpi=dpi)
+    finally:
+        plt.close(fig)
 
 
 def _label(run: pd.DataFrame, multi_duration: bool, multi_convention: bool) -> str:
@@ -83,8 +93,7 @@ def timeseries_figures(df: pd.DataFrame, out_dir: str | Path) -> list[Path]:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="best")
         path = out_dir / f"{stem}.png"
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
+        _save(fig, path, dpi=120)
         paths.append(path)
 
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.2), constrained_layout=True, sharey=False)
@@ -96,7 +105,6 @@ def timeseries_figures(df: pd.DataFrame, out_dir: str | Path) -> list[Path]:
     axes[0].legend(fontsize=8, loc="center right")
     fig.suptitle(f"Joint energy (absolute mechanical work);  {_subtitle(df)}")
     path = out_dir / "energy.png"
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _save(fig, path, dpi=120)
     paths.append(path)
     return paths

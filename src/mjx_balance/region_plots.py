@@ -26,6 +26,7 @@ from matplotlib.ticker import FuncFormatter  # noqa: E402
 
 from .outcomes import OUTCOMES, RECOVERED  # noqa: E402
 from .params import Config, ParameterError  # noqa: E402
+from .sweep.store import write_figure  # noqa: E402
 
 RECOVERED_TEXT = OUTCOMES[RECOVERED]
 
@@ -45,6 +46,14 @@ CONVENTION_TEXT = {
     "paper": "paper convention (x = [q1, q2, dq1, dq2], u = [τ1, τ2])",
     "joint": "joint convention (x = [q_a, q_h, dq_a, dq_h], u = [τ_ankle, τ_hip])",
 }
+
+
+def _save(fig, path: str | Path, dpi: int) -> None:
+    """Write the figure atomically (the file is whole or absent), then close it."""
+    try:
+        write_figure(fig, path, dpi=dpi)
+    finally:
+        plt.close(fig)
 
 
 def load_reference(path: str | Path) -> pd.DataFrame:
@@ -152,8 +161,7 @@ def plot_region(region: pd.DataFrame, path: str | Path, *, config: Config | None
     ax.set_title(_title("Outcome of a push (F, T) from upright rest", config, region), fontsize=10)
     fig.legend(handles=handles, loc="outside lower center", ncol=3, fontsize=8, frameon=False,
                title=f"{len(region)} cells: {summary}", title_fontsize=8)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    _save(fig, path, dpi=130)
     return Path(path)
 
 
@@ -185,8 +193,7 @@ def plot_energy(region: pd.DataFrame, path: str | Path, *, config: Config | None
     ax.set_xlim(fx[0], fx[-1])
     ax.set_ylim(dy[0], dy[-1])
     ax.set_title(_title("Joint energy of the recovered pushes", config, region), fontsize=10)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    _save(fig, path, dpi=130)
     return Path(path)
 
 
@@ -252,6 +259,5 @@ def plot_table(table: pd.DataFrame, path: str | Path, *, config: Config | None =
     ax2.set_title("Energy of the recovery", fontsize=10)
     convention = config.controller.convention if config else str(table["convention"].iloc[0])
     fig.suptitle(f"Robustness table — {CONVENTION_TEXT.get(convention, convention)}", fontsize=11)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    _save(fig, path, dpi=130)
     return Path(path)

@@ -13,14 +13,22 @@ and drives the library below it:
 
 A command module is imported only when its command runs (after :func:`use_host_cores`, which
 must see JAX not yet imported).
+
+Bad arguments end in one line on stderr and exit code 2, before any work and before anything is
+written: values and paths are checked by the argparse types below (argparse prints its usage,
+then ``mjx-balance CMD: error: argument --X: ...``), a configuration that breaks a rule by
+``params`` (ParameterError: ``mjx-balance: error: ...``). An OSError during the work (a place
+that passed the checks but refuses the write, a full disk) is a failure: one line, exit code 1.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import math
 import os
 import sys
+from pathlib import Path
 
 from ..params import CONVENTIONS, Config, ParameterError, run_config
 
@@ -35,34 +43,179 @@ def load_run_config(args: argparse.Namespace) -> Config:
     return run_config(getattr(args, "config", None), getattr(args, "convention", None))
 
 
+# ---------------------------------------------------------------------------------------------
+# Argument types: each returns the parsed value or raises ArgumentTypeError with the rule.
+
+def _number(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    return value
+
+
+def finite_float(text: str) -> float:
+    """A finite number."""
+    return _number(text)
+
+
+def nonnegative_float(text: str) -> float:
+    """A finite number >= 0."""
+    value = _number(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """A finite number > 0."""
+    value = _number(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
+    return value
+
+
+def _integer(text: str, minimum: int) -> int:
+    try:
+        value = float(text.strip())  # "1e4" is a whole number too
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if not (math.isfinite(value) and value.is_integer() and value >= minimum):
+        raise argparse.ArgumentTypeError(f"must be an integer >= {minimum}, got {text!r}")
+    return int(value)
+
+
+def positive_int(text: str) -> int:
+    """An integer >= 1."""
+    return _integer(text, 1)
+
+
+def nonnegative_int(text: str) -> int:
+    """An integer >= 0."""
+    return _integer(text, 0)
+
+
+def positive_int_list(text: str) -> list[int]:
+    """A comma list of integers >= 1, at least one."""
+    items = [item for item in text.split(",") if item.strip()]
+    if not items:
+        raise argparse.ArgumentTypeError("give at least one integer")
+    return [positive_int(item) for item in items]
+
+
+def batch_sizes(text: str) -> str:
+    """``text`` when it is a comma list of integers >= 1 (the command splits it)."""
+    positive_int_list(text)
+    return text
+
+
+def input_file(text: str) -> str:
+    """An existing, readable UTF-8 text file (a TOML or CSV input)."""
+    path = Path(text)
+    if not path.exists():
+        raise argparse.ArgumentTypeError(f"{text!r} not found")
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(f"{text!r} is not a file")
+    try:
+        path.read_bytes().decode("utf-8")
+    except OSError as exc:
+        raise argparse.ArgumentTypeError(f"{text!r} cannot be read ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not UTF-8 text (byte {exc.start}); expected a text file") from None
+    return text
+
+
+def input_folder(text: str) -> str:
+    """An existing folder."""
+    if not Path(text).is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r} is not a folder")
+    return text
+
+
+def _unwritable(path: Path) -> str | None:
+    """Why ``path`` cannot be created (with its missing parents) or written in, or None.
+
+    Permissions as os.access sees them; a place that still refuses the write (a special file
+    system, root on a read-only mount) ends in main's one-line OSError message."""
+    existing = path
+    while not existing.exists():
+        if existing.parent == existing:
+            break
+        existing = existing.parent
+    if not existing.is_dir():
+        return f"{str(existing)!r} is not a folder"
+    if not os.access(existing, os.W_OK | os.X_OK):
+        return f"{str(existing)!r} is not writable"
+    return None
+
+
+def out_folder(text: str) -> str:
+    """An output folder: an existing folder to reuse or one that can be created."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("give a folder name")
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r} exists and is not a folder")
+    reason = _unwritable(path)
+    if reason:
+        raise argparse.ArgumentTypeError(f"cannot write {text!r}: {reason}")
+    return text
+
+
+def out_gif(text: str) -> str:
+    """An output GIF file: a name ending in .gif, not a folder, in a place that can be written."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("give a file name ending in .gif")
+    path = Path(text)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r} is a folder; give a file name ending in .gif")
+    if path.suffix.lower() != ".gif":
+        raise argparse.ArgumentTypeError(f"{text!r}: the file name must end in .gif")
+    reason = _unwritable(path.parent)
+    if reason:
+        raise argparse.ArgumentTypeError(f"cannot write {text!r}: {reason}")
+    return text
+
+
+# ---------------------------------------------------------------------------------------------
+
 def _common(p: argparse.ArgumentParser, out_required: bool = True,
-            out_help: str = "output folder") -> None:
+            out_help: str = "output folder", out_type=out_folder) -> None:
     p.add_argument("--convention", choices=CONVENTIONS, default=None,
                    help="controller convention (default: the configuration's, 'paper')")
-    p.add_argument("--config", default=None, help="TOML configuration file (body, controller, scenario)")
-    p.add_argument("--out", required=out_required, default=None, help=out_help)
+    p.add_argument("--config", type=input_file, default=None,
+                   help="TOML configuration file (body, controller, scenario)")
+    p.add_argument("--out", type=out_type, required=out_required, default=None, help=out_help)
 
 
 def _bench_pipeline_arguments(p: argparse.ArgumentParser) -> None:
     """Options of ``mjx-balance bench`` (the pipeline benchmark)."""
-    p.add_argument("--scenarios", type=int, default=64, help="scenarios through MJX + ADMM")
-    p.add_argument("--reference", type=int, default=16,
+    p.add_argument("--scenarios", type=positive_int, default=64,
+                   help="scenarios through MJX + ADMM")
+    p.add_argument("--reference", type=nonnegative_int, default=16,
                    help="of those, how many through the scalar reference (0: skip)")
-    p.add_argument("--ipopt", type=int, default=8,
+    p.add_argument("--ipopt", type=nonnegative_int, default=8,
                    help="of those, how many through CasADi/IPOPT + MuJoCo C, with the "
                         "reference's outcome mix (0: skip)")
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 2,
+    p.add_argument("--workers", type=positive_int, default=os.cpu_count() or 2,
                    help="worker processes of the reference and the study toolchain")
-    p.add_argument("--chunk", type=int, default=64, help="MJX batch size (padded to 2^k)")
-    p.add_argument("--repeats", type=int, default=1, help="timed MJX runs (median)")
-    p.add_argument("--t-end", type=float, default=None, help="scenario length [s] (default 12)")
-    p.add_argument("--osqp-max-iter", type=int, default=None,
+    p.add_argument("--chunk", type=positive_int, default=64, help="MJX batch size (padded to 2^k)")
+    p.add_argument("--repeats", type=positive_int, default=1, help="timed MJX runs (median)")
+    p.add_argument("--t-end", type=positive_float, default=None,
+                   help="scenario length [s] (default 12)")
+    p.add_argument("--osqp-max-iter", type=positive_int, default=None,
                    help="reference OSQP iteration cap (default: the configuration's, 20000)")
-    p.add_argument("--memory-scaling", type=lambda s: [int(float(v)) for v in s.split(",")],
+    p.add_argument("--memory-scaling", type=positive_int_list,
                    default=None, help="comma list of sweep sizes (cells), e.g. 10000,100000")
-    p.add_argument("--memory-t-end", type=float, default=0.02, help="t_end of those sweeps [s]")
-    p.add_argument("--memory-chunk", type=int, default=None, help="chunk size of those sweeps")
-    p.add_argument("--memory-timeout", type=float, default=900.0, help="seconds per sweep")
+    p.add_argument("--memory-t-end", type=positive_float, default=0.02,
+                   help="t_end of those sweeps [s]")
+    p.add_argument("--memory-chunk", type=positive_int, default=None,
+                   help="chunk size of those sweeps")
+    p.add_argument("--memory-timeout", type=positive_float, default=900.0,
+                   help="seconds per sweep")
     p.add_argument("--json", action="store_true", help="print a final JSON line with the figures")
 
 
@@ -85,8 +238,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(target="mjx_balance.cli.bench:pipeline_command")
     bench = p.add_subparsers(dest="bench", required=False)
     p = bench.add_parser("solver", help="batched ADMM vs OSQP vs CasADi/IPOPT, solves per second")
-    p.add_argument("--batch", default="1,16,256,4096,16384", help="comma-separated batch sizes")
-    p.add_argument("--states", type=int, default=4096, help="number of test states")
+    p.add_argument("--batch", type=batch_sizes, default="1,16,256,4096,16384",
+                   help="comma-separated batch sizes")
+    p.add_argument("--states", type=positive_int, default=4096, help="number of test states")
     p.add_argument("--dtype", choices=("float32", "float64"), default="float32")
     p.add_argument("--json", action="store_true", help="print a final JSON line with the figures")
     _common(p, out_required=False)
@@ -95,9 +249,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("sweep", help="recoverable region over a force x duration grid")
     p.add_argument("--forces", default=None, help="start:stop:step or a comma list [N]")
     p.add_argument("--durations", default=None, help="start:stop:step or a comma list [s]")
-    p.add_argument("--sweep", default=None, help="sweep definition TOML (see sweeps/)")
-    p.add_argument("--chunk", type=int, default=None, help="scenarios per chunk (default: from memory budget)")
-    p.add_argument("--reference", default=None, help="CSV of points (force, duration) to draw over the map")
+    p.add_argument("--sweep", type=input_file, default=None,
+                   help="sweep definition TOML (see sweeps/)")
+    p.add_argument("--chunk", type=positive_int, default=None,
+                   help="scenarios per chunk (default: from memory budget)")
+    p.add_argument("--reference", type=input_file, default=None,
+                   help="CSV of points (force, duration) to draw over the map")
     _common(p)
     p.set_defaults(target="mjx_balance.cli.sweep:sweep_command")
 
@@ -105,16 +262,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--forces", default=None,
                    help="comma list or start:stop:step [N] (default: the --sweep file's table_forces, "
                         "else the study's 5,10,15,20,30,40,50,60,80,100,120)")
-    p.add_argument("--sweep", default=None, help="sweep definition TOML (see sweeps/)")
+    p.add_argument("--sweep", type=input_file, default=None,
+                   help="sweep definition TOML (see sweeps/)")
     _common(p)
     p.set_defaults(target="mjx_balance.cli.sweep:table_command")
 
     p = sub.add_parser("animate", help="stick-figure GIF of one push (matplotlib, no OpenGL)")
-    p.add_argument("--force", type=float, required=True, help="push force [N]")
-    p.add_argument("--duration", type=float, default=0.1, help="push duration [s]")
-    p.add_argument("--fps", type=float, default=25.0, help="frames per second")
-    p.add_argument("--t-end", type=float, default=None, help="simulate only this long [s]")
-    _common(p, out_help="output GIF file")
+    p.add_argument("--force", type=finite_float, required=True, help="push force [N]")
+    p.add_argument("--duration", type=nonnegative_float, default=0.1, help="push duration [s]")
+    p.add_argument("--fps", type=positive_float, default=25.0, help="frames per second")
+    p.add_argument("--t-end", type=positive_float, default=None,
+                   help="simulate only this long [s]")
+    _common(p, out_help="output GIF file", out_type=out_gif)
     p.set_defaults(target="mjx_balance.cli.animate:animate_command")
 
     p = sub.add_parser("report", help="HTML report: the study's experiments (both conventions) "
@@ -128,14 +287,17 @@ def build_parser() -> argparse.ArgumentParser:
                    help="comma list of studies (ankle_only, backward, delay, older_adult, "
                         "push_height), 'all' or 'none'")
     p.add_argument("--conventions", default=None, help="experiments' conventions (default: paper,joint)")
-    p.add_argument("--sweeps", default=None, help="folder of the study sweep definitions (default: sweeps/)")
+    p.add_argument("--sweeps", type=input_folder, default=None,
+                   help="folder of the study sweep definitions (default: sweeps/)")
     p.add_argument("--html-only", action="store_true",
                    help="redraw figures and report.html from the tables saved in --out")
     p.add_argument("--convention", choices=CONVENTIONS, default=None,
                    help="the studies' convention (default: the configuration's, 'paper'); the "
                         "study's experiments run every convention of --conventions")
-    p.add_argument("--config", default=None, help="TOML configuration file (body, controller, scenario)")
-    p.add_argument("--out", required=True, help="output folder (tables, figures, report.html)")
+    p.add_argument("--config", type=input_file, default=None,
+                   help="TOML configuration file (body, controller, scenario)")
+    p.add_argument("--out", type=out_folder, required=True,
+                   help="output folder (tables, figures, report.html)")
     p.set_defaults(target="mjx_balance.cli.report:report_command")
     return parser
 
@@ -169,6 +331,10 @@ def main(argv: list[str] | None = None) -> int:
     except ParameterError as exc:
         print(f"mjx-balance: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # a failure during the work: a refused write, a full disk
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"mjx-balance: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -1,19 +1,30 @@
-"""``mjx-balance sweep`` and ``mjx-balance table``: the region map and the robustness table."""
+"""``mjx-balance sweep`` and ``mjx-balance table``: the region map and the robustness table.
+
+Each command checks its arguments, then works in the output folder under its lock (a second run
+into the same folder is refused at once). A write that fails there (a full disk, a file-size
+limit) ends in one line and exit code 1; finished chunks stay and the same command resumes.
+Derived figures missing or damaged (a PNG cut short) are drawn again on a rerun.
+"""
 
 from __future__ import annotations
 
+import errno
 import json
+import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import pandas as pd
 
 from .. import region_plots
 from ..params import Config, with_convention
 from ..sweep import (DEFAULT_SWEEP, MANIFEST, STUDY_TABLE_FORCES, TABLE, LazyBatch,
-                     check_durations, load_sweep, parse_grid, run_sweep, run_table,
+                     SweepResult, check_durations, load_sweep, parse_grid, run_sweep, run_table,
                      table_batch_size)
+from ..sweep.store import folder_lock, readable_png
 from . import base_config
+
+WRITE_FAILED = 1  # exit code of a run whose writing failed (2: bad arguments, before any work)
 
 
 def sweep_command(args: Any) -> int:
@@ -45,15 +56,19 @@ def sweep_command(args: Any) -> int:
               f"table forces {DEFAULT_SWEEP['table_forces']} N)")
 
     out = Path(args.out)
-    run_batch = LazyBatch(config)  # built (and compiled) only if a scenario must run
-    result = run_sweep(out, config, forces, durations, run_batch=run_batch, chunk_size=chunk)
-    _make_region_figures(out, result.region, config, reference, force=not result.already_complete)
-    if table_forces is not None:
-        # The table in calls of the sweep's chunk size: the rollout compiled for it already.
-        chunk_used = json.loads((out / MANIFEST).read_text())["region"]["chunk_size"]
-        table = run_table(out, config, table_forces, run_batch=run_batch, batch=int(chunk_used))
-        _make_table_figure(out, config, force=table is not None)
-    return 0
+
+    def work() -> None:
+        run_batch = LazyBatch(config)  # built (and compiled) only if a scenario must run
+        result = run_sweep(out, config, forces, durations, run_batch=run_batch, chunk_size=chunk)
+        _make_region_figures(out, result, config, reference)
+        if table_forces is not None:
+            # The table in calls of the sweep's chunk size: the rollout compiled for it already.
+            chunk_used = json.loads((out / MANIFEST).read_text())["region"]["chunk_size"]
+            table = run_table(out, config, table_forces, run_batch=run_batch,
+                              batch=int(chunk_used))
+            _make_table_figure(out, config, force=table is not None)
+
+    return _in_folder(out, work)
 
 
 def table_command(args: Any) -> int:
@@ -69,18 +84,58 @@ def table_command(args: Any) -> int:
         forces = list(STUDY_TABLE_FORCES)
     forces = parse_grid(forces, "forces")
     out = Path(args.out)
-    table = run_table(out, config, forces, run_batch=LazyBatch(config),
-                      batch=table_batch_size(config, forces.size))
-    _make_table_figure(out, config, force=table is not None)
+
+    def work() -> None:
+        table = run_table(out, config, forces, run_batch=LazyBatch(config),
+                          batch=table_batch_size(config, forces.size))
+        _make_table_figure(out, config, force=table is not None)
+
+    return _in_folder(out, work)
+
+
+def _in_folder(out: Path, work: Callable[[], None]) -> int:
+    """Run ``work`` holding the folder's lock; a failed write ends in one line, exit code 1."""
+    try:
+        with folder_lock(out):
+            work()
+    except OSError as exc:
+        print(f"mjx-balance: error: {_write_failure(out, exc)}", file=sys.stderr)
+        return WRITE_FAILED
     return 0
 
 
-def _make_region_figures(out: Path, region: pd.DataFrame, config: Config,
-                         reference: pd.DataFrame | None, force: bool) -> None:
+def _write_failure(out: Path, exc: OSError) -> str:
+    """One line: which write in which folder failed, why, and what to do."""
+    reason = exc.strerror or (str(exc).splitlines() or [type(exc).__name__])[0]
+    where = f" ({Path(exc.filename).name})" if exc.filename else ""
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        fix = f"free some space on the disk of {out}"
+    elif exc.errno == errno.EFBIG:
+        fix = "raise the file-size limit (ulimit -f)"
+    else:
+        fix = "fix the cause"
+    return (f"writing in {out} failed: {reason}{where}; what was finished is kept: {fix}, "
+            "then run the same command again to resume")
+
+
+def _stale(figure: Path, source: Path) -> bool:
+    """A figure to draw again: missing, damaged (cut short by a failed write), or older than
+    the table it is drawn from (a run that failed after rewriting the table)."""
+    return (not readable_png(figure)
+            or figure.stat().st_mtime_ns < source.stat().st_mtime_ns)
+
+
+def _make_region_figures(out: Path, result: SweepResult, config: Config,
+                         reference: pd.DataFrame | None) -> None:
+    """region.png and energy.png: drawn after a sweep that computed or merged anything, with
+    reference points, or when stale (read from region.parquet only then)."""
     targets = {"region.png": region_plots.plot_region, "energy.png": region_plots.plot_energy}
+    region = None
     for name, plot in targets.items():
         path = out / name
-        if force or not path.exists() or reference is not None:
+        if (not result.already_complete or _stale(path, result.region_path)
+                or (reference is not None and name == "region.png")):
+            region = result.region if region is None else region
             kwargs = {"reference": reference} if name == "region.png" else {}
             plot(region, path, config=config, **kwargs)
             print(f"wrote {path}")
@@ -88,6 +143,6 @@ def _make_region_figures(out: Path, region: pd.DataFrame, config: Config,
 
 def _make_table_figure(out: Path, config: Config, force: bool) -> None:
     path = out / "table.png"
-    if force or not path.exists():
+    if force or _stale(path, out / TABLE):
         region_plots.plot_table(pd.read_csv(out / TABLE, keep_default_na=True), path, config=config)
         print(f"wrote {path}")

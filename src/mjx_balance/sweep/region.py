@@ -5,7 +5,9 @@ chunks of one size (a power of two that fits the memory budget, ``chunks.py``; e
 padded to it, so the rollout compiles one function); each chunk is written to its own file as
 soon as it is done (``store.py``). On restart, chunk files that read back with exactly their
 cells are kept and the others (damaged, partial, from another grid) are recomputed; a folder
-made with another configuration or grid is refused.
+made with another configuration or grid is refused. A folder that lost its manifest but whose
+config.toml matches is taken up again once its chunk files (or region.parquet) check out
+against the grid. The sweep holds the folder's lock (``store.folder_lock``) throughout.
 """
 
 from __future__ import annotations
@@ -23,7 +25,8 @@ from .batch import LazyBatch, RunBatch, evaluate
 from .chunks import chunk_slices, default_chunk_size
 from .grid import check_durations, describe, grid_cells, parse_grid, same_values
 from .progress import progress_bar
-from .store import REGION, OutputFolder, chunk_path, merge_chunks, read_chunk, write_atomic, write_parquet
+from .store import (MANIFEST, REGION, OutputFolder, chunk_path, folder_lock, merge_chunks,
+                    read_chunk, write_atomic, write_parquet)
 
 
 @dataclass
@@ -62,15 +65,23 @@ def run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np
     chunk_size: scenarios per chunk (default: from the memory budget). A folder keeps the chunk
     size it was started with.
     """
-    say = log or (lambda _msg: None)
-    start = time.perf_counter()
     forces = parse_grid(forces, "forces")
     durations = check_durations(parse_grid(durations, "durations"), config.scenario.t_end)
+    with folder_lock(out):
+        return _run_sweep(out, config, forces, durations, run_batch, chunk_size, progress, log)
+
+
+def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np.ndarray,
+               run_batch: RunBatch | None, chunk_size: int | None, progress: bool,
+               log: Callable[[str], None] | None) -> SweepResult:
+    say = log or (lambda _msg: None)
+    start = time.perf_counter()
     cell_f, cell_d = grid_cells(forces, durations)
     n_cells = cell_f.size
     folder = OutputFolder(out, config)
     manifest = folder.open()
     region_path = folder.path / REGION
+    convention = config.controller.convention
 
     recorded = manifest.get("region")
     if recorded is not None:
@@ -85,16 +96,25 @@ def run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np
                 f"scenarios; keeping that (ignoring --chunk {chunk_size})")
         chunk_size = int(recorded["chunk_size"])
     else:
-        if chunk_size is None:
-            chunk_size = default_chunk_size(config, n_cells)
-        elif chunk_size < 1:
+        if chunk_size is not None and chunk_size < 1:
             raise ParameterError(f"--chunk must be >= 1, got {chunk_size}")
+        chunk_size = chunk_size or default_chunk_size(config, n_cells)
+        found = sorted((folder.path / "chunks").glob("chunk-*.parquet"))
+        if found or (folder.rebuilt and region_path.exists()):
+            # Region results without a record of their grid (a lost manifest): adopt them only
+            # if they check out against this grid.
+            chunk_size, adopted = _adopt_results(folder.path, found, forces, durations, convention,
+                                                 chunk_size)
+            say(f"note: {folder.path} had lost its {MANIFEST}; rebuilt it: config.toml matches "
+                f"this run and {adopted} match the grid")
+        elif folder.rebuilt:
+            say(f"note: {folder.path} had lost its {MANIFEST}; rebuilt it: config.toml matches "
+                "this run")
         manifest["region"] = {"forces": forces.tolist(), "durations": durations.tolist(),
                               "chunk_size": int(chunk_size), "cells": int(n_cells)}
         folder.write_manifest(manifest)
 
     slices = chunk_slices(n_cells, chunk_size)
-    convention = config.controller.convention
 
     # A finished sweep: region.parquet that holds exactly the grid.
     if region_path.exists():
@@ -144,3 +164,39 @@ def run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np
     seconds = time.perf_counter() - start
     say(f"wrote {region_path} ({n_cells} cells; {len(todo)} chunks computed in {seconds:.1f} s)")
     return SweepResult(region_path, len(todo), reused, recomputed, seconds, False)
+
+
+def _adopt_results(path: Path, found: list[Path], forces: np.ndarray, durations: np.ndarray,
+                   convention: str, chunk_size: int) -> tuple[int, str]:
+    """The chunk size of results found without a manifest, and what matched (for the message).
+
+    Every chunk but the last holds chunk_size cells, so the largest chunk file gives it; the
+    chunk files that then read back with exactly their cells are kept (the others are
+    recomputed as damaged). With no chunk files, a region.parquet that holds exactly the grid
+    is kept. Raises ParameterError when nothing matches this grid.
+    """
+    import pyarrow.parquet as pq
+
+    cell_f, cell_d = grid_cells(forces, durations)
+    rows = []
+    for file in found:
+        try:
+            rows.append(pq.ParquetFile(file).metadata.num_rows)
+        except Exception:  # noqa: BLE001 - a damaged file says nothing about the chunk size
+            pass
+    if rows:
+        size = max(rows)
+        slices = chunk_slices(cell_f.size, size)
+        good = sum(read_chunk(chunk_path(path, i), cell_f[cells], cell_d[cells], convention)[0]
+                   is not None for i, cells in enumerate(slices))
+        if good:
+            return size, f"{good} of {len(found)} chunk files"
+    elif (path / REGION).exists():
+        try:
+            check_region(pd.read_parquet(path / REGION, columns=["force", "duration"]),
+                         forces, durations)
+            return chunk_size, REGION
+        except Exception:  # noqa: BLE001 - refused below
+            pass
+    raise ParameterError(f"{path} holds results but no {MANIFEST}, and they do not match this "
+                         "grid; use another --out folder or the grid they were made with")

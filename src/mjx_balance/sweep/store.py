@@ -2,49 +2,122 @@
 
 ``DIR/manifest.json`` records the package version, the configuration and what was computed
 (the region's grid and chunk size, the table's forces); ``DIR/config.toml`` holds the
-configuration as TOML. A folder made with another configuration is refused. Every file is
+configuration as TOML. A folder made with another configuration is refused; a folder that lost
+its manifest is taken up again when its config.toml matches the run's (the region sweep then
+checks its chunk files against the grid before it rewrites the manifest). Every file is
 written atomically (a temporary file in the same folder, then ``os.replace``), so a file is
-either complete or absent. Region chunks live in ``DIR/chunks/chunk-NNNNN.parquet``; a chunk
-file is used only if it reads back with exactly its cells (:func:`read_chunk`), and the merge
+either complete or absent, with the mode the umask gives (:func:`write_atomic`, figures through
+:func:`write_figure`). Region chunks live in ``DIR/chunks/chunk-NNNNN.parquet``; a chunk file
+is used only if it reads back with exactly its cells (:func:`read_chunk`), and the merge
 streams the chunks into ``DIR/region.parquet`` one at a time (:func:`merge_chunks`).
+
+One run at a time per folder: :func:`folder_lock` holds an exclusive ``flock`` on
+``DIR/.lock`` (which names the holder's PID and start time) and a second run is refused at once
+(:class:`FolderBusy`).
 """
 
 from __future__ import annotations
 
+import errno
+import fcntl
 import json
 import os
 import sys
 import tempfile
+import threading
+from contextlib import contextmanager
+from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import numpy as np
 import pandas as pd
 
 from .. import __version__
 from ..outcomes import OUTCOMES, SUMMARY_COLUMNS
-from ..params import Config, ParameterError, save_config
+from ..params import Config, ParameterError, dumps_config, load_config
 from .grid import same_values
 
 MANIFEST = "manifest.json"
 REGION = "region.parquet"
 TABLE = "table.csv"
 TABLE_RUNS = "table_runs.parquet"
+CONFIG = "config.toml"
+LOCK = ".lock"
+
+_UMASK_LOCK = threading.Lock()
+
+
+def current_umask() -> int:
+    """The process's umask: from /proc where Linux shows it, else by setting it and setting it
+    back (which another thread creating a file at that moment could see)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    with _UMASK_LOCK:
+        mask = os.umask(0o022)
+        os.umask(mask)
+    return mask
 
 
 def write_atomic(path: Path, write: Callable[[Path], None]) -> None:
-    """Write a file atomically: ``write(tmp)`` to a temporary file beside it, then rename."""
+    """Write a file atomically: ``write(tmp)`` to a temporary file beside it, then rename.
+
+    The file gets the mode a plain ``open`` would give it (0o666 less the umask), not
+    mkstemp's 0o600, so that collaborators sharing the folder can read it."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
     try:
         write(Path(tmp))
+        os.chmod(tmp, 0o666 & ~current_umask())
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def write_figure(fig: Any, path: str | Path, **savefig: Any) -> Path:
+    """Save a matplotlib figure atomically, in the format its file name ends with."""
+    path = Path(path)
+    fmt = path.suffix.lstrip(".").lower() or "png"
+    write_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, **savefig))
+    return path
+
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"  # the IEND chunk: length 0, type, CRC
+
+
+def readable_png(path: str | Path) -> bool:
+    """Whether ``path`` is a whole PNG file: its signature, its IEND chunk last, and every
+    chunk's CRC (PIL's verify). A file cut short while being written fails."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(len(PNG_SIGNATURE))
+            fh.seek(0, os.SEEK_END)
+            if fh.tell() < len(PNG_SIGNATURE) + len(PNG_END):
+                return False
+            fh.seek(-len(PNG_END), os.SEEK_END)
+            tail = fh.read()
+    except OSError:
+        return False
+    if head != PNG_SIGNATURE or tail != PNG_END:
+        return False
+    from PIL import Image
+
+    try:
+        with Image.open(path) as image:
+            image.verify()
+    except Exception:  # noqa: BLE001 - any failure means: draw it again
+        return False
+    return True
 
 
 def write_parquet(frame: pd.DataFrame, path: Path) -> None:
@@ -74,13 +147,70 @@ def config_differences(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
     return out
 
 
+class FolderBusy(ParameterError):
+    """Another run holds the output folder's lock."""
+
+
+_HELD: dict[str, list[int]] = {}  # resolved folder -> [lock file descriptor, nesting depth]
+
+
+@contextmanager
+def folder_lock(path: str | Path) -> Iterator[None]:
+    """Hold the output folder (created if missing) for this run: an exclusive ``flock`` on
+    ``DIR/.lock``, which records this process's PID and start time. Another process holding it
+    makes this raise :class:`FolderBusy` at once, naming that run; nested calls in one process
+    share the lock. The lock goes with the process, however it ends (the file stays)."""
+    folder = Path(path)
+    folder.mkdir(parents=True, exist_ok=True)
+    key = str(folder.resolve())
+    if key in _HELD:
+        _HELD[key][1] += 1
+        try:
+            yield
+        finally:
+            _HELD[key][1] -= 1
+        return
+    try:
+        fd = os.open(folder / LOCK, os.O_RDWR | os.O_CREAT, 0o666)
+    except OSError as exc:
+        if exc.errno not in (errno.EACCES, errno.EPERM, errno.EROFS):
+            raise
+        # A folder this process cannot write in (a finished sweep shared read-only): it can
+        # read it, and any write it tries fails on its own, so there is nothing to guard.
+        yield
+        return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        holder = os.read(fd, 200).decode("utf-8", "replace").strip() or "PID not yet recorded"
+        os.close(fd)
+        raise FolderBusy(f"{folder} is in use by another run ({holder}); wait for it to end "
+                         "or use another --out folder") from None
+    except BaseException:
+        os.close(fd)
+        raise
+    try:
+        started = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"PID {os.getpid()}, started {started}\n".encode(), 0)
+        _HELD[key] = [fd, 1]
+        yield
+    finally:
+        _HELD.pop(key, None)
+        os.close(fd)  # releases the flock
+
+
 class OutputFolder:
-    """The output folder DIR: manifest.json, config.toml, chunks/, region.parquet, table.csv."""
+    """The output folder DIR: manifest.json, config.toml, chunks/, region.parquet, table.csv.
+
+    ``rebuilt`` is True after :meth:`open` took up a folder that had lost its manifest (the
+    manifest it returns is then not yet written)."""
 
     def __init__(self, path: str | Path, config: Config):
         self.path = Path(path)
         self.config = config
         self.manifest_path = self.path / MANIFEST
+        self.rebuilt = False
 
     def read_manifest(self) -> dict[str, Any] | None:
         if not self.manifest_path.exists():
@@ -92,19 +222,25 @@ class OutputFolder:
                                  "use another --out folder") from None
 
     def open(self) -> dict[str, Any]:
-        """Create the folder or check that it was made with this configuration."""
-        self.path.mkdir(parents=True, exist_ok=True)
-        for stale in self.path.glob(".*.tmp"):
+        """Create the folder or check that it was made with this configuration (under the
+        folder's lock, which the caller may already hold: see :func:`folder_lock`)."""
+        with folder_lock(self.path):
+            return self._open()
+
+    def _open(self) -> dict[str, Any]:
+        # Leftovers of a run that ended while writing: no other run holds the folder now.
+        for stale in [*self.path.glob(".*.tmp"), *self.path.glob("chunks/.*.tmp")]:
             stale.unlink(missing_ok=True)
         manifest = self.read_manifest()
         config = config_dict(self.config)
         if manifest is None:
-            if any(self.path.glob("*.parquet")) or (self.path / "chunks").exists():
-                raise ParameterError(f"{self.path} holds results but no {MANIFEST}; "
-                                     "use another --out folder")
             manifest = {"package": "mjx_balance", "version": __version__, "config": config}
+            if any(self.path.glob("*.parquet")) or (self.path / "chunks").exists():
+                self._check_lost_manifest(config)
+                self.rebuilt = True
+                return manifest
             self.write_manifest(manifest)
-            save_config(self.config, self.path / "config.toml")
+            write_text(dumps_config(self.config), self.path / CONFIG)
             return manifest
         differences = config_differences(manifest.get("config", {}), config)
         if differences:
@@ -116,6 +252,25 @@ class OutputFolder:
             print(f"note: {self.path} was made by mjx_balance {manifest.get('version')}, "
                   f"this is {__version__}; continuing", file=sys.stderr)
         return manifest
+
+    def _check_lost_manifest(self, config: dict[str, Any]) -> None:
+        """Results without a manifest: go on only if config.toml holds this run's configuration."""
+        config_path = self.path / CONFIG
+        if not config_path.exists():
+            raise ParameterError(f"{self.path} holds results but no {MANIFEST} and no {CONFIG}; "
+                                 "use another --out folder")
+        try:
+            recorded = config_dict(load_config(config_path))
+        except ParameterError as exc:
+            raise ParameterError(f"{self.path} holds results but no {MANIFEST}, and its {CONFIG} "
+                                 f"is unusable ({exc}); use another --out folder") from None
+        differences = config_differences(recorded, config)
+        if differences:
+            raise ParameterError(
+                f"{self.path} holds results but no {MANIFEST}, and its {CONFIG} differs from this "
+                "run's configuration; use another --out folder or that configuration. "
+                "Differences: " + "; ".join(differences[:6])
+                + (" ..." if len(differences) > 6 else ""))
 
     def write_manifest(self, manifest: dict[str, Any]) -> None:
         write_text(json.dumps(manifest, indent=2) + "\n", self.manifest_path)

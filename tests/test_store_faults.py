@@ -1,0 +1,331 @@
+"""Lost or damaged work in a sweep folder (issue 11, items 2-6): faults injected, then a rerun.
+
+Damaged figures are drawn again; a folder that lost its manifest is taken up again when its
+config.toml and chunk files check out; a second run into a folder that another process holds
+is refused at once; a failed write (a full disk, a file-size limit) ends in one line and the
+rerun resumes to the same region; files get the mode the umask gives, and leftover temporary
+files go.
+
+The rollout is replaced by FakeThresholdBatch (tests/test_sweep.py): these tests are about the
+folder, not balance. The subprocess tests use the same fake, written out in their script.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import shutil
+import stat
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from mjx_balance import sweep
+from mjx_balance.cli import main
+from mjx_balance.params import ParameterError
+from mjx_balance.sweep import region as region_module
+from mjx_balance.sweep.store import folder_lock, readable_png
+
+from test_sweep import DEFAULT_BATCH, GRID, FakeThresholdBatch, sweep_fake, tiny_config
+
+REPO = Path(__file__).resolve().parents[1]
+CLI_GRID = ["--forces", "0:40:10", "--durations", "0.1,0.5,1.0", "--chunk", "4"]  # 15 cells
+
+
+def cli_sweep(out: Path, *extra: str) -> int:
+    return main(["sweep", *CLI_GRID, "--out", str(out), *extra])
+
+
+@pytest.fixture
+def fake_rollout(monkeypatch):
+    """The command line's rollout replaced by the fake; returns a function to swap the fake."""
+    def use(fake: FakeThresholdBatch) -> FakeThresholdBatch:
+        monkeypatch.setattr(DEFAULT_BATCH, lambda config: fake)
+        return fake
+
+    use(FakeThresholdBatch())
+    return use
+
+
+def error_lines(stderr: str) -> list[str]:
+    """The error lines of a command's stderr (the progress bar aside); none may be a traceback."""
+    assert "Traceback" not in stderr
+    return [line for line in stderr.splitlines() if "error" in line]
+
+
+# --- item 2: damaged figures are drawn again ---------------------------------------------------
+
+
+def test_truncated_or_missing_figures_are_redrawn_on_rerun(tmp_path, fake_rollout, capsys):
+    out = tmp_path / "run"
+    assert cli_sweep(out) == 0
+    region_png, energy_png = out / "region.png", out / "energy.png"
+    assert readable_png(region_png) and readable_png(energy_png)
+    whole = region_png.read_bytes()
+    region_png.write_bytes(whole[: len(whole) // 2])  # cut short, as by a file-size limit
+    assert not readable_png(region_png)
+    energy_png.unlink()
+    idle = fake_rollout(FakeThresholdBatch(fail_on_call=1))
+    capsys.readouterr()
+    assert cli_sweep(out) == 0
+    assert idle.calls == []  # the sweep itself was complete: nothing computed
+    printed = capsys.readouterr().out
+    assert "nothing to do" in printed and f"wrote {region_png}" in printed
+    assert readable_png(region_png) and readable_png(energy_png)
+    # A whole figure is left alone.
+    assert cli_sweep(out) == 0
+    assert "wrote" not in capsys.readouterr().out
+
+
+def test_truncated_table_figure_is_redrawn_on_rerun(tmp_path, fake_rollout, capsys):
+    command = ["table", "--forces", "20,40", "--out", str(tmp_path)]
+    assert main(command) == 0
+    table_png = tmp_path / "table.png"
+    table_png.write_bytes(table_png.read_bytes()[:-100])
+    idle = fake_rollout(FakeThresholdBatch(fail_on_call=1))
+    capsys.readouterr()
+    assert main(command) == 0
+    printed = capsys.readouterr().out
+    assert idle.calls == [] and "nothing to do" in printed and f"wrote {table_png}" in printed
+    assert readable_png(table_png)
+
+
+def test_readable_png_rejects_cut_and_corrupt_files(tmp_path, fake_rollout):
+    assert cli_sweep(tmp_path) == 0
+    whole = (tmp_path / "region.png").read_bytes()
+    bad = tmp_path / "bad.png"
+    for damaged in (b"", whole[:8], whole[:-1], whole[:1000] + whole[-12:],
+                    whole[:200] + bytes(100) + whole[300:]):
+        bad.write_bytes(damaged)
+        assert not readable_png(bad)
+    assert not readable_png(tmp_path / "missing.png")
+    bad.write_bytes(whole)
+    assert readable_png(bad)
+
+
+# --- item 3: a lost manifest is rebuilt ----------------------------------------------------------
+
+
+def test_lost_manifest_is_rebuilt_from_config_and_chunks(tmp_path):
+    whole = tmp_path / "whole"
+    sweep_fake(whole, FakeThresholdBatch())
+    out = tmp_path / "cut"
+    with pytest.raises(KeyboardInterrupt):
+        sweep_fake(out, FakeThresholdBatch(fail_on_call=3))
+    recorded = json.loads((out / "manifest.json").read_text())
+    (out / "manifest.json").unlink()
+
+    lines: list[str] = []
+    resumed = FakeThresholdBatch()
+    result = sweep.run_sweep(out, tiny_config(), *GRID, run_batch=resumed, chunk_size=100,
+                             progress=False, log=lines.append)
+    assert resumed.calls == [8] * 3 and result.reused_chunks == 2  # chunk size from the files
+    rebuilt = [line for line in lines if "lost its manifest.json" in line]
+    assert len(rebuilt) == 1 and "config.toml matches" in rebuilt[0] and "2 of 2" in rebuilt[0]
+    assert json.loads((out / "manifest.json").read_text()) == recorded
+    pd.testing.assert_frame_equal(pd.read_parquet(out / "region.parquet"),
+                                  pd.read_parquet(whole / "region.parquet"))
+
+    # A finished folder without its manifest: nothing to compute.
+    (out / "manifest.json").unlink()
+    idle = FakeThresholdBatch(fail_on_call=1)
+    assert sweep_fake(out, idle).already_complete and idle.calls == []
+    assert json.loads((out / "manifest.json").read_text()) == recorded
+
+
+def test_lost_manifest_is_not_rebuilt_for_other_results(tmp_path):
+    sweep_fake(tmp_path, FakeThresholdBatch())
+    (tmp_path / "manifest.json").unlink()
+    other = tiny_config().replace(controller={"horizon": 10})
+    with pytest.raises(ParameterError, match="config.toml differs.*controller.horizon"):
+        sweep_fake(tmp_path, FakeThresholdBatch(), config=other)
+    with pytest.raises(ParameterError, match="do not match this grid"):
+        sweep.run_sweep(tmp_path, tiny_config(), "0:100:20", GRID[1],
+                        run_batch=FakeThresholdBatch(), progress=False, log=None)
+    assert not (tmp_path / "manifest.json").exists()  # nothing rewritten by a refused run
+    shutil.rmtree(tmp_path / "chunks")  # region.parquet alone, of another grid: kept, refused
+    region = (tmp_path / "region.parquet").read_bytes()
+    with pytest.raises(ParameterError, match="do not match this grid"):
+        sweep.run_sweep(tmp_path, tiny_config(), "0:100:20", GRID[1],
+                        run_batch=FakeThresholdBatch(), progress=False, log=None)
+    assert (tmp_path / "region.parquet").read_bytes() == region
+    (tmp_path / "config.toml").unlink()
+    with pytest.raises(ParameterError, match="no manifest.json and no config.toml"):
+        sweep_fake(tmp_path, FakeThresholdBatch())
+
+
+def test_lost_manifest_of_a_table_folder_lets_a_sweep_start(tmp_path):
+    sweep.run_table(tmp_path, tiny_config(), [20, 40], run_batch=FakeThresholdBatch(),
+                    progress=False, log=None)
+    (tmp_path / "manifest.json").unlink()
+    lines: list[str] = []
+    sweep.run_sweep(tmp_path, tiny_config(), *GRID, run_batch=FakeThresholdBatch(), chunk_size=8,
+                    progress=False, log=lines.append)
+    assert [line for line in lines if "lost its manifest.json" in line]
+    assert json.loads((tmp_path / "manifest.json").read_text())["region"]["cells"] == 35
+
+
+# --- item 4: one run per folder ----------------------------------------------------------------
+
+
+HOLD_LOCK = textwrap.dedent("""
+    import sys
+    from mjx_balance.sweep.store import folder_lock
+    with folder_lock(sys.argv[1]):
+        print("locked", flush=True)
+        sys.stdin.read()  # until the test closes our stdin
+""")
+
+
+def test_second_run_is_refused_while_another_holds_the_folder(tmp_path, fake_rollout, capsys):
+    out = tmp_path / "shared"
+    holder = subprocess.Popen([sys.executable, "-c", HOLD_LOCK, str(out)], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        fake = fake_rollout(FakeThresholdBatch())
+        assert cli_sweep(out) == 2
+        lines = error_lines(capsys.readouterr().err)
+        assert len(lines) == 1
+        assert f"in use by another run (PID {holder.pid}, started " in lines[0]
+        assert fake.calls == [] and not (out / "manifest.json").exists()
+        with pytest.raises(sweep.store.FolderBusy):
+            sweep_fake(out, FakeThresholdBatch())
+    finally:
+        holder.stdin.close()
+        holder.wait(timeout=60)
+    assert cli_sweep(out) == 0  # the lock went with the other process
+    assert fake.calls
+
+
+def test_one_process_may_nest_the_folder_lock(tmp_path):
+    with folder_lock(tmp_path):
+        sweep_fake(tmp_path, FakeThresholdBatch())  # takes the same lock inside
+    assert "PID" in (tmp_path / ".lock").read_text()
+
+
+def test_a_folder_that_cannot_hold_a_lock_file_is_still_read(tmp_path, monkeypatch):
+    """A finished sweep shared read-only: no lock file can be made, and none is needed."""
+    sweep_fake(tmp_path, FakeThresholdBatch())
+    (tmp_path / ".lock").unlink()
+    real_open = os.open
+
+    def read_only(path, flags, *args):
+        if str(path).endswith(".lock"):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
+        return real_open(path, flags, *args)
+
+    monkeypatch.setattr(os, "open", read_only)
+    assert sweep_fake(tmp_path, FakeThresholdBatch(fail_on_call=1)).already_complete
+
+
+# --- item 5: write errors ----------------------------------------------------------------------
+
+
+def test_full_disk_mid_sweep_is_one_line_and_the_rerun_resumes(tmp_path, fake_rollout, capsys,
+                                                               monkeypatch):
+    whole = tmp_path / "whole"
+    assert cli_sweep(whole) == 0
+    out = tmp_path / "full"
+    writes = []
+    real_write = region_module.write_parquet
+
+    def fill_disk_on_third_chunk(frame, path):
+        writes.append(path)
+        if len(writes) == 3:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+        real_write(frame, path)
+
+    monkeypatch.setattr(region_module, "write_parquet", fill_disk_on_third_chunk)
+    capsys.readouterr()
+    assert cli_sweep(out) == 1
+    lines = error_lines(capsys.readouterr().err)
+    assert len(lines) == 1
+    assert str(out) in lines[0] and "No space left on device" in lines[0]
+    assert "run the same command again" in lines[0]
+    assert len(list((out / "chunks").glob("chunk-*.parquet"))) == 2  # finished chunks kept
+    assert not (out / "region.parquet").exists()
+
+    monkeypatch.setattr(region_module, "write_parquet", real_write)
+    resumed = fake_rollout(FakeThresholdBatch())
+    assert cli_sweep(out) == 0
+    assert resumed.calls == [4, 4]  # chunks 2 and 3 of 0..3
+    pd.testing.assert_frame_equal(pd.read_parquet(out / "region.parquet"),
+                                  pd.read_parquet(whole / "region.parquet"))
+
+
+FAKE_SWEEP = textwrap.dedent("""
+    import resource, sys
+    sys.path.insert(0, sys.argv[1])
+    from test_sweep import FakeThresholdBatch
+    import mjx_balance.sweep.batch
+    mjx_balance.sweep.batch.default_batch = lambda config: FakeThresholdBatch()
+    limit = int(sys.argv[2])
+    if limit:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    from mjx_balance.cli import main
+    sys.exit(main(["sweep", *sys.argv[4:], "--out", sys.argv[3]]))
+""")
+
+
+def run_fake_sweep(out: Path, file_limit: int) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", FAKE_SWEEP, str(REPO / "tests"), str(file_limit),
+                           str(out), *CLI_GRID], capture_output=True, text=True, timeout=300)
+
+
+def test_file_size_limit_leaves_no_damaged_figure(tmp_path):
+    """The issue's case: a file-size limit that the tables fit under but region.png does not,
+    met while a figure that exists is drawn again."""
+    out = tmp_path / "limited"
+    first = run_fake_sweep(out, file_limit=0)
+    assert first.returncode == 0, first.stderr
+    (out / "region.parquet").unlink()  # merged again from the chunks, then the figures redrawn
+    cut = run_fake_sweep(out, file_limit=30_000)
+    assert cut.returncode == 1, cut.stderr
+    lines = error_lines(cut.stderr)
+    assert len(lines) == 1 and "File too large" in lines[0] and str(out) in lines[0]
+    assert "ulimit -f" in lines[0]
+    assert (out / "region.parquet").exists()
+    assert readable_png(out / "region.png")  # the earlier figure, whole, not a truncated one
+    assert not list(out.glob(".*.tmp"))
+    again = run_fake_sweep(out, file_limit=0)
+    assert again.returncode == 0, again.stderr
+    assert "nothing to do" in again.stdout
+    for name in ("region.png", "energy.png"):  # older than region.parquet: drawn again
+        assert f"wrote {out / name}" in again.stdout and readable_png(out / name)
+
+
+# --- item 6: file modes and leftovers ----------------------------------------------------------
+
+
+@pytest.mark.parametrize("umask, mode", [(0o022, 0o644), (0o027, 0o640)])
+def test_files_get_the_mode_the_umask_gives(tmp_path, fake_rollout, umask, mode):
+    old = os.umask(umask)
+    try:
+        assert cli_sweep(tmp_path) == 0
+    finally:
+        os.umask(old)
+    files = [p for p in tmp_path.rglob("*") if p.is_file()]
+    names = {p.name for p in files}
+    assert {"region.parquet", "manifest.json", "config.toml", "region.png", "energy.png",
+            "chunk-00000.parquet", ".lock"} <= names
+    wrong = {p.name: oct(stat.S_IMODE(p.stat().st_mode)) for p in files
+             if stat.S_IMODE(p.stat().st_mode) != mode}
+    assert wrong == {}
+
+
+def test_leftover_temporary_files_are_removed(tmp_path):
+    with pytest.raises(KeyboardInterrupt):
+        sweep_fake(tmp_path, FakeThresholdBatch(fail_on_call=2))
+    leftovers = [tmp_path / ".region.parquet.x1y2.tmp",
+                 tmp_path / "chunks" / ".chunk-00001.parquet.a1b2.tmp"]
+    for path in leftovers:
+        path.write_bytes(b"half a file")
+    sweep_fake(tmp_path, FakeThresholdBatch())
+    assert not any(path.exists() for path in leftovers)
+    assert not list(tmp_path.rglob("*.tmp"))
