@@ -7,9 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mjx_balance.params import (LENGTH_RANGE, MASS_RANGE, MAX_GRAVITY, MAX_PHYSICS_DT,
-                                BodyParams, Config, ControllerParams, ParameterError,
+from mjx_balance.params import (LENGTH_RANGE, MASS_RANGE, MAX_FRICTION, MAX_GRAVITY,
+                                MAX_PHYSICS_DT, BodyParams, Config, ControllerParams, ParameterError,
                                 ScenarioParams, load_config)
+from mjx_balance.reference import simulate_scenario
 from mjx_balance.sweep import load_sweep
 
 SWEEPS = sorted((Path(__file__).parent.parent / "sweeps").glob("*.toml"))
@@ -157,3 +158,18 @@ def test_a_folder_or_binary_file_is_not_a_configuration(tmp_path):
     path.write_bytes(b"\xff\xfe[body]\n")
     with pytest.raises(ParameterError, match=r"binary\.toml: not UTF-8 text \(byte 0\)"):
         load_config(path)
+
+
+def test_friction_above_two_is_refused():
+    """At friction 2.5 the upright body no longer settles at rest and at 3.5 it falls with no
+    push (pyramidal contacts soften with friction; measured with the reference): refused."""
+    assert BodyParams(friction=2.0).friction == 2.0
+    with pytest.raises(ParameterError, match=r"body\.friction = 2\.5: must be <= 2"):
+        BodyParams(friction=2.5)
+
+
+def test_at_the_friction_limit_the_body_stands():
+    """The limit is where the reference still holds upright rest (no push, 1 s)."""
+    config = Config().replace(body={"friction": MAX_FRICTION}, scenario={"t_end": 1.0})
+    summary, _ = simulate_scenario(config, 0.0, 0.0, record=False)
+    assert summary["outcome"] == "recovered"
