@@ -80,6 +80,17 @@ def reference_mpc(controller: ControllerParams, body: BodyParams,
     return ReferenceMPC(build_qp(controller, body, control_dt), controller)
 
 
+# MuJoCo's checks of non-finite or huge values; each resets the data when it fires.
+_BAD_VALUE_WARNINGS = tuple(int(w) for w in (
+    mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADCTRL))
+
+
+def _bad_value_warnings(data: mujoco.MjData) -> int:
+    """How many times MuJoCo has warned of a bad (NaN, Inf or huge) value in this data."""
+    return sum(int(data.warning[w].number) for w in _BAD_VALUE_WARNINGS)
+
+
 @functools.lru_cache(maxsize=8)
 def _model(body, physics_dt: float) -> mujoco.MjModel:
     return build_model(body, physics_dt, foot="free")
@@ -155,7 +166,14 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
             i = k * substeps + j
             push = push_wrench(data, upper, force, sc.push_body) if i < n_push else 0.0
             data.xfrc_applied[upper] = push
+            warned = _bad_value_warnings(data)
             mujoco.mj_step(model, data)
+            if _bad_value_warnings(data) > warned:
+                # MuJoCo met a NaN/Inf/huge value and reset the data to the model's initial
+                # state: what follows would be a fresh start from rest, not this scenario.
+                diverged = True
+                stop = True
+                break
             # positions at t = (i+1) dt; contacts/forces stay those of step i
             mujoco.mj_kinematics(model, data)
             mujoco.mj_comPos(model, data)

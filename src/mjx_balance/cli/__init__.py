@@ -191,6 +191,12 @@ def _common(p: argparse.ArgumentParser, out_required: bool = True,
     p.add_argument("--out", type=out_type, required=out_required, default=None, help=out_help)
 
 
+def _yes(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--yes", action="store_true",
+                   help="run even when the planned work is beyond the limit (2,000,000 scenarios "
+                        "or an estimated 24 h on a 2-core CPU)")
+
+
 def _bench_pipeline_arguments(p: argparse.ArgumentParser) -> None:
     """Options of ``mjx-balance bench`` (the pipeline benchmark)."""
     p.add_argument("--scenarios", type=positive_int, default=64,
@@ -255,6 +261,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="scenarios per chunk (default: from memory budget)")
     p.add_argument("--reference", type=input_file, default=None,
                    help="CSV of points (force, duration) to draw over the map")
+    _yes(p)
     _common(p)
     p.set_defaults(target="mjx_balance.cli.sweep:sweep_command")
 
@@ -264,6 +271,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "else the study's 5,10,15,20,30,40,50,60,80,100,120)")
     p.add_argument("--sweep", type=input_file, default=None,
                    help="sweep definition TOML (see sweeps/)")
+    _yes(p)
     _common(p)
     p.set_defaults(target="mjx_balance.cli.sweep:table_command")
 

@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import errno
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Any, Callable
 
+import numpy as np
 import pandas as pd
 
 from .. import region_plots
@@ -21,6 +23,9 @@ from ..params import Config, with_convention
 from ..sweep import (DEFAULT_SWEEP, MANIFEST, STUDY_TABLE_FORCES, TABLE, LazyBatch,
                      SweepResult, check_durations, load_sweep, parse_grid, run_sweep, run_table,
                      table_batch_size)
+from ..sweep.acting_time import coarse_steps
+from ..sweep.chunks import check_planned_work, default_chunk_size, planned_work
+from ..sweep.grid import check_cell_count
 from ..sweep.store import folder_lock, readable_png
 from . import base_config
 
@@ -46,9 +51,14 @@ def sweep_command(args: Any) -> int:
     chunk = args.chunk if args.chunk is not None else definition.chunk
     # Check everything before any work.
     forces = parse_grid(forces, "forces")
-    durations = check_durations(parse_grid(durations, "durations"), config.scenario.t_end)
+    durations = check_durations(parse_grid(durations, "durations"), config.scenario.t_end,
+                                physics_dt=config.scenario.physics_dt)
     table_forces = (parse_grid(definition.table_forces, "table_forces")
                     if definition.table_forces is not None else None)
+    n_cells = check_cell_count(forces.size, durations.size)
+    _guard_work(args, config, n_cells, chunk or default_chunk_size(config, n_cells), "cells",
+                extra=(table_forces.size * table_scenarios_per_force(config)
+                       if table_forces is not None else 0))
     reference = region_plots.load_reference(args.reference) if args.reference else None
     if use_default:
         print("no grid given: running the built-in default sweep "
@@ -83,14 +93,34 @@ def table_command(args: Any) -> int:
     else:
         forces = list(STUDY_TABLE_FORCES)
     forces = parse_grid(forces, "forces")
+    batch = table_batch_size(config, forces.size)
+    _guard_work(args, config, forces.size * table_scenarios_per_force(config), batch,
+                "scenarios (estimated)")
     out = Path(args.out)
 
     def work() -> None:
-        table = run_table(out, config, forces, run_batch=LazyBatch(config),
-                          batch=table_batch_size(config, forces.size))
+        table = run_table(out, config, forces, run_batch=LazyBatch(config), batch=batch)
         _make_table_figure(out, config, force=table is not None)
 
     return _in_folder(out, work)
+
+
+def table_scenarios_per_force(config: Config, resolution: float = 0.01) -> int:
+    """Scenarios the table evaluates per force, at most: its coarse scan, then one bisection of
+    the widest bracket (a planning estimate; resumed or monotone forces need fewer)."""
+    steps = coarse_steps(config.scenario.t_end, resolution)
+    widest = int(max(np.diff(np.concatenate([[0], steps])).max(), 1))
+    return int(steps.size + math.ceil(math.log2(widest)) + 1)
+
+
+def _guard_work(args: Any, config: Config, n_scenarios: int, chunk_size: int, what: str,
+                extra: int = 0) -> None:
+    """Print the planned work; refuse it above the limit unless --yes (before any compile)."""
+    t_end = config.scenario.t_end
+    print(planned_work(n_scenarios, t_end, chunk_size, what)
+          + (f" (+ about {extra:,} table scenarios)" if extra else ""))
+    if not getattr(args, "yes", False):
+        check_planned_work(n_scenarios + extra, t_end, what)
 
 
 def _in_folder(out: Path, work: Callable[[], None]) -> int:

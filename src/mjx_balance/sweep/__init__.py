@@ -20,26 +20,27 @@ The modules, bottom up:
 """
 
 from .acting_time import (COARSE_DURATIONS, TABLE_COLUMNS, Brackets, TableResult,
-                          coarse_brackets, coarse_steps, max_acting_time, refine_round,
-                          run_table, table_batch_size, table_row)
+                          coarse_brackets, coarse_steps, evaluate_cells, max_acting_time,
+                          refine_round, run_table, table_batch_size, table_row)
 from .batch import LazyBatch, RunBatch, default_batch, evaluate, evaluate_batches
 from .chunks import (ACCELERATOR_CHUNK_CAP, CPU_CHUNK_CAP, batch_limit, chunk_slices,
                      default_chunk_size, memory_budget, power_of_two_chunk, scenario_bytes)
 from .definitions import DEFAULT_SWEEP, STUDY_TABLE_FORCES, SweepDefinition, load_sweep
 from .grid import GRID_TOL, check_durations, describe, grid_cells, parse_grid, same_values
 from .region import SweepResult, check_region, run_sweep
-from .store import (MANIFEST, REGION, TABLE, TABLE_RUNS, OutputFolder, chunk_path,
-                    merge_chunks, read_chunk, write_atomic, write_parquet, write_text)
+from .store import (MANIFEST, REGION, TABLE, TABLE_CELLS, TABLE_RUNS, OutputFolder, TableCells,
+                    chunk_path, manifest_problem, merge_chunks, read_chunk, write_atomic,
+                    write_parquet, write_text)
 
 __all__ = [
     "ACCELERATOR_CHUNK_CAP", "Brackets", "COARSE_DURATIONS", "CPU_CHUNK_CAP", "DEFAULT_SWEEP",
     "GRID_TOL", "LazyBatch", "MANIFEST", "OutputFolder", "REGION", "RunBatch",
-    "STUDY_TABLE_FORCES", "SweepDefinition", "SweepResult", "TABLE", "TABLE_COLUMNS",
-    "TABLE_RUNS", "TableResult", "batch_limit", "check_durations", "check_region",
-    "chunk_path", "chunk_slices", "coarse_brackets", "coarse_steps", "default_batch",
-    "default_chunk_size", "describe", "evaluate", "evaluate_batches", "grid_cells",
-    "load_sweep", "max_acting_time", "memory_budget", "merge_chunks", "parse_grid",
-    "power_of_two_chunk", "read_chunk", "refine_round", "run_sweep", "run_table",
-    "same_values", "scenario_bytes", "table_batch_size", "table_row", "write_atomic",
-    "write_parquet", "write_text",
+    "STUDY_TABLE_FORCES", "SweepDefinition", "SweepResult", "TABLE", "TABLE_CELLS",
+    "TABLE_COLUMNS", "TABLE_RUNS", "TableCells", "TableResult", "batch_limit",
+    "check_durations", "check_region", "chunk_path", "chunk_slices", "coarse_brackets",
+    "coarse_steps", "default_batch", "default_chunk_size", "describe", "evaluate",
+    "evaluate_batches", "evaluate_cells", "grid_cells", "load_sweep", "manifest_problem",
+    "max_acting_time", "memory_budget", "merge_chunks", "parse_grid", "power_of_two_chunk",
+    "read_chunk", "refine_round", "run_sweep", "run_table", "same_values", "scenario_bytes",
+    "table_batch_size", "table_row", "write_atomic", "write_parquet", "write_text",
 ]

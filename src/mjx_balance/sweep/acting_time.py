@@ -6,7 +6,9 @@ batch brackets it and checks that recovery is monotone in duration (:func:`coars
 then rounds that each evaluate one midpoint per force, all forces in one batch, shrink every
 bracket to one ``resolution`` step (:func:`refine_round`). Given a fixed batch size (the
 commands use one), each round evaluates several points per bracket instead (k-section), so
-every call has that size. :func:`run_table` writes the table into a sweep folder.
+every call has that size. :func:`run_table` writes the table into a sweep folder, keeping
+every scenario as its batch call returns (``store.TableCells``), so that a rerun, or a table
+over other forces, runs only the cells it has not seen.
 """
 
 from __future__ import annotations
@@ -23,10 +25,11 @@ import pandas as pd
 from ..outcomes import NOT_SETTLED, OUTCOMES, RECOVERED
 from ..params import Config, ParameterError
 from .batch import LazyBatch, RunBatch, evaluate, evaluate_batches
-from .chunks import batch_limit
+from .chunks import batch_limit, chunk_slices
 from .grid import GRID_TOL, describe, parse_grid, same_values
 from .progress import NoBar, progress_bar
-from .store import TABLE, TABLE_RUNS, OutputFolder, write_atomic, write_parquet
+from .store import (TABLE, TABLE_RUNS, OutputFolder, TableCells, folder_lock, write_atomic,
+                    write_parquet)
 
 # Coarse scan of the table: durations [s] tried for every force before bisecting. 0.1 s is
 # always included (the table reports the energies there); t_end is added.
@@ -74,7 +77,8 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
                     run_batch: RunBatch | None = None, resolution: float = 0.01,
                     coarse: Iterable[float] = COARSE_DURATIONS, batch: int | None = None,
                     points_per_round: int | None = None, progress: bool = True,
-                    log: Callable[[str], None] | None = print) -> TableResult:
+                    log: Callable[[str], None] | None = print,
+                    cells: TableCells | None = None) -> TableResult:
     """Max acting time of every force (SPEC §4): the largest T, a multiple of ``resolution`` in
     [0, t_end], such that the push (F, T) recovers and so does every duration tried below it.
 
@@ -94,6 +98,10 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
     rollout compiles one function for the whole table; points_per_round then defaults to
     max(1, batch // n_f). Without it, the coarse scan is one call of n_f * n_coarse and every
     round one call of n_f * points_per_round (default 1: bisection).
+
+    cells: scenarios already evaluated (a folder's ``table_runs/``): a cell found there is read
+    back, not run; the batch function runs only the others (in calls of the same sizes), and
+    each call's rows are added to it as the call returns. The result is the same.
 
     A force whose shortest push (one resolution step) fails gets max_acting_time 0; one that
     recovers up to t_end gets t_end and no ending outcome. The energies "_01" are at T = 0.1 s
@@ -126,9 +134,9 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
     bar = progress_bar(n_f * (n_c + rounds * points_per_round), 0, progress)
     runs: list[pd.DataFrame] = []
     try:
-        coarse_frame = evaluate_batches(run_batch, np.repeat(forces, n_c),
-                                        np.round(np.tile(steps * resolution, n_f), 12),
-                                        config, batch)
+        coarse_frame = evaluate_cells(run_batch, np.repeat(forces, n_c),
+                                      np.round(np.tile(steps * resolution, n_f), 12),
+                                      config, batch, None, cells)
         runs.append(coarse_frame)
         bar.update(n_f * n_c)
         brackets = coarse_brackets(coarse_frame, steps, n_max)
@@ -136,7 +144,7 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
             if not brackets.active().size:
                 break
             frame = refine_round(brackets, forces, run_batch, config, batch, resolution,
-                                 points_per_round)
+                                 points_per_round, cells)
             runs.append(frame)
             bar.update(len(frame))
         else:  # pragma: no cover - the bracket halves every round
@@ -205,8 +213,27 @@ def coarse_brackets(coarse_frame: pd.DataFrame, steps: np.ndarray, n_max: int) -
     return b
 
 
+def evaluate_cells(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarray,
+                   config: Config, batch: int | None, pad_to: int | None,
+                   cells: TableCells | None) -> pd.DataFrame:
+    """Summary rows of the scenarios, in order: in calls of exactly ``batch`` (padded) if
+    given, else one call padded to ``pad_to``. With ``cells``, only the scenarios it lacks are
+    run (in calls of those sizes), each call's rows are kept there as it returns, and every row
+    is read back from it (so a resumed table is built from the same values as a whole one)."""
+    if cells is None:
+        return (evaluate_batches(run_batch, forces, durations, config, batch) if batch
+                else evaluate(run_batch, forces, durations, config, pad_to=pad_to))
+    todo = cells.missing(forces, durations)
+    for part in (chunk_slices(todo.size, batch) if batch else [slice(0, todo.size)]):
+        if todo[part].size:
+            cells.add(evaluate(run_batch, forces[todo[part]], durations[todo[part]], config,
+                               pad_to=batch or pad_to))
+    return cells.frame(forces, durations)
+
+
 def refine_round(b: Brackets, forces: np.ndarray, run_batch: RunBatch, config: Config,
-                 batch: int | None, resolution: float, points_per_round: int) -> pd.DataFrame:
+                 batch: int | None, resolution: float, points_per_round: int,
+                 cells: TableCells | None = None) -> pd.DataFrame:
     """One round of bisection (k-section for points_per_round = k > 1): evaluate k points
     inside each active bracket, all forces in one batch of the fixed size n_f * k (or calls of
     ``batch``); each bracket shrinks to the gap around its first failing point. Updates ``b``
@@ -220,9 +247,8 @@ def refine_round(b: Brackets, forces: np.ndarray, run_batch: RunBatch, config: C
         points += split.tolist()
     owner, points = np.asarray(owner), np.asarray(points, dtype=np.int64)
     durations = np.round(points * resolution, 12)
-    frame = (evaluate_batches(run_batch, forces[owner], durations, config, batch)
-             if batch else evaluate(run_batch, forces[owner], durations, config,
-                                    pad_to=forces.size * k_points))
+    frame = evaluate_cells(run_batch, forces[owner], durations, config, batch,
+                           forces.size * k_points, cells)
     ok = frame["outcome"].to_numpy() == OUTCOMES[RECOVERED]
     rows = frame.to_dict("records")
     for i in np.unique(owner):
@@ -292,16 +318,30 @@ def _get(row: dict | None, key: str) -> float:
 def run_table(out: str | Path, config: Config, forces: np.ndarray | str | Sequence[float], *,
               run_batch: RunBatch | None = None, progress: bool = True,
               log: Callable[[str], None] | None = print, **options: Any) -> TableResult | None:
-    """``max_acting_time`` into ``out/table.csv`` (+ table_runs.parquet, every scenario run).
+    """``max_acting_time`` into ``out/table.csv`` (+ table_runs.parquet, every scenario run),
+    under the folder's lock (``store.folder_lock``).
 
+    Every scenario is kept in ``out/table_runs/`` as its batch call returns: an interrupted
+    table resumes from them, and a table over other forces reuses the cells they share.
     Returns None (and does nothing) when the folder already holds the table for these forces.
     """
-    say = log or (lambda _msg: None)
     forces = parse_grid(forces, "table forces")
+    with folder_lock(out):
+        return _run_table(out, config, forces, run_batch, progress, log, options)
+
+
+def _run_table(out: str | Path, config: Config, forces: np.ndarray, run_batch: RunBatch | None,
+               progress: bool, log: Callable[[str], None] | None,
+               options: dict[str, Any]) -> TableResult | None:
+    say = log or (lambda _msg: None)
     folder = OutputFolder(out, config)
     manifest = folder.open()
     recorded = manifest.get("table")
     table_path = folder.path / TABLE
+    if folder.rebuilt:
+        say(f"note: {folder.path} had lost its manifest; rebuilt it: config.toml matches this run"
+            + (f" and table.csv holds forces {describe(recorded['forces'])}" if recorded else ""))
+        folder.write_manifest(manifest)
     if recorded is not None and same_values(recorded["forces"], forces) and table_path.exists():
         try:
             done = pd.read_csv(table_path)
@@ -311,9 +351,14 @@ def run_table(out: str | Path, config: Config, forces: np.ndarray | str | Sequen
         except Exception:  # noqa: BLE001 - recompute a damaged table
             pass
     if recorded is not None and not same_values(recorded["forces"], forces):
-        say(f"replacing the table for forces {describe(recorded['forces'])} in {folder.path}")
+        say(f"replacing the table for forces {describe(recorded['forces'])} in {folder.path} "
+            "(reusing the scenarios they share)")
+    cells = TableCells(folder.path, config.controller.convention)
+    if cells.rows:
+        say(f"table: {len(cells.rows)} scenarios already evaluated in {cells.path}; "
+            "running only the others")
     result = max_acting_time(forces, config, run_batch=run_batch, progress=progress, log=log,
-                             **options)
+                             cells=cells, **options)
     write_parquet(result.runs, folder.path / TABLE_RUNS)
     write_atomic(table_path, lambda tmp: result.table.to_csv(tmp, index=False))
     manifest = folder.read_manifest() or manifest

@@ -89,3 +89,37 @@ def chunk_slices(n_cells: int, chunk_size: int) -> list[slice]:
     if chunk_size < 1:
         raise ParameterError(f"chunk size must be >= 1, got {chunk_size}")
     return [slice(i, min(i + chunk_size, n_cells)) for i in range(0, n_cells, chunk_size)]
+
+
+# The guard on enormous work (issue 11). The rate is the batched path's throughput measured on
+# the 2-core CPU of this project: 13-17 scenarios of 12 s per second with two host devices
+# (BENCHMARKS.md, `mjx-balance bench`), i.e. about 160-200 simulated seconds per second.
+# A GPU is far faster (the time estimate is then pessimistic: pass --yes).
+SIMULATED_SECONDS_PER_SECOND = (13 * 12.0, 17 * 12.0)
+# Disk per scenario in a chunk file: a 64-row chunk parquet of the default sweep is 23 kB
+# (365 bytes a row; the merged region.parquet holds the same rows again).
+CHUNK_BYTES_PER_SCENARIO = 400
+MAX_PLANNED_SCENARIOS = 2_000_000  # more than this needs --yes
+MAX_PLANNED_HOURS = 24.0  # an estimate (at the slower rate) beyond this needs --yes
+
+
+def planned_work(n_scenarios: int, t_end: float, chunk_size: int, what: str = "cells") -> str:
+    """One line: scenarios, chunks, simulated time, estimated wall time and disk."""
+    simulated = n_scenarios * t_end
+    longest, shortest = (simulated / rate / 3600 for rate in SIMULATED_SECONDS_PER_SECOND)
+    disk = 2 * n_scenarios * CHUNK_BYTES_PER_SCENARIO  # chunks + the merged table
+    return (f"planned work: {n_scenarios:,} {what} in {math.ceil(n_scenarios / chunk_size):,} "
+            f"chunks of {chunk_size}, {simulated:,.0f} simulated s, about {shortest:,.2f}-{longest:,.2f} h "
+            f"at {SIMULATED_SECONDS_PER_SECOND[0]:g}-{SIMULATED_SECONDS_PER_SECOND[1]:g} "
+            f"simulated s/s (2-core CPU, BENCHMARKS.md), about {disk / 1e6:.3g} MB on disk")
+
+
+def check_planned_work(n_scenarios: int, t_end: float, what: str = "cells") -> None:
+    """Refuse work above MAX_PLANNED_SCENARIOS or MAX_PLANNED_HOURS (ParameterError, one line
+    saying how to go ahead anyway: --yes)."""
+    hours = n_scenarios * t_end / SIMULATED_SECONDS_PER_SECOND[0] / 3600
+    if n_scenarios > MAX_PLANNED_SCENARIOS or hours > MAX_PLANNED_HOURS:
+        raise ParameterError(
+            f"{n_scenarios:,} {what} of {t_end:g} s (up to {hours:,.1f} h on a 2-core CPU) is "
+            f"beyond the limit of {MAX_PLANNED_SCENARIOS:,} {what} or {MAX_PLANNED_HOURS:g} h; "
+            "use a coarser grid, or pass --yes to run it anyway")

@@ -73,8 +73,42 @@ def _parse_range(text: str, name: str) -> list[float]:
     return [float(v) for v in np.round(values, 12)]
 
 
-def check_durations(durations: np.ndarray, t_end: float, name: str = "durations") -> np.ndarray:
-    """Durations must lie in [0, t_end] (t_end = scenario.t_end); returns them unchanged."""
+STEP_TOL = 1e-6  # how far from a whole number of physics steps a duration may sit (in steps)
+
+
+def check_whole_steps(durations: Sequence[float], physics_dt: float,
+                      name: str = "durations") -> np.ndarray:
+    """Durations must be whole numbers of physics steps (the push acts for whole steps, so any
+    other value would be rounded silently), up to float error (STEP_TOL steps); returns them
+    snapped to the whole steps (0.10000000001 -> 0.1 at 0.002 s), sorted as given.
+
+    Raises ParameterError naming the first offending value and its two nearest valid values, or
+    a value that appears twice once snapped.
+    """
+    durations = np.asarray(durations, dtype=np.float64)
+    steps = durations / physics_dt
+    off = np.abs(steps - np.round(steps)) > STEP_TOL
+    if np.any(off):
+        bad = float(durations[off][0])
+        below = math.floor(bad / physics_dt) * physics_dt
+        raise ParameterError(
+            f"{name}: push duration {bad!r} s is not a whole number of physics steps "
+            f"(scenario.physics_dt = {physics_dt:g} s); nearest valid values: "
+            f"{round(below, 12):g} or {round(below + physics_dt, 12):g} s")
+    snapped = np.round(np.round(steps) * physics_dt, 12)
+    values, counts = np.unique(snapped, return_counts=True)
+    if np.any(counts > 1):
+        raise ParameterError(f"{name}: push duration {values[counts > 1][0]:g} s appears more "
+                             "than once (up to float error)")
+    return snapped
+
+
+def check_durations(durations: np.ndarray, t_end: float, name: str = "durations",
+                    physics_dt: float | None = None) -> np.ndarray:
+    """Durations must lie in [0, t_end] (t_end = scenario.t_end) and, given physics_dt, be whole
+    physics steps (check_whole_steps: then returned snapped to them); returns them."""
+    if physics_dt is not None:
+        durations = check_whole_steps(durations, physics_dt, name)
     if np.any(durations < 0):
         raise ParameterError(f"{name}: push durations must be >= 0, got {durations.min():g}")
     if np.any(durations > t_end + GRID_TOL):
@@ -84,8 +118,23 @@ def check_durations(durations: np.ndarray, t_end: float, name: str = "durations"
     return durations
 
 
+MAX_CELLS = 100_000_000  # cells of one grid, even with --yes: its cell arrays alone are 1.6 GB
+
+
+def check_cell_count(n_forces: int, n_durations: int) -> int:
+    """The number of cells of a grid, refused (ParameterError) above MAX_CELLS before any array
+    of cells is built."""
+    n_cells = int(n_forces) * int(n_durations)
+    if n_cells > MAX_CELLS:
+        raise ParameterError(
+            f"{n_forces:,} forces x {n_durations:,} durations = {n_cells:,} cells is more than "
+            f"one grid may hold ({MAX_CELLS:,}); use coarser steps")
+    return n_cells
+
+
 def grid_cells(forces: np.ndarray, durations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """All (force, duration) cells, force-major: [F0 d0, F0 d1, ..., F1 d0, ...]."""
+    check_cell_count(np.size(forces), np.size(durations))
     f, d = np.meshgrid(forces, durations, indexing="ij")
     return f.ravel(), d.ravel()
 

@@ -66,7 +66,8 @@ def run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np
     size it was started with.
     """
     forces = parse_grid(forces, "forces")
-    durations = check_durations(parse_grid(durations, "durations"), config.scenario.t_end)
+    durations = check_durations(parse_grid(durations, "durations"), config.scenario.t_end,
+                                physics_dt=config.scenario.physics_dt)
     with folder_lock(out):
         return _run_sweep(out, config, forces, durations, run_batch, chunk_size, progress, log)
 

@@ -14,6 +14,10 @@ streams the chunks into ``DIR/region.parquet`` one at a time (:func:`merge_chunk
 One run at a time per folder: :func:`folder_lock` holds an exclusive ``flock`` on
 ``DIR/.lock`` (which names the holder's PID and start time) and a second run is refused at once
 (:class:`FolderBusy`).
+
+The table keeps every scenario it evaluates in ``DIR/table_runs/part-NNNNN.parquet``, one file
+per batch call, written as the call returns (:class:`TableCells`): a rerun, or a table over
+other forces in the same folder, reads them back instead of running them again.
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ MANIFEST = "manifest.json"
 REGION = "region.parquet"
 TABLE = "table.csv"
 TABLE_RUNS = "table_runs.parquet"
+TABLE_CELLS = "table_runs"  # folder: the table's evaluated scenarios, one file per batch call
 CONFIG = "config.toml"
 LOCK = ".lock"
 
@@ -216,10 +221,15 @@ class OutputFolder:
         if not self.manifest_path.exists():
             return None
         try:
-            return json.loads(self.manifest_path.read_text())
-        except (OSError, json.JSONDecodeError) as exc:
+            manifest = json.loads(self.manifest_path.read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise ParameterError(f"{self.manifest_path}: unreadable manifest ({exc}); "
                                  "use another --out folder") from None
+        problem = manifest_problem(manifest)
+        if problem:
+            raise ParameterError(f"{self.manifest_path}: not a manifest of this package "
+                                 f"({problem}); use another --out folder")
+        return manifest
 
     def open(self) -> dict[str, Any]:
         """Create the folder or check that it was made with this configuration (under the
@@ -229,15 +239,20 @@ class OutputFolder:
 
     def _open(self) -> dict[str, Any]:
         # Leftovers of a run that ended while writing: no other run holds the folder now.
-        for stale in [*self.path.glob(".*.tmp"), *self.path.glob("chunks/.*.tmp")]:
+        for stale in [*self.path.glob(".*.tmp"), *self.path.glob("chunks/.*.tmp"),
+                      *self.path.glob(f"{TABLE_CELLS}/.*.tmp")]:
             stale.unlink(missing_ok=True)
         manifest = self.read_manifest()
         config = config_dict(self.config)
         if manifest is None:
             manifest = {"package": "mjx_balance", "version": __version__, "config": config}
-            if any(self.path.glob("*.parquet")) or (self.path / "chunks").exists():
+            if (any(self.path.glob("*.parquet")) or (self.path / "chunks").exists()
+                    or (self.path / TABLE_CELLS).exists()):
                 self._check_lost_manifest(config)
                 self.rebuilt = True
+                table = self._lost_table_record()
+                if table is not None:
+                    manifest["table"] = table
                 return manifest
             self.write_manifest(manifest)
             write_text(dumps_config(self.config), self.path / CONFIG)
@@ -272,8 +287,111 @@ class OutputFolder:
                 "Differences: " + "; ".join(differences[:6])
                 + (" ..." if len(differences) > 6 else ""))
 
+    def _lost_table_record(self) -> dict[str, Any] | None:
+        """The table's record for a rebuilt manifest: the forces of a table.csv that reads back
+        whole, next to its table_runs.parquet (else None: the table is made again, from the
+        scenarios kept in table_runs/)."""
+        if not (self.path / TABLE_RUNS).exists():
+            return None
+        try:
+            forces = pd.read_csv(self.path / TABLE)["force"].to_numpy(dtype=np.float64)
+        except Exception:  # noqa: BLE001 - no usable table: no record
+            return None
+        if forces.size == 0 or not np.isfinite(forces).all():
+            return None
+        return {"forces": forces.tolist()}
+
     def write_manifest(self, manifest: dict[str, Any]) -> None:
         write_text(json.dumps(manifest, indent=2) + "\n", self.manifest_path)
+
+
+# What a manifest must hold: its sections and, in each, the keys a run reads.
+MANIFEST_KEYS = {"region": ("forces", "durations", "chunk_size"), "table": ("forces",)}
+
+
+def manifest_problem(manifest: Any) -> str:
+    """What is wrong with a manifest read from JSON ("" if nothing): it is an object, its
+    configuration an object, and its region and table records objects with their keys (grids
+    as lists of numbers, a whole chunk size >= 1)."""
+    if not isinstance(manifest, dict):
+        return f"a JSON {type(manifest).__name__}, not an object"
+    if not isinstance(manifest.get("config", {}), dict):
+        return "'config' is not an object"
+    for section, keys in MANIFEST_KEYS.items():
+        record = manifest.get(section)
+        if record is None:
+            continue
+        if not isinstance(record, dict):
+            return f"'{section}' is not an object"
+        missing = [key for key in keys if key not in record]
+        if missing:
+            return f"'{section}' lacks {', '.join(repr(k) for k in missing)}"
+        for key in ("forces", "durations")[:len(keys)]:
+            values = record[key]
+            if not (isinstance(values, list) and values and all(
+                    isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)):
+                return f"'{section}.{key}' is not a list of numbers"
+        size = record.get("chunk_size", 1)
+        if isinstance(size, bool) or not isinstance(size, int) or size < 1:
+            return f"'{section}.chunk_size' is not a whole number >= 1"
+    return ""
+
+
+class TableCells:
+    """The table's evaluated scenarios, kept in ``DIR/table_runs/``: each batch call's summary
+    rows in one parquet file ``part-NNNNN.parquet``, written atomically as the call returns.
+    A cell is a (force, duration) pair; a file that does not read back whole, or holds rows of
+    another convention, is ignored (its cells are run again)."""
+
+    def __init__(self, folder: str | Path, convention: str):
+        self.path = Path(folder) / TABLE_CELLS
+        self.convention = convention
+        self.rows: dict[tuple[float, float], dict[str, Any]] = {}
+        self.parts = 0
+        self.dtypes: pd.Series | None = None
+        for part in sorted(self.path.glob("part-*.parquet")):
+            self.parts = max(self.parts, int(part.stem.split("-")[1]) + 1)
+            try:
+                frame = pd.read_parquet(part)
+            except Exception:  # noqa: BLE001 - a damaged part is run again
+                continue
+            if ([c for c in SUMMARY_COLUMNS if c not in frame]
+                    or not set(frame["outcome"]) <= set(OUTCOMES)
+                    or not (frame["convention"] == convention).all()):
+                continue
+            self._remember(frame)
+
+    @staticmethod
+    def key(force: float, duration: float) -> tuple[float, float]:
+        return (round(float(force), 9), round(float(duration), 9))
+
+    def _remember(self, frame: pd.DataFrame) -> None:
+        if self.dtypes is None:
+            self.dtypes = frame.dtypes
+        for row in frame.to_dict("records"):
+            self.rows[self.key(row["force"], row["duration"])] = row
+
+    def missing(self, forces: np.ndarray, durations: np.ndarray) -> np.ndarray:
+        """Indices of the cells not kept yet."""
+        return np.array([i for i, (f, d) in enumerate(zip(forces, durations))
+                         if self.key(f, d) not in self.rows], dtype=np.int64)
+
+    def add(self, frame: pd.DataFrame) -> None:
+        """Keep a batch call's rows: written to their part file, then remembered."""
+        if frame.empty:
+            return
+        self.path.mkdir(parents=True, exist_ok=True)
+        write_parquet(frame, self.path / f"part-{self.parts:05d}.parquet")
+        self.parts += 1
+        self._remember(frame)
+
+    def frame(self, forces: np.ndarray, durations: np.ndarray) -> pd.DataFrame:
+        """The kept rows of these cells, in order (every cell must be kept), with the values
+        of force and duration asked for."""
+        rows = [{**self.rows[self.key(f, d)], "force": float(f), "duration": float(d)}
+                for f, d in zip(forces, durations)]
+        frame = pd.DataFrame(rows, columns=list(self.dtypes.index))
+        return frame.astype(self.dtypes.to_dict())
 
 
 def chunk_path(folder: Path, index: int) -> Path:
