@@ -103,15 +103,25 @@ MAX_PLANNED_SCENARIOS = 2_000_000  # more than this needs --yes
 MAX_PLANNED_HOURS = 24.0  # an estimate (at the slower rate) beyond this needs --yes
 
 
+def _wall_time(seconds: float) -> str:
+    """A duration in the unit that reads best (s, min or h)."""
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:,.1f} h"
+
+
 def planned_work(n_scenarios: int, t_end: float, chunk_size: int, what: str = "cells") -> str:
     """One line: scenarios, chunks, simulated time, estimated wall time and disk."""
     simulated = n_scenarios * t_end
-    longest, shortest = (simulated / rate / 3600 for rate in SIMULATED_SECONDS_PER_SECOND)
+    longest, shortest = (simulated / rate for rate in SIMULATED_SECONDS_PER_SECOND)
     disk = 2 * n_scenarios * CHUNK_BYTES_PER_SCENARIO  # chunks + the merged table
+    low, high = SIMULATED_SECONDS_PER_SECOND
     return (f"planned work: {n_scenarios:,} {what} in {math.ceil(n_scenarios / chunk_size):,} "
-            f"chunks of {chunk_size}, {simulated:,.0f} simulated s, about {shortest:,.2f}-{longest:,.2f} h "
-            f"at {SIMULATED_SECONDS_PER_SECOND[0]:g}-{SIMULATED_SECONDS_PER_SECOND[1]:g} "
-            f"simulated s/s (2-core CPU, BENCHMARKS.md), about {disk / 1e6:.3g} MB on disk")
+            f"chunks of {chunk_size}, {simulated:,.0f} simulated s, about "
+            f"{_wall_time(shortest)} to {_wall_time(longest)} at {low:g}-{high:g} simulated s/s "
+            f"(2-core CPU, BENCHMARKS.md; compile not included), about {disk / 1e6:.3g} MB on disk")
 
 
 def check_planned_work(n_scenarios: int, t_end: float, what: str = "cells") -> None:
