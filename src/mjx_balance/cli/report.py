@@ -9,6 +9,7 @@ from typing import Any
 
 from ..params import CONVENTIONS, ParameterError
 from ..report import PLANS, REPORT_JSON, build_report, run_report, selected_studies
+from ..report.run import read_record
 from . import load_run_config
 
 
@@ -22,8 +23,8 @@ def report_command(args: Any) -> int:
                             study_list=selected_studies(args.studies), conventions=conventions,
                             sweeps=Path(args.sweeps) if args.sweeps else None)
         print(f"tables saved in {out} ({record['seconds']:.0f} s)", file=sys.stderr)
-    elif not (out / REPORT_JSON).exists():
-        raise ParameterError(f"--html-only: {out / REPORT_JSON} not found (run the report first)")
+    else:  # check the record before build_report creates anything
+        read_record(out / REPORT_JSON)
     path = build_report(out)
     print(f"wrote {path}")
     return 0

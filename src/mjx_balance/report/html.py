@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import base64
 import html
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,7 +21,7 @@ import pandas as pd
 from .. import studies
 from ..outcomes import OUTCOMES, RECOVERED
 from ..params import Config, config_from_dict, with_convention
-from .run import REPORT_JSON
+from .run import REPORT_JSON, read_record
 
 HTML = "report.html"
 FIGURES = "figures"
@@ -69,7 +68,7 @@ def load_results(out: str | Path) -> dict[str, Any]:
     (their report.json entries), "regions": {variant key: region map}, "numbers"}}}.
     """
     out = Path(out)
-    record = json.loads((out / REPORT_JSON).read_text())
+    record = read_record(out / REPORT_JSON)
     results: dict[str, Any] = {"record": record, "config": config_from_dict(record["config"]),
                                "conventions": {}, "studies": {}}
     for convention in record["conventions"]:
@@ -94,7 +93,7 @@ def load_results(out: str | Path) -> dict[str, Any]:
 
 def sections(out: str | Path) -> list[tuple[str, str]]:
     """(id, heading) of every section of the report in ``out`` (what build_report writes)."""
-    record = json.loads((Path(out) / REPORT_JSON).read_text())
+    record = read_record(Path(out) / REPORT_JSON)
     ids = [("overview", "Overview")]
     for convention in record["conventions"]:
         ids += [(f"timeseries-{convention}", f"1. Time series — {convention} convention"),

@@ -173,13 +173,40 @@ def write_json(path: Path, data: dict) -> None:
     tmp.replace(path)
 
 
+def read_record(path: Path, *, required: bool = True) -> dict:
+    """A report's report.json as a dict: ParameterError (one line naming the file and what to
+    do) when it is missing (if ``required``), unreadable, not a JSON object, or lacks the keys
+    a finished stage writes (config, conventions)."""
+    path = Path(path)
+    if not path.exists():
+        if required:
+            raise ParameterError(f"{path} not found (run the report first)")
+        return {}
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ParameterError(f"{path} is damaged ({type(exc).__name__}); delete it to rerun the "
+                             "report in that folder, or use another --out folder") from None
+    problem = None
+    if not isinstance(record, dict):
+        problem = f"holds a {type(record).__name__}, not an object"
+    elif required and not isinstance(record.get("config"), dict):
+        problem = "has no configuration"
+    elif required and not isinstance(record.get("conventions"), list):
+        problem = "has no list of conventions"
+    if problem:
+        raise ParameterError(f"{path} {problem}; delete it to rerun the report in that folder, "
+                             "or use another --out folder")
+    return record
+
+
 def open_record(out: Path, config: Config, plan: Plan, backend: str,
                 conventions: tuple[str, ...]) -> dict:
     """report.json of ``out`` for this run (the stages already done kept), written with the
     base configuration (config.toml). Raises ParameterError if ``out`` holds a report made with
     another configuration."""
     path = out / REPORT_JSON
-    record = json.loads(path.read_text()) if path.exists() else {}
+    record = read_record(path, required=False)
     if record.get("config") not in (None, config.to_dict()):
         raise ParameterError(f"{out} holds a report made with another configuration; "
                              "use another --out folder")

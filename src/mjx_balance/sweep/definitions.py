@@ -47,11 +47,21 @@ def load_sweep(path: str | Path | None, base: Config) -> SweepDefinition:
         return SweepDefinition(base, **DEFAULT_SWEEP)
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise ParameterError(f"sweep definition not found: {path}") from None
+    except IsADirectoryError:
+        raise ParameterError(f"{path}: a folder, not a sweep definition") from None
+    except UnicodeDecodeError as exc:
+        raise ParameterError(f"{path}: not UTF-8 text (byte {exc.start})") from None
+    except OSError as exc:
+        raise ParameterError(f"{path}: cannot be read ({exc.strerror})") from None
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError(f"{path}: not valid TOML: {exc}") from None
+    for section, values in data.items():
+        if not isinstance(values, dict):
+            raise ParameterError(f"{path}: {section} must be a table ([{section}]), "
+                                 f"got {values!r}")
     sweep = data.pop("sweep", {})
     if not isinstance(sweep, dict):
         raise ParameterError(f"{path}: [sweep] must be a table")
