@@ -2,7 +2,6 @@
 
 import math
 
-import pytest
 
 from mjx_balance.params import Config
 from mjx_balance.reference import simulate_scenario

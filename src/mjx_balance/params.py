@@ -412,23 +412,30 @@ def config_from_dict(data: dict[str, Any]) -> Config:
     return Config(**parts)
 
 
-def load_config(path: str | Path) -> Config:
-    """Load a TOML configuration file; every value not given takes its default."""
+def read_toml(path: str | Path, what: str = "configuration file") -> dict[str, Any]:
+    """The TOML file at ``path`` as a dict; ParameterError naming the file (and ``what`` it
+    should be) when it is missing, a folder, unreadable, not UTF-8 or not valid TOML."""
     path = Path(path)
     try:
         with path.open("rb") as fh:
-            data = tomllib.load(fh)
+            return tomllib.load(fh)
     except FileNotFoundError:
-        raise ParameterError(f"configuration file not found: {path}") from None
+        raise ParameterError(f"{what} not found: {path}") from None
     except IsADirectoryError:
-        raise ParameterError(f"{path}: a folder, not a configuration file") from None
+        raise ParameterError(f"{path}: a folder, not a {what}") from None
     except OSError as exc:
         raise ParameterError(f"{path}: cannot be read ({exc.strerror})") from None
     except UnicodeDecodeError as exc:
-        raise ParameterError(f"{path}: not UTF-8 text (byte {exc.start}); a configuration "
-                             "file is TOML") from None
+        raise ParameterError(f"{path}: not UTF-8 text (byte {exc.start}); a {what} "
+                             "is TOML") from None
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError(f"{path}: not valid TOML: {exc}") from None
+
+
+def load_config(path: str | Path) -> Config:
+    """Load a TOML configuration file; every value not given takes its default."""
+    path = Path(path)
+    data = read_toml(path)
     try:
         return config_from_dict(data)
     except ParameterError as exc:

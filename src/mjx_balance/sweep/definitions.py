@@ -6,12 +6,11 @@ a [sweep] table (forces, durations, table_forces, chunk); the command line overr
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..params import Config, ParameterError
+from ..params import Config, ParameterError, read_toml
 
 # The robustness table of the study (SPEC §6.3).
 STUDY_TABLE_FORCES = (5, 10, 15, 20, 30, 40, 50, 60, 80, 100, 120)
@@ -46,18 +45,7 @@ def load_sweep(path: str | Path | None, base: Config) -> SweepDefinition:
     if path is None:
         return SweepDefinition(base, **DEFAULT_SWEEP)
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ParameterError(f"sweep definition not found: {path}") from None
-    except IsADirectoryError:
-        raise ParameterError(f"{path}: a folder, not a sweep definition") from None
-    except UnicodeDecodeError as exc:
-        raise ParameterError(f"{path}: not UTF-8 text (byte {exc.start})") from None
-    except OSError as exc:
-        raise ParameterError(f"{path}: cannot be read ({exc.strerror})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml(path, "sweep definition")
     for section, values in data.items():
         if not isinstance(values, dict):
             raise ParameterError(f"{path}: {section} must be a table ([{section}]), "
