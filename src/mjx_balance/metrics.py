@@ -83,7 +83,8 @@ def saturation_fractions(u: np.ndarray, limits: Limits) -> tuple[float, float]:
 
 # --- the summary row -----------------------------------------------------------------------
 
-def _increments(initial: np.ndarray, series: np.ndarray) -> np.ndarray:
+def increments(initial: np.ndarray, series: np.ndarray) -> np.ndarray:
+    """Per-sample increments of ``series`` [n, ...] starting from ``initial`` [...]."""
     return np.diff(np.concatenate([np.asarray(initial)[None], series]), axis=0)
 
 
@@ -130,9 +131,9 @@ def summarize(*, force: float, duration: float, convention: str,
                     or not np.isfinite(np.asarray(u_control, float)).all())
 
     limits = Limits.from_params(scenario, controller)
+    excess = outcomes.bound_excess(np, x, limits) if n else np.zeros(0)  # [n]
     flags = outcomes.falls(np, np.asarray(foot_pitch, float), np.asarray(cell_low_z, float),
-                           outcomes.bound_excess(np, x, limits), q[:, 0], limits) if n else \
-        np.zeros(0, bool)
+                           excess, q[:, 0], limits) if n else np.zeros(0, bool)
     fell = bool(flags.any())
     end = int(np.flatnonzero(flags)[0]) + 1 if fell else n  # samples kept: [0, end)
     fall_time = float(time[end - 1]) if fell else math.nan
@@ -146,8 +147,8 @@ def summarize(*, force: float, duration: float, convention: str,
     residual = np.asarray(residual, float)[:n_ctrl]
 
     sl = slice(0, end)
-    dq_step = _increments(q0, q)[sl]
-    dx_step = _increments(x0, x)[sl]
+    dq_step = increments(q0, q)[sl]
+    dx_step = increments(x0, x)[sl]
     tau_k, u_k = tau[sl], u[sl]
     power_ankle = tau_k[:, 0] * dq_step[:, 0]
     power_hip = tau_k[:, 1] * dq_step[:, 1]
@@ -161,7 +162,7 @@ def summarize(*, force: float, duration: float, convention: str,
     com_min, com_max = _finite_min_max(np.asarray(com, float)[sl])
     energy_ankle = float(np.nansum(np.abs(power_ankle)))
     energy_hip = float(np.nansum(np.abs(power_hip)))
-    excess = outcomes.bound_excess(np, x[sl], limits) if end else np.zeros(0)
+    excess = excess[sl]
     excess = excess[np.isfinite(excess)]
     res = residual[np.isfinite(residual)]
     return {

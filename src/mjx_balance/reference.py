@@ -210,24 +210,35 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
     if not record:
         return summary, None
 
-    energy_ankle = np.cumsum(np.abs(tau[sl, 0] * np.diff(np.concatenate([[q0[0]], q[sl, 0]]))))
-    energy_hip = np.cumsum(np.abs(tau[sl, 1] * np.diff(np.concatenate([[q0[1]], q[sl, 1]]))))
-    frame = pd.DataFrame({
+    frame = timeseries_frame(scenario_id, force, duration, ctrl.convention, q0, time[sl],
+                             q[sl], dq[sl], x[sl], foot[sl], u_step[sl], tau[sl], cop[sl],
+                             com[sl])
+    return summary, frame
+
+
+def timeseries_frame(scenario_id: int, force: float, duration: float, convention: str,
+                     q0: np.ndarray, time: np.ndarray, q: np.ndarray, dq: np.ndarray,
+                     x: np.ndarray, foot: np.ndarray, u: np.ndarray, tau: np.ndarray,
+                     cop: np.ndarray, com: np.ndarray) -> pd.DataFrame:
+    """The long time series of one run (TIMESERIES_COLUMNS, one row per sample), with the
+    cumulative joint energies sum |tau dq| from q0. foot: [n, 3] (x, z, pitch)."""
+    n = time.shape[0]
+    energy = np.cumsum(np.abs(tau * metrics.increments(q0, q)), axis=0)
+    return pd.DataFrame({
         "scenario": np.full(n, scenario_id, dtype=np.int64),
         "force": np.full(n, float(force)),
         "duration": np.full(n, float(duration)),
-        "convention": ctrl.convention,
-        "time": time[sl],
-        "q_a": q[sl, 0], "q_h": q[sl, 1], "dq_a": dq[sl, 0], "dq_h": dq[sl, 1],
-        "x1": x[sl, 0], "x2": x[sl, 1], "x3": x[sl, 2], "x4": x[sl, 3],
-        "foot_x": foot[sl, 0], "foot_z": foot[sl, 1], "foot_pitch": foot[sl, 2],
-        "u1": u_step[sl, 0], "u2": u_step[sl, 1],
-        "tau_ankle": tau[sl, 0], "tau_hip": tau[sl, 1],
-        "cop": cop[sl], "com": com[sl],
-        "energy_ankle": energy_ankle, "energy_hip": energy_hip,
-        "energy_total": energy_ankle + energy_hip,
+        "convention": convention,
+        "time": time,
+        "q_a": q[:, 0], "q_h": q[:, 1], "dq_a": dq[:, 0], "dq_h": dq[:, 1],
+        "x1": x[:, 0], "x2": x[:, 1], "x3": x[:, 2], "x4": x[:, 3],
+        "foot_x": foot[:, 0], "foot_z": foot[:, 1], "foot_pitch": foot[:, 2],
+        "u1": u[:, 0], "u2": u[:, 1],
+        "tau_ankle": tau[:, 0], "tau_hip": tau[:, 1],
+        "cop": cop, "com": com,
+        "energy_ankle": energy[:, 0], "energy_hip": energy[:, 1],
+        "energy_total": energy[:, 0] + energy[:, 1],
     }, columns=TIMESERIES_COLUMNS)
-    return summary, frame
 
 
 # --- many scenarios -------------------------------------------------------------------------
