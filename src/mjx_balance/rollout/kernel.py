@@ -235,19 +235,24 @@ def period_update(acc: Accumulators, res: admm_mod.ADMMResult, u: jax.Array,
     )
 
 
-def scenario(ar: Arrays, sn: Sensors, st: Static, force: jax.Array,
-             n_push: jax.Array) -> tuple[Accumulators, dict[str, jax.Array] | None]:
-    """Run one scenario; pure, jit-able (``sn``, ``st`` static). force: [] N; n_push: [] int.
+def initial_carry(ar: Arrays, sn: Sensors, st: Static) -> Carry:
+    """Upright rest, a cold controller, fresh accumulators (every scenario starts here)."""
+    dtype = ar.d0.qpos.dtype
+    q0, dq0 = joints(sn, ar.d0)
+    history0 = jnp.tile(jnp.concatenate([q0, dq0])[None], (st.delay_steps + 1, 1))
+    return Carry(d=ar.d0, warm=admm_mod.initial_warm(ar.qp), history=history0, q_prev=q0,
+                 x_prev=state(ar, q0, dq0), acc=Accumulators.initial(dtype))
 
-    Returns the final accumulators and, with ``st.trajectories``, per-physics-step series
-    (qpos [n, nq], qvel [n, nv], tau [n, 2], u [n, 2], cop [n], com [n]; sample i is at
-    t = (i+1) dt; NaN from the fall sample on, which the reference's series still holds).
+
+def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, force: jax.Array,
+           n_push: jax.Array) -> tuple[Carry, dict[str, jax.Array] | None]:
+    """Control period k of one scenario: the MPC solve, then ``st.substeps`` physics steps.
+
+    Returns the carry and, with ``st.trajectories``, the period's per-step series [S, ...].
     """
     dtype = ar.d0.qpos.dtype
-    force = jnp.asarray(force, dtype)
-    n_push = jnp.asarray(n_push, jnp.int32)
     S = st.substeps
-    zero_warm = admm_mod.initial_warm(ar.qp)
+    rest = initial_carry(ar, sn, st)
 
     def physics_step(carry: Carry, i: jax.Array, torques: jax.Array, u: jax.Array):
         f = jnp.where(i < n_push, force, jnp.zeros((), dtype))
@@ -262,36 +267,48 @@ def scenario(ar: Arrays, sn: Sensors, st: Static, force: jax.Array,
             out = {k: jnp.where(acc.alive, v, jnp.nan).astype(dtype) for k, v in out.items()}
         return carry, out
 
-    q0, dq0 = joints(sn, ar.d0)
-    history0 = jnp.tile(jnp.concatenate([q0, dq0])[None], (st.delay_steps + 1, 1))
+    alive = carry.acc.alive
+    # A dead scenario restarts from rest with a cold controller (see the module docstring).
+    d = _select(alive, carry.d, ar.d0)
+    warm = _select(alive, carry.warm, rest.warm)
+    measured = carry.history[st.delay_steps]
+    x_meas = jnp.where(alive, state(ar, measured[:2], measured[2:]), jnp.zeros(4, dtype))
+    res = admm_mod.admm_solve(ar.qp, x_meas, warm, st.settings)
+    u = res.u0.astype(dtype)
+    torques = ar.torque_map @ u
+    acc = period_update(carry.acc, res, u, torques, st.limits)
+    finite = jnp.isfinite(u).all() & jnp.isfinite(torques).all()
+    u = jnp.where(finite, u, jnp.zeros_like(u))
+    torques = jnp.where(finite, torques, jnp.zeros_like(torques))
+    warm = admm_mod.ADMMWarm(*(w.astype(dtype) for w in res.warm_next))
+    history = jnp.where(alive, carry.history, rest.history)
+    carry = carry._replace(d=d, warm=warm, history=history, acc=acc)
+
+    def sub(c, j):
+        return physics_step(c, k * S + j, torques, u)
+
+    return jax.lax.scan(sub, carry, jnp.arange(S, dtype=jnp.int32))
+
+
+def scenario(ar: Arrays, sn: Sensors, st: Static, force: jax.Array,
+             n_push: jax.Array) -> tuple[Accumulators, dict[str, jax.Array] | None]:
+    """Run one scenario to t_end; pure, jit-able (``sn``, ``st`` static). force: [] N;
+    n_push: [] int.
+
+    Returns the final accumulators and, with ``st.trajectories``, per-physics-step series
+    (qpos [n, nq], qvel [n, nv], tau [n, 2], u [n, 2], cop [n], com [n]; sample i is at
+    t = (i+1) dt; NaN from the fall sample on, which the reference's series still holds).
+    """
+    dtype = ar.d0.qpos.dtype
+    force = jnp.asarray(force, dtype)
+    n_push = jnp.asarray(n_push, jnp.int32)
 
     def control_period(carry: Carry, k: jax.Array):
-        alive = carry.acc.alive
-        # A dead scenario restarts from rest with a cold controller (see the module docstring).
-        d = _select(alive, carry.d, ar.d0)
-        warm = _select(alive, carry.warm, zero_warm)
-        measured = carry.history[st.delay_steps]
-        x_meas = jnp.where(alive, state(ar, measured[:2], measured[2:]), jnp.zeros(4, dtype))
-        res = admm_mod.admm_solve(ar.qp, x_meas, warm, st.settings)
-        u = res.u0.astype(dtype)
-        torques = ar.torque_map @ u
-        acc = period_update(carry.acc, res, u, torques, st.limits)
-        finite = jnp.isfinite(u).all() & jnp.isfinite(torques).all()
-        u = jnp.where(finite, u, jnp.zeros_like(u))
-        torques = jnp.where(finite, torques, jnp.zeros_like(torques))
-        warm = admm_mod.ADMMWarm(*(w.astype(dtype) for w in res.warm_next))
-        history = jnp.where(alive, carry.history, history0)
-        carry = carry._replace(d=d, warm=warm, history=history, acc=acc)
+        return period(ar, sn, st, carry, k, force, n_push)
 
-        def sub(c, j):
-            return physics_step(c, k * S + j, torques, u)
-
-        return jax.lax.scan(sub, carry, jnp.arange(S, dtype=jnp.int32))
-
-    carry = Carry(d=ar.d0, warm=zero_warm, history=history0, q_prev=q0,
-                  x_prev=state(ar, q0, dq0), acc=Accumulators.initial(dtype))
-    carry, series = jax.lax.scan(control_period, carry,
+    carry, series = jax.lax.scan(control_period, initial_carry(ar, sn, st),
                                  jnp.arange(st.n_control, dtype=jnp.int32))
     if series is not None:
+        S = st.substeps
         series = {k: v.reshape((st.n_control * S,) + v.shape[2:]) for k, v in series.items()}
     return carry.acc, series

@@ -56,7 +56,8 @@ class BatchRunner:
     """
 
     def __init__(self, config: Config, *, dtype=jnp.float32, trajectories: bool = False,
-                 mjx_options: dict[str, Any] | None = None, devices: list | None = None):
+                 mjx_options: dict[str, Any] | None = None, devices: list | None = None,
+                 slots: int | None = None, early_stop: bool = True):
         self.config = config
         self.dtype = jnp.dtype(dtype)
         self.trajectories = trajectories
@@ -88,6 +89,34 @@ class BatchRunner:
         self._compiled_fns: dict[int, Any] = {}
         self.compile_seconds: dict[int, float] = {}
         self.last_trajectories: dict[str, np.ndarray] | None = None
+        self._engine_options = dict(slots=slots, early=early_stop)
+        self._engine = None
+        self.last_periods: np.ndarray | None = None  # control periods simulated per scenario
+        self.last_certified: np.ndarray | None = None
+
+    @property
+    def engine(self):
+        """The continuous-batching engine (``engine.py``) that runs scenarios without
+        trajectories."""
+        if self._engine is None:
+            from .engine import Engine
+            self._engine = Engine(self, **self._engine_options)
+        return self._engine
+
+    def is_prepared(self) -> bool:
+        """Whether :meth:`run` would compile nothing."""
+        if self.trajectories:
+            return self.is_compiled(8)
+        return self._engine is not None and self._engine._fn is not None
+
+    def prepare(self) -> float:
+        """Compile what :meth:`run` uses now; returns the seconds it took (0 if done)."""
+        t0 = _time.perf_counter()
+        if self.trajectories:
+            self.compiled(8)
+        else:
+            self.engine.block_fn()
+        return _time.perf_counter() - t0
 
     # -- compilation ----------------------------------------------------------------------
 
@@ -174,9 +203,17 @@ class BatchRunner:
         return forces, durations
 
     def run_raw(self, forces, durations) -> tuple[Accumulators, dict[str, np.ndarray] | None]:
-        """Device results as numpy (accumulators, series), padding removed."""
+        """Device results as numpy (accumulators, series), padding removed.
+
+        Without trajectories the scenarios run on the continuous-batching engine (stopped when
+        decided); with them, every scenario runs to t_end in one batch (padded)."""
         forces, durations = self._inputs(forces, durations)
         n = forces.shape[0]
+        if not self.trajectories:
+            raw = self.engine.run(forces, push_steps(durations, self.config.scenario.physics_dt))
+            self.last_periods = raw.pop("periods").astype(np.int64)
+            self.last_certified = raw.pop("certified").astype(bool)
+            return Accumulators(*(raw[name] for name in Accumulators._fields)), None
         batch = self.padded_batch(n)
         f = np.zeros(batch, np.float64)
         f[:n] = forces

@@ -51,11 +51,10 @@ class LazyBatch:
             say("building the MJX rollout ...")
             self._run = default_batch(self.config)
         runner = getattr(self._run, "__self__", None)
-        if hasattr(runner, "compiled"):  # rollout.BatchRunner: one function per padded size
-            size = runner.padded_batch(batch)
-            if not runner.is_compiled(size):
-                say(f"compiling the rollout for batches of {size} scenarios ...")
-            runner.compiled(size)
+        if hasattr(runner, "prepare"):  # rollout.BatchRunner
+            if not runner.is_prepared():
+                say("compiling the rollout ...")
+            runner.prepare()
         seconds = time.perf_counter() - start
         if seconds > 1:
             say(f"rollout ready ({seconds:.0f} s)")

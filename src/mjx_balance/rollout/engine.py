@@ -1,0 +1,344 @@
+"""Continuous batching: a fixed set of slots, each refilled with the next cell when its scenario
+is decided.
+
+Every device runs ``slots`` scenarios side by side (vmapped :func:`kernel.period`). After each
+control period a slot's scenario is *decided* when it fell or diverged (the fall sample), when it
+reached t_end, or, with early stopping, when its recovery is certified (``certificate.py``).
+A decided slot hands its accumulators to an output buffer, is reset to upright rest with a cold
+controller and takes the next cell of a refill buffer: the auto-reset pattern of batched RL
+simulators with a work queue behind it. All of that happens on the device inside one compiled
+call (:meth:`Engine.block_fn`) that runs ``block`` control periods; between calls the slots stay
+on the device and the host only tops up the refill buffers and collects finished cells, so a
+sweep's slots are never idle until its queue runs dry.
+
+Schedule independence. A cell's result must not depend on its slot, its neighbours, the number
+of cells, the device count or the order of a resumed sweep. Each slot's computation is its own
+lane of a vmap (no value crosses lanes: refill and harvest are gathers and scatters), and the
+compiled program always has ``slots`` lanes per device whatever the work, so only XLA's code for
+one lane position could differ. On the CPU it does unless XLA is told to use the same
+instructions everywhere (:data:`DETERMINISTIC_XLA_FLAGS`, set by :func:`deterministic_flags`
+before JAX starts; tests/test_engine.py checks the result bytes). Results do depend on the slot
+count, which a sweep therefore records.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time as _time
+from typing import Any, Iterator, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import certificate as cert_mod
+from .kernel import Accumulators, Carry, initial_carry, period
+from .physics import whole_body_com
+
+# XLA CPU options under which every lane of a vmapped program computes the same bits whatever
+# its position and the batch size (measured: without them the ADMM's products and the contact
+# solver's reductions differ in the last bits between lanes and between batch sizes; with them
+# the rollout runs as fast, tests/test_engine.py and BENCHMARKS.md).
+DETERMINISTIC_XLA_FLAGS = (
+    "--xla_cpu_strict_dot_conv_math=true",
+    "--xla_cpu_enable_platform_dependent_math=false",
+    "--xla_cpu_use_fusion_emitters=false",
+    "--xla_cpu_prefer_vector_width=128",
+)
+
+
+def deterministic_flags() -> bool:
+    """Add :data:`DETERMINISTIC_XLA_FLAGS` to XLA_FLAGS if JAX has not started a backend yet.
+
+    Returns whether they are in effect (False when JAX was already running without them)."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    missing = [f for f in DETERMINISTIC_XLA_FLAGS if f.split("=")[0] not in flags]
+    if not missing:
+        return True
+    if _backend_started():
+        return False
+    os.environ["XLA_FLAGS"] = " ".join([flags, *missing]).strip()
+    return True
+
+
+def _backend_started() -> bool:
+    if "jax" not in sys.modules:
+        return False
+    try:
+        from jax._src import xla_bridge
+        return bool(xla_bridge._backends)  # noqa: SLF001 - no public "is initialised" query
+    except Exception:  # noqa: BLE001 - assume started
+        return True
+
+
+def default_slots(platform: str) -> int:
+    """Slots per device: 32 on a CPU (the fastest per scenario measured on 2 cores, batch 16-64:
+    BENCHMARKS.md), 4096 on an accelerator."""
+    return 32 if platform == "cpu" else 4096
+
+
+class Slots(NamedTuple):
+    """The scenarios in flight, one per slot (leading axis: slots of every device)."""
+
+    carry: Carry
+    cell: jax.Array  # int32 cell index, -1: vacant
+    force: jax.Array
+    n_push: jax.Array  # int32
+    k: jax.Array  # int32 control periods done
+
+
+class Finished(NamedTuple):
+    """Scenarios decided during one call (leading axis: buffer entries of every device)."""
+
+    cell: jax.Array  # int32, -1: unused entry
+    acc: Accumulators
+    periods: jax.Array  # int32 control periods simulated
+    certified: jax.Array  # bool: stopped by the certificate
+
+
+def _select(pred, a, b):
+    return jax.tree.map(lambda u, v: jnp.where(pred.reshape(pred.shape + (1,) * (u.ndim - 1)),
+                                               u, v), a, b)
+
+
+def _broadcast(tree, n):
+    return jax.tree.map(lambda v: jnp.broadcast_to(v, (n,) + jnp.shape(v)), tree)
+
+
+def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push, *,
+          periods: int, early: bool):
+    """``periods`` control periods of one device's slots with refill and harvest (pure JAX).
+
+    refill_*: [R] the next cells for this device (cell -1: none). Returns the slots, the number
+    of refill cells taken [1] and the finished buffer [slots + R].
+    """
+    S = slots.cell.shape[0]
+    R = refill_cell.shape[0]
+    dtype = ar.d0.qpos.dtype
+    capacity = S + R
+    n_control = st.n_control
+    rest = _broadcast(initial_carry(ar, sn, st), S)
+    run = jax.vmap(lambda c, k, f, n: period(ar, sn, st, c, k, f, n)[0])
+    if early and cert is not None:
+        decided_rule = jax.vmap(lambda x, acc, over: cert_mod.certified(jnp, cert, x, acc, over))
+        tail_rule = jax.vmap(lambda x: cert_mod.tail_integrals(jnp, cert, x))
+    else:
+        decided_rule = tail_rule = None
+
+    def step(state, _):
+        slots, taken, done, n_done = state
+        # 1. vacant slots take the next refill cells, in slot order
+        vacant = slots.cell < 0
+        rank = taken + jnp.cumsum(vacant) - 1
+        source = jnp.clip(rank, 0, R - 1)
+        take = vacant & (rank < R) & (refill_cell[source] >= 0)
+        slots = Slots(
+            carry=_select(take, rest, slots.carry),
+            cell=jnp.where(take, refill_cell[source], slots.cell),
+            force=jnp.where(take, refill_force[source], slots.force),
+            n_push=jnp.where(take, refill_push[source], slots.n_push),
+            k=jnp.where(take, 0, slots.k),
+        )
+        taken = taken + take.sum(dtype=jnp.int32)
+        # 2. one control period of every slot
+        active = slots.cell >= 0
+        carry = run(slots.carry, slots.k, slots.force, slots.n_push)
+        k = slots.k + 1
+        acc = carry.acc
+        ended = ~acc.alive | (k >= n_control)
+        if decided_rule is not None:
+            over = k * st.substeps >= slots.n_push
+            certified = ~ended & decided_rule(carry.x_prev, acc, over)
+        else:
+            certified = jnp.zeros_like(ended)
+        decided = active & (ended | certified)
+        if decided_rule is not None:
+            # a certified scenario's remaining periods are solved and unsaturated, and its
+            # energies go on as the linear model predicts (certificate.py)
+            tail = tail_rule(carry.x_prev)
+            acc = acc._replace(
+                control_periods=jnp.where(certified, acc.control_periods + (n_control - k),
+                                          acc.control_periods),
+                **{name: jnp.where(certified, getattr(acc, name) + v.astype(dtype),
+                                   getattr(acc, name)) for name, v in tail.items()})
+        # 3. decided scenarios go to the buffer; their slots are vacated (reset to rest)
+        where = jnp.where(decided, n_done + jnp.cumsum(decided) - 1, capacity)
+        done = Finished(
+            cell=done.cell.at[where].set(slots.cell, mode="drop"),
+            acc=jax.tree.map(lambda b, v: b.at[where].set(v, mode="drop"), done.acc, acc),
+            periods=done.periods.at[where].set(k, mode="drop"),
+            certified=done.certified.at[where].set(certified, mode="drop"),
+        )
+        n_done = n_done + decided.sum(dtype=jnp.int32)
+        slots = Slots(carry=_select(decided, rest, carry),
+                      cell=jnp.where(decided, -1, slots.cell), force=slots.force,
+                      n_push=slots.n_push, k=k)
+        return (slots, taken, done, n_done), None
+
+    done = Finished(
+        cell=jnp.full(capacity, -1, jnp.int32),
+        acc=_broadcast(Accumulators.initial(dtype), capacity),
+        periods=jnp.zeros(capacity, jnp.int32), certified=jnp.zeros(capacity, bool))
+    zero = jnp.zeros((), jnp.int32)
+    (slots, taken, done, _), _ = jax.lax.scan(step, (slots, zero, done, zero), None,
+                                              length=periods)
+    return slots, taken[None], done
+
+
+class Engine:
+    """Continuous batching for one :class:`runner.BatchRunner` (its model, QP and devices).
+
+    slots: per device (default :func:`default_slots`); block: control periods per call;
+    early: stop certified recoveries (``--full-length`` turns it off). Falls and t_end stop a
+    scenario either way.
+    """
+
+    def __init__(self, runner, *, slots: int | None = None, block: int = 100,
+                 early: bool = True, refill: int | None = None):
+        self.runner = runner
+        devices = [None] if runner.mesh is None else list(runner.mesh.devices.flat)
+        self.n_devices = len(devices)
+        platform = (jax.local_devices()[0] if runner.mesh is None else devices[0]).platform
+        self.slots = int(slots or default_slots(platform))
+        if self.slots < 1:
+            raise ValueError(f"slots must be >= 1, got {slots}")
+        self.block = int(block)
+        self.refill = int(refill or 4 * self.slots)
+        config = runner.config
+        self.early = bool(early)
+        self.cert = None
+        if self.early and cert_mod.applies(config):
+            ar, sn = runner.arrays, runner.sensors
+            com = float(whole_body_com(ar.mx, ar.d0, sn))
+            rest = (com, com)  # static equilibrium: the CoP lies under the CoM
+            cert = cert_mod.build(runner.qp, config.controller, config.scenario, rest=rest)
+            self.cert = jax.tree.map(lambda v: jnp.asarray(v, runner.dtype), cert)
+        self.compile_seconds: float | None = None
+        self._fn = None
+        self._state: Slots | None = None
+
+    # -- compilation ----------------------------------------------------------------------
+
+    def _key(self) -> tuple:
+        return ("engine", self.runner._shape_key(self.slots), self.refill, self.block,
+                self.cert is not None, None if self.cert is None else
+                tuple(np.shape(v) for v in self.cert))
+
+    def block_fn(self):
+        """The compiled call: (arrays, cert, slots, refill cell/force/push) -> (slots, taken,
+        finished), sharded over the runner's devices."""
+        if self._fn is not None:
+            return self._fn
+        from .runner import _COMPILED
+
+        t0 = _time.perf_counter()
+        key = self._key()
+        fn = _COMPILED.get(key)
+        if fn is None:
+            r = self.runner
+            sn, st, periods, early = r.sensors, r.static, self.block, self.cert is not None
+
+            def call(arrays, cert, slots, cell, force, push):
+                return block(arrays, sn, st, cert, slots, cell, force, push, periods=periods,
+                             early=early)
+
+            if r.mesh is not None:
+                P = jax.sharding.PartitionSpec
+                call = jax.shard_map(call, mesh=r.mesh,
+                                     in_specs=(P(), P(), P("batch"), P("batch"), P("batch"),
+                                               P("batch")),
+                                     out_specs=P("batch"), check_vma=False)
+            slots = jax.eval_shape(self._vacant)
+            split, whole = r._shardings()
+            spec = (lambda a: jax.ShapeDtypeStruct(a.shape, a.dtype, sharding=split))
+            n = self.refill * self.n_devices
+            fn = jax.jit(call, donate_argnums=(2,)).lower(
+                r.arrays, self.cert, jax.tree.map(spec, slots),
+                jax.ShapeDtypeStruct((n,), jnp.int32, sharding=split),
+                jax.ShapeDtypeStruct((n,), r.dtype, sharding=split),
+                jax.ShapeDtypeStruct((n,), jnp.int32, sharding=split)).compile()
+            _COMPILED[key] = fn
+        self.compile_seconds = _time.perf_counter() - t0
+        self._fn = fn
+        return fn
+
+    def _vacant(self) -> Slots:
+        r = self.runner
+        n = self.slots * self.n_devices
+        carry = _broadcast(initial_carry(r.arrays, r.sensors, r.static), n)
+        return Slots(carry=carry, cell=jnp.full(n, -1, jnp.int32),
+                     force=jnp.zeros(n, r.dtype), n_push=jnp.zeros(n, jnp.int32),
+                     k=jnp.zeros(n, jnp.int32))
+
+    def _initial_state(self) -> Slots:
+        split, _ = self.runner._shardings()
+        state = jax.jit(self._vacant)()
+        return state if split is None else jax.device_put(state, split)
+
+    # -- running --------------------------------------------------------------------------
+
+    def stream(self, forces: np.ndarray, n_push: np.ndarray
+               ) -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:
+        """Run every cell (forces [n], push steps [n]); yield (cell indices, finished raw
+        results) after each call, as cells complete. Raw results: the accumulators' fields,
+        ``periods`` and ``certified``, numpy, one entry per index."""
+        forces = np.asarray(forces, np.float64)
+        n_push = np.asarray(n_push, np.int32)
+        n = forces.shape[0]
+        fn = self.block_fn()
+        r = self.runner
+        split, _ = r._shardings()
+        state = self._state if self._state is not None else self._initial_state()
+        self._state = None
+        D, R = self.n_devices, self.refill
+        queue = np.arange(n)
+        returned = np.zeros(0, np.int64)  # offered in a call but not taken: first next time
+        head, remaining, in_flight = 0, n, 0
+        try:
+            while remaining:
+                offer = np.concatenate([returned, queue[head:head + D * R - returned.size]])
+                head += offer.size - returned.size
+                cells = np.full(D * R, -1, np.int32)
+                # device d gets offer[d::D]: neighbouring cells (similar cost) spread over devices
+                per = [offer[d::D] for d in range(D)]
+                for d, part in enumerate(per):
+                    cells[d * R: d * R + part.size] = part
+                f = np.zeros(D * R, np.float64)
+                p = np.zeros(D * R, np.int32)
+                used = cells >= 0
+                f[used] = forces[cells[used]]
+                p[used] = n_push[cells[used]]
+                args = (jnp.asarray(cells), jnp.asarray(f.astype(r.dtype)), jnp.asarray(p))
+                if split is not None:
+                    args = tuple(jax.device_put(a, split) for a in args)
+                state, taken, done = fn(r.arrays, self.cert, state, *args)
+                taken = np.asarray(taken)
+                returned = np.concatenate([part[int(t):] for part, t in zip(per, taken)])
+                in_flight += int(taken.sum())
+                index = np.asarray(done.cell)
+                keep = index >= 0
+                if keep.any():
+                    raw = {name: np.asarray(v)[keep] for name, v in zip(Accumulators._fields,
+                                                                         done.acc)}
+                    raw["periods"] = np.asarray(done.periods)[keep]
+                    raw["certified"] = np.asarray(done.certified)[keep]
+                    remaining -= int(keep.sum())
+                    in_flight -= int(keep.sum())
+                    yield index[keep].astype(np.int64), raw
+        finally:
+            if in_flight == 0:
+                self._state = state  # all slots vacant: reusable by the next run
+
+    def run(self, forces: np.ndarray, n_push: np.ndarray) -> dict[str, np.ndarray]:
+        """Every cell's raw results (see :meth:`stream`), in the order of the cells."""
+        n = np.asarray(forces).shape[0]
+        out: dict[str, Any] = {}
+        for index, raw in self.stream(forces, n_push):
+            for name, v in raw.items():
+                if name not in out:
+                    out[name] = np.zeros((n,) + v.shape[1:], v.dtype)
+                out[name][index] = v
+        if not out:
+            return {name: np.zeros(0) for name in (*Accumulators._fields, "periods", "certified")}
+        return out
