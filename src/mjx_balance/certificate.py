@@ -58,6 +58,9 @@ MARGIN = 0.5
 GROWTH = 4.0
 # Control periods predicted row by row before the tail is bounded by the level set.
 PREDICTED_PERIODS = 200
+# A scenario is checked every CHECK_EVERY control periods of its own (k = CHECK_EVERY, 2
+# CHECK_EVERY, ...): the check costs about 40 % of a period at rest on a CPU.
+CHECK_EVERY = 5
 # The foot is not in the linear model. Its pitch (rocking on the compliant contacts) follows the
 # CoP: |pitch| <= PITCH_PER_COP |CoP - rest| + PITCH_FLOOR on every sample of recovering runs,
 # measured (largest ratio 0.021 rad/m, largest pitch with the CoP within 0.1 mm of rest 8.8e-6
@@ -67,6 +70,7 @@ PITCH_FLOOR = 2e-5
 
 # Quantities predicted (columns of Certificate.rows): joint angles, joint rates, motor torques,
 # CoP and CoM relative to rest, the convention's angles and inputs.
+TAIL_FIELDS = ("energy_ankle", "energy_hip", "work_ankle", "work_hip", "energy_u1", "energy_u2")
 QUANTITIES = ("q_ankle", "q_hip", "dq_ankle", "dq_hip", "tau_ankle", "tau_hip", "cop", "com",
               "y1", "y2", "u1", "u2")
 
@@ -154,14 +158,15 @@ def applies(config) -> bool:
             and body.hip_servo_damping == 0)
 
 
-def certified(xp, cert: Certificate, x, acc, push_over):
-    """Whether a scenario is decided as recovered (array namespace ``xp``: numpy or jax).
+def check(xp, cert: Certificate, x, acc, push_over):
+    """Whether a scenario is decided as recovered, and the integrals of its predicted future
+    (:func:`tail_integrals`), for array namespace ``xp`` (numpy or jax.numpy).
 
     x: [4] the convention state at the next control instant; acc: the running accumulators
     (``rollout.kernel.Accumulators``); push_over: the push acts in no later physics step.
     """
-    pred = xp.einsum("nqi,i->nq", cert.rows, x)  # [n, 8]
-    tail = xp.sqrt(GROWTH * (x @ cert.tail @ x)) * cert.tail_reach  # [8]
+    pred = xp.einsum("nqi,i->nq", cert.rows, x)  # [n, 12]
+    tail = xp.sqrt(GROWTH * (x @ cert.tail @ x)) * cert.tail_reach  # [12]
     high = xp.maximum(pred.max(axis=0), tail) / MARGIN  # largest future value, with margin
     low = xp.minimum(pred.min(axis=0), -tail) / MARGIN
     size = xp.maximum(high, -low)
@@ -170,15 +175,14 @@ def certified(xp, cert: Certificate, x, acc, push_over):
              & (size[4] <= acc.peak_tau_ankle) & (size[5] <= acc.peak_tau_hip)
              & (acc.peak_foot_pitch >= cert.pitch_per_cop * size[6] + cert.pitch_floor))
     qp_free = GROWTH * (x @ cert.P @ x) <= cert.qp_level
-    return push_over & acc.alive & band & peaks & qp_free
+    return push_over & acc.alive & band & peaks & qp_free, tail_integrals(xp, cert, x, pred)
 
 
-def tail_integrals(xp, cert: Certificate, x) -> dict:
-    """The energies and work of the predicted future (``PREDICTED_PERIODS`` periods from x), in
-    the accumulators' definitions: sum |tau Δq| and tau Δq per joint, sum |u Δy| per input
-    (``metrics.increments``). Added to a certified scenario's accumulators in place of the
-    steps it does not run; what comes after the prediction is left out (measured: docs)."""
-    pred = xp.einsum("nqi,i->nq", cert.rows, x)
+def tail_integrals(xp, cert: Certificate, x, pred) -> dict:
+    """The energies and work of the predicted future ``pred`` (``PREDICTED_PERIODS`` periods
+    from x), in the accumulators' definitions: sum |tau Δq| and tau Δq per joint, sum |u Δy|
+    per input (``metrics.increments``). Added to a certified scenario's accumulators in place of
+    the steps it does not run; what comes after the prediction is left out (measured: docs)."""
     q = xp.concatenate([(cert.to_q @ x[:2])[None], pred[:, 0:2]])
     y = xp.concatenate([x[None, :2], pred[:, 8:10]])
     power = pred[:, 4:6] * (q[1:] - q[:-1])

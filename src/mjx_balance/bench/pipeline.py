@@ -177,45 +177,45 @@ def casadi_available() -> bool:
 # The batched pipeline (this process)
 
 
-def build_batched(config: Config, n_scenarios: int, chunk: int) -> dict[str, Any]:
-    """Build the batched runner and compile it for batches of ``chunk`` (padded; at most the
-    scenario count). Returns runner, batch, build_s, compile_s, devices, platform."""
+def build_batched(config: Config, *, slots: int | None = None,
+                  early_stop: bool = True) -> dict[str, Any]:
+    """Build the batched runner and compile its continuous-batching engine. Returns runner,
+    slots (per device), build_s, compile_s, devices, platform."""
     import jax
 
     from ..rollout import BatchRunner
 
     t0 = time.perf_counter()
-    runner = BatchRunner(config)
+    runner = BatchRunner(config, slots=slots, early_stop=early_stop)
     build_s = time.perf_counter() - t0
-    batch = runner.padded_batch(min(chunk, n_scenarios))
-    t0 = time.perf_counter()
-    runner.compiled(batch)
-    compile_s = time.perf_counter() - t0
-    return dict(runner=runner, batch=batch, build_s=build_s, compile_s=compile_s,
+    compile_s = runner.prepare()
+    return dict(runner=runner, slots=runner.engine.slots, build_s=build_s, compile_s=compile_s,
                 devices=len(jax.devices()), platform=jax.devices()[0].platform)
 
 
 def run_batched(built: dict[str, Any], config: Config, forces: np.ndarray,
                 durations: np.ndarray, repeats: int) -> dict[str, Any]:
-    """Run the scenarios in batches on :func:`build_batched`'s runner, ``repeats`` times.
+    """Run every scenario through :func:`build_batched`'s engine, ``repeats`` times.
 
-    Returns outcomes (codes), seconds (median), repeats, physics_steps_per_s and
-    admm_iterations_per_period (mean over all control periods).
+    Returns outcomes (codes), summary (the columns of ``BatchRunner.run``), seconds (median),
+    repeats, physics_steps_per_s (simulated steps), admm_iterations_per_period (mean over the
+    periods run), simulated_s (mean simulated seconds per scenario) and certified (count).
     """
-    runner, batch = built["runner"], built["batch"]
-    times, outcomes, iters = [], None, None
+    runner = built["runner"]
+    times, summary = [], None
     for _ in range(max(1, repeats)):
         t0 = time.perf_counter()
-        parts = [runner.run(forces[i:i + batch], durations[i:i + batch])
-                 for i in range(0, len(forces), batch)]  # run() returns host numpy: synchronous
+        summary = runner.run(forces, durations)  # host numpy: synchronous
         times.append(time.perf_counter() - t0)
-        outcomes = np.concatenate([p["outcome"] for p in parts])
-        iters = np.concatenate([p["admm_iterations"] for p in parts])
     seconds = float(np.median(times))
     sc = config.scenario
-    return dict(outcomes=outcomes, seconds=seconds, repeats=len(times),
-                physics_steps_per_s=len(forces) * sc.n_control * sc.substeps / seconds,
-                admm_iterations_per_period=iters.sum() / max(1, len(forces) * sc.n_control))
+    periods = runner.last_periods
+    return dict(outcomes=summary["outcome"], summary=summary, seconds=seconds,
+                repeats=len(times),
+                physics_steps_per_s=float(periods.sum()) * sc.substeps / seconds,
+                admm_iterations_per_period=summary["admm_iterations"].sum() / max(1, periods.sum()),
+                simulated_s=float(periods.mean()) * sc.control_dt,
+                certified=int(runner.last_certified.sum()))
 
 
 def stratified_subset(outcomes: np.ndarray, n: int) -> np.ndarray:
@@ -240,6 +240,25 @@ def agreement(a: np.ndarray, b: np.ndarray) -> tuple[int, int]:
     """(equal outcomes, compared) over the scenarios both lists have."""
     n = min(len(a), len(b))
     return int((a[:n] == b[:n]).sum()), n
+
+
+def early_vs_full(early: dict[str, Any], full: dict[str, Any]) -> dict[str, Any]:
+    """Continuous batching with early stopping against ``--full-length`` on the same scenarios:
+    rates, their ratio, mean simulated seconds, and whether the summaries agree (outcomes,
+    fall and settle times, peaks exactly; energies: the largest relative difference)."""
+    a, b = early["summary"], full["summary"]
+    exact = ("outcome", "fall_time", "settle_time", "peak_ankle", "peak_hip",
+             "peak_foot_pitch", "peak_tau_ankle", "peak_tau_hip", "nonconverged_solves",
+             "ankle_saturation_fraction", "hip_saturation_fraction")
+    differ = [c for c in exact if not np.array_equal(a[c], b[c], equal_nan=True)]
+    energy = max(float(np.nanmax(np.abs(a[c] - b[c]) / np.maximum(np.abs(b[c]), 1e-9)))
+                 for c in ("energy_ankle", "energy_hip", "energy_total", "work_ankle",
+                           "work_hip", "energy_u1", "energy_u2"))
+    n = len(a["outcome"])
+    return dict(scen_per_s=n / full["seconds"], seconds=full["seconds"],
+                simulated_s=full["simulated_s"], early_scen_per_s=n / early["seconds"],
+                speedup=full["seconds"] / early["seconds"], exact_columns_differ=differ,
+                energy_max_rel_diff=energy)
 
 
 def compare(counts: tuple[int, int, int], batched: dict[str, Any], ref: dict[str, Any] | None,
@@ -270,15 +289,17 @@ def pipeline_figures(*, counts: tuple[int, int, int], t_end: float, workers: int
                      ref: dict[str, Any] | None, ipopt: dict[str, Any] | None,
                      ref_config: Config, comparison: dict[str, Any],
                      peak_rss_mib: dict[str, float],
-                     memory_scaling: list[dict[str, Any]] | None) -> dict[str, Any]:
+                     memory_scaling: list[dict[str, Any]] | None,
+                     full_length: dict[str, Any] | None = None) -> dict[str, Any]:
     """The benchmark's figures (what ``--json`` prints), from the steps' results."""
     n_mjx, n_ref, n_ipopt = counts
     return dict(
         scenarios=n_mjx, t_end=t_end, workers=workers, cpus=os.cpu_count(),
         load_average_start=load_average,
         mjx=dict(scen_per_s=comparison["mjx"], seconds=batched["seconds"],
-                 build_s=built["build_s"], compile_s=built["compile_s"], batch=built["batch"],
-                 devices=built["devices"], outcomes=comparison["mix"]),
+                 build_s=built["build_s"], compile_s=built["compile_s"], batch=built["slots"],
+                 slots=built["slots"], devices=built["devices"], outcomes=comparison["mix"],
+                 simulated_s=batched["simulated_s"], certified=batched["certified"]),
         reference=dict(scenarios=n_ref, scen_per_s=comparison["reference"],
                        seconds=ref["seconds"] if ref else math.nan,
                        osqp_max_iter=ref_config.controller.osqp_max_iter),
@@ -287,7 +308,7 @@ def pipeline_figures(*, counts: tuple[int, int, int], t_end: float, workers: int
         ratio_vs_reference=comparison["ratio_vs_reference"],
         ratio_vs_ipopt=comparison["ratio_vs_ipopt"],
         agreement=comparison["agreement"], peak_rss_mib=peak_rss_mib,
-        memory_scaling=memory_scaling,
+        memory_scaling=memory_scaling, full_length=full_length,
     )
 
 # --------------------------------------------------------------------------------------------

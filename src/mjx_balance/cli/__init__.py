@@ -30,6 +30,7 @@ import os
 import sys
 from pathlib import Path
 
+from .._xla import deterministic_flags
 from ..params import CONVENTIONS, Config, ParameterError, run_config
 
 
@@ -197,10 +198,21 @@ def _yes(p: argparse.ArgumentParser) -> None:
                         "or an estimated 24 h on a 2-core CPU)")
 
 
+def _engine_options(p: argparse.ArgumentParser) -> None:
+    """Options of the continuous-batching engine (sweep, table, bench)."""
+    p.add_argument("--full-length", action="store_true",
+                   help="run every scenario to t_end (no early stop of certified recoveries; "
+                        "falls still end a scenario), for validation")
+    p.add_argument("--slots", type=positive_int, default=None,
+                   help="scenarios in flight per device (default: 32 on a CPU, 4096 on a GPU); "
+                        "results are bit-identical for any chunk, device count or order at one "
+                        "slot count, so a sweep folder keeps the count it started with")
+
+
 def _bench_pipeline_arguments(p: argparse.ArgumentParser) -> None:
     """Options of ``mjx-balance bench`` (the pipeline benchmark)."""
-    p.add_argument("--scenarios", type=positive_int, default=64,
-                   help="scenarios through MJX + ADMM")
+    p.add_argument("--scenarios", type=positive_int, default=1024,
+                   help="scenarios through MJX + ADMM (continuous batching and --full-length)")
     p.add_argument("--reference", type=nonnegative_int, default=16,
                    help="of those, how many through the scalar reference (0: skip)")
     p.add_argument("--ipopt", type=nonnegative_int, default=8,
@@ -208,7 +220,7 @@ def _bench_pipeline_arguments(p: argparse.ArgumentParser) -> None:
                         "reference's outcome mix (0: skip)")
     p.add_argument("--workers", type=positive_int, default=os.cpu_count() or 2,
                    help="worker processes of the reference and the study toolchain")
-    p.add_argument("--chunk", type=positive_int, default=64, help="MJX batch size (padded to 2^k)")
+    _engine_options(p)
     p.add_argument("--repeats", type=positive_int, default=1, help="timed MJX runs (median)")
     p.add_argument("--t-end", type=positive_float, default=None,
                    help="scenario length [s] (default 12)")
@@ -261,6 +273,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="scenarios per chunk (default: from memory budget)")
     p.add_argument("--reference", type=input_file, default=None,
                    help="CSV of points (force, duration) to draw over the map")
+    _engine_options(p)
     _yes(p)
     _common(p)
     p.set_defaults(target="mjx_balance.cli.sweep:sweep_command")
@@ -271,6 +284,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "else the study's 5,10,15,20,30,40,50,60,80,100,120)")
     p.add_argument("--sweep", type=input_file, default=None,
                    help="sweep definition TOML (see sweeps/)")
+    _engine_options(p)
     _yes(p)
     _common(p)
     p.set_defaults(target="mjx_balance.cli.sweep:table_command")
@@ -332,6 +346,7 @@ def use_host_cores() -> None:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     use_host_cores()
+    deterministic_flags()
     module, func = args.target.split(":")
     command = getattr(importlib.import_module(module), func)
     try:

@@ -51,29 +51,45 @@ def pipeline_command(args: argparse.Namespace) -> int:
                                             args.workers)
             _print_pool(ipopt, args.workers, "study toolchain (MuJoCo C + CasADi/IPOPT)")
 
-    built = pipeline.build_batched(config, n_mjx, args.chunk)
-    print(f"  MJX + ADMM: build {built['build_s']:.1f} s, compile {built['compile_s']:.1f} s "
-          f"(batch {built['batch']}, {built['devices']} {built['platform']} device(s))", flush=True)
-    batched = pipeline.run_batched(built, config, forces, durations, args.repeats)
-    print(f"  MJX + ADMM: {n_mjx} scenarios in {batched['seconds']:.1f} s (median of "
-          f"{batched['repeats']}; {batched['physics_steps_per_s']:,.0f} physics steps/s, "
-          f"mean ADMM iterations per period {batched['admm_iterations_per_period']:.1f})",
-          flush=True)
+    runs = {}
+    modes = [("--full-length", False)]
+    if not args.full_length:  # both on the same scenarios, compared
+        modes.insert(0, ("continuous batching", True))
+    for label, early in modes:
+        built = pipeline.build_batched(config, slots=args.slots, early_stop=early)
+        print(f"  MJX + ADMM, {label}: build {built['build_s']:.1f} s, compile "
+              f"{built['compile_s']:.1f} s ({built['slots']} slots on each of {built['devices']} "
+              f"{built['platform']} device(s))", flush=True)
+        result = pipeline.run_batched(built, config, forces, durations, args.repeats)
+        print(f"  MJX + ADMM, {label}: {n_mjx} scenarios in {result['seconds']:.1f} s (median "
+              f"of {result['repeats']}; {n_mjx / result['seconds']:.1f} scen/s; mean simulated "
+              f"{result['simulated_s']:.2f} s per scenario, {result['certified']} certified; "
+              f"{result['physics_steps_per_s']:,.0f} physics steps/s; mean ADMM iterations per "
+              f"period {result['admm_iterations_per_period']:.1f})", flush=True)
+        runs[label] = (built, result)
+    built, batched = runs.get("continuous batching", runs["--full-length"])
+    full = None
+    if "continuous batching" in runs:
+        full = pipeline.early_vs_full(batched, runs["--full-length"][1])
+        print(f"  continuous vs --full-length: {full['speedup']:.2f}x faster; columns that "
+              f"must agree exactly and differ: {full['exact_columns_differ'] or 'none'}; "
+              f"energies and work within {full['energy_max_rel_diff']:.2g} (relative)",
+              flush=True)
 
     cmp = pipeline.compare(counts, batched, ref, ipopt, ipopt_idx)
     rss = dict(main=pipeline.peak_rss_mib(resource.RUSAGE_SELF),
                workers=pipeline.peak_rss_mib(resource.RUSAGE_CHILDREN))
-    _print_pipeline_table(counts, built, batched, ref, ipopt, cmp, rss)
+    _print_pipeline_table(counts, built, batched, ref, ipopt, cmp, rss, full)
     memory = _memory_scaling(args) if args.memory_scaling else None
     if args.json:
         print(json.dumps(pipeline.pipeline_figures(
             counts=counts, t_end=sc.t_end, workers=args.workers, load_average=load[0],
             built=built, batched=batched, ref=ref, ipopt=ipopt, ref_config=ref_config,
-            comparison=cmp, peak_rss_mib=rss, memory_scaling=memory)))
+            comparison=cmp, peak_rss_mib=rss, memory_scaling=memory, full_length=full)))
     return 0
 
 
-def _print_pipeline_table(counts, built, batched, ref, ipopt, cmp, rss) -> None:
+def _print_pipeline_table(counts, built, batched, ref, ipopt, cmp, rss, full=None) -> None:
     """The pipeline benchmark's closing table: rates, ratios, outcomes, memory, targets."""
     n_mjx, n_ref, n_ipopt = counts
     r_mjx, r_ref, r_ipopt = cmp["mjx"], cmp["reference"], cmp["ipopt"]
@@ -81,6 +97,9 @@ def _print_pipeline_table(counts, built, batched, ref, ipopt, cmp, rss) -> None:
     print(f"{'system':44s} {'scenarios':>9s} {'seconds':>9s} {'scen/s':>9s} {'MJX ratio':>10s}")
     print(f"{'MJX + ADMM (batched, this process)':44s} {n_mjx:9d} {batched['seconds']:9.1f} "
           f"{r_mjx:9.2f} {1.0:10.1f}")
+    if full:
+        print(f"{'MJX + ADMM --full-length':44s} {n_mjx:9d} {full['seconds']:9.1f} "
+              f"{full['scen_per_s']:9.2f} {r_mjx / full['scen_per_s']:10.1f}")
     if ref:
         print(f"{'MuJoCo C + OSQP (reference, processes)':44s} {n_ref:9d} {ref['seconds']:9.1f} "
               f"{r_ref:9.3f} {r_mjx / r_ref:10.1f}")

@@ -68,7 +68,8 @@ def sweep_command(args: Any) -> int:
     out = Path(args.out)
 
     def work() -> None:
-        run_batch = LazyBatch(config)  # built (and compiled) only if a scenario must run
+        # built (and compiled) only if a scenario must run
+        run_batch = LazyBatch(config, slots=args.slots, early_stop=not args.full_length)
         result = run_sweep(out, config, forces, durations, run_batch=run_batch, chunk_size=chunk)
         _make_region_figures(out, result, config, reference)
         if table_forces is not None:
@@ -99,7 +100,8 @@ def table_command(args: Any) -> int:
     out = Path(args.out)
 
     def work() -> None:
-        table = run_table(out, config, forces, run_batch=LazyBatch(config), batch=batch)
+        run_batch = LazyBatch(config, slots=args.slots, early_stop=not args.full_length)
+        table = run_table(out, config, forces, run_batch=run_batch, batch=batch)
         _make_table_figure(out, config, force=table is not None)
 
     return _in_folder(out, work)

@@ -23,9 +23,8 @@ count, which a sweep therefore records.
 
 from __future__ import annotations
 
-import os
-import sys
 import time as _time
+import warnings
 from typing import Any, Iterator, NamedTuple
 
 import jax
@@ -33,44 +32,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import certificate as cert_mod
+from .._xla import deterministic_flags
 from .kernel import Accumulators, Carry, initial_carry, period
 from .physics import whole_body_com
-
-# XLA CPU options under which every lane of a vmapped program computes the same bits whatever
-# its position and the batch size (measured: without them the ADMM's products and the contact
-# solver's reductions differ in the last bits between lanes and between batch sizes; with them
-# the rollout runs as fast, tests/test_engine.py and BENCHMARKS.md).
-DETERMINISTIC_XLA_FLAGS = (
-    "--xla_cpu_strict_dot_conv_math=true",
-    "--xla_cpu_enable_platform_dependent_math=false",
-    "--xla_cpu_use_fusion_emitters=false",
-    "--xla_cpu_prefer_vector_width=128",
-)
-
-
-def deterministic_flags() -> bool:
-    """Add :data:`DETERMINISTIC_XLA_FLAGS` to XLA_FLAGS if JAX has not started a backend yet.
-
-    Returns whether they are in effect (False when JAX was already running without them)."""
-    flags = os.environ.get("XLA_FLAGS", "")
-    missing = [f for f in DETERMINISTIC_XLA_FLAGS if f.split("=")[0] not in flags]
-    if not missing:
-        return True
-    if _backend_started():
-        return False
-    os.environ["XLA_FLAGS"] = " ".join([flags, *missing]).strip()
-    return True
-
-
-def _backend_started() -> bool:
-    if "jax" not in sys.modules:
-        return False
-    try:
-        from jax._src import xla_bridge
-        return bool(xla_bridge._backends)  # noqa: SLF001 - no public "is initialised" query
-    except Exception:  # noqa: BLE001 - assume started
-        return True
-
 
 def default_slots(platform: str) -> int:
     """Slots per device: 32 on a CPU (the fastest per scenario measured on 2 cores, batch 16-64:
@@ -97,6 +61,26 @@ class Finished(NamedTuple):
     certified: jax.Array  # bool: stopped by the certificate
 
 
+class Packing:
+    """Stores a batched carry without its zero-size leaves (MJX keeps a few empty arrays, which
+    JAX places replicated whatever sharding is asked for, so a sharded state would not match
+    its own compiled call); :meth:`unpack` puts them back inside the call."""
+
+    def __init__(self, template: Carry):
+        leaves, self.treedef = jax.tree.flatten(template)
+        self.layout = tuple((tuple(v.shape), jnp.dtype(v.dtype), v.size == 0) for v in leaves)
+
+    def pack(self, carry: Carry) -> tuple:
+        return tuple(v for v, (_, _, empty) in zip(jax.tree.leaves(carry), self.layout)
+                     if not empty)
+
+    def unpack(self, packed: tuple, batch: int) -> Carry:
+        it = iter(packed)
+        leaves = [jnp.zeros((batch,) + shape, dtype) if empty else next(it)
+                  for shape, dtype, empty in self.layout]
+        return jax.tree.unflatten(self.treedef, leaves)
+
+
 def _select(pred, a, b):
     return jax.tree.map(lambda u, v: jnp.where(pred.reshape(pred.shape + (1,) * (u.ndim - 1)),
                                                u, v), a, b)
@@ -107,29 +91,37 @@ def _broadcast(tree, n):
 
 
 def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push, *,
-          periods: int, early: bool):
+          periods: int, early: bool, packing: Packing):
     """``periods`` control periods of one device's slots with refill and harvest (pure JAX).
 
     refill_*: [R] the next cells for this device (cell -1: none). Returns the slots, the number
-    of refill cells taken [1] and the finished buffer [slots + R].
+    of refill cells taken [1] and the finished buffer [slots + R]. ``slots.carry`` is packed
+    (:class:`Packing`).
     """
     S = slots.cell.shape[0]
+    slots = slots._replace(carry=packing.unpack(slots.carry, S))
     R = refill_cell.shape[0]
     dtype = ar.d0.qpos.dtype
     capacity = S + R
     n_control = st.n_control
     rest = _broadcast(initial_carry(ar, sn, st), S)
     run = jax.vmap(lambda c, k, f, n: period(ar, sn, st, c, k, f, n)[0])
+    every = cert_mod.CHECK_EVERY
     if early and cert is not None:
-        decided_rule = jax.vmap(lambda x, acc, over: cert_mod.certified(jnp, cert, x, acc, over))
-        tail_rule = jax.vmap(lambda x: cert_mod.tail_integrals(jnp, cert, x))
+        check = jax.vmap(lambda x, acc, over: cert_mod.check(jnp, cert, x, acc, over))
+        if periods % every:
+            raise ValueError(f"block of {periods} periods: not a multiple of {every}")
     else:
-        decided_rule = tail_rule = None
+        check = None
 
-    def step(state, _):
+    def step(state, s):
         slots, taken, done, n_done = state
-        # 1. vacant slots take the next refill cells, in slot order
+        # 1. vacant slots take the next refill cells, in slot order; with the certificate only
+        # every ``every`` periods, so that every scenario's k is a multiple of ``every`` when
+        # it is checked (a check skipped for the whole batch, not masked per slot)
         vacant = slots.cell < 0
+        if check is not None:
+            vacant = vacant & (s % every == 0)
         rank = taken + jnp.cumsum(vacant) - 1
         source = jnp.clip(rank, 0, R - 1)
         take = vacant & (rank < R) & (refill_cell[source] >= 0)
@@ -147,21 +139,26 @@ def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push
         k = slots.k + 1
         acc = carry.acc
         ended = ~acc.alive | (k >= n_control)
-        if decided_rule is not None:
+        certified = jnp.zeros_like(ended)
+        if check is not None:
             over = k * st.substeps >= slots.n_push
-            certified = ~ended & decided_rule(carry.x_prev, acc, over)
-        else:
-            certified = jnp.zeros_like(ended)
-        decided = active & (ended | certified)
-        if decided_rule is not None:
+
+            def checked(_):
+                ok, tail = check(carry.x_prev, acc, over)
+                return ~ended & ok, tail
+
+            def skipped(_):
+                return certified, {name: jnp.zeros(S, dtype) for name in cert_mod.TAIL_FIELDS}
+
+            certified, tail = jax.lax.cond(s % every == every - 1, checked, skipped, None)
             # a certified scenario's remaining periods are solved and unsaturated, and its
             # energies go on as the linear model predicts (certificate.py)
-            tail = tail_rule(carry.x_prev)
             acc = acc._replace(
                 control_periods=jnp.where(certified, acc.control_periods + (n_control - k),
                                           acc.control_periods),
                 **{name: jnp.where(certified, getattr(acc, name) + v.astype(dtype),
                                    getattr(acc, name)) for name, v in tail.items()})
+        decided = active & (ended | certified)
         # 3. decided scenarios go to the buffer; their slots are vacated (reset to rest)
         where = jnp.where(decided, n_done + jnp.cumsum(decided) - 1, capacity)
         done = Finished(
@@ -181,9 +178,9 @@ def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push
         acc=_broadcast(Accumulators.initial(dtype), capacity),
         periods=jnp.zeros(capacity, jnp.int32), certified=jnp.zeros(capacity, bool))
     zero = jnp.zeros((), jnp.int32)
-    (slots, taken, done, _), _ = jax.lax.scan(step, (slots, zero, done, zero), None,
-                                              length=periods)
-    return slots, taken[None], done
+    (slots, taken, done, _), _ = jax.lax.scan(step, (slots, zero, done, zero),
+                                              jnp.arange(periods, dtype=jnp.int32))
+    return slots._replace(carry=packing.pack(slots.carry)), taken[None], done
 
 
 class Engine:
@@ -200,6 +197,11 @@ class Engine:
         devices = [None] if runner.mesh is None else list(runner.mesh.devices.flat)
         self.n_devices = len(devices)
         platform = (jax.local_devices()[0] if runner.mesh is None else devices[0]).platform
+        if platform == "cpu" and not deterministic_flags():
+            warnings.warn("JAX started before mjx_balance could set its XLA options "
+                          "(mjx_balance._xla): results may depend on the slot a scenario ran "
+                          "in; import mjx_balance before running anything with JAX",
+                          stacklevel=3)
         self.slots = int(slots or default_slots(platform))
         if self.slots < 1:
             raise ValueError(f"slots must be >= 1, got {slots}")
@@ -214,6 +216,7 @@ class Engine:
             rest = (com, com)  # static equilibrium: the CoP lies under the CoM
             cert = cert_mod.build(runner.qp, config.controller, config.scenario, rest=rest)
             self.cert = jax.tree.map(lambda v: jnp.asarray(v, runner.dtype), cert)
+        self.packing = Packing(initial_carry(runner.arrays, runner.sensors, runner.static))
         self.compile_seconds: float | None = None
         self._fn = None
         self._state: Slots | None = None
@@ -238,10 +241,11 @@ class Engine:
         if fn is None:
             r = self.runner
             sn, st, periods, early = r.sensors, r.static, self.block, self.cert is not None
+            packing = self.packing
 
             def call(arrays, cert, slots, cell, force, push):
                 return block(arrays, sn, st, cert, slots, cell, force, push, periods=periods,
-                             early=early)
+                             early=early, packing=packing)
 
             if r.mesh is not None:
                 P = jax.sharding.PartitionSpec
@@ -267,14 +271,13 @@ class Engine:
         r = self.runner
         n = self.slots * self.n_devices
         carry = _broadcast(initial_carry(r.arrays, r.sensors, r.static), n)
-        return Slots(carry=carry, cell=jnp.full(n, -1, jnp.int32),
+        return Slots(carry=self.packing.pack(carry), cell=jnp.full(n, -1, jnp.int32),
                      force=jnp.zeros(n, r.dtype), n_push=jnp.zeros(n, jnp.int32),
                      k=jnp.zeros(n, jnp.int32))
 
     def _initial_state(self) -> Slots:
         split, _ = self.runner._shardings()
-        state = jax.jit(self._vacant)()
-        return state if split is None else jax.device_put(state, split)
+        return jax.jit(self._vacant, out_shardings=split)()
 
     # -- running --------------------------------------------------------------------------
 

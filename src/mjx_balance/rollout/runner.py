@@ -247,6 +247,18 @@ class BatchRunner:
         self.last_trajectories = series
         return summary
 
+    def stream(self, forces, durations):
+        """Run the scenarios on the engine; yield (indices, summary columns) as they are
+        decided (the columns of :meth:`run`, plus ``periods``, the control periods simulated,
+        and ``certified``)."""
+        forces, durations = self._inputs(forces, durations)
+        steps = push_steps(durations, self.config.scenario.physics_dt)
+        for index, raw in self.engine.stream(forces, steps):
+            acc = Accumulators(*(raw[name] for name in Accumulators._fields))
+            yield index, {"force": forces[index], "duration": durations[index],
+                          **summarize(acc, self.config), "periods": raw["periods"],
+                          "certified": raw["certified"]}
+
     def run_frame(self, forces, durations) -> pd.DataFrame:
         """As :meth:`run`, as a table with columns ``outcomes.SUMMARY_COLUMNS`` (outcome as
         strings)."""

@@ -11,7 +11,7 @@ stand-in.
 from __future__ import annotations
 
 import time
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 import pandas as pd
@@ -23,24 +23,46 @@ from .chunks import chunk_slices
 RunBatch = Callable[[np.ndarray, np.ndarray], "pd.DataFrame | dict[str, np.ndarray]"]
 
 
-def default_batch(config: Config) -> RunBatch:
-    """The MJX batched rollout for this configuration (compiled on first call)."""
+def default_batch(config: Config, **engine: Any) -> RunBatch:
+    """The MJX rollout for this configuration on the continuous-batching engine (compiled on
+    first call); ``engine``: ``slots``, ``early_stop`` (see ``rollout.BatchRunner``)."""
     from ..rollout import BatchRunner
 
-    return BatchRunner(config).run_frame
+    return BatchRunner(config, **engine).run_frame
 
 
 class LazyBatch:
-    """The default batch function, built on its first call (a finished sweep builds nothing)."""
+    """The default batch function, built on its first call (a finished sweep builds nothing).
 
-    def __init__(self, config: Config):
+    slots: per device (None: the engine's default); early_stop: stop certified recoveries
+    (False: ``--full-length``). A sweep folder records both and resumes with them.
+    """
+
+    wants_padding = False  # the engine runs a fixed set of slots: padding would be work
+
+    def __init__(self, config: Config, *, slots: int | None = None, early_stop: bool = True):
         self.config = config
+        self.slots = slots
+        self.early_stop = early_stop
         self._run: RunBatch | None = None
 
-    def __call__(self, forces: np.ndarray, durations: np.ndarray):
+    @property
+    def runner(self):
+        """The BatchRunner (built now if needed)."""
         if self._run is None:
-            self._run = default_batch(self.config)
-        return self._run(forces, durations)
+            self._run = default_batch(self.config, slots=self.slots, early_stop=self.early_stop)
+        return self._run.__self__
+
+    def engine_record(self) -> dict[str, Any]:
+        """What a sweep folder records about the engine (results depend on it)."""
+        return {"slots": int(self.runner.engine.slots), "early_stop": bool(self.early_stop)}
+
+    def __call__(self, forces: np.ndarray, durations: np.ndarray):
+        return self.runner.run_frame(forces, durations)
+
+    def stream(self, forces: np.ndarray, durations: np.ndarray):
+        """(indices, summary columns) as scenarios are decided (``BatchRunner.stream``)."""
+        return self.runner.stream(forces, durations)
 
     def prepare(self, batch: int, log: Callable[[str], None] | None = print) -> None:
         """Build the rollout and compile it for ``batch`` scenarios now (before a progress bar
@@ -49,8 +71,7 @@ class LazyBatch:
         start = time.perf_counter()
         if self._run is None:
             say("building the MJX rollout ...")
-            self._run = default_batch(self.config)
-        runner = getattr(self._run, "__self__", None)
+        runner = self.runner
         if hasattr(runner, "prepare"):  # rollout.BatchRunner
             if not runner.is_prepared():
                 say("compiling the rollout ...")
@@ -74,7 +95,7 @@ def evaluate(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarray, con
     count = forces.size
     if count == 0:
         return pd.DataFrame(columns=SUMMARY_COLUMNS)
-    if pad_to is not None and pad_to > count:
+    if pad_to is not None and pad_to > count and getattr(run_batch, "wants_padding", True):
         extra = pad_to - count
         forces_in = np.concatenate([forces, np.full(extra, forces[-1])])
         durations_in = np.concatenate([durations, np.full(extra, durations[-1])])

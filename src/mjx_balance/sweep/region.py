@@ -15,11 +15,12 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 import pandas as pd
 
+from ..outcomes import summary_frame
 from ..params import Config, ParameterError
 from .batch import LazyBatch, RunBatch, evaluate
 from .chunks import chunk_slices, default_chunk_size
@@ -83,6 +84,7 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
     manifest = folder.open()
     region_path = folder.path / REGION
     convention = config.controller.convention
+    run_batch = run_batch or LazyBatch(config)
 
     recorded = manifest.get("region")
     if recorded is not None:
@@ -96,6 +98,7 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
             say(f"note: {folder.path} was started with chunks of {recorded['chunk_size']} "
                 f"scenarios; keeping that (ignoring --chunk {chunk_size})")
         chunk_size = int(recorded["chunk_size"])
+        _resume_engine(run_batch, recorded.get("engine"), folder.path, say)
     else:
         if chunk_size is not None and chunk_size < 1:
             raise ParameterError(f"--chunk must be >= 1, got {chunk_size}")
@@ -113,6 +116,8 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
                 "this run")
         manifest["region"] = {"forces": forces.tolist(), "durations": durations.tolist(),
                               "chunk_size": int(chunk_size), "cells": int(n_cells)}
+        if hasattr(run_batch, "engine_record"):
+            manifest["region"]["engine"] = run_batch.engine_record()
         folder.write_manifest(manifest)
 
     slices = chunk_slices(n_cells, chunk_size)
@@ -147,16 +152,20 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
         f"{len(slices)} chunks of {chunk_size}; convention {convention}; output {folder.path}")
 
     if todo:
-        run_batch = run_batch or LazyBatch(config)
         if hasattr(run_batch, "prepare"):
             run_batch.prepare(chunk_size, log=log)
         bar = progress_bar(n_cells, n_cells - remaining, progress)
         try:
-            for index in todo:
-                cells = slices[index]
-                frame = evaluate(run_batch, cell_f[cells], cell_d[cells], config, pad_to=chunk_size)
-                write_parquet(frame, chunk_path(folder.path, index))
-                bar.update(cells.stop - cells.start)
+            if hasattr(run_batch, "stream"):
+                _stream_chunks(run_batch, folder.path, [slices[i] for i in todo], todo, cell_f,
+                               cell_d, config, bar)
+            else:
+                for index in todo:
+                    cells = slices[index]
+                    frame = evaluate(run_batch, cell_f[cells], cell_d[cells], config,
+                                     pad_to=chunk_size)
+                    write_parquet(frame, chunk_path(folder.path, index))
+                    bar.update(cells.stop - cells.start)
         finally:
             bar.close()
 
@@ -165,6 +174,48 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
     seconds = time.perf_counter() - start
     say(f"wrote {region_path} ({n_cells} cells; {len(todo)} chunks computed in {seconds:.1f} s)")
     return SweepResult(region_path, len(todo), reused, recomputed, seconds, False)
+
+
+def _resume_engine(run_batch: RunBatch, recorded: dict | None, path: Path,
+                   say: Callable[[str], None]) -> None:
+    """Resume with the engine settings the folder was started with (results depend on the slot
+    count's compiled program and on early stopping; a folder from before they were recorded
+    resumes with the defaults)."""
+    if recorded is None or not hasattr(run_batch, "engine_record"):
+        return
+    asked = (run_batch.slots, run_batch.early_stop)
+    run_batch.slots = int(recorded["slots"])
+    run_batch.early_stop = bool(recorded["early_stop"])
+    if asked[0] not in (None, run_batch.slots) or asked[1] != run_batch.early_stop:
+        say(f"note: {path} was started with {run_batch.slots} slots per device and "
+            f"{'early stopping' if run_batch.early_stop else '--full-length'}; keeping that")
+
+
+def _stream_chunks(run_batch: Any, path: Path, slices: list[slice], indices: list[int],
+                   cell_f: np.ndarray, cell_d: np.ndarray, config: Config, bar: Any) -> None:
+    """Every cell of the chunks through the engine's queue at once (its slots stay busy across
+    chunk boundaries); a chunk file is written as soon as its last cell is decided."""
+    positions = np.concatenate([np.arange(s.start, s.stop) for s in slices])
+    owner = np.concatenate([np.full(s.stop - s.start, k) for k, s in enumerate(slices)])
+    parts: dict[int, list[pd.DataFrame]] = {}
+    left = {k: s.stop - s.start for k, s in enumerate(slices)}
+    convention = config.controller.convention
+    for index, columns in run_batch.stream(cell_f[positions], cell_d[positions]):
+        frame = summary_frame({k: v for k, v in columns.items()
+                               if k not in ("periods", "certified")}, convention)
+        frame["_cell"] = positions[index]
+        chunk_of = owner[index]
+        for k in np.unique(chunk_of):
+            parts.setdefault(int(k), []).append(frame[chunk_of == k])
+            left[int(k)] -= int((chunk_of == k).sum())
+            if left[int(k)] == 0:
+                rows = pd.concat(parts.pop(int(k))).sort_values("_cell")
+                cells = slices[int(k)]
+                rows = rows.drop(columns="_cell").reset_index(drop=True)
+                # the exact grid values (a float32 rollout hands them back rounded)
+                rows["force"], rows["duration"] = cell_f[cells], cell_d[cells]
+                write_parquet(rows, chunk_path(path, indices[int(k)]))
+        bar.update(len(index))
 
 
 def _adopt_results(path: Path, found: list[Path], forces: np.ndarray, durations: np.ndarray,
