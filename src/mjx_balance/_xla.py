@@ -5,14 +5,16 @@ from __future__ import annotations
 import os
 import sys
 
-# XLA CPU options under which every lane of a vmapped program computes the same bits whatever
-# its position and the batch size (measured: without them the ADMM's products and the contact
-# solver's reductions differ in the last bits between lanes and between batch sizes; with them
-# the rollout runs as fast, tests/test_engine.py and BENCHMARKS.md).
+# XLA CPU options that keep the code of every lane of a vmapped program the same whatever its
+# position and the batch size: strict (unfused, unreordered) dot products, no platform-specific
+# approximations of transcendental functions, one vector width. Measured with jax 0.10.2 on
+# this project's CPU: the vmapped ADMM gave other bits for batches of 64 and 256 than for 8
+# without them and the same bits with them; the engine's results were slot- and
+# order-independent with them (tests/test_engine.py), and the rollout ran as fast
+# (BENCHMARKS.md). Each is known to jaxlib 0.10 and 0.11 (XLA refuses unknown flags at start).
 DETERMINISTIC_XLA_FLAGS = (
     "--xla_cpu_strict_dot_conv_math=true",
     "--xla_cpu_enable_platform_dependent_math=false",
-    "--xla_cpu_use_fusion_emitters=false",
     "--xla_cpu_prefer_vector_width=128",
 )
 
