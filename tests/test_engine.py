@@ -34,8 +34,12 @@ pytestmark = pytest.mark.usefixtures("float32")
 # certificate, what comes later (a state decayed by e^-2 or more in its slowest mode) is left
 # out; measured largest relative difference 1.1e-3 (work_hip, mjx-balance bench, 256 scenarios).
 ENERGY_RTOL = 5e-3
+# CoP/CoM extremes on the side the push did not drive: the full run's value is set in the
+# seconds the early stop skips, near rest (module docstring of certificate.py). Measured largest
+# difference on this grid 9.9e-5 m (CoP), 0 (CoM); 0.1 mm against the foot's 0.3 m.
+EXTREME_ATOL = 2e-4  # m
 EXACT = ("outcome", "fall_time", "settle_time", "peak_ankle", "peak_hip", "peak_foot_pitch",
-         "peak_tau_ankle", "peak_tau_hip", "cop_max", "com_max", "nonconverged_solves",
+         "peak_tau_ankle", "peak_tau_hip", "nonconverged_solves",
          "ankle_saturation_fraction", "hip_saturation_fraction", "max_residual",
          "max_bound_violation")
 INTEGRALS = ("energy_ankle", "energy_hip", "energy_total", "work_ankle", "work_hip",
@@ -87,9 +91,12 @@ def test_early_stopping_changes_no_decided_column(runs):
     for column in INTEGRALS:
         np.testing.assert_allclose(early[column], full[column], rtol=ENERGY_RTOL, atol=1e-9,
                                    err_msg=column)
-    # the resting side's extremes: within the set's reach of rest (sub-millimetre)
-    for column in ("cop_min", "com_min"):
-        assert np.nanmax(np.abs(early[column] - full[column])) < 1e-3, column
+    # CoP and CoM extremes: on the side the push drove them they are final; on the other the
+    # full run's value is rest plus the contact solver's jitter (EXTREME_ATOL)
+    for column in ("cop_min", "cop_max", "com_min", "com_max"):
+        diff = np.nanmax(np.abs(early[column] - full[column]))
+        print(f"{column}: largest difference {diff:.3g} m")
+        assert diff < EXTREME_ATOL, column
 
 
 def test_uncertified_scenarios_are_bit_identical_to_full_length(runs):

@@ -7,11 +7,14 @@ import sys
 
 # XLA CPU options that keep the code of every lane of a vmapped program the same whatever its
 # position and the batch size: strict (unfused, unreordered) dot products, no platform-specific
-# approximations of transcendental functions, one vector width. Measured with jax 0.10.2 on
-# this project's CPU: the vmapped ADMM gave other bits for batches of 64 and 256 than for 8
-# without them and the same bits with them; the engine's results were slot- and
-# order-independent with them (tests/test_engine.py), and the rollout ran as fast
-# (BENCHMARKS.md). Each is known to jaxlib 0.10 and 0.11 (XLA refuses unknown flags at start).
+# approximations of transcendental functions, one vector width (128 bits). Measured with jax
+# 0.10.2 on this project's CPU: the vmapped ADMM gave other bits for batches of 64 and 256 than
+# for 8 without them and the same bits with them; the engine's results were slot-, order- and
+# device-count-independent with all three (tests/test_engine.py) and not without the vector
+# width (the same 40 cells in another order: peak angles differed at 1e-6), at the same speed
+# (docs/engine.md). The vector width changes float32 rounding (tests/test_rollout.py's open-loop
+# drift against MuJoCo C). All three are known to jaxlib 0.10 and 0.11 (XLA refuses unknown
+# flags when it starts).
 DETERMINISTIC_XLA_FLAGS = (
     "--xla_cpu_strict_dot_conv_math=true",
     "--xla_cpu_enable_platform_dependent_math=false",

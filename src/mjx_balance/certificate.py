@@ -25,19 +25,18 @@ invariant under u = -Kx. Over E(c) a linear function gᵀx ranges over ±sqrt(c 
    :data:`PITCH_PER_COP`, :data:`PITCH_FLOOR`), and the running peak foot pitch must exceed
    what the predicted CoP allows.
 4. CoP and CoM extremes are not required to be final: on the side the push drove them they
-   are (the body returns to rest), but on the other side the full run's extreme is the rest
-   value plus the contact solver's sub-micrometre jitter over the remaining seconds, which no
-   prediction decides. ``rest`` and the CoP/CoM rows say how far they could still move (the
-   difference measured: docs/model.md).
+   are (the body returns to rest), but on the other side the full run's extreme is set near
+   rest in the seconds an early stop skips (the CoP settles from either side), within the
+   predicted CoP and CoM range (the difference measured: docs/engine.md, 0.1 mm).
 
 Margins for the real plant (contact, nonlinearity, the ADMM's accuracy, float32): predicted
 values must stay within MARGIN of their limit, and V may grow by GROWTH in the QP test and the
 tail. The room actually used is measured by ``python -m mjx_balance.certificate`` (full-length
-runs of certified scenarios; docs/model.md gives the figures).
+runs of certified scenarios; docs/engine.md gives the figures).
 
 After certification the remaining control periods are counted in ``control_periods`` (every QP
 is solved, no input saturates); energies and work would go on accumulating in a full run, and
-that tail is left out (measured: docs/model.md); the ADMM iteration total counts the periods
+that tail is left out (measured: docs/engine.md); the ADMM iteration total counts the periods
 run. No certificate with a controller delay or a hip servo (the argument does not hold as
 stated): those scenarios run to t_end.
 """
@@ -190,3 +189,59 @@ def tail_integrals(xp, cert: Certificate, x, pred) -> dict:
     return {"energy_ankle": xp.abs(power[:, 0]).sum(), "energy_hip": xp.abs(power[:, 1]).sum(),
             "work_ankle": power[:, 0].sum(), "work_hip": power[:, 1].sum(),
             "energy_u1": xp.abs(power_u[:, 0]).sum(), "energy_u2": xp.abs(power_u[:, 1]).sum()}
+
+
+def measure(config=None, forces=None, durations=None) -> dict:
+    """The figures behind the margins, from MuJoCo runs (MJX, float32): certified scenarios of a
+    grid of pushes re-run to t_end with trajectories. Returns (and ``python -m
+    mjx_balance.certificate`` prints) the band use after the certified instant (largest |joint
+    angle| / settle tolerance and |rate| / tolerance: < 1 means the band held; MARGIN allows
+    0.5 for the linear prediction), the largest growth of V after it, and the foot pitch per CoP
+    excursion over every sample of recovering runs."""
+    import jax
+
+    from .params import Config
+    from .rollout import BatchRunner
+
+    config = config or Config()
+    forces = np.array([5.0, 10.0, 20.0, 30.0, 40.0, 60.0, 80.0, 100.0, -20.0, -40.0, -80.0]
+                      if forces is None else forces)
+    durations = np.array([0.05, 0.1, 0.2, 0.5, 1.0] if durations is None else durations)
+    f, d = np.repeat(forces, durations.size), np.tile(durations, forces.size)
+    sc = config.scenario
+    with jax.enable_x64(False):
+        early = BatchRunner(config)
+        early.run(f, d)
+        pick = np.nonzero(early.last_certified)[0]
+        traj = BatchRunner(config, trajectories=True)
+        summary = traj.run(f[pick], d[pick])
+    series, sn = traj.last_trajectories, traj.sensors
+    lm = traj.qp.linear
+    P = traj.qp.Qf
+    com_rest = float(np.asarray(early.engine.cert.rest)[1])
+    angle_use = rate_use = growth = 0.0
+    ratio, floor = 0.0, 0.0
+    for row, i in enumerate(pick):
+        step = int(early.last_periods[i]) * sc.substeps
+        q = series["qpos"][row][:, sn.joints_q]
+        dq = series["qvel"][row][:, sn.joints_v]
+        angle_use = max(angle_use, float(np.abs(q[step - 1:]).max()) / sc.settle_angle_tol)
+        rate_use = max(rate_use, float(np.abs(dq[step - 1:]).max()) / sc.settle_rate_tol)
+        x = lm.state_from_joints(q[step - 1::sc.substeps], dq[step - 1::sc.substeps])
+        V = np.einsum("ti,ij,tj->t", x, P, x)
+        growth = max(growth, float(V.max() / V[0]))
+        if summary["outcome"][row] == 0:  # recovered: the foot-pitch relation
+            pitch = np.abs(series["qpos"][row][:, sn.foot_pitch])
+            excursion = np.abs(series["cop"][row] - com_rest)
+            big = np.isfinite(excursion) & (excursion > 1e-4)
+            ratio = max(ratio, float((pitch[big] / excursion[big]).max(initial=0.0)))
+            floor = max(floor, float(pitch[np.isfinite(excursion) & ~big].max(initial=0.0)))
+    return dict(scenarios=int(f.size), certified=int(pick.size),
+                band_use_angle=angle_use, band_use_rate=rate_use, V_growth=growth,
+                pitch_per_cop=ratio, pitch_near_rest=floor)
+
+
+if __name__ == "__main__":
+    import json
+
+    print(json.dumps(measure(), indent=1))

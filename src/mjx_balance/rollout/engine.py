@@ -33,6 +33,7 @@ import numpy as np
 
 from .. import certificate as cert_mod
 from .._xla import deterministic_flags
+from .runner import MATMUL_PRECISION
 from .kernel import Accumulators, Carry, initial_carry, period
 from .physics import whole_body_com
 
@@ -205,7 +206,10 @@ class Engine:
         self.slots = int(slots or default_slots(platform))
         if self.slots < 1:
             raise ValueError(f"slots must be >= 1, got {slots}")
-        self.block = int(block)
+        # a call runs at most a scenario's length (short scenarios refill sooner), in whole
+        # certificate intervals
+        every = cert_mod.CHECK_EVERY
+        self.block = int(min(block, -(-runner.config.scenario.n_control // every) * every))
         self.refill = int(refill or 4 * self.slots)
         config = runner.config
         self.early = bool(early)
@@ -257,11 +261,12 @@ class Engine:
             split, whole = r._shardings()
             spec = (lambda a: jax.ShapeDtypeStruct(a.shape, a.dtype, sharding=split))
             n = self.refill * self.n_devices
-            fn = jax.jit(call, donate_argnums=(2,)).lower(
-                r.arrays, self.cert, jax.tree.map(spec, slots),
-                jax.ShapeDtypeStruct((n,), jnp.int32, sharding=split),
-                jax.ShapeDtypeStruct((n,), r.dtype, sharding=split),
-                jax.ShapeDtypeStruct((n,), jnp.int32, sharding=split)).compile()
+            with jax.default_matmul_precision(MATMUL_PRECISION):
+                fn = jax.jit(call, donate_argnums=(2,)).lower(
+                    r.arrays, self.cert, jax.tree.map(spec, slots),
+                    jax.ShapeDtypeStruct((n,), jnp.int32, sharding=split),
+                    jax.ShapeDtypeStruct((n,), r.dtype, sharding=split),
+                    jax.ShapeDtypeStruct((n,), jnp.int32, sharding=split)).compile()
             _COMPILED[key] = fn
         self.compile_seconds = _time.perf_counter() - t0
         self._fn = fn

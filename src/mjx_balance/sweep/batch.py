@@ -38,7 +38,6 @@ class LazyBatch:
     (False: ``--full-length``). A sweep folder records both and resumes with them.
     """
 
-    wants_padding = False  # the engine runs a fixed set of slots: padding would be work
 
     def __init__(self, config: Config, *, slots: int | None = None, early_stop: bool = True):
         self.config = config
@@ -46,19 +45,38 @@ class LazyBatch:
         self.early_stop = early_stop
         self._run: RunBatch | None = None
 
+    def _built(self) -> RunBatch:
+        if self._run is None:
+            options = ({} if self.slots is None and self.early_stop
+                       else {"slots": self.slots, "early_stop": self.early_stop})
+            self._run = default_batch(self.config, **options)
+        return self._run
+
     @property
     def runner(self):
-        """The BatchRunner (built now if needed)."""
-        if self._run is None:
-            self._run = default_batch(self.config, slots=self.slots, early_stop=self.early_stop)
-        return self._run.__self__
+        """The BatchRunner behind the batch function (built now if needed), or None for a
+        stand-in batch function."""
+        return getattr(self._built(), "__self__", None)
 
-    def engine_record(self) -> dict[str, Any]:
-        """What a sweep folder records about the engine (results depend on it)."""
+    @property
+    def wants_padding(self) -> bool:
+        """The engine runs a fixed set of slots: padding a call would only add work."""
+        return not self.can_stream()
+
+    def can_stream(self) -> bool:
+        """Whether :meth:`stream` works: the engine of a runner without trajectories."""
+        runner = self.runner
+        return runner is not None and hasattr(runner, "stream") and not runner.trajectories
+
+    def engine_record(self) -> dict[str, Any] | None:
+        """What a sweep folder records about the engine (results depend on it); None for a
+        stand-in."""
+        if not self.can_stream():
+            return None
         return {"slots": int(self.runner.engine.slots), "early_stop": bool(self.early_stop)}
 
     def __call__(self, forces: np.ndarray, durations: np.ndarray):
-        return self.runner.run_frame(forces, durations)
+        return self._built()(forces, durations)
 
     def stream(self, forces: np.ndarray, durations: np.ndarray):
         """(indices, summary columns) as scenarios are decided (``BatchRunner.stream``)."""
@@ -72,7 +90,7 @@ class LazyBatch:
         if self._run is None:
             say("building the MJX rollout ...")
         runner = self.runner
-        if hasattr(runner, "prepare"):  # rollout.BatchRunner
+        if runner is not None and hasattr(runner, "prepare"):  # rollout.BatchRunner
             if not runner.is_prepared():
                 say("compiling the rollout ...")
             runner.prepare()

@@ -116,8 +116,9 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
                 "this run")
         manifest["region"] = {"forces": forces.tolist(), "durations": durations.tolist(),
                               "chunk_size": int(chunk_size), "cells": int(n_cells)}
-        if hasattr(run_batch, "engine_record"):
-            manifest["region"]["engine"] = run_batch.engine_record()
+        record = run_batch.engine_record() if hasattr(run_batch, "engine_record") else None
+        if record is not None:
+            manifest["region"]["engine"] = record
         folder.write_manifest(manifest)
 
     slices = chunk_slices(n_cells, chunk_size)
@@ -156,7 +157,7 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
             run_batch.prepare(chunk_size, log=log)
         bar = progress_bar(n_cells, n_cells - remaining, progress)
         try:
-            if hasattr(run_batch, "stream"):
+            if _streams(run_batch):
                 _stream_chunks(run_batch, folder.path, [slices[i] for i in todo], todo, cell_f,
                                cell_d, config, bar)
             else:
@@ -174,6 +175,12 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
     seconds = time.perf_counter() - start
     say(f"wrote {region_path} ({n_cells} cells; {len(todo)} chunks computed in {seconds:.1f} s)")
     return SweepResult(region_path, len(todo), reused, recomputed, seconds, False)
+
+
+def _streams(run_batch: Any) -> bool:
+    """Whether the batch function runs a queue of cells (the engine), not fixed batches."""
+    can = getattr(run_batch, "can_stream", None)
+    return can() if can is not None else hasattr(run_batch, "stream")
 
 
 def _resume_engine(run_batch: RunBatch, recorded: dict | None, path: Path,
