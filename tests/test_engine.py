@@ -275,3 +275,25 @@ def test_interrupted_sweep_resumes_to_the_same_bytes(tmp_path):
     manifest = json.loads((tmp_path / "a" / "manifest.json").read_text())
     assert manifest["region"]["engine"] == {"slots": 8, "early_stop": True}
     assert len(pd.read_parquet(whole.region_path)) == forces.size * durations.size
+
+
+@pytest.mark.slow
+def test_early_stopping_on_a_larger_grid():
+    """As test_early_stopping_changes_no_decided_column on 600 cells: forces -100..150 N,
+    durations 0.01-10 s (log-spaced)."""
+    from mjx_balance.rollout import BatchRunner
+
+    forces = np.linspace(-100.0, 150.0, 30)
+    durations = np.round(np.geomspace(0.01, 10.0, 20) / 0.002) * 0.002
+    f, d = np.repeat(forces, durations.size), np.tile(durations, forces.size)
+    out = {}
+    with jax.enable_x64(False):
+        for name, early in (("early", True), ("full", False)):
+            out[name] = BatchRunner(Config(), early_stop=early).run(f, d)
+    for column in EXACT:
+        assert np.array_equal(out["early"][column], out["full"][column], equal_nan=True), column
+    for column in INTEGRALS:
+        np.testing.assert_allclose(out["early"][column], out["full"][column], rtol=ENERGY_RTOL,
+                                   atol=1e-9, err_msg=column)
+    for column in ("cop_min", "cop_max", "com_min", "com_max"):
+        assert np.nanmax(np.abs(out["early"][column] - out["full"][column])) < EXTREME_ATOL

@@ -3,8 +3,10 @@
     physics.py   the MuJoCo/MJX model, one physics step with the push, the measurements
     kernel.py    one scenario as a pure function: control periods and physics steps in a
                  ``lax.scan``, the running summary (accumulators) in the carry
-    runner.py    BatchRunner: compile once per batch size, vmap and shard the kernel over
-                 scenarios, summary columns on the host
+    engine.py    continuous batching: fixed slots per device, refilled on the device when a
+                 scenario is decided (fall, t_end, certified recovery: certificate.py)
+    runner.py    BatchRunner: the engine (or a padded batch with trajectories), sharded over
+                 the local devices, summary columns on the host
 
 Throughput and compile times are measured by ``mjx-balance bench`` (BENCHMARKS.md).
 """

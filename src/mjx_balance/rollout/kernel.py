@@ -18,7 +18,8 @@ by the runner (``runner.py``); everything here is written for a single scenario,
 update steps are plain functions of arrays that can be called without a compile.
 
 Fall / divergence. From the first fall sample (or non-finite value) on, nothing accumulates.
-The scenario keeps stepping (a batch runs in lock-step), but at the next control instant its
+The scenario keeps stepping (its slot runs until the engine harvests it, or to t_end in a
+batch with trajectories), but at the next control instant its
 physics state is reset to upright rest and the controller is fed x = 0 from a cold start, so a
 dead scenario costs no extra ADMM or contact-solver iterations (``while_loop`` under ``vmap``
 runs until the slowest element is done) and cannot produce NaN.

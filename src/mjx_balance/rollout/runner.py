@@ -1,12 +1,13 @@
 """The batch runner: many scenarios of one configuration through the compiled closed loop.
 
-:class:`BatchRunner` builds the MuJoCo model, the QP and the ADMM matrices once, compiles
-:func:`kernel.scenario` under ``jax.vmap`` for a padded batch size (the next power of two, at
-least 8) and turns the final accumulators into summary columns on the host in float64
-(:func:`summarize`). The model, QP and ADMM data are traced arguments of the compiled function,
-which is cached per shape key (:meth:`BatchRunner.compiled`): configurations that differ only in
-numbers (body, convention, weights) share one compile. With several local devices each
-batch is split over them (:meth:`BatchRunner._batched`, shard_map over a 1-D mesh).
+:class:`BatchRunner` builds the MuJoCo model, the QP and the ADMM matrices once. Scenarios run
+on the continuous-batching engine (``engine.py``: fixed slots per device, each refilled when its
+scenario is decided); with ``trajectories=True`` they run instead to t_end in one padded batch
+of :func:`kernel.scenario` under ``jax.vmap`` (the next power of two, at least 8), which returns
+every physics step. Summary columns are made on the host in float64 (:func:`summarize`). The
+model, QP and ADMM data are traced arguments of the compiled functions, which are cached per
+shape key: configurations that differ only in numbers (body, convention, weights) share one
+compile. With several local devices the work is split over them (shard_map over a 1-D mesh).
 """
 
 from __future__ import annotations

@@ -65,9 +65,10 @@ def batch_limit(config: Config) -> int:
 
 
 def default_chunk_size(config: Config, n_cells: int) -> int:
-    """Scenarios per chunk: a power of two within ``batch_limit`` (the rollout compiles one
-    function per power-of-two batch size and pads to it, and every chunk call is padded to the
-    chunk size, so one size is compiled and little is wasted), see ``power_of_two_chunk``."""
+    """Scenarios per chunk file: a power of two within ``batch_limit``, see
+    ``power_of_two_chunk``. (The engine streams every chunk through one queue of fixed slots,
+    so the chunk size only sets how much a killed sweep loses; batch functions that run fixed
+    batches are padded to it.)"""
     return power_of_two_chunk(n_cells, batch_limit(config))
 
 
@@ -91,11 +92,13 @@ def chunk_slices(n_cells: int, chunk_size: int) -> list[slice]:
     return [slice(i, min(i + chunk_size, n_cells)) for i in range(0, n_cells, chunk_size)]
 
 
-# The guard on enormous work (issue 11). The rate is the batched path's throughput measured on
-# the 2-core CPU of this project: 13-17 scenarios of 12 s per second with two host devices
-# (BENCHMARKS.md, `mjx-balance bench`), i.e. about 160-200 simulated seconds per second.
-# A GPU is far faster (the time estimate is then pessimistic: pass --yes).
-SIMULATED_SECONDS_PER_SECOND = (13 * 12.0, 17 * 12.0)
+# The guard on enormous work (issue 11). The rate is the engine's throughput measured on the
+# 2-core CPU of this project with two host devices, counted in scenario windows (a scenario
+# stops when decided, so what it simulates depends on the grid): 50 scenarios of 12 s per
+# second on the benchmark's mix (`mjx-balance bench`, 1024 scenarios) to 130 on the dense study
+# map (`mjx-balance sweep --sweep sweeps/region_dense_paper.toml`: 15,200 cells in 117 s),
+# BENCHMARKS.md. A GPU is far faster (the estimate is then pessimistic: pass --yes).
+SIMULATED_SECONDS_PER_SECOND = (50 * 12.0, 130 * 12.0)
 # Disk per scenario in a chunk file: a 64-row chunk parquet of the default sweep is 23 kB
 # (365 bytes a row; the merged region.parquet holds the same rows again).
 CHUNK_BYTES_PER_SCENARIO = 400
@@ -119,8 +122,8 @@ def planned_work(n_scenarios: int, t_end: float, chunk_size: int, what: str = "c
     disk = 2 * n_scenarios * CHUNK_BYTES_PER_SCENARIO  # chunks + the merged table
     low, high = SIMULATED_SECONDS_PER_SECOND
     return (f"planned work: {n_scenarios:,} {what} in {math.ceil(n_scenarios / chunk_size):,} "
-            f"chunks of {chunk_size}, {simulated:,.0f} simulated s, about "
-            f"{_wall_time(shortest)} to {_wall_time(longest)} at {low:g}-{high:g} simulated s/s "
+            f"chunks of {chunk_size}, {simulated:,.0f} s of scenario windows, about "
+            f"{_wall_time(shortest)} to {_wall_time(longest)} at {low:g}-{high:g} window-s/s "
             f"(2-core CPU, BENCHMARKS.md; compile not included), about {disk / 1e6:.3g} MB on disk")
 
 
