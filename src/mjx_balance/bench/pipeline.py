@@ -320,10 +320,14 @@ def memory_child(cells: int, t_end: float, chunk: int | None, out: str) -> None:
     from .. import sweep
 
     config = Config().replace(scenario={"t_end": t_end, "duration": min(0.1, t_end)})
-    n_f = int(round(math.sqrt(cells)))
-    n_d = int(math.ceil(cells / n_f))
+    # durations: every whole number of physics steps up to t_end (at most 100 of them), forces
+    # as many as the cell count needs
+    dt = config.scenario.physics_dt
+    steps = int(round(t_end / dt))
+    durations = np.unique(np.round(np.linspace(0, steps, min(steps + 1, 100))) * dt)
+    n_d = durations.size
+    n_f = int(math.ceil(cells / n_d))
     forces = np.linspace(0.0, 150.0, n_f)
-    durations = np.linspace(0.0, t_end, n_d)
     t0 = time.perf_counter()
     result = sweep.run_sweep(out, config, forces, durations, chunk_size=chunk, progress=False,
                              log=None)
