@@ -152,7 +152,7 @@ def linear_setup():
 
 class _Acc:
     """Running peaks large enough not to matter (the band and QP tests alone)."""
-    alive = True
+    alive = in_band = True
     peak_ankle = peak_hip = peak_tau_ankle = peak_tau_hip = peak_foot_pitch = np.inf
 
 
@@ -169,12 +169,12 @@ def test_certificate_is_exact_for_the_linear_model():
     rng = np.random.default_rng(0)
     for direction in rng.normal(size=(6, 4)):
         lo, hi = 0.0, 1.0
-        while cert_mod.check(np, cert, hi * direction, _Acc, True)[0]:
+        while cert_mod.check(np, cert, hi * direction, _Acc, True, 0)[0]:
             hi *= 2
         for _ in range(40):
             mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if cert_mod.check(np, cert, mid * direction, _Acc, True)[0] else (lo, mid)
-        assert not cert_mod.check(np, cert, 1.01 * hi * direction, _Acc, True)[0]
+            lo, hi = (mid, hi) if cert_mod.check(np, cert, mid * direction, _Acc, True, 0)[0] else (lo, mid)
+        assert not cert_mod.check(np, cert, 1.01 * hi * direction, _Acc, True, 0)[0]
         x = lo * direction
         worst = 0.0
         for _ in range(sc.n_control):
@@ -192,18 +192,18 @@ def test_certificate_is_exact_for_the_linear_model():
 def test_certificate_needs_the_push_over_and_a_live_scenario():
     _, _, cert = linear_setup()
     x = np.zeros(4)
-    assert cert_mod.check(np, cert, x, _Acc, True)[0]
-    assert not cert_mod.check(np, cert, x, _Acc, False)[0]
+    assert cert_mod.check(np, cert, x, _Acc, True, 0)[0]
+    assert not cert_mod.check(np, cert, x, _Acc, False, 0)[0]
 
     class Dead(_Acc):
         alive = False
 
-    assert not cert_mod.check(np, cert, x, Dead, True)[0]
+    assert not cert_mod.check(np, cert, x, Dead, True, 0)[0]
 
     class Small(_Acc):
         peak_foot_pitch = 0.0  # the foot has not rocked more than at rest
 
-    assert not cert_mod.check(np, cert, x, Small, True)[0]
+    assert not cert_mod.check(np, cert, x, Small, True, 0)[0]
 
 
 def test_no_certificate_with_a_delay_or_a_hip_servo():

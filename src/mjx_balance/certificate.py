@@ -35,9 +35,9 @@ tail. The room actually used is measured by ``python -m mjx_balance.certificate`
 runs of certified scenarios; docs/engine.md gives the figures).
 
 After certification the remaining control periods are counted in ``control_periods`` (every QP
-is solved, no input saturates); energies and work would go on accumulating in a full run, and
-that tail is left out (measured: docs/engine.md); the ADMM iteration total counts the periods
-run. No certificate with a controller delay or a hip servo (the argument does not hold as
+is solved, no input saturates); energies and work go on as the linear prediction says for its
+2 s (up to t_end), what comes later is left out (measured: docs/engine.md); the ADMM iteration
+total counts the periods run. No certificate with a controller delay or a hip servo (the argument does not hold as
 stated): those scenarios run to t_end.
 """
 
@@ -136,7 +136,7 @@ def build(qp: CondensedQP, controller, scenario, *, rest: tuple[float, float],
         per_sample.append(np.vstack([to_q @ Mj[:2], to_q @ Mj[2:], -lm.torque_map @ K,
                                      (lm.cop_x @ Mj - lm.cop_u @ K)[None],
                                      (lm.com_x @ Mj)[None], Mj[:2], -K]))
-    per_sample = np.stack(per_sample)  # [S, 8, 4]
+    per_sample = np.stack(per_sample)  # [S, 12, 4]
     rows, power = [], np.eye(4)
     for _ in range(periods):
         rows.append(per_sample @ power)
@@ -157,12 +157,13 @@ def applies(config) -> bool:
             and body.hip_servo_damping == 0)
 
 
-def check(xp, cert: Certificate, x, acc, push_over):
+def check(xp, cert: Certificate, x, acc, push_over, samples_left):
     """Whether a scenario is decided as recovered, and the integrals of its predicted future
     (:func:`tail_integrals`), for array namespace ``xp`` (numpy or jax.numpy).
 
     x: [4] the convention state at the next control instant; acc: the running accumulators
-    (``rollout.kernel.Accumulators``); push_over: the push acts in no later physics step.
+    (``rollout.kernel.Accumulators``); push_over: the push acts in no later physics step;
+    samples_left: physics samples before t_end (the integrals stop there).
     """
     pred = xp.einsum("nqi,i->nq", cert.rows, x)  # [n, 12]
     tail = xp.sqrt(GROWTH * (x @ cert.tail @ x)) * cert.tail_reach  # [12]
@@ -174,18 +175,23 @@ def check(xp, cert: Certificate, x, acc, push_over):
              & (size[4] <= acc.peak_tau_ankle) & (size[5] <= acc.peak_tau_hip)
              & (acc.peak_foot_pitch >= cert.pitch_per_cop * size[6] + cert.pitch_floor))
     qp_free = GROWTH * (x @ cert.P @ x) <= cert.qp_level
-    return push_over & acc.alive & band & peaks & qp_free, tail_integrals(xp, cert, x, pred)
+    # (the current sample is in the band whenever the prediction is, for the default model; kept
+    # as a guard for others)
+    ok = push_over & acc.alive & acc.in_band & band & peaks & qp_free
+    return ok, tail_integrals(xp, cert, x, pred, samples_left)
 
 
-def tail_integrals(xp, cert: Certificate, x, pred) -> dict:
+def tail_integrals(xp, cert: Certificate, x, pred, samples_left) -> dict:
     """The energies and work of the predicted future ``pred`` (``PREDICTED_PERIODS`` periods
     from x), in the accumulators' definitions: sum |tau Δq| and tau Δq per joint, sum |u Δy|
-    per input (``metrics.increments``). Added to a certified scenario's accumulators in place of
-    the steps it does not run; what comes after the prediction is left out (measured: docs)."""
+    per input (``metrics.increments``), up to ``samples_left`` samples (t_end). Added to a
+    certified scenario's accumulators in place of the steps it does not run; what comes after
+    the prediction is left out (measured: docs/engine.md)."""
     q = xp.concatenate([(cert.to_q @ x[:2])[None], pred[:, 0:2]])
     y = xp.concatenate([x[None, :2], pred[:, 8:10]])
-    power = pred[:, 4:6] * (q[1:] - q[:-1])
-    power_u = pred[:, 10:12] * (y[1:] - y[:-1])
+    before_end = (xp.arange(pred.shape[0]) < samples_left)[:, None]
+    power = xp.where(before_end, pred[:, 4:6] * (q[1:] - q[:-1]), 0)
+    power_u = xp.where(before_end, pred[:, 10:12] * (y[1:] - y[:-1]), 0)
     return {"energy_ankle": xp.abs(power[:, 0]).sum(), "energy_hip": xp.abs(power[:, 1]).sum(),
             "work_ankle": power[:, 0].sum(), "work_hip": power[:, 1].sum(),
             "energy_u1": xp.abs(power_u[:, 0]).sum(), "energy_u2": xp.abs(power_u[:, 1]).sum()}

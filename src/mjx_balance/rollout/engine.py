@@ -109,7 +109,7 @@ def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push
     run = jax.vmap(lambda c, k, f, n: period(ar, sn, st, c, k, f, n)[0])
     every = cert_mod.CHECK_EVERY
     if early and cert is not None:
-        check = jax.vmap(lambda x, acc, over: cert_mod.check(jnp, cert, x, acc, over))
+        check = jax.vmap(lambda x, acc, over, left: cert_mod.check(jnp, cert, x, acc, over, left))
         if periods % every:
             raise ValueError(f"block of {periods} periods: not a multiple of {every}")
     else:
@@ -145,7 +145,7 @@ def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push
             over = k * st.substeps >= slots.n_push
 
             def checked(_):
-                ok, tail = check(carry.x_prev, acc, over)
+                ok, tail = check(carry.x_prev, acc, over, (n_control - k) * st.substeps)
                 return ~ended & ok, tail
 
             def skipped(_):
@@ -169,9 +169,11 @@ def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push
             certified=done.certified.at[where].set(certified, mode="drop"),
         )
         n_done = n_done + decided.sum(dtype=jnp.int32)
+        # (a vacated slot idles at rest, unpushed, until it is refilled)
         slots = Slots(carry=_select(decided, rest, carry),
-                      cell=jnp.where(decided, -1, slots.cell), force=slots.force,
-                      n_push=slots.n_push, k=k)
+                      cell=jnp.where(decided, -1, slots.cell),
+                      force=jnp.where(decided, 0, slots.force),
+                      n_push=jnp.where(decided, 0, slots.n_push), k=k)
         return (slots, taken, done, n_done), None
 
     done = Finished(
@@ -218,8 +220,13 @@ class Engine:
             ar, sn = runner.arrays, runner.sensors
             com = float(whole_body_com(ar.mx, ar.d0, sn))
             rest = (com, com)  # static equilibrium: the CoP lies under the CoM
-            cert = cert_mod.build(runner.qp, config.controller, config.scenario, rest=rest)
-            self.cert = jax.tree.map(lambda v: jnp.asarray(v, runner.dtype), cert)
+            try:
+                cert = cert_mod.build(runner.qp, config.controller, config.scenario, rest=rest)
+            except ValueError as exc:  # e.g. a bound through rest: run to t_end instead
+                warnings.warn(f"no certified early stop for this configuration: {exc}",
+                              stacklevel=3)
+            else:
+                self.cert = jax.tree.map(lambda v: jnp.asarray(v, runner.dtype), cert)
         self.packing = Packing(initial_carry(runner.arrays, runner.sensors, runner.static))
         self.compile_seconds: float | None = None
         self._fn = None
@@ -302,7 +309,7 @@ class Engine:
         D, R = self.n_devices, self.refill
         queue = np.arange(n)
         returned = np.zeros(0, np.int64)  # offered in a call but not taken: first next time
-        head, remaining, in_flight = 0, n, 0
+        head, remaining, finished = 0, n, False
         try:
             while remaining:
                 offer = np.concatenate([returned, queue[head:head + D * R - returned.size]])
@@ -323,7 +330,6 @@ class Engine:
                 state, taken, done = fn(r.arrays, self.cert, state, *args)
                 taken = np.asarray(taken)
                 returned = np.concatenate([part[int(t):] for part, t in zip(per, taken)])
-                in_flight += int(taken.sum())
                 index = np.asarray(done.cell)
                 keep = index >= 0
                 if keep.any():
@@ -332,21 +338,25 @@ class Engine:
                     raw["periods"] = np.asarray(done.periods)[keep]
                     raw["certified"] = np.asarray(done.certified)[keep]
                     remaining -= int(keep.sum())
-                    in_flight -= int(keep.sum())
                     yield index[keep].astype(np.int64), raw
+            finished = True
         finally:
-            if in_flight == 0:
-                self._state = state  # all slots vacant: reusable by the next run
+            if finished:
+                self._state = state  # every slot vacant: reusable by the next run
 
     def run(self, forces: np.ndarray, n_push: np.ndarray) -> dict[str, np.ndarray]:
         """Every cell's raw results (see :meth:`stream`), in the order of the cells."""
         n = np.asarray(forces).shape[0]
         out: dict[str, Any] = {}
+        seen = np.zeros(n, bool)
         for index, raw in self.stream(forces, n_push):
             for name, v in raw.items():
                 if name not in out:
                     out[name] = np.zeros((n,) + v.shape[1:], v.dtype)
                 out[name][index] = v
+            seen[index] = True
+        if not seen.all():
+            raise RuntimeError(f"the engine returned {int(seen.sum())} of {n} scenarios")
         if not out:
             return {name: np.zeros(0) for name in (*Accumulators._fields, "periods", "certified")}
         return out

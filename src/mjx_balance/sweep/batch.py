@@ -45,6 +45,14 @@ class LazyBatch:
         self.early_stop = early_stop
         self._run: RunBatch | None = None
 
+    def use_engine(self, slots: int | None, early_stop: bool) -> None:
+        """Run with these engine settings (rebuilt if it was built with others)."""
+        runner = getattr(self._run, "__self__", None)
+        if runner is not None and (early_stop != self.early_stop or (
+                slots is not None and slots != runner.engine.slots)):
+            self._run = None
+        self.slots, self.early_stop = slots, early_stop
+
     def _built(self) -> RunBatch:
         if self._run is None:
             options = ({} if self.slots is None and self.early_stop

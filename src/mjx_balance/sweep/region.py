@@ -186,14 +186,17 @@ def _streams(run_batch: Any) -> bool:
 def _resume_engine(run_batch: RunBatch, recorded: dict | None, path: Path,
                    say: Callable[[str], None]) -> None:
     """Resume with the engine settings the folder was started with (results depend on the slot
-    count's compiled program and on early stopping; a folder from before they were recorded
-    resumes with the defaults)."""
+    count's compiled program and on early stopping). A folder from before they were recorded
+    (lock-step batches run to t_end) resumes with what is asked."""
     if recorded is None or not hasattr(run_batch, "engine_record"):
         return
     asked = (run_batch.slots, run_batch.early_stop)
-    run_batch.slots = int(recorded["slots"])
-    run_batch.early_stop = bool(recorded["early_stop"])
-    if asked[0] not in (None, run_batch.slots) or asked[1] != run_batch.early_stop:
+    wanted = (int(recorded["slots"]), bool(recorded["early_stop"]))
+    if hasattr(run_batch, "use_engine"):
+        run_batch.use_engine(*wanted)
+    else:
+        run_batch.slots, run_batch.early_stop = wanted
+    if asked[0] not in (None, wanted[0]) or asked[1] != wanted[1]:
         say(f"note: {path} was started with {run_batch.slots} slots per device and "
             f"{'early stopping' if run_batch.early_stop else '--full-length'}; keeping that")
 
@@ -208,8 +211,9 @@ def _stream_chunks(run_batch: Any, path: Path, slices: list[slice], indices: lis
     left = {k: s.stop - s.start for k, s in enumerate(slices)}
     convention = config.controller.convention
     for index, columns in run_batch.stream(cell_f[positions], cell_d[positions]):
-        frame = summary_frame({k: v for k, v in columns.items()
-                               if k not in ("periods", "certified")}, convention)
+        # the summary columns only, as the fixed-batch path writes them (merge_chunks reads every
+        # chunk with the first one's schema)
+        frame = summary_frame(columns, convention, extra=False)
         frame["_cell"] = positions[index]
         chunk_of = owner[index]
         for k in np.unique(chunk_of):
