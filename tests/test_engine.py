@@ -297,3 +297,16 @@ def test_early_stopping_on_a_larger_grid():
                                    atol=1e-9, err_msg=column)
     for column in ("cop_min", "cop_max", "com_min", "com_max"):
         assert np.nanmax(np.abs(out["early"][column] - out["full"][column])) < EXTREME_ATOL
+
+
+def test_a_damaged_engine_record_is_a_bad_manifest():
+    from mjx_balance.sweep.store import manifest_problem
+
+    region = {"forces": [0.0], "durations": [0.1], "chunk_size": 8, "cells": 1}
+    good = {"region": {**region, "engine": {"slots": 8, "early_stop": True}},
+            "table_engine": {"slots": 32, "early_stop": False}}
+    assert manifest_problem(good) == ""
+    for bad in ({"slots": "8", "early_stop": True}, {"slots": 0, "early_stop": True},
+                {"slots": 8, "early_stop": 1}, [8, True]):
+        assert "engine" in manifest_problem({"region": {**region, "engine": bad}})
+        assert "table_engine" in manifest_problem({"table_engine": bad})

@@ -24,7 +24,7 @@ import pandas as pd
 
 from ..outcomes import NOT_SETTLED, OUTCOMES, RECOVERED
 from ..params import Config, ParameterError
-from .batch import LazyBatch, RunBatch, evaluate, evaluate_batches
+from .batch import LazyBatch, RunBatch, evaluate, evaluate_batches, resume_engine
 from .chunks import batch_limit, chunk_slices
 from .grid import GRID_TOL, describe, parse_grid, same_values
 from .progress import NoBar, progress_bar
@@ -353,6 +353,13 @@ def _run_table(out: str | Path, config: Config, forces: np.ndarray, run_batch: R
     if recorded is not None and not same_values(recorded["forces"], forces):
         say(f"replacing the table for forces {describe(recorded['forces'])} in {folder.path} "
             "(reusing the scenarios they share)")
+    # the engine settings the table's scenarios were (or will be) run with
+    run_batch = run_batch or LazyBatch(config)
+    if manifest.get("table_engine") is not None:
+        resume_engine(run_batch, manifest["table_engine"], folder.path, say)
+    elif hasattr(run_batch, "engine_record") and run_batch.engine_record() is not None:
+        manifest["table_engine"] = run_batch.engine_record()
+        folder.write_manifest(manifest)
     cells = TableCells(folder.path, config.controller.convention)
     if cells.rows:
         say(f"table: {len(cells.rows)} scenarios already evaluated in {cells.path}; "

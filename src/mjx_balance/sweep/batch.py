@@ -107,6 +107,24 @@ class LazyBatch:
             say(f"rollout ready ({seconds:.0f} s)")
 
 
+def resume_engine(run_batch: RunBatch, recorded: dict | None, path: Any,
+                   say: Callable[[str], None]) -> None:
+    """Resume with the engine settings the folder was started with (results depend on the slot
+    count's compiled program and on early stopping). A folder from before they were recorded
+    (lock-step batches run to t_end) resumes with what is asked."""
+    if recorded is None or not hasattr(run_batch, "engine_record"):
+        return
+    asked = (run_batch.slots, run_batch.early_stop)
+    wanted = (int(recorded["slots"]), bool(recorded["early_stop"]))
+    if hasattr(run_batch, "use_engine"):
+        run_batch.use_engine(*wanted)
+    else:
+        run_batch.slots, run_batch.early_stop = wanted
+    if asked[0] not in (None, wanted[0]) or asked[1] != wanted[1]:
+        say(f"note: {path} was started with {run_batch.slots} slots per device and "
+            f"{'early stopping' if run_batch.early_stop else '--full-length'}; keeping that")
+
+
 def evaluate(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarray, config: Config,
              pad_to: int | None = None) -> pd.DataFrame:
     """Summary rows for the scenarios (forces[i], durations[i]), in order.

@@ -22,7 +22,7 @@ import pandas as pd
 
 from ..outcomes import summary_frame
 from ..params import Config, ParameterError
-from .batch import LazyBatch, RunBatch, evaluate
+from .batch import LazyBatch, RunBatch, evaluate, resume_engine
 from .chunks import chunk_slices, default_chunk_size
 from .grid import check_durations, describe, grid_cells, parse_grid, same_values
 from .progress import progress_bar
@@ -98,7 +98,7 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
             say(f"note: {folder.path} was started with chunks of {recorded['chunk_size']} "
                 f"scenarios; keeping that (ignoring --chunk {chunk_size})")
         chunk_size = int(recorded["chunk_size"])
-        _resume_engine(run_batch, recorded.get("engine"), folder.path, say)
+        resume_engine(run_batch, recorded.get("engine"), folder.path, say)
     else:
         if chunk_size is not None and chunk_size < 1:
             raise ParameterError(f"--chunk must be >= 1, got {chunk_size}")
@@ -181,24 +181,6 @@ def _streams(run_batch: Any) -> bool:
     """Whether the batch function runs a queue of cells (the engine), not fixed batches."""
     can = getattr(run_batch, "can_stream", None)
     return can() if can is not None else hasattr(run_batch, "stream")
-
-
-def _resume_engine(run_batch: RunBatch, recorded: dict | None, path: Path,
-                   say: Callable[[str], None]) -> None:
-    """Resume with the engine settings the folder was started with (results depend on the slot
-    count's compiled program and on early stopping). A folder from before they were recorded
-    (lock-step batches run to t_end) resumes with what is asked."""
-    if recorded is None or not hasattr(run_batch, "engine_record"):
-        return
-    asked = (run_batch.slots, run_batch.early_stop)
-    wanted = (int(recorded["slots"]), bool(recorded["early_stop"]))
-    if hasattr(run_batch, "use_engine"):
-        run_batch.use_engine(*wanted)
-    else:
-        run_batch.slots, run_batch.early_stop = wanted
-    if asked[0] not in (None, wanted[0]) or asked[1] != wanted[1]:
-        say(f"note: {path} was started with {run_batch.slots} slots per device and "
-            f"{'early stopping' if run_batch.early_stop else '--full-length'}; keeping that")
 
 
 def _stream_chunks(run_batch: Any, path: Path, slices: list[slice], indices: list[int],
