@@ -174,6 +174,9 @@ BAD_VALUES = [
     ("table", ["--sweep", "no_such.toml"], ["--sweep", "not found"]),
     ("report", ["--sweeps", "no_such_folder"], ["--sweeps", "not a folder"]),
     ("simulate", ["--force", "abc"], ["--force", "not a number"]),
+    ("simulate", ["--duration", "0.1005"], ["--duration", "not a whole number of physics steps"]),
+    ("simulate", ["--force", "0:10:0"], ["--force", "step must be > 0"]),
+    ("animate", ["--duration", "0.1005"], ["--duration", "not a whole number of physics steps"]),
 ]
 
 

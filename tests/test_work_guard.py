@@ -20,7 +20,7 @@ SWEEPS = sorted((Path(__file__).resolve().parents[1] / "sweeps").glob("*.toml"))
 def ran(monkeypatch):
     """The folders the command would have worked in: no sweep runs here, even if a guard broke."""
     calls = []
-    monkeypatch.setattr(cli_sweep, "_in_folder", lambda out, work: calls.append(out) or 0)
+    monkeypatch.setattr(cli_sweep, "_in_folder", lambda out, work, **_: calls.append(out) or 0)
     return calls
 
 

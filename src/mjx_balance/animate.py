@@ -19,6 +19,17 @@ import pandas as pd  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 
 from .params import BodyParams  # noqa: E402
+from .sweep.store import write_atomic  # noqa: E402
+
+
+class _GifWriter(PillowWriter):
+    """PillowWriter that writes GIF whatever the file name ends with (the temporary file of
+    :func:`sweep.store.write_atomic`)."""
+
+    def finish(self):
+        self._frames[0].save(
+            self.outfile, format="GIF", save_all=True, append_images=self._frames[1:],
+            duration=int(1000 / self.fps), loop=0)
 
 
 def frame_times(t_last: float, fps: float) -> np.ndarray:
@@ -51,7 +62,8 @@ def segment_points(body: BodyParams, foot_x, foot_z, foot_pitch, q_a, q_h) -> di
 
 def animate_timeseries(ts: pd.DataFrame, out: str | Path, body: BodyParams = BodyParams(),
                        fps: float = 25.0, dpi: int = 80) -> int:
-    """Write an animated GIF of one scenario's time series; returns the number of frames."""
+    """Write an animated GIF of one scenario's time series atomically (the file is whole, or
+    the old one or none is left); returns the number of frames."""
     out = Path(out)
     if ts.empty:
         raise ValueError("empty time series: nothing to animate")
@@ -100,7 +112,9 @@ def animate_timeseries(ts: pd.DataFrame, out: str | Path, body: BodyParams = Bod
 
     fig.tight_layout()
     anim = FuncAnimation(fig, draw, frames=len(times), blit=False)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    anim.save(out, writer=PillowWriter(fps=fps), dpi=dpi)
-    plt.close(fig)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(out, lambda tmp: anim.save(tmp, writer=_GifWriter(fps=fps), dpi=dpi))
+    finally:
+        plt.close(fig)
     return len(times)

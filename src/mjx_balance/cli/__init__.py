@@ -198,6 +198,12 @@ def _yes(p: argparse.ArgumentParser) -> None:
                         "or an estimated 24 h on a 2-core CPU)")
 
 
+def _wait(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--wait", action="store_true",
+                   help="when another run holds the --out folder, wait for it to end "
+                        "(default: refuse at once, naming that run)")
+
+
 def _engine_options(p: argparse.ArgumentParser) -> None:
     """Options of the continuous-batching engine (sweep, table, bench)."""
     p.add_argument("--full-length", action="store_true",
@@ -275,6 +281,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="CSV of points (force, duration) to draw over the map")
     _engine_options(p)
     _yes(p)
+    _wait(p)
     _common(p)
     p.set_defaults(target="mjx_balance.cli.sweep:sweep_command")
 
@@ -286,6 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="sweep definition TOML (see sweeps/)")
     _engine_options(p)
     _yes(p)
+    _wait(p)
     _common(p)
     p.set_defaults(target="mjx_balance.cli.sweep:table_command")
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from ..animate import animate_timeseries
 from ..reference import simulate_scenario
+from ..sweep.grid import check_durations
 from . import load_run_config
 
 
@@ -12,7 +13,11 @@ def animate_command(args) -> int:
     config = load_run_config(args)
     if args.t_end is not None:
         config = config.replace(scenario={"t_end": args.t_end})
-    _, ts = simulate_scenario(config, args.force, args.duration, record=True)
+    # As ``sweep``: a duration of whole physics steps in [0, t_end] (snapped to them).
+    duration = float(check_durations([args.duration], config.scenario.t_end, "--duration",
+                                      physics_dt=config.scenario.physics_dt)[0])
+    config.replace(scenario={"duration": duration})  # any other rule: before any work
+    _, ts = simulate_scenario(config, args.force, duration, record=True)
     frames = animate_timeseries(ts, args.out, config.body, fps=args.fps)
     print(f"wrote {args.out} ({frames} frames at {args.fps:g} fps)")
     return 0

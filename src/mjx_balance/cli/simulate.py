@@ -6,11 +6,15 @@ import argparse
 import math
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
-from ..params import ParameterError, save_config
+from ..params import ParameterError, dumps_config
 from ..plots import timeseries_figures
 from ..reference import simulate_many
+from ..sweep.grid import check_durations, parse_grid
+from ..sweep.store import (CONFIG, MANIFEST, REGION, TABLE_CELLS, write_atomic, write_parquet,
+                           write_text)
 from . import load_run_config
 
 # The summary columns printed to the terminal (summary.csv has them all).
@@ -39,20 +43,42 @@ def parse_values(text: str, name: str, *, nonnegative: bool = False) -> list[flo
     return values
 
 
+def parse_option_grid(text: str, name: str) -> list[float]:
+    """``--name``'s values as ``sweep`` reads a grid (sweep.grid.parse_grid): ``start:stop:step``
+    or a comma list, sorted, each value once; ParameterError naming ``--name`` otherwise."""
+    if not any(item.strip() for item in str(text).split(",")):
+        raise ParameterError(f"--{name}: give at least one value")
+    return [float(v) for v in parse_grid(str(text), f"--{name}")]
+
+
+def sweep_folder(out: Path) -> bool:
+    """Whether ``out`` holds a sweep or a table (its config.toml must not be overwritten): a
+    manifest, or a config.toml beside chunks, a region or the table's kept scenarios."""
+    return (out / MANIFEST).exists() or ((out / CONFIG).exists() and any(
+        (out / name).exists() for name in ("chunks", REGION, TABLE_CELLS)))
+
+
 def simulate_command(args: argparse.Namespace) -> int:
-    """``mjx-balance simulate``: run the pushes, write tables, configuration and figures."""
-    forces = parse_values(args.force, "force")
-    durations = parse_values(args.duration, "duration", nonnegative=True)
+    """``mjx-balance simulate``: run the pushes, write tables, configuration and figures
+    (each file atomically: whole or absent)."""
+    forces = parse_option_grid(args.force, "force")
     config = load_run_config(args)
+    # As ``sweep``: durations in [0, t_end] and whole physics steps (snapped to them).
+    durations = check_durations(np.asarray(parse_option_grid(args.duration, "duration")),
+                                config.scenario.t_end, "--duration",
+                                physics_dt=config.scenario.physics_dt).tolist()
     for duration in durations:  # fail before creating anything
         config.replace(scenario={"duration": duration})
     out = Path(args.out)
+    if sweep_folder(out):
+        raise ParameterError(f"{out} holds a sweep (its {CONFIG} would be overwritten); "
+                             "use another --out folder")
     out.mkdir(parents=True, exist_ok=True)
     summary, series = simulate_many(config, forces, durations)
-    summary.to_csv(out / "summary.csv", index=False)
-    series.to_parquet(out / "timeseries.parquet", index=False)
-    save_config(config, out / "config.toml")
-    figures = timeseries_figures(series, out)
+    write_atomic(out / "summary.csv", lambda tmp: summary.to_csv(tmp, index=False))
+    write_parquet(series, out / "timeseries.parquet")
+    write_text(dumps_config(config), out / CONFIG)
+    figures = timeseries_figures(series, out)  # written atomically (plots._save)
     with pd.option_context("display.width", 200, "display.max_columns", None,
                            "display.float_format", lambda v: f"{v:.4g}"):
         print(summary[PRINTED_COLUMNS].to_string(index=False))

@@ -1,7 +1,7 @@
 """``mjx-balance sweep`` and ``mjx-balance table``: the region map and the robustness table.
 
 Each command checks its arguments, then works in the output folder under its lock (a second run
-into the same folder is refused at once). A write that fails there (a full disk, a file-size
+into the same folder is refused at once, or waits for it with --wait). A write that fails there (a full disk, a file-size
 limit) ends in one line and exit code 1; finished chunks stay and the same command resumes.
 Derived figures missing or damaged (a PNG cut short) are drawn again on a rerun.
 """
@@ -79,7 +79,7 @@ def sweep_command(args: Any) -> int:
                               batch=int(chunk_used))
             _make_table_figure(out, config, force=table is not None)
 
-    return _in_folder(out, work)
+    return _in_folder(out, work, wait=getattr(args, "wait", False))
 
 
 def table_command(args: Any) -> int:
@@ -104,7 +104,7 @@ def table_command(args: Any) -> int:
         table = run_table(out, config, forces, run_batch=run_batch, batch=batch)
         _make_table_figure(out, config, force=table is not None)
 
-    return _in_folder(out, work)
+    return _in_folder(out, work, wait=getattr(args, "wait", False))
 
 
 def table_scenarios_per_force(config: Config, resolution: float = 0.01) -> int:
@@ -125,10 +125,11 @@ def _guard_work(args: Any, config: Config, n_scenarios: int, chunk_size: int, wh
         check_planned_work(n_scenarios + extra, t_end, what)
 
 
-def _in_folder(out: Path, work: Callable[[], None]) -> int:
-    """Run ``work`` holding the folder's lock; a failed write ends in one line, exit code 1."""
+def _in_folder(out: Path, work: Callable[[], None], *, wait: bool = False) -> int:
+    """Run ``work`` holding the folder's lock (``wait``: waiting for another run to let go of
+    it, else refused at once); a failed write ends in one line, exit code 1."""
     try:
-        with folder_lock(out):
+        with folder_lock(out, wait=wait):
             work()
     except OSError as exc:
         print(f"mjx-balance: error: {_write_failure(out, exc)}", file=sys.stderr)

@@ -21,6 +21,7 @@ import pandas as pd
 from .. import studies
 from ..outcomes import OUTCOMES, RECOVERED
 from ..params import Config, config_from_dict, with_convention
+from ..sweep.store import write_atomic, write_figure
 from .run import REPORT_JSON, read_record
 
 HTML = "report.html"
@@ -234,11 +235,13 @@ def conventions_figure(tables: dict[str, pd.DataFrame]):
 
 
 def save_figure(fig, path: Path) -> Path:
-    """Save a matplotlib figure as PNG and close it."""
+    """Save a matplotlib figure as PNG atomically (whole or absent) and close it."""
     import matplotlib.pyplot as plt
 
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        write_figure(fig, path, dpi=110)
+    finally:
+        plt.close(fig)
     return path
 
 
@@ -549,5 +552,6 @@ def build_report(out: str | Path) -> Path:
     for key, res in page.results["studies"].items():
         body.append(study_section(page, key, res))
     path = out / HTML
-    path.write_text(page_html(body), encoding="utf-8")
+    text = page_html(body)
+    write_atomic(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
     return path

@@ -24,9 +24,10 @@ import pandas as pd
 
 from .. import __version__, studies
 from ..outcomes import SUMMARY_COLUMNS
-from ..params import CONVENTIONS, Config, ParameterError, save_config, with_convention
+from ..params import CONVENTIONS, Config, ParameterError, dumps_config, with_convention
 from ..sweep import (DEFAULT_SWEEP, STUDY_TABLE_FORCES, LazyBatch, SweepDefinition,
                      default_chunk_size, parse_grid, run_sweep, run_table)
+from ..sweep.store import write_atomic, write_parquet, write_text
 
 REPORT_JSON = "report.json"
 CONFIG_TOML = "config.toml"
@@ -167,10 +168,13 @@ class Batches:
 
 
 def write_json(path: Path, data: dict) -> None:
-    """Write ``data`` as JSON through a temporary file (a reader never sees half a file)."""
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=float) + "\n")
-    tmp.replace(path)
+    """Write ``data`` as JSON atomically (a reader never sees half a file)."""
+    write_text(json.dumps(data, indent=2, default=float) + "\n", path)
+
+
+def write_csv(frame: pd.DataFrame, path: Path) -> None:
+    """Write a table as CSV atomically (whole or absent: the old file stays if this fails)."""
+    write_atomic(path, lambda tmp: frame.to_csv(tmp, index=False))
 
 
 def read_record(path: Path, *, required: bool = True) -> dict:
@@ -214,7 +218,7 @@ def open_record(out: Path, config: Config, plan: Plan, backend: str,
                    "plan": dataclasses.asdict(plan),
                    "backend": backend, "config": config.to_dict(),
                    "conventions": list(conventions), "studies": []})
-    save_config(config, out / CONFIG_TOML)
+    write_text(dumps_config(config), out / CONFIG_TOML)
     write_json(path, record)
     return record
 
@@ -286,8 +290,8 @@ def run_timeseries(run: ReportRun, convention: str) -> None:
     def work() -> None:
         summary, series = simulate_many(cfg, list(plan.timeseries_forces),
                                         [plan.push_duration], progress=not run.quiet)
-        summary.to_csv(folder / "summary.csv", index=False)
-        series.to_parquet(folder / "timeseries.parquet", index=False)
+        write_csv(summary, folder / "summary.csv")
+        write_parquet(series, folder / "timeseries.parquet")
 
     run.log.stage(f"{convention}: time series, F = {plan.timeseries_forces} N, "
                   f"T = {plan.push_duration} s (reference loop)")
@@ -317,7 +321,7 @@ def run_weight_study(run: ReportRun, convention: str) -> None:
     run_stage(run, f"{convention}/weights",
               {"force": plan.weight_force, "q": list(plan.q_scales), "r": list(plan.r_scales)},
               [folder / "weights.csv"],
-              lambda: run_weights(cfg, plan).to_csv(folder / "weights.csv", index=False))
+              lambda: write_csv(run_weights(cfg, plan), folder / "weights.csv"))
 
 
 def run_region(run: ReportRun, convention: str) -> None:
@@ -387,7 +391,7 @@ def run_study(run: ReportRun, st: studies.Study) -> None:
     """Every variant's map, then studies/<study>/numbers.csv; recorded in report.json."""
     entry = {"key": st.key, "variants": [run_variant(run, st, v) for v in st.variants]}
     folder = run.out / "studies" / st.key
-    study_numbers(st, folder, entry["variants"]).to_csv(folder / "numbers.csv", index=False)
+    write_csv(study_numbers(st, folder, entry["variants"]), folder / "numbers.csv")
     run.record["studies"].append(entry)
     run.save_record()
 

@@ -126,6 +126,13 @@ class Sample(NamedTuple):
     cell_low: jax.Array  # [4] lowest point of each load-cell sphere
     cop: jax.Array  # load-cell CoP x (NaN when unloaded)
     com: jax.Array  # whole-body CoM x
+    magnitude: jax.Array  # largest |value| of qpos, qvel, qacc and ctrl (NaN if any is NaN)
+
+
+# MuJoCo's bound on qpos, qvel, qacc and ctrl (mjMAXVAL): beyond it, or NaN, the C library
+# warns of a bad value (mjWARN_BADQPOS/QVEL/QACC/CTRL) and resets the data, which the
+# reference counts as divergence; a sample beyond it counts as not finite here.
+MAX_VALUE = 1e10
 
 
 class Carry(NamedTuple):
@@ -157,19 +164,21 @@ def measure(ar: Arrays, sn: Sensors, d: mjx.Data) -> Sample:
     cop, _ = load_cell_cop(d, sn)
     return Sample(q=q, dq=dq, x=state(ar, q, dq), pitch=d.qpos[sn.foot_pitch],
                   cell_low=cell_heights(ar.mx, d, sn), cop=cop,
-                  com=whole_body_com(ar.mx, d, sn))
+                  com=whole_body_com(ar.mx, d, sn),
+                  magnitude=jnp.max(jnp.abs(jnp.concatenate([d.qpos, d.qvel, d.qacc, d.ctrl]))))
 
 
 def sample_update(acc: Accumulators, s: Sample, i: jax.Array, torques: jax.Array,
                   u: jax.Array, q_prev: jax.Array, x_prev: jax.Array,
                   limits: Limits) -> Accumulators:
-    """Fold the sample of physics step ``i`` into the accumulators: divergence, the fall test,
-    the settle band, peaks, extremes and energies. ``torques`` / ``u`` are held during step
+    """Fold the sample of physics step ``i`` into the accumulators: divergence (a non-finite
+    value, or one beyond MuJoCo's bound MAX_VALUE as in the reference), the fall test, the
+    settle band, peaks, extremes and energies. ``torques`` / ``u`` are held during step
     i; ``q_prev`` / ``x_prev`` are the previous sample's joint angles and state. Nothing
     changes once the scenario is dead (fallen or diverged)."""
     excess = outcomes.bound_excess(jnp, s.x, limits)
     finite = (jnp.isfinite(s.q).all() & jnp.isfinite(s.dq).all() & jnp.isfinite(s.x).all()
-              & jnp.isfinite(torques).all())
+              & jnp.isfinite(torques).all() & (s.magnitude <= MAX_VALUE))
     ok = acc.alive & finite
     falls = outcomes.falls(jnp, s.pitch, s.cell_low, excess, s.q[0], limits)
     band = outcomes.in_settle_band(jnp, s.q, s.dq, limits)

@@ -13,7 +13,7 @@ streams the chunks into ``DIR/region.parquet`` one at a time (:func:`merge_chunk
 
 One run at a time per folder: :func:`folder_lock` holds an exclusive ``flock`` on
 ``DIR/.lock`` (which names the holder's PID and start time) and a second run is refused at once
-(:class:`FolderBusy`).
+(:class:`FolderBusy`), or waits for the lock when asked to (``wait=True``).
 
 The table keeps every scenario it evaluates in ``DIR/table_runs/part-NNNNN.parquet``, one file
 per batch call, written as the call returns (:class:`TableCells`): a rerun, or a table over
@@ -160,11 +160,12 @@ _HELD: dict[str, list[int]] = {}  # resolved folder -> [lock file descriptor, ne
 
 
 @contextmanager
-def folder_lock(path: str | Path) -> Iterator[None]:
+def folder_lock(path: str | Path, *, wait: bool = False) -> Iterator[None]:
     """Hold the output folder (created if missing) for this run: an exclusive ``flock`` on
     ``DIR/.lock``, which records this process's PID and start time. Another process holding it
-    makes this raise :class:`FolderBusy` at once, naming that run; nested calls in one process
-    share the lock. The lock goes with the process, however it ends (the file stays)."""
+    makes this raise :class:`FolderBusy` at once, naming that run, or with ``wait`` print one
+    line naming that run (stderr) and wait until it lets go; nested calls in one process share
+    the lock. The lock goes with the process, however it ends (the file stays)."""
     folder = Path(path)
     folder.mkdir(parents=True, exist_ok=True)
     key = str(folder.resolve())
@@ -188,9 +189,17 @@ def folder_lock(path: str | Path) -> Iterator[None]:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
         holder = os.read(fd, 200).decode("utf-8", "replace").strip() or "PID not yet recorded"
-        os.close(fd)
-        raise FolderBusy(f"{folder} is in use by another run ({holder}); wait for it to end "
-                         "or use another --out folder") from None
+        if not wait:
+            os.close(fd)
+            raise FolderBusy(f"{folder} is in use by another run ({holder}); wait for it to end "
+                             "(--wait) or use another --out folder") from None
+        print(f"waiting for {folder}: in use by another run ({holder})", file=sys.stderr,
+              flush=True)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except BaseException:
+            os.close(fd)
+            raise
     except BaseException:
         os.close(fd)
         raise
@@ -334,6 +343,15 @@ def manifest_problem(manifest: Any) -> str:
         size = record.get("chunk_size", 1)
         if isinstance(size, bool) or not isinstance(size, int) or size < 1:
             return f"'{section}.chunk_size' is not a whole number >= 1"
+    engines = {"region.engine": (manifest.get("region") or {}).get("engine"),
+               "table_engine": manifest.get("table_engine")}
+    for name, engine in engines.items():
+        if engine is None:
+            continue
+        slots = engine.get("slots") if isinstance(engine, dict) else None
+        if (isinstance(slots, bool) or not isinstance(slots, int) or slots < 1
+                or not isinstance(engine.get("early_stop"), bool)):
+            return f"'{name}' is not {{\"slots\": whole number >= 1, \"early_stop\": true/false}}"
     return ""
 
 
