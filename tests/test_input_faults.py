@@ -31,7 +31,7 @@ from mjx_balance.params import Config, ParameterError
 from mjx_balance.sweep.grid import check_whole_steps
 
 from test_bad_input import assert_refused, run
-from test_store_faults import HOLD_LOCK, cli_sweep, fake_rollout  # noqa: F401 (a fixture)  # noqa: F401 - a fixture
+from test_store_faults import HOLD_LOCK, cli_sweep, fake_rollout  # noqa: F401 (a fixture)
 
 PHYSICS_DT = Config().scenario.physics_dt
 
