@@ -24,7 +24,7 @@ import jax
 
 from mjx_balance import certificate as cert_mod
 from mjx_balance.linear import zoh
-from mjx_balance.outcomes import OUTCOMES
+from mjx_balance.outcomes import OUTCOMES, SUMMARY_COLUMNS
 from mjx_balance.params import Config
 from mjx_balance.qp import build_qp
 
@@ -310,3 +310,13 @@ def test_a_damaged_engine_record_is_a_bad_manifest():
                 {"slots": 8, "early_stop": 1}, [8, True]):
         assert "engine" in manifest_problem({"region": {**region, "engine": bad}})
         assert "table_engine" in manifest_problem({"table_engine": bad})
+
+
+def test_no_cells_is_an_empty_table_without_a_compile():
+    from mjx_balance.rollout import BatchRunner
+
+    with jax.enable_x64(False):
+        runner = BatchRunner(Config().replace(scenario={"t_end": 0.1}), slots=8)
+        frame = runner.run_frame(np.zeros(0), np.zeros(0))
+    assert frame.empty and list(frame.columns) == SUMMARY_COLUMNS
+    assert not runner.is_prepared()

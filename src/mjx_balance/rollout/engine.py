@@ -301,6 +301,8 @@ class Engine:
         forces = np.asarray(forces, np.float64)
         n_push = np.asarray(n_push, np.int32)
         n = forces.shape[0]
+        if n == 0:
+            return
         fn = self.block_fn()
         r = self.runner
         split, _ = r._shardings()
@@ -357,6 +359,9 @@ class Engine:
             seen[index] = True
         if not seen.all():
             raise RuntimeError(f"the engine returned {int(seen.sum())} of {n} scenarios")
-        if not out:
-            return {name: np.zeros(0) for name in (*Accumulators._fields, "periods", "certified")}
+        if not out:  # no cells: empty columns of the accumulators' types
+            initial = Accumulators.initial(self.runner.dtype)
+            out = {name: np.zeros(0, np.asarray(v).dtype)
+                   for name, v in zip(Accumulators._fields, initial)}
+            out.update(periods=np.zeros(0, np.int32), certified=np.zeros(0, bool))
         return out
