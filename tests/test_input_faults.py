@@ -114,7 +114,8 @@ def test_simulate_reads_forces_and_durations_as_sweep_does(tmp_path, capsys, mon
 
 
 @pytest.mark.parametrize("holds", [["manifest.json", "config.toml"], ["config.toml", "chunks/"],
-                                   ["config.toml", "region.parquet"]])
+                                   ["config.toml", "region.parquet"],
+                                   ["config.toml", "report.json"]])
 def test_simulate_refuses_a_sweep_folder(tmp_path, capsys, monkeypatch, holds):
     from mjx_balance.cli import simulate
 

@@ -52,10 +52,11 @@ def parse_option_grid(text: str, name: str) -> list[float]:
 
 
 def sweep_folder(out: Path) -> bool:
-    """Whether ``out`` holds a sweep or a table (its config.toml must not be overwritten): a
-    manifest, or a config.toml beside chunks, a region or the table's kept scenarios."""
+    """Whether ``out`` holds a sweep, a table or a report (its config.toml must not be
+    overwritten): a manifest, or a config.toml beside chunks, a region, the table's kept
+    scenarios or a report's record."""
     return (out / MANIFEST).exists() or ((out / CONFIG).exists() and any(
-        (out / name).exists() for name in ("chunks", REGION, TABLE_CELLS)))
+        (out / name).exists() for name in ("chunks", REGION, TABLE_CELLS, "report.json")))
 
 
 def simulate_command(args: argparse.Namespace) -> int:
@@ -71,8 +72,8 @@ def simulate_command(args: argparse.Namespace) -> int:
         config.replace(scenario={"duration": duration})
     out = Path(args.out)
     if sweep_folder(out):
-        raise ParameterError(f"{out} holds a sweep (its {CONFIG} would be overwritten); "
-                             "use another --out folder")
+        raise ParameterError(f"{out} holds a sweep or a report (its {CONFIG} would be "
+                             "overwritten); use another --out folder")
     out.mkdir(parents=True, exist_ok=True)
     summary, series = simulate_many(config, forces, durations)
     write_atomic(out / "summary.csv", lambda tmp: summary.to_csv(tmp, index=False))
