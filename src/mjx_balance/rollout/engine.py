@@ -34,7 +34,7 @@ import numpy as np
 from .. import certificate as cert_mod
 from .._xla import deterministic_flags
 from .runner import MATMUL_PRECISION
-from .kernel import Accumulators, Carry, initial_carry, period
+from .kernel import Accumulators, Carry, initial_carry, period, select
 from .physics import whole_body_com
 
 def default_slots(platform: str) -> int:
@@ -82,11 +82,6 @@ class Packing:
         return jax.tree.unflatten(self.treedef, leaves)
 
 
-def _select(pred, a, b):
-    return jax.tree.map(lambda u, v: jnp.where(pred.reshape(pred.shape + (1,) * (u.ndim - 1)),
-                                               u, v), a, b)
-
-
 def _broadcast(tree, n):
     return jax.tree.map(lambda v: jnp.broadcast_to(v, (n,) + jnp.shape(v)), tree)
 
@@ -127,7 +122,7 @@ def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push
         source = jnp.clip(rank, 0, R - 1)
         take = vacant & (rank < R) & (refill_cell[source] >= 0)
         slots = Slots(
-            carry=_select(take, rest, slots.carry),
+            carry=select(take, rest, slots.carry),
             cell=jnp.where(take, refill_cell[source], slots.cell),
             force=jnp.where(take, refill_force[source], slots.force),
             n_push=jnp.where(take, refill_push[source], slots.n_push),
@@ -170,7 +165,7 @@ def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push
         )
         n_done = n_done + decided.sum(dtype=jnp.int32)
         # (a vacated slot idles at rest, unpushed, until it is refilled)
-        slots = Slots(carry=_select(decided, rest, carry),
+        slots = Slots(carry=select(decided, rest, carry),
                       cell=jnp.where(decided, -1, slots.cell),
                       force=jnp.where(decided, 0, slots.force),
                       n_push=jnp.where(decided, 0, slots.n_push), k=k)
@@ -265,7 +260,7 @@ class Engine:
                                                P("batch")),
                                      out_specs=P("batch"), check_vma=False)
             slots = jax.eval_shape(self._vacant)
-            split, whole = r._shardings()
+            split, _ = r._shardings()
             spec = (lambda a: jax.ShapeDtypeStruct(a.shape, a.dtype, sharding=split))
             n = self.refill * self.n_devices
             with jax.default_matmul_precision(MATMUL_PRECISION):
@@ -309,12 +304,12 @@ class Engine:
         state = self._state if self._state is not None else self._initial_state()
         self._state = None
         D, R = self.n_devices, self.refill
-        queue = np.arange(n)
         returned = np.zeros(0, np.int64)  # offered in a call but not taken: first next time
         head, remaining, finished = 0, n, False
         try:
             while remaining:
-                offer = np.concatenate([returned, queue[head:head + D * R - returned.size]])
+                fresh = np.arange(head, min(n, head + D * R - returned.size))  # queue order
+                offer = np.concatenate([returned, fresh])
                 head += offer.size - returned.size
                 cells = np.full(D * R, -1, np.int32)
                 # device d gets offer[d::D]: neighbouring cells (similar cost) spread over devices

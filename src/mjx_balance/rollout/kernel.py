@@ -144,8 +144,14 @@ class Carry(NamedTuple):
     acc: Accumulators
 
 
-def _select(pred: jax.Array, a: Any, b: Any) -> Any:
-    return jax.tree_util.tree_map(lambda u, v: jnp.where(pred, u, v), a, b)
+def select(pred: jax.Array, a: Any, b: Any) -> Any:
+    """Leaf by leaf, ``a`` where ``pred`` else ``b``; pred is a scalar, or [B] over the leading
+    axis of batched leaves."""
+    def pick(u, v):
+        extra = (1,) * (jnp.ndim(u) - jnp.ndim(pred))
+        return jnp.where(jnp.reshape(pred, jnp.shape(pred) + extra), u, v)
+
+    return jax.tree_util.tree_map(pick, a, b)
 
 
 def joints(sn: Sensors, d: mjx.Data) -> tuple[jax.Array, jax.Array]:
@@ -279,8 +285,8 @@ def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, forc
 
     alive = carry.acc.alive
     # A dead scenario restarts from rest with a cold controller (see the module docstring).
-    d = _select(alive, carry.d, ar.d0)
-    warm = _select(alive, carry.warm, rest.warm)
+    d = select(alive, carry.d, ar.d0)
+    warm = select(alive, carry.warm, rest.warm)
     measured = carry.history[st.delay_steps]
     x_meas = jnp.where(alive, state(ar, measured[:2], measured[2:]), jnp.zeros(4, dtype))
     res = admm_mod.admm_solve(ar.qp, x_meas, warm, st.settings)
