@@ -86,6 +86,55 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
     convention = config.controller.convention
     run_batch = run_batch or LazyBatch(config)
 
+    chunk_size = _region_record(folder, manifest, config, forces, durations, chunk_size,
+                                run_batch, say)
+    slices = chunk_slices(n_cells, chunk_size)
+
+    # A finished sweep: region.parquet that holds exactly the grid.
+    if region_path.exists():
+        try:
+            check_region(pd.read_parquet(region_path, columns=["force", "duration"]),
+                          forces, durations)
+            say(f"sweep already complete: {region_path} ({n_cells} cells); nothing to do")
+            return SweepResult(region_path, 0, len(slices), 0, time.perf_counter() - start, True)
+        except Exception as exc:  # noqa: BLE001 - rebuild it from the chunks
+            say(f"{region_path} is damaged ({exc}); rebuilding it")
+
+    (folder.path / "chunks").mkdir(exist_ok=True)
+    todo, recomputed = _chunks_to_do(folder.path, slices, cell_f, cell_d, convention, say)
+    reused = len(slices) - len(todo)
+    remaining = sum(slices[i].stop - slices[i].start for i in todo)
+    if reused:
+        say(f"resuming: {reused} of {len(slices)} chunks already done, {remaining} cells to go")
+    say(f"sweep: {forces.size} forces x {durations.size} durations = {n_cells} cells in "
+        f"{len(slices)} chunks of {chunk_size}; convention {convention}; output {folder.path}")
+
+    if todo:
+        if hasattr(run_batch, "prepare"):
+            run_batch.prepare(chunk_size, log=log)
+        bar = progress_bar(n_cells, n_cells - remaining, progress)
+        try:
+            _compute_chunks(run_batch, folder.path, slices, todo, cell_f, cell_d, config,
+                            chunk_size, bar)
+        finally:
+            bar.close()
+
+    write_atomic(region_path, lambda tmp: merge_chunks(folder.path, slices, cell_f, cell_d,
+                                                        convention, tmp))
+    seconds = time.perf_counter() - start
+    say(f"wrote {region_path} ({n_cells} cells; {len(todo)} chunks computed in {seconds:.1f} s)")
+    return SweepResult(region_path, len(todo), reused, recomputed, seconds, False)
+
+
+def _region_record(folder: OutputFolder, manifest: dict, config: Config, forces: np.ndarray,
+                   durations: np.ndarray, chunk_size: int | None, run_batch: RunBatch,
+                   say: Callable[[str], None]) -> int:
+    """The chunk size of the sweep in ``folder``: the recorded one (and the recorded engine
+    settings) when resuming, else a new record written to the manifest (after adopting results
+    that lost their manifest, if they match the grid)."""
+    region_path = folder.path / REGION
+    convention = config.controller.convention
+    n_cells = forces.size * durations.size
     recorded = manifest.get("region")
     if recorded is not None:
         if not (same_values(recorded["forces"], forces)
@@ -120,61 +169,40 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
         if record is not None:
             manifest["region"]["engine"] = record
         folder.write_manifest(manifest)
+    return int(chunk_size)
 
-    slices = chunk_slices(n_cells, chunk_size)
 
-    # A finished sweep: region.parquet that holds exactly the grid.
-    if region_path.exists():
-        try:
-            check_region(pd.read_parquet(region_path, columns=["force", "duration"]),
-                          forces, durations)
-            say(f"sweep already complete: {region_path} ({n_cells} cells); nothing to do")
-            return SweepResult(region_path, 0, len(slices), 0, time.perf_counter() - start, True)
-        except Exception as exc:  # noqa: BLE001 - rebuild it from the chunks
-            say(f"{region_path} is damaged ({exc}); rebuilding it")
-
-    (folder.path / "chunks").mkdir(exist_ok=True)
-    # Chunk files are checked one at a time and not kept: peak memory is one chunk, not the grid.
+def _chunks_to_do(path: Path, slices: list[slice], cell_f: np.ndarray, cell_d: np.ndarray,
+                  convention: str, say: Callable[[str], None]) -> tuple[list[int], int]:
+    """(chunks to compute, how many of them were damaged). Chunk files are checked one at a
+    time and not kept: peak memory is one chunk, not the grid."""
     todo: list[int] = []
     recomputed = 0
     for index, cells in enumerate(slices):
-        path = chunk_path(folder.path, index)
-        frame, reason = read_chunk(path, cell_f[cells], cell_d[cells], convention)
+        file = chunk_path(path, index)
+        frame, reason = read_chunk(file, cell_f[cells], cell_d[cells], convention)
         if frame is None:
             todo.append(index)
             if reason != "missing":
                 recomputed += 1
-                say(f"chunk {index} ({path.name}) is damaged: {reason}; recomputing it")
-    reused = len(slices) - len(todo)
-    remaining = sum(slices[i].stop - slices[i].start for i in todo)
-    if reused:
-        say(f"resuming: {reused} of {len(slices)} chunks already done, {remaining} cells to go")
-    say(f"sweep: {forces.size} forces x {durations.size} durations = {n_cells} cells in "
-        f"{len(slices)} chunks of {chunk_size}; convention {convention}; output {folder.path}")
+                say(f"chunk {index} ({file.name}) is damaged: {reason}; recomputing it")
+    return todo, recomputed
 
-    if todo:
-        if hasattr(run_batch, "prepare"):
-            run_batch.prepare(chunk_size, log=log)
-        bar = progress_bar(n_cells, n_cells - remaining, progress)
-        try:
-            if _streams(run_batch):
-                _stream_chunks(run_batch, folder.path, [slices[i] for i in todo], todo, cell_f,
-                               cell_d, config, bar)
-            else:
-                for index in todo:
-                    cells = slices[index]
-                    frame = evaluate(run_batch, cell_f[cells], cell_d[cells], config,
-                                     pad_to=chunk_size)
-                    write_parquet(frame, chunk_path(folder.path, index))
-                    bar.update(cells.stop - cells.start)
-        finally:
-            bar.close()
 
-    write_atomic(region_path, lambda tmp: merge_chunks(folder.path, slices, cell_f, cell_d,
-                                                        convention, tmp))
-    seconds = time.perf_counter() - start
-    say(f"wrote {region_path} ({n_cells} cells; {len(todo)} chunks computed in {seconds:.1f} s)")
-    return SweepResult(region_path, len(todo), reused, recomputed, seconds, False)
+def _compute_chunks(run_batch: RunBatch, path: Path, slices: list[slice], todo: list[int],
+                    cell_f: np.ndarray, cell_d: np.ndarray, config: Config, chunk_size: int,
+                    bar: Any) -> None:
+    """Compute the chunks ``todo`` and write each chunk file: through the engine's queue when
+    the batch function streams, else one padded call per chunk."""
+    if _streams(run_batch):
+        _stream_chunks(run_batch, path, [slices[i] for i in todo], todo, cell_f, cell_d,
+                       config, bar)
+        return
+    for index in todo:
+        cells = slices[index]
+        frame = evaluate(run_batch, cell_f[cells], cell_d[cells], config, pad_to=chunk_size)
+        write_parquet(frame, chunk_path(path, index))
+        bar.update(cells.stop - cells.start)
 
 
 def _streams(run_batch: Any) -> bool:
