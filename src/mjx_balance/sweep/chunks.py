@@ -94,11 +94,11 @@ def chunk_slices(n_cells: int, chunk_size: int) -> list[slice]:
 
 # The guard on enormous work (issue 11). The rate is the engine's throughput measured on the
 # 2-core CPU of this project with two host devices, counted in scenario windows (a scenario
-# stops when decided, so what it simulates depends on the grid): 94 scenarios of 12 s per
-# second on the benchmark's mix (`mjx-balance bench`, 1024 scenarios) to 130 on the dense study
-# map (`mjx-balance sweep --sweep sweeps/region_dense_paper.toml`: 15,200 cells in 117 s),
-# BENCHMARKS.md. A GPU is far faster (the estimate is then pessimistic: pass --yes).
-SIMULATED_SECONDS_PER_SECOND = (90 * 12.0, 130 * 12.0)
+# stops when decided, so what it simulates depends on the grid): 88-94 scenarios of 12 s per
+# second on the benchmark's mix (`mjx-balance bench`, 1024 scenarios) to 113-130 on the dense
+# study map (`mjx-balance sweep --sweep sweeps/region_dense_paper.toml`: 15,200 cells in
+# 117-135 s), BENCHMARKS.md. A GPU is far faster (the estimate is then pessimistic: --yes).
+SIMULATED_SECONDS_PER_SECOND = (88 * 12.0, 130 * 12.0)
 # Disk per scenario in a chunk file: a 64-row chunk parquet of the default sweep is 23 kB
 # (365 bytes a row; the merged region.parquet holds the same rows again).
 CHUNK_BYTES_PER_SCENARIO = 400
