@@ -178,6 +178,27 @@ def test_falls_follows_the_limits():
     np.testing.assert_array_equal(got, [True, True, True, True])
 
 
+@pytest.mark.parametrize("xp", [np, jnp], ids=["numpy", "jax"])
+def test_fall_cause_names_the_first_rule_in_order(xp):
+    """One sample per rule (foot pitch, heel lift, toe lift, state bound, lower tilt), one
+    where none fires, and one where every rule fires (the first in FALL_CAUSES order wins)."""
+    lift = LIMITS.foot_lift_limit * 2
+    pitch = np.array([0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5])
+    cells = np.zeros((7, 4))
+    cells[1, 2:] = lift  # back (heel) cells up
+    cells[2, :2] = lift  # front (toe) cells up
+    cells[6] = lift
+    excess = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0])
+    ankle = np.array([-0.5, 0.0, 0.0, 0.0, 3.0, 0.0, 3.0])  # pitch + ankle = 0 in row 0
+    got = np.asarray(outcomes.fall_cause(xp, *(xp.asarray(a) for a in (pitch, cells, excess,
+                                                                       ankle)), LIMITS))
+    names = [outcomes.FALL_CAUSES[c] for c in got]
+    assert names == ["foot_pitch", "heel_lift", "toe_lift", "state_bound", "lower_tilt", "",
+                     "foot_pitch"]
+    np.testing.assert_array_equal(
+        outcomes.falls(np, pitch, cells, excess, ankle, LIMITS), got != outcomes.NO_CAUSE)
+
+
 # --- the settle band -------------------------------------------------------------------------
 
 # (q, dq, in band): defaults 0.01 rad and 0.05 rad/s, edges included

@@ -21,6 +21,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from mjx_balance import admm as admm_mod
 from mjx_balance import metrics, reference, rollout
 from mjx_balance.model import build_model, indices
 from mjx_balance.outcomes import OUTCOMES, SUMMARY_COLUMNS
@@ -334,3 +335,76 @@ def test_joint_convention_closed_loop_matches_reference():
               f"{np.nanmax(diff[:n_cmp]):.2e} rad over {n_cmp * DT:.2f} s")
         assert n_cmp > 0.5 / DT
         assert np.nanmax(diff[:n_cmp]) < ANGLE_TOL
+
+
+# Cells of every outcome the 2-s window allows, and falls of each kind of rule.
+LEAN_GRID = [(0.0, 0.1), (50.0, 0.1), (100.0, 0.1), (200.0, 0.1), (-150.0, 0.3),
+             (30.0, 1.0), (60.0, 0.3), (15.0, 1.9)]
+
+
+def test_lean_physics_is_the_step_plus_kinematics_loop(runner, float32):
+    """The engine's closed loop reads a sample's positions from the next step's start instead
+    of an extra mjx.kinematics per step (kernel.period); the summaries it gives are those of
+    the loop with the extra kinematics (the runner with trajectories), which every agreement
+    test in this module checks against the reference."""
+    forces = np.array([f for f, _ in LEAN_GRID])
+    durations = np.array([t for _, t in LEAN_GRID])
+    lean = rollout.BatchRunner(runner.config, slots=8, early_stop=False,
+                               devices=jax.local_devices()[:1]).run(forces, durations)
+    full = runner.run(forces, durations)
+    assert {"recovered", "fell"} <= {OUTCOMES[c] for c in full["outcome"]}
+    for name, values in full.items():
+        np.testing.assert_array_equal(lean[name], values, err_msg=name)
+
+
+class AdmmMPC:
+    """The batched path's controller (the float32 ADMM, warm-started as in kernel.period) in
+    the reference's closed loop: the reference then differs from the batched path only in its
+    physics (MuJoCo C in float64)."""
+
+    def __init__(self, runner):
+        self.qp, self._data, settings = runner.qp, runner.arrays.qp, runner.static.settings
+        self._solve = jax.jit(lambda x, w: admm_mod.admm_solve(self._data, x, w, settings))
+        self.reset()
+
+    def reset(self) -> None:
+        self._warm = admm_mod.initial_warm(self._data)
+
+    def solve(self, x0):
+        res = self._solve(jnp.asarray(x0, jnp.float32), self._warm)
+        self._warm = admm_mod.ADMMWarm(*(w.astype(jnp.float32) for w in res.warm_next))
+        return (np.asarray(res.u0, float), np.asarray(res.z, float),
+                bool(res.status == admm_mod.SOLVED), float(res.prim_res))
+
+
+FALL_GRID = [(100.0, 0.1), (200.0, 0.1), (-150.0, 0.3), (30.0, 1.0)]
+
+
+def test_fall_cause_and_first_infeasible_qp_match_the_reference(runner, float32):
+    """Why a run ended, in both paths. Every fall on this grid comes after a QP that has no
+    solution; what a solver returns for an infeasible QP depends on the solver (its scaling
+    sets the "least violation"), so the reference with OSQP falls later than the batched
+    path (by 0.1-0.5 s) and, after forward pushes, often the other way. With the batched
+    path's ADMM as its controller the reference is the same closed loop in other physics, and
+    the cause of each fall must be the same rule."""
+    forces = np.array([f for f, _ in FALL_GRID])
+    durations = np.array([t for _, t in FALL_GRID])
+    batched = runner.run_frame(forces, durations)
+    mpc = AdmmMPC(runner)
+    for b, (force, duration) in enumerate(FALL_GRID):
+        ref = reference.simulate_scenario(runner.config, force, duration, record=False,
+                                          mpc=mpc)[0]
+        mine = batched.iloc[b]
+        print(f"F = {force:6.1f} N, T = {duration} s: batched {mine.outcome} by "
+              f"{mine.fall_cause} at {mine.fall_time:.3f} s, first infeasible QP at "
+              f"{mine.first_infeasible_time:.2f} s; reference (ADMM) {ref['outcome']} by "
+              f"{ref['fall_cause']} at {ref['fall_time']:.3f} s, first infeasible QP at "
+              f"{ref['first_infeasible_time']:.2f} s")
+        assert mine.outcome == ref["outcome"] == "fell"
+        assert mine.fall_cause == ref["fall_cause"]
+        assert abs(mine.fall_time - ref["fall_time"]) <= 0.05
+        # The reference tests feasibility exactly (an LP), the batched path by the ADMM's
+        # certificate after its iteration cap, which can lag by a few control periods.
+        assert mine.first_infeasible_time <= mine.fall_time
+        assert ref["first_infeasible_time"] <= ref["fall_time"]
+        assert abs(mine.first_infeasible_time - ref["first_infeasible_time"]) <= 0.1

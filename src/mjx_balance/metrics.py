@@ -22,7 +22,7 @@ import mujoco
 import numpy as np
 
 from . import outcomes
-from .outcomes import FELL, OUTCOMES, RECOVERED, Limits
+from .outcomes import DIVERGED, FELL, OUTCOMES, RECOVERED, Limits
 from .params import ControllerParams, ScenarioParams
 
 
@@ -108,7 +108,8 @@ def summarize(*, force: float, duration: float, convention: str,
               foot_pitch: np.ndarray, cell_low_z: np.ndarray, cop: np.ndarray, com: np.ndarray,
               tau: np.ndarray, u: np.ndarray, q0: np.ndarray, x0: np.ndarray,
               u_control: np.ndarray, converged: np.ndarray, residual: np.ndarray,
-              completed: bool, diverged: bool = False) -> dict[str, Any]:
+              completed: bool, diverged: bool = False,
+              infeasible: np.ndarray | None = None) -> dict[str, Any]:
     """The per-scenario summary row (keys = SUMMARY_COLUMNS) from the sample series.
 
     Sample series (one entry per physics step, time = (i+1) dt): time [n]; q, dq [n, 2] joint
@@ -116,7 +117,8 @@ def summarize(*, force: float, duration: float, convention: str,
     (cop NaN where the load cells carry nothing); tau [n, 2] motor torques and u [n, 2] the
     convention's input held during step i. q0 [2], x0 [4]: the state at t = 0.
     Control series (one entry per control instant k, t_k = k control_dt): u_control [K, 2] the
-    clipped input; converged [K] bool; residual [K] primal residual.
+    clipped input; converged [K] bool; residual [K] primal residual; infeasible [K] bool, the
+    period's QP found infeasible (None: never).
     completed: the series reach t_end (False when the caller stopped early at a fall or a
     non-finite value). Series may run past a fall; they are cut at the first fall sample.
     """
@@ -145,6 +147,10 @@ def summarize(*, force: float, duration: float, convention: str,
     u_control = np.asarray(u_control, float)[:n_ctrl]
     converged = np.asarray(converged, bool)[:n_ctrl]
     residual = np.asarray(residual, float)[:n_ctrl]
+    infeasible = (np.zeros(n_ctrl, bool) if infeasible is None
+                  else np.asarray(infeasible, bool)[:n_ctrl])
+    first_infeasible = (float(np.flatnonzero(infeasible)[0] * scenario.control_dt)
+                        if infeasible.any() else math.nan)
 
     sl = slice(0, end)
     dq_step = increments(q0, q)[sl]
@@ -155,6 +161,14 @@ def summarize(*, force: float, duration: float, convention: str,
 
     settled = bool(completed and n and outcomes.in_settle_band(np, q[-1:], dq[-1:], limits)[0])
     code = int(outcomes.classify(np, diverged, fell, settled and not fell))
+    if code == DIVERGED:
+        cause = outcomes.NON_FINITE
+    elif code == FELL:
+        cause = int(outcomes.fall_cause(np, np.asarray(foot_pitch, float)[end - 1],
+                                        np.asarray(cell_low_z, float)[end - 1], excess[end - 1],
+                                        q[end - 1, 0], limits))
+    else:
+        cause = outcomes.NO_CAUSE
     settle = settle_time(time, q, dq, limits) if code == RECOVERED else math.nan
 
     saturation_ankle, saturation_hip = saturation_fractions(u_control, limits)
@@ -193,4 +207,6 @@ def summarize(*, force: float, duration: float, convention: str,
         "nonconverged_solves": int(np.count_nonzero(~converged)),
         "max_residual": float(res.max()) if res.size else math.nan,
         "max_bound_violation": float(excess.max()) if excess.size else 0.0,
+        "fall_cause": outcomes.FALL_CAUSES[cause],
+        "first_infeasible_time": first_infeasible,
     }

@@ -19,6 +19,11 @@ Settled. Every joint angle within ``settle_angle_tol`` and every joint rate with
 ``settle_rate_tol``. A scenario that neither falls nor diverges is ``recovered`` when its last
 sample (at t_end) is in the band, else ``not_settled``.
 
+Fall cause. The rule that fired at the fall sample, in the order of :data:`FALL_CAUSES`
+(foot pitch, heel lift, toe lift, state bound, lower-body tilt) when several fire at once;
+``non_finite`` for a diverged run; empty for a run that neither fell nor diverged. The heel
+cells are the back pair of ``model.LOAD_CELLS``, the toe cells the front pair.
+
 Outcome codes: ``OUTCOMES[code]``; diverged (a non-finite state, torque or solver output) takes
 precedence over fell, which takes precedence over the settle band.
 """
@@ -33,6 +38,14 @@ import pandas as pd
 OUTCOMES = ("recovered", "not_settled", "fell", "diverged")
 RECOVERED, NOT_SETTLED, FELL, DIVERGED = range(4)
 
+# Why a run ended (column ``fall_cause``): FALL_CAUSES[code]; code 0 (empty) for a run that
+# neither fell nor diverged. Codes 1..5 are the fall rules in the order they are tested.
+FALL_CAUSES = ("", "foot_pitch", "heel_lift", "toe_lift", "state_bound", "lower_tilt",
+               "non_finite")
+NO_CAUSE, NON_FINITE = 0, 6
+# Load cells in model.LOAD_CELLS order: front left, front right, back left, back right.
+TOE_CELLS, HEEL_CELLS = slice(0, 2), slice(2, 4)
+
 # An input counts as saturated within SATURATION_TOL of its range from a bound.
 SATURATION_TOL = 1e-6
 
@@ -46,6 +59,7 @@ SUMMARY_COLUMNS = [
     "energy_ankle", "energy_hip", "energy_total", "work_ankle", "work_hip",
     "energy_u1", "energy_u2",
     "nonconverged_solves", "max_residual", "max_bound_violation",
+    "fall_cause", "first_infeasible_time",
 ]
 
 
@@ -86,14 +100,37 @@ def bound_excess(xp: Any, x: Any, limits: Limits) -> Any:
     return xp.max(xp.maximum(xp.maximum(lower - pos, pos - upper), 0), axis=-1)
 
 
+def fall_rules(xp: Any, foot_pitch: Any, cell_low_z: Any, excess: Any, q_ankle: Any,
+               limits: Limits) -> list[Any]:
+    """The five fall rules of a sample (or a series), in FALL_CAUSES order (codes 1..5):
+    foot pitch, heel lift, toe lift, state bound, lower-body tilt. foot_pitch, excess, q_ankle:
+    [...]; cell_low_z: [..., 4] -> five bool arrays [...]."""
+    return [xp.abs(foot_pitch) > limits.foot_pitch_limit,
+            xp.max(cell_low_z[..., HEEL_CELLS], axis=-1) > limits.foot_lift_limit,
+            xp.max(cell_low_z[..., TOE_CELLS], axis=-1) > limits.foot_lift_limit,
+            excess > limits.bound_violation_limit,
+            xp.abs(foot_pitch + q_ankle) > limits.lower_tilt_limit]
+
+
 def falls(xp: Any, foot_pitch: Any, cell_low_z: Any, excess: Any, q_ankle: Any,
           limits: Limits) -> Any:
-    """The fall test of a sample (or a series). foot_pitch, excess, q_ankle: [...];
-    cell_low_z: [..., 4] -> bool [...]."""
-    return ((xp.abs(foot_pitch) > limits.foot_pitch_limit)
-            | (xp.max(cell_low_z, axis=-1) > limits.foot_lift_limit)
-            | (excess > limits.bound_violation_limit)
-            | (xp.abs(foot_pitch + q_ankle) > limits.lower_tilt_limit))
+    """The fall test of a sample (or a series): any of :func:`fall_rules`. -> bool [...]."""
+    rules = fall_rules(xp, foot_pitch, cell_low_z, excess, q_ankle, limits)
+    out = rules[0]
+    for rule in rules[1:]:
+        out = out | rule
+    return out
+
+
+def fall_cause(xp: Any, foot_pitch: Any, cell_low_z: Any, excess: Any, q_ankle: Any,
+               limits: Limits) -> Any:
+    """The first rule of :func:`fall_rules` that fires (code 1..5 into FALL_CAUSES), NO_CAUSE
+    (0) where none does. -> int [...]."""
+    rules = fall_rules(xp, foot_pitch, cell_low_z, excess, q_ankle, limits)
+    code = xp.zeros(xp.shape(rules[0]), dtype=xp.int32)
+    for c, rule in reversed(list(enumerate(rules, start=1))):
+        code = xp.where(rule, c, code)
+    return code
 
 
 def in_settle_band(xp: Any, q: Any, dq: Any, limits: Limits) -> Any:
@@ -141,6 +178,12 @@ def summary_frame(result: pd.DataFrame | Mapping[str, Any], convention: str, *,
     if bad:
         raise RuntimeError(f"summary has unknown outcome(s) {sorted(bad)}")
     frame["outcome"] = frame["outcome"].astype(str)
+    if pd.api.types.is_numeric_dtype(frame["fall_cause"]):
+        codes = frame["fall_cause"].to_numpy()
+        if np.any((codes < 0) | (codes >= len(FALL_CAUSES))):
+            raise RuntimeError(f"summary has fall_cause codes outside 0..{len(FALL_CAUSES) - 1}")
+        frame["fall_cause"] = np.asarray(FALL_CAUSES, dtype=object)[codes.astype(int)]
+    frame["fall_cause"] = frame["fall_cause"].fillna("").astype(str)
     frame["convention"] = frame["convention"].astype(str)
     others = [c for c in frame.columns if c not in SUMMARY_COLUMNS] if extra else []
     return frame[SUMMARY_COLUMNS + others].reset_index(drop=True)

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+import scipy.optimize
 
 from .linear import LinearModel, linear_model
 from .params import BodyParams, ControllerParams
@@ -77,6 +78,20 @@ class CondensedQP:
 
     def clip_input(self, u: np.ndarray) -> np.ndarray:
         return np.clip(u, self.input_lower, self.input_upper)
+
+    def feasible(self, x0: np.ndarray) -> bool:
+        """Whether some input sequence meets every constraint for state ``x0``: the linear
+        program min 0 s.t. lower <= C z <= upper, solved by HiGHS (scipy) to its default
+        primal feasibility tolerance 1e-7. An exact test, independent of the ADMM and OSQP."""
+        lower, upper = self.bounds(np.asarray(x0, float))
+        lo, hi = np.isfinite(lower), np.isfinite(upper)
+        A = np.concatenate([self.C[hi], -self.C[lo]])
+        b = np.concatenate([upper[hi], -lower[lo]])
+        result = scipy.optimize.linprog(np.zeros(self.n), A_ub=A, b_ub=b,
+                                        bounds=(None, None), method="highs")
+        if result.status not in (0, 2):  # 0 optimal (feasible), 2 infeasible
+            raise RuntimeError(f"feasibility LP failed: {result.message}")
+        return result.status == 0
 
 
 def shift_warm_start(z: np.ndarray) -> np.ndarray:

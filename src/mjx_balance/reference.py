@@ -138,6 +138,7 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
     u_step = np.zeros((n_steps, 2))
     u_control = np.zeros((n_control, 2))
     converged = np.zeros(n_control, bool)
+    infeasible = np.zeros(n_control, bool)
     residual = np.zeros(n_control)
     # joint history for a delayed measurement: entry j is the state at t = j dt
     history_q = np.zeros((n_steps + 1, 2))
@@ -157,6 +158,8 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
         u, _, ok, prim_res = mpc.solve(x_meas)
         torques = lm.motor_torques(u)
         u_control[k], converged[k], residual[k] = u, ok, prim_res
+        # a QP the solver did not solve: is it infeasible (an exact LP test, run only here)?
+        infeasible[k] = not ok and np.isfinite(x_meas).all() and not mpc.qp.feasible(x_meas)
         k_done = k + 1
         if not (np.isfinite(u).all() and np.isfinite(torques).all()):
             diverged = True
@@ -206,6 +209,7 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
         cell_low_z=cell_low[sl], cop=cop[sl], com=com[sl], tau=tau[sl], u=u_step[sl],
         q0=q0, x0=x0, u_control=u_control[:k_done], converged=converged[:k_done],
         residual=residual[:k_done], completed=(n == n_steps), diverged=diverged,
+        infeasible=infeasible[:k_done],
     )
     if not record:
         return summary, None

@@ -39,7 +39,7 @@ import jax.numpy as jnp
 from .. import admm as admm_mod
 from .. import outcomes
 from ..outcomes import Limits
-from .physics import Sensors, advance, cell_heights, load_cell_cop, mjx, whole_body_com
+from .physics import Sensors, advance, cell_heights, load_cell_cop, mjx, step, whole_body_com
 
 
 class Accumulators(NamedTuple):
@@ -73,6 +73,8 @@ class Accumulators(NamedTuple):
     nonconverged_solves: jax.Array  # int32
     max_residual: jax.Array
     admm_iterations: jax.Array  # int32, total over counted periods
+    fall_cause: jax.Array  # int32 code into outcomes.FALL_CAUSES (0: none yet)
+    first_infeasible: jax.Array  # int32, first counted period reported infeasible (-1: none)
 
     @staticmethod
     def initial(dtype) -> "Accumulators":
@@ -91,6 +93,7 @@ class Accumulators(NamedTuple):
             energy_u1=f(0), energy_u2=f(0), max_bound_violation=f(0),
             control_periods=i0, saturated_ankle=i0, saturated_hip=i0,
             nonconverged_solves=i0, max_residual=f(-inf), admm_iterations=i0,
+            fall_cause=i0 + outcomes.NO_CAUSE, first_infeasible=i0 - 1,
         )
 
 
@@ -165,13 +168,24 @@ def state(ar: Arrays, q: jax.Array, dq: jax.Array) -> jax.Array:
 
 
 def measure(ar: Arrays, sn: Sensors, d: mjx.Data) -> Sample:
-    """The sample of ``d`` (right after :func:`physics.advance`)."""
+    """The sample of ``d`` right after :func:`physics.advance` (positions at the new time)."""
+    return with_positions(measure_step(ar, sn, d), ar, sn, d)
+
+
+def measure_step(ar: Arrays, sn: Sensors, d: mjx.Data) -> Sample:
+    """The sample of ``d`` right after :func:`physics.step`, without what needs the positions at
+    the new time (``cell_low`` and ``com`` are NaN; :func:`with_positions` fills them in)."""
     q, dq = joints(sn, d)
     cop, _ = load_cell_cop(d, sn)
+    nan = jnp.full((), jnp.nan, d.qpos.dtype)
     return Sample(q=q, dq=dq, x=state(ar, q, dq), pitch=d.qpos[sn.foot_pitch],
-                  cell_low=cell_heights(ar.mx, d, sn), cop=cop,
-                  com=whole_body_com(ar.mx, d, sn),
+                  cell_low=jnp.full((sn.cells.shape[0],), nan), cop=cop, com=nan,
                   magnitude=jnp.max(jnp.abs(jnp.concatenate([d.qpos, d.qvel, d.qacc, d.ctrl]))))
+
+
+def with_positions(s: Sample, ar: Arrays, sn: Sensors, d: mjx.Data) -> Sample:
+    """``s`` with the load-cell heights and the CoM of the body and geom positions in ``d``."""
+    return s._replace(cell_low=cell_heights(ar.mx, d, sn), com=whole_body_com(ar.mx, d, sn))
 
 
 def sample_update(acc: Accumulators, s: Sample, i: jax.Array, torques: jax.Array,
@@ -186,7 +200,8 @@ def sample_update(acc: Accumulators, s: Sample, i: jax.Array, torques: jax.Array
     finite = (jnp.isfinite(s.q).all() & jnp.isfinite(s.dq).all() & jnp.isfinite(s.x).all()
               & jnp.isfinite(torques).all() & (s.magnitude <= MAX_VALUE))
     ok = acc.alive & finite
-    falls = outcomes.falls(jnp, s.pitch, s.cell_low, excess, s.q[0], limits)
+    cause = outcomes.fall_cause(jnp, s.pitch, s.cell_low, excess, s.q[0], limits)
+    falls = cause != outcomes.NO_CAUSE
     band = outcomes.in_settle_band(jnp, s.q, s.dq, limits)
     newly_fell = ok & falls
 
@@ -201,6 +216,8 @@ def sample_update(acc: Accumulators, s: Sample, i: jax.Array, torques: jax.Array
         fell=acc.fell | newly_fell,
         fall_step=jnp.where(newly_fell, i, acc.fall_step),
         diverged=acc.diverged | (acc.alive & ~finite),
+        fall_cause=jnp.where(newly_fell, cause,
+                             jnp.where(acc.alive & ~finite, outcomes.NON_FINITE, acc.fall_cause)),
         last_outside=jnp.where(ok & ~band, i, acc.last_outside),
         in_band=band,
         peak_ankle=upd(acc.peak_ankle, jnp.maximum(acc.peak_ankle, jnp.abs(s.q[0]))),
@@ -226,19 +243,24 @@ def sample_update(acc: Accumulators, s: Sample, i: jax.Array, torques: jax.Array
 
 
 def period_update(acc: Accumulators, res: admm_mod.ADMMResult, u: jax.Array,
-                  torques: jax.Array, limits: Limits) -> Accumulators:
-    """Fold one control period's solve into the accumulators (counted only while alive): a
-    non-finite input or torque diverges the scenario; saturation, non-converged solves, the
-    largest primal residual and the ADMM iterations are counted."""
+                  torques: jax.Array, limits: Limits, k: jax.Array) -> Accumulators:
+    """Fold the solve of control period ``k`` into the accumulators (counted only while
+    alive): a non-finite input or torque diverges the scenario; saturation, non-converged
+    solves, the largest primal residual, the ADMM iterations and the first period whose QP
+    the solver reported infeasible (its certificate, admm.py) are counted."""
     dtype = acc.max_residual.dtype
     alive = acc.alive
     finite = jnp.isfinite(u).all() & jnp.isfinite(torques).all()
     counted = alive
     saturated = outcomes.at_input_bound(jnp, u, limits)
     residual_ok = counted & jnp.isfinite(res.prim_res)
+    first_infeasible = (counted & (res.status == admm_mod.PRIMAL_INFEASIBLE)
+                        & (acc.first_infeasible < 0))
     return acc._replace(
         alive=alive & finite,
         diverged=acc.diverged | (counted & ~finite),
+        fall_cause=jnp.where(counted & ~finite, outcomes.NON_FINITE, acc.fall_cause),
+        first_infeasible=jnp.where(first_infeasible, k, acc.first_infeasible),
         control_periods=acc.control_periods + counted,
         saturated_ankle=acc.saturated_ankle + (counted & saturated[0]),
         saturated_hip=acc.saturated_hip + (counted & saturated[1]),
@@ -270,18 +292,43 @@ def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, forc
     S = st.substeps
     rest = initial_carry(ar, sn, st)
 
-    def physics_step(carry: Carry, i: jax.Array, torques: jax.Array, u: jax.Array):
-        f = jnp.where(i < n_push, force, jnp.zeros((), dtype))
-        d = advance(ar.mx, sn, carry.d, torques, f, st.push_at_hip)
-        s = measure(ar, sn, d)
+    def fold(carry: Carry, s: Sample, i: jax.Array, torques: jax.Array, u: jax.Array) -> Carry:
+        """Carry after the complete sample ``s`` of physics step ``i``."""
         acc = sample_update(carry.acc, s, i, torques, u, carry.q_prev, carry.x_prev, st.limits)
+        return carry._replace(q_prev=s.q, x_prev=s.x, acc=acc)
+
+    def push(i: jax.Array) -> jax.Array:
+        return jnp.where(i < n_push, force, jnp.zeros((), dtype))
+
+    def record(carry: Carry, d: mjx.Data, s: Sample) -> Carry:
+        """The new physics state and the controller's (delayed) measurement buffer."""
         history = jnp.concatenate([jnp.concatenate([s.q, s.dq])[None], carry.history[:-1]])
-        carry = Carry(d=d, warm=carry.warm, history=history, q_prev=s.q, x_prev=s.x, acc=acc)
+        return carry._replace(d=d, history=history)
+
+    def physics_step(carry: Carry, i: jax.Array, torques: jax.Array, u: jax.Array):
+        """Step i, then its sample: positions from an extra ``mjx.kinematics``."""
+        d = advance(ar.mx, sn, carry.d, torques, push(i), st.push_at_hip)
+        s = measure(ar, sn, d)
+        carry = fold(record(carry, d, s), s, i, torques, u)
         out = None
         if st.trajectories:  # NaN from the fall sample on (the run is reset)
             out = dict(qpos=d.qpos, qvel=d.qvel, tau=torques, u=u, cop=s.cop, com=s.com)
-            out = {k: jnp.where(acc.alive, v, jnp.nan).astype(dtype) for k, v in out.items()}
+            out = {k: jnp.where(carry.acc.alive, v, jnp.nan).astype(dtype)
+                   for k, v in out.items()}
         return carry, out
+
+    def lean_step(state: tuple[Carry, Sample], i: jax.Array, torques: jax.Array,
+                  u: jax.Array):
+        """Step i; the positions its start computed complete sample i - 1 (``pending``,
+        folded unless i starts the period), and sample i waits for the next step's."""
+        carry, pending = state
+        d = step(ar.mx, sn, carry.d, torques, push(i), st.push_at_hip)
+        folded = fold(carry, with_positions(pending, ar, sn, d), i - 1, torques, u)
+        kept = select(i > k * S, (folded.acc, folded.q_prev, folded.x_prev),
+                      (carry.acc, carry.q_prev, carry.x_prev))
+        carry = carry._replace(acc=kept[0], q_prev=kept[1], x_prev=kept[2])
+        s = measure_step(ar, sn, d)
+        return (record(carry, d, s), s), None
 
     alive = carry.acc.alive
     # A dead scenario restarts from rest with a cold controller (see the module docstring).
@@ -292,7 +339,7 @@ def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, forc
     res = admm_mod.admm_solve(ar.qp, x_meas, warm, st.settings)
     u = res.u0.astype(dtype)
     torques = ar.torque_map @ u
-    acc = period_update(carry.acc, res, u, torques, st.limits)
+    acc = period_update(carry.acc, res, u, torques, st.limits, k)
     finite = jnp.isfinite(u).all() & jnp.isfinite(torques).all()
     u = jnp.where(finite, u, jnp.zeros_like(u))
     torques = jnp.where(finite, torques, jnp.zeros_like(torques))
@@ -300,10 +347,17 @@ def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, forc
     history = jnp.where(alive, carry.history, rest.history)
     carry = carry._replace(d=d, warm=warm, history=history, acc=acc)
 
-    def sub(c, j):
-        return physics_step(c, k * S + j, torques, u)
-
-    return jax.lax.scan(sub, carry, jnp.arange(S, dtype=jnp.int32))
+    steps = k * S + jnp.arange(S, dtype=jnp.int32)
+    if st.trajectories or st.push_at_hip:
+        # the series are read step by step, and the push at the hip needs the positions at
+        # the step's start: one mjx.kinematics per step
+        return jax.lax.scan(lambda c, i: physics_step(c, i, torques, u), carry, steps)
+    # lean: a sample's positions are those the next step computes at its start; the period's
+    # last sample takes them from one mjx.kinematics, so no sample is pending between periods
+    (carry, last), _ = jax.lax.scan(lambda cs, i: lean_step(cs, i, torques, u),
+                                    (carry, measure_step(ar, sn, carry.d)), steps)
+    positions = mjx.kinematics(ar.mx, carry.d)
+    return fold(carry, with_positions(last, ar, sn, positions), steps[-1], torques, u), None
 
 
 def scenario(ar: Arrays, sn: Sensors, st: Static, force: jax.Array,

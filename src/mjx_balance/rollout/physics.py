@@ -1,9 +1,11 @@
 """MJX physics of the balance model and the measurements read out of ``mjx.Data``.
 
-A sample is read after every physics step, at t = (i+1) dt: :func:`advance` runs ``mjx.step``
-and then ``mjx.kinematics``, so body and geom positions are those at the new time while the
-contacts and constraint forces stay those that acted during the step (as the reference leaves
-them after ``mj_step`` + ``mj_kinematics``). The load-cell CoP, the whole-body CoM and the
+A sample is read after every physics step, at t = (i+1) dt: joints and velocities at the new
+time, contacts and constraint forces those that acted during the step (as the reference leaves
+them after ``mj_step`` + ``mj_kinematics``), body and geom positions at the new time. ``mjx.step``
+computes positions at its start only, so those of t = (i+1) dt come either from an extra
+``mjx.kinematics`` (:func:`advance`) or, for free, from the next step (:func:`step`; the
+closed loop reads them there, ``kernel.period``). The load-cell CoP, the whole-body CoM and the
 load-cell heights are then read with the static addresses of :class:`Sensors`.
 
 MJX options (:data:`MJX_OPTIONS`), chosen for speed on the CPU and justified by the agreement
@@ -205,15 +207,15 @@ def cell_heights(mx: mjx.Model, d: mjx.Data, sn: Sensors) -> jax.Array:
     return d.geom_xpos[sn.cells, 2] - mx.geom_size[sn.cells, 0]
 
 
-def advance(mx: mjx.Model, sn: Sensors, d: mjx.Data, torques: jax.Array, force: jax.Array,
-            push_at_hip: bool = False) -> mjx.Data:
-    """One physics step with motor ``torques`` [2] and the push ``force`` [] (N, along x).
+def step(mx: mjx.Model, sn: Sensors, d: mjx.Data, torques: jax.Array, force: jax.Array,
+         push_at_hip: bool = False) -> mjx.Data:
+    """One physics step (``mjx.step``) with motor ``torques`` [2] and the push ``force`` []
+    (N, along x). Afterwards qpos and qvel are those at the new time, while body and geom
+    positions, contacts and constraint forces are those the step computed at its start.
 
     The push acts on the upper body through ``xfrc_applied`` (a wrench at its CoM, xipos); at
-    the hip it is the same force plus the moment (xpos - xipos) x F. After ``mjx.step`` the
-    positions are refreshed (``mjx.kinematics``), so body/geom positions are those at the new
-    time while the contacts and constraint forces stay those that acted during the step (as
-    the reference leaves them after ``mj_step`` + ``mj_kinematics``).
+    the hip it is the same force plus the moment (xpos - xipos) x F, from the positions in
+    ``d`` (those of the current time only if ``d`` came from :func:`advance`).
     """
     dtype = d.qpos.dtype
     push = jnp.zeros(d.xfrc_applied.shape, dtype).at[sn.upper_body, 0].set(force)
@@ -222,9 +224,17 @@ def advance(mx: mjx.Model, sn: Sensors, d: mjx.Data, torques: jax.Array, force: 
         moment = jnp.cross(r, jnp.stack([force, 0 * force, 0 * force]).astype(dtype))
         push = push.at[sn.upper_body, 3:].set(moment)
     d = d.replace(ctrl=torques.astype(dtype), xfrc_applied=push)
-    d = mjx.step(mx, d)
-    d = mjx.kinematics(mx, d)
-    return cast_floats(d, dtype)
+    return cast_floats(mjx.step(mx, d), dtype)
+
+
+def advance(mx: mjx.Model, sn: Sensors, d: mjx.Data, torques: jax.Array, force: jax.Array,
+            push_at_hip: bool = False) -> mjx.Data:
+    """:func:`step`, then the positions refreshed (``mjx.kinematics``): body and geom
+    positions are those at the new time while the contacts and constraint forces stay those
+    that acted during the step (as the reference leaves them after ``mj_step`` +
+    ``mj_kinematics``)."""
+    d = step(mx, sn, d, torques, force, push_at_hip)
+    return cast_floats(mjx.kinematics(mx, d), d.qpos.dtype)
 
 
 def open_loop(mx: mjx.Model, sn: Sensors, d0: mjx.Data, torques: jax.Array, force: jax.Array,

@@ -321,5 +321,8 @@ def summarize(acc: Accumulators, config: Config) -> dict[str, np.ndarray]:
         "nonconverged_solves": np.asarray(acc.nonconverged_solves, np.int64),
         "max_residual": finite_or_nan(acc.max_residual),
         "max_bound_violation": f64(acc.max_bound_violation),
+        "fall_cause": np.asarray(acc.fall_cause, np.int32),
+        "first_infeasible_time": np.where(acc.first_infeasible >= 0,
+                                          f64(acc.first_infeasible) * sc.control_dt, np.nan),
         "admm_iterations": np.asarray(acc.admm_iterations, np.int64),
     }
