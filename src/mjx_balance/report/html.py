@@ -3,20 +3,22 @@
 :func:`load_results` reads every table of a folder (what the figures and the notebook use).
 :func:`build_report` draws the figures into DIR/figures and writes DIR/report.html: one section
 per experiment and convention, the conventions side by side, one section per study, each built
-by its own function below from the saved tables; every figure is embedded in the page, which
-loads nothing from elsewhere.
+by its own function below from the saved tables as a list of blocks (paragraphs, figures,
+tables with footnotes) that the Jinja2 template ``templates/report.html.j2`` (package data)
+renders with autoescaping; every figure is embedded in the page, which loads nothing from
+elsewhere. A tiny-scale report carries a banner saying its numbers are not meaningful.
 """
 
 from __future__ import annotations
 
 import base64
-import html
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
+from markupsafe import Markup
 
 from .. import studies
 from ..outcomes import OUTCOMES, RECOVERED
@@ -25,6 +27,7 @@ from ..sweep.store import write_atomic, write_figure
 from .run import REPORT_JSON, read_record
 
 HTML = "report.html"
+TEMPLATE = "report.html.j2"  # in templates/ (package data)
 FIGURES = "figures"
 
 SUMMARY_SHOWN = ["force", "duration", "outcome", "settle_time", "fall_time", "peak_ankle",
@@ -46,12 +49,17 @@ body { font-family: system-ui, -apple-system, 'Segoe UI', sans-serif; max-width:
 h1 { border-bottom: 2px solid #444; } h2 { border-bottom: 1px solid #bbb; margin-top: 2.2em; }
 img { max-width: 100%; border: 1px solid #ddd; margin: 0.3em 0; }
 .row { display: flex; gap: 0.8em; flex-wrap: wrap; } .row figure { flex: 1 1 45%; margin: 0; }
-figcaption { font-size: 0.85em; color: #555; }
-table { border-collapse: collapse; font-size: 0.82em; margin: 0.6em 0; }
-th, td { border: 1px solid #ccc; padding: 2px 6px; text-align: right; }
-th { background: #f2f2f2; } .params { background: #f7f7f7; border-left: 4px solid #888;
+figure { margin: 0.4em 0; } figcaption { font-size: 0.85em; color: #555; }
+.table-wrap { max-width: 100%; overflow-x: auto; }
+table { border-collapse: collapse; font-size: 0.76em; margin: 0.6em 0; }
+th, td { border: 1px solid #ccc; padding: 2px 5px; text-align: right; }
+th { background: #f2f2f2; overflow-wrap: anywhere; max-width: 9em; vertical-align: bottom; }
+ol.notes { font-size: 0.8em; color: #444; margin-top: 0; }
+.params { background: #f7f7f7; border-left: 4px solid #888;
 padding: 0.4em 0.8em; font-size: 0.9em; } .reading { background: #eef6ee;
 border-left: 4px solid #4daf4a; padding: 0.5em 0.9em; }
+.banner { background: #fff3cd; border: 2px solid #d39e00; color: #5c4400; padding: 0.7em 1em;
+          font-weight: 600; margin: 1em 0; }
 nav ul { columns: 2; font-size: 0.9em; }
 """
 TITLE = "Standing balance under constrained MPC: the study reproduced, and beyond"
@@ -109,43 +117,60 @@ def sections(out: str | Path) -> list[tuple[str, str]]:
 
 
 # ---------------------------------------------------------------------------------------------
-# Key numbers
+# Key numbers (each states the grid it came from)
+
+
+def _grid_of(region: pd.DataFrame) -> str:
+    return "grid " + studies.grid_text(region)
+
+
+def _study_grid(res: dict) -> str:
+    return _grid_of(next(iter(res["regions"].values())))
 
 
 def key_numbers(results: dict[str, Any]) -> list[str]:
-    """Headline numbers of a report, one line each, from the saved tables."""
-    lines = _experiment_lines(results["conventions"])
+    """Headline numbers of a report, one line each, from the saved tables; each line names
+    the grid (or the table forces) its numbers come from."""
+    lines = _experiment_lines(results["conventions"], results.get("config"))
     st = results["studies"]
     if "ankle_only" in st:
-        lines += _ankle_only_lines(st["ankle_only"]["numbers"])
+        lines += [line[:-1] + f" ({_study_grid(st['ankle_only'])})."
+                  for line in _ankle_only_lines(st["ankle_only"]["numbers"])]
     if "delay" in st:
-        lines += _delay_lines(st["delay"]["numbers"])
+        lines += [line[:-1] + f" ({_study_grid(st['delay'])})."
+                  for line in _delay_lines(st["delay"]["numbers"])]
     for key in ("older_adult", "push_height"):
         if key in st:
             rows = st[key]["numbers"]
             lines.append(f"{studies.study(key).title}: " + ", ".join(
-                f"{label} {a:.3g} N·s" for label, a in zip(rows["label"], rows["area"])) + ".")
+                f"{label} {a:.3g} N·s" for label, a in zip(rows["label"], rows["area"]))
+                + f" ({_study_grid(st[key])}).")
     if "backward" in st:
         rows = st["backward"]["numbers"]
         lines.append(f"Backward vs forward pushes: {rows['area'].iloc[0]:.3g} vs "
-                     f"{rows['area'].iloc[1]:.3g} N·s.")
+                     f"{rows['area'].iloc[1]:.3g} N·s ({_study_grid(st['backward'])}).")
     return lines
 
 
-def _experiment_lines(conventions: dict[str, dict]) -> list[str]:
-    """Max acting time per force of every convention, then each convention's region area."""
+def _experiment_lines(conventions: dict[str, dict], config: Config | None = None) -> list[str]:
+    """Max acting time per force of every convention (with the table's forces and
+    resolution), then each convention's region area (with its grid)."""
     if not conventions:
         return []
     parts = []
+    forces = None
     for convention, res in conventions.items():
         t = res["table"].sort_values("force")
+        forces = t["force"].to_numpy()
         pairs = ", ".join(f"{f:g} N: {m:g} s" for f, m in zip(t["force"], t["max_acting_time"]))
         parts.append(f"{convention}: {pairs}")
-    lines = ["Max acting time — " + "; ".join(parts) + "."]
+    window = f" within t_end = {config.scenario.t_end:g} s" if config is not None else ""
+    lines = [f"Max acting time (table forces {_numbers(forces)} N, bisected to 0.01 s{window})"
+             " — " + "; ".join(parts) + "."]
     for convention, res in conventions.items():
         n = studies.region_numbers(res["region"])
         lines.append(f"Recoverable region ({convention}): {n['area']:.3g} N·s, "
-                     f"{n['fraction']:.0%} of the grid.")
+                     f"{n['fraction']:.0%} of the grid ({_grid_of(res['region'])}).")
     return lines
 
 
@@ -177,25 +202,36 @@ def _delay_lines(rows: pd.DataFrame) -> list[str]:
 # Figures from saved tables
 
 
-def weight_figure(weights: pd.DataFrame, convention: str):
-    """Bar charts: ankle, hip and total energy for each Q (left) and each R (right) setting."""
+def weight_figure(weights: pd.DataFrame, convention: str, axes=None):
+    """Bar charts: ankle, hip and total energy for each Q (left) and each R (right) setting.
+    A setting that did not recover has hatched, pale bars (its energy up to the fall or t_end,
+    not a recovery's) and its outcome written above. ``axes``: two matplotlib Axes to draw on
+    (None: a new figure). Returns the Figure."""
     import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
 
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.4), layout="constrained")
-    parts = [("energy_ankle", "ankle", "C0"), ("energy_hip", "hip", "C1"),
-             ("energy_total", "total", "0.35")]
+    if axes is None:
+        fig, axes = plt.subplots(1, 2, figsize=(12, 4.6), layout="constrained")
+    else:
+        fig = axes[0].figure
+    parts = [("energy_ankle", "ankle", "#0072B2"), ("energy_hip", "hip", "#D55E00"),
+             ("energy_total", "total", "0.3")]
     for ax, which, label in ((axes[0], "Q", r"Q = s$\cdot$I$_4$  (R default)"),
                              (axes[1], "R", r"R = s$\cdot$diag(1000, 1)  (Q default)")):
         rows = weights[weights["weight"] == which].reset_index(drop=True)
         x = np.arange(len(rows))
+        ok = (rows["outcome"] == OUTCOMES[RECOVERED]).to_numpy()
         for j, (column, name, colour) in enumerate(parts):
             values = rows[column].to_numpy(float)
-            ax.bar(x + (j - 1) * 0.27, np.where(values > 0, values, np.nan), 0.27, label=name,
-                   color=colour)
+            values = np.where(values > 0, values, np.nan)
+            ax.bar(x[ok] + (j - 1) * 0.27, values[ok], 0.27, color=colour)
+            if (~ok).any():
+                ax.bar(x[~ok] + (j - 1) * 0.27, values[~ok], 0.27, color=colour, alpha=0.35,
+                       hatch="///", edgecolor=colour)
         for i, row in rows.iterrows():
             if row["outcome"] != OUTCOMES[RECOVERED]:
                 ax.annotate(row["outcome"], (i, 1), xycoords=("data", "axes fraction"),
-                            ha="center", va="top", fontsize=8, color="C3",
+                            ha="center", va="top", fontsize=8, color="#b2182b",
                             xytext=(0, -4), textcoords="offset points")
         ax.set_xticks(x, [f"{s:.0e}" for s in rows["scale"]])
         values = rows[[c for c, _, _ in parts]].to_numpy(float)
@@ -207,20 +243,27 @@ def weight_figure(weights: pd.DataFrame, convention: str):
         ax.set_xlabel(f"s, {label}")
         ax.set_ylabel(r"joint energy $\int|\tau\,\dot q|\,dt$ [J]")
         ax.grid(axis="y", which="both", alpha=0.3)
-    handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncol=3, fontsize=8, frameon=False)
+    handles = [Patch(color=colour) for _, _, colour in parts]
+    labels = [name for _, name, _ in parts]
+    if (weights["outcome"] != OUTCOMES[RECOVERED]).any():
+        handles.append(Patch(facecolor="0.6", alpha=0.35, hatch="///", edgecolor="0.3"))
+        labels.append("did not recover: energy up to the fall / t_end (outcome above)")
+    fig.legend(handles, labels, loc="outside lower center", ncol=4, fontsize=8, frameon=False)
     force = weights["force"].iloc[0]
     duration = weights["duration"].iloc[0]
-    fig.suptitle(f"Weight study, {convention} convention: F = {force:g} N, T = {duration:g} s "
-                 "(red: outcome if not recovered)", fontsize=11)
+    fig.suptitle(f"Weight study, {convention} convention: F = {force:g} N, T = {duration:g} s",
+                 fontsize=11)
     return fig
 
 
-def conventions_figure(tables: dict[str, pd.DataFrame]):
-    """Max acting time against force, one line per convention."""
+def conventions_figure(tables: dict[str, pd.DataFrame], ax=None):
+    """Max acting time against force, one line per convention, on ``ax`` (None: a new
+    figure). Returns the Figure."""
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4.2), layout="constrained")
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(7, 4.2), layout="constrained")
+    fig = ax.figure
     for i, (convention, table) in enumerate(tables.items()):
         t = table.sort_values("force")
         ax.plot(t["force"], np.maximum(t["max_acting_time"], 0.005), "o-", color=f"C{i}",
@@ -245,12 +288,15 @@ def save_figure(fig, path: Path) -> Path:
     return path
 
 
-def draw_timeseries(series: pd.DataFrame, figures: Path, convention: str) -> dict[str, Path]:
+def draw_timeseries(series: pd.DataFrame, figures: Path, convention: str,
+                    config: Config | None = None,
+                    summary: pd.DataFrame | None = None) -> dict[str, Path]:
     """The time-series figures of one convention, by name (plots.timeseries_figures)."""
     from .. import plots
 
     folder = figures / f"timeseries_{convention}"
-    return {p.stem: p for p in plots.timeseries_figures(series, folder)}
+    return {p.stem: p for p in plots.timeseries_figures(series, folder, config=config,
+                                                       summary=summary)}
 
 
 def draw_weights(weights: pd.DataFrame, figures: Path, convention: str) -> Path:
@@ -271,12 +317,15 @@ def region_figure(figures: Path, convention: str) -> Path:
     return figures / f"region_{convention}.png"
 
 
-def draw_region(region: pd.DataFrame, figures: Path, config: Config) -> tuple[Path, Path]:
-    """The outcome map and the energy map of one convention's region."""
+def draw_region(region: pd.DataFrame, figures: Path, config: Config,
+                table: pd.DataFrame | None = None) -> tuple[Path, Path]:
+    """The outcome map (with the table's max acting time) and the energy map of one
+    convention's region."""
     from .. import region_plots
 
     convention = config.controller.convention
-    outcome = region_plots.plot_region(region, region_figure(figures, convention), config=config)
+    outcome = region_plots.plot_region(region, region_figure(figures, convention), config=config,
+                                       table=table if table is not None else pd.DataFrame())
     energy = region_plots.plot_energy(region, figures / f"region_energy_{convention}.png",
                                       config=config)
     return outcome, energy
@@ -290,33 +339,83 @@ def draw_study(key: str, res: dict, figures: Path) -> list[tuple[Path, str]]:
     for variant in res["variants"]:
         path = region_plots.plot_region(res["regions"][variant["key"]],
                                         figures / f"study_{key}_{variant['key']}.png",
-                                        config=config_from_dict(variant["config"]))
+                                        config=config_from_dict(variant["config"]),
+                                        table=pd.DataFrame())
         drawn.append((path, variant["label"]))
     return drawn
 
 
 # ---------------------------------------------------------------------------------------------
-# HTML pieces
+# Blocks: what the template draws (templates/report.html.j2); every text is escaped there
 
 
-def _img(path: Path, caption: str = "") -> str:
+def _img(path: Path, caption: str = "") -> dict:
     data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
-    cap = f"<figcaption>{html.escape(caption)}</figcaption>" if caption else ""
-    alt = html.escape(caption or Path(path).stem)
-    return f'<figure><img alt="{alt}" src="data:image/png;base64,{data}">{cap}</figure>'
+    return {"kind": "figure", "data": data, "caption": caption, "alt": caption or Path(path).stem}
 
 
-def _row(*figures: str) -> str:
-    return '<div class="row">' + "".join(figures) + "</div>"
+def _row(*figures: dict) -> dict:
+    return {"kind": "row", "figures": list(figures)}
 
 
-def _table(frame: pd.DataFrame, columns: list[str] | None = None) -> str:
+def _cell(value: Any) -> str:
+    if isinstance(value, str):
+        return value
+    if value is None or pd.isna(value):
+        return "–"
+    if isinstance(value, (bool, np.bool_)):
+        return str(bool(value))
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    return f"{float(value):.4g}"
+
+
+def mark_outcomes(frame: pd.DataFrame, columns: list[str], outcome: str = "outcome",
+                  ) -> pd.DataFrame:
+    """``frame`` with the values of ``columns`` as text, each value of a row whose ``outcome``
+    is not recovered followed by that outcome in brackets (``47.2 [fell]``; NaN: ``– [fell]``),
+    so an energy of a run that did not recover never reads as a recovery's."""
+    frame = frame.copy()
+    # only a known outcome other than recovered is marked (an empty outcome_01: no such run)
+    ok = ~frame[outcome].astype(str).isin([o for o in OUTCOMES if o != OUTCOMES[RECOVERED]])
+    for column in columns:
+        frame[column] = [(_cell(v) if good else f"{_cell(v)} [{o}]")
+                         for v, good, o in zip(frame[column], ok, frame[outcome].astype(str))]
+    return frame
+
+
+def _table(frame: pd.DataFrame, columns: list[str] | None = None,
+           note_column: str | None = None) -> dict:
+    """A table block: the frame's cells as text (floats to 4 significant digits, NaN as –);
+    ``note_column``'s texts become footnote markers ([1], [2], ...) with the notes below."""
     frame = frame[columns] if columns else frame
-    return frame.to_html(index=False, border=0, na_rep="–", float_format=lambda v: f"{v:.4g}")
+    notes: list[str] = []
+    rows = []
+    for _, row in frame.iterrows():
+        cells = []
+        for column in frame.columns:
+            value = row[column]
+            if column == note_column:
+                text = "" if value is None or pd.isna(value) else str(value)
+                if text:
+                    if text not in notes:
+                        notes.append(text)
+                    cells.append(f"[{notes.index(text) + 1}]")
+                else:
+                    cells.append("")
+            else:
+                cells.append(_cell(value))
+        rows.append(cells)
+    return {"kind": "table", "header": [str(c) for c in frame.columns], "rows": rows,
+            "notes": notes}
 
 
-def _params(text: str) -> str:
-    return f'<p class="params">{text}</p>'
+def _params(text: str | Markup) -> dict:
+    return {"kind": "params", "text": text}
+
+
+def _para(text: str | Markup, cls: str = "") -> dict:
+    return {"kind": "paragraph", "text": text, "cls": cls}
 
 
 def _numbers(values) -> str:
@@ -342,6 +441,20 @@ def _outcomes_text(config: Config) -> str:
             f"lower-body tilt beyond {s.lower_tilt_limit:g} rad), diverged.")
 
 
+def banner(record: dict, config: Config) -> str | None:
+    """The warning on a tiny-scale report (plan ``tiny``): its numbers are not meaningful."""
+    plan = record.get("plan", {})
+    if plan.get("name") != "tiny":
+        return None
+    return (f"Tiny-scale smoke run (plan tiny): t_end = {config.scenario.t_end:g} s, region "
+            f"grids of forces {plan.get('region_forces')} N x durations "
+            f"{plan.get('region_durations')} s, table forces "
+            f"{_numbers(plan.get('table_forces', []))} N, the reference solver capped at "
+            f"{plan.get('osqp_max_iter')} iterations. It checks that every stage runs; its "
+            "numbers are NOT meaningful results. Run `mjx-balance report` (default scale) for "
+            "results.")
+
+
 @dataclass
 class Page:
     """What every section of one report page needs."""
@@ -362,58 +475,67 @@ class Page:
     def plan(self) -> dict:
         return self.record["plan"]
 
-    def section(self, key: str, *content: str) -> str:
-        return (f'<section id="{key}"><h2>{html.escape(self.headings[key])}</h2>'
-                + "".join(content) + "</section>")
+    def section(self, key: str, *blocks: dict) -> dict:
+        return {"id": key, "heading": self.headings[key], "blocks": list(blocks)}
 
 
 # ---------------------------------------------------------------------------------------------
 # The sections
 
 
-def overview_section(page: Page) -> str:
+def overview_section(page: Page) -> dict:
     """What was run, the outcome rules, the key numbers and the table of contents."""
     record, plan = page.record, page.plan
+    run = (Markup("mjx_balance {}, plan <b>{}</b>, batch backend <b>{}</b> (table and region "
+                  "maps; the time series and the weight study use the scalar reference loop, "
+                  "MuJoCo C + OSQP)").format(str(record["version"]), plan["name"],
+                                             record["backend"])
+           + (f", last run {record['seconds']:.0f} s (stages already saved are not rerun)"
+              if "seconds" in record else "")
+           + ". Base configuration: " + _config_text(page.config) + ".")
     return page.section(
         "overview",
-        _params(f"mjx_balance {html.escape(str(record['version']))}, plan <b>{plan['name']}</b>, "
-                f"batch backend <b>{record['backend']}</b> (table and region maps; the time "
-                f"series and the weight study use the scalar reference loop, MuJoCo C + OSQP)"
-                + (f", last run {record['seconds']:.0f} s (stages already saved are not rerun)"
-                   if "seconds" in record else "")
-                + ". Base configuration: " + html.escape(_config_text(page.config)) + "."),
-        "<p>Pushes start at upright rest: a horizontal force F (+ forward) on the upper body's "
-        "centre of mass for T seconds. " + _outcomes_text(page.config) + " Energies "
-        "are ∫|τ·dq/dt| dt of the ankle and hip motors; for the paper convention energy_u1/u2 "
-        "are those of the generalised pairs (τ1, q1), (τ2, q2).</p>",
-        "<h3>Key numbers</h3><ul>" + "".join(f"<li>{html.escape(line)}</li>"
-                                             for line in key_numbers(page.results)) + "</ul>",
-        "<nav><ul>" + "".join(f'<li><a href="#{k}">{html.escape(h)}</a></li>'
-                              for k, h in page.headings.items() if k != "overview")
-        + "</ul></nav>")
+        _params(run),
+        _para("Pushes start at upright rest: a horizontal force F (+ forward) on the upper "
+              "body's centre of mass for T seconds. " + _outcomes_text(page.config)
+              + " Energies are ∫|τ·dq/dt| dt of the ankle and hip motors; for the paper "
+              "convention energy_u1/u2 are those of the generalised pairs (τ1, q1), (τ2, q2). "
+              "Energies are those of recovered runs; a value of a run that did not recover is "
+              "marked with its outcome in brackets, or left out (–)."),
+        {"kind": "heading", "text": "Key numbers"},
+        {"kind": "list", "entries": key_numbers(page.results)},
+        {"kind": "nav", "links": [(k, h) for k, h in page.headings.items() if k != "overview"]})
 
 
-def timeseries_section(page: Page, convention: str, res: dict) -> str:
+ENERGY_COLUMNS = ["energy_ankle", "energy_hip", "energy_total", "energy_u1", "energy_u2"]
+ENERGY_01 = [f"{c}_01" for c in ENERGY_COLUMNS]
+
+
+def timeseries_section(page: Page, convention: str, res: dict) -> dict:
     """Experiment 1: the time-series figures and the summary rows."""
     cfg = with_convention(page.config, convention)
-    paths = draw_timeseries(res["timeseries"], page.figures, convention)
+    paths = draw_timeseries(res["timeseries"], page.figures, convention, cfg, res["summary"])
     return page.section(
         f"timeseries-{convention}",
         _params(f"Reference loop, {convention} convention, F = "
                 f"{_numbers(page.plan['timeseries_forces'])} N, "
-                f"T = {page.plan['push_duration']:g} s, t_end = {cfg.scenario.t_end:g} s."),
+                f"T = {page.plan['push_duration']:g} s (shaded), t_end = "
+                f"{cfg.scenario.t_end:g} s; time axes end where the action ends; dashed red: "
+                "the MPC's bounds where they apply."),
         _row(_img(paths["ankle_angle"], "ankle angle"), _img(paths["hip_angle"], "hip angle")),
+        _img(paths["states"], "MPC states x1, x2 against their bounds"),
+        _img(paths["inputs"], "MPC inputs u1, u2 against their bounds"),
         _row(_img(paths["phase_ankle"], "ankle phase portrait"),
              _img(paths["phase_hip"], "hip phase portrait")),
         _row(_img(paths["cop"], "CoP"), _img(paths["com"], "CoM")),
         _row(_img(paths["ankle_torque"], "ankle torque"),
              _img(paths["hip_torque"], "hip torque")),
         _img(paths["energy"], "cumulative joint energy"),
-        _table(res["summary"], SUMMARY_SHOWN))
+        _table(mark_outcomes(res["summary"], ENERGY_COLUMNS), SUMMARY_SHOWN))
 
 
-def weights_section(page: Page, convention: str, res: dict) -> str:
-    """Experiment 2: the energies of every weight setting."""
+def weights_section(page: Page, convention: str, res: dict) -> dict:
+    """Experiment 2: the energies of every weight setting, each marked with its outcome."""
     weights, plan = res["weights"], page.plan
     path = draw_weights(weights, page.figures, convention)
     recovered = studies.is_recovered(weights).sum()
@@ -424,43 +546,52 @@ def weights_section(page: Page, convention: str, res: dict) -> str:
                 f"{_numbers(plan['q_scales'])} (R default); "
                 f"R = s·diag(1000, 1) for s in {_numbers(plan['r_scales'])} (Q default)."),
         _img(path, "ankle, hip and total energy per weight setting"),
-        f"<p>{recovered} of {len(weights)} settings "
-        "recover; for a push that falls the energies are those up to the fall.</p>",
-        _table(weights, WEIGHTS_SHOWN))
+        _para(f"{recovered} of {len(weights)} settings recover; for a push that did not "
+              "recover the energies are those up to the fall (or t_end) and carry its outcome "
+              "in brackets."),
+        _table(mark_outcomes(weights, ENERGY_COLUMNS), WEIGHTS_SHOWN))
 
 
-def table_section(page: Page, convention: str, res: dict) -> str:
+def table_section(page: Page, convention: str, res: dict) -> dict:
     """Experiment 3: the max acting time per force."""
     cfg = with_convention(page.config, convention)
     path = draw_table(res["table"], page.figures, cfg)
     return page.section(
         f"table-{convention}",
-        _params(f"Batch backend {page.record['backend']}, {convention} convention: for each "
-                f"force the largest T (to 0.01 s) such that every T up to it recovers "
-                f"within t_end = {cfg.scenario.t_end:g} s (coarse scan, then bisection; "
+        _params(f"Batch backend {page.record['backend']}, {convention} convention, table "
+                f"forces {_numbers(res['table']['force'])} N: for each force the largest T "
+                f"(to 0.01 s) such that every T up to it recovers within t_end = "
+                f"{cfg.scenario.t_end:g} s (coarse scan, then bisection; "
                 f"sweep.max_acting_time). Energies at T = 0.1 s (_01) and at the max "
-                f"acting time (_max)."),
-        _img(path, "max acting time and energies"), _table(res["table"], TABLE_SHOWN))
+                f"acting time (_max), of recovered runs only (– when that run did not "
+                f"recover; its outcome is outcome_01)."),
+        _img(path, "max acting time and energies"),
+        _table(mark_outcomes(res["table"], ENERGY_01, "outcome_01"), TABLE_SHOWN,
+               note_column="note"))
 
 
-def region_section(page: Page, convention: str, res: dict) -> str:
+def region_section(page: Page, convention: str, res: dict) -> dict:
     """Experiment 4: the outcome and energy maps and the recovered area."""
     region = res["region"]
-    outcome, energy = draw_region(region, page.figures, with_convention(page.config, convention))
+    outcome, energy = draw_region(region, page.figures, with_convention(page.config, convention),
+                                  res["table"])
     numbers = studies.region_numbers(region)
     return page.section(
         f"region-{convention}",
         _params(f"Batch backend {page.record['backend']}, {convention} convention, grid "
-                f"{html.escape(studies.grid_text(region))}."),
+                f"{studies.grid_text(region)}; each sampled (F, T) is one cell (bounds half-way "
+                "between samples, the outer ones on the first and last sample); blue: the "
+                "table's bisected max acting time."),
         _row(_img(outcome, "outcome map"), _img(energy, "energy of the recovered pushes")),
-        f"<p>Recovered area {numbers['area']:.3g} N·s ({numbers['fraction']:.0%} of the "
-        f"grid, {numbers['recovered_cells']} of {numbers['cells']} cells); at T = "
-        f"{numbers['t_ref']:g} s the largest recovered force is "
-        f"{studies.force_text(numbers['f_max_ref'])}.</p>")
+        _para(f"Recovered area {numbers['area']:.3g} N·s ({numbers['fraction']:.0%} of the "
+              f"grid, {numbers['recovered_cells']} of {numbers['cells']} cells); at T = "
+              f"{numbers['t_ref']:g} s the largest recovered force is "
+              f"{studies.force_text(numbers['f_max_ref'])}."))
 
 
-def _conventions_reading(tables: dict[str, pd.DataFrame], numbers: dict[str, dict]) -> str:
-    """Which convention has the longer max acting time, and both region areas."""
+def _conventions_reading(tables: dict[str, pd.DataFrame], numbers: dict[str, dict],
+                         grid: str = "") -> str:
+    """Which convention has the longer max acting time, and both region areas (on ``grid``)."""
     a, b = list(tables)[:2]
     ta = tables[a].set_index("force")["max_acting_time"]
     tb = tables[b].set_index("force")["max_acting_time"]
@@ -469,22 +600,25 @@ def _conventions_reading(tables: dict[str, pd.DataFrame], numbers: dict[str, dic
     longer_b = int((tb[common] > ta[common]).sum())
     return (f"Over the {len(common)} table forces the {a} convention has the longer max acting "
             f"time for {longer_a} forces and the {b} convention for {longer_b} "
-            f"({len(common) - longer_a - longer_b} equal). The region maps recover "
+            f"({len(common) - longer_a - longer_b} equal). The region maps"
+            + (f" ({grid})" if grid else "") + " recover "
             f"{numbers[a]['area']:.3g} N·s ({a}) and {numbers[b]['area']:.3g} N·s ({b}); at T = "
             f"{numbers[a]['t_ref']:g} s the largest recovered force is "
             f"{studies.force_text(numbers[a]['f_max_ref'])} ({a}) and "
             f"{studies.force_text(numbers[b]['f_max_ref'])} ({b}).")
 
 
-def conventions_section(page: Page) -> str:
+def conventions_section(page: Page) -> dict:
     """The experiments of the first two conventions side by side (region maps drawn by
-    region_section)."""
+    region_section); every energy marked with its run's outcome."""
     results = page.results["conventions"]
     convs = list(results)
     tables = {c: results[c]["table"] for c in convs}
     merged = None
     for c in convs:
-        part = tables[c][["force", "max_acting_time", "energy_total_01", "energy_total_max"]]
+        part = tables[c][["force", "max_acting_time", "energy_total_01", "energy_total_max",
+                          "outcome_01"]]
+        part = mark_outcomes(part, ["energy_total_01"], "outcome_01").drop(columns="outcome_01")
         part = part.rename(columns={k: f"{k} ({c})" for k in part.columns if k != "force"})
         merged = part if merged is None else merged.merge(part, on="force", how="outer")
     path = save_figure(conventions_figure(tables), page.figures / "conventions_table.png")
@@ -492,22 +626,26 @@ def conventions_section(page: Page) -> str:
     a = convs[0]
     outcomes = pd.DataFrame({"force": results[a]["summary"]["force"]})
     for c in convs:
-        outcomes[f"outcome ({c})"] = results[c]["summary"]["outcome"].to_numpy()
-        outcomes[f"energy_total ({c})"] = results[c]["summary"]["energy_total"].to_numpy()
+        summary = mark_outcomes(results[c]["summary"], ["energy_total"])
+        outcomes[f"outcome ({c})"] = summary["outcome"].to_numpy()
+        outcomes[f"energy_total ({c})"] = summary["energy_total"].to_numpy()
     images = [_img(region_figure(page.figures, c), f"region map, {c}") for c in convs]
     return page.section(
         "conventions",
         _params("Both conventions with the same configuration otherwise; the paper "
                 "convention reads the study's equations literally (generalised forces "
                 "τ1, τ2 on the absolute tilts), the joint convention uses the motor "
-                "torques and joint angles. Bounds apply to each convention's own x and u."),
+                "torques and joint angles. Bounds apply to each convention's own x and u. "
+                "An energy of a run that did not recover carries its outcome in brackets."),
         _img(path, "max acting time per force"), _table(merged),
-        "<h3>Time-series pushes (T = 0.1 s)</h3>", _table(outcomes),
+        {"kind": "heading", "text": f"Time-series pushes (T = {page.plan['push_duration']:g} s)"},
+        _table(outcomes),
         _row(*images),
-        f'<p class="reading">{html.escape(_conventions_reading(tables, numbers))}</p>')
+        _para(_conventions_reading(tables, numbers, _grid_of(results[a]["region"])),
+              "reading"))
 
 
-def study_section(page: Page, key: str, res: dict) -> str:
+def study_section(page: Page, key: str, res: dict) -> dict:
     """A study: every variant's outcome map, the numbers and the reading."""
     st = studies.study(key)
     images = [_img(path, label) for path, label in draw_study(key, res, page.figures)]
@@ -516,23 +654,31 @@ def study_section(page: Page, key: str, res: dict) -> str:
     files = ", ".join(v["file"] for v in res["variants"] if v["file"])
     return page.section(
         f"study-{key}",
-        _params(html.escape(st.question) + f" Sweep definitions: sweeps/{files}; "
+        _params(st.question + f" Sweep definitions: sweeps/{files}; "
                 f"convention {page.config.controller.convention}; batch backend "
-                f"{page.record['backend']}; grid {html.escape(studies.grid_text(first))}."),
+                f"{page.record['backend']}; grid {studies.grid_text(first)}."),
         _row(*images),
         _table(numbers, STUDY_SHOWN),
-        f'<p class="reading">{html.escape(studies.reading(st, numbers, first))}</p>')
+        _para(studies.reading(st, numbers, first), "reading"))
 
 
 # ---------------------------------------------------------------------------------------------
 # The page
 
 
-def page_html(body: list[str]) -> str:
-    """The whole self-contained HTML document around the sections."""
-    return ("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
-            "<title>mjx_balance report</title><style>" + CSS + "</style></head><body>"
-            f"<h1>{TITLE}</h1>" + "".join(body) + "</body></html>")
+def _environment():
+    """The Jinja2 environment of the report templates (package data), autoescaping on."""
+    from jinja2 import Environment, PackageLoader, StrictUndefined
+
+    return Environment(loader=PackageLoader("mjx_balance.report", "templates"),
+                       autoescape=True, undefined=StrictUndefined, trim_blocks=True,
+                       lstrip_blocks=True, keep_trailing_newline=True)
+
+
+def page_html(sections_: list[dict], banner_text: str | None = None) -> str:
+    """The whole self-contained HTML document around the sections (templates/report.html.j2)."""
+    return _environment().get_template(TEMPLATE).render(
+        title=TITLE, css=CSS, banner=banner_text, sections=sections_)
 
 
 def build_report(out: str | Path) -> Path:
@@ -552,6 +698,6 @@ def build_report(out: str | Path) -> Path:
     for key, res in page.results["studies"].items():
         body.append(study_section(page, key, res))
     path = out / HTML
-    text = page_html(body)
+    text = page_html(body, banner(page.record, page.config))
     write_atomic(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
     return path

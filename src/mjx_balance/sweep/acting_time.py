@@ -104,8 +104,10 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
     each call's rows are added to it as the call returns. The result is the same.
 
     A force whose shortest push (one resolution step) fails gets max_acting_time 0; one that
-    recovers up to t_end gets t_end and no ending outcome. The energies "_01" are at T = 0.1 s
-    (whatever its outcome; see outcome_01), "_max" at the max acting time.
+    recovers up to t_end gets t_end and no ending outcome. The energies "_01" are those of the
+    run at T = 0.1 s, "_max" those at the max acting time, each only if that run recovered
+    (NaN otherwise: a fallen or unsettled run's energy is never reported as a recovery's; its
+    outcome is outcome_01).
     """
     say = log or (lambda _msg: None)
     start = time.perf_counter()
@@ -272,6 +274,10 @@ def table_row(i: int, force: float, b: Brackets, steps: np.ndarray, resolution: 
     index_01 = int(round(0.1 / resolution))
     at_01 = next((r for s, r in zip(steps, b.coarse_rows[i]) if s == index_01), None)
     at_max = b.lo_row[i]
+    # energies (and settle times) of recovered runs only: a run that fell or did not settle
+    # leaves them NaN (its outcome is in outcome_01 / ending_outcome)
+    energy_01 = at_01 if _recovered(at_01) else None
+    energy_max = at_max if _recovered(at_max) else None
     hi_row = b.hi_row[i]
     note = ""
     if b.lo[i] == 0:
@@ -289,26 +295,30 @@ def table_row(i: int, force: float, b: Brackets, steps: np.ndarray, resolution: 
     return {
         "force": float(force),
         "max_acting_time": round(float(b.lo[i] * resolution), 12),
-        "energy_ankle_01": _get(at_01, "energy_ankle"),
-        "energy_hip_01": _get(at_01, "energy_hip"),
-        "energy_total_01": _get(at_01, "energy_total"),
-        "energy_ankle_max": _get(at_max, "energy_ankle"),
-        "energy_hip_max": _get(at_max, "energy_hip"),
-        "energy_total_max": _get(at_max, "energy_total"),
+        "energy_ankle_01": _get(energy_01, "energy_ankle"),
+        "energy_hip_01": _get(energy_01, "energy_hip"),
+        "energy_total_01": _get(energy_01, "energy_total"),
+        "energy_ankle_max": _get(energy_max, "energy_ankle"),
+        "energy_hip_max": _get(energy_max, "energy_hip"),
+        "energy_total_max": _get(energy_max, "energy_total"),
         "ending_outcome": hi_row["outcome"] if hi_row is not None else "",
         "monotone": bool(b.monotone[i]),
         "recovered_beyond_failure": beyond,
         "outcome_01": at_01["outcome"] if at_01 is not None else "",
         "settle_time_01": _get(at_01, "settle_time"),
         "settle_time_max": _get(at_max, "settle_time"),
-        "energy_u1_01": _get(at_01, "energy_u1"),
-        "energy_u2_01": _get(at_01, "energy_u2"),
-        "energy_u1_max": _get(at_max, "energy_u1"),
-        "energy_u2_max": _get(at_max, "energy_u2"),
+        "energy_u1_01": _get(energy_01, "energy_u1"),
+        "energy_u2_01": _get(energy_01, "energy_u2"),
+        "energy_u1_max": _get(energy_max, "energy_u1"),
+        "energy_u2_max": _get(energy_max, "energy_u2"),
         "convention": config.controller.convention,
         "evaluations": int(b.evaluations[i]),
         "note": note,
     }
+
+
+def _recovered(row: dict | None) -> bool:
+    return row is not None and row["outcome"] == OUTCOMES[RECOVERED]
 
 
 def _get(row: dict | None, key: str) -> float:
