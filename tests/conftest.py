@@ -8,10 +8,17 @@ agreement with the reference look better than what users get); ``float32`` switc
 one test, ``jax.enable_x64(False)`` for a module.
 """
 
+import os
+
 import jax
 import pytest
 
 jax.config.update("jax_enable_x64", True)
+
+# The persistent compilation cache (mjx_balance.cache) is off in the test session and in the
+# processes it starts: tests never write into the user's cache folder (tests/test_cache.py
+# gives its processes their own folders).
+os.environ["MJX_BALANCE_CACHE_DIR"] = "off"
 
 # The shared runner's configuration: the defaults with a 2-s run, long enough for the pushes the
 # tests use to recover (settle by ~1.2 s) or fall (by ~1.4 s), short enough to run in a moment.

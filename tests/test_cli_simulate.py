@@ -12,7 +12,7 @@ from mjx_balance.params import ParameterError, load_config
 from mjx_balance.reference import TIMESERIES_COLUMNS
 
 FIGURES = ["ankle_angle", "hip_angle", "phase_ankle", "phase_hip", "cop", "com", "ankle_torque",
-           "hip_torque", "energy"]
+           "hip_torque", "states", "inputs", "energy"]
 
 
 @pytest.fixture
@@ -64,7 +64,7 @@ def test_simulate_writes_every_file(tmp_path, short_config, capsys):
     printed = [line.split() for line in lines[1:-1]]
     assert [(float(r[0]), float(r[1]), r[3]) for r in printed] == EXPECTED_ROWS
     assert all(r[2] == "joint" and len(r) == len(PRINTED_COLUMNS) for r in printed)
-    assert lines[-1].startswith(f"wrote {out / 'summary.csv'}") and "9 figures" in lines[-1]
+    assert lines[-1].startswith(f"wrote {out / 'summary.csv'}") and f"{len(FIGURES)} figures" in lines[-1]
 
 
 @pytest.mark.parametrize("option,value,message", [
@@ -89,3 +89,19 @@ def test_parse_values():
     assert parse_values("-40", "force") == [-40.0]
     with pytest.raises(ParameterError, match="duration"):
         parse_values("-1", "duration", nonnegative=True)
+
+
+def test_full_window_reaches_the_figures(tmp_path, short_config, monkeypatch):
+    """--full-window asks the figures for time axes up to t_end; they get the run's
+    configuration and summary (bounds and outcomes) either way."""
+    from mjx_balance.cli import simulate as simulate_cli
+
+    seen = []
+    monkeypatch.setattr(simulate_cli, "timeseries_figures",
+                        lambda series, out, **kw: seen.append(kw) or [])
+    for flag in ([], ["--full-window"]):
+        code = cli.main(["simulate", "--force", "30", "--duration", "0.1", "--config",
+                         str(short_config), "--out", str(tmp_path / f"run{len(flag)}"), *flag])
+        assert code == 0
+    assert [kw["full_window"] for kw in seen] == [False, True]
+    assert all(kw["config"].scenario.t_end == 0.5 and len(kw["summary"]) == 1 for kw in seen)

@@ -69,11 +69,11 @@ def leftovers(folder: Path) -> list[str]:
 
 @pytest.mark.parametrize("name", ["simulate", "animate"])
 def test_durations_off_the_physics_steps_are_refused(tmp_path, capsys, monkeypatch, name):
-    from mjx_balance.cli import animate, simulate
+    from mjx_balance.cli import animate
 
     def refuse(*args, **kwargs):
         raise Called
-    monkeypatch.setattr(simulate, "simulate_many", refuse)
+    monkeypatch.setattr("mjx_balance.reference.simulate_many", refuse)
     monkeypatch.setattr(animate, "simulate_scenario", refuse)
     out = tmp_path / ("push.gif" if name == "animate" else "out")
     code, err = run([name, "--force", "10", "--duration", "0.1005", "--out", str(out)], capsys)
@@ -86,14 +86,12 @@ def test_durations_off_the_physics_steps_are_refused(tmp_path, capsys, monkeypat
 
 
 def test_simulate_reads_forces_and_durations_as_sweep_does(tmp_path, capsys, monkeypatch):
-    from mjx_balance.cli import simulate
-
     asked = {}
 
-    def record(config, forces, durations):
+    def record(config, forces, durations, **_options):
         asked.update(forces=list(forces), durations=list(durations))
         raise Called
-    monkeypatch.setattr(simulate, "simulate_many", record)
+    monkeypatch.setattr("mjx_balance.reference.simulate_many", record)
     with pytest.raises(Called):
         cli.main(["simulate", "--force", "0:40:20", "--duration", "0.05:0.1:0.05",
                   "--out", str(tmp_path / "out")])
@@ -117,11 +115,9 @@ def test_simulate_reads_forces_and_durations_as_sweep_does(tmp_path, capsys, mon
                                    ["config.toml", "region.parquet"],
                                    ["config.toml", "report.json"]])
 def test_simulate_refuses_a_sweep_folder(tmp_path, capsys, monkeypatch, holds):
-    from mjx_balance.cli import simulate
-
     def refuse(*args, **kwargs):
         raise Called
-    monkeypatch.setattr(simulate, "simulate_many", refuse)
+    monkeypatch.setattr("mjx_balance.reference.simulate_many", refuse)
     out = tmp_path / "sweep"
     out.mkdir()
     for name in holds:
@@ -191,9 +187,12 @@ def test_outputs_are_whole_or_old_after_a_failed_write(tmp_path, capsys, monkeyp
     # report: report.html, its figures and its tables.
     rep = tmp_path / "report"
     rep.mkdir()
-    monkeypatch.setattr(html, "load_results", lambda out: {"conventions": {}, "studies": {}})
+    monkeypatch.setattr(html, "load_results", lambda out: {"conventions": {}, "studies": {},
+                                                          "record": {}, "config": None})
     monkeypatch.setattr(html, "sections", lambda out: [])
-    monkeypatch.setattr(html, "overview_section", lambda page: "<p>overview</p>")
+    monkeypatch.setattr(html, "overview_section", lambda page: {
+        "id": "overview", "heading": "overview", "blocks": []})
+    monkeypatch.setattr(html, "banner", lambda record, config: None)
     page = html.build_report(rep)
     assert "overview" in page.read_text()
     (rep / "figures" / "f.png").write_bytes(b"old figure")

@@ -1,5 +1,6 @@
 """The notebook executes on a tiny report's saved results, with this interpreter's kernel, only
-reads them, and shows the numbers of the saved tables."""
+reads them, and shows the numbers of the saved tables; without saved results it computes a small
+one through the public API."""
 
 import json
 import re
@@ -43,8 +44,8 @@ def test_notebook_executes(tmp_path_factory, tmp_path, monkeypatch):
     assert not errors
     assert sorted(p.relative_to(out) for p in out.rglob("*")) == before  # only reads
     images = [o for c in code for o in c.outputs if "image/png" in o.get("data", {})]
-    # time series, one weight chart per convention, table curve, one region map per convention
-    assert len(images) == 6
+    # per convention: time series, weight chart, region map; and the conventions' table curves
+    assert len(images) == 7
 
     # What the cells print and display, against the saved tables read back here.
     assert _text(code[0]) == (f"results in {out}: plan tiny, batch backend reference, "
@@ -74,6 +75,33 @@ def test_notebook_executes(tmp_path_factory, tmp_path, monkeypatch):
         expected += [f"### {st.title}\n{st.question}",
                      "> " + studies.reading(st, pd.read_csv(folder / "numbers.csv"), first)]
     assert markdown == expected
+
+
+def test_notebook_computes_a_small_result_without_a_saved_report(tmp_path, monkeypatch):
+    """No report in MJX_BALANCE_RESULTS: the notebook says so and computes a small result with
+    the public API (simulate, sweep, table), drawing what it can without the studies."""
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    pytest.importorskip("ipykernel")
+    spec = tmp_path / "jupyter" / "kernels" / KERNEL
+    spec.mkdir(parents=True)
+    (spec / "kernel.json").write_text(json.dumps({
+        "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
+        "display_name": "mjx_balance tests", "language": "python"}))
+    monkeypatch.setenv("JUPYTER_PATH", str(tmp_path / "jupyter"))
+    monkeypatch.setenv("MJX_BALANCE_RESULTS", str(tmp_path / "nothing_here"))
+    monkeypatch.setenv("MPLBACKEND", "module://matplotlib_inline.backend_inline")
+    nb = nbformat.read(NOTEBOOK, as_version=4)
+    nbclient.NotebookClient(nb, kernel_name=KERNEL, timeout=600,
+                            resources={"metadata": {"path": str(tmp_path)}}).execute()
+    code = [c for c in nb.cells if c.cell_type == "code"]
+    assert not [o for c in code for o in c.outputs if o.output_type == "error"]
+    assert _text(code[0]).startswith(f"no saved report in {tmp_path / 'nothing_here'}")
+    assert "needs a saved report" in _text(code[2])
+    images = [o for c in code for o in c.outputs if "image/png" in o.get("data", {})]
+    assert len(images) == 3  # time series, table curve, region map
+    assert [len(r) for r in _html_rows(code[3])] == [4] * 4  # the four table forces
+    assert not (tmp_path / "nothing_here").exists()  # nothing written
 
 
 def _text(cell) -> str:

@@ -2,7 +2,6 @@
 the field and the rule; every shipped sweep definition and every default still loads."""
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,8 +11,9 @@ from mjx_balance.params import (LENGTH_RANGE, MASS_RANGE, MAX_FRICTION, MAX_GRAV
                                 ScenarioParams, load_config)
 from mjx_balance.reference import simulate_scenario
 from mjx_balance.sweep import load_sweep
+from mjx_balance.sweep.definitions import sweeps_dir
 
-SWEEPS = sorted((Path(__file__).parent.parent / "sweeps").glob("*.toml"))
+SWEEPS = sorted(sweeps_dir().glob("*.toml"))  # the shipped definitions (package data)
 MASSES = ("foot_mass", "lower_mass", "upper_mass")
 LENGTHS = ("foot_length", "foot_width", "foot_thickness", "lower_length", "upper_length",
            "contact_radius")

@@ -363,3 +363,19 @@ def test_energies_in_report_tables_carry_their_outcome(out, page):
         for row, (_, expected) in zip(rows, weights.iterrows()):
             marked = row[column].endswith(f"[{expected.outcome}]")
             assert marked == (expected.outcome != "recovered"), row
+
+
+def test_infeasibility_numbers_count_falls_after_an_infeasible_qp():
+    """Three falls, two after an infeasible QP (30 and 50 ms before); a recovered run with an
+    infeasible QP and a fall without one are not counted as preceded."""
+    from mjx_balance import studies
+
+    region = pd.DataFrame({
+        "outcome": ["fell", "fell", "fell", "recovered"],
+        "fall_time": [1.0, 2.0, 0.5, np.nan],
+        "first_infeasible_time": [0.97, 1.95, np.nan, 0.3]})
+    n = studies.infeasibility_numbers(region)
+    assert (n["falls"], n["preceded"]) == (3, 2)
+    assert n["lead_min"] == pytest.approx(0.03) and n["lead_max"] == pytest.approx(0.05)
+    assert "2 of 3 falls" in studies.infeasibility_text(region)
+    assert "predates" in studies.infeasibility_text(region.drop(columns="first_infeasible_time"))

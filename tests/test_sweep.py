@@ -22,6 +22,7 @@ import pytest
 from mjx_balance import sweep
 from mjx_balance.outcomes import SUMMARY_COLUMNS
 from mjx_balance.params import Config, ParameterError
+from mjx_balance.sweep.definitions import sweeps_dir
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_BATCH = "mjx_balance.sweep.batch.default_batch"  # what LazyBatch calls
@@ -328,7 +329,7 @@ def test_run_table_writes_and_skips_when_done(tmp_path, capsys):
 
 
 def test_sweep_definitions_load_and_default_matches_builtin():
-    for path in sorted((REPO / "sweeps").glob("*.toml")):
+    for path in sorted(sweeps_dir().glob("*.toml")):
         definition = sweep.load_sweep(path, Config())
         assert definition.forces is not None or definition.table_forces is not None, path
         for grid in (definition.forces, definition.table_forces):
@@ -337,11 +338,11 @@ def test_sweep_definitions_load_and_default_matches_builtin():
         if definition.durations is not None:
             sweep.check_durations(sweep.parse_grid(definition.durations),
                                   definition.config.scenario.t_end)
-    default = sweep.load_sweep(REPO / "sweeps" / "default.toml", Config())
+    default = sweep.load_sweep(sweeps_dir() / "default.toml", Config())
     assert (default.forces, default.durations, default.table_forces, default.chunk) == (
         sweep.DEFAULT_SWEEP["forces"], sweep.DEFAULT_SWEEP["durations"],
         sweep.DEFAULT_SWEEP["table_forces"], sweep.DEFAULT_SWEEP["chunk"])
-    joint = sweep.load_sweep(REPO / "sweeps" / "study_table_joint.toml", Config())
+    joint = sweep.load_sweep(sweeps_dir() / "study_table_joint.toml", Config())
     assert joint.config.controller.convention == "joint"
 
 

@@ -11,9 +11,10 @@ from mjx_balance.cli import sweep as cli_sweep
 from mjx_balance.params import Config, ParameterError
 from mjx_balance.report.run import PLANS
 from mjx_balance.sweep import check_durations, load_sweep, parse_grid
+from mjx_balance.sweep.definitions import sweeps_dir
 from mjx_balance.sweep.grid import check_cell_count, check_whole_steps
 
-SWEEPS = sorted((Path(__file__).resolve().parents[1] / "sweeps").glob("*.toml"))
+SWEEPS = sorted(sweeps_dir().glob("*.toml"))  # the shipped definitions (package data)
 
 
 @pytest.fixture(autouse=True)

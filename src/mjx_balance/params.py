@@ -443,26 +443,10 @@ def load_config(path: str | Path) -> Config:
 
 
 def dumps_config(config: Config) -> str:
-    """The configuration as TOML text (every field written)."""
-    lines = []
-    for name, values in config.to_dict().items():
-        lines.append(f"[{name}]")
-        for key, value in values.items():
-            lines.append(f"{key} = {_toml_value(value)}")
-        lines.append("")
-    return "\n".join(lines)
+    """The configuration as TOML text (every field written; ``tomli_w``)."""
+    import tomli_w
 
-
-def _toml_value(value: Any) -> str:
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, list):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    if isinstance(value, float):
-        return repr(value)
-    return str(value)
+    return tomli_w.dumps(config.to_dict())
 
 
 def save_config(config: Config, path: str | Path) -> None:
@@ -474,7 +458,43 @@ def with_convention(config: Config, convention: str | None) -> Config:
     return config.replace(controller={"convention": convention}) if convention else config
 
 
-def run_config(path: str | Path | None = None, convention: str | None = None) -> Config:
-    """A run's configuration: the TOML file at ``path`` (or the defaults), then ``convention``
-    on top (None keeps the file's)."""
-    return with_convention(load_config(path) if path else Config(), convention)
+def parse_override(text: str) -> tuple[str, str, Any]:
+    """One ``--set SECTION.KEY=VALUE`` as (section, key, value). VALUE is read as a TOML value
+    (``30``, ``6.0``, ``true``, ``[-10, 10]``, ``"joint"``); anything that is not one is taken
+    as a bare string (``joint``), which the configuration's rules then check."""
+    name, sep, raw = str(text).partition("=")
+    section, dot, key = name.strip().partition(".")
+    if not sep or not dot or not section or not key.strip() or "." in key:
+        raise ParameterError(f"--set {text!r}: expected SECTION.KEY=VALUE, e.g. "
+                             "controller.horizon=30 (sections: body, controller, scenario)")
+    raw = raw.strip()
+    if not raw:
+        raise ParameterError(f"--set {text!r}: give a value after '='")
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return section, key.strip(), value
+
+
+def apply_overrides(config: Config, overrides: "list[str] | tuple[str, ...] | None") -> Config:
+    """``config`` with ``--set SECTION.KEY=VALUE`` overrides on top, validated as a TOML file's
+    values are (:func:`config_from_dict`: the same rules and messages, prefixed ``--set:``)."""
+    if not overrides:
+        return config
+    data = config.to_dict()
+    for text in overrides:
+        section, key, value = parse_override(text)
+        data.setdefault(section, {})[key] = value
+    try:
+        return config_from_dict(data)
+    except ParameterError as exc:
+        raise ParameterError(f"--set: {exc}") from None
+
+
+def run_config(path: str | Path | None = None, convention: str | None = None,
+               overrides: "list[str] | tuple[str, ...] | None" = None) -> Config:
+    """A run's configuration: the TOML file at ``path`` (or the defaults), then ``--set``
+    ``overrides``, then ``convention`` on top (None keeps the configuration's)."""
+    config = load_config(path) if path else Config()
+    return with_convention(apply_overrides(config, overrides), convention)

@@ -2,9 +2,9 @@
 
 A study compares region maps (force x duration outcome grids, ``sweep.run_sweep``) of a few
 variants of one base configuration on one grid. Each variant other than the base is a sweep
-definition under ``sweeps/`` (``study_*.toml``: configuration overrides + the grid), loadable on
-its own by ``sweep.load_sweep`` and runnable with ``mjx-balance sweep --sweep FILE``; the base
-variant (``file=None``) is the base configuration on the same grid.
+definition shipped in ``mjx_balance/sweeps/`` (``study_*.toml``: configuration overrides + the
+grid), loadable on its own by ``sweep.load_sweep`` and runnable with ``mjx-balance sweep
+--sweep NAME``; the base variant (``file=None``) is the base configuration on the same grid.
 
 Numbers of a map (``region_numbers``):
 
@@ -31,6 +31,7 @@ import pandas as pd
 from .outcomes import OUTCOMES, RECOVERED
 from .params import Config, ParameterError
 from .sweep import SweepDefinition, load_sweep
+from .sweep.definitions import sweeps_dir as _sweeps_dir
 
 REFERENCE_DURATION = 0.1  # s, the study's push duration
 
@@ -39,7 +40,7 @@ REFERENCE_DURATION = 0.1  # s, the study's push duration
 class Variant:
     key: str  # folder name of its saved sweep
     label: str
-    file: str | None  # sweep definition under sweeps/ (None: the base configuration)
+    file: str | None  # shipped sweep definition in mjx_balance/sweeps/ (None: the base)
 
 
 @dataclass(frozen=True)
@@ -96,8 +97,8 @@ def study(key: str) -> Study:
 
 
 def sweeps_dir() -> Path:
-    """The repository's sweeps/ folder (next to src/)."""
-    return Path(__file__).resolve().parents[2] / "sweeps"
+    """The shipped sweep definitions (package data, ``sweep.definitions.sweeps_dir``)."""
+    return _sweeps_dir()
 
 
 def study_files(sweeps: Path | None = None) -> list[Path]:
@@ -162,6 +163,39 @@ def region_numbers(region: pd.DataFrame) -> dict[str, float]:
         # every F = 0 cell recovered (1), some not (0), no F = 0 on the grid (NaN)
         "rest_recovered": float(is_recovered(rest).all()) if len(rest) else float("nan"),
     }
+
+
+def infeasibility_numbers(region: pd.DataFrame) -> dict[str, float]:
+    """Falls and infeasible QPs: falls, falls preceded by a control period whose QP had no
+    solution (``first_infeasible_time`` before ``fall_time``), and the lead of the first
+    infeasible QP over the fall [s]: median, min and max over those falls (NaN if none).
+    Regions written before the column existed give NaN counts."""
+    fell = region[region["outcome"] == "fell"]
+    if "first_infeasible_time" not in region:
+        return {"falls": int(len(fell)), "preceded": float("nan"),
+                "lead_median": float("nan"), "lead_min": float("nan"),
+                "lead_max": float("nan")}
+    lead = (fell["fall_time"] - fell["first_infeasible_time"]).dropna().to_numpy()
+    lead = lead[lead >= 0]
+    pick = (lambda f: float(f(lead))) if lead.size else (lambda f: float("nan"))
+    return {"falls": int(len(fell)), "preceded": int(lead.size),
+            "lead_median": pick(np.median), "lead_min": pick(np.min), "lead_max": pick(np.max)}
+
+
+def infeasibility_text(region: pd.DataFrame) -> str:
+    """One sentence of :func:`infeasibility_numbers` for the report."""
+    n = infeasibility_numbers(region)
+    if n["falls"] == 0:
+        return "No push on this grid fell."
+    if not n["preceded"] == n["preceded"]:  # NaN: an older region without the column
+        return f"{n['falls']} falls (this region predates the infeasible-QP column)."
+    text = (f"{n['preceded']} of {n['falls']} falls came after a control period whose QP had "
+            "no solution")
+    if n["preceded"]:
+        text += (f", {n['lead_median'] * 1000:.0f} ms before the fall (median; "
+                 f"{n['lead_min'] * 1000:.0f}-{n['lead_max'] * 1000:.0f} ms)")
+    return text + (". After an infeasible QP the fall depends on the solver's answer to it "
+                   "(docs/model.md).")
 
 
 def compare(regions: dict[str, pd.DataFrame], labels: dict[str, str]) -> pd.DataFrame:

@@ -6,16 +6,30 @@ and drives the library below it:
     simulate      cli.simulate:simulate_command  scalar MuJoCo C + OSQP, one scenario at a time
     bench         cli.bench:pipeline_command     whole closed loop: MJX + ADMM vs reference vs IPOPT
     bench solver  cli.bench:solver_command       batched ADMM vs OSQP vs CasADi/IPOPT
+    bench physics cli.bench:physics_command      where the time goes; MJX vs MuJoCo C
     sweep         cli.sweep:sweep_command        force x duration region map (MJX + ADMM)
     table         cli.sweep:table_command        max acting time per force (batched bisection)
     animate       cli.animate:animate_command    stick-figure GIF of one push (reference)
     report        cli.report:report_command      HTML report: the study's experiments and studies
+    model         cli.model:model_command        the MJCF of the configured body
+    view          cli.model:view_command         one push replayed in MuJoCo's passive viewer
+
+simulate, sweep and table are thin layers over the Python API (``mjx_balance.api``): they
+resolve their options into its arguments, then write figures and print.
+
+Conventions: ``python -m mjx_balance`` is ``mjx-balance``; ``--version`` prints the package's,
+JAX's, jaxlib's and MuJoCo's versions; messages and progress go through ``logging`` (logger
+``mjx_balance``: information on stdout, warnings and errors on stderr; ``-q`` keeps only
+warnings and errors and turns progress bars off, ``-v`` adds debug messages); ``--help`` shows
+every default; ``--set SECTION.KEY=VALUE`` overrides the configuration of any command that
+takes ``--config``; ``--no-cache`` turns JAX's persistent compilation cache off
+(``mjx_balance.cache``).
 
 A command module is imported only when its command runs (after :func:`use_host_cores`, which
 must see JAX not yet imported).
 
-Bad arguments end in one line on stderr and exit code 2, before any work and before anything is
-written: values and paths are checked by the argparse types below (argparse prints its usage,
+Exit codes: 0 success, 1 failure during the work, 2 bad usage. Bad arguments end in one line on
+stderr and exit code 2, before any work and before anything is written: values and paths are checked by the argparse types below (argparse prints its usage,
 then ``mjx-balance CMD: error: argument --X: ...``), a configuration that breaks a rule by
 ``params`` (ParameterError: ``mjx-balance: error: ...``). An OSError during the work (a place
 that passed the checks but refuses the write, a full disk) is a failure: one line, exit code 1.
@@ -25,23 +39,34 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import logging
 import math
 import os
+import shlex
 import sys
 from pathlib import Path
 
 from .._xla import deterministic_flags
 from ..params import CONVENTIONS, Config, ParameterError, run_config
 
+log = logging.getLogger("mjx_balance")
+
+EPILOG = """exit codes: 0 success; 1 failure during the work (a refused write, a full disk, a run
+that broke); 2 bad usage (an unknown option, a bad value or configuration), reported before any
+work and before anything is written."""
+
 
 def base_config(args: argparse.Namespace) -> Config:
-    """The --config file's configuration, or the defaults (--convention not applied)."""
-    return run_config(getattr(args, "config", None))
+    """The --config file's configuration (or the defaults) with the --set overrides on top
+    (--convention not applied)."""
+    return run_config(getattr(args, "config", None), None, getattr(args, "set", None))
 
 
 def load_run_config(args: argparse.Namespace) -> Config:
-    """The run's configuration: --config file (or defaults), then --convention on top."""
-    return run_config(getattr(args, "config", None), getattr(args, "convention", None))
+    """The run's configuration: --config file (or defaults), --set overrides, then --convention
+    on top."""
+    return run_config(getattr(args, "config", None), getattr(args, "convention", None),
+                      getattr(args, "set", None))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -129,6 +154,31 @@ def input_file(text: str) -> str:
     return text
 
 
+def sweep_file(text: str) -> str:
+    """A sweep definition: a TOML file, or the name of one the package ships
+    (``region_dense_paper``; ``mjx_balance/sweeps/``)."""
+    from ..sweep.definitions import find_sweep
+
+    path = Path(text)
+    if not path.exists() and path.parent == Path("."):
+        try:
+            return str(find_sweep(text))
+        except ParameterError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    return input_file(text)
+
+
+def setting(text: str) -> str:
+    """A --set SECTION.KEY=VALUE (its value is checked with the configuration)."""
+    from ..params import parse_override
+
+    try:
+        parse_override(text)
+    except ParameterError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix(f"--set {text!r}: ")) from None
+    return text
+
+
 def input_folder(text: str) -> str:
     """An existing folder."""
     if not Path(text).is_dir():
@@ -183,12 +233,60 @@ def out_gif(text: str) -> str:
 
 # ---------------------------------------------------------------------------------------------
 
-def _common(p: argparse.ArgumentParser, out_required: bool = True,
-            out_help: str = "output folder", out_type=out_folder) -> None:
+def out_file(text: str) -> str:
+    """An output file: a name, not a folder, in a place that can be written."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("give a file name")
+    path = Path(text)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r} is a folder; give a file name")
+    reason = _unwritable(path.parent)
+    if reason:
+        raise argparse.ArgumentTypeError(f"cannot write {text!r}: {reason}")
+    return text
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter,
+                    argparse.ArgumentDefaultsHelpFormatter):
+    """Every option's default in its help ("(default: ...)"), unless the help already says it
+    or there is none to say (no value, a flag); descriptions and epilogs as written."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if ("default" in text or action.default in (None, False, argparse.SUPPRESS)
+                or not action.option_strings):
+            return text
+        return text + " (default: %(default)s)"
+
+
+def _conventions(p: argparse.ArgumentParser) -> None:
+    """-q, -v, --no-cache: accepted before or after the command (mjx-balance -q sweep ...)."""
+    p.add_argument("-q", "--quiet", action="count", default=argparse.SUPPRESS,
+                   help="only warnings and errors; no progress bars")
+    p.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
+                   help="debug messages too")
+    p.add_argument("--no-cache", action="store_true", default=argparse.SUPPRESS,
+                   help="do not use JAX's persistent compilation cache (default: on, in "
+                        "$MJX_BALANCE_CACHE_DIR or the user's cache folder, "
+                        "~/.cache/mjx_balance/jax on Linux; MJX_BALANCE_CACHE_DIR=off turns it "
+                        "off too)")
+
+
+def _config_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--convention", choices=CONVENTIONS, default=None,
                    help="controller convention (default: the configuration's, 'paper')")
     p.add_argument("--config", type=input_file, default=None,
                    help="TOML configuration file (body, controller, scenario)")
+    p.add_argument("--set", type=setting, action="append", default=None,
+                   metavar="SECTION.KEY=VALUE",
+                   help="override one value of the configuration, e.g. --set "
+                        "controller.horizon=30 --set scenario.t_end=6 (repeatable; checked "
+                        "as in a TOML file; applied after --config and a sweep definition)")
+
+
+def _common(p: argparse.ArgumentParser, out_required: bool = True,
+            out_help: str = "output folder", out_type=out_folder) -> None:
+    _config_options(p)
     p.add_argument("--out", type=out_type, required=out_required, default=None, help=out_help)
 
 
@@ -240,18 +338,58 @@ def _bench_pipeline_arguments(p: argparse.ArgumentParser) -> None:
                    help="chunk size of those sweeps")
     p.add_argument("--memory-timeout", type=positive_float, default=900.0,
                    help="seconds per sweep")
+    p.add_argument("--no-cache-times", action="store_true",
+                   help="skip measuring the engine's compile time with an empty and with a "
+                        "filled persistent compilation cache (two fresh processes, one compile "
+                        "each; JSON keys compile_first_s, compile_cached_s, "
+                        "compile_cached_hits, compile_cached_compiles)")
     p.add_argument("--json", action="store_true", help="print a final JSON line with the figures")
+
+
+class _Version(argparse.Action):
+    """--version: the package's, JAX's, jaxlib's and MuJoCo's versions (no import of JAX)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS,
+                 help="print the versions of mjx_balance, JAX, jaxlib and MuJoCo and exit"):
+        super().__init__(option_strings, dest, nargs=0, default=default, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(version_text())
+        parser.exit(0)
+
+
+def version_text() -> str:
+    """One line: ``mjx-balance 0.1.0 (jax 0.10.2, jaxlib 0.10.2, mujoco 3.17.0, ...)``."""
+    from ..sweep.store import versions
+
+    v = versions()
+    return (f"mjx-balance {v['package']} (jax {v['jax']}, jaxlib {v['jaxlib']}, "
+            f"mujoco {v['mujoco']}, mujoco-mjx {v['mujoco_mjx']}, python {v['python']})")
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="mjx-balance",
+        prog="mjx-balance", formatter_class=HelpFormatter, epilog=EPILOG,
         description="Standing-balance recovery under constrained MPC: pushes, sweeps, tables.")
-    sub = parser.add_subparsers(dest="command", required=True)
+    parser.add_argument("--version", action=_Version)
+    _conventions(parser)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    conventions = argparse.ArgumentParser(add_help=False)
+    _conventions(conventions)
+    add_parser = sub.add_parser
+
+    def command(name: str, **kwargs) -> argparse.ArgumentParser:
+        return add_parser(name, formatter_class=HelpFormatter, epilog=EPILOG,
+                          parents=[conventions], description=kwargs.get("help"), **kwargs)
+
+    sub.add_parser = command  # every command: the conventions' options, defaults, epilog
 
     p = sub.add_parser("simulate", help="scalar reference closed loop (MuJoCo C + OSQP) for a few pushes")
     p.add_argument("--force", default="0,20,50,80,100,120", help="comma-separated forces [N]")
     p.add_argument("--duration", default="0.1", help="comma-separated push durations [s]")
+    p.add_argument("--full-window", action="store_true",
+                   help="time axes of the figures up to t_end (default: trimmed to the action, "
+                        "the last settle or fall plus a margin)")
     _common(p)
     p.set_defaults(target="mjx_balance.cli.simulate:simulate_command")
 
@@ -260,8 +398,10 @@ def build_parser() -> argparse.ArgumentParser:
     _bench_pipeline_arguments(p)
     _common(p, out_required=False)
     p.set_defaults(target="mjx_balance.cli.bench:pipeline_command")
-    bench = p.add_subparsers(dest="bench", required=False)
-    p = bench.add_parser("solver", help="batched ADMM vs OSQP vs CasADi/IPOPT, solves per second")
+    bench = p.add_subparsers(dest="bench", required=False, metavar="{solver,physics}")
+    p = bench.add_parser("solver", help="batched ADMM vs OSQP vs CasADi/IPOPT, solves per second",
+                         description="batched ADMM vs OSQP vs CasADi/IPOPT, solves per second",
+                         formatter_class=HelpFormatter, epilog=EPILOG, parents=[conventions])
     p.add_argument("--batch", type=batch_sizes, default="1,16,256,4096,16384",
                    help="comma-separated batch sizes")
     p.add_argument("--states", type=positive_int, default=4096, help="number of test states")
@@ -269,12 +409,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print a final JSON line with the figures")
     _common(p, out_required=False)
     p.set_defaults(target="mjx_balance.cli.bench:solver_command")
+    p = bench.add_parser("physics", help="where a CPU sweep's time goes: bare MJX step, closed "
+                                         "loop, pipeline, ADMM, MuJoCo C (mujoco.rollout) and "
+                                         "a C path's bound, per scenario-step",
+                         description="per scenario-step costs of the physics paths side by "
+                                     "side (bench/physics.py explains each figure)",
+                         formatter_class=HelpFormatter, epilog=EPILOG, parents=[conventions])
+    p.add_argument("--slots", type=positive_int, default=64,
+                   help="scenarios side by side (split over the host devices / C threads)")
+    p.add_argument("--seconds", type=positive_float, default=2.0,
+                   help="simulated window of each scenario [s]")
+    p.add_argument("--json", action="store_true", help="print a final JSON line with the figures")
+    _common(p, out_required=False)
+    p.set_defaults(target="mjx_balance.cli.bench:physics_command")
 
     p = sub.add_parser("sweep", help="recoverable region over a force x duration grid")
     p.add_argument("--forces", default=None, help="start:stop:step or a comma list [N]")
     p.add_argument("--durations", default=None, help="start:stop:step or a comma list [s]")
-    p.add_argument("--sweep", type=input_file, default=None,
-                   help="sweep definition TOML (see sweeps/)")
+    p.add_argument("--sweep", type=sweep_file, default=None,
+                   help="sweep definition: a TOML file or the name of a shipped one "
+                        "(default, region_dense_paper, study_...; see mjx_balance/sweeps/)")
     p.add_argument("--chunk", type=positive_int, default=None,
                    help="scenarios per chunk (default: from memory budget)")
     p.add_argument("--reference", type=input_file, default=None,
@@ -289,8 +443,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--forces", default=None,
                    help="comma list or start:stop:step [N] (default: the --sweep file's table_forces, "
                         "else the study's 5,10,15,20,30,40,50,60,80,100,120)")
-    p.add_argument("--sweep", type=input_file, default=None,
-                   help="sweep definition TOML (see sweeps/)")
+    p.add_argument("--sweep", type=sweep_file, default=None,
+                   help="sweep definition: a TOML file or the name of a shipped one "
+                        "(study_table_paper, ...; see mjx_balance/sweeps/)")
     _engine_options(p)
     _yes(p)
     _wait(p)
@@ -303,6 +458,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fps", type=positive_float, default=25.0, help="frames per second")
     p.add_argument("--t-end", type=positive_float, default=None,
                    help="simulate only this long [s]")
+    p.add_argument("--no-fast-forward", action="store_true",
+                   help="every frame at real speed (default: 8x speed once the body has "
+                        "settled)")
     _common(p, out_help="output GIF file", out_type=out_gif)
     p.set_defaults(target="mjx_balance.cli.animate:animate_command")
 
@@ -318,7 +476,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "push_height), 'all' or 'none'")
     p.add_argument("--conventions", default=None, help="experiments' conventions (default: paper,joint)")
     p.add_argument("--sweeps", type=input_folder, default=None,
-                   help="folder of the study sweep definitions (default: sweeps/)")
+                   help="folder of the study sweep definitions (default: the shipped ones, "
+                        "mjx_balance/sweeps/)")
     p.add_argument("--html-only", action="store_true",
                    help="redraw figures and report.html from the tables saved in --out")
     p.add_argument("--convention", choices=CONVENTIONS, default=None,
@@ -326,9 +485,30 @@ def build_parser() -> argparse.ArgumentParser:
                         "study's experiments run every convention of --conventions")
     p.add_argument("--config", type=input_file, default=None,
                    help="TOML configuration file (body, controller, scenario)")
+    p.add_argument("--set", type=setting, action="append", default=None,
+                   metavar="SECTION.KEY=VALUE",
+                   help="override one value of the configuration (repeatable; see sweep --help)")
     p.add_argument("--out", type=out_folder, required=True,
                    help="output folder (tables, figures, report.html)")
     p.set_defaults(target="mjx_balance.cli.report:report_command")
+
+    p = sub.add_parser("model", help="write the MJCF (MuJoCo XML) of the configured body (its "
+                                     "time step: scenario.physics_dt)")
+    _config_options(p)
+    p.add_argument("--out", type=out_file, required=True, help="output MJCF file, e.g. body.xml")
+    p.set_defaults(target="mjx_balance.cli.model:model_command")
+
+    p = sub.add_parser("view", help="replay one push in MuJoCo's interactive (passive) viewer "
+                                    "(needs a display)")
+    p.add_argument("--force", type=finite_float, required=True, help="push force [N]")
+    p.add_argument("--duration", type=nonnegative_float, default=0.1, help="push duration [s]")
+    p.add_argument("--t-end", type=positive_float, default=None,
+                   help="simulate only this long [s] (default: the configuration's t_end)")
+    p.add_argument("--speed", type=positive_float, default=1.0,
+                   help="playback speed (1: real time)")
+    p.add_argument("--loop", action="store_true", help="replay until the viewer is closed")
+    _config_options(p)
+    p.set_defaults(target="mjx_balance.cli.model:view_command")
     return parser
 
 
@@ -351,10 +531,67 @@ def use_host_cores() -> None:
         os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={count}".strip()
 
 
+class ConsoleHandler(logging.Handler):
+    """Messages of the command line: information on stdout (the streams of the moment, so that
+    a caller's redirection sees them), warnings and errors on stderr."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            stream = sys.stdout if record.levelno < logging.WARNING else sys.stderr
+            stream.write(self.format(record) + "\n")
+            stream.flush()
+        except Exception:  # noqa: BLE001 - logging's own convention
+            self.handleError(record)
+
+
+def verbosity(args: argparse.Namespace) -> int:
+    """-1 with -q, 1 with -v, else 0 (-q wins)."""
+    return -1 if getattr(args, "quiet", 0) else (1 if getattr(args, "verbose", 0) else 0)
+
+
+def progress_enabled(args: argparse.Namespace) -> bool:
+    """Progress bars: on unless -q."""
+    return verbosity(args) >= 0
+
+
+def _logging(level: int):
+    """Route the package's messages to the console at ``level`` for one command; returns a
+    function that puts the logger back as it was."""
+    logger = logging.getLogger("mjx_balance")
+    saved = (logger.level, logger.propagate)
+    handler = ConsoleHandler()
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    logger.addHandler(handler)
+    logger.setLevel(level)
+    logger.propagate = False
+
+    def restore() -> None:
+        logger.removeHandler(handler)
+        logger.setLevel(saved[0])
+        logger.propagate = saved[1]
+    return restore
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     use_host_cores()
     deterministic_flags()
+    if getattr(args, "no_cache", False):
+        from .. import cache
+
+        cache.disable()
+    restore = _logging({-1: logging.WARNING, 0: logging.INFO, 1: logging.DEBUG}[verbosity(args)])
+    try:
+        from ..sweep.store import run_context
+
+        words = sys.argv[1:] if argv is None else list(argv)
+        with run_context(command=" ".join(shlex.quote(w) for w in ["mjx-balance", *words])):
+            return _run(args)
+    finally:
+        restore()
+
+
+def _run(args: argparse.Namespace) -> int:
     module, func = args.target.split(":")
     command = getattr(importlib.import_module(module), func)
     try:

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
-from ..animate import animate_timeseries
+import logging
+
+from ..animate import FAST_FORWARD, animate_timeseries
 from ..reference import simulate_scenario
 from ..sweep.grid import check_durations
 from . import load_run_config
+
+log = logging.getLogger("mjx_balance")
 
 
 def animate_command(args) -> int:
@@ -17,7 +21,9 @@ def animate_command(args) -> int:
     duration = float(check_durations([args.duration], config.scenario.t_end, "--duration",
                                       physics_dt=config.scenario.physics_dt)[0])
     config.replace(scenario={"duration": duration})  # any other rule: before any work
-    _, ts = simulate_scenario(config, args.force, duration, record=True)
-    frames = animate_timeseries(ts, args.out, config.body, fps=args.fps)
-    print(f"wrote {args.out} ({frames} frames at {args.fps:g} fps)")
+    summary, ts = simulate_scenario(config, args.force, duration, record=True)
+    frames = animate_timeseries(ts, args.out, config.body, fps=args.fps, summary=summary,
+                                scenario=config.scenario,
+                                fast_forward=1 if args.no_fast_forward else FAST_FORWARD)
+    log.info(f"wrote {args.out} ({frames} frames at {args.fps:g} fps)")
     return 0

@@ -7,6 +7,9 @@ import argparse
 import json
 import os
 import resource
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -14,8 +17,56 @@ import numpy as np
 
 from ..bench import pipeline, solver
 from ..bench.states import PUSH_DURATIONS
+from ..params import Config, save_config
 from ..qp import build_qp
 from . import load_run_config
+
+# One compile of the benchmark's engine in a fresh process, with the persistent compilation
+# cache in the folder given by MJX_BALANCE_CACHE_DIR: seconds, and JAX's compile events.
+_COMPILE_SCRIPT = """
+import json, sys, time
+from mjx_balance.cli import use_host_cores
+use_host_cores()
+from mjx_balance import cache
+from mjx_balance.bench import pipeline
+from mjx_balance.params import load_config
+cache.enable()
+config = load_config(sys.argv[1])
+slots = None if sys.argv[2] == "none" else int(sys.argv[2])
+with cache.CompileCounter() as counter:
+    built = pipeline.build_batched(config, slots=slots, early_stop=sys.argv[3] == "1")
+print(json.dumps({"compile_s": built["compile_s"], **counter.as_dict()}))
+"""
+
+
+def compile_cache_times(config: Config, slots: int | None, early_stop: bool,
+                        timeout: float = 1800.0) -> dict:
+    """The engine's compile time in a first process (an empty persistent cache) and in a
+    second one (the cache the first filled), each a fresh interpreter: compile_first_s,
+    compile_cached_s, and the second's cache hits and XLA compilations (0: nothing compiled).
+    On a failure: {"compile_cache_error": the reason}."""
+    with tempfile.TemporaryDirectory(prefix="mjx_balance-bench-cache-") as tmp:
+        config_path = Path(tmp) / "config.toml"
+        save_config(config, config_path)
+        env = {**os.environ, "MJX_BALANCE_CACHE_DIR": str(Path(tmp) / "jax")}
+        argv = [sys.executable, "-c", _COMPILE_SCRIPT, str(config_path),
+                "none" if slots is None else str(slots), "1" if early_stop else "0"]
+        runs = []
+        for _ in range(2):
+            try:
+                proc = subprocess.run(argv, env=env, capture_output=True, text=True,
+                                      timeout=timeout)
+            except subprocess.TimeoutExpired:
+                return {"compile_cache_error": f"a compile took over {timeout:.0f} s"}
+            if proc.returncode != 0:
+                last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
+                return {"compile_cache_error": last}
+            runs.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+    first, cached = runs
+    return {"compile_first_s": round(first["compile_s"], 3),
+            "compile_cached_s": round(cached["compile_s"], 3),
+            "compile_cached_hits": cached["cache_hits"],
+            "compile_cached_compiles": cached["compiles"]}
 
 
 def pipeline_command(args: argparse.Namespace) -> int:
@@ -81,11 +132,22 @@ def pipeline_command(args: argparse.Namespace) -> int:
                workers=pipeline.peak_rss_mib(resource.RUSAGE_CHILDREN))
     _print_pipeline_table(counts, built, batched, ref, ipopt, cmp, rss, full)
     memory = _memory_scaling(args) if args.memory_scaling else None
+    caching = {}
+    if not getattr(args, "no_cache_times", False):
+        caching = compile_cache_times(config, args.slots, not args.full_length)
+        if "compile_cache_error" in caching:
+            print(f"compile, persistent cache: not measured ({caching['compile_cache_error']})")
+        else:
+            print(f"compile in a fresh process: {caching['compile_first_s']:.1f} s with an empty "
+                  f"persistent cache, {caching['compile_cached_s']:.1f} s from the cache "
+                  f"({caching['compile_cached_hits']} cache hits, "
+                  f"{caching['compile_cached_compiles']} XLA compilations)", flush=True)
     if args.json:
-        print(json.dumps(pipeline.pipeline_figures(
+        figures = pipeline.pipeline_figures(
             counts=counts, t_end=sc.t_end, workers=args.workers, load_average=load[0],
             built=built, batched=batched, ref=ref, ipopt=ipopt, ref_config=ref_config,
-            comparison=cmp, peak_rss_mib=rss, memory_scaling=memory, full_length=full)))
+            comparison=cmp, peak_rss_mib=rss, memory_scaling=memory, full_length=full)
+        print(json.dumps({**figures, **caching}))
     return 0
 
 
@@ -262,3 +324,23 @@ def _print_solver_table(rows: list[dict], chosen: dict, ipopt_per_solve: float, 
           f"{ref['gflops']:.2f} GFLOP/s = {100 * ref['gflops'] / peak:.1f}% of peak "
           f"{peak:.0f} GFLOP/s ({peak_note}); flops per iteration {it_flops}, per check "
           f"{chk_flops}; total run {total_s:.0f} s")
+
+
+def physics_command(args: argparse.Namespace) -> int:
+    """``mjx-balance bench physics``: per scenario-step costs, MJX and MuJoCo C side by side."""
+    from ..bench import physics  # JAX: imported when this command runs
+
+    config = load_run_config(args)
+    print(f"physics paths side by side: {args.slots} slots, {args.seconds:g} s windows "
+          f"(about two minutes on 2 cores)")
+    figures = physics.measure(config, slots=args.slots, seconds=args.seconds)
+    for name, value in figures["us_per_scenario_step"].items():
+        print(f"  {name:24s} {value:8.2f} us per scenario-step")
+    print(f"pipeline / bare mjx.step {figures['pipeline_vs_mjx_step']:.2f}x; closed loop with "
+          f"the ADMM at its floor / bare mjx.step {figures['closed_loop_physics_vs_mjx_step']:.2f}x;"
+          f" bare mjx.step / MuJoCo C {figures['mjx_step_vs_c_step']:.2f}x; a C path's bound "
+          f"{figures['c_bound_vs_pipeline']:.2f}x the pipeline (worth a second path at "
+          f">= {physics.WORTH_IT}x: {'yes' if figures['c_path_worth_it'] else 'no'})")
+    if args.json:
+        print(json.dumps(figures))
+    return 0

@@ -7,9 +7,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from .. import cache
 from ..params import CONVENTIONS, ParameterError
 from ..report import PLANS, REPORT_JSON, build_report, run_report, selected_studies
 from ..report.run import read_record
+from ..sweep.store import run_context
 from . import load_run_config
 
 
@@ -19,9 +21,15 @@ def report_command(args: Any) -> int:
     out = Path(args.out)
     if not getattr(args, "html_only", False):
         conventions = _conventions(args.conventions)
-        record = run_report(out, load_run_config(args), PLANS[args.scale], backend=args.backend,
-                            study_list=selected_studies(args.studies), conventions=conventions,
-                            sweeps=Path(args.sweeps) if args.sweeps else None)
+        backend = args.backend or PLANS[args.scale].backend
+        if backend == "mjx":
+            cache.enable()  # the batched rollout compiles: keep its executables
+        # what the sweep folders' manifests record as the physics path
+        with run_context(physics="mjx" if backend == "mjx" else "mujoco"):
+            record = run_report(out, load_run_config(args), PLANS[args.scale],
+                                backend=args.backend, study_list=selected_studies(args.studies),
+                                conventions=conventions,
+                                sweeps=Path(args.sweeps) if args.sweeps else None)
         print(f"tables saved in {out} ({record['seconds']:.0f} s)", file=sys.stderr)
     else:  # check the record before build_report creates anything
         read_record(out / REPORT_JSON)

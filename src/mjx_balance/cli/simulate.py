@@ -1,21 +1,26 @@
-"""``mjx-balance simulate``: the scalar reference closed loop for a few pushes."""
+"""``mjx-balance simulate``: the scalar reference closed loop for a few pushes
+(``mjx_balance.api.simulate``), written to a folder with figures."""
 
 from __future__ import annotations
 
 import argparse
+import json
+import logging
 import math
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from .. import api
 from ..params import ParameterError, dumps_config
 from ..plots import timeseries_figures
-from ..reference import simulate_many
 from ..sweep.grid import check_durations, parse_grid
-from ..sweep.store import (CONFIG, MANIFEST, REGION, TABLE_CELLS, write_atomic, write_parquet,
-                           write_text)
-from . import load_run_config
+from ..sweep.store import (CONFIG, MANIFEST, REGION, TABLE_CELLS, record_simulation,
+                           run_context, write_atomic, write_parquet, write_text)
+from . import load_run_config, progress_enabled
+
+log = logging.getLogger("mjx_balance")
 
 # The summary columns printed to the terminal (summary.csv has them all).
 PRINTED_COLUMNS = ["force", "duration", "convention", "outcome", "settle_time", "fall_time",
@@ -53,10 +58,20 @@ def parse_option_grid(text: str, name: str) -> list[float]:
 
 def sweep_folder(out: Path) -> bool:
     """Whether ``out`` holds a sweep, a table or a report (its config.toml must not be
-    overwritten): a manifest, or a config.toml beside chunks, a region, the table's kept
-    scenarios or a report's record."""
-    return (out / MANIFEST).exists() or ((out / CONFIG).exists() and any(
-        (out / name).exists() for name in ("chunks", REGION, TABLE_CELLS, "report.json")))
+    overwritten): a manifest other than simulate's own, or a config.toml beside chunks, a
+    region, the table's kept scenarios or a report's record."""
+    return (((out / MANIFEST).exists() and not _simulate_manifest(out / MANIFEST))
+            or ((out / CONFIG).exists() and any(
+                (out / name).exists() for name in ("chunks", REGION, TABLE_CELLS, "report.json"))))
+
+
+def _simulate_manifest(path: Path) -> bool:
+    """Whether the manifest at ``path`` is the one ``simulate`` writes."""
+    try:
+        manifest = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError):
+        return False
+    return isinstance(manifest, dict) and manifest.get("kind") == "simulate"
 
 
 def simulate_command(args: argparse.Namespace) -> int:
@@ -75,14 +90,19 @@ def simulate_command(args: argparse.Namespace) -> int:
         raise ParameterError(f"{out} holds a sweep or a report (its {CONFIG} would be "
                              "overwritten); use another --out folder")
     out.mkdir(parents=True, exist_ok=True)
-    summary, series = simulate_many(config, forces, durations)
-    write_atomic(out / "summary.csv", lambda tmp: summary.to_csv(tmp, index=False))
-    write_parquet(series, out / "timeseries.parquet")
-    write_text(dumps_config(config), out / CONFIG)
-    figures = timeseries_figures(series, out)  # written atomically (plots._save)
+    with run_context(physics="mujoco"):  # the scalar reference: MuJoCo C physics
+        summary, series = api.simulate(forces, durations, config,
+                                       progress=progress_enabled(args))
+        write_atomic(out / "summary.csv", lambda tmp: summary.to_csv(tmp, index=False))
+        write_parquet(series, out / "timeseries.parquet")
+        write_text(dumps_config(config), out / CONFIG)
+        # written atomically (plots._save)
+        figures = timeseries_figures(series, out, config=config, summary=summary,
+                                     full_window=args.full_window)
+        record_simulation(out, config, forces, durations)
     with pd.option_context("display.width", 200, "display.max_columns", None,
                            "display.float_format", lambda v: f"{v:.4g}"):
         print(summary[PRINTED_COLUMNS].to_string(index=False))
-    print(f"wrote {out / 'summary.csv'}, {out / 'timeseries.parquet'}, {out / 'config.toml'} "
-          f"and {len(figures)} figures in {out}")
+    log.info(f"wrote {out / 'summary.csv'}, {out / 'timeseries.parquet'}, {out / 'config.toml'}, "
+             f"{out / MANIFEST} and {len(figures)} figures in {out}")
     return 0

@@ -1,6 +1,9 @@
 """``mjx-balance sweep`` and ``mjx-balance table``: the region map and the robustness table.
 
-Each command checks its arguments, then works in the output folder under its lock (a second run
+Both are thin layers over the Python API (``api.run_region``, ``api.run_table_folder``, which
+``mjx_balance.sweep`` and ``mjx_balance.table`` call): they resolve the options (a sweep
+definition, the built-in default sweep, the work guard) into its arguments and draw the
+figures. Each command checks its arguments, then works in the output folder under its lock (a second run
 into the same folder is refused at once, or waits for it with --wait). A write that fails there (a full disk, a file-size
 limit) ends in one line and exit code 1; finished chunks stay and the same command resumes.
 Derived figures missing or damaged (a PNG cut short) are drawn again on a rerun.
@@ -10,6 +13,7 @@ from __future__ import annotations
 
 import errno
 import json
+import logging
 import math
 import sys
 from pathlib import Path
@@ -18,16 +22,17 @@ from typing import Any, Callable
 import numpy as np
 import pandas as pd
 
-from .. import region_plots
-from ..params import Config, with_convention
-from ..sweep import (DEFAULT_SWEEP, MANIFEST, STUDY_TABLE_FORCES, TABLE, LazyBatch,
-                     SweepResult, check_durations, load_sweep, parse_grid, run_sweep, run_table,
-                     table_batch_size)
+from .. import api, region_plots
+from ..params import Config, apply_overrides, with_convention
+from ..sweep import (DEFAULT_SWEEP, MANIFEST, STUDY_TABLE_FORCES, TABLE, SweepResult,
+                     check_durations, load_sweep, parse_grid, table_batch_size)
 from ..sweep.acting_time import coarse_steps
 from ..sweep.chunks import check_planned_work, default_chunk_size, planned_work
 from ..sweep.grid import check_cell_count
-from ..sweep.store import folder_lock, readable_png
-from . import base_config
+from ..sweep.store import REGION, folder_lock, readable_png
+from . import base_config, progress_enabled
+
+log = logging.getLogger("mjx_balance")
 
 WRITE_FAILED = 1  # exit code of a run whose writing failed (2: bad arguments, before any work)
 
@@ -43,7 +48,9 @@ def sweep_command(args: Any) -> int:
     if args.sweep is None and not use_default:
         # A grid from the command line: the region only, chunk size from the memory budget.
         definition.table_forces = definition.chunk = None
-    config = with_convention(definition.config, args.convention)
+    # the command line wins: --set over the sweep definition, --convention over both
+    config = with_convention(apply_overrides(definition.config, getattr(args, "set", None)),
+                             args.convention)
     forces = args.forces if args.forces is not None else (
         definition.forces if definition.forces is not None else DEFAULT_SWEEP["forces"])
     durations = args.durations if args.durations is not None else (
@@ -61,23 +68,28 @@ def sweep_command(args: Any) -> int:
                        if table_forces is not None else 0))
     reference = region_plots.load_reference(args.reference) if args.reference else None
     if use_default:
-        print("no grid given: running the built-in default sweep "
-              f"(forces {DEFAULT_SWEEP['forces']} N, durations {DEFAULT_SWEEP['durations']} s, "
-              f"table forces {DEFAULT_SWEEP['table_forces']} N)")
+        log.info("no grid given: running the built-in default sweep "
+                 f"(forces {DEFAULT_SWEEP['forces']} N, durations {DEFAULT_SWEEP['durations']} "
+                 f"s, table forces {DEFAULT_SWEEP['table_forces']} N)")
 
     out = Path(args.out)
+    progress = progress_enabled(args)
 
     def work() -> None:
         # built (and compiled) only if a scenario must run
-        run_batch = LazyBatch(config, slots=args.slots, early_stop=not args.full_length)
-        result = run_sweep(out, config, forces, durations, run_batch=run_batch, chunk_size=chunk)
+        run_batch = api.batch_function(config, slots=args.slots, full_length=args.full_length)
+        result = api.run_region(out, config, forces, durations, run_batch=run_batch,
+                                chunk=chunk, progress=progress)
         _make_region_figures(out, result, config, reference)
         if table_forces is not None:
             # The table in calls of the sweep's chunk size: the rollout compiled for it already.
             chunk_used = json.loads((out / MANIFEST).read_text())["region"]["chunk_size"]
-            table = run_table(out, config, table_forces, run_batch=run_batch,
-                              batch=int(chunk_used))
+            table = api.run_table_folder(out, config, table_forces, run_batch=run_batch,
+                                         batch=int(chunk_used), progress=progress)
             _make_table_figure(out, config, force=table is not None)
+            # region.png overlays the table's max-acting-time curve: drawn again with it
+            _make_region_figures(out, result, config, reference, only="region.png",
+                                 force=table is not None)
 
     return _in_folder(out, work, wait=getattr(args, "wait", False))
 
@@ -85,8 +97,8 @@ def sweep_command(args: Any) -> int:
 def table_command(args: Any) -> int:
     """``mjx-balance table``: table.csv and table.png in --out."""
     definition = load_sweep(args.sweep, base_config(args)) if args.sweep else None
-    config = with_convention(definition.config if definition else base_config(args),
-                             args.convention)
+    config = with_convention(apply_overrides(definition.config, getattr(args, "set", None))
+                             if definition else base_config(args), args.convention)
     if args.forces is not None:
         forces = args.forces
     elif definition is not None and definition.table_forces is not None:
@@ -100,9 +112,15 @@ def table_command(args: Any) -> int:
     out = Path(args.out)
 
     def work() -> None:
-        run_batch = LazyBatch(config, slots=args.slots, early_stop=not args.full_length)
-        table = run_table(out, config, forces, run_batch=run_batch, batch=batch)
+        table = api.run_table_folder(out, config, forces, batch=batch, slots=args.slots,
+                                     full_length=args.full_length,
+                                     progress=progress_enabled(args))
         _make_table_figure(out, config, force=table is not None)
+        if (out / REGION).exists():  # a sweep's folder: its map overlays the table's curve
+            path = out / "region.png"
+            if table is not None or _stale(path, out / TABLE):
+                region_plots.plot_region(pd.read_parquet(out / REGION), path, config=config)
+                log.info(f"wrote {path}")
 
     return _in_folder(out, work, wait=getattr(args, "wait", False))
 
@@ -117,10 +135,10 @@ def table_scenarios_per_force(config: Config, resolution: float = 0.01) -> int:
 
 def _guard_work(args: Any, config: Config, n_scenarios: int, chunk_size: int, what: str,
                 extra: int = 0) -> None:
-    """Print the planned work; refuse it above the limit unless --yes (before any compile)."""
+    """Say the planned work; refuse it above the limit unless --yes (before any compile)."""
     t_end = config.scenario.t_end
-    print(planned_work(n_scenarios, t_end, chunk_size, what)
-          + (f" (+ about {extra:,} table scenarios)" if extra else ""))
+    log.info(planned_work(n_scenarios, t_end, chunk_size, what)
+             + (f" (+ about {extra:,} table scenarios)" if extra else ""))
     if not getattr(args, "yes", False):
         check_planned_work(n_scenarios + extra, t_end, what)
 
@@ -159,23 +177,30 @@ def _stale(figure: Path, source: Path) -> bool:
 
 
 def _make_region_figures(out: Path, result: SweepResult, config: Config,
-                         reference: pd.DataFrame | None) -> None:
-    """region.png and energy.png: drawn after a sweep that computed or merged anything, with
-    reference points, or when stale (read from region.parquet only then)."""
+                         reference: pd.DataFrame | None, *, only: str | None = None,
+                         force: bool = False) -> None:
+    """region.png and energy.png (or ``only`` one of them): drawn after a sweep that computed
+    or merged anything, with reference points, when ``force``d, or when stale (older than
+    region.parquet, or region.png older than the table.csv whose curve it overlays); read
+    from region.parquet only then."""
     targets = {"region.png": region_plots.plot_region, "energy.png": region_plots.plot_energy}
     region = None
     for name, plot in targets.items():
+        if only is not None and name != only:
+            continue
         path = out / name
-        if (not result.already_complete or _stale(path, result.region_path)
-                or (reference is not None and name == "region.png")):
+        overlay_stale = (name == "region.png" and (out / TABLE).exists()
+                         and readable_png(path) and _stale(path, out / TABLE))
+        if (force or not result.already_complete or _stale(path, result.region_path)
+                or overlay_stale or (reference is not None and name == "region.png")):
             region = result.region if region is None else region
             kwargs = {"reference": reference} if name == "region.png" else {}
             plot(region, path, config=config, **kwargs)
-            print(f"wrote {path}")
+            log.info(f"wrote {path}")
 
 
 def _make_table_figure(out: Path, config: Config, force: bool) -> None:
     path = out / "table.png"
     if force or _stale(path, out / TABLE):
         region_plots.plot_table(pd.read_csv(out / TABLE, keep_default_na=True), path, config=config)
-        print(f"wrote {path}")
+        log.info(f"wrote {path}")

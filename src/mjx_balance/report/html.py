@@ -586,7 +586,9 @@ def region_section(page: Page, convention: str, res: dict) -> dict:
         _para(f"Recovered area {numbers['area']:.3g} N·s ({numbers['fraction']:.0%} of the "
               f"grid, {numbers['recovered_cells']} of {numbers['cells']} cells); at T = "
               f"{numbers['t_ref']:g} s the largest recovered force is "
-              f"{studies.force_text(numbers['f_max_ref'])}."))
+              f"{studies.force_text(numbers['f_max_ref'])}."),
+        _para(f"Why the falls happened ({studies.grid_text(region)}): "
+              + studies.infeasibility_text(region)))
 
 
 def _conventions_reading(tables: dict[str, pd.DataFrame], numbers: dict[str, dict],
@@ -654,12 +656,14 @@ def study_section(page: Page, key: str, res: dict) -> dict:
     files = ", ".join(v["file"] for v in res["variants"] if v["file"])
     return page.section(
         f"study-{key}",
-        _params(st.question + f" Sweep definitions: sweeps/{files}; "
+        _params(st.question + f" Sweep definitions (shipped with the package): {files}; "
                 f"convention {page.config.controller.convention}; batch backend "
                 f"{page.record['backend']}; grid {studies.grid_text(first)}."),
         _row(*images),
         _table(numbers, STUDY_SHOWN),
-        _para(studies.reading(st, numbers, first), "reading"))
+        _para(studies.reading(st, numbers, first), "reading"),
+        *(_para(f"{v['label']}: " + studies.infeasibility_text(res["regions"][v["key"]]))
+          for v in res["variants"]))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -34,7 +34,7 @@ import numpy as np
 from .. import certificate as cert_mod
 from .._xla import deterministic_flags
 from .runner import MATMUL_PRECISION
-from .kernel import Accumulators, Carry, initial_carry, period, select
+from .kernel import Accumulators, Arrays, Carry, initial_carry, period, select
 from .physics import whole_body_com
 
 def default_slots(platform: str) -> int:
@@ -259,7 +259,7 @@ class Engine:
                                      in_specs=(P(), P(), P("batch"), P("batch"), P("batch"),
                                                P("batch")),
                                      out_specs=P("batch"), check_vma=False)
-            slots = jax.eval_shape(self._vacant)
+            slots = jax.eval_shape(self._vacant, r.arrays)
             split, _ = r._shardings()
             spec = (lambda a: jax.ShapeDtypeStruct(a.shape, a.dtype, sharding=split))
             n = self.refill * self.n_devices
@@ -274,17 +274,19 @@ class Engine:
         self._fn = fn
         return fn
 
-    def _vacant(self) -> Slots:
+    def _vacant(self, arrays: Arrays) -> Slots:
+        """Every slot vacant at upright rest (``arrays`` traced: configurations of equal
+        shapes share the compiled function, in the process and in the persistent cache)."""
         r = self.runner
         n = self.slots * self.n_devices
-        carry = _broadcast(initial_carry(r.arrays, r.sensors, r.static), n)
+        carry = _broadcast(initial_carry(arrays, r.sensors, r.static), n)
         return Slots(carry=self.packing.pack(carry), cell=jnp.full(n, -1, jnp.int32),
                      force=jnp.zeros(n, r.dtype), n_push=jnp.zeros(n, jnp.int32),
                      k=jnp.zeros(n, jnp.int32))
 
     def _initial_state(self) -> Slots:
         split, _ = self.runner._shardings()
-        return jax.jit(self._vacant, out_shardings=split)()
+        return jax.jit(self._vacant, out_shardings=split)(self.runner.arrays)
 
     # -- running --------------------------------------------------------------------------
 

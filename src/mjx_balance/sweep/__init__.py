@@ -16,8 +16,15 @@ The modules, bottom up:
     progress.py     progress bars
     region.py       the region sweep, resumable chunk by chunk
     acting_time.py  the batched bisection for the max acting time, the table
-    definitions.py  the default sweep and sweep definition files (sweeps/*.toml)
+    definitions.py  the default sweep and sweep definition files (shipped: mjx_balance/sweeps/*.toml)
+
+The package itself is callable: ``mjx_balance.sweep(forces, durations, config=None, out=None)``
+is the public API's :func:`mjx_balance.api.sweep` (the subpackage and the function share the
+name ``mjx_balance.sweep``).
 """
+
+import sys as _sys
+import types as _types
 
 from .acting_time import (COARSE_DURATIONS, TABLE_COLUMNS, Brackets, TableResult,
                           coarse_brackets, coarse_steps, evaluate_cells, max_acting_time,
@@ -44,3 +51,23 @@ __all__ = [
     "read_chunk", "refine_round", "run_sweep", "run_table", "same_values", "scenario_bytes",
     "table_batch_size", "table_row", "write_atomic", "write_parquet", "write_text",
 ]
+
+
+class _CallableModule(_types.ModuleType):
+    """This package, callable as :func:`mjx_balance.api.sweep` (see the module docstring)."""
+
+    def __call__(self, *args, **kwargs):
+        from ..api import sweep
+
+        return sweep(*args, **kwargs)
+
+    @property
+    def __signature__(self):  # inspect.signature, help in notebooks: the function's
+        import inspect
+
+        from ..api import sweep
+
+        return inspect.signature(sweep)
+
+
+_sys.modules[__name__].__class__ = _CallableModule

@@ -96,7 +96,7 @@ def chunk_slices(n_cells: int, chunk_size: int) -> list[slice]:
 # 2-core CPU of this project with two host devices, counted in scenario windows (a scenario
 # stops when decided, so what it simulates depends on the grid): 88-94 scenarios of 12 s per
 # second on the benchmark's mix (`mjx-balance bench`, 1024 scenarios) to 113-130 on the dense
-# study map (`mjx-balance sweep --sweep sweeps/region_dense_paper.toml`: 15,200 cells in
+# study map (`mjx-balance sweep --sweep region_dense_paper`: 15,200 cells in
 # 117-135 s), BENCHMARKS.md. A GPU is far faster (the estimate is then pessimistic: --yes).
 SIMULATED_SECONDS_PER_SECOND = (88 * 12.0, 130 * 12.0)
 # Disk per scenario in a chunk file: a 64-row chunk parquet of the default sweep is 23 kB

@@ -1,12 +1,16 @@
-"""Sweep definitions: the built-in default sweep and the sweep TOML files (sweeps/*.toml).
+"""Sweep definitions: the built-in default sweep and the sweep TOML files.
 
 A sweep definition holds [body]/[controller]/[scenario] overrides of a base configuration and
 a [sweep] table (forces, durations, table_forces, chunk); the command line overrides both.
+The package ships its definitions (the default sweep, the dense maps, the studies) as package
+data in ``mjx_balance/sweeps/*.toml``, found with ``importlib.resources`` (:func:`sweeps_dir`),
+so an installed wheel has them too; :func:`find_sweep` accepts a path or a shipped name.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +19,7 @@ from ..params import Config, ParameterError, read_toml
 # The robustness table of the study (SPEC §6.3).
 STUDY_TABLE_FORCES = (5, 10, 15, 20, 30, 40, 50, 60, 80, 100, 120)
 
-# The built-in default sweep (the README's main job; the same as sweeps/default.toml): a coarse
+# The built-in default sweep (the README's main job; the same as the shipped default.toml): a coarse
 # region map and a short table that finish in a few minutes on a 2-core CPU.
 DEFAULT_SWEEP = {
     "forces": "0:150:10",
@@ -25,6 +29,35 @@ DEFAULT_SWEEP = {
 }
 
 _SWEEP_KEYS = ("forces", "durations", "table_forces", "chunk")
+
+
+def sweeps_dir() -> Path:
+    """The folder of the shipped sweep definitions (package data ``mjx_balance/sweeps``).
+
+    The package is installed as files (a wheel or an editable install), so the resource is a
+    folder on disk."""
+    folder = resources.files("mjx_balance") / "sweeps"
+    return Path(str(folder))
+
+
+def shipped_sweeps() -> list[str]:
+    """The names of the shipped sweep definitions (without ``.toml``), sorted."""
+    return sorted(p.stem for p in sweeps_dir().glob("*.toml"))
+
+
+def find_sweep(name: str | Path) -> Path:
+    """A sweep definition file: ``name`` itself when it is a file, else the shipped definition
+    of that name (``region_dense_paper`` or ``region_dense_paper.toml``); ParameterError naming
+    the shipped ones otherwise."""
+    path = Path(name)
+    if path.is_file():
+        return path
+    if path.parent == Path(".") and path.name:
+        shipped = sweeps_dir() / (path.name if path.suffix == ".toml" else f"{path.name}.toml")
+        if shipped.is_file():
+            return shipped
+    raise ParameterError(f"{str(name)!r} not found: neither a file nor a shipped sweep "
+                         f"definition ({', '.join(shipped_sweeps())})")
 
 
 @dataclass

@@ -1,8 +1,11 @@
 """The output folder of a sweep: manifest, configuration, chunk files, merged results.
 
 ``DIR/manifest.json`` records the package version, the configuration and what was computed
-(the region's grid and chunk size, the table's forces); ``DIR/config.toml`` holds the
-configuration as TOML. A folder made with another configuration is refused; a folder that lost
+(the region's grid and chunk size, the table's forces), and, in ``runs``, one provenance record
+per run that worked in the folder (:func:`provenance`: versions, physics path, device, git
+commit, command line, start and end times, how it ended); ``DIR/config.toml`` holds the
+configuration as TOML. Only the configuration and the grids decide whether a run may resume a
+folder; the provenance records differ between runs by design and are never compared. A folder made with another configuration is refused; a folder that lost
 its manifest is taken up again when its config.toml matches the run's (the region sweep then
 checks its chunk files against the grid before it rewrites the manifest). Every file is
 written atomically (a temporary file in the same folder, then ``os.replace``), so a file is
@@ -25,10 +28,15 @@ from __future__ import annotations
 import errno
 import fcntl
 import json
+import logging
 import os
+import platform
+import shlex
+import subprocess
 import sys
 import tempfile
 import threading
+import uuid
 from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
@@ -51,6 +59,145 @@ CONFIG = "config.toml"
 LOCK = ".lock"
 
 _UMASK_LOCK = threading.Lock()
+
+log = logging.getLogger(__name__)
+
+
+# ---------------------------------------------------------------------------------------------
+# Provenance: what ran, where and when (manifest "runs").
+
+def _now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+# This process's run: one record per output folder it works in, updated at every manifest
+# write and when the folder's lock is let go (end time, status).
+_RUN: dict[str, Any] = {"run_id": uuid.uuid4().hex[:12], "started": _now(), "command": None,
+                        "physics": "mjx"}
+
+
+@contextmanager
+def run_context(*, command: str | None = None, physics: str | None = None) -> Iterator[None]:
+    """The command line (or API call) and the physics path that this process's manifest
+    records name, while in the block (an outer context's command is kept: the command line
+    that called the API is what ran)."""
+    saved = dict(_RUN)
+    if command is not None and _RUN["command"] is None:
+        _RUN["command"] = command
+    if physics is not None:
+        _RUN["physics"] = physics
+    try:
+        yield
+    finally:
+        _RUN["command"], _RUN["physics"] = saved["command"], saved["physics"]
+
+
+def _distribution_version(name: str) -> str | None:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(name)
+    except PackageNotFoundError:
+        return None
+
+
+def versions() -> dict[str, str | None]:
+    """The versions of the package and of what computes its results (no import of JAX)."""
+    return {"package": __version__, "python": platform.python_version(),
+            "jax": _distribution_version("jax"), "jaxlib": _distribution_version("jaxlib"),
+            "mujoco": _distribution_version("mujoco"),
+            "mujoco_mjx": _distribution_version("mujoco-mjx")}
+
+
+def device_record() -> dict[str, Any]:
+    """JAX's devices when JAX has started in this process (platform, device kind, count); else
+    the host's CPU (the scalar reference runs there, or JAX has not started yet)."""
+    if "jax" in sys.modules:
+        try:
+            from jax._src import xla_bridge
+
+            if xla_bridge._backends:  # noqa: SLF001 - started: asking starts nothing new
+                import jax
+
+                devices = jax.local_devices()
+                return {"platform": devices[0].platform, "kind": devices[0].device_kind,
+                        "count": len(devices)}
+        except Exception:  # noqa: BLE001 - fall back to the host
+            pass
+    return {"platform": "cpu", "kind": platform.processor() or platform.machine(),
+            "count": os.cpu_count() or 1}
+
+
+_GIT: dict[str, Any] = {}
+
+
+def git_record() -> dict[str, Any]:
+    """The git commit of the package's checkout (and whether it has uncommitted changes), when
+    it runs from one; empty when it does not or git is missing (computed once per process)."""
+    if _GIT:
+        return dict(_GIT.get("record", {}))
+    record: dict[str, Any] = {}
+    here = Path(__file__).resolve().parent
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True,
+                                text=True, timeout=10)
+        if commit.returncode == 0 and commit.stdout.strip():
+            record["git_commit"] = commit.stdout.strip()
+            dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+                                   cwd=here, capture_output=True, text=True, timeout=30)
+            if dirty.returncode == 0:
+                record["git_dirty"] = bool(dirty.stdout.strip())
+    except (OSError, subprocess.SubprocessError):
+        pass
+    _GIT["record"] = record
+    return dict(record)
+
+
+def default_command() -> str:
+    """The command line of this process, as a shell would take it back."""
+    argv = list(sys.argv) or ["python"]
+    if argv and argv[0].endswith(("/mjx-balance", "mjx_balance/__main__.py")):
+        argv[0] = "mjx-balance" if argv[0].endswith("mjx-balance") else "python -m mjx_balance"
+    return " ".join(shlex.quote(a) for a in argv)
+
+
+def provenance() -> dict[str, Any]:
+    """This run's provenance record (see the module docstring; docs/outputs.md, ``runs``)."""
+    return {"run_id": _RUN["run_id"], "command": _RUN["command"] or default_command(),
+            "started": _RUN["started"], "ended": None, "status": "running",
+            **versions(), "physics": _RUN["physics"], "device": device_record(), **git_record()}
+
+
+def _with_run(manifest: dict[str, Any], **changes: Any) -> dict[str, Any]:
+    """``manifest`` with this run's record in its ``runs`` (added, or refreshed)."""
+    runs = manifest.get("runs")
+    runs = [r for r in runs if isinstance(r, dict)] if isinstance(runs, list) else []
+    mine = next((r for r in runs if r.get("run_id") == _RUN["run_id"]), None)
+    if mine is None:
+        mine = provenance()
+        runs.append(mine)
+    else:
+        mine["device"] = device_record()
+        mine["physics"] = _RUN["physics"]
+    mine.update(changes)
+    manifest["runs"] = runs
+    return manifest
+
+
+def _finish_run(folder: Path, status: str) -> None:
+    """Record the end time and how the run ended in the folder's manifest, if this run wrote
+    one; a failure here (the disk that just failed the run) is not reported again."""
+    path = folder / MANIFEST
+    try:
+        manifest = json.loads(path.read_text())
+        runs = manifest.get("runs") if isinstance(manifest, dict) else None
+        if not isinstance(runs, list) or not any(
+                isinstance(r, dict) and r.get("run_id") == _RUN["run_id"] for r in runs):
+            return
+        write_text(json.dumps(_with_run(manifest, ended=_now(), status=status), indent=2) + "\n",
+                   path)
+    except Exception:  # noqa: BLE001 - provenance never fails a run
+        pass
 
 
 def current_umask() -> int:
@@ -152,6 +299,17 @@ def config_differences(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
     return out
 
 
+def record_simulation(folder: str | Path, config: Config, forces: Any, durations: Any) -> None:
+    """The manifest of a ``simulate`` folder: the configuration, the pushes and this run's
+    provenance (ended now)."""
+    manifest = {"package": "mjx_balance", "version": __version__, "kind": "simulate",
+                "config": config_dict(config),
+                "simulate": {"forces": [float(f) for f in forces],
+                             "durations": [float(d) for d in durations]}}
+    write_text(json.dumps(_with_run(manifest, ended=_now(), status="completed"), indent=2)
+               + "\n", Path(folder) / MANIFEST)
+
+
 class FolderBusy(ParameterError):
     """Another run holds the output folder's lock."""
 
@@ -193,8 +351,7 @@ def folder_lock(path: str | Path, *, wait: bool = False) -> Iterator[None]:
             os.close(fd)
             raise FolderBusy(f"{folder} is in use by another run ({holder}); wait for it to end "
                              "(--wait) or use another --out folder") from None
-        print(f"waiting for {folder}: in use by another run ({holder})", file=sys.stderr,
-              flush=True)
+        log.warning("waiting for %s: in use by another run (%s)", folder, holder)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX)
         except BaseException:
@@ -203,14 +360,21 @@ def folder_lock(path: str | Path, *, wait: bool = False) -> Iterator[None]:
     except BaseException:
         os.close(fd)
         raise
+    status = "interrupted"
     try:
         started = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"PID {os.getpid()}, started {started}\n".encode(), 0)
         _HELD[key] = [fd, 1]
-        yield
+        try:
+            yield
+            status = "completed"
+        except Exception:
+            status = "failed"
+            raise
     finally:
         _HELD.pop(key, None)
+        _finish_run(folder, status)
         os.close(fd)  # releases the flock
 
 
@@ -273,8 +437,12 @@ class OutputFolder:
                 "or the same configuration (its config.toml). Differences: "
                 + "; ".join(differences[:6]) + (" ..." if len(differences) > 6 else ""))
         if manifest.get("version") != __version__:
-            print(f"note: {self.path} was made by mjx_balance {manifest.get('version')}, "
-                  f"this is {__version__}; continuing", file=sys.stderr)
+            log.warning("note: %s was made by mjx_balance %s, this is %s; continuing",
+                        self.path, manifest.get("version"), __version__)
+        try:  # this run's provenance record, even if it finds nothing to do
+            self.write_manifest(manifest)
+        except OSError:  # a finished folder shared read-only: read, not recorded
+            pass
         return manifest
 
     def _check_lost_manifest(self, config: dict[str, Any]) -> None:
@@ -311,7 +479,8 @@ class OutputFolder:
         return {"forces": forces.tolist()}
 
     def write_manifest(self, manifest: dict[str, Any]) -> None:
-        write_text(json.dumps(manifest, indent=2) + "\n", self.manifest_path)
+        """Write the manifest, with this run's provenance record in its ``runs``."""
+        write_text(json.dumps(_with_run(manifest), indent=2) + "\n", self.manifest_path)
 
 
 # What a manifest must hold: its sections and, in each, the keys a run reads.

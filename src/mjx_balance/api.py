@@ -1,0 +1,232 @@
+"""The Python API: what the command line does, as functions that return DataFrames.
+
+    import mjx_balance as mb
+
+    config = mb.load_config("my_body.toml")          # or mb.Config(), or None for the defaults
+    summary, series = mb.simulate([20, 80], [0.1], config)   # scalar reference runs
+    region = mb.sweep("0:150:10", [0.1, 0.2], config)          # batched MJX + ADMM, in memory
+    region = mb.sweep("0:150:10", [0.1, 0.2], config, out="out/region")   # resumable on disk
+    table = mb.table([20, 50, 80], config)                     # max acting time per force
+
+``config`` is a :class:`~mjx_balance.params.Config`, the path of a TOML configuration file,
+a dict with ``body`` / ``controller`` / ``scenario`` tables, or None (the defaults); it is
+validated as a TOML file is (:class:`~mjx_balance.params.ParameterError` naming the field and
+the rule). Forces and durations are a sequence of numbers or a grid string (``"0:150:10"`` or
+``"20,50,80"``), as on the command line.
+
+``sweep`` and ``table`` write into the output folder ``out`` exactly what ``mjx-balance sweep``
+and ``mjx-balance table`` write there (the same store: manifest, chunks, resume); with
+``out=None`` they work in a temporary folder that is removed before they return, so nothing
+is kept. They compile the batched closed loop on first use; JAX's persistent compilation cache
+(``mjx_balance.cache``) keeps the executable for the next process. Messages go to the
+``mjx_balance`` logger (INFO); progress bars are off unless ``progress=True``.
+
+The command line (``mjx_balance.cli``) is a thin layer over these functions: it resolves its
+options into their arguments, then writes figures and prints.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Iterator, Union
+
+from .params import Config, ParameterError, config_from_dict, load_config
+
+if TYPE_CHECKING:  # heavy modules are imported inside the functions
+    import numpy as np
+    import pandas as pd
+
+    from .sweep import SweepResult, TableResult
+
+__all__ = ["Config", "ParameterError", "load_config", "simulate", "sweep", "table"]
+
+log = logging.getLogger("mjx_balance")
+
+ConfigLike = Union[Config, str, "os.PathLike[str]", Mapping[str, Any], None]
+Values = Union[str, float, Sequence[float], "np.ndarray"]
+
+
+def as_config(config: ConfigLike = None) -> Config:
+    """A :class:`Config` from a Config, a TOML file's path, a dict of tables or None."""
+    if config is None:
+        return Config()
+    if isinstance(config, Config):
+        return config
+    if isinstance(config, (str, os.PathLike)):
+        return load_config(config)
+    if isinstance(config, Mapping):
+        return config_from_dict(dict(config))
+    raise ParameterError(f"config must be a Config, a TOML file's path, a dict or None; got "
+                         f"{type(config).__name__}")
+
+
+def _grid(values: Values, name: str) -> "np.ndarray":
+    """Forces or durations as ``sweep`` reads a grid: sorted, each value once."""
+    from .sweep.grid import parse_grid
+
+    if isinstance(values, (int, float)) and not isinstance(values, bool):
+        values = [values]
+    if not isinstance(values, str):
+        values = [float(v) for v in values]
+    return parse_grid(values, name)
+
+
+def _durations(values: Values, config: Config, name: str = "durations") -> "np.ndarray":
+    """Durations on the grid, in [0, t_end] and whole physics steps (snapped to them)."""
+    from .sweep.grid import check_durations
+
+    return check_durations(_grid(values, name), config.scenario.t_end, name,
+                           physics_dt=config.scenario.physics_dt)
+
+
+@contextmanager
+def _session(call: str, physics: str = "mjx") -> Iterator[None]:
+    """What the output folder's provenance records: this call (unless a command line made it)
+    and the physics path."""
+    from .sweep.store import run_context
+
+    with run_context(command=f"python: mjx_balance.{call}", physics=physics):
+        yield
+
+
+# ---------------------------------------------------------------------------------------------
+# simulate: the scalar reference
+
+
+def simulate(forces: Values, durations: Values, config: ConfigLike = None, *,
+             progress: bool = False) -> "tuple[pd.DataFrame, pd.DataFrame]":
+    """Every (force, duration) push through the scalar reference closed loop (MuJoCo C physics,
+    the MPC solved by OSQP), one scenario at a time.
+
+    Returns ``(summary, series)``: one summary row per push (``outcomes.SUMMARY_COLUMNS``, as
+    ``mjx-balance simulate`` writes summary.csv) and the time series of every push (one row per
+    physics step, ``reference.TIMESERIES_COLUMNS``, as it writes timeseries.parquet), every
+    duration for the first force, then the next. ``progress``: a progress bar on stderr.
+    Raises ParameterError for a bad value before any work."""
+    config = as_config(config)
+    forces = _grid(forces, "forces")
+    durations = _durations(durations, config)
+    for duration in durations:  # every other rule, before any work
+        config.replace(scenario={"duration": float(duration)})
+    from . import reference
+
+    return reference.simulate_many(config, forces.tolist(), durations.tolist(),
+                                   progress=progress)
+
+
+# ---------------------------------------------------------------------------------------------
+# sweep and table: the batched closed loop (MJX + ADMM) on the continuous-batching engine
+
+
+def batch_function(config: Config, *, slots: int | None = None, full_length: bool = False):
+    """The batch function of ``sweep`` and ``table``: the MJX rollout of ``config`` on the
+    continuous-batching engine, built and compiled on its first call (with the persistent
+    compilation cache on, :func:`mjx_balance.cache.enable`)."""
+    from .sweep import LazyBatch
+
+    return LazyBatch(config, slots=slots, early_stop=not full_length)
+
+
+def run_region(out: str | os.PathLike[str], config: Config, forces: Values, durations: Values,
+               *, run_batch: Any = None, chunk: int | None = None, slots: int | None = None,
+               full_length: bool = False, progress: bool = False,
+               wait: bool = False) -> "SweepResult":
+    """The region sweep into the folder ``out`` (resumable; ``sweep.run_sweep``) under its lock
+    (``wait``: wait for another run that holds it). ``run_batch``: a batch function (default:
+    :func:`batch_function`). Returns the SweepResult (the command line draws its figures)."""
+    from . import cache
+    from .sweep import run_sweep
+    from .sweep.store import folder_lock
+
+    forces = _grid(forces, "forces")
+    durations = _durations(durations, config)
+    if run_batch is None:
+        run_batch = batch_function(config, slots=slots, full_length=full_length)
+    cache.enable()
+    with folder_lock(out, wait=wait):
+        return run_sweep(out, config, forces, durations, run_batch=run_batch, chunk_size=chunk,
+                         progress=progress, log=log.info)
+
+
+def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values, *,
+                     run_batch: Any = None, batch: int | None = None, slots: int | None = None,
+                     full_length: bool = False, progress: bool = False,
+                     wait: bool = False) -> "TableResult | None":
+    """The max-acting-time table into the folder ``out`` (``sweep.run_table``: resumable, the
+    scenarios it ran kept) under its lock. ``batch``: scenarios per call (default:
+    ``sweep.table_batch_size``). Returns None when the folder already held this table."""
+    from . import cache
+    from .sweep import run_table, table_batch_size
+    from .sweep.store import folder_lock
+
+    forces = _grid(forces, "forces")
+    if run_batch is None:
+        run_batch = batch_function(config, slots=slots, full_length=full_length)
+    if batch is None:
+        batch = table_batch_size(config, forces.size)
+    cache.enable()
+    with folder_lock(out, wait=wait):
+        return run_table(out, config, forces, run_batch=run_batch, batch=batch,
+                         progress=progress, log=log.info)
+
+
+@contextmanager
+def _folder(out: str | os.PathLike[str] | None, what: str) -> Iterator[Path]:
+    """``out``, or a temporary folder removed afterwards."""
+    if out is not None:
+        yield Path(out)
+        return
+    with tempfile.TemporaryDirectory(prefix=f"mjx_balance-{what}-") as tmp:
+        yield Path(tmp)
+
+
+def sweep(forces: Values, durations: Values, config: ConfigLike = None,
+          out: str | os.PathLike[str] | None = None, *, chunk: int | None = None,
+          slots: int | None = None, full_length: bool = False, progress: bool = False,
+          wait: bool = False) -> "pd.DataFrame":
+    """The recoverable region: one summary row per (force, duration) cell, force-major (all
+    durations of the first force, then the next), as region.parquet holds it.
+
+    ``out``: the output folder, written as ``mjx-balance sweep`` writes it (manifest, chunks,
+    region.parquet; resumed by a later call with the same configuration and grid), without the
+    figures; None: computed in a temporary folder, nothing kept. ``chunk``: scenarios per chunk
+    file (default from the memory budget), ``slots``: scenarios in flight per device,
+    ``full_length``: run every scenario that does not fall to t_end, ``progress``: a progress
+    bar on stderr, ``wait``: wait for another run that holds ``out``."""
+    import pandas as pd
+
+    config = as_config(config)
+    with _session("sweep"), _folder(out, "sweep") as folder:
+        result = run_region(folder, config, forces, durations, chunk=chunk, slots=slots,
+                            full_length=full_length, progress=progress, wait=wait)
+        return pd.read_parquet(result.region_path)
+
+
+def table(forces: Values, config: ConfigLike = None,
+          out: str | os.PathLike[str] | None = None, *, slots: int | None = None,
+          full_length: bool = False, progress: bool = False,
+          wait: bool = False) -> "pd.DataFrame":
+    """The robustness table: for each force, the max acting time (the largest duration, to
+    0.01 s, such that every push up to it recovers) and the energies (``TABLE_COLUMNS``), as
+    ``mjx-balance table`` writes table.csv (read back from it). ``out``: the output folder
+    (table.csv, table_runs.parquet, the scenarios run kept for a resume), without the figure;
+    None: a temporary folder, nothing kept."""
+    from .sweep.store import TABLE
+
+    config = as_config(config)
+    with _session("table"), _folder(out, "table") as folder:
+        run_table_folder(folder, config, forces, slots=slots, full_length=full_length,
+                         progress=progress, wait=wait)
+        return read_table(folder / TABLE)
+
+
+def read_table(path: str | os.PathLike[str]) -> "pd.DataFrame":
+    """A table.csv as :func:`table` returns it (pandas reads the floats it wrote back exactly)."""
+    import pandas as pd
+
+    return pd.read_csv(path)
