@@ -20,26 +20,10 @@ KERNEL = "mjx_balance_test"
 
 
 def test_notebook_executes(tmp_path_factory, tmp_path, monkeypatch):
-    nbformat = pytest.importorskip("nbformat")
-    nbclient = pytest.importorskip("nbclient")
-    pytest.importorskip("ipykernel")
     out = tiny_report(tmp_path_factory)
-    # A kernel spec for this interpreter (the venv the tests run in), found first on JUPYTER_PATH.
-    spec = tmp_path / "jupyter" / "kernels" / KERNEL
-    spec.mkdir(parents=True)
-    (spec / "kernel.json").write_text(json.dumps({
-        "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
-        "display_name": "mjx_balance tests", "language": "python"}))
-    monkeypatch.setenv("JUPYTER_PATH", str(tmp_path / "jupyter"))
-    monkeypatch.setenv("MJX_BALANCE_RESULTS", str(out))
-    monkeypatch.setenv("MPLBACKEND", "module://matplotlib_inline.backend_inline")
     before = sorted(p.relative_to(out) for p in out.rglob("*"))
+    code = _execute(out, tmp_path, monkeypatch)
 
-    nb = nbformat.read(NOTEBOOK, as_version=4)
-    nbclient.NotebookClient(nb, kernel_name=KERNEL, timeout=300,
-                            resources={"metadata": {"path": str(tmp_path)}}).execute()
-
-    code = [c for c in nb.cells if c.cell_type == "code"]
     errors = [o for c in code for o in c.outputs if o.output_type == "error"]
     assert not errors
     assert sorted(p.relative_to(out) for p in out.rglob("*")) == before  # only reads
@@ -80,21 +64,7 @@ def test_notebook_executes(tmp_path_factory, tmp_path, monkeypatch):
 def test_notebook_computes_a_small_result_without_a_saved_report(tmp_path, monkeypatch):
     """No report in MJX_BALANCE_RESULTS: the notebook says so and computes a small result with
     the public API (simulate, sweep, table), drawing what it can without the studies."""
-    nbformat = pytest.importorskip("nbformat")
-    nbclient = pytest.importorskip("nbclient")
-    pytest.importorskip("ipykernel")
-    spec = tmp_path / "jupyter" / "kernels" / KERNEL
-    spec.mkdir(parents=True)
-    (spec / "kernel.json").write_text(json.dumps({
-        "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
-        "display_name": "mjx_balance tests", "language": "python"}))
-    monkeypatch.setenv("JUPYTER_PATH", str(tmp_path / "jupyter"))
-    monkeypatch.setenv("MJX_BALANCE_RESULTS", str(tmp_path / "nothing_here"))
-    monkeypatch.setenv("MPLBACKEND", "module://matplotlib_inline.backend_inline")
-    nb = nbformat.read(NOTEBOOK, as_version=4)
-    nbclient.NotebookClient(nb, kernel_name=KERNEL, timeout=600,
-                            resources={"metadata": {"path": str(tmp_path)}}).execute()
-    code = [c for c in nb.cells if c.cell_type == "code"]
+    code = _execute(tmp_path / "nothing_here", tmp_path, monkeypatch)
     assert not [o for c in code for o in c.outputs if o.output_type == "error"]
     assert _text(code[0]).startswith(f"no saved report in {tmp_path / 'nothing_here'}")
     assert "needs a saved report" in _text(code[2])
@@ -102,6 +72,27 @@ def test_notebook_computes_a_small_result_without_a_saved_report(tmp_path, monke
     assert len(images) == 3  # time series, table curve, region map
     assert [len(r) for r in _html_rows(code[3])] == [4] * 4  # the four table forces
     assert not (tmp_path / "nothing_here").exists()  # nothing written
+
+
+def _execute(results: Path, tmp_path: Path, monkeypatch) -> list:
+    """Run the notebook with MJX_BALANCE_RESULTS = ``results`` on this interpreter's kernel;
+    its code cells with their outputs."""
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    pytest.importorskip("ipykernel")
+    # A kernel spec for this interpreter (the venv the tests run in), found first on JUPYTER_PATH.
+    spec = tmp_path / "jupyter" / "kernels" / KERNEL
+    spec.mkdir(parents=True)
+    (spec / "kernel.json").write_text(json.dumps({
+        "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
+        "display_name": "mjx_balance tests", "language": "python"}))
+    monkeypatch.setenv("JUPYTER_PATH", str(tmp_path / "jupyter"))
+    monkeypatch.setenv("MJX_BALANCE_RESULTS", str(results))
+    monkeypatch.setenv("MPLBACKEND", "module://matplotlib_inline.backend_inline")
+    nb = nbformat.read(NOTEBOOK, as_version=4)
+    nbclient.NotebookClient(nb, kernel_name=KERNEL, timeout=600,
+                            resources={"metadata": {"path": str(tmp_path)}}).execute()
+    return [c for c in nb.cells if c.cell_type == "code"]
 
 
 def _text(cell) -> str:

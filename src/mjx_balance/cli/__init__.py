@@ -69,6 +69,21 @@ def load_run_config(args: argparse.Namespace) -> Config:
                       getattr(args, "set", None))
 
 
+def one_push(args: argparse.Namespace) -> tuple[Config, float]:
+    """(configuration, duration) of a one-push command (``animate``, ``view``): --t-end
+    applied, the duration checked as ``sweep`` checks it (whole physics steps in [0, t_end],
+    snapped to them) and every other rule of the configuration checked before any work."""
+    from ..sweep.grid import check_durations
+
+    config = load_run_config(args)
+    if args.t_end is not None:
+        config = config.replace(scenario={"t_end": args.t_end})
+    duration = float(check_durations([args.duration], config.scenario.t_end, "--duration",
+                                      physics_dt=config.scenario.physics_dt)[0])
+    config.replace(scenario={"duration": duration})
+    return config, duration
+
+
 # ---------------------------------------------------------------------------------------------
 # Argument types: each returns the parsed value or raises ArgumentTypeError with the rule.
 

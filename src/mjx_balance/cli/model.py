@@ -21,9 +21,8 @@ import sys
 import time
 from pathlib import Path
 
-from ..sweep.grid import check_durations
 from ..sweep.store import write_text
-from . import load_run_config
+from . import load_run_config, one_push
 
 log = logging.getLogger("mjx_balance")
 
@@ -62,12 +61,7 @@ def view_command(args) -> int:
         print(f"mjx-balance: error: view needs a display: {missing}; `mjx-balance animate` "
               "writes a GIF of the push, `mjx-balance model` the MJCF", file=sys.stderr)
         return NO_DISPLAY
-    config = load_run_config(args)
-    if args.t_end is not None:
-        config = config.replace(scenario={"t_end": args.t_end})
-    duration = float(check_durations([args.duration], config.scenario.t_end, "--duration",
-                                      physics_dt=config.scenario.physics_dt)[0])
-    config.replace(scenario={"duration": duration})  # any other rule: before any work
+    config, duration = one_push(args)
 
     import mujoco
 
