@@ -135,10 +135,12 @@ def batch_function(config: Config, *, slots: int | None = None, full_length: boo
 def run_region(out: str | os.PathLike[str], config: Config, forces: Values, durations: Values,
                *, run_batch: Any = None, chunk: int | None = None, slots: int | None = None,
                full_length: bool = False, progress: bool = False,
-               wait: bool = False) -> "SweepResult":
+               wait: bool = False, cluster: Any = None) -> "SweepResult":
     """The region sweep into the folder ``out`` (resumable; ``sweep.run_sweep``) under its lock
     (``wait``: wait for another run that holds it). ``run_batch``: a batch function (default:
-    :func:`batch_function`). Returns the SweepResult (the command line draws its figures)."""
+    :func:`batch_function`); ``cluster``: run the chunks on a Dask cluster (``"local:N"``, a
+    scheduler address or file, or a ``distributed.Client``; docs/cluster.md). Returns the
+    SweepResult (the command line draws its figures)."""
     from . import cache
     from .sweep import run_sweep
     from .sweep.store import folder_lock
@@ -150,7 +152,7 @@ def run_region(out: str | os.PathLike[str], config: Config, forces: Values, dura
     cache.enable()
     with folder_lock(out, wait=wait):
         return run_sweep(out, config, forces, durations, run_batch=run_batch, chunk_size=chunk,
-                         progress=progress, log=log.info)
+                         progress=progress, log=log.info, cluster=cluster)
 
 
 def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values, *,
@@ -188,7 +190,7 @@ def _folder(out: str | os.PathLike[str] | None, what: str) -> Iterator[Path]:
 def sweep(forces: Values, durations: Values, config: ConfigLike = None,
           out: str | os.PathLike[str] | None = None, *, chunk: int | None = None,
           slots: int | None = None, full_length: bool = False, progress: bool = False,
-          wait: bool = False) -> "pd.DataFrame":
+          wait: bool = False, cluster: Any = None) -> "pd.DataFrame":
     """The recoverable region: one summary row per (force, duration) cell, force-major (all
     durations of the first force, then the next), as region.parquet holds it.
 
@@ -197,13 +199,16 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None,
     figures; None: computed in a temporary folder, nothing kept. ``chunk``: scenarios per chunk
     file (default from the memory budget), ``slots``: scenarios in flight per device,
     ``full_length``: run every scenario that does not fall to t_end, ``progress``: a progress
-    bar on stderr, ``wait``: wait for another run that holds ``out``."""
+    bar on stderr, ``wait``: wait for another run that holds ``out``, ``cluster``: run the
+    chunks on a Dask cluster (``"local:N"``, a scheduler address or file, or a
+    ``distributed.Client``; ``pip install "mjx_balance[cluster]"``, docs/cluster.md)."""
     import pandas as pd
 
     config = as_config(config)
     with _session("sweep"), _folder(out, "sweep") as folder:
         result = run_region(folder, config, forces, durations, chunk=chunk, slots=slots,
-                            full_length=full_length, progress=progress, wait=wait)
+                            full_length=full_length, progress=progress, wait=wait,
+                            cluster=cluster)
         return pd.read_parquet(result.region_path)
 
 

@@ -317,6 +317,24 @@ def _wait(p: argparse.ArgumentParser) -> None:
                         "(default: refuse at once, naming that run)")
 
 
+def cluster_spec(text: str) -> str:
+    """A Dask cluster: local:N, a scheduler address or a scheduler file (sweep/cluster.py)."""
+    from ..sweep.cluster import ClusterError, parse_cluster
+
+    try:
+        parse_cluster(text)
+    except ClusterError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def _cluster(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--cluster", type=cluster_spec, default=None, metavar="SPEC",
+                   help="run the region's chunks on a Dask cluster: local:N (N worker processes "
+                        "here), a scheduler address (tcp://host:8786) or a scheduler file "
+                        '(.json); needs pip install "mjx_balance[cluster]" (docs/cluster.md)')
+
+
 def _engine_options(p: argparse.ArgumentParser) -> None:
     """Options of the continuous-batching engine (sweep, table, bench)."""
     p.add_argument("--full-length", action="store_true",
@@ -449,6 +467,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--reference", type=input_file, default=None,
                    help="CSV of points (force, duration) to draw over the map")
     _engine_options(p)
+    _cluster(p)
     _yes(p)
     _wait(p)
     _common(p)

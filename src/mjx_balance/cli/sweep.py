@@ -79,7 +79,7 @@ def sweep_command(args: Any) -> int:
         # built (and compiled) only if a scenario must run
         run_batch = api.batch_function(config, slots=args.slots, full_length=args.full_length)
         result = api.run_region(out, config, forces, durations, run_batch=run_batch,
-                                chunk=chunk, progress=progress)
+                                chunk=chunk, progress=progress, cluster=args.cluster)
         _make_region_figures(out, result, config, reference)
         if table_forces is not None:
             # The table in calls of the sweep's chunk size: the rollout compiled for it already.

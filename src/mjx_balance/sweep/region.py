@@ -8,6 +8,10 @@ cells are kept and the others (damaged, partial, from another grid) are recomput
 made with another configuration or grid is refused. A folder that lost its manifest but whose
 config.toml matches is taken up again once its chunk files (or region.parquet) check out
 against the grid. The sweep holds the folder's lock (``store.folder_lock``) throughout.
+
+With ``cluster`` (``cluster.py``, docs/cluster.md) the chunks run as Dask tasks on a cluster's
+workers; everything else (the manifest, the chunk plan, the resume check, writing each chunk
+file, the merge) stays here, on the driver.
 """
 
 from __future__ import annotations
@@ -58,19 +62,29 @@ def check_region(region: pd.DataFrame, forces: np.ndarray, durations: np.ndarray
 
 def run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np.ndarray, *,
               run_batch: RunBatch | None = None, chunk_size: int | None = None,
-              progress: bool = True, log: Callable[[str], None] | None = print) -> SweepResult:
+              progress: bool = True, log: Callable[[str], None] | None = print,
+              cluster: Any = None) -> SweepResult:
     """Evaluate every (force, duration) cell, resumably, into ``out/region.parquet``.
 
     run_batch: batch function (default: the MJX rollout of ``config``), called with at most
     ``chunk_size`` scenarios at a time (every call padded to exactly chunk_size).
     chunk_size: scenarios per chunk (default: from the memory budget). A folder keeps the chunk
     size it was started with.
+    cluster: run the chunks on a Dask cluster (``cluster.ClusterBatch``): ``"local:N"`` (N
+    local worker processes), a scheduler address, or a ``distributed.Client``; None: here.
     """
     forces = parse_grid(forces, "forces")
     durations = check_durations(parse_grid(durations, "durations"), config.scenario.t_end,
                                 physics_dt=config.scenario.physics_dt)
     with folder_lock(out):
-        return _run_sweep(out, config, forces, durations, run_batch, chunk_size, progress, log)
+        if cluster is None:
+            return _run_sweep(out, config, forces, durations, run_batch, chunk_size, progress,
+                              log)
+        from .cluster import ClusterBatch
+
+        with ClusterBatch(cluster, run_batch or LazyBatch(config), config, log) as on_cluster:
+            return _run_sweep(out, config, forces, durations, on_cluster, chunk_size, progress,
+                              log)
 
 
 def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np.ndarray,
@@ -193,7 +207,12 @@ def _compute_chunks(run_batch: RunBatch, path: Path, slices: list[slice], todo: 
                     cell_f: np.ndarray, cell_d: np.ndarray, config: Config, chunk_size: int,
                     bar: Any) -> None:
     """Compute the chunks ``todo`` and write each chunk file: through the engine's queue when
-    the batch function streams, else one padded call per chunk."""
+    the batch function streams, else one padded call per chunk (or on a cluster's workers)."""
+    if hasattr(run_batch, "compute_chunks"):  # cluster.ClusterBatch: written here as they return
+        run_batch.compute_chunks(slices, todo, cell_f, cell_d, chunk_size,
+                                 lambda index, frame: write_parquet(frame, chunk_path(path, index)),
+                                 bar)
+        return
     if _streams(run_batch):
         _stream_chunks(run_batch, path, [slices[i] for i in todo], todo, cell_f, cell_d,
                        config, bar)
@@ -215,6 +234,16 @@ def _stream_chunks(run_batch: Any, path: Path, slices: list[slice], indices: lis
                    cell_f: np.ndarray, cell_d: np.ndarray, config: Config, bar: Any) -> None:
     """Every cell of the chunks through the engine's queue at once (its slots stay busy across
     chunk boundaries); a chunk file is written as soon as its last cell is decided."""
+    for k, rows in chunk_frames(run_batch, slices, cell_f, cell_d, config, bar.update):
+        write_parquet(rows, chunk_path(path, indices[k]))
+
+
+def chunk_frames(run_batch: Any, slices: list[slice], cell_f: np.ndarray, cell_d: np.ndarray,
+                 config: Config, update: Callable[[int], None] | None = None):
+    """Yield (k, summary rows of ``slices[k]``) as each chunk's last cell is decided, running
+    every cell of the chunks through the engine's queue at once (a cluster's worker runs it on
+    one chunk: the rows are the same, the engine's results do not depend on the schedule).
+    ``update(n)``: n more cells decided."""
     positions = np.concatenate([np.arange(s.start, s.stop) for s in slices])
     owner = np.concatenate([np.full(s.stop - s.start, k) for k, s in enumerate(slices)])
     parts: dict[int, list[pd.DataFrame]] = {}
@@ -235,8 +264,9 @@ def _stream_chunks(run_batch: Any, path: Path, slices: list[slice], indices: lis
                 rows = rows.drop(columns="_cell").reset_index(drop=True)
                 # the exact grid values (a float32 rollout hands them back rounded)
                 rows["force"], rows["duration"] = cell_f[cells], cell_d[cells]
-                write_parquet(rows, chunk_path(path, indices[int(k)]))
-        bar.update(len(index))
+                yield int(k), rows
+        if update is not None:
+            update(len(index))
 
 
 def _adopt_results(path: Path, found: list[Path], forces: np.ndarray, durations: np.ndarray,
