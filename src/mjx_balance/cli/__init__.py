@@ -514,6 +514,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "mjx_balance/sweeps/)")
     p.add_argument("--html-only", action="store_true",
                    help="redraw figures and report.html from the tables saved in --out")
+    _cluster(p)
     p.add_argument("--convention", choices=CONVENTIONS, default=None,
                    help="the studies' convention (default: the configuration's, 'paper'); the "
                         "study's experiments run every convention of --conventions")

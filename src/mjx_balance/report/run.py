@@ -141,8 +141,9 @@ class Batches:
     """One batch function per configuration (an MJX runner compiles once per configuration and
     batch size), and the region maps already computed, by (configuration, grid)."""
 
-    def __init__(self, backend: str):
+    def __init__(self, backend: str, cluster: Any = None):
         self.backend = backend
+        self.cluster = cluster  # the region maps' chunks on a Dask cluster (a Client), or None
         self._runs: dict[Config, Any] = {}
         self._regions: dict[tuple, Path] = {}
 
@@ -159,7 +160,7 @@ class Batches:
         if done is not None and not (folder / "region.parquet").exists():
             shutil.copytree(done, folder, dirs_exist_ok=True)
         run_sweep(folder, config, forces, durations, run_batch=self(config), chunk_size=chunk,
-                  progress=not quiet, log=None if quiet else print)
+                  progress=not quiet, log=None if quiet else print, cluster=self.cluster)
         self._regions.setdefault(key, folder)
 
 
@@ -420,21 +421,33 @@ def start_report(out: Path, config: Config, plan: Plan, *, backend: str,
 def run_report(out: str | Path, config: Config = Config(), plan: Plan = PLANS["default"], *,
                backend: str | None = None, study_list: list[studies.Study] | None = None,
                conventions: tuple[str, ...] = CONVENTIONS, sweeps: Path | None = None,
-               quiet: bool = False) -> dict:
+               quiet: bool = False, cluster: Any = None) -> dict:
     """Run everything and save the tables in ``out``; returns the report record (report.json).
 
     config: the base configuration (its convention is the studies'; the experiments run every
     convention in ``conventions``). backend: the batch function of the region maps and the
-    table (default: the plan's). study_list: default every study.
+    table (default: the plan's). study_list: default every study. cluster: compute the region
+    maps' chunks on a Dask cluster (a spec as ``sweep --cluster`` takes, or a Client; one
+    connection serves every map; the tables and time series run here).
     """
     study_list = list(studies.STUDIES) if study_list is None else study_list
     run = start_report(Path(out), plan_config(config, plan), plan,
                        backend=backend or plan.backend, study_list=study_list,
                        conventions=conventions, sweeps=sweeps, quiet=quiet)
-    for convention in conventions:
-        run_experiments(run, convention)
-    for st in study_list:
-        run_study(run, st)
+    client = local = None
+    if cluster is not None:
+        from ..sweep import cluster as cluster_mod
+
+        client, local = cluster_mod.connect(cluster, (lambda _m: None) if quiet else print)
+        run.batches.cluster = client
+    try:
+        for convention in conventions:
+            run_experiments(run, convention)
+        for st in study_list:
+            run_study(run, st)
+    finally:
+        if client is not None:
+            cluster_mod.close(client, local, owned=client is not cluster)
     run.record["seconds"] = round(time.perf_counter() - run.log.start, 1)
     run.save_record()
     return run.record

@@ -276,13 +276,14 @@ def connect(spec: Any, say: Callable[[str], None]) -> tuple[Any, Any]:
                                f"{WAIT_FOR_WORKERS_S:.0f} s") from None
         facts = check_workers(client)
     except BaseException:
-        _close(client, cluster, owned=not isinstance(spec, distributed.Client))
+        close(client, cluster, owned=not isinstance(spec, distributed.Client))
         raise
     say(f"cluster {client.scheduler.address}: {len(facts)} worker(s), versions checked")
     return client, cluster
 
 
-def _close(client: Any, cluster: Any, owned: bool) -> None:
+def close(client: Any, cluster: Any, owned: bool) -> None:
+    """Close what :func:`connect` opened (the client only if this run ``owned`` it)."""
     if owned:
         client.close()
     if cluster is not None:
@@ -326,7 +327,7 @@ class ClusterBatch:
     def close(self) -> None:
         if self._client is not None:
             distributed = _distributed()
-            _close(self._client, self._local, owned=not isinstance(self.cluster,
+            close(self._client, self._local, owned=not isinstance(self.cluster,
                                                                     distributed.Client))
             self._client = self._local = None
 
