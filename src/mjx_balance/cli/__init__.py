@@ -233,28 +233,26 @@ def out_folder(text: str) -> str:
 
 def out_gif(text: str) -> str:
     """An output GIF file: a name ending in .gif, not a folder, in a place that can be written."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError("give a file name ending in .gif")
-    path = Path(text)
-    if path.is_dir():
-        raise argparse.ArgumentTypeError(f"{text!r} is a folder; give a file name ending in .gif")
-    if path.suffix.lower() != ".gif":
-        raise argparse.ArgumentTypeError(f"{text!r}: the file name must end in .gif")
-    reason = _unwritable(path.parent)
-    if reason:
-        raise argparse.ArgumentTypeError(f"cannot write {text!r}: {reason}")
-    return text
+    return _output_file(text, ".gif")
 
 
 # ---------------------------------------------------------------------------------------------
 
 def out_file(text: str) -> str:
     """An output file: a name, not a folder, in a place that can be written."""
+    return _output_file(text)
+
+
+def _output_file(text: str, suffix: str | None = None) -> str:
+    """``text`` as an output file name (ending in ``suffix`` if given), or ArgumentTypeError."""
+    name = "a file name" + (f" ending in {suffix}" if suffix else "")
     if not text.strip():
-        raise argparse.ArgumentTypeError("give a file name")
+        raise argparse.ArgumentTypeError(f"give {name}")
     path = Path(text)
     if path.is_dir():
-        raise argparse.ArgumentTypeError(f"{text!r} is a folder; give a file name")
+        raise argparse.ArgumentTypeError(f"{text!r} is a folder; give {name}")
+    if suffix and path.suffix.lower() != suffix:
+        raise argparse.ArgumentTypeError(f"{text!r}: the file name must end in {suffix}")
     reason = _unwritable(path.parent)
     if reason:
         raise argparse.ArgumentTypeError(f"cannot write {text!r}: {reason}")
