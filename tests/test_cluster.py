@@ -4,9 +4,10 @@ The reference is the plain local sweep (``api.run_region``, as ``mjx-balance swe
 in a subprocess that fills a compilation cache folder of this module's own: the cluster's
 worker processes inherit ``MJX_BALANCE_CACHE_DIR`` and load the compiled engine from it
 instead of compiling it again (the smallest real configuration: t_end = 1 s, 8 slots, 12 cells
-in 3 chunks of 4). The cluster tests need Dask distributed (the ``cluster`` extra, which the
-``test`` extra includes) and are skipped without it; the last test checks that everything else
-works without it.
+in 3 chunks of 4; the same process also writes the local table of TABLE_FORCES, which the
+cluster's table must equal). The cluster tests need Dask distributed (the ``cluster`` extra,
+which the ``test`` extra includes) and are skipped without it; the last test checks that
+everything else works without it.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ T_END = 1.0
 FORCES, DURATIONS = "0,60,120,250", "0.1,0.2,0.5"  # recovered, not_settled and fell
 CHUNK, SLOTS = 4, 8  # 12 cells: 3 chunks, so both workers of local:2 get one
 CHUNK_KEY = "mjx_balance-chunk-"
+TABLE_FORCES = "60,120"  # 26 scenarios: a coarse call of 10, one 9-section round of 16
 
 
 def tiny_config() -> Config:
@@ -72,7 +74,8 @@ def compile_cache(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory, compile_cache) -> Path:
-    """region.parquet of the plain local sweep (no Dask), in a fresh process."""
+    """region.parquet of the plain local sweep (no Dask), in a fresh process; the local
+    table of TABLE_FORCES next to it (``_local_table``), by the same compiled engine."""
     out = tmp_path_factory.mktemp("local") / "sweep"
     code = textwrap.dedent(f"""
         from mjx_balance import api
@@ -80,6 +83,8 @@ def reference(tmp_path_factory, compile_cache) -> Path:
         config = Config().replace(scenario={{"t_end": {T_END}}})
         api.run_region({str(out)!r}, config, {FORCES!r}, {DURATIONS!r}, chunk={CHUNK},
                        slots={SLOTS})
+        api.run_table_folder({str(_local_table(out / "region.parquet"))!r}, config,
+                             {TABLE_FORCES!r}, slots={SLOTS})
     """)
     subprocess.run([sys.executable, "-c", code], check=True, timeout=300)
     return out / "region.parquet"
@@ -108,9 +113,14 @@ def test_local_cluster_gives_the_local_bytes(tmp_path, reference):
     assert again.already_complete and again.computed_chunks == 0
 
 
-@pytest.fixture
+def _local_table(reference: Path) -> Path:
+    return reference.parent.parent / "table"
+
+
+@pytest.fixture(scope="module")
 def cluster(compile_cache):
-    """A local cluster of 2 worker processes (nannies restart a killed worker)."""
+    """A local cluster of 2 worker processes for the module (nannies restart a killed
+    worker; a later test reuses the runners the workers built)."""
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as local:
         with distributed.Client(local) as client:
@@ -154,6 +164,35 @@ def test_worker_killed_mid_chunk_loses_nothing(tmp_path, reference, cluster):
     assert result.region_path.read_bytes() == reference.read_bytes()
     finished = [t for t in stream.data if str(t["key"]).startswith(CHUNK_KEY)]
     assert len({t["key"] for t in finished}) == 3  # every chunk finished (once per key)
+
+
+@needs_dask
+def test_table_on_the_cluster_is_the_local_table(tmp_path, reference, cluster):
+    """``table --cluster``: each bisection round's calls run as tasks on the workers (split
+    between them) and come back in order; table.csv, table_runs.parquet, every kept part
+    file of table_runs/ and the engine record are those of the plain local table."""
+    from mjx_balance.sweep import LazyBatch, run_table, table_batch_size
+
+    local, client = cluster
+    config = tiny_config()
+    out = tmp_path / "cluster"
+    with jax.enable_x64(False), distributed.get_task_stream(client) as stream:
+        result = run_table(out, config, TABLE_FORCES, run_batch=LazyBatch(config, slots=SLOTS),
+                           batch=table_batch_size(config, 2), progress=False, log=None,
+                           cluster=client)
+    expected = _local_table(reference)
+    assert len(result.runs) == 26
+    for name in ("table.csv", "table_runs.parquet"):
+        assert (out / name).read_bytes() == (expected / name).read_bytes(), name
+    parts = sorted(p.name for p in (expected / "table_runs").glob("*.parquet"))
+    assert parts and sorted(p.name for p in (out / "table_runs").glob("*.parquet")) == parts
+    for name in parts:
+        assert (out / "table_runs" / name).read_bytes() == \
+            (expected / "table_runs" / name).read_bytes(), name
+    manifests = [json.loads((d / "manifest.json").read_text()) for d in (out, expected)]
+    assert manifests[0]["table_engine"] == manifests[1]["table_engine"]
+    assert len({t["key"] for t in stream.data
+                if str(t["key"]).startswith("mjx_balance-cells-")}) >= 2
 
 
 def _other_version():
@@ -242,10 +281,11 @@ def test_plain_install_runs_without_dask(tmp_path):
         sys.path.insert(0, {str(Path(__file__).parent)!r})
         from test_cluster import Fake
 
-        try:
-            main(["sweep", "--help"])
-        except SystemExit as exc:
-            assert exc.code == 0, exc.code
+        for command in ("sweep", "table"):
+            try:
+                main([command, "--help"])
+            except SystemExit as exc:
+                assert exc.code == 0, exc.code
         config = Config().replace(scenario={{"t_end": 1.0}})
         result = run_sweep({str(tmp_path / "plain")!r}, config, "0,60", "0.1,0.5",
                            run_batch=Fake(), progress=False, log=None)
@@ -253,6 +293,13 @@ def test_plain_install_runs_without_dask(tmp_path):
         with pytest.raises(ClusterError, match="mjx_balance\\\\[cluster\\\\]"):
             run_sweep({str(tmp_path / "asked")!r}, config, "0,60", "0.1,0.5",
                       run_batch=Fake(), progress=False, log=None, cluster="local:2")
+        from mjx_balance.sweep import run_table
+        table = run_table({str(tmp_path / "plain_table")!r}, config, "0,60", run_batch=Fake(),
+                          progress=False, log=None)
+        assert len(table.table) == 2
+        with pytest.raises(ClusterError, match="mjx_balance\\\\[cluster\\\\]"):
+            run_table({str(tmp_path / "asked_table")!r}, config, "0,60", run_batch=Fake(),
+                      progress=False, log=None, cluster="local:2")
         assert not [m for m in sys.modules if m.split(".")[0] in ("dask", "distributed")]
         print("ok without dask")
     """)

@@ -45,7 +45,7 @@ def cli_sweep(out: Path, *extra: str) -> int:
 def fake_rollout(monkeypatch):
     """The command line's rollout replaced by the fake; returns a function to swap the fake."""
     def use(fake: FakeThresholdBatch) -> FakeThresholdBatch:
-        monkeypatch.setattr(DEFAULT_BATCH, lambda config: fake)
+        monkeypatch.setattr(DEFAULT_BATCH, lambda config, **engine: fake)
         return fake
 
     use(FakeThresholdBatch())
@@ -269,7 +269,7 @@ FAKE_SWEEP = textwrap.dedent("""
     sys.path.insert(0, sys.argv[1])
     from test_sweep import FakeThresholdBatch
     import mjx_balance.sweep.batch
-    mjx_balance.sweep.batch.default_batch = lambda config: FakeThresholdBatch()
+    mjx_balance.sweep.batch.default_batch = lambda config, **engine: FakeThresholdBatch()
     limit = int(sys.argv[2])
     if limit:
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))

@@ -391,7 +391,7 @@ def test_reference_points_file(tmp_path):
 def test_default_sweep_command_writes_region_and_table(tmp_path, monkeypatch):
     from mjx_balance.cli import main
 
-    monkeypatch.setattr(DEFAULT_BATCH, lambda config: FakeThresholdBatch())
+    monkeypatch.setattr(DEFAULT_BATCH, lambda config, **engine: FakeThresholdBatch())
     out = tmp_path / "default"
     assert main(["sweep", "--out", str(out)]) == 0
     for name in ("region.parquet", "region.png", "energy.png", "table.csv", "table.png",
@@ -400,7 +400,7 @@ def test_default_sweep_command_writes_region_and_table(tmp_path, monkeypatch):
     region = pd.read_parquet(out / "region.parquet")
     assert len(region) == (sweep.parse_grid(sweep.DEFAULT_SWEEP["forces"]).size
                            * sweep.parse_grid(sweep.DEFAULT_SWEEP["durations"]).size)
-    monkeypatch.setattr(DEFAULT_BATCH, lambda config: FakeThresholdBatch(fail_on_call=1))
+    monkeypatch.setattr(DEFAULT_BATCH, lambda config, **engine: FakeThresholdBatch(fail_on_call=1))
     assert main(["sweep", "--out", str(out)]) == 0  # finished: nothing to do, no batch called
     assert main(["sweep", "--out", str(out), "--convention", "joint"]) == 2  # other configuration
     assert main(["sweep", "--forces", "0:10:5", "--durations", "0.1,20", "--out",
@@ -411,7 +411,7 @@ def test_default_sweep_command_writes_region_and_table(tmp_path, monkeypatch):
 def test_cli_overrides_sweep_file(tmp_path, monkeypatch):
     from mjx_balance.cli import main
 
-    monkeypatch.setattr(DEFAULT_BATCH, lambda config: FakeThresholdBatch())
+    monkeypatch.setattr(DEFAULT_BATCH, lambda config, **engine: FakeThresholdBatch())
     definition = tmp_path / "s.toml"
     definition.write_text('[scenario]\nt_end = 3.0\n[controller]\nconvention = "joint"\n'
                           '[sweep]\nforces = "0:40:20"\ndurations = [0.5, 1.0]\ntable_forces = [10]\n')
@@ -444,7 +444,7 @@ def test_cli_end_to_end_with_the_mjx_rollout(tmp_path, monkeypatch, batch_runner
     t_end = batch_runner.config.scenario.t_end
     asked = []
 
-    def shared_batch(config):
+    def shared_batch(config, **engine):
         asked.append(config)
         assert config == batch_runner.config
         return batch_runner.run_frame

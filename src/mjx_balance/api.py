@@ -123,19 +123,21 @@ def simulate(forces: Values, durations: Values, config: ConfigLike = None, *,
 # sweep and table: the batched closed loop (MJX + ADMM) on the continuous-batching engine
 
 
-def batch_function(config: Config, *, slots: int | None = None, full_length: bool = False):
-    """The batch function of ``sweep`` and ``table``: the MJX rollout of ``config`` on the
-    continuous-batching engine, built and compiled on its first call (with the persistent
-    compilation cache on, :func:`mjx_balance.cache.enable`)."""
+def batch_function(config: Config, *, slots: int | None = None, full_length: bool = False,
+                   physics: str = "auto"):
+    """The batch function of ``sweep`` and ``table``: the batched closed loop of ``config`` on
+    the continuous-batching engine, built and compiled on its first call (with the persistent
+    compilation cache on, :func:`mjx_balance.cache.enable`). ``physics``: "mjx", "c" (MuJoCo C
+    stepped on a thread pool, the ADMM in JAX) or "auto" (docs/engine.md)."""
     from .sweep import LazyBatch
 
-    return LazyBatch(config, slots=slots, early_stop=not full_length)
+    return LazyBatch(config, slots=slots, early_stop=not full_length, physics=physics)
 
 
 def run_region(out: str | os.PathLike[str], config: Config, forces: Values, durations: Values,
                *, run_batch: Any = None, chunk: int | None = None, slots: int | None = None,
                full_length: bool = False, progress: bool = False,
-               wait: bool = False, cluster: Any = None) -> "SweepResult":
+               wait: bool = False, cluster: Any = None, physics: str = "auto") -> "SweepResult":
     """The region sweep into the folder ``out`` (resumable; ``sweep.run_sweep``) under its lock
     (``wait``: wait for another run that holds it). ``run_batch``: a batch function (default:
     :func:`batch_function`); ``cluster``: run the chunks on a Dask cluster (``"local:N"``, a
@@ -148,7 +150,8 @@ def run_region(out: str | os.PathLike[str], config: Config, forces: Values, dura
     forces = _grid(forces, "forces")
     durations = _durations(durations, config)
     if run_batch is None:
-        run_batch = batch_function(config, slots=slots, full_length=full_length)
+        run_batch = batch_function(config, slots=slots, full_length=full_length,
+                                   physics=physics)
     cache.enable()
     with folder_lock(out, wait=wait):
         return run_sweep(out, config, forces, durations, run_batch=run_batch, chunk_size=chunk,
@@ -158,23 +161,27 @@ def run_region(out: str | os.PathLike[str], config: Config, forces: Values, dura
 def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values, *,
                      run_batch: Any = None, batch: int | None = None, slots: int | None = None,
                      full_length: bool = False, progress: bool = False,
-                     wait: bool = False) -> "TableResult | None":
+                     wait: bool = False, cluster: Any = None,
+                     physics: str = "auto") -> "TableResult | None":
     """The max-acting-time table into the folder ``out`` (``sweep.run_table``: resumable, the
     scenarios it ran kept) under its lock. ``batch``: scenarios per call (default:
-    ``sweep.table_batch_size``). Returns None when the folder already held this table."""
+    ``sweep.table_batch_size``); ``cluster``: run each round's calls on a Dask cluster (as
+    :func:`run_region`; the same table). Returns None when the folder already held this
+    table."""
     from . import cache
     from .sweep import run_table, table_batch_size
     from .sweep.store import folder_lock
 
     forces = _grid(forces, "forces")
     if run_batch is None:
-        run_batch = batch_function(config, slots=slots, full_length=full_length)
+        run_batch = batch_function(config, slots=slots, full_length=full_length,
+                                   physics=physics)
     if batch is None:
         batch = table_batch_size(config, forces.size)
     cache.enable()
     with folder_lock(out, wait=wait):
         return run_table(out, config, forces, run_batch=run_batch, batch=batch,
-                         progress=progress, log=log.info)
+                         progress=progress, log=log.info, cluster=cluster)
 
 
 @contextmanager
@@ -190,7 +197,7 @@ def _folder(out: str | os.PathLike[str] | None, what: str) -> Iterator[Path]:
 def sweep(forces: Values, durations: Values, config: ConfigLike = None,
           out: str | os.PathLike[str] | None = None, *, chunk: int | None = None,
           slots: int | None = None, full_length: bool = False, progress: bool = False,
-          wait: bool = False, cluster: Any = None) -> "pd.DataFrame":
+          wait: bool = False, cluster: Any = None, physics: str = "auto") -> "pd.DataFrame":
     """The recoverable region: one summary row per (force, duration) cell, force-major (all
     durations of the first force, then the next), as region.parquet holds it.
 
@@ -201,32 +208,36 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None,
     ``full_length``: run every scenario that does not fall to t_end, ``progress``: a progress
     bar on stderr, ``wait``: wait for another run that holds ``out``, ``cluster``: run the
     chunks on a Dask cluster (``"local:N"``, a scheduler address or file, or a
-    ``distributed.Client``; ``pip install "mjx_balance[cluster]"``, docs/cluster.md)."""
+    ``distributed.Client``; ``pip install "mjx_balance[cluster]"``, docs/cluster.md),
+    ``physics``: "auto", "mjx" or "c" (MuJoCo C physics; docs/engine.md)."""
     import pandas as pd
 
     config = as_config(config)
     with _session("sweep"), _folder(out, "sweep") as folder:
         result = run_region(folder, config, forces, durations, chunk=chunk, slots=slots,
                             full_length=full_length, progress=progress, wait=wait,
-                            cluster=cluster)
+                            cluster=cluster, physics=physics)
         return pd.read_parquet(result.region_path)
 
 
 def table(forces: Values, config: ConfigLike = None,
           out: str | os.PathLike[str] | None = None, *, slots: int | None = None,
           full_length: bool = False, progress: bool = False,
-          wait: bool = False) -> "pd.DataFrame":
+          wait: bool = False, cluster: Any = None, physics: str = "auto") -> "pd.DataFrame":
     """The robustness table: for each force, the max acting time (the largest duration, to
     0.01 s, such that every push up to it recovers) and the energies (``TABLE_COLUMNS``), as
     ``mjx-balance table`` writes table.csv (read back from it). ``out``: the output folder
     (table.csv, table_runs.parquet, the scenarios run kept for a resume), without the figure;
-    None: a temporary folder, nothing kept."""
+    None: a temporary folder, nothing kept. ``cluster``: run the bisection's batch calls on a
+    Dask cluster (``"local:N"``, a scheduler address or file, or a ``distributed.Client``;
+    ``pip install "mjx_balance[cluster]"``, docs/cluster.md); the table is the same.
+    ``physics``: "auto", "mjx" or "c" (as :func:`sweep`)."""
     from .sweep.store import TABLE
 
     config = as_config(config)
     with _session("table"), _folder(out, "table") as folder:
         run_table_folder(folder, config, forces, slots=slots, full_length=full_length,
-                         progress=progress, wait=wait)
+                         progress=progress, wait=wait, cluster=cluster, physics=physics)
         return read_table(folder / TABLE)
 
 

@@ -178,15 +178,16 @@ def casadi_available() -> bool:
 
 
 def build_batched(config: Config, *, slots: int | None = None,
-                  early_stop: bool = True) -> dict[str, Any]:
-    """Build the batched runner and compile its continuous-batching engine. Returns runner,
-    slots (per device), build_s, compile_s, devices, platform."""
+                  early_stop: bool = True, physics: str = "mjx") -> dict[str, Any]:
+    """Build the batched runner and compile its continuous-batching engine (``physics``: the
+    MJX or the MuJoCo C path). Returns runner, slots (per device), build_s, compile_s, devices,
+    platform."""
     import jax
 
     from ..rollout import BatchRunner
 
     t0 = time.perf_counter()
-    runner = BatchRunner(config, slots=slots, early_stop=early_stop)
+    runner = BatchRunner(config, slots=slots, early_stop=early_stop, physics=physics)
     build_s = time.perf_counter() - t0
     compile_s = runner.prepare()
     return dict(runner=runner, slots=runner.engine.slots, build_s=build_s, compile_s=compile_s,

@@ -328,7 +328,8 @@ def cluster_spec(text: str) -> str:
 
 def _cluster(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cluster", type=cluster_spec, default=None, metavar="SPEC",
-                   help="run the region's chunks on a Dask cluster: local:N (N worker processes "
+                   help="run the scenarios on a Dask cluster (a region map's chunks, a table's "
+                        "bisection calls): local:N (N worker processes "
                         "here), a scheduler address (tcp://host:8786) or a scheduler file "
                         '(.json); needs pip install "mjx_balance[cluster]" (docs/cluster.md)')
 
@@ -339,9 +340,19 @@ def _engine_options(p: argparse.ArgumentParser) -> None:
                    help="run every scenario to t_end (no early stop of certified recoveries; "
                         "falls still end a scenario), for validation")
     p.add_argument("--slots", type=positive_int, default=None,
-                   help="scenarios in flight per device (default: 32 on a CPU, 4096 on a GPU); "
+                   help="scenarios in flight per device (default: 32 on a CPU, 4096 on a GPU; "
+                        "64 on the C path); "
                         "results are bit-identical for any chunk, device count or order at one "
                         "slot count, so a sweep folder keeps the count it started with")
+    _physics(p)
+
+
+def _physics(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--physics", choices=("auto", "mjx", "c"), default="auto",
+                   help="physics of the batched closed loop: mjx (MuJoCo MJX in JAX, float32), "
+                        "c (MuJoCo C on a thread pool, float64, the reference's physics; the "
+                        "ADMM stays in JAX) or auto (the faster on this machine: "
+                        "docs/engine.md); a sweep folder keeps the path it started with")
 
 
 def _bench_pipeline_arguments(p: argparse.ArgumentParser) -> None:
@@ -479,6 +490,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="sweep definition: a TOML file or the name of a shipped one "
                         "(study_table_paper, ...; see mjx_balance/sweeps/)")
     _engine_options(p)
+    _cluster(p)
     _yes(p)
     _wait(p)
     _common(p)
@@ -513,6 +525,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--html-only", action="store_true",
                    help="redraw figures and report.html from the tables saved in --out")
     _cluster(p)
+    _physics(p)
     p.add_argument("--convention", choices=CONVENTIONS, default=None,
                    help="the studies' convention (default: the configuration's, 'paper'); the "
                         "study's experiments run every convention of --conventions")

@@ -34,13 +34,14 @@ cache.enable()
 config = load_config(sys.argv[1])
 slots = None if sys.argv[2] == "none" else int(sys.argv[2])
 with cache.CompileCounter() as counter:
-    built = pipeline.build_batched(config, slots=slots, early_stop=sys.argv[3] == "1")
+    built = pipeline.build_batched(config, slots=slots, early_stop=sys.argv[3] == "1",
+                                   physics=sys.argv[4])
 print(json.dumps({"compile_s": built["compile_s"], **counter.as_dict()}))
 """
 
 
 def compile_cache_times(config: Config, slots: int | None, early_stop: bool,
-                        timeout: float = 1800.0) -> dict:
+                        timeout: float = 1800.0, physics: str = "mjx") -> dict:
     """The engine's compile time in a first process (an empty persistent cache) and in a
     second one (the cache the first filled), each a fresh interpreter: compile_first_s,
     compile_cached_s, and the second's cache hits and XLA compilations (0: nothing compiled).
@@ -50,7 +51,7 @@ def compile_cache_times(config: Config, slots: int | None, early_stop: bool,
         save_config(config, config_path)
         env = {**os.environ, "MJX_BALANCE_CACHE_DIR": str(Path(tmp) / "jax")}
         argv = [sys.executable, "-c", _COMPILE_SCRIPT, str(config_path),
-                "none" if slots is None else str(slots), "1" if early_stop else "0"]
+                "none" if slots is None else str(slots), "1" if early_stop else "0", physics]
         runs = []
         for _ in range(2):
             try:
@@ -102,22 +103,36 @@ def pipeline_command(args: argparse.Namespace) -> int:
                                             args.workers)
             _print_pool(ipopt, args.workers, "study toolchain (MuJoCo C + CasADi/IPOPT)")
 
-    runs = {}
-    modes = [("--full-length", False)]
-    if not args.full_length:  # both on the same scenarios, compared
-        modes.insert(0, ("continuous batching", True))
-    for label, early in modes:
-        built = pipeline.build_batched(config, slots=args.slots, early_stop=early)
-        print(f"  MJX + ADMM, {label}: build {built['build_s']:.1f} s, compile "
-              f"{built['compile_s']:.1f} s ({built['slots']} slots on each of {built['devices']} "
-              f"{built['platform']} device(s))", flush=True)
-        result = pipeline.run_batched(built, config, forces, durations, args.repeats)
-        print(f"  MJX + ADMM, {label}: {n_mjx} scenarios in {result['seconds']:.1f} s (median "
-              f"of {result['repeats']}; {n_mjx / result['seconds']:.1f} scen/s; mean simulated "
-              f"{result['simulated_s']:.2f} s per scenario, {result['certified']} certified; "
-              f"{result['physics_steps_per_s']:,.0f} physics steps/s; mean ADMM iterations per "
-              f"period {result['admm_iterations_per_period']:.1f})", flush=True)
-        runs[label] = (built, result)
+    from ..rollout.cpath import PATHS, resolve, unsupported
+
+    default = resolve(args.physics, config)
+    paths = [default] + [p for p in PATHS[1:] if p != default
+                         and not (p == "c" and unsupported(config))]
+    runs, backends = {}, {}
+    for path in paths:
+        modes = [("--full-length", False)] if path == default else []
+        if not args.full_length:  # both on the same scenarios, compared
+            modes.insert(0, ("continuous batching", True))
+        for label, early in modes:
+            built = pipeline.build_batched(config, slots=args.slots, early_stop=early,
+                                           physics=path)
+            name = f"{_PATH_NAMES[path]}, {label}"
+            print(f"  {name}: build {built['build_s']:.1f} s, compile {built['compile_s']:.1f} s "
+                  f"({built['slots']} slots on each of {built['devices']} {built['platform']} "
+                  "device(s))", flush=True)
+            result = pipeline.run_batched(built, config, forces, durations, args.repeats)
+            print(f"  {name}: {n_mjx} scenarios in {result['seconds']:.1f} s (median of "
+                  f"{result['repeats']}; {n_mjx / result['seconds']:.1f} scen/s; mean simulated "
+                  f"{result['simulated_s']:.2f} s per scenario, {result['certified']} certified; "
+                  f"{result['physics_steps_per_s']:,.0f} physics steps/s; mean ADMM iterations "
+                  f"per period {result['admm_iterations_per_period']:.1f})", flush=True)
+            if path == default:
+                runs[label] = (built, result)
+            if early or args.full_length:
+                backends[path] = dict(scen_per_s=round(n_mjx / result["seconds"], 3),
+                                      seconds=round(result["seconds"], 3),
+                                      compile_s=round(built["compile_s"], 3),
+                                      slots=built["slots"], outcomes=result["outcomes"])
     built, batched = runs.get("continuous batching", runs["--full-length"])
     full = None
     if "continuous batching" in runs:
@@ -126,6 +141,7 @@ def pipeline_command(args: argparse.Namespace) -> int:
               f"must agree exactly and differ: {full['exact_columns_differ'] or 'none'}; "
               f"energies and work within {full['energy_max_rel_diff']:.2g} (relative)",
               flush=True)
+    _print_backends(backends, default)
 
     cmp = pipeline.compare(counts, batched, ref, ipopt, ipopt_idx)
     rss = dict(main=pipeline.peak_rss_mib(resource.RUSAGE_SELF),
@@ -134,7 +150,8 @@ def pipeline_command(args: argparse.Namespace) -> int:
     memory = _memory_scaling(args) if args.memory_scaling else None
     caching = {}
     if not getattr(args, "no_cache_times", False):
-        caching = compile_cache_times(config, args.slots, not args.full_length)
+        caching = compile_cache_times(config, args.slots, not args.full_length,
+                                      physics=default)
         if "compile_cache_error" in caching:
             print(f"compile, persistent cache: not measured ({caching['compile_cache_error']})")
         else:
@@ -147,8 +164,27 @@ def pipeline_command(args: argparse.Namespace) -> int:
             counts=counts, t_end=sc.t_end, workers=args.workers, load_average=load[0],
             built=built, batched=batched, ref=ref, ipopt=ipopt, ref_config=ref_config,
             comparison=cmp, peak_rss_mib=rss, memory_scaling=memory, full_length=full)
+        figures["physics"] = default
+        figures["backends"] = {name: {k: v for k, v in b.items() if k != "outcomes"}
+                               for name, b in backends.items()}
         print(json.dumps({**figures, **caching}))
     return 0
+
+
+_PATH_NAMES = {"mjx": "MJX + ADMM", "c": "MuJoCo C + ADMM"}
+
+
+def _print_backends(backends: dict, default: str) -> None:
+    """The physics paths side by side (same scenarios, same process): rates, ratios, and how
+    many outcomes differ from the default path's."""
+    if len(backends) < 2:
+        return
+    base = backends[default]
+    print(f"  physics paths (default: {default}): " + "; ".join(
+        f"{name} {b['scen_per_s']:.1f} scen/s ({b['scen_per_s'] / base['scen_per_s']:.2f}x "
+        f"{default}, compile {b['compile_s']:.1f} s, "
+        f"{int((b['outcomes'] != base['outcomes']).sum())} outcomes differ)"
+        for name, b in backends.items()), flush=True)
 
 
 def _print_pipeline_table(counts, built, batched, ref, ipopt, cmp, rss, full=None) -> None:
@@ -157,7 +193,7 @@ def _print_pipeline_table(counts, built, batched, ref, ipopt, cmp, rss, full=Non
     r_mjx, r_ref, r_ipopt = cmp["mjx"], cmp["reference"], cmp["ipopt"]
     print()
     print(f"{'system':44s} {'scenarios':>9s} {'seconds':>9s} {'scen/s':>9s} {'MJX ratio':>10s}")
-    print(f"{'MJX + ADMM (batched, this process)':44s} {n_mjx:9d} {batched['seconds']:9.1f} "
+    print(f"{'batched (default path, this process)':44s} {n_mjx:9d} {batched['seconds']:9.1f} "
           f"{r_mjx:9.2f} {1.0:10.1f}")
     if full:
         print(f"{'MJX + ADMM --full-length':44s} {n_mjx:9d} {full['seconds']:9.1f} "

@@ -30,7 +30,8 @@ def report_command(args: Any) -> int:
                                 backend=args.backend, study_list=selected_studies(args.studies),
                                 conventions=conventions,
                                 sweeps=Path(args.sweeps) if args.sweeps else None,
-                                cluster=getattr(args, "cluster", None))
+                                cluster=getattr(args, "cluster", None),
+                                physics=getattr(args, "physics", "auto"))
         print(f"tables saved in {out} ({record['seconds']:.0f} s)", file=sys.stderr)
     else:  # check the record before build_report creates anything
         read_record(out / REPORT_JSON)

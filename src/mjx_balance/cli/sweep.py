@@ -77,7 +77,8 @@ def sweep_command(args: Any) -> int:
 
     def work() -> None:
         # built (and compiled) only if a scenario must run
-        run_batch = api.batch_function(config, slots=args.slots, full_length=args.full_length)
+        run_batch = api.batch_function(config, slots=args.slots, full_length=args.full_length,
+                                       physics=args.physics)
         result = api.run_region(out, config, forces, durations, run_batch=run_batch,
                                 chunk=chunk, progress=progress, cluster=args.cluster)
         _make_region_figures(out, result, config, reference)
@@ -85,7 +86,8 @@ def sweep_command(args: Any) -> int:
             # The table in calls of the sweep's chunk size: the rollout compiled for it already.
             chunk_used = json.loads((out / MANIFEST).read_text())["region"]["chunk_size"]
             table = api.run_table_folder(out, config, table_forces, run_batch=run_batch,
-                                         batch=int(chunk_used), progress=progress)
+                                         batch=int(chunk_used), progress=progress,
+                                         cluster=args.cluster)
             _make_table_figure(out, config, force=table is not None)
             # region.png overlays the table's max-acting-time curve: drawn again with it
             _make_region_figures(out, result, config, reference, only="region.png",
@@ -113,8 +115,9 @@ def table_command(args: Any) -> int:
 
     def work() -> None:
         table = api.run_table_folder(out, config, forces, batch=batch, slots=args.slots,
-                                     full_length=args.full_length,
-                                     progress=progress_enabled(args))
+                                     full_length=args.full_length, physics=args.physics,
+                                     progress=progress_enabled(args),
+                                     cluster=getattr(args, "cluster", None))
         _make_table_figure(out, config, force=table is not None)
         if (out / REGION).exists():  # a sweep's folder: its map overlays the table's curve
             path = out / "region.png"

@@ -121,13 +121,13 @@ class ReferenceBatch:
         return pd.DataFrame(rows, columns=SUMMARY_COLUMNS)
 
 
-def batch_function(config: Config, backend: str):
-    """The sweep batch function of a backend: 'mjx' (the MJX rollout, built on first use) or
-    'reference' (:class:`ReferenceBatch`)."""
+def batch_function(config: Config, backend: str, physics: str = "auto"):
+    """The sweep batch function of a backend: 'mjx' (the batched rollout, built on first use,
+    on the ``physics`` path: auto, mjx or c) or 'reference' (:class:`ReferenceBatch`)."""
     if backend == "reference":
         return ReferenceBatch(config)
     if backend == "mjx":
-        return LazyBatch(config)
+        return LazyBatch(config, physics=physics)
     raise ParameterError(f"backend must be 'mjx' or 'reference', got {backend!r}")
 
 
@@ -141,15 +141,16 @@ class Batches:
     """One batch function per configuration (an MJX runner compiles once per configuration and
     batch size), and the region maps already computed, by (configuration, grid)."""
 
-    def __init__(self, backend: str, cluster: Any = None):
+    def __init__(self, backend: str, cluster: Any = None, physics: str = "auto"):
         self.backend = backend
+        self.physics = physics
         self.cluster = cluster  # the region maps' chunks on a Dask cluster (a Client), or None
         self._runs: dict[Config, Any] = {}
         self._regions: dict[tuple, Path] = {}
 
     def __call__(self, config: Config):
         if config not in self._runs:
-            self._runs[config] = batch_function(config, self.backend)
+            self._runs[config] = batch_function(config, self.backend, self.physics)
         return self._runs[config]
 
     def sweep(self, folder: Path, config: Config, forces: np.ndarray, durations: np.ndarray,
@@ -403,7 +404,7 @@ def run_study(run: ReportRun, st: studies.Study) -> None:
 
 def start_report(out: Path, config: Config, plan: Plan, *, backend: str,
                  study_list: list[studies.Study], conventions: tuple[str, ...],
-                 sweeps: Path | None, quiet: bool) -> ReportRun:
+                 sweeps: Path | None, quiet: bool, physics: str = "auto") -> ReportRun:
     """Open report.json in ``out`` and set up what the steps share (``config``: the base
     configuration with the plan's overrides)."""
     out.mkdir(parents=True, exist_ok=True)
@@ -413,7 +414,7 @@ def start_report(out: Path, config: Config, plan: Plan, *, backend: str,
     forces = parse_grid(plan.region_forces, "region forces")
     durations = parse_grid(plan.region_durations, "region durations")
     return ReportRun(out=out, config=config, plan=plan, backend=backend, record=record, log=log,
-                     batches=Batches(backend), region_forces=forces, region_durations=durations,
+                     batches=Batches(backend, physics=physics), region_forces=forces, region_durations=durations,
                      chunk=sweep_chunk_size(config, backend, forces.size * durations.size),
                      sweeps=sweeps, quiet=quiet)
 
@@ -421,19 +422,20 @@ def start_report(out: Path, config: Config, plan: Plan, *, backend: str,
 def run_report(out: str | Path, config: Config = Config(), plan: Plan = PLANS["default"], *,
                backend: str | None = None, study_list: list[studies.Study] | None = None,
                conventions: tuple[str, ...] = CONVENTIONS, sweeps: Path | None = None,
-               quiet: bool = False, cluster: Any = None) -> dict:
+               quiet: bool = False, cluster: Any = None, physics: str = "auto") -> dict:
     """Run everything and save the tables in ``out``; returns the report record (report.json).
 
     config: the base configuration (its convention is the studies'; the experiments run every
     convention in ``conventions``). backend: the batch function of the region maps and the
     table (default: the plan's). study_list: default every study. cluster: compute the region
     maps' chunks on a Dask cluster (a spec as ``sweep --cluster`` takes, or a Client; one
-    connection serves every map; the tables and time series run here).
+    connection serves every map; the tables and time series run here). physics: the
+    batched backend's physics path (auto, mjx or c).
     """
     study_list = list(studies.STUDIES) if study_list is None else study_list
     run = start_report(Path(out), plan_config(config, plan), plan,
                        backend=backend or plan.backend, study_list=study_list,
-                       conventions=conventions, sweeps=sweeps, quiet=quiet)
+                       conventions=conventions, sweeps=sweeps, quiet=quiet, physics=physics)
     client = local = None
     if cluster is not None:
         from ..sweep import cluster as cluster_mod

@@ -86,6 +86,91 @@ def _broadcast(tree, n):
     return jax.tree.map(lambda v: jnp.broadcast_to(v, (n,) + jnp.shape(v)), tree)
 
 
+def refill(slots: Slots, rest: Carry, taken, vacant, refill_cell, refill_force, refill_push
+           ) -> tuple[Slots, jax.Array]:
+    """Vacant slots take the next refill cells, in slot order (``taken`` already used)."""
+    R = refill_cell.shape[0]
+    rank = taken + jnp.cumsum(vacant) - 1
+    source = jnp.clip(rank, 0, R - 1)
+    take = vacant & (rank < R) & (refill_cell[source] >= 0)
+    slots = Slots(
+        carry=select(take, rest, slots.carry),
+        cell=jnp.where(take, refill_cell[source], slots.cell),
+        force=jnp.where(take, refill_force[source], slots.force),
+        n_push=jnp.where(take, refill_push[source], slots.n_push),
+        k=jnp.where(take, 0, slots.k),
+    )
+    return slots, taken + take.sum(dtype=jnp.int32)
+
+
+def certify(check, st, x, acc: Accumulators, k, n_push, ended, due):
+    """The certificate's verdict on every slot after its period ``k`` (1-based count; ``due``:
+    whether this period is a check, the same for every slot) and the accumulators with a
+    certified scenario's predicted rest of the window added. x: [S, 4] latest states."""
+    S = k.shape[0]
+    dtype = acc.max_residual.dtype
+    n_control = st.n_control
+    certified = jnp.zeros_like(ended)
+    if check is None:
+        return acc, certified
+    over = k * st.substeps >= n_push
+
+    def checked(_):
+        ok, tail = check(x, acc, over, (n_control - k) * st.substeps)
+        return ~ended & ok, tail
+
+    def skipped(_):
+        return certified, {name: jnp.zeros(S, dtype) for name in cert_mod.TAIL_FIELDS}
+
+    certified, tail = jax.lax.cond(due, checked, skipped, None)
+    # a certified scenario's remaining periods are solved and unsaturated, and its energies go
+    # on as the linear model predicts (certificate.py)
+    acc = acc._replace(
+        control_periods=jnp.where(certified, acc.control_periods + (n_control - k),
+                                  acc.control_periods),
+        **{name: jnp.where(certified, getattr(acc, name) + v.astype(dtype), getattr(acc, name))
+           for name, v in tail.items()})
+    return acc, certified
+
+
+def harvest(done: Finished, n_done, decided, cell, acc: Accumulators, k, certified
+            ) -> tuple[Finished, jax.Array]:
+    """Decided scenarios go to the buffer ``done`` (after its ``n_done`` entries)."""
+    capacity = done.cell.shape[0]
+    where = jnp.where(decided, n_done + jnp.cumsum(decided) - 1, capacity)
+    done = Finished(
+        cell=done.cell.at[where].set(cell, mode="drop"),
+        acc=jax.tree.map(lambda b, v: b.at[where].set(v, mode="drop"), done.acc, acc),
+        periods=done.periods.at[where].set(k, mode="drop"),
+        certified=done.certified.at[where].set(certified, mode="drop"),
+    )
+    return done, n_done + decided.sum(dtype=jnp.int32)
+
+
+def vacate(decided, rest: Carry, carry: Carry, slots: Slots, k) -> Slots:
+    """Slots with ``carry`` after a period; decided ones vacated, reset to rest (a vacated slot
+    idles at rest, unpushed, until it is refilled)."""
+    return Slots(carry=select(decided, rest, carry), cell=jnp.where(decided, -1, slots.cell),
+                 force=jnp.where(decided, 0, slots.force),
+                 n_push=jnp.where(decided, 0, slots.n_push), k=k)
+
+
+def empty_finished(capacity: int, dtype) -> Finished:
+    return Finished(
+        cell=jnp.full(capacity, -1, jnp.int32),
+        acc=_broadcast(Accumulators.initial(dtype), capacity),
+        periods=jnp.zeros(capacity, jnp.int32), certified=jnp.zeros(capacity, bool))
+
+
+def checker(cert, periods: int | None = None):
+    """The vmapped certificate test, or None without a certificate."""
+    if cert is None:
+        return None
+    if periods is not None and periods % cert_mod.CHECK_EVERY:
+        raise ValueError(f"block of {periods} periods: not a multiple of {cert_mod.CHECK_EVERY}")
+    return jax.vmap(lambda x, acc, over, left: cert_mod.check(jnp, cert, x, acc, over, left))
+
+
 def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push, *,
           periods: int, early: bool, packing: Packing):
     """``periods`` control periods of one device's slots with refill and harvest (pure JAX).
@@ -98,17 +183,10 @@ def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push
     slots = slots._replace(carry=packing.unpack(slots.carry, S))
     R = refill_cell.shape[0]
     dtype = ar.d0.qpos.dtype
-    capacity = S + R
-    n_control = st.n_control
     rest = _broadcast(initial_carry(ar, sn, st), S)
     run = jax.vmap(lambda c, k, f, n: period(ar, sn, st, c, k, f, n)[0])
     every = cert_mod.CHECK_EVERY
-    if early and cert is not None:
-        check = jax.vmap(lambda x, acc, over, left: cert_mod.check(jnp, cert, x, acc, over, left))
-        if periods % every:
-            raise ValueError(f"block of {periods} periods: not a multiple of {every}")
-    else:
-        check = None
+    check = checker(cert if early else None, periods)
 
     def step(state, s):
         slots, taken, done, n_done = state
@@ -118,63 +196,22 @@ def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push
         vacant = slots.cell < 0
         if check is not None:
             vacant = vacant & (s % every == 0)
-        rank = taken + jnp.cumsum(vacant) - 1
-        source = jnp.clip(rank, 0, R - 1)
-        take = vacant & (rank < R) & (refill_cell[source] >= 0)
-        slots = Slots(
-            carry=select(take, rest, slots.carry),
-            cell=jnp.where(take, refill_cell[source], slots.cell),
-            force=jnp.where(take, refill_force[source], slots.force),
-            n_push=jnp.where(take, refill_push[source], slots.n_push),
-            k=jnp.where(take, 0, slots.k),
-        )
-        taken = taken + take.sum(dtype=jnp.int32)
+        slots, taken = refill(slots, rest, taken, vacant, refill_cell, refill_force,
+                              refill_push)
         # 2. one control period of every slot
         active = slots.cell >= 0
         carry = run(slots.carry, slots.k, slots.force, slots.n_push)
         k = slots.k + 1
-        acc = carry.acc
-        ended = ~acc.alive | (k >= n_control)
-        certified = jnp.zeros_like(ended)
-        if check is not None:
-            over = k * st.substeps >= slots.n_push
-
-            def checked(_):
-                ok, tail = check(carry.x_prev, acc, over, (n_control - k) * st.substeps)
-                return ~ended & ok, tail
-
-            def skipped(_):
-                return certified, {name: jnp.zeros(S, dtype) for name in cert_mod.TAIL_FIELDS}
-
-            certified, tail = jax.lax.cond(s % every == every - 1, checked, skipped, None)
-            # a certified scenario's remaining periods are solved and unsaturated, and its
-            # energies go on as the linear model predicts (certificate.py)
-            acc = acc._replace(
-                control_periods=jnp.where(certified, acc.control_periods + (n_control - k),
-                                          acc.control_periods),
-                **{name: jnp.where(certified, getattr(acc, name) + v.astype(dtype),
-                                   getattr(acc, name)) for name, v in tail.items()})
+        ended = ~carry.acc.alive | (k >= st.n_control)
+        acc, certified = certify(check, st, carry.x_prev, carry.acc, k, slots.n_push, ended,
+                                 s % every == every - 1)
         decided = active & (ended | certified)
         # 3. decided scenarios go to the buffer; their slots are vacated (reset to rest)
-        where = jnp.where(decided, n_done + jnp.cumsum(decided) - 1, capacity)
-        done = Finished(
-            cell=done.cell.at[where].set(slots.cell, mode="drop"),
-            acc=jax.tree.map(lambda b, v: b.at[where].set(v, mode="drop"), done.acc, acc),
-            periods=done.periods.at[where].set(k, mode="drop"),
-            certified=done.certified.at[where].set(certified, mode="drop"),
-        )
-        n_done = n_done + decided.sum(dtype=jnp.int32)
-        # (a vacated slot idles at rest, unpushed, until it is refilled)
-        slots = Slots(carry=select(decided, rest, carry),
-                      cell=jnp.where(decided, -1, slots.cell),
-                      force=jnp.where(decided, 0, slots.force),
-                      n_push=jnp.where(decided, 0, slots.n_push), k=k)
+        done, n_done = harvest(done, n_done, decided, slots.cell, acc, k, certified)
+        slots = vacate(decided, rest, carry, slots, k)
         return (slots, taken, done, n_done), None
 
-    done = Finished(
-        cell=jnp.full(capacity, -1, jnp.int32),
-        acc=_broadcast(Accumulators.initial(dtype), capacity),
-        periods=jnp.zeros(capacity, jnp.int32), certified=jnp.zeros(capacity, bool))
+    done = empty_finished(S + R, dtype)
     zero = jnp.zeros((), jnp.int32)
     (slots, taken, done, _), _ = jax.lax.scan(step, (slots, zero, done, zero),
                                               jnp.arange(periods, dtype=jnp.int32))

@@ -188,6 +188,11 @@ def with_positions(s: Sample, ar: Arrays, sn: Sensors, d: mjx.Data) -> Sample:
     return s._replace(cell_low=cell_heights(ar.mx, d, sn), com=whole_body_com(ar.mx, d, sn))
 
 
+def remember(history: jax.Array, s: Sample) -> jax.Array:
+    """The controller's measurement buffer [delay+1, 4] with sample ``s`` as its newest."""
+    return jnp.concatenate([jnp.concatenate([s.q, s.dq])[None], history[:-1]])
+
+
 def sample_update(acc: Accumulators, s: Sample, i: jax.Array, torques: jax.Array,
                   u: jax.Array, q_prev: jax.Array, x_prev: jax.Array,
                   limits: Limits) -> Accumulators:
@@ -282,6 +287,27 @@ def initial_carry(ar: Arrays, sn: Sensors, st: Static) -> Carry:
                  x_prev=state(ar, q0, dq0), acc=Accumulators.initial(dtype))
 
 
+def control(ar: Arrays, st: Static, carry: Carry, k: jax.Array
+            ) -> tuple[Carry, jax.Array, jax.Array]:
+    """The MPC solve of control period k from the carry's (delayed) measurement, x = 0 for a
+    dead scenario: returns the carry (next warm start, :func:`period_update` folded in), the
+    input u [2] and the motor torques [2] to hold (zero if not finite). Shared by the MJX
+    period (:func:`period`) and the MuJoCo C path (``cpath.py``)."""
+    dtype = ar.d0.qpos.dtype
+    alive = carry.acc.alive
+    measured = carry.history[st.delay_steps]
+    x_meas = jnp.where(alive, state(ar, measured[:2], measured[2:]), jnp.zeros(4, dtype))
+    res = admm_mod.admm_solve(ar.qp, x_meas, carry.warm, st.settings)
+    u = res.u0.astype(dtype)
+    torques = ar.torque_map @ u
+    acc = period_update(carry.acc, res, u, torques, st.limits, k)
+    finite = jnp.isfinite(u).all() & jnp.isfinite(torques).all()
+    u = jnp.where(finite, u, jnp.zeros_like(u))
+    torques = jnp.where(finite, torques, jnp.zeros_like(torques))
+    warm = admm_mod.ADMMWarm(*(w.astype(dtype) for w in res.warm_next))
+    return carry._replace(warm=warm, acc=acc), u, torques
+
+
 def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, force: jax.Array,
            n_push: jax.Array) -> tuple[Carry, dict[str, jax.Array] | None]:
     """Control period k of one scenario: the MPC solve, then ``st.substeps`` physics steps.
@@ -302,8 +328,7 @@ def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, forc
 
     def record(carry: Carry, d: mjx.Data, s: Sample) -> Carry:
         """The new physics state and the controller's (delayed) measurement buffer."""
-        history = jnp.concatenate([jnp.concatenate([s.q, s.dq])[None], carry.history[:-1]])
-        return carry._replace(d=d, history=history)
+        return carry._replace(d=d, history=remember(carry.history, s))
 
     def physics_step(carry: Carry, i: jax.Array, torques: jax.Array, u: jax.Array):
         """Step i, then its sample: positions from an extra ``mjx.kinematics``."""
@@ -332,20 +357,10 @@ def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, forc
 
     alive = carry.acc.alive
     # A dead scenario restarts from rest with a cold controller (see the module docstring).
-    d = select(alive, carry.d, ar.d0)
-    warm = select(alive, carry.warm, rest.warm)
-    measured = carry.history[st.delay_steps]
-    x_meas = jnp.where(alive, state(ar, measured[:2], measured[2:]), jnp.zeros(4, dtype))
-    res = admm_mod.admm_solve(ar.qp, x_meas, warm, st.settings)
-    u = res.u0.astype(dtype)
-    torques = ar.torque_map @ u
-    acc = period_update(carry.acc, res, u, torques, st.limits, k)
-    finite = jnp.isfinite(u).all() & jnp.isfinite(torques).all()
-    u = jnp.where(finite, u, jnp.zeros_like(u))
-    torques = jnp.where(finite, torques, jnp.zeros_like(torques))
-    warm = admm_mod.ADMMWarm(*(w.astype(dtype) for w in res.warm_next))
-    history = jnp.where(alive, carry.history, rest.history)
-    carry = carry._replace(d=d, warm=warm, history=history, acc=acc)
+    carry = carry._replace(d=select(alive, carry.d, ar.d0),
+                           warm=select(alive, carry.warm, rest.warm))
+    carry, u, torques = control(ar, st, carry, k)
+    carry = carry._replace(history=jnp.where(alive, carry.history, rest.history))
 
     steps = k * S + jnp.arange(S, dtype=jnp.int32)
     if st.trajectories or st.push_at_hip:

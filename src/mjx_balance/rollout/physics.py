@@ -43,7 +43,7 @@ import numpy as np
 with contextlib.redirect_stdout(io.StringIO()):
     from mujoco import mjx
 
-from ..model import build_model, indices
+from ..model import indices, mjcf
 from ..params import Config
 
 MJX_OPTIONS: dict[str, Any] = {
@@ -78,9 +78,16 @@ def cast_floats(tree: Any, dtype) -> Any:
     return jax.tree_util.tree_map(cast, tree)
 
 
-def mj_model(config: Config, options: dict[str, Any] | None = None) -> mujoco.MjModel:
-    """The free-foot MuJoCo model of ``config`` with the MJX options applied (C side too)."""
-    model = build_model(config.body, config.scenario.physics_dt, foot="free")
+def mj_model(config: Config, options: dict[str, Any] | None = None, *,
+             sensors: str = "") -> mujoco.MjModel:
+    """The free-foot MuJoCo model of ``config`` with the MJX options applied (C side too).
+
+    sensors: MJCF sensor elements to add (the C path's measurements, ``cpath.py``); sensors
+    only read the simulation, so the physics is the same with or without them."""
+    xml = mjcf(config.body, config.scenario.physics_dt, foot="free")
+    if sensors:
+        xml = xml.replace("</mujoco>", f"  <sensor>\n{sensors}  </sensor>\n</mujoco>")
+    model = mujoco.MjModel.from_xml_string(xml)
     opts = dict(MJX_OPTIONS if options is None else options)
     for name, value in opts.items():
         setattr(model.opt, name, value)

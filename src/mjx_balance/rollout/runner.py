@@ -63,8 +63,13 @@ class BatchRunner:
 
     def __init__(self, config: Config, *, dtype=jnp.float32, trajectories: bool = False,
                  mjx_options: dict[str, Any] | None = None, devices: list | None = None,
-                 slots: int | None = None, early_stop: bool = True):
+                 slots: int | None = None, early_stop: bool = True, physics: str = "mjx",
+                 threads: int | None = None):
+        if physics not in ("mjx", "c"):
+            raise ValueError(f"physics must be 'mjx' or 'c' (resolve 'auto' first), got "
+                             f"{physics!r}")
         self.config = config
+        self.physics = physics
         self.dtype = jnp.dtype(dtype)
         self.trajectories = trajectories
         body, ctrl, sc = config.body, config.controller, config.scenario
@@ -96,6 +101,13 @@ class BatchRunner:
         self.compile_seconds: dict[int, float] = {}
         self.last_trajectories: dict[str, np.ndarray] | None = None
         self._engine_options = dict(slots=slots, early=early_stop)
+        if physics == "c":
+            from .cpath import unsupported
+
+            reason = unsupported(config, trajectories)
+            if reason:
+                raise ValueError(reason)
+            self._engine_options["threads"] = threads
         self._engine = None
         self.last_periods: np.ndarray | None = None  # control periods simulated per scenario
         self.last_certified: np.ndarray | None = None
@@ -105,7 +117,10 @@ class BatchRunner:
         """The continuous-batching engine (``engine.py``) that runs scenarios without
         trajectories."""
         if self._engine is None:
-            from .engine import Engine
+            if self.physics == "c":
+                from .cpath import CEngine as Engine
+            else:
+                from .engine import Engine
             self._engine = Engine(self, **self._engine_options)
         return self._engine
 

@@ -221,14 +221,30 @@ def evaluate_cells(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarra
     """Summary rows of the scenarios, in order: in calls of exactly ``batch`` (padded) if
     given, else one call padded to ``pad_to``. With ``cells``, only the scenarios it lacks are
     run (in calls of those sizes), each call's rows are kept there as it returns, and every row
-    is read back from it (so a resumed table is built from the same values as a whole one)."""
+    is read back from it (so a resumed table is built from the same values as a whole one).
+    On a cluster (a batch function with ``evaluate_calls``, ``cluster.ClusterBatch``) the same
+    calls run as tasks on its workers, all of a round's at once, and come back in order: the
+    rows, and so the kept part files, are those of a local run."""
+    on_cluster = getattr(run_batch, "evaluate_calls", None)  # cluster.ClusterBatch
     if cells is None:
+        if on_cluster is not None:
+            parts = chunk_slices(forces.size, batch) if batch else [slice(0, forces.size)]
+            frames = list(on_cluster([(forces[p], durations[p]) for p in parts],
+                                     batch or pad_to))
+            return pd.concat(frames, ignore_index=True) if len(frames) > 1 else frames[0]
         return (evaluate_batches(run_batch, forces, durations, config, batch) if batch
                 else evaluate(run_batch, forces, durations, config, pad_to=pad_to))
     todo = cells.missing(forces, durations)
-    for part in (chunk_slices(todo.size, batch) if batch else [slice(0, todo.size)]):
-        if todo[part].size:
-            cells.add(evaluate(run_batch, forces[todo[part]], durations[todo[part]], config,
+    calls = [todo[part] for part in
+             (chunk_slices(todo.size, batch) if batch else [slice(0, todo.size)])
+             if todo[part].size]
+    if on_cluster is not None:
+        # the same calls, each split into tasks over the workers and kept as it comes back
+        for frame in on_cluster([(forces[c], durations[c]) for c in calls], batch or pad_to):
+            cells.add(frame)
+    else:
+        for call in calls:
+            cells.add(evaluate(run_batch, forces[call], durations[call], config,
                                pad_to=batch or pad_to))
     return cells.frame(forces, durations)
 
@@ -327,17 +343,28 @@ def _get(row: dict | None, key: str) -> float:
 
 def run_table(out: str | Path, config: Config, forces: np.ndarray | str | Sequence[float], *,
               run_batch: RunBatch | None = None, progress: bool = True,
-              log: Callable[[str], None] | None = print, **options: Any) -> TableResult | None:
+              log: Callable[[str], None] | None = print, cluster: Any = None,
+              **options: Any) -> TableResult | None:
     """``max_acting_time`` into ``out/table.csv`` (+ table_runs.parquet, every scenario run),
     under the folder's lock (``store.folder_lock``).
 
     Every scenario is kept in ``out/table_runs/`` as its batch call returns: an interrupted
     table resumes from them, and a table over other forces reuses the cells they share.
     Returns None (and does nothing) when the folder already holds the table for these forces.
+
+    cluster: run each round's batch calls on a Dask cluster (``cluster.ClusterBatch``, as
+    ``run_sweep``'s chunks: ``"local:N"``, a scheduler address or file, or a
+    ``distributed.Client``); the bisection, the kept scenarios and the table stay here and
+    are the same as without it. None: here.
     """
     forces = parse_grid(forces, "table forces")
     with folder_lock(out):
-        return _run_table(out, config, forces, run_batch, progress, log, options)
+        if cluster is None:
+            return _run_table(out, config, forces, run_batch, progress, log, options)
+        from .cluster import ClusterBatch
+
+        with ClusterBatch(cluster, run_batch or LazyBatch(config), config, log) as on_cluster:
+            return _run_table(out, config, forces, on_cluster, progress, log, options)
 
 
 def _run_table(out: str | Path, config: Config, forces: np.ndarray, run_batch: RunBatch | None,

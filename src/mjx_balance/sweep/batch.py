@@ -17,15 +17,16 @@ import numpy as np
 import pandas as pd
 
 from ..outcomes import SUMMARY_COLUMNS, summary_frame
-from ..params import Config
+from ..params import Config, ParameterError
 from .chunks import chunk_slices
 
 RunBatch = Callable[[np.ndarray, np.ndarray], "pd.DataFrame | dict[str, np.ndarray]"]
 
 
 def default_batch(config: Config, **engine: Any) -> RunBatch:
-    """The MJX rollout for this configuration on the continuous-batching engine (compiled on
-    first call); ``engine``: ``slots``, ``early_stop`` (see ``rollout.BatchRunner``)."""
+    """The batched rollout for this configuration on the continuous-batching engine (compiled
+    on first call); ``engine``: ``slots``, ``early_stop``, ``physics`` ("mjx" or "c"; see
+    ``rollout.BatchRunner``)."""
     from ..rollout import BatchRunner
 
     return BatchRunner(config, **engine).run_frame
@@ -35,29 +36,52 @@ class LazyBatch:
     """The default batch function, built on its first call (a finished sweep builds nothing).
 
     slots: per device (None: the engine's default); early_stop: stop certified recoveries
-    (False: ``--full-length``). A sweep folder records both and resumes with them.
+    (False: ``--full-length``); physics: "auto", "mjx" or "c" (``rollout.cpath.resolve``). A
+    sweep folder records all three and resumes with them.
     """
 
+    def __init__(self, config: Config, *, slots: int | None = None, early_stop: bool = True,
+                 physics: str = "auto"):
+        from ..rollout.cpath import PATHS
 
-    def __init__(self, config: Config, *, slots: int | None = None, early_stop: bool = True):
+        if physics not in PATHS:
+            raise ValueError(f"physics must be one of {', '.join(PATHS)}, got {physics!r}")
         self.config = config
         self.slots = slots
         self.early_stop = early_stop
+        self.asked_physics = physics
+        self._physics: str | None = None if physics == "auto" else physics
         self._run: RunBatch | None = None
 
-    def use_engine(self, slots: int | None, early_stop: bool) -> None:
+    @property
+    def physics(self) -> str:
+        """The physics path that runs ("mjx" or "c"; "auto" resolved on first use)."""
+        if self._physics is None:
+            from ..rollout.cpath import resolve
+
+            self._physics = resolve(self.asked_physics, self.config)
+        return self._physics
+
+    def use_engine(self, slots: int | None, early_stop: bool, physics: str | None = None
+                   ) -> None:
         """Run with these engine settings (rebuilt if it was built with others)."""
         runner = getattr(self._run, "__self__", None)
         if runner is not None and (early_stop != self.early_stop or (
-                slots is not None and slots != runner.engine.slots)):
+                slots is not None and slots != runner.engine.slots) or (
+                physics is not None and physics != runner.physics)):
             self._run = None
         self.slots, self.early_stop = slots, early_stop
+        if physics is not None:
+            self._physics = physics
 
     def _built(self) -> RunBatch:
         if self._run is None:
             options = ({} if self.slots is None and self.early_stop
                        else {"slots": self.slots, "early_stop": self.early_stop})
-            self._run = default_batch(self.config, **options)
+            self._run = default_batch(self.config, physics=self.physics, **options)
+        from .store import note_physics
+
+        note_physics("mujoco" if self.physics == "c" else "mjx")
         return self._run
 
     @property
@@ -81,7 +105,8 @@ class LazyBatch:
         stand-in."""
         if not self.can_stream():
             return None
-        return {"slots": int(self.runner.engine.slots), "early_stop": bool(self.early_stop)}
+        return {"slots": int(self.runner.engine.slots), "early_stop": bool(self.early_stop),
+                "physics": self.physics}
 
     def __call__(self, forces: np.ndarray, durations: np.ndarray):
         return self._built()(forces, durations)
@@ -96,7 +121,8 @@ class LazyBatch:
         say = log or (lambda _msg: None)
         start = time.perf_counter()
         if self._run is None:
-            say("building the MJX rollout ...")
+            say(f"building the rollout ({'MuJoCo C' if self.physics == 'c' else 'MJX'} "
+                "physics) ...")
         runner = self.runner
         if runner is not None and hasattr(runner, "prepare"):  # rollout.BatchRunner
             if not runner.is_prepared():
@@ -110,14 +136,26 @@ class LazyBatch:
 def resume_engine(run_batch: RunBatch, recorded: dict | None, path: Any,
                    say: Callable[[str], None]) -> None:
     """Resume with the engine settings the folder was started with (results depend on the slot
-    count's compiled program and on early stopping). A folder from before they were recorded
-    (lock-step batches run to t_end) resumes with what is asked."""
+    count's compiled program, on early stopping and on the physics path). A folder from before
+    they were recorded (lock-step batches run to t_end) resumes with what is asked; one from
+    before the physics path was recorded ran MJX. Another physics path asked explicitly is
+    refused: a map of mixed physics would be no map."""
     if recorded is None or not hasattr(run_batch, "engine_record"):
         return
+    physics = recorded.get("physics", "mjx")
+    asked_physics = getattr(run_batch, "asked_physics", "auto")
+    if asked_physics not in ("auto", physics):
+        raise ParameterError(
+            f"{path} was started with {physics} physics; refusing to resume it with "
+            f"--physics {asked_physics} (use --physics {physics} or auto, or another --out "
+            "folder)")
     asked = (run_batch.slots, run_batch.early_stop)
     wanted = (int(recorded["slots"]), bool(recorded["early_stop"]))
     if hasattr(run_batch, "use_engine"):
-        run_batch.use_engine(*wanted)
+        try:
+            run_batch.use_engine(*wanted, physics=physics)
+        except TypeError:  # a stand-in without the physics path
+            run_batch.use_engine(*wanted)
     else:
         run_batch.slots, run_batch.early_stop = wanted
     if asked[0] not in (None, wanted[0]) or asked[1] != wanted[1]:

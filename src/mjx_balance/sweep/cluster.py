@@ -28,25 +28,34 @@ the chunks of a region sweep as Dask tasks, one task per chunk:
   its cells); the driver writes a chunk only once. A killed driver leaves the written chunks,
   and the same command resumes from them (``region.py``).
 
+The robustness table (``run_table(..., cluster=SPEC)``, ``mjx-balance table --cluster SPEC``)
+uses the same connection, checks and runners: the driver keeps the bisection and the table's
+store (``store.TableCells``), and each round's batch calls run as tasks (each call split into
+about one task per worker, :meth:`ClusterBatch.evaluate_calls`, worker side
+:func:`compute_cells`) whose rows come back, reassembled in order, before the driver keeps
+them: the same part files, runs and table as a local table.
+
 Dask is an optional extra (``pip install "mjx_balance[cluster]"``); this module imports it only
 when a cluster is asked for.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import logging
 import os
 import platform
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import numpy as np
 import pandas as pd
 
 from ..params import Config, ParameterError
 from .batch import LazyBatch, evaluate
+from .chunks import chunk_slices
 from .grid import same_values
 from .store import config_dict, versions
 
@@ -127,11 +136,12 @@ class ChunkSpec:
     facts: dict[str, Any] = field(default_factory=dict)  # the driver's (local_facts)
     device: tuple[str, str] | None = None  # the sweep's (platform, device kind)
     batch: Any = None  # a stand-in batch function (tests), else None: the engine
+    physics: str = "auto"  # the physics path (auto: resolved on the worker, then recorded)
 
     def runner_key(self, slots: int | None = None) -> str:
         settings = {"config": config_dict(self.config), "x64": self.x64,
                     "slots": self.slots if slots is None else slots,
-                    "early_stop": self.early_stop}
+                    "early_stop": self.early_stop, "physics": self.physics}
         return json.dumps(settings, sort_keys=True, default=str)
 
 
@@ -157,7 +167,7 @@ def _runner(spec: ChunkSpec) -> Any:
 
         cache.enable()  # the persistent compilation cache, where the worker has one
         run = _RUNNERS[key] = LazyBatch(spec.config, slots=spec.slots,
-                                        early_stop=spec.early_stop)
+                                        early_stop=spec.early_stop, physics=spec.physics)
     return run
 
 
@@ -184,7 +194,8 @@ def worker_engine_record(spec: ChunkSpec) -> dict[str, Any] | None:
         run = _runner(spec)
         record = run.engine_record()
     if record is not None:
-        _RUNNERS.setdefault(spec.runner_key(record["slots"]), run)
+        resolved = dataclasses.replace(spec, physics=record.get("physics", spec.physics))
+        _RUNNERS.setdefault(resolved.runner_key(record["slots"]), run)
     return record
 
 
@@ -206,6 +217,16 @@ def compute_chunk(spec: ChunkSpec, index: int, forces: np.ndarray,
         else:
             frame = evaluate(run, forces, durations, spec.config, pad_to=spec.chunk_size)
     return frame
+
+
+def compute_cells(spec: ChunkSpec, forces: np.ndarray, durations: np.ndarray,
+                  pad_to: int | None) -> pd.DataFrame:
+    """The summary rows of the scenarios (forces[i], durations[i]), as the local table's batch
+    call gets them (``batch.evaluate``, padded to ``pad_to`` where the function wants it)."""
+    _check_here(spec)
+    run = _runner(spec)
+    with (_NoContext() if spec.batch is not None else _x64(spec)):
+        return evaluate(run, forces, durations, spec.config, pad_to=pad_to)
 
 
 class _NoContext:
@@ -300,7 +321,8 @@ class ClusterBatch:
     ``cluster``). It connects when first needed (a finished sweep starts nothing), stands in
     for the engine's settings (``slots``, ``early_stop``, ``engine_record``, ``use_engine``:
     the manifest's record, see ``batch.resume_engine``) and computes chunks on the workers
-    (:meth:`compute_chunks`). Use it as a context manager: it closes what it started."""
+    (:meth:`compute_chunks`; a table's batch calls: :meth:`evaluate_calls`). Use it as a
+    context manager: it closes what it started."""
 
     def __init__(self, cluster: Any, inner: Any, config: Config,
                  log: Callable[[str], None] | None = print):
@@ -312,6 +334,8 @@ class ClusterBatch:
         self.engine = type(inner) is LazyBatch
         self.slots = getattr(inner, "slots", None)
         self.early_stop = getattr(inner, "early_stop", True)
+        self.asked_physics = getattr(inner, "asked_physics", "auto")
+        self.physics = self.asked_physics  # "auto" until a worker's record resolves it
         self.device: tuple[str, str] | None = None
         self._client = None
         self._local = None
@@ -348,11 +372,14 @@ class ClusterBatch:
             x64 = bool(jax.config.jax_enable_x64)
         return ChunkSpec(self.config, self.slots, bool(self.early_stop), int(chunk_size), x64,
                          facts=dict(self._facts), device=self.device,
-                         batch=None if self.engine else self.inner)
+                         batch=None if self.engine else self.inner, physics=self.physics)
 
     # -- the engine's settings (batch.resume_engine, region._region_record) ------------------
-    def use_engine(self, slots: int | None, early_stop: bool) -> None:
+    def use_engine(self, slots: int | None, early_stop: bool, physics: str | None = None
+                   ) -> None:
         self.slots, self.early_stop = slots, early_stop
+        if physics is not None:
+            self.physics = physics
 
     def engine_record(self) -> dict[str, Any] | None:
         """The engine record of a new folder, from one worker (its default slot count is the
@@ -364,6 +391,7 @@ class ClusterBatch:
         record = client.submit(worker_engine_record, self._spec(), pure=False).result()
         if record is not None:
             self.slots = int(record["slots"])
+            self.physics = record.get("physics", self.physics)
         return record
 
     def prepare(self, batch: int, log: Callable[[str], None] | None = print) -> None:
@@ -424,6 +452,66 @@ class ClusterBatch:
                 bar.update(cells.stop - cells.start)
         finally:
             left = [f for f, i in futures.items() if i not in written]
+            if left:
+                client.cancel(left)
+
+
+    def evaluate_calls(self, calls: list[tuple[np.ndarray, np.ndarray]],
+                       pad_to: int | None) -> Iterator[pd.DataFrame]:
+        """The summary rows of each batch call (forces, durations) of a table round, in order,
+        as ``batch.evaluate(..., pad_to=pad_to)`` returns them here: every call is split into
+        tasks of at least the engine's slots (so that all the workers share a round), all the
+        round's tasks are submitted at once, and each call's rows are yielded, reassembled in
+        order, as soon as it and every call before it are done. The engine's rows do not
+        depend on how a call is split (docs/engine.md); a stand-in batch function gets every
+        task padded to the task size. A task on a worker that dies is run again by Dask."""
+        distributed = _distributed()
+        client = self.client
+        spec = self._spec(pad_to or 0)
+        if self.engine and spec.slots is None:
+            raise RuntimeError("the engine's slot count is not set (no engine record)")
+        workers = max(1, len(client.nthreads()))
+        smallest = int(spec.slots) if self.engine else 1
+        base = {"runner": spec.runner_key(), "facts": spec.facts, "device": spec.device,
+                "batch": None if self.engine else _tokenize(self.inner)}
+        tasks: list[list[tuple[Any, slice]]] = []
+        for forces, durations in calls:
+            n = int(forces.size)
+            size = max(smallest, -(-n // workers)) if n else 1
+            pad = (size if pad_to else None) if size < n else pad_to
+            mine = []
+            for cells in (chunk_slices(n, size) if n else []):
+                f, d = forces[cells], durations[cells]
+                key = "mjx_balance-cells-" + _token({
+                    **base, "pad": pad, "cells": hashlib.sha1(f.tobytes() + d.tobytes()
+                                                              ).hexdigest()})
+                mine.append((client.submit(compute_cells, spec, f, d, pad, key=key, pure=True),
+                             cells))
+            tasks.append(mine)
+        futures = [future for mine in tasks for future, _ in mine]
+        try:
+            for (forces, durations), mine in zip(calls, tasks):
+                parts = []
+                for future, cells in mine:
+                    try:
+                        frame = future.result()
+                    except distributed.KilledWorker as exc:
+                        raise RuntimeError(
+                            f"a table task was running on every worker that died ({exc}); the "
+                            "scenarios kept so far stay: run the same command again to resume"
+                        ) from None
+                    future.release()
+                    if not (len(frame) == cells.stop - cells.start
+                            and same_values(frame["force"], forces[cells])
+                            and same_values(frame["duration"], durations[cells])):
+                        raise RuntimeError("a table task came back with other cells than asked")
+                    parts.append(frame)
+                if not parts:
+                    yield evaluate(self.inner, forces, durations, self.config)  # no rows
+                else:
+                    yield parts[0] if len(parts) == 1 else pd.concat(parts, ignore_index=True)
+        finally:
+            left = [f for f in futures if f.status == "pending"]
             if left:
                 client.cancel(left)
 

@@ -92,6 +92,12 @@ def run_context(*, command: str | None = None, physics: str | None = None) -> It
         _RUN["command"], _RUN["physics"] = saved["command"], saved["physics"]
 
 
+def note_physics(physics: str) -> None:
+    """The physics this process's work in the current run context uses (the rollout, once
+    built, says which path it runs: "mjx", or "mujoco" for MuJoCo C)."""
+    _RUN["physics"] = physics
+
+
 def _distribution_version(name: str) -> str | None:
     from importlib.metadata import PackageNotFoundError, version
 
@@ -521,6 +527,8 @@ def manifest_problem(manifest: Any) -> str:
         if (isinstance(slots, bool) or not isinstance(slots, int) or slots < 1
                 or not isinstance(engine.get("early_stop"), bool)):
             return f"'{name}' is not {{\"slots\": whole number >= 1, \"early_stop\": true/false}}"
+        if engine.get("physics", "mjx") not in ("mjx", "c"):
+            return f"'{name}.physics' is not \"mjx\" or \"c\""
     return ""
 
 
