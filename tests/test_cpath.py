@@ -1,0 +1,182 @@
+"""The MuJoCo C physics path (rollout/cpath.py): its measurements, its agreement with the scalar
+reference and with the MJX path, and that no result depends on threads, slots or order.
+
+The C path runs the reference's physics (the same MJCF, MuJoCo's default solver options,
+float64) and the batched path's controller, so against the reference run with that controller
+(``AdmmMPC``) it is the same closed loop up to round-off: the float32 torque map, the contact
+solver's warm start recovered from two velocities, and the last sample of each period read from
+float32 kinematics. Tolerances below are set from those, not from what a run happened to give.
+"""
+
+import math
+
+import jax
+import mujoco
+import numpy as np
+import pytest
+
+from mjx_balance import metrics, reference
+from mjx_balance.model import build_model, indices
+from mjx_balance.params import Config, ParameterError
+from mjx_balance.rollout import BatchRunner
+from mjx_balance.rollout import cpath
+from mjx_balance.sweep.batch import LazyBatch, resume_engine
+from test_rollout import AdmmMPC
+
+CONFIG = Config().replace(scenario={"t_end": 2.0})
+# recovered (0, 20 N), falls by several rules (heel/toe lift, state bound), and not settled (a
+# push that ends at t_end): every outcome but divergence, which test_a_reset_is_divergence covers
+CELLS = [(0.0, 0.1), (20.0, 0.1), (50.0, 0.3), (150.0, 0.1), (200.0, 0.1), (-150.0, 0.3),
+         (80.0, 0.5), (8.0, 2.0)]
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _float32_module():
+    with jax.enable_x64(False):
+        yield
+
+
+@pytest.fixture(scope="module")
+def c_runner():
+    """The C path for CONFIG on one JAX device, 4 slots, 2 MuJoCo threads (compiled once)."""
+    runner = BatchRunner(CONFIG, physics="c", slots=4, threads=2, early_stop=False,
+                         devices=jax.local_devices()[:1])
+    runner.prepare()
+    return runner
+
+
+@pytest.fixture(scope="module")
+def c_frame(c_runner):
+    forces, durations = np.array(CELLS).T
+    return c_runner.run_frame(forces, durations)
+
+
+def test_sensors_and_warm_start_reproduce_mj_step():
+    """Advancing with ``mujoco.rollout`` period by period (sensors, recovered warm start) gives
+    the states and samples that a plain ``mj_step`` loop with the reference's readings gives."""
+    c = cpath.CPhysics(CONFIG, threads=2)
+    model = build_model(CONFIG.body, CONFIG.scenario.physics_dt)  # the reference's model
+    ix = indices(model)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    S, periods = c.substeps, 60
+    torques = np.array([-4.0, 1.5])
+    push = np.full((1, S), 60.0)
+    state, warm = c.rest[None].copy(), c.rest_warm[None].copy()
+    worst = 0.0
+    for k in range(periods):
+        f = push if k < 20 else 0 * push
+        states, sens = c.advance(state, warm, torques[None], f)
+        rows, last_q = c.samples(states, sens)
+        for j in range(S):
+            data.ctrl[:] = torques
+            data.xfrc_applied[ix.upper_body, 0] = f[0, j]
+            mujoco.mj_step(model, data)
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_comPos(model, data)
+            q = data.qpos[[ix.ankle_qpos, ix.hip_qpos]]
+            worst = max(worst, np.abs(rows[0, j, cpath.Q] - q).max())
+            cop = metrics.load_cell_cop(model, data, ix.cell_geoms)[0]
+            assert (math.isnan(cop) and math.isnan(rows[0, j, cpath.COP])) or \
+                abs(rows[0, j, cpath.COP] - cop) <= 1e-9 + 1e-6 * abs(cop), (k, j)
+            if j < S - 1:  # the last sample's positions come from the next call's kinematics
+                np.testing.assert_allclose(rows[0, j, cpath.CELLS],
+                                           metrics.cell_heights(model, data, ix.cell_geoms),
+                                           atol=1e-9)
+                assert abs(rows[0, j, cpath.COM] - metrics.whole_body_com(data, ix.foot_body)) \
+                    <= 1e-9
+            assert rows[0, j, cpath.OK] == 1
+        np.testing.assert_allclose(last_q[0], data.qpos, atol=1e-9)
+        warm = c.next_warm(state, states)
+        state = states[:, -1].copy()
+        state[:, 0] = cpath.TIME0
+    # the same physics from the same states: only the warm start differs (by round-off), and
+    # the contact solver converges to its tolerance from either
+    assert worst <= 1e-9, worst
+
+
+def test_a_reset_simulation_is_divergence():
+    """MuJoCo resets a simulation that meets a huge value; every sample from there is marked
+    not OK (the kernel then reports divergence, as the reference does on MuJoCo's warning)."""
+    c = cpath.CPhysics(CONFIG, threads=1)
+    states, sens = c.advance(c.rest[None], c.rest_warm[None], np.zeros((1, 2)),
+                             np.full((1, c.substeps), 1e30))
+    rows, _ = c.samples(states, sens)
+    assert not rows[0, :, cpath.OK].any()
+    ok_states, ok_sens = c.advance(c.rest[None], c.rest_warm[None], np.zeros((1, 2)),
+                                   np.full((1, c.substeps), 100.0))
+    assert c.samples(ok_states, ok_sens)[0][0, :, cpath.OK].all()
+
+
+def test_c_path_matches_the_reference(c_runner, c_frame):
+    """With the batched ADMM as the reference's controller, the C path is the reference's closed
+    loop: the same outcome, fall rule and fall sample, and summaries equal to round-off grown
+    over 2 s of closed loop. Measured when this was written: runs that do not fall agree to
+    ~1e-6 relative (bound here: 1e-5 on integrals, 1e-6 rad / m / N m on peaks and extremes);
+    every fall here comes after an infeasible QP, whose ADMM answer amplifies round-off
+    (docs/model.md), and the foot turns fast at the fall sample: up to 4e-4 relative on
+    energies and 4e-5 rad on the peak foot pitch (bounds: 1e-3 and 1e-4)."""
+    mpc = AdmmMPC(c_runner)
+    assert {"recovered", "fell", "not_settled"} <= set(c_frame["outcome"])
+    for b, (force, duration) in enumerate(CELLS):
+        ref = reference.simulate_scenario(CONFIG, force, duration, record=False, mpc=mpc)[0]
+        mine = c_frame.iloc[b]
+        assert mine.outcome == ref["outcome"], (force, duration)
+        assert mine.fall_cause == ref["fall_cause"]
+        for key in ("fall_time", "settle_time"):
+            assert (math.isnan(ref[key]) and math.isnan(mine[key])) or \
+                abs(mine[key] - ref[key]) <= 1e-12, (key, force)
+        fell = ref["outcome"] == "fell"
+        for key in ("peak_ankle", "peak_hip", "peak_foot_pitch", "cop_min", "cop_max",
+                    "com_min", "com_max"):
+            assert abs(mine[key] - ref[key]) <= (1e-4 if fell else 1e-6), (key, force)
+        for key in ("energy_ankle", "energy_hip", "energy_u1", "energy_u2"):
+            assert abs(mine[key] - ref[key]) <= (1e-3 if fell else 1e-5) * abs(ref[key]) + 1e-9, \
+                (key, force)
+        assert mine.nonconverged_solves == ref["nonconverged_solves"]
+
+
+def test_c_path_agrees_with_the_mjx_path(batch_runner, c_frame):
+    """The MJX path (float32 physics, capped contact solver) on the same cells: the same
+    outcome wherever a 1 % change of the force does not flip it."""
+    forces, durations = np.array(CELLS).T
+    mjx_frame = batch_runner.run_frame(forces, durations)
+    for b, (force, duration) in enumerate(CELLS):
+        if c_frame.outcome[b] == mjx_frame.outcome[b]:
+            continue
+        near = batch_runner.run_frame(np.array([0.99, 1.01]) * force, [duration] * 2)
+        assert set(near.outcome) != {mjx_frame.outcome[b]}, (force, duration)
+
+
+def test_threads_slots_and_order_change_nothing(c_runner, c_frame):
+    """A cell's row does not depend on MuJoCo's thread count, its slot or the other cells."""
+    forces, durations = np.array(CELLS).T
+    order = np.array([6, 1, 7, 3])
+    one_thread = BatchRunner(CONFIG, physics="c", slots=4, threads=1, early_stop=False,
+                             devices=jax.local_devices()[:1])
+    again = one_thread.run_frame(forces[order], durations[order])
+    expected = c_frame.iloc[order].reset_index(drop=True)
+    for column in expected.columns:
+        np.testing.assert_array_equal(again[column].to_numpy(), expected[column].to_numpy(),
+                                      err_msg=column)
+
+
+def test_the_path_is_resolved_and_recorded():
+    hip = CONFIG.replace(scenario={"push_body": "hip"})
+    assert cpath.resolve("auto", hip, platform="cpu") == "mjx"
+    assert cpath.resolve("auto", CONFIG, platform="gpu") == "mjx"
+    assert cpath.resolve("auto", CONFIG, platform="cpu") == cpath.AUTO_ON_CPU
+    with pytest.raises(ValueError, match="push"):
+        cpath.resolve("c", hip)
+    with pytest.raises(ValueError, match="physics must be"):
+        LazyBatch(CONFIG, physics="C")
+    said = []
+    recorded = {"slots": 8, "early_stop": True, "physics": "mjx"}
+    with pytest.raises(ParameterError, match="started with mjx physics"):
+        resume_engine(LazyBatch(CONFIG, physics="c"), recorded, "DIR", said.append)
+    auto = LazyBatch(CONFIG)
+    resume_engine(auto, {**recorded, "physics": "c"}, "DIR", said.append)
+    assert auto.physics == "c" and auto.slots == 8
+    old = LazyBatch(CONFIG)  # a folder from before the path was recorded ran MJX
+    resume_engine(old, {"slots": 8, "early_stop": True}, "DIR", said.append)
+    assert old.physics == "mjx"
