@@ -108,7 +108,7 @@ def test_local_cluster_gives_the_local_bytes(tmp_path, reference):
     assert result.computed_chunks == 3
     assert result.region_path.read_bytes() == reference.read_bytes()
     manifest = json.loads((tmp_path / "cluster" / "manifest.json").read_text())
-    assert manifest["region"]["engine"] == {"slots": SLOTS, "early_stop": True}
+    assert manifest["region"]["engine"] == {"slots": SLOTS, "early_stop": True, "physics": "mjx"}
     again = _sweep(tmp_path / "cluster", "local:2")
     assert again.already_complete and again.computed_chunks == 0
 

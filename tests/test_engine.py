@@ -273,7 +273,7 @@ def test_interrupted_sweep_resumes_to_the_same_bytes(tmp_path):
                           run_batch=LazyBatch(config, slots=8), progress=False, log=None)
     assert resumed.region_path.read_bytes() == whole.region_path.read_bytes()
     manifest = json.loads((tmp_path / "a" / "manifest.json").read_text())
-    assert manifest["region"]["engine"] == {"slots": 8, "early_stop": True}
+    assert manifest["region"]["engine"] == {"slots": 8, "early_stop": True, "physics": "mjx"}
     assert len(pd.read_parquet(whole.region_path)) == forces.size * durations.size
 
 
@@ -303,11 +303,12 @@ def test_a_damaged_engine_record_is_a_bad_manifest():
     from mjx_balance.sweep.store import manifest_problem
 
     region = {"forces": [0.0], "durations": [0.1], "chunk_size": 8, "cells": 1}
-    good = {"region": {**region, "engine": {"slots": 8, "early_stop": True}},
+    good = {"region": {**region, "engine": {"slots": 8, "early_stop": True, "physics": "c"}},
             "table_engine": {"slots": 32, "early_stop": False}}
     assert manifest_problem(good) == ""
     for bad in ({"slots": "8", "early_stop": True}, {"slots": 0, "early_stop": True},
-                {"slots": 8, "early_stop": 1}, [8, True]):
+                {"slots": 8, "early_stop": 1}, [8, True],
+                {"slots": 8, "early_stop": True, "physics": "gpu"}):
         assert "engine" in manifest_problem({"region": {**region, "engine": bad}})
         assert "table_engine" in manifest_problem({"table_engine": bad})
 
