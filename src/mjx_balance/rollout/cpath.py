@@ -57,7 +57,7 @@ from mujoco import rollout as mj_rollout
 from .. import certificate as cert_mod
 from ..model import indices
 from ..params import Config
-from .engine import (Engine, Finished, Slots, _broadcast, certify, checker, empty_finished,
+from .engine import (Engine, Queue, Slots, _broadcast, certify, checker, empty_finished,
                      harvest, refill, vacate)
 from .kernel import (Carry, Sample, control, initial_carry, remember, sample_update, select,
                      state)
@@ -443,28 +443,17 @@ class CEngine(Engine):
         cs = self._state if self._state is not None else self._initial_state()
         self._state = None
         template = jax.eval_shape(lambda: initial_carry(r.arrays, r.sensors, r.static).acc)
-        D, R = self.n_devices, self.refill
-        B = self.slots * D
+        B = self.slots * self.n_devices
         S = c.substeps
         phys = np.tile(c.rest, (B, 1))
         warm = np.tile(c.rest_warm, (B, 1))
         rows = np.zeros((B, S, ROW))
         last_qpos = np.tile(c.rest[c.qpos], (B, 1))
-        returned = np.zeros(0, np.int64)
-        head, remaining, finished, p = 0, n, False, 0
+        queue = Queue(forces, n_push, self.n_devices, self.refill)
+        remaining, finished, p = n, False, 0
         try:
             while remaining:
-                fresh = np.arange(head, min(n, head + D * R - returned.size))  # queue order
-                offer = np.concatenate([returned, fresh])
-                head += offer.size - returned.size
-                cells = np.full(D * R, -1, np.int32)
-                per = [offer[d::D] for d in range(D)]
-                for d, part in enumerate(per):
-                    cells[d * R: d * R + part.size] = part
-                used = cells >= 0
-                f = np.zeros(D * R)
-                pp = np.zeros(D * R, np.int32)
-                f[used], pp[used] = forces[cells[used]], n_push[cells[used]]
+                cells, f, pp = queue.offer()
                 floats, ints = pack(rows, last_qpos, cells, f, pp, p, r.dtype)
                 cs, out_f, out_i = fn(self._leaves, cs, self._put(floats), self._put(ints))
                 out_f, out_i = jax.device_get((out_f, out_i))
@@ -472,8 +461,7 @@ class CEngine(Engine):
                 torques, push = out_f[:, :2], out_f[:, 2:2 + S]
                 reset, busy = out_i[:, 0] > 0, out_i[:, 1] > 0
                 index = out_i[:, 2]
-                taken = out_i[::self.slots, 5]  # one per device
-                returned = np.concatenate([part[int(t):] for part, t in zip(per, taken)])
+                queue.took(out_i[::self.slots, 5])  # one per device
                 keep = index >= 0
                 if keep.any():
                     raw = unpack_acc(out_f[keep, 2 + S:], out_i[keep, 6:], template)
@@ -504,5 +492,5 @@ def default_slots() -> int:
 
 
 # (re-exported for the tests)
-__all__ = ["CEngine", "CPhysics", "CState", "Finished", "PATHS", "TIME0", "call",
+__all__ = ["CEngine", "CPhysics", "CState", "PATHS", "TIME0", "call",
            "default_threads", "fold_period", "sensor_xml", "unsupported"]

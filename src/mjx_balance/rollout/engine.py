@@ -218,6 +218,40 @@ def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push
     return slots._replace(carry=packing.pack(slots.carry)), taken[None], done
 
 
+class Queue:
+    """The cells not yet in a slot, in queue order. Each call offers every device up to
+    ``refill`` cells (device d gets offer[d::D]: neighbouring cells, of similar cost, spread
+    over the devices); what a device did not take is offered first the next time."""
+
+    def __init__(self, forces: np.ndarray, n_push: np.ndarray, devices: int, refill: int):
+        self.forces, self.n_push = forces, n_push
+        self.D, self.R = devices, refill
+        self.head = 0
+        self.returned = np.zeros(0, np.int64)
+        self._per: list[np.ndarray] = []
+
+    def offer(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(cells [D R], -1: none; their forces; their push steps) for the next call."""
+        D, R = self.D, self.R
+        fresh = np.arange(self.head, min(self.forces.shape[0],
+                                         self.head + D * R - self.returned.size))
+        offer = np.concatenate([self.returned, fresh])
+        self.head += offer.size - self.returned.size
+        cells = np.full(D * R, -1, np.int32)
+        self._per = [offer[d::D] for d in range(D)]
+        for d, part in enumerate(self._per):
+            cells[d * R: d * R + part.size] = part
+        used = cells >= 0
+        f = np.zeros(D * R, np.float64)
+        p = np.zeros(D * R, np.int32)
+        f[used], p[used] = self.forces[cells[used]], self.n_push[cells[used]]
+        return cells, f, p
+
+    def took(self, taken: np.ndarray) -> None:
+        """How many of its offered cells each device took [D]."""
+        self.returned = np.concatenate([part[int(t):] for part, t in zip(self._per, taken)])
+
+
 class Engine:
     """Continuous batching for one :class:`runner.BatchRunner` (its model, QP and devices).
 
@@ -342,30 +376,16 @@ class Engine:
         split, _ = r._shardings()
         state = self._state if self._state is not None else self._initial_state()
         self._state = None
-        D, R = self.n_devices, self.refill
-        returned = np.zeros(0, np.int64)  # offered in a call but not taken: first next time
-        head, remaining, finished = 0, n, False
+        queue = Queue(forces, n_push, self.n_devices, self.refill)
+        remaining, finished = n, False
         try:
             while remaining:
-                fresh = np.arange(head, min(n, head + D * R - returned.size))  # queue order
-                offer = np.concatenate([returned, fresh])
-                head += offer.size - returned.size
-                cells = np.full(D * R, -1, np.int32)
-                # device d gets offer[d::D]: neighbouring cells (similar cost) spread over devices
-                per = [offer[d::D] for d in range(D)]
-                for d, part in enumerate(per):
-                    cells[d * R: d * R + part.size] = part
-                f = np.zeros(D * R, np.float64)
-                p = np.zeros(D * R, np.int32)
-                used = cells >= 0
-                f[used] = forces[cells[used]]
-                p[used] = n_push[cells[used]]
+                cells, f, p = queue.offer()
                 args = (jnp.asarray(cells), jnp.asarray(f.astype(r.dtype)), jnp.asarray(p))
                 if split is not None:
                     args = tuple(jax.device_put(a, split) for a in args)
                 state, taken, done = fn(r.arrays, self.cert, state, *args)
-                taken = np.asarray(taken)
-                returned = np.concatenate([part[int(t):] for part, t in zip(per, taken)])
+                queue.took(np.asarray(taken))
                 index = np.asarray(done.cell)
                 keep = index >= 0
                 if keep.any():
