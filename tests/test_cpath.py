@@ -180,3 +180,14 @@ def test_the_path_is_resolved_and_recorded():
     old = LazyBatch(CONFIG)  # a folder from before the path was recorded ran MJX
     resume_engine(old, {"slots": 8, "early_stop": True}, "DIR", said.append)
     assert old.physics == "mjx"
+
+
+def test_a_sweep_definition_names_its_physics(tmp_path):
+    from mjx_balance.sweep.definitions import load_sweep
+
+    path = tmp_path / "s.toml"
+    path.write_text('[sweep]\nforces = "0,10"\ndurations = "0.1"\nphysics = "c"\n')
+    assert load_sweep(path, CONFIG).physics == "c"
+    path.write_text('[sweep]\nphysics = "C"\n')
+    with pytest.raises(ParameterError, match="physics must be"):
+        load_sweep(path, CONFIG)

@@ -348,11 +348,12 @@ def _engine_options(p: argparse.ArgumentParser) -> None:
 
 
 def _physics(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--physics", choices=("auto", "mjx", "c"), default="auto",
+    p.add_argument("--physics", choices=("auto", "mjx", "c"), default=None,
                    help="physics of the batched closed loop: mjx (MuJoCo MJX in JAX, float32), "
                         "c (MuJoCo C on a thread pool, float64, the reference's physics; the "
                         "ADMM stays in JAX) or auto (the faster on this machine: "
-                        "docs/engine.md); a sweep folder keeps the path it started with")
+                        "docs/engine.md; default: a --sweep file's [sweep] physics, else auto); "
+                        "a sweep folder keeps the path it started with")
 
 
 def _bench_pipeline_arguments(p: argparse.ArgumentParser) -> None:

@@ -105,7 +105,7 @@ def pipeline_command(args: argparse.Namespace) -> int:
 
     from ..rollout.cpath import PATHS, resolve, unsupported
 
-    default = resolve(args.physics, config)
+    default = resolve(args.physics or "auto", config)
     paths = [default] + [p for p in PATHS[1:] if p != default
                          and not (p == "c" and unsupported(config))]
     runs, backends = {}, {}

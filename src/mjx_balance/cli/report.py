@@ -31,7 +31,7 @@ def report_command(args: Any) -> int:
                                 conventions=conventions,
                                 sweeps=Path(args.sweeps) if args.sweeps else None,
                                 cluster=getattr(args, "cluster", None),
-                                physics=getattr(args, "physics", "auto"))
+                                physics=getattr(args, "physics", None) or "auto")
         print(f"tables saved in {out} ({record['seconds']:.0f} s)", file=sys.stderr)
     else:  # check the record before build_report creates anything
         read_record(out / REPORT_JSON)

@@ -78,7 +78,7 @@ def sweep_command(args: Any) -> int:
     def work() -> None:
         # built (and compiled) only if a scenario must run
         run_batch = api.batch_function(config, slots=args.slots, full_length=args.full_length,
-                                       physics=args.physics)
+                                       physics=_physics(args, definition))
         result = api.run_region(out, config, forces, durations, run_batch=run_batch,
                                 chunk=chunk, progress=progress, cluster=args.cluster)
         _make_region_figures(out, result, config, reference)
@@ -115,7 +115,8 @@ def table_command(args: Any) -> int:
 
     def work() -> None:
         table = api.run_table_folder(out, config, forces, batch=batch, slots=args.slots,
-                                     full_length=args.full_length, physics=args.physics,
+                                     full_length=args.full_length,
+                                     physics=_physics(args, definition),
                                      progress=progress_enabled(args),
                                      cluster=getattr(args, "cluster", None))
         _make_table_figure(out, config, force=table is not None)
@@ -126,6 +127,12 @@ def table_command(args: Any) -> int:
                 log.info(f"wrote {path}")
 
     return _in_folder(out, work, wait=getattr(args, "wait", False))
+
+
+def _physics(args: Any, definition: Any) -> str:
+    """--physics, else the --sweep file's [sweep] physics, else auto."""
+    return (getattr(args, "physics", None) or getattr(definition, "physics", None)
+            or "auto")
 
 
 def table_scenarios_per_force(config: Config, resolution: float = 0.01) -> int:

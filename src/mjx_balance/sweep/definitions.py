@@ -1,7 +1,8 @@
 """Sweep definitions: the built-in default sweep and the sweep TOML files.
 
 A sweep definition holds [body]/[controller]/[scenario] overrides of a base configuration and
-a [sweep] table (forces, durations, table_forces, chunk); the command line overrides both.
+a [sweep] table (forces, durations, table_forces, chunk, physics); the command line overrides
+both.
 The package ships its definitions (the default sweep, the dense maps, the studies) as package
 data in ``mjx_balance/sweeps/*.toml``, found with ``importlib.resources`` (:func:`sweeps_dir`),
 so an installed wheel has them too; :func:`find_sweep` accepts a path or a shipped name.
@@ -28,7 +29,7 @@ DEFAULT_SWEEP = {
     "chunk": 64,
 }
 
-_SWEEP_KEYS = ("forces", "durations", "table_forces", "chunk")
+_SWEEP_KEYS = ("forces", "durations", "table_forces", "chunk", "physics")
 
 
 def sweeps_dir() -> Path:
@@ -69,12 +70,13 @@ class SweepDefinition:
     durations: Any = None
     table_forces: Any = None
     chunk: int | None = None
+    physics: str | None = None  # "auto", "mjx" or "c" (None: the command line's, else auto)
 
 
 def load_sweep(path: str | Path | None, base: Config) -> SweepDefinition:
     """Read a sweep definition: optional [body]/[controller]/[scenario] (overriding ``base``)
-    and a [sweep] table with forces, durations, table_forces (grid strings or number lists) and
-    chunk. ``None`` gives the built-in default sweep (DEFAULT_SWEEP)."""
+    and a [sweep] table with forces, durations, table_forces (grid strings or number lists),
+    chunk and physics. ``None`` gives the built-in default sweep (DEFAULT_SWEEP)."""
     if path is None:
         return SweepDefinition(base, **DEFAULT_SWEEP)
     path = Path(path)
@@ -97,5 +99,9 @@ def load_sweep(path: str | Path | None, base: Config) -> SweepDefinition:
     chunk = sweep.get("chunk")
     if chunk is not None and (isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1):
         raise ParameterError(f"{path}: [sweep] chunk must be an integer >= 1, got {chunk!r}")
+    physics = sweep.get("physics")
+    if physics is not None and physics not in ("auto", "mjx", "c"):
+        raise ParameterError(f"{path}: [sweep] physics must be \"auto\", \"mjx\" or \"c\", "
+                             f"got {physics!r}")
     return SweepDefinition(config, sweep.get("forces"), sweep.get("durations"),
-                           sweep.get("table_forces"), chunk)
+                           sweep.get("table_forces"), chunk, physics)
