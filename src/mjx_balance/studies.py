@@ -82,6 +82,16 @@ STUDIES: tuple[Study, ...] = (
           (Variant("reference_body", "reference body (base)", None),
            Variant("weak_ankle", "weaker ankle (0.6 x bound)", "study_weak_ankle.toml"),
            Variant("older_adult", "older adult", "study_older_adult.toml"))),
+    Study("recovery_definition", "What “recovered” means: the settle band",
+          "The settle band that defines a recovery (every angle within 0.01 rad and every "
+          "rate within 0.05 rad/s at t_end) is made ten times tighter and ten times looser; "
+          "the window is the same. (Windows of 6, 12 and 24 s and the max acting times under "
+          "each definition: docs/studies.md.)",
+          (Variant("band_base", "0.01 rad, 0.05 rad/s (base)", None),
+           Variant("band_tight", "ten times tighter (0.001 rad, 0.005 rad/s)",
+                   "study_settle_tight.toml"),
+           Variant("band_loose", "ten times looser (0.1 rad, 0.5 rad/s)",
+                   "study_settle_loose.toml"))),
     Study("push_height", "Push height: upper-body CoM vs hip",
           "The same force acts at the hip joint instead of the upper body's centre of mass.",
           (Variant("upper_com", "at the upper-body CoM (base)", None),

@@ -518,7 +518,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="batch function of the table and region maps (default: mjx; tiny: reference)")
     p.add_argument("--studies", default="all",
                    help="comma list of studies (ankle_only, backward, delay, older_adult, "
-                        "push_height), 'all' or 'none'")
+                        "recovery_definition, push_height), 'all' or 'none'")
     p.add_argument("--conventions", default=None, help="experiments' conventions (default: paper,joint)")
     p.add_argument("--sweeps", type=input_folder, default=None,
                    help="folder of the study sweep definitions (default: the shipped ones, "
