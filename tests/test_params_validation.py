@@ -166,3 +166,11 @@ def test_at_the_friction_limit_the_body_stands():
     config = Config().replace(body={"friction": MAX_FRICTION}, scenario={"t_end": 1.0})
     summary, _ = simulate_scenario(config, 0.0, 0.0, record=False)
     assert summary["outcome"] == "recovered"
+
+
+@pytest.mark.parametrize("field", ["settle_angle_tol", "settle_rate_tol", "t_end"])
+@pytest.mark.parametrize("value", [0.0, -0.01, float("nan")])
+def test_the_definition_of_recovery_is_validated(field, value):
+    """The settle band and the window (docs/studies.md varies them) are checked like the rest."""
+    with pytest.raises(ParameterError, match=f"scenario.{field}"):
+        Config().replace(scenario={field: value})
