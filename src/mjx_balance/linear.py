@@ -105,6 +105,34 @@ def zoh(Ac: np.ndarray, Bc: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarr
     return E[:n, :n], E[:n, n:]
 
 
+def delay_predictor(Ac: np.ndarray, Bc: np.ndarray, dt: float, delay_steps: int,
+                    substeps: int) -> tuple[np.ndarray, np.ndarray]:
+    """The delay compensator's matrices: (A_h^d [n, n], G [P, n, m]), P = ceil(d / S).
+
+    With (A_h, B_h) = zoh(Ac, Bc, dt) (one physics step), a measurement x_meas taken d steps
+    before the control instant k S and the inputs held since, u(i) for physics steps i in
+    [k S - d, k S), the linear model predicts x(k S) = A_h^d x_meas + sum_i A_h^(k S - 1 - i)
+    B_h u(i). The input is constant over a control period, so the sum is over the P periods
+    that overlap the window: step i = k S - 1 - m belongs to period k - 1 - floor(m / S), and
+    G[j] = sum of A_h^m B_h over m in [0, d) with floor(m / S) = j multiplies u_{k-1-j}.
+    """
+    Ah, Bh = zoh(Ac, Bc, dt)
+    n, m = Bh.shape
+    d, S = int(delay_steps), int(substeps)
+    G = np.zeros((-(-d // S), n, m))
+    power = np.eye(n)
+    for step in range(d):
+        G[step // S] += power @ Bh
+        power = Ah @ power
+    return power, G
+
+
+def predict(xp, Ad, G, x_meas, inputs):
+    """The compensated state A_h^d x_meas + sum_j G[j] inputs[j] (inputs [P, m]: the inputs
+    of the last P control periods, newest first; ``xp``: numpy or jax.numpy)."""
+    return Ad @ x_meas + xp.einsum("pij,pj->i", G, inputs)
+
+
 def linear_model(body: BodyParams, convention: str, dt: float) -> LinearModel:
     """The linear model of ``convention`` ("paper" or "joint") discretised at ``dt``."""
     if convention == "paper":

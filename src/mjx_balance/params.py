@@ -234,6 +234,10 @@ class ControllerParams:
     # instead of iterating to the cap. Off by default: the shared definitions run an infeasible
     # QP to the cap and use its last iterate, as the reference's OSQP does.
     admm_stop_on_infeasible: bool = False
+    # Delay compensation: predict the current state from the delayed measurement with the
+    # linear model and the inputs already applied (linear.delay_predictor), then solve the MPC
+    # for it. Off: the MPC acts on the delayed measurement (the study's controller).
+    delay_compensation: bool = False
 
     def __post_init__(self) -> None:
         _check_types("controller", self)
@@ -292,6 +296,9 @@ class ScenarioParams:
     settle_angle_tol: float = 0.01  # rad
     settle_rate_tol: float = 0.05  # rad/s
     controller_delay: float = 0.0  # s; the controller sees the state this late
+    # s; the measurement is really this much later than controller_delay, which is what a
+    # delay-compensated controller assumes (mismatch studies; 0: it knows its delay exactly)
+    delay_error: float = 0.0
 
     def __post_init__(self) -> None:
         _check_types("scenario", self)
@@ -320,11 +327,14 @@ class ScenarioParams:
             _fail("scenario", "push_body", "must be 'upper' or 'hip'", self.push_body)
         if self.controller_delay < 0:
             _fail("scenario", "controller_delay", "must be >= 0", self.controller_delay)
-        delay_steps = self.controller_delay / self.physics_dt
-        if abs(delay_steps - round(delay_steps)) > 1e-6:
-            _fail("scenario", "controller_delay",
-                  f"must be a whole multiple of physics_dt = {self.physics_dt}",
-                  self.controller_delay)
+        for name in ("controller_delay", "delay_error"):
+            steps = getattr(self, name) / self.physics_dt
+            if abs(steps - round(steps)) > 1e-6:
+                _fail("scenario", name, f"must be a whole multiple of physics_dt = "
+                      f"{self.physics_dt}", getattr(self, name))
+        if self.controller_delay + self.delay_error < -1e-12:
+            _fail("scenario", "delay_error", "must be >= -controller_delay (the measurement "
+                  "cannot come from the future)", self.delay_error)
 
     @property
     def substeps(self) -> int:
@@ -338,6 +348,13 @@ class ScenarioParams:
 
     @property
     def delay_steps(self) -> int:
+        """How old the controller's measurement really is, in physics steps (controller_delay
+        + delay_error)."""
+        return int(round((self.controller_delay + self.delay_error) / self.physics_dt))
+
+    @property
+    def assumed_delay_steps(self) -> int:
+        """The delay a compensating controller predicts over (controller_delay), in steps."""
         return int(round(self.controller_delay / self.physics_dt))
 
 

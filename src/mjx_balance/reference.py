@@ -14,7 +14,11 @@ or non-finite value (the rules of ``outcomes.py``).
 Sensorimotor delay (scenario.controller_delay = D, d = D / dt physics steps): the controller at
 t_k sees the joint state (q_a, q_h, dq_a, dq_h) of time t_k - D, i.e. the state after physics
 step k * substeps - d; before t = 0 that is the initial upright rest state. The plant, the push
-and the metrics run undelayed; d = 0 is the undelayed loop.
+and the metrics run undelayed; d = 0 is the undelayed loop. With scenario.delay_error the
+measurement is really D + delay_error old while a compensating controller assumes D. With
+controller.delay_compensation the controller predicts the state at t_k from its measurement
+and the inputs it applied since (``linear.delay_predictor``, over the D it assumes) and solves
+the MPC for the prediction; the batched path does the same (``rollout.kernel.control``).
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ import numpy as np
 import pandas as pd
 
 from . import metrics, outcomes
+from .linear import delay_predictor, predict
 from .model import build_model, indices
 from .osqp_mpc import ReferenceMPC
 from .outcomes import SUMMARY_COLUMNS, Limits
@@ -148,6 +153,12 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
     q0 = history_q[0].copy()
     x0 = lm.state_from_joints(q0, history_dq[0])
 
+    # delay compensation: the inputs of the last P periods, newest first (linear.predict)
+    compensate = ctrl.delay_compensation and sc.assumed_delay_steps > 0
+    if compensate:
+        pred_A, pred_G = delay_predictor(lm.Ac, lm.Bc, dt, sc.assumed_delay_steps, substeps)
+        applied = np.zeros((pred_G.shape[0], 2))
+
     n = 0  # samples taken
     k_done = 0
     stop = False
@@ -155,7 +166,11 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
     for k in range(n_control):
         s = max(k * substeps - sc.delay_steps, 0)
         x_meas = lm.state_from_joints(history_q[s], history_dq[s])
+        if compensate:
+            x_meas = predict(np, pred_A, pred_G, x_meas, applied)
         u, _, ok, prim_res = mpc.solve(x_meas)
+        if compensate:
+            applied = np.concatenate([u[None], applied[:-1]])
         torques = lm.motor_torques(u)
         u_control[k], converged[k], residual[k] = u, ok, prim_res
         # a QP the solver did not solve: is it infeasible (an exact LP test, run only here)?

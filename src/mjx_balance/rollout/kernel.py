@@ -37,6 +37,7 @@ import jax
 import jax.numpy as jnp
 
 from .. import admm as admm_mod
+from .. import linear as linear_mod
 from .. import outcomes
 from ..outcomes import Limits
 from .physics import Sensors, advance, cell_heights, load_cell_cop, mjx, step, whole_body_com
@@ -102,11 +103,12 @@ class Static(NamedTuple):
 
     n_control: int
     substeps: int
-    delay_steps: int
+    delay_steps: int  # how old the measurement is (physics steps)
     push_at_hip: bool
     settings: admm_mod.ADMMSettings
     trajectories: bool
     limits: Limits  # thresholds of the outcome rules and the state/input bounds
+    compensate: bool = False  # delay compensation (linear.delay_predictor)
 
 
 class Arrays(NamedTuple):
@@ -117,6 +119,8 @@ class Arrays(NamedTuple):
     qp: admm_mod.ADMMData
     to_state: jax.Array  # [2, 2] convention positions y = to_state @ [q_a, q_h]
     torque_map: jax.Array  # [2, 2] [tau_ankle, tau_hip] = torque_map @ u
+    pred_A: jax.Array  # [4, 4] the delay compensator's A_h^d (identity without one)
+    pred_G: jax.Array  # [P, 4, 2] its input matrices (P = 0 without one)
 
 
 class Sample(NamedTuple):
@@ -145,6 +149,7 @@ class Carry(NamedTuple):
     q_prev: jax.Array  # [2] joint angles at the previous sample
     x_prev: jax.Array  # [4] convention state at the previous sample
     acc: Accumulators
+    inputs: jax.Array  # [P, 2] inputs applied in the last P control periods, newest first
 
 
 def select(pred: jax.Array, a: Any, b: Any) -> Any:
@@ -284,19 +289,24 @@ def initial_carry(ar: Arrays, sn: Sensors, st: Static) -> Carry:
     q0, dq0 = joints(sn, ar.d0)
     history0 = jnp.tile(jnp.concatenate([q0, dq0])[None], (st.delay_steps + 1, 1))
     return Carry(d=ar.d0, warm=admm_mod.initial_warm(ar.qp), history=history0, q_prev=q0,
-                 x_prev=state(ar, q0, dq0), acc=Accumulators.initial(dtype))
+                 x_prev=state(ar, q0, dq0), acc=Accumulators.initial(dtype),
+                 inputs=jnp.zeros((ar.pred_G.shape[0], 2), dtype))
 
 
 def control(ar: Arrays, st: Static, carry: Carry, k: jax.Array
             ) -> tuple[Carry, jax.Array, jax.Array]:
-    """The MPC solve of control period k from the carry's (delayed) measurement, x = 0 for a
-    dead scenario: returns the carry (next warm start, :func:`period_update` folded in), the
-    input u [2] and the motor torques [2] to hold (zero if not finite). Shared by the MJX
-    period (:func:`period`) and the MuJoCo C path (``cpath.py``)."""
+    """The MPC solve of control period k from the carry's (delayed) measurement, predicted to
+    the control instant with delay compensation (``linear.predict``), x = 0 for a dead
+    scenario: returns the carry (next warm start, :func:`period_update` folded in, the input
+    buffer), the input u [2] and the motor torques [2] to hold (zero if not finite). Shared by
+    the MJX period (:func:`period`) and the MuJoCo C path (``cpath.py``)."""
     dtype = ar.d0.qpos.dtype
     alive = carry.acc.alive
     measured = carry.history[st.delay_steps]
-    x_meas = jnp.where(alive, state(ar, measured[:2], measured[2:]), jnp.zeros(4, dtype))
+    x_meas = state(ar, measured[:2], measured[2:])
+    if st.compensate:
+        x_meas = linear_mod.predict(jnp, ar.pred_A, ar.pred_G, x_meas, carry.inputs)
+    x_meas = jnp.where(alive, x_meas, jnp.zeros(4, dtype))
     res = admm_mod.admm_solve(ar.qp, x_meas, carry.warm, st.settings)
     u = res.u0.astype(dtype)
     torques = ar.torque_map @ u
@@ -305,7 +315,8 @@ def control(ar: Arrays, st: Static, carry: Carry, k: jax.Array
     u = jnp.where(finite, u, jnp.zeros_like(u))
     torques = jnp.where(finite, torques, jnp.zeros_like(torques))
     warm = admm_mod.ADMMWarm(*(w.astype(dtype) for w in res.warm_next))
-    return carry._replace(warm=warm, acc=acc), u, torques
+    inputs = jnp.concatenate([u[None], carry.inputs[:-1]])[:carry.inputs.shape[0]]
+    return carry._replace(warm=warm, acc=acc, inputs=inputs), u, torques
 
 
 def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, force: jax.Array,
@@ -360,7 +371,8 @@ def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, forc
     carry = carry._replace(d=select(alive, carry.d, ar.d0),
                            warm=select(alive, carry.warm, rest.warm))
     carry, u, torques = control(ar, st, carry, k)
-    carry = carry._replace(history=jnp.where(alive, carry.history, rest.history))
+    carry = carry._replace(history=jnp.where(alive, carry.history, rest.history),
+                           inputs=jnp.where(alive, carry.inputs, rest.inputs))
 
     steps = k * S + jnp.arange(S, dtype=jnp.int32)
     if st.trajectories or st.push_at_hip:

@@ -25,6 +25,7 @@ import pandas as pd
 from .. import admm as admm_mod
 from .. import outcomes
 from ..linear import S as JOINT_TO_ABS
+from ..linear import delay_predictor
 from ..outcomes import FELL, RECOVERED, Limits, summary_frame
 from ..params import Config
 from ..qp import build_qp
@@ -82,15 +83,20 @@ class BatchRunner:
         settings = admm_mod.settings_from_controller(ctrl)
         lm = qp.linear
         to_state = np.linalg.solve(lm.P, JOINT_TO_ABS)
+        compensate = bool(ctrl.delay_compensation and sc.assumed_delay_steps > 0)
+        pred_A, pred_G = (delay_predictor(lm.Ac, lm.Bc, sc.physics_dt, sc.assumed_delay_steps,
+                                          sc.substeps) if compensate
+                          else (np.eye(4), np.zeros((0, 4, 2))))
         self.arrays = Arrays(
             mx=mx, d0=d0, qp=admm_mod.build_admm(qp, settings, dtype=self.dtype),
             to_state=jnp.asarray(to_state, self.dtype),
             torque_map=jnp.asarray(lm.torque_map, self.dtype),
+            pred_A=jnp.asarray(pred_A, self.dtype), pred_G=jnp.asarray(pred_G, self.dtype),
         )
         self.static = Static(
             n_control=sc.n_control, substeps=sc.substeps, delay_steps=sc.delay_steps,
             push_at_hip=sc.push_body == "hip", settings=settings, trajectories=trajectories,
-            limits=Limits.from_params(sc, ctrl),
+            limits=Limits.from_params(sc, ctrl), compensate=compensate,
         )
         devices = list(jax.local_devices() if devices is None else devices)
         self.mesh = (jax.sharding.Mesh(np.array(devices), ("batch",)) if len(devices) > 1
