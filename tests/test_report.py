@@ -204,7 +204,8 @@ def test_report_saves_its_tables(out):
         assert (region.convention == convention).all()
     delay = pd.read_csv(out / "studies" / "delay" / "numbers.csv")
     assert list(delay.variant) == ["delay_000ms", "delay_010ms", "delay_020ms", "delay_050ms",
-                                   "delay_100ms", "delay_150ms"]
+                                   "delay_100ms", "delay_150ms", "delay_comp_050ms",
+                                   "delay_comp_100ms", "delay_comp_150ms"]
     signed = pd.read_parquet(out / "studies" / "backward" / "signed" / "region.parquet")
     assert signed.force.min() < 0 < signed.force.max()
 

@@ -69,13 +69,19 @@ STUDIES: tuple[Study, ...] = (
           (Variant("signed", "signed forces", "study_backward.toml"),), signed=True),
     Study("delay", "Sensorimotor delay",
           "The controller sees the joint state 0, 10, 20, 50, 100 or 150 ms late; the plant "
-          "keeps running (before the push it sees upright rest).",
+          "keeps running (before the push it sees upright rest). At 50, 100 and 150 ms also "
+          "a delay-compensated controller, which predicts the present state from the late "
+          "measurement and the inputs it has applied since (docs/model.md).",
           (Variant("delay_000ms", "0 ms (base)", None),
            Variant("delay_010ms", "10 ms", "study_delay_010ms.toml"),
            Variant("delay_020ms", "20 ms", "study_delay_020ms.toml"),
            Variant("delay_050ms", "50 ms", "study_delay_050ms.toml"),
            Variant("delay_100ms", "100 ms", "study_delay_100ms.toml"),
-           Variant("delay_150ms", "150 ms", "study_delay_150ms.toml"))),
+           Variant("delay_150ms", "150 ms", "study_delay_150ms.toml"),
+           Variant("delay_comp_050ms", "50 ms, compensated", "study_delay_comp_050ms.toml"),
+           Variant("delay_comp_100ms", "100 ms, compensated", "study_delay_comp_100ms.toml"),
+           Variant("delay_comp_150ms", "150 ms, compensated",
+                   "study_delay_comp_150ms.toml"))),
     Study("older_adult", "Weaker ankle and an older-adult body",
           "The ankle torque bound is scaled by 0.6 (weaker ankle), and in the older-adult "
           "profile also the body (3 % shorter, 10 % heavier) and the hip torque bound (0.8).",
