@@ -429,6 +429,23 @@ def test_cli_overrides_sweep_file(tmp_path, monkeypatch):
     assert (tmp_path / "o2" / "table.csv").exists()  # the sweep file's table_forces
 
 
+def test_set_is_checked_on_top_of_the_sweep_file(tmp_path, monkeypatch):
+    """--set goes on top of the --sweep file, and is checked there: a value that is only valid
+    together with the file's (a delay error of -20 ms needs the file's 100-ms delay) is taken."""
+    from mjx_balance.cli import main
+
+    monkeypatch.setattr(DEFAULT_BATCH, lambda config, **engine: FakeThresholdBatch())
+    definition = tmp_path / "s.toml"
+    definition.write_text('[scenario]\nt_end = 1.0\ncontroller_delay = 0.1\n'
+                          '[sweep]\nforces = "0,20"\ndurations = [0.5]\n')
+    for command in ("sweep", "table"):
+        out = tmp_path / command
+        assert main([command, "--sweep", str(definition), "--set", "scenario.delay_error=-0.02",
+                     "--forces", "0,20", "--out", str(out)]) == 0
+        saved = json.loads((out / "manifest.json").read_text())["config"]["scenario"]
+        assert (saved["controller_delay"], saved["delay_error"]) == (0.1, -0.02)
+
+
 # --- end to end with the real rollout --------------------------------------------------------
 
 

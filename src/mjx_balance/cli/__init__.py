@@ -56,10 +56,12 @@ that broke); 2 bad usage (an unknown option, a bad value or configuration), repo
 work and before anything is written."""
 
 
-def base_config(args: argparse.Namespace) -> Config:
+def base_config(args: argparse.Namespace, overrides: bool = True) -> Config:
     """The --config file's configuration (or the defaults) with the --set overrides on top
-    (--convention not applied)."""
-    return run_config(getattr(args, "config", None), None, getattr(args, "set", None))
+    (--convention not applied). ``overrides=False``: without them (the base of a --sweep file,
+    which the overrides go on top of: a value may only be valid with the file's others)."""
+    return run_config(getattr(args, "config", None), None,
+                      getattr(args, "set", None) if overrides else None)
 
 
 def load_run_config(args: argparse.Namespace) -> Config:

@@ -44,7 +44,7 @@ def sweep_command(args: Any) -> int:
     the table (table.csv, table.png) into the same folder.
     """
     use_default = args.sweep is None and args.forces is None and args.durations is None
-    definition = load_sweep(args.sweep, base_config(args))
+    definition = load_sweep(args.sweep, base_config(args, overrides=False))
     if args.sweep is None and not use_default:
         # A grid from the command line: the region only, chunk size from the memory budget.
         definition.table_forces = definition.chunk = None
@@ -98,7 +98,8 @@ def sweep_command(args: Any) -> int:
 
 def table_command(args: Any) -> int:
     """``mjx-balance table``: table.csv and table.png in --out."""
-    definition = load_sweep(args.sweep, base_config(args)) if args.sweep else None
+    definition = (load_sweep(args.sweep, base_config(args, overrides=False)) if args.sweep
+                  else None)
     config = with_convention(apply_overrides(definition.config, getattr(args, "set", None))
                              if definition else base_config(args), args.convention)
     if args.forces is not None:
