@@ -233,6 +233,16 @@ def expected_max_time(force, c, t_end, resolution=0.01):
                                                * resolution, 12))
 
 
+@pytest.mark.parametrize("c, limit, note", [(30.0, 2.4, ""), (0.5, 0.0, ""),
+                                            (1e5, 200.0, "holds every force tried")])
+def test_sustained_push_limit_finds_the_fake_threshold_to_0_1_n(c, limit, note):
+    """Held for the whole 12-s window iff 12 F < c: the largest such multiple of 0.1 N."""
+    fake = FakeThresholdBatch(c=c)
+    found, said, runs = sweep.acting_time.sustained_push_limit(Config(), fake)
+    assert found == limit and note in said
+    assert (runs["duration"] == 12.0).all() and len(fake.calls) <= 4
+
+
 def test_bisection_finds_the_fake_threshold_to_0_01_s():
     config = Config()  # t_end = 12 s
     forces = [1, 5, 10, 15, 20, 30, 40, 50, 60, 80, 100, 120, 4000]
@@ -319,7 +329,9 @@ def test_run_table_writes_and_skips_when_done(tmp_path, capsys):
     sweep.run_table(tmp_path, Config(), "20,50", run_batch=fake, progress=False)
     table = pd.read_csv(tmp_path / "table.csv")
     assert list(table["max_acting_time"]) == [1.49, 0.59]
-    assert (tmp_path / "table_runs.parquet").exists()
+    assert list(table["sustained_push_limit"]) == [2.4, 2.4]  # 12 F < 30 N s
+    runs = pd.read_parquet(tmp_path / "table_runs.parquet")
+    assert (runs["duration"] == 12.0).any()  # the sustained-push scenarios are kept too
     idle = FakeThresholdBatch(fail_on_call=1)
     assert sweep.run_table(tmp_path, Config(), "20,50", run_batch=idle, progress=False) is None
     assert "nothing to do" in capsys.readouterr().out

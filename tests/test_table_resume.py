@@ -251,7 +251,7 @@ def test_rebuilt_manifest_without_a_table_resumes_from_the_kept_cells(tmp_path, 
     (tmp_path / sweep.MANIFEST).unlink()
     resumed = CellLog()
     table(tmp_path, resumed)
-    assert len(resumed.calls) < 9
+    assert len(resumed.calls) == len(whole[1].calls) - 9  # the 9 kept calls are not rerun
     assert "table" in json.loads((tmp_path / sweep.MANIFEST).read_text())
     same_files(tmp_path, whole_out)
 

@@ -26,7 +26,7 @@ from .. import api, region_plots
 from ..params import Config, apply_overrides, with_convention
 from ..sweep import (DEFAULT_SWEEP, MANIFEST, STUDY_TABLE_FORCES, TABLE, SweepResult,
                      check_durations, load_sweep, parse_grid, table_batch_size)
-from ..sweep.acting_time import coarse_steps
+from ..sweep.acting_time import SUSTAINED_COARSE, coarse_steps
 from ..sweep.chunks import check_planned_work, default_chunk_size, planned_work
 from ..sweep.grid import check_cell_count
 from ..sweep.store import REGION, folder_lock, readable_png
@@ -64,7 +64,7 @@ def sweep_command(args: Any) -> int:
                     if definition.table_forces is not None else None)
     n_cells = check_cell_count(forces.size, durations.size)
     _guard_work(args, config, n_cells, chunk or default_chunk_size(config, n_cells), "cells",
-                extra=(table_forces.size * table_scenarios_per_force(config)
+                extra=(table_scenarios(config, table_forces.size)
                        if table_forces is not None else 0))
     reference = region_plots.load_reference(args.reference) if args.reference else None
     if use_default:
@@ -110,7 +110,7 @@ def table_command(args: Any) -> int:
         forces = list(STUDY_TABLE_FORCES)
     forces = parse_grid(forces, "forces")
     batch = table_batch_size(config, forces.size)
-    _guard_work(args, config, forces.size * table_scenarios_per_force(config), batch,
+    _guard_work(args, config, table_scenarios(config, forces.size), batch,
                 "scenarios (estimated)")
     out = Path(args.out)
 
@@ -134,6 +134,15 @@ def _physics(args: Any, definition: Any) -> str:
     """--physics, else the --sweep file's [sweep] physics, else auto."""
     return (getattr(args, "physics", None) or getattr(definition, "physics", None)
             or "auto")
+
+
+def table_scenarios(config: Config, n_forces: int) -> int:
+    """Scenarios a table evaluates, at most: every force's (:func:`table_scenarios_per_force`)
+    and the sustained-push limit's (its coarse scan and rounds to 0.1 N from its widest
+    bracket)."""
+    coarse = np.asarray(SUSTAINED_COARSE)
+    rounds = math.ceil(math.log(np.diff(coarse).max() / 0.1) / math.log(8))
+    return n_forces * table_scenarios_per_force(config) + coarse.size + 7 * rounds
 
 
 def table_scenarios_per_force(config: Config, resolution: float = 0.01) -> int:

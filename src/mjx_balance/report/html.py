@@ -167,6 +167,9 @@ def _experiment_lines(conventions: dict[str, dict], config: Config | None = None
     window = f" within t_end = {config.scenario.t_end:g} s" if config is not None else ""
     lines = [f"Max acting time (table forces {_numbers(forces)} N, bisected to 0.01 s{window})"
              " — " + "; ".join(parts) + "."]
+    limits = [f"{c}: {_sustained(res['table'])}" for c, res in conventions.items()]
+    lines.append("Sustained-push limit (the largest force held for the whole window, to 0.1 N)"
+                 " — " + "; ".join(limits) + ".")
     for convention, res in conventions.items():
         n = studies.region_numbers(res["region"])
         lines.append(f"Recoverable region ({convention}): {n['area']:.3g} N·s, "
@@ -552,6 +555,14 @@ def weights_section(page: Page, convention: str, res: dict) -> dict:
         _table(mark_outcomes(weights, ENERGY_COLUMNS), WEIGHTS_SHOWN))
 
 
+def _sustained(table: pd.DataFrame) -> str:
+    """The table's sustained-push limit in words (a table from before the column: not measured)."""
+    values = table.get("sustained_push_limit")
+    if values is None or not np.isfinite(values).any():
+        return "not measured"
+    return f"{float(values.dropna().iloc[0]):g} N"
+
+
 def table_section(page: Page, convention: str, res: dict) -> dict:
     """Experiment 3: the max acting time per force."""
     cfg = with_convention(page.config, convention)
@@ -564,7 +575,9 @@ def table_section(page: Page, convention: str, res: dict) -> dict:
                 f"{cfg.scenario.t_end:g} s (coarse scan, then bisection; "
                 f"sweep.max_acting_time). Energies at T = 0.1 s (_01) and at the max "
                 f"acting time (_max), of recovered runs only (– when that run did not "
-                f"recover; its outcome is outcome_01)."),
+                f"recover; its outcome is outcome_01). Sustained-push limit, the largest "
+                f"force held (not fallen) when it pushes for the whole window: "
+                f"{_sustained(res['table'])}."),
         _img(path, "max acting time and energies"),
         _table(mark_outcomes(res["table"], ENERGY_01, "outcome_01"), TABLE_SHOWN,
                note_column="note"))

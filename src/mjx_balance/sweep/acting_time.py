@@ -42,8 +42,12 @@ TABLE_COLUMNS = [
     "ending_outcome", "monotone", "recovered_beyond_failure",
     "outcome_01", "settle_time_01", "settle_time_max",
     "energy_u1_01", "energy_u2_01", "energy_u1_max", "energy_u2_max",
-    "convention", "evaluations", "note",
+    "convention", "evaluations", "note", "sustained_push_limit",
 ]
+
+# Forces [N] of the sustained-push limit's coarse scan (each pushed for the whole window).
+SUSTAINED_COARSE = (0.0, 2.5, 5.0, 7.5, 10.0, 12.5, 15.0, 20.0, 30.0, 50.0, 80.0, 120.0, 200.0)
+HELD = ("recovered", "not_settled")  # outcomes of a push that did not knock the body over
 
 
 @dataclass
@@ -328,9 +332,63 @@ def table_row(i: int, force: float, b: Brackets, steps: np.ndarray, resolution: 
         "energy_u1_max": _get(energy_max, "energy_u1"),
         "energy_u2_max": _get(energy_max, "energy_u2"),
         "convention": config.controller.convention,
+        "sustained_push_limit": float("nan"),  # a configuration's, set by run_table
         "evaluations": int(b.evaluations[i]),
         "note": note,
     }
+
+
+def sustained_push_limit(config: Config, run_batch: RunBatch, *, batch: int | None = None,
+                         cells: TableCells | None = None, resolution: float = 0.1,
+                         points_per_round: int = 7,
+                         coarse: Sequence[float] = SUSTAINED_COARSE, bar: Any = None
+                         ) -> tuple[float, str, pd.DataFrame]:
+    """The largest force (a multiple of ``resolution``, N) that the body holds for the whole
+    window: pushed from t = 0 to t_end, it does not fall (the outcome is recovered or
+    not_settled: a body leaning against a push that is still on at t_end is outside the settle
+    band), and no force of the coarse scan below it falls either.
+
+    A coarse scan of ``coarse`` forces in one call brackets the limit between the last force
+    held and the first that falls; rounds of ``points_per_round`` evenly spaced forces then
+    shrink the bracket to one resolution step (k-section, as the table's rounds). Returns
+    (limit, note, every scenario run); the limit is 0 if the unpushed body falls, the largest
+    coarse force if every one is held (the note says so, and when a force above the first
+    failure is held again). ``bar``: a progress bar updated with the scenarios run."""
+    t_end = config.scenario.t_end
+    units = np.unique(np.round(np.asarray(coarse, float) / resolution).astype(np.int64))
+
+    def held(points: np.ndarray) -> tuple[np.ndarray, pd.DataFrame]:
+        frame = evaluate_cells(run_batch, np.round(points * resolution, 12),
+                               np.full(points.size, t_end), config, batch, None, cells)
+        if bar is not None:
+            bar.update(points.size)
+        return frame["outcome"].isin(HELD).to_numpy(), frame
+
+    ok, frame = held(units)
+    runs = [frame]
+    if not ok[0]:
+        return 0.0, f"the body falls at {units[0] * resolution:g} N held for {t_end:g} s", frame
+    if ok.all():
+        top = units[-1] * resolution
+        return float(top), f"holds every force tried, up to {top:g} N", frame
+    first = int(np.argmin(ok))
+    note = ""
+    if ok[first:].any():
+        note = (f"not monotone: falls at {units[first] * resolution:g} N but holds "
+                f"{units[first:][ok[first:]].max() * resolution:g} N (coarse scan)")
+    lo, hi = int(units[first - 1]), int(units[first])
+    while hi - lo > 1:
+        split = lo + (hi - lo) * np.arange(1, points_per_round + 1) // (points_per_round + 1)
+        split = np.unique(split[(split > lo) & (split < hi)])
+        ok, frame = held(split)
+        runs.append(frame)
+        if ok.all():
+            lo = int(split[-1])
+        else:
+            fail = int(np.argmin(ok))
+            hi = int(split[fail])
+            lo = int(split[fail - 1]) if fail > 0 else lo
+    return round(lo * resolution, 12), note, pd.concat(runs, ignore_index=True)
 
 
 def _recovered(row: dict | None) -> bool:
@@ -403,6 +461,21 @@ def _run_table(out: str | Path, config: Config, forces: np.ndarray, run_batch: R
             "running only the others")
     result = max_acting_time(forces, config, run_batch=run_batch, progress=progress, log=log,
                              cells=cells, **options)
+    start = time.perf_counter()
+    bar = progress_bar(len(SUSTAINED_COARSE) + 21, 0, progress)  # coarse scan + ~3 rounds
+    try:
+        limit, note, held_runs = sustained_push_limit(
+            config, run_batch, batch=options.get("batch"), cells=cells, bar=bar)
+        if not isinstance(bar, NoBar):
+            bar.total = bar.n
+            bar.refresh()
+    finally:
+        bar.close()
+    say(f"table: sustained-push limit {limit:g} N (the largest force held for the whole "
+        f"{config.scenario.t_end:g}-s window{'; ' + note if note else ''}; "
+        f"{len(held_runs)} scenarios in {time.perf_counter() - start:.1f} s)")
+    result.table["sustained_push_limit"] = limit
+    result.runs = pd.concat([result.runs, held_runs], ignore_index=True)
     write_parquet(result.runs, folder.path / TABLE_RUNS)
     write_atomic(table_path, lambda tmp: result.table.to_csv(tmp, index=False))
     manifest = folder.read_manifest() or manifest
