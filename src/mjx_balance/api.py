@@ -241,6 +241,33 @@ def table(forces: Values, config: ConfigLike = None,
         return read_table(folder / TABLE)
 
 
+def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
+            out: str | os.PathLike[str], *, forces: Values = None, durations: Values = None,
+            table_forces: Values = None, slots: int | None = None, full_length: bool = False,
+            physics: str = "auto", cluster: Any = None,
+            progress: bool = False) -> "pd.DataFrame":
+    """Several configurations on one grid (``mjx-balance compare``): each one's region map and
+    table in ``out/<name>/``, then ``out/compare.csv`` (returned: area, mean recovery energy,
+    sustained-push limit, max acting times, one row per configuration) and ``out/compare.png``
+    (every recovery boundary on one plane). ``configs``: name -> configuration (a Config, a
+    dict or a TOML path), or a list of TOML paths (named by their stems). Grids default to the
+    default sweep's."""
+    from .comparison import load_configs, run_compare
+    from .sweep import DEFAULT_SWEEP
+
+    if isinstance(configs, dict):
+        configs = {str(name): as_config(c) for name, c in configs.items()}
+    else:
+        configs = load_configs([str(p) for p in configs])
+    with _session("compare"):
+        return run_compare(out, configs,
+                           DEFAULT_SWEEP["forces"] if forces is None else forces,
+                           DEFAULT_SWEEP["durations"] if durations is None else durations,
+                           DEFAULT_SWEEP["table_forces"] if table_forces is None
+                           else table_forces, progress=progress, log=log.info, slots=slots,
+                           full_length=full_length, physics=physics, cluster=cluster)
+
+
 def read_table(path: str | os.PathLike[str]) -> "pd.DataFrame":
     """A table.csv as :func:`table` returns it (pandas reads the floats it wrote back exactly)."""
     import pandas as pd

@@ -499,6 +499,27 @@ def build_parser() -> argparse.ArgumentParser:
     _common(p)
     p.set_defaults(target="mjx_balance.cli.sweep:table_command")
 
+    p = sub.add_parser("compare", help="several configurations on one grid: their recovery "
+                                       "boundaries in one figure, their numbers in one table")
+    p.add_argument("--config", type=input_file, action="append", required=True,
+                   metavar="FILE", help="a TOML configuration (repeat for each; the folder "
+                                        "name is the file's stem)")
+    p.add_argument("--forces", default=None,
+                   help="start:stop:step or a comma list [N] (default: the default sweep's, "
+                        "0:150:10)")
+    p.add_argument("--durations", default=None,
+                   help="start:stop:step or a comma list [s] (default: the default sweep's)")
+    p.add_argument("--table-forces", default=None,
+                   help="forces of each configuration's max-acting-time table [N] (default: "
+                        "the default sweep's, 20,50,80,100,120)")
+    _engine_options(p)
+    _cluster(p)
+    _wait(p)
+    p.add_argument("--out", type=out_folder, required=True,
+                   help="output folder: one sweep folder per configuration, compare.csv, "
+                        "compare.png")
+    p.set_defaults(target="mjx_balance.cli.compare:compare_command")
+
     p = sub.add_parser("animate", help="stick-figure GIF of one push (matplotlib, no OpenGL)")
     p.add_argument("--force", type=finite_float, required=True, help="push force [N]")
     p.add_argument("--duration", type=nonnegative_float, default=0.1, help="push duration [s]")

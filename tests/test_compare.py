@@ -1,0 +1,112 @@
+"""``mjx-balance compare`` / ``mb.compare``: several configurations on one grid, with the
+stand-in batch function of tests/test_sweep.py (recovered iff |F| T < c), whose numbers are
+known in closed form: nothing compiles here."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from PIL import Image
+
+import mjx_balance as mb
+from mjx_balance.cli import main
+from mjx_balance.comparison import boundary_segments, names_for
+from mjx_balance.params import ParameterError
+from test_sweep import DEFAULT_BATCH, FakeThresholdBatch, expected_max_time
+
+FORCES, DURATIONS, TABLE_FORCES = "0:40:10", "0.5,1,2", "10,20"
+C = {"paper": 30.0, "joint": 60.0}  # the stand-in's threshold per convention
+
+
+@pytest.fixture
+def stand_in(monkeypatch):
+    made = []
+
+    def make(config, **_engine):
+        made.append(FakeThresholdBatch(c=C[config.controller.convention]))
+        return made[-1]
+    monkeypatch.setattr(DEFAULT_BATCH, make)
+    return made
+
+
+def configs(tmp_path):
+    a, b = tmp_path / "plain.toml", tmp_path / "joint.toml"
+    a.write_text('[controller]\nconvention = "paper"\n')
+    b.write_text('[controller]\nconvention = "joint"\n')
+    return a, b
+
+
+def expected_area(c: float) -> float:
+    """Recovered cells' area on the grid (cell bounds half-way, outer bounds on the ends)."""
+    forces, durations = np.arange(0, 41, 10.0), np.array([0.5, 1.0, 2.0])
+    wf = np.diff(np.concatenate([[0], (forces[1:] + forces[:-1]) / 2, [40]]))
+    wd = np.diff(np.concatenate([[0.5], (durations[1:] + durations[:-1]) / 2, [2.0]]))
+    ok = forces[:, None] * durations[None, :] < c
+    return float((wf[:, None] * wd[None, :] * ok).sum())
+
+
+def test_compare_writes_its_figure_and_table(tmp_path, stand_in):
+    a, b = configs(tmp_path)
+    out = tmp_path / "out"
+    assert main(["compare", "--config", str(a), "--config", str(b), "--forces", FORCES,
+                 "--durations", DURATIONS, "--table-forces", TABLE_FORCES, "--out",
+                 str(out)]) == 0
+    frame = pd.read_csv(out / "compare.csv").set_index("name")
+    assert list(frame.index) == ["plain", "joint"]
+    for name, convention in (("plain", "paper"), ("joint", "joint")):
+        c = C[convention]
+        row = frame.loc[name]
+        assert row["area"] == pytest.approx(expected_area(c))
+        assert row["sustained_push_limit"] == pytest.approx(np.floor(c / 12 * 10 - 1e-9) / 10)
+        for force in (10, 20):
+            assert row[f"max_acting_time_{force}N"] == expected_max_time(force, c, 12.0)
+        region = pd.read_parquet(out / name / "region.parquet")
+        recovered = region[region.outcome == "recovered"]
+        assert row["mean_recovery_energy"] == pytest.approx(recovered.energy_total.mean())
+    with Image.open(out / "compare.png") as image:
+        assert image.size[0] > 500
+    # a rerun finds everything done: no batch function is even called
+    calls = sum(len(f.calls) for f in stand_in)
+    assert main(["compare", "--config", str(a), "--config", str(b), "--forces", FORCES,
+                 "--durations", DURATIONS, "--table-forces", TABLE_FORCES, "--out",
+                 str(out)]) == 0
+    assert sum(len(f.calls) for f in stand_in) == calls
+
+
+def test_the_api_compares_named_configurations(tmp_path, stand_in):
+    frame = mb.compare({"paper": {"controller": {"convention": "paper"}},
+                        "joint": {"controller": {"convention": "joint"}}}, tmp_path,
+                       forces=FORCES, durations=DURATIONS, table_forces=TABLE_FORCES)
+    assert list(frame["name"]) == ["paper", "joint"]
+    assert frame["area"].iloc[1] > frame["area"].iloc[0]  # c = 60 recovers more than 30
+    manifest = json.loads((tmp_path / "joint" / "manifest.json").read_text())
+    assert manifest["config"]["controller"]["convention"] == "joint"
+
+
+def test_bad_input_is_refused_before_any_work(tmp_path, stand_in, capsys):
+    a, _ = configs(tmp_path)
+    short = tmp_path / "short.toml"
+    short.write_text("[scenario]\nt_end = 1.0\n")
+    out = tmp_path / "out"
+    with pytest.raises(ParameterError, match="'short'.*t_end"):
+        mb.compare([a, short], out, forces=FORCES, durations=DURATIONS)
+    assert not (out / "plain").exists() and not stand_in  # nothing ran, nothing written
+    with pytest.raises(SystemExit) as exited:
+        main(["compare", "--config", str(tmp_path / "missing.toml"), "--out", str(out)])
+    assert exited.value.code == 2 and "missing.toml" in capsys.readouterr().err
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[controller]\nhorizon = 0\n")
+    with pytest.raises(ParameterError, match="bad.toml"):
+        mb.compare([bad], out)
+
+
+def test_names_and_boundaries():
+    assert names_for(["a/x.toml", "b/x.toml", "c d.toml"]) == ["x", "x-2", "c_d"]
+    # one recovered cell in a 2 x 2 grid: its outline is 4 edges (2 inner + 2 on the border)
+    region = pd.DataFrame({"force": [0.0, 0.0, 10.0, 10.0], "duration": [0.5, 1.0, 0.5, 1.0],
+                           "outcome": ["recovered", "fell", "fell", "fell"]})
+    segments = boundary_segments(region, log=False)
+    assert len(segments) == 4
+    xs = sorted({x for seg in segments for x, _ in seg})
+    assert xs == [0.0, 5.0]  # from the grid's edge to half-way to the next force
