@@ -24,6 +24,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
+import pandas as pd
 import pytest
 
 from mjx_balance.outcomes import SUMMARY_COLUMNS
@@ -181,7 +182,7 @@ def test_table_on_the_cluster_is_the_local_table(tmp_path, reference, cluster):
                            batch=table_batch_size(config, 2), progress=False, log=None,
                            cluster=client)
     expected = _local_table(reference)
-    assert len(result.runs) == 26
+    assert len(result.runs) == len(pd.read_parquet(expected / "table_runs.parquet")) > 26
     for name in ("table.csv", "table_runs.parquet"):
         assert (out / name).read_bytes() == (expected / name).read_bytes(), name
     parts = sorted(p.name for p in (expected / "table_runs").glob("*.parquet"))

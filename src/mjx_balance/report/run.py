@@ -56,6 +56,7 @@ class Plan:
     study_forces: str | None = None
     study_durations: str | None = None
     backward_forces: str | None = None
+    sustained: bool = True  # the tables' sustained-push limit (tiny: not measured)
 
 
 PLANS = {
@@ -65,7 +66,7 @@ PLANS = {
                  r_scales=(1e-4, 1e-6, 1e-8), table_forces=(20, 100),
                  region_forces="0:120:60", region_durations="0.05,0.2",
                  study_forces="0:120:60", study_durations="0.05,0.2",
-                 backward_forces="-120:120:60"),
+                 backward_forces="-120:120:60", sustained=False),
     # The study's experiments (table forces, six time series), coarse region maps.
     "default": Plan("default"),
     # The dense region maps of sweeps/region_dense_*.toml (meant for a GPU).
@@ -343,7 +344,7 @@ def run_robustness_table(run: ReportRun, convention: str) -> None:
     run_table(run.out / convention / "table", cfg, list(run.plan.table_forces),
               run_batch=run.batches(cfg),
               batch=None if run.backend == "reference" else run.chunk,
-              progress=not run.quiet, log=run.sweep_log)
+              progress=not run.quiet, log=run.sweep_log, sustained=run.plan.sustained)
 
 
 def run_experiments(run: ReportRun, convention: str) -> None:

@@ -391,6 +391,28 @@ def sustained_push_limit(config: Config, run_batch: RunBatch, *, batch: int | No
     return round(lo * resolution, 12), note, pd.concat(runs, ignore_index=True)
 
 
+def _add_sustained_limit(result: TableResult, config: Config, run_batch: RunBatch,
+                         cells: TableCells, batch: int | None, progress: bool,
+                         say: Callable[[str], None]) -> None:
+    """The sustained-push limit into ``result``'s table (a column) and runs, with a progress
+    bar and a line on how it came out."""
+    start = time.perf_counter()
+    bar = progress_bar(len(SUSTAINED_COARSE) + 21, 0, progress)  # coarse scan + ~3 rounds
+    try:
+        limit, note, held_runs = sustained_push_limit(config, run_batch, batch=batch,
+                                                      cells=cells, bar=bar)
+        if not isinstance(bar, NoBar):
+            bar.total = bar.n
+            bar.refresh()
+    finally:
+        bar.close()
+    say(f"table: sustained-push limit {limit:g} N (the largest force held for the whole "
+        f"{config.scenario.t_end:g}-s window{'; ' + note if note else ''}; "
+        f"{len(held_runs)} scenarios in {time.perf_counter() - start:.1f} s)")
+    result.table["sustained_push_limit"] = limit
+    result.runs = pd.concat([result.runs, held_runs], ignore_index=True)
+
+
 def _recovered(row: dict | None) -> bool:
     return row is not None and row["outcome"] == OUTCOMES[RECOVERED]
 
@@ -402,7 +424,7 @@ def _get(row: dict | None, key: str) -> float:
 def run_table(out: str | Path, config: Config, forces: np.ndarray | str | Sequence[float], *,
               run_batch: RunBatch | None = None, progress: bool = True,
               log: Callable[[str], None] | None = print, cluster: Any = None,
-              **options: Any) -> TableResult | None:
+              sustained: bool = True, **options: Any) -> TableResult | None:
     """``max_acting_time`` into ``out/table.csv`` (+ table_runs.parquet, every scenario run),
     under the folder's lock (``store.folder_lock``).
 
@@ -413,21 +435,23 @@ def run_table(out: str | Path, config: Config, forces: np.ndarray | str | Sequen
     cluster: run each round's batch calls on a Dask cluster (``cluster.ClusterBatch``, as
     ``run_sweep``'s chunks: ``"local:N"``, a scheduler address or file, or a
     ``distributed.Client``); the bisection, the kept scenarios and the table stay here and
-    are the same as without it. None: here.
+    are the same as without it. None: here. sustained: also the sustained-push limit
+    (:func:`sustained_push_limit`; False: the column is NaN, as in a report's tiny plan).
     """
     forces = parse_grid(forces, "table forces")
     with folder_lock(out):
         if cluster is None:
-            return _run_table(out, config, forces, run_batch, progress, log, options)
+            return _run_table(out, config, forces, run_batch, progress, log, options, sustained)
         from .cluster import ClusterBatch
 
         with ClusterBatch(cluster, run_batch or LazyBatch(config), config, log) as on_cluster:
-            return _run_table(out, config, forces, on_cluster, progress, log, options)
+            return _run_table(out, config, forces, on_cluster, progress, log, options,
+                              sustained)
 
 
 def _run_table(out: str | Path, config: Config, forces: np.ndarray, run_batch: RunBatch | None,
                progress: bool, log: Callable[[str], None] | None,
-               options: dict[str, Any]) -> TableResult | None:
+               options: dict[str, Any], sustained: bool = True) -> TableResult | None:
     say = log or (lambda _msg: None)
     folder = OutputFolder(out, config)
     manifest = folder.open()
@@ -461,21 +485,9 @@ def _run_table(out: str | Path, config: Config, forces: np.ndarray, run_batch: R
             "running only the others")
     result = max_acting_time(forces, config, run_batch=run_batch, progress=progress, log=log,
                              cells=cells, **options)
-    start = time.perf_counter()
-    bar = progress_bar(len(SUSTAINED_COARSE) + 21, 0, progress)  # coarse scan + ~3 rounds
-    try:
-        limit, note, held_runs = sustained_push_limit(
-            config, run_batch, batch=options.get("batch"), cells=cells, bar=bar)
-        if not isinstance(bar, NoBar):
-            bar.total = bar.n
-            bar.refresh()
-    finally:
-        bar.close()
-    say(f"table: sustained-push limit {limit:g} N (the largest force held for the whole "
-        f"{config.scenario.t_end:g}-s window{'; ' + note if note else ''}; "
-        f"{len(held_runs)} scenarios in {time.perf_counter() - start:.1f} s)")
-    result.table["sustained_push_limit"] = limit
-    result.runs = pd.concat([result.runs, held_runs], ignore_index=True)
+    if sustained:
+        _add_sustained_limit(result, config, run_batch, cells, options.get("batch"), progress,
+                             say)
     write_parquet(result.runs, folder.path / TABLE_RUNS)
     write_atomic(table_path, lambda tmp: result.table.to_csv(tmp, index=False))
     manifest = folder.read_manifest() or manifest
