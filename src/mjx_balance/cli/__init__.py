@@ -485,7 +485,8 @@ def build_parser() -> argparse.ArgumentParser:
     _common(p)
     p.set_defaults(target="mjx_balance.cli.sweep:sweep_command")
 
-    p = sub.add_parser("table", help="max acting time per force (robustness table)")
+    p = sub.add_parser("table", help="max acting time per force (robustness table) and the "
+                                     "sustained-push limit")
     p.add_argument("--forces", default=None,
                    help="comma list or start:stop:step [N] (default: the --sweep file's table_forces, "
                         "else the study's 5,10,15,20,30,40,50,60,80,100,120)")
