@@ -12,7 +12,7 @@ from PIL import Image
 import mjx_balance as mb
 from mjx_balance.cli import main
 from mjx_balance.comparison import boundary_segments, names_for
-from mjx_balance.params import ParameterError
+from mjx_balance.params import Config, ParameterError
 from test_sweep import DEFAULT_BATCH, FakeThresholdBatch, expected_max_time
 
 FORCES, DURATIONS, TABLE_FORCES = "0:40:10", "0.5,1,2", "10,20"
@@ -99,10 +99,24 @@ def test_bad_input_is_refused_before_any_work(tmp_path, stand_in, capsys):
     bad.write_text("[controller]\nhorizon = 0\n")
     with pytest.raises(ParameterError, match="bad.toml"):
         mb.compare([bad], out)
+    with pytest.raises(ParameterError, match="plain.toml: this configuration file is given twice"):
+        mb.compare([a, tmp_path / "." / "plain.toml"], out)
+    for name, message in (("../up", "not a folder name"), ("compare.csv", "taken by"),
+                          ("", "not a folder name")):
+        with pytest.raises(ParameterError, match=message):
+            mb.compare({name: {}}, out)
+    mb.compare({"b": {}}, out, forces=FORCES, durations="0.5,1", table_forces="10")
+    with pytest.raises(ParameterError, match="'b'.*another grid"):  # found before 'a' runs
+        mb.compare({"a": {}, "b": {}}, out, forces=FORCES, durations=DURATIONS)
+    assert not (out / "a").exists()
+    with pytest.raises(ParameterError, match="'b'.*different configuration"):
+        mb.compare({"b": {"controller": {"convention": "joint"}}}, out, forces=FORCES,
+                   durations="0.5,1")
 
 
 def test_names_and_boundaries():
     assert names_for(["a/x.toml", "b/x.toml", "c d.toml"]) == ["x", "x-2", "c_d"]
+    assert names_for(["compare.png.toml", "..toml"]) == ["compare.png-2", "config"]
     # one recovered cell in a 2 x 2 grid: its outline is 4 edges (2 inner + 2 on the border)
     region = pd.DataFrame({"force": [0.0, 0.0, 10.0, 10.0], "duration": [0.5, 1.0, 0.5, 1.0],
                            "outcome": ["recovered", "fell", "fell", "fell"]})
@@ -110,3 +124,44 @@ def test_names_and_boundaries():
     assert len(segments) == 4
     xs = sorted({x for seg in segments for x, _ in seg})
     assert xs == [0.0, 5.0]  # from the grid's edge to half-way to the next force
+
+
+def test_compare_on_a_local_cluster_gives_the_local_numbers(tmp_path, monkeypatch):
+    """``compare --cluster local:1`` (issue 17): one connection for every configuration's map
+    and table, and the same region maps and compare.csv as the plain run. The stand-ins go to
+    the worker by value (it cannot import this test module). Needs Dask (the cluster extra)."""
+    distributed = pytest.importorskip("distributed")
+    import cloudpickle
+
+    import test_sweep
+    from mjx_balance.comparison import run_compare
+    from mjx_balance.sweep import cluster as cluster_mod
+
+    configs = {"paper": Config(), "joint": Config().replace(controller={"convention": "joint"})}
+
+    def run(out, **engine):
+        batches = {name: FakeThresholdBatch(c=C[c.controller.convention])
+                   for name, c in configs.items()}
+        frame = run_compare(out, configs, FORCES, DURATIONS, TABLE_FORCES,
+                            run_batches=batches, log=None, **engine)
+        return frame, sum(len(b.calls) for b in batches.values())  # calls made here
+
+    connections = []
+    connect = cluster_mod.connect
+    monkeypatch.setattr(cluster_mod, "connect",
+                        lambda *a, **k: connections.append(a[0]) or connect(*a, **k))
+    cloudpickle.register_pickle_by_value(test_sweep)
+    try:
+        on_cluster, here = run(tmp_path / "cluster", cluster="local:1")
+    finally:
+        cloudpickle.unregister_pickle_by_value(test_sweep)
+    # one cluster started; each configuration's map and table reuse its client
+    assert connections[0] == "local:1" and len(connections) == 1 + 2 * len(configs)
+    assert all(c is connections[1] and isinstance(c, distributed.Client)
+               for c in connections[1:])
+    plain, plain_here = run(tmp_path / "plain")
+    assert here == 0 < plain_here  # on the cluster, every scenario ran on the worker
+    pd.testing.assert_frame_equal(on_cluster, plain)
+    for name in configs:
+        assert ((tmp_path / "cluster" / name / "region.parquet").read_bytes()
+                == (tmp_path / "plain" / name / "region.parquet").read_bytes())

@@ -234,6 +234,7 @@ def expected_max_time(force, c, t_end, resolution=0.01):
 
 
 @pytest.mark.parametrize("c, limit, note", [(30.0, 2.4, ""), (0.5, 0.0, ""),
+                                            (0.0, 0.0, "the body falls at 0 N"),
                                             (1e5, 200.0, "holds every force tried")])
 def test_sustained_push_limit_finds_the_fake_threshold_to_0_1_n(c, limit, note):
     """Held for the whole 12-s window iff 12 F < c: the largest such multiple of 0.1 N."""

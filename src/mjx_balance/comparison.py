@@ -29,31 +29,59 @@ import pandas as pd
 
 from . import studies
 from .params import Config, ParameterError, load_config
-from .sweep.grid import check_durations, parse_grid
-from .sweep.store import REGION, TABLE
+from .sweep.grid import check_durations, describe, parse_grid, same_values
+from .sweep.store import REGION, TABLE, OutputFolder, config_dict, config_differences
 
 COMPARE_CSV = "compare.csv"
 COMPARE_PNG = "compare.png"
+RESERVED = (COMPARE_CSV, COMPARE_PNG)  # names a configuration's folder cannot take
 
 
 def names_for(paths: Sequence[str | Path]) -> list[str]:
     """A folder name per configuration file: its stem (characters other than letters, digits,
-    '.', '_' and '-' replaced), made unique with -2, -3, ..."""
+    '.', '_' and '-' replaced), made unique with -2, -3, ... (also against compare.csv and
+    compare.png, the comparison's own files)."""
     names: list[str] = []
     for path in paths:
-        stem = re.sub(r"[^A-Za-z0-9._-]", "_", Path(path).stem) or "config"
+        stem = re.sub(r"[^A-Za-z0-9._-]", "_", Path(path).stem).strip(".") or "config"
         name, n = stem, 1
-        while name in names:
+        while name in names or name in RESERVED:
             n += 1
             name = f"{stem}-{n}"
         names.append(name)
     return names
 
 
+def check_names(names: Sequence[str]) -> None:
+    """Names given to configurations (``mb.compare`` with a dict) must be usable folder names
+    in OUT, distinct from each other and from the comparison's own files."""
+    seen: set[str] = set()
+    for name in names:
+        if (not name or name in (".", "..") or "/" in name or "\\" in name
+                or name != name.strip()):
+            raise ParameterError(f"configuration name {name!r} is not a folder name (letters, "
+                                 "digits, '.', '_', '-'; no path separators)")
+        if name in RESERVED:
+            raise ParameterError(f"configuration name {name!r} is taken by the comparison's "
+                                 "own output file")
+        if name.lower() in seen:  # a case-insensitive filesystem would merge them
+            raise ParameterError(f"configuration name {name!r} is given twice")
+        seen.add(name.lower())
+
+
 def load_configs(paths: Sequence[str | Path]) -> dict[str, Config]:
-    """name -> configuration of every file (ParameterError naming the file that is wrong)."""
+    """name -> configuration of every file (ParameterError naming the file that is wrong, or
+    a file given twice: its map would be computed twice)."""
     if not paths:
         raise ParameterError("compare needs at least one configuration (--config FILE)")
+    seen: dict[Path, str | Path] = {}
+    for path in paths:
+        key = Path(path).resolve()
+        if key in seen:
+            also = f" (also as {seen[key]})" if str(seen[key]) != str(path) else ""
+            raise ParameterError(f"{path}: this configuration file is given twice{also}; give "
+                                 "each configuration once")
+        seen[key] = path
     configs = {}
     for name, path in zip(names_for(paths), paths):
         try:
@@ -61,6 +89,33 @@ def load_configs(paths: Sequence[str | Path]) -> dict[str, Config]:
         except ParameterError as exc:
             raise ParameterError(f"{path}: {exc}") from None
     return configs
+
+
+def check_folder(folder: Path, name: str, config: Config, forces: np.ndarray,
+                 durations: np.ndarray) -> None:
+    """Refuse, before any configuration runs, a folder OUT/<name> left by another
+    configuration or holding a region map over another grid (the sweep itself would refuse
+    it, but only once the configurations before it had run)."""
+    folder_ = OutputFolder(folder, config)
+    try:
+        manifest = folder_.read_manifest()
+    except ParameterError as exc:
+        raise ParameterError(f"configuration {name!r}: {exc}") from None
+    if manifest is None:
+        return
+    differences = config_differences(manifest.get("config", {}), config_dict(config))
+    if differences:
+        raise ParameterError(
+            f"configuration {name!r}: {folder} was made with a different configuration; use "
+            "another --out folder or the same configuration. Differences: "
+            + "; ".join(differences[:6]) + (" ..." if len(differences) > 6 else ""))
+    recorded = manifest.get("region")
+    if recorded is not None and not (same_values(recorded["forces"], forces)
+                                     and same_values(recorded["durations"], durations)):
+        raise ParameterError(
+            f"configuration {name!r}: {folder} holds a sweep over another grid (forces "
+            f"{describe(recorded['forces'])}, durations {describe(recorded['durations'])}); "
+            "use another --out folder or the same grid")
 
 
 def numbers(region: pd.DataFrame, table: pd.DataFrame | None) -> dict[str, float]:
@@ -96,12 +151,14 @@ def run_compare(out: str | Path, configs: dict[str, Config], forces: Any, durati
     forces = parse_grid(forces, "forces")
     durations = parse_grid(durations, "durations")
     table_forces = parse_grid(table_forces, "table forces")
+    check_names(list(configs))
     for name, config in configs.items():  # every grid check before any work
         try:
             check_durations(durations, config.scenario.t_end,
                             physics_dt=config.scenario.physics_dt)
         except ParameterError as exc:
             raise ParameterError(f"configuration {name!r}: {exc}") from None
+        check_folder(out / name, name, config, forces, durations)
     cluster = engine.get("cluster")
     if isinstance(cluster, str):  # one connection for every configuration's work
         from .sweep import cluster as cluster_mod
@@ -113,6 +170,11 @@ def run_compare(out: str | Path, configs: dict[str, Config], forces: Any, durati
                                **{**engine, "cluster": client})
         finally:
             cluster_mod.close(client, local, owned=True)
+    windows = {name: config.scenario.t_end for name, config in configs.items()}
+    if len(set(windows.values())) > 1:
+        say("note: the configurations' windows differ ("
+            + ", ".join(f"{n}: {t:g} s" for n, t in windows.items()) + "); 'recovered' and "
+            "the sustained-push limit are judged over each one's own window")
     regions, tables, rows = {}, {}, []
     for name, config in configs.items():
         folder = out / name
@@ -178,12 +240,14 @@ def plot_compare(regions: dict[str, pd.DataFrame], path: Path, frame: pd.DataFra
     fig, ax = plt.subplots(figsize=(8, 5.5), layout="constrained")
     styles = ["-", "--", "-.", ":"]
     numbers_of = frame.set_index("name")
+    several_windows = frame["t_end"].nunique() > 1
     for k, (name, region) in enumerate(regions.items()):
         segments = boundary_segments(region, log)
         row = numbers_of.loc[name]
         limit = row["sustained_push_limit"]
         label = (f"{name}: {row['area']:.3g} N·s"
-                 + (f", holds {limit:g} N" if np.isfinite(limit) else ""))
+                 + (f", holds {limit:g} N" if np.isfinite(limit) else "")
+                 + (f" ({row['t_end']:g}-s window)" if several_windows else ""))
         ax.add_collection(LineCollection(segments, colors=f"C{k}", linewidths=2.2,
                                          linestyles=styles[k % len(styles)], label=label))
     forces = np.sort(every["force"].unique())

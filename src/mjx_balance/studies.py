@@ -322,4 +322,16 @@ def reading(st: Study, numbers: pd.DataFrame, region: pd.DataFrame) -> str:
     if st.key == "ankle_only" and len(rows) == 2:
         added = base["area"] - rows[1]["area"]
         text += f" The hip adds {added:+.3g} N·s to the ankle-only region."
+    if st.key == "delay" and base["area"] > 0:
+        # each compensated map against the plain one at the same delay (delay_comp_050ms and
+        # delay_050ms), as fractions of the undelayed area
+        by_key = {r["variant"]: r for r in rows}
+        pairs = [(r, by_key.get(r["variant"].replace("_comp_", "_"))) for r in rows
+                 if "_comp_" in str(r["variant"])]
+        if pairs:
+            text += (" As a fraction of the undelayed area, the delay-compensated controller "
+                     "keeps " + ", ".join(
+                         f"{c['area'] / base['area']:.0%} at {c['label'].split(',')[0]}"
+                         + (f" (without compensation {p['area'] / base['area']:.0%})"
+                            if p is not None else "") for c, p in pairs) + ".")
     return text
