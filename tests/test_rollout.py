@@ -364,14 +364,16 @@ class AdmmMPC:
 
     def __init__(self, runner):
         self.qp, self._data, settings = runner.qp, runner.arrays.qp, runner.static.settings
-        self._solve = jax.jit(lambda x, w: admm_mod.admm_solve(self._data, x, w, settings))
+        self._solve = jax.jit(lambda x, w, o: admm_mod.admm_solve(self._data, x, w, settings, o))
         self.reset()
 
     def reset(self) -> None:
         self._warm = admm_mod.initial_warm(self._data)
 
-    def solve(self, x0):
-        res = self._solve(jnp.asarray(x0, jnp.float32), self._warm)
+    def solve(self, x0, offset=None):
+        offset = np.zeros(self.qp.m) if offset is None else offset  # zero: the plain QP
+        res = self._solve(jnp.asarray(x0, jnp.float32), self._warm,
+                          jnp.asarray(offset, jnp.float32))
         self._warm = admm_mod.ADMMWarm(*(w.astype(jnp.float32) for w in res.warm_next))
         return (np.asarray(res.u0, float), np.asarray(res.z, float),
                 bool(res.status == admm_mod.SOLVED), float(res.prim_res))

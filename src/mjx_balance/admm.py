@@ -266,8 +266,12 @@ class _Carry(NamedTuple):
 
 
 def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
-               settings: ADMMSettings) -> ADMMResult:
+               settings: ADMMSettings, offset: jax.Array | None = None) -> ADMMResult:
     """Solve the QP at state ``x0`` [4] from ``warm``; pure, jit-able (settings static).
+
+    ``offset`` [m] (the offset-free MPC's deviation QP, offset_free.py): every row's bounds
+    move down by it, and the first input returned is offset[:2] + z[:2] (the input rows' offset
+    is the target input u_s), clipped to the input bounds. None: the plain QP.
 
     Batch with ``jax.vmap(admm_solve, in_axes=(None, 0, 0, None))`` (see
     :func:`admm_solve_batch`).
@@ -284,6 +288,8 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
     q = x0 @ data.FT  # unscaled linear term
     g = x0 @ data.GT  # -K⁻¹ q̄
     shift = x0 @ data.bT
+    if offset is not None:
+        shift = shift + E * jnp.asarray(offset, dtype)
     lo, hi = data.l0 - shift, data.u0 - shift  # scaled bounds
 
     def iteration(_, state):
@@ -358,7 +364,8 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
 
     z = carry.x @ data.T.T
     y = E * rho * carry.y / c
-    u0 = jnp.clip(z[:2], data.input_lower, data.input_upper)
+    first = z[:2] if offset is None else z[:2] + jnp.asarray(offset[:2], dtype)
+    u0 = jnp.clip(first, data.input_lower, data.input_upper)
     return ADMMResult(
         z=z, u0=u0, status=status.astype(jnp.int32), prim_res=carry.prim_res,
         dual_res=carry.dual_res, iters=(carry.chunk * settings.check_every).astype(jnp.int32),

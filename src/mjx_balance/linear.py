@@ -59,6 +59,10 @@ class LinearModel:
     com_x: np.ndarray  # [4]
     P: np.ndarray  # [2, 2] theta = P y
     torque_map: np.ndarray  # [2, 2] [tau_ankle, tau_hip] = torque_map @ u
+    # [2] a generalised force d beside u (M y'' = (G - Ks) y - Ds y' + u + d) moves the CoP
+    # by cop_d @ d through the accelerations only (offset_free.py):
+    # cop_d = cop_u + torque_map[0] / (M g)
+    cop_d: np.ndarray
 
     def state_from_joints(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """Convention state from joint angles/rates [q_a, q_h] (works on batches [..., 2])."""
@@ -159,7 +163,8 @@ def linear_model(body: BodyParams, convention: str, dt: float) -> LinearModel:
     cop_y = -h * (J @ Minv @ (G - Ks)) / total_weight
     cop_dy = h * (J @ Minv @ Ds) / total_weight
     cop_u = -(torque_map[0] + h * (J @ Minv)) / total_weight
+    cop_d = -h * (J @ Minv) / total_weight
     cop_x = np.concatenate([cop_y, cop_dy])
     com_x = np.concatenate([J / body.total_mass, np.zeros(2)])
     return LinearModel(convention=convention, dt=dt, Ac=Ac, Bc=Bc, A=A, B=B, cop_x=cop_x,
-                       cop_u=cop_u, com_x=com_x, P=P, torque_map=torque_map)
+                       cop_u=cop_u, com_x=com_x, P=P, torque_map=torque_map, cop_d=cop_d)

@@ -33,10 +33,12 @@ def osqp_solver(qp: CondensedQP, eps: float, max_iter: int = 20000,
 
 
 def osqp_solve(solver: osqp.OSQP, qp: CondensedQP, x0: np.ndarray,
-               warm: tuple[np.ndarray, np.ndarray] | None = None):
-    """Solve the QP of measured state ``x0`` [4] (optionally from a primal/dual warm start);
-    OSQP's result object, never an exception."""
-    lower, upper = qp.bounds(x0)
+               warm: tuple[np.ndarray, np.ndarray] | None = None,
+               offset: np.ndarray | None = None):
+    """Solve the QP of measured state ``x0`` [4] (optionally from a primal/dual warm start;
+    ``offset``: the offset-free deviation QP's row offsets, ``qp.bounds``); OSQP's result
+    object, never an exception."""
+    lower, upper = qp.bounds(x0, offset)
     solver.update(q=qp.linear_term(x0), l=lower, u=upper)
     if warm is not None:
         solver.warm_start(x=warm[0], y=warm[1])
@@ -75,8 +77,10 @@ class ReferenceMPC:
             out[rows] = np.concatenate([block[stride:], block[-stride:]])
         return out
 
-    def solve(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool, float]:
-        """Solve the QP for measured state x0 [4].
+    def solve(self, x0: np.ndarray, offset: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, bool, float]:
+        """Solve the QP for measured state x0 [4] (with ``offset``: the offset-free deviation
+        QP of x0 = x - x_s, whose first input is offset[:2] + z[:2]; offset_free.py).
 
         Returns (u [2] first input clipped to its bounds, z [n] the solver's (last) iterate,
         status_ok: OSQP reported SOLVED, primal residual). Never raises on a bad solve.
@@ -86,7 +90,7 @@ class ReferenceMPC:
             warm = np.zeros(self.qp.n), np.zeros(self.qp.m)
         else:
             warm = shift_warm_start(self._z), self._shift_dual(self._y)
-        result = osqp_solve(self._solver, self.qp, x0, warm)
+        result = osqp_solve(self._solver, self.qp, x0, warm, offset)
         z = np.array(result.x, dtype=float)
         y = np.array(result.y, dtype=float)
         status_ok = result.info.status_val == osqp.SolverStatus.OSQP_SOLVED
@@ -95,4 +99,5 @@ class ReferenceMPC:
             self._z, self._y = z, y
         else:
             self._z = self._y = None
-        return self.qp.clip_input(z[:2]), z, bool(status_ok), prim_res
+        first = z[:2] if offset is None else z[:2] + np.asarray(offset[:2], float)
+        return self.qp.clip_input(first), z, bool(status_ok), prim_res

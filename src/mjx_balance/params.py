@@ -238,6 +238,19 @@ class ControllerParams:
     # linear model and the inputs already applied (linear.delay_predictor), then solve the MPC
     # for it. Off: the MPC acts on the delayed measurement (the study's controller).
     delay_compensation: bool = False
+    # Offset-free MPC (offset_free.py): a disturbance observer and a steady-state target that
+    # cancels the estimated disturbance (a sustained push) within every bound. Off: the study's
+    # controller, which regulates to upright and leans with a sustained push.
+    offset_free: bool = False
+    # The observer's pole per control period: the estimate's error shrinks by this factor each
+    # period in the linear plant (0.8 at 10 ms: time constant -0.01 / ln 0.8 = 45 ms).
+    observer_pole: float = 0.8
+    # The fraction of each input's half-range the steady-state target leaves free around
+    # itself (its input bounds are pulled in by it): room for the MPC to act about the target.
+    # A lean target with an input on its bound leaves the MPC no authority one way and is not
+    # a stable operating point (measured in the linear plant: 0 and 0.1 diverge, 0.2 and 0.3
+    # settle; tests/test_offset_free.py, docs/model.md).
+    target_margin: float = 0.2
 
     def __post_init__(self) -> None:
         _check_types("controller", self)
@@ -268,6 +281,12 @@ class ControllerParams:
             value = getattr(self, name)
             if not isinstance(value, int) or value < 1:
                 _fail("controller", name, "must be an integer >= 1", value)
+        if not 0 <= self.target_margin < 1:
+            _fail("controller", "target_margin", "must lie in [0, 1) (a fraction of each "
+                  "input's half-range)", self.target_margin)
+        if not 0 <= self.observer_pole < 1:
+            _fail("controller", "observer_pole", "must lie in [0, 1) (the observer's pole per "
+                  "control period; 0: deadbeat)", self.observer_pole)
 
     @property
     def input_bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -365,6 +384,14 @@ class Config:
     body: BodyParams = field(default_factory=BodyParams)
     controller: ControllerParams = field(default_factory=ControllerParams)
     scenario: ScenarioParams = field(default_factory=ScenarioParams)
+
+    def __post_init__(self) -> None:
+        if self.controller.offset_free and self.scenario.delay_steps > 0:
+            raise ParameterError(
+                "controller.offset_free = true with scenario.controller_delay (or delay_error) "
+                "> 0 is not supported: the observer compares each measurement with the model's "
+                "prediction from the previous one and the input applied since, which a delayed "
+                "measurement does not match; set controller_delay = 0 or offset_free = false")
 
     def replace(self, **sections: Any) -> "Config":
         """Return a copy with fields replaced, e.g. ``cfg.replace(controller={"horizon": 10})``."""

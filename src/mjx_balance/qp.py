@@ -63,8 +63,11 @@ class CondensedQP:
     def linear_term(self, x0: np.ndarray) -> np.ndarray:
         return self.F @ x0
 
-    def bounds(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        shift = self.E @ x0
+    def bounds(self, x0: np.ndarray, offset: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """The bounds at state ``x0``; ``offset`` [m]: the rows' values at the offset-free
+        target, subtracted (the deviation QP, offset_free.py)."""
+        shift = self.E @ x0 + (0.0 if offset is None else np.asarray(offset, float))
         return self.lower0 - shift, self.upper0 - shift
 
     def predict(self, x0: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -79,11 +82,11 @@ class CondensedQP:
     def clip_input(self, u: np.ndarray) -> np.ndarray:
         return np.clip(u, self.input_lower, self.input_upper)
 
-    def feasible(self, x0: np.ndarray) -> bool:
+    def feasible(self, x0: np.ndarray, offset: np.ndarray | None = None) -> bool:
         """Whether some input sequence meets every constraint for state ``x0``: the linear
         program min 0 s.t. lower <= C z <= upper, solved by HiGHS (scipy) to its default
         primal feasibility tolerance 1e-7. An exact test, independent of the ADMM and OSQP."""
-        lower, upper = self.bounds(np.asarray(x0, float))
+        lower, upper = self.bounds(np.asarray(x0, float), offset)
         lo, hi = np.isfinite(lower), np.isfinite(upper)
         A = np.concatenate([self.C[hi], -self.C[lo]])
         b = np.concatenate([upper[hi], -lower[lo]])

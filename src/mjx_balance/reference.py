@@ -33,6 +33,7 @@ import numpy as np
 import pandas as pd
 
 from . import metrics, outcomes
+from . import offset_free as offset_free_mod
 from .linear import delay_predictor, predict
 from .model import build_model, indices
 from .osqp_mpc import ReferenceMPC
@@ -74,7 +75,8 @@ class MPC(Protocol):
     def reset(self) -> None:
         """Forget the warm start: scenarios do not depend on each other."""
 
-    def solve(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool, float]:
+    def solve(self, x0: np.ndarray, offset: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, bool, float]:
         """(u [2] clipped first input, iterate, converged, primal residual) for state x0."""
 
 
@@ -158,6 +160,9 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
     if compensate:
         pred_A, pred_G = delay_predictor(lm.Ac, lm.Bc, dt, sc.assumed_delay_steps, substeps)
         applied = np.zeros((pred_G.shape[0], 2))
+    # offset-free: the disturbance estimate, the previous measurement and input (offset_free.py)
+    ofs = offset_free_mod.build(mpc.qp, ctrl) if ctrl.offset_free else None
+    d_hat, x_last, u_last = np.zeros(2), x0.copy(), np.zeros(2)
 
     n = 0  # samples taken
     k_done = 0
@@ -168,13 +173,20 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
         x_meas = lm.state_from_joints(history_q[s], history_dq[s])
         if compensate:
             x_meas = predict(np, pred_A, pred_G, x_meas, applied)
-        u, _, ok, prim_res = mpc.solve(x_meas)
+        offset = None
+        if ofs is not None:
+            d_hat = offset_free_mod.observe(np, ofs, d_hat, x_last, u_last, x_meas)
+            x_s, _, _, offset = offset_free_mod.steady_state(np, ofs, d_hat)
+            x_last, x_meas = x_meas, x_meas - x_s
+        u, _, ok, prim_res = mpc.solve(x_meas) if offset is None else mpc.solve(x_meas, offset)
+        u_last = u
         if compensate:
             applied = np.concatenate([u[None], applied[:-1]])
         torques = lm.motor_torques(u)
         u_control[k], converged[k], residual[k] = u, ok, prim_res
         # a QP the solver did not solve: is it infeasible (an exact LP test, run only here)?
-        infeasible[k] = not ok and np.isfinite(x_meas).all() and not mpc.qp.feasible(x_meas)
+        infeasible[k] = (not ok and np.isfinite(x_meas).all()
+                         and not mpc.qp.feasible(x_meas, offset))
         k_done = k + 1
         if not (np.isfinite(u).all() and np.isfinite(torques).all()):
             diverged = True

@@ -38,6 +38,7 @@ import jax.numpy as jnp
 
 from .. import admm as admm_mod
 from .. import linear as linear_mod
+from .. import offset_free as offset_free_mod
 from .. import outcomes
 from ..outcomes import Limits
 from .physics import Sensors, advance, cell_heights, load_cell_cop, mjx, step, whole_body_com
@@ -109,6 +110,7 @@ class Static(NamedTuple):
     trajectories: bool
     limits: Limits  # thresholds of the outcome rules and the state/input bounds
     compensate: bool = False  # delay compensation (linear.delay_predictor)
+    offset_free: bool = False  # the disturbance observer and steady-state target
 
 
 class Arrays(NamedTuple):
@@ -121,6 +123,7 @@ class Arrays(NamedTuple):
     torque_map: jax.Array  # [2, 2] [tau_ankle, tau_hip] = torque_map @ u
     pred_A: jax.Array  # [4, 4] the delay compensator's A_h^d (identity without one)
     pred_G: jax.Array  # [P, 4, 2] its input matrices (P = 0 without one)
+    ofs: offset_free_mod.OffsetFree  # the offset-free controller's matrices (used if enabled)
 
 
 class Sample(NamedTuple):
@@ -150,6 +153,9 @@ class Carry(NamedTuple):
     x_prev: jax.Array  # [4] convention state at the previous sample
     acc: Accumulators
     inputs: jax.Array  # [P, 2] inputs applied in the last P control periods, newest first
+    dist: jax.Array  # [2] offset-free: the disturbance estimate
+    x_last: jax.Array  # [4] offset-free: the previous control instant's measured state
+    u_last: jax.Array  # [2] offset-free: the input applied since
 
 
 def select(pred: jax.Array, a: Any, b: Any) -> Any:
@@ -288,18 +294,22 @@ def initial_carry(ar: Arrays, sn: Sensors, st: Static) -> Carry:
     dtype = ar.d0.qpos.dtype
     q0, dq0 = joints(sn, ar.d0)
     history0 = jnp.tile(jnp.concatenate([q0, dq0])[None], (st.delay_steps + 1, 1))
+    x0 = state(ar, q0, dq0)
     return Carry(d=ar.d0, warm=admm_mod.initial_warm(ar.qp), history=history0, q_prev=q0,
-                 x_prev=state(ar, q0, dq0), acc=Accumulators.initial(dtype),
-                 inputs=jnp.zeros((ar.pred_G.shape[0], 2), dtype))
+                 x_prev=x0, acc=Accumulators.initial(dtype),
+                 inputs=jnp.zeros((ar.pred_G.shape[0], 2), dtype),
+                 dist=jnp.zeros(2, dtype), x_last=x0, u_last=jnp.zeros(2, dtype))
 
 
 def control(ar: Arrays, st: Static, carry: Carry, k: jax.Array
             ) -> tuple[Carry, jax.Array, jax.Array]:
     """The MPC solve of control period k from the carry's (delayed) measurement, predicted to
     the control instant with delay compensation (``linear.predict``), x = 0 for a dead
-    scenario: returns the carry (next warm start, :func:`period_update` folded in, the input
-    buffer), the input u [2] and the motor torques [2] to hold (zero if not finite). Shared by
-    the MJX period (:func:`period`) and the MuJoCo C path (``cpath.py``)."""
+    scenario; offset-free, the observer's update and the QP in deviation from the steady-state
+    target (``offset_free.py``): returns the carry (next warm start, :func:`period_update`
+    folded in, the input buffer, the observer's state), the input u [2] and the motor torques
+    [2] to hold (zero if not finite). Shared by the MJX period (:func:`period`) and the MuJoCo
+    C path (``cpath.py``)."""
     dtype = ar.d0.qpos.dtype
     alive = carry.acc.alive
     measured = carry.history[st.delay_steps]
@@ -307,7 +317,14 @@ def control(ar: Arrays, st: Static, carry: Carry, k: jax.Array
     if st.compensate:
         x_meas = linear_mod.predict(jnp, ar.pred_A, ar.pred_G, x_meas, carry.inputs)
     x_meas = jnp.where(alive, x_meas, jnp.zeros(4, dtype))
-    res = admm_mod.admm_solve(ar.qp, x_meas, carry.warm, st.settings)
+    if st.offset_free:
+        dist = offset_free_mod.observe(jnp, ar.ofs, carry.dist, carry.x_last, carry.u_last,
+                                       x_meas)
+        x_s, _, _, offset = offset_free_mod.steady_state(jnp, ar.ofs, dist)
+        res = admm_mod.admm_solve(ar.qp, x_meas - x_s, carry.warm, st.settings, offset)
+    else:
+        dist = carry.dist
+        res = admm_mod.admm_solve(ar.qp, x_meas, carry.warm, st.settings)
     u = res.u0.astype(dtype)
     torques = ar.torque_map @ u
     acc = period_update(carry.acc, res, u, torques, st.limits, k)
@@ -316,7 +333,8 @@ def control(ar: Arrays, st: Static, carry: Carry, k: jax.Array
     torques = jnp.where(finite, torques, jnp.zeros_like(torques))
     warm = admm_mod.ADMMWarm(*(w.astype(dtype) for w in res.warm_next))
     inputs = jnp.concatenate([u[None], carry.inputs[:-1]])[:carry.inputs.shape[0]]
-    return carry._replace(warm=warm, acc=acc, inputs=inputs), u, torques
+    return (carry._replace(warm=warm, acc=acc, inputs=inputs, dist=dist, x_last=x_meas,
+                           u_last=u), u, torques)
 
 
 def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, force: jax.Array,
@@ -371,8 +389,10 @@ def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, forc
     carry = carry._replace(d=select(alive, carry.d, ar.d0),
                            warm=select(alive, carry.warm, rest.warm))
     carry, u, torques = control(ar, st, carry, k)
-    carry = carry._replace(history=jnp.where(alive, carry.history, rest.history),
-                           inputs=jnp.where(alive, carry.inputs, rest.inputs))
+    kept = select(alive, (carry.history, carry.inputs, carry.dist, carry.x_last, carry.u_last),
+                  (rest.history, rest.inputs, rest.dist, rest.x_last, rest.u_last))
+    carry = carry._replace(history=kept[0], inputs=kept[1], dist=kept[2], x_last=kept[3],
+                           u_last=kept[4])
 
     steps = k * S + jnp.arange(S, dtype=jnp.int32)
     if st.trajectories or st.push_at_hip:

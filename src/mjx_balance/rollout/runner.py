@@ -24,6 +24,7 @@ import pandas as pd
 
 from .. import admm as admm_mod
 from .. import outcomes
+from .. import offset_free
 from ..linear import S as JOINT_TO_ABS
 from ..linear import delay_predictor
 from ..outcomes import FELL, RECOVERED, Limits, summary_frame
@@ -92,11 +93,13 @@ class BatchRunner:
             to_state=jnp.asarray(to_state, self.dtype),
             torque_map=jnp.asarray(lm.torque_map, self.dtype),
             pred_A=jnp.asarray(pred_A, self.dtype), pred_G=jnp.asarray(pred_G, self.dtype),
+            ofs=offset_free.cast(offset_free.build(qp, ctrl), jnp, self.dtype),
         )
         self.static = Static(
             n_control=sc.n_control, substeps=sc.substeps, delay_steps=sc.delay_steps,
             push_at_hip=sc.push_body == "hip", settings=settings, trajectories=trajectories,
             limits=Limits.from_params(sc, ctrl), compensate=compensate,
+            offset_free=ctrl.offset_free,
         )
         devices = list(jax.local_devices() if devices is None else devices)
         self.mesh = (jax.sharding.Mesh(np.array(devices), ("batch",)) if len(devices) > 1
