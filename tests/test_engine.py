@@ -43,7 +43,8 @@ EXACT = ("outcome", "fall_time", "settle_time", "peak_ankle", "peak_hip", "peak_
          "ankle_saturation_fraction", "hip_saturation_fraction", "max_residual",
          "max_bound_violation")
 INTEGRALS = ("energy_ankle", "energy_hip", "energy_total", "work_ankle", "work_hip",
-             "energy_u1", "energy_u2")
+             "energy_u1", "energy_u2", "work_u1", "work_u2", "study_energy_u1",
+             "study_energy_u2", "study_energy_total")
 
 
 def grid():

@@ -156,7 +156,7 @@ def test_table_energies_are_those_of_recovered_runs():
     result = sweep.max_acting_time(forces, Config(), run_batch=FakeThresholdBatch(),
                                    progress=False, log=None)
     table = result.table.set_index("force")
-    energies = [c for c in sweep.TABLE_COLUMNS if c.startswith("energy_")]
+    energies = [c for c in sweep.TABLE_COLUMNS if c.startswith(("energy_", "study_energy_"))]
     assert {c.rsplit("_", 1)[1] for c in energies} == {"01", "max"}
     for force, row in table.iterrows():
         ok_01 = row["outcome_01"] == "recovered"

@@ -103,7 +103,7 @@ def test_experiment_sections_show_the_saved_tables(out, page):
         summary = pd.read_csv(folder / "summary.csv")
         (shown,) = _tables(_section(page, f"timeseries-{convention}"))
         assert [float(r[0]) for r in shown[1]] == [0, 50, 120]  # the forces of the tiny plan
-        _assert_shows(shown, summary[report.html.SUMMARY_SHOWN])
+        _assert_shows(shown, summary[report.html.shown_columns("summary", convention)])
 
         weights = pd.read_csv(folder / "weights.csv")
         text = _section(page, f"weights-{convention}")
@@ -112,12 +112,12 @@ def test_experiment_sections_show_the_saved_tables(out, page):
         (shown,) = _tables(text)
         assert [r[:2] for r in shown[1]] == [["Q", "1000"], ["Q", "1e+05"], ["Q", "1e+07"],
                                              ["R", "0.0001"], ["R", "1e-06"], ["R", "1e-08"]]
-        _assert_shows(shown, weights[report.html.WEIGHTS_SHOWN])
+        _assert_shows(shown, weights[report.html.shown_columns("weights", convention)])
 
         table = pd.read_csv(folder / "table" / "table.csv")
         (shown,) = _tables(_section(page, f"table-{convention}"))
         assert [float(r[0]) for r in shown[1]] == [20, 100]
-        _assert_shows(shown, table[report.html.TABLE_SHOWN])
+        _assert_shows(shown, table[report.html.shown_columns("table", convention)])
 
         region = pd.read_parquet(folder / "region" / "region.parquet")
         n = studies.region_numbers(region)

@@ -69,7 +69,8 @@ PITCH_FLOOR = 2e-5
 
 # Quantities predicted (columns of Certificate.rows): joint angles, joint rates, motor torques,
 # CoP and CoM relative to rest, the convention's angles and inputs.
-TAIL_FIELDS = ("energy_ankle", "energy_hip", "work_ankle", "work_hip", "energy_u1", "energy_u2")
+TAIL_FIELDS = ("energy_ankle", "energy_hip", "work_ankle", "work_hip", "energy_u1", "energy_u2",
+               "work_u1", "work_u2")
 QUANTITIES = ("q_ankle", "q_hip", "dq_ankle", "dq_hip", "tau_ankle", "tau_hip", "cop", "com",
               "y1", "y2", "u1", "u2")
 
@@ -185,7 +186,7 @@ def check(xp, cert: Certificate, x, acc, push_over, samples_left):
 def tail_integrals(xp, cert: Certificate, x, pred, samples_left) -> dict:
     """The energies and work of the predicted future ``pred`` (``PREDICTED_PERIODS`` periods
     from x), in the accumulators' definitions: sum |tau Δq| and tau Δq per joint, sum |u Δy|
-    per input (``metrics.increments``), up to ``samples_left`` samples (t_end). Added to a
+    and u Δy per input (``metrics.increments``), up to ``samples_left`` samples (t_end). Added to a
     certified scenario's accumulators in place of the steps it does not run; what comes after
     the prediction is left out (measured: docs/engine.md)."""
     q = xp.concatenate([(cert.to_q @ x[:2])[None], pred[:, 0:2]])
@@ -195,7 +196,8 @@ def tail_integrals(xp, cert: Certificate, x, pred, samples_left) -> dict:
     power_u = xp.where(before_end, pred[:, 10:12] * (y[1:] - y[:-1]), 0)
     return {"energy_ankle": xp.abs(power[:, 0]).sum(), "energy_hip": xp.abs(power[:, 1]).sum(),
             "work_ankle": power[:, 0].sum(), "work_hip": power[:, 1].sum(),
-            "energy_u1": xp.abs(power_u[:, 0]).sum(), "energy_u2": xp.abs(power_u[:, 1]).sum()}
+            "energy_u1": xp.abs(power_u[:, 0]).sum(), "energy_u2": xp.abs(power_u[:, 1]).sum(),
+            "work_u1": power_u[:, 0].sum(), "work_u2": power_u[:, 1].sum()}
 
 
 def measure(config=None, forces=None, durations=None) -> dict:

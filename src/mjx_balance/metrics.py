@@ -83,6 +83,17 @@ def saturation_fractions(u: np.ndarray, limits: Limits) -> tuple[float, float]:
 
 # --- the summary row -----------------------------------------------------------------------
 
+def study_energies(work_u1, work_u2) -> dict[str, Any]:
+    """The study's joint energy (its eq. 20, docs/model.md) from the signed work of the
+    convention's pairs, W_i = sum u_i Δx_i (∫ u_i dx_i): ``work_u1``, ``work_u2`` themselves,
+    ``study_energy_u1/u2`` = |W_i| (a recovery's signed work is negative; the study reports its
+    magnitude) and ``study_energy_total`` = |W_1| + |W_2|. Floats or numpy arrays (summary
+    columns of the reference and of the batched paths alike)."""
+    e1, e2 = abs(work_u1), abs(work_u2)
+    return {"work_u1": work_u1, "work_u2": work_u2, "study_energy_u1": e1,
+            "study_energy_u2": e2, "study_energy_total": e1 + e2}
+
+
 def increments(initial: np.ndarray, series: np.ndarray) -> np.ndarray:
     """Per-sample increments of ``series`` [n, ...] starting from ``initial`` [...]."""
     return np.diff(np.concatenate([np.asarray(initial)[None], series]), axis=0)
@@ -158,6 +169,7 @@ def summarize(*, force: float, duration: float, convention: str,
     tau_k, u_k = tau[sl], u[sl]
     power_ankle = tau_k[:, 0] * dq_step[:, 0]
     power_hip = tau_k[:, 1] * dq_step[:, 1]
+    power_u = u_k * dx_step[:, :2]  # the convention's pairs (u_i, x_i)
 
     settled = bool(completed and n and outcomes.in_settle_band(np, q[-1:], dq[-1:], limits)[0])
     code = int(outcomes.classify(np, diverged, fell, settled and not fell))
@@ -202,8 +214,9 @@ def summarize(*, force: float, duration: float, convention: str,
         "energy_total": energy_ankle + energy_hip,
         "work_ankle": float(np.nansum(power_ankle)),
         "work_hip": float(np.nansum(power_hip)),
-        "energy_u1": float(np.nansum(np.abs(u_k[:, 0] * dx_step[:, 0]))),
-        "energy_u2": float(np.nansum(np.abs(u_k[:, 1] * dx_step[:, 1]))),
+        "energy_u1": float(np.nansum(np.abs(power_u[:, 0]))),
+        "energy_u2": float(np.nansum(np.abs(power_u[:, 1]))),
+        **study_energies(float(np.nansum(power_u[:, 0])), float(np.nansum(power_u[:, 1]))),
         "nonconverged_solves": int(np.count_nonzero(~converged)),
         "max_residual": float(res.max()) if res.size else math.nan,
         "max_bound_violation": float(excess.max()) if excess.size else 0.0,

@@ -57,7 +57,8 @@ SUMMARY_COLUMNS = [
     "peak_tau_ankle", "peak_tau_hip",
     "ankle_saturation_fraction", "hip_saturation_fraction",
     "energy_ankle", "energy_hip", "energy_total", "work_ankle", "work_hip",
-    "energy_u1", "energy_u2",
+    "energy_u1", "energy_u2", "work_u1", "work_u2",
+    "study_energy_u1", "study_energy_u2", "study_energy_total",
     "nonconverged_solves", "max_residual", "max_bound_violation",
     "fall_cause", "first_infeasible_time",
 ]

@@ -75,6 +75,14 @@ QUANTITIES: dict[str, Quantity] = {
                            r"$\int |\tau\,\dot q|\,dt$ [J]"),
     "energy_total": Quantity("cumulative total energy", "time", "time [s]", "energy_total",
                              r"$\int |\tau\,\dot q|\,dt$ [J]"),
+    # the study's energy (eq. 20): the magnitude of the signed work of the convention's pairs
+    "study_energy_u1": Quantity("study's energy (eq. 20), pair 1", "time", "time [s]",
+                                "study_energy_u1", r"$|\int u_1\,\dot x_1\,dt|$ [J]"),
+    "study_energy_u2": Quantity("study's energy (eq. 20), pair 2", "time", "time [s]",
+                                "study_energy_u2", r"$|\int u_2\,\dot x_2\,dt|$ [J]"),
+    "study_energy_total": Quantity("study's energy (eq. 20), total", "time", "time [s]",
+                                   "study_energy_total",
+                                   r"$|\int u_1 \dot x_1 dt| + |\int u_2 \dot x_2 dt|$ [J]"),
 }
 SINGLE = ["ankle_angle", "hip_angle", "phase_ankle", "phase_hip", "cop", "com", "ankle_torque",
           "hip_torque"]
@@ -82,10 +90,33 @@ PAIRS = {"states": ("x1", "x2"), "inputs": ("u1", "u2"),
          "energy": ("energy_ankle", "energy_hip", "energy_total")}
 CONVENTION_NAMES = {  # what x1, x2, u1, u2 are
     "paper": {"x1": "q1 (lower-body tilt)", "x2": "q2 (upper-body tilt)",
-              "u1": "τ1 (generalised)", "u2": "τ2 (generalised)"},
+              "u1": "τ1 (generalised)", "u2": "τ2 (generalised)",
+              "study_energy_u1": "|∫τ1 dq1|", "study_energy_u2": "|∫τ2 dq2|",
+              "energy_ankle": "∫|τ_ankle dq_a| (motor)", "energy_hip": "∫|τ_hip dq_h| (motor)",
+              "energy_total": "motors, ankle + hip"},
     "joint": {"x1": "q_a (ankle angle)", "x2": "q_h (hip angle)", "u1": "τ_ankle",
               "u2": "τ_hip"},
 }
+# The energy figure's rows: in the paper convention the study's definition (eq. 20, on its
+# generalised pairs) heads it and the motors' absolute work is the row below; in the joint
+# convention (and for a series without the study's columns) the motors' alone.
+STUDY_ENERGY = ("study_energy_u1", "study_energy_u2", "study_energy_total")
+
+
+def energy_rows(df: pd.DataFrame) -> list[tuple[str, ...]]:
+    """The rows of quantities of the energy figure of ``df`` (see STUDY_ENERGY)."""
+    paper = (df.convention == "paper").all() if len(df) else False
+    if paper and all(c in df for c in STUDY_ENERGY):
+        return [STUDY_ENERGY, PAIRS["energy"]]
+    return [PAIRS["energy"]]
+
+
+def energy_title(rows: list[tuple[str, ...]]) -> str:
+    """The energy figure's heading for its rows (energy_rows)."""
+    if len(rows) == 1:
+        return "Joint energy (motors' absolute mechanical work ∫|τ·dq/dt| dt)"
+    return ("Joint energy. Top: the study's (eq. 20), |∫τ_i dq_i| of the generalised pairs "
+            "(τ1, q1), (τ2, q2); bottom: the motors' absolute work ∫|τ·dq/dt| dt")
 
 
 @dataclass
@@ -390,12 +421,16 @@ def timeseries_figures(df: pd.DataFrame, out_dir: str | Path, *, config: Config 
         _save(fig, path, dpi=120)
         paths.append(path)
     for stem, quantities in PAIRS.items():
-        fig, axes = plt.subplots(1, len(quantities), figsize=(6.5 * len(quantities), 4.6),
-                                 layout="constrained")
-        for i, (ax, quantity) in enumerate(zip(axes, quantities)):
-            timeseries_figure(df, quantity, ax=ax, legend=i == 0, **options)
+        rows = energy_rows(df) if stem == "energy" else [quantities]
+        width = max(len(r) for r in rows)
+        fig, axes = plt.subplots(len(rows), width, figsize=(6.5 * width, 4.6 * len(rows)),
+                                 layout="constrained", squeeze=False)
+        for r, row in enumerate(rows):
+            for i, (ax, quantity) in enumerate(zip(axes[r], row)):
+                timeseries_figure(df, quantity, ax=ax, legend=i == 0 and r == len(rows) - 1,
+                                  **options)
         fig.suptitle({"states": "MPC states", "inputs": "MPC inputs",
-                      "energy": "Joint energy (absolute mechanical work)"}[stem]
+                      "energy": energy_title(rows)}[stem]
                      + f";  {_subtitle(df, config)}", fontsize=9)
         path = out_dir / f"{stem}.png"
         _save(fig, path, dpi=120)

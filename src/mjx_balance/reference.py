@@ -46,6 +46,7 @@ TIMESERIES_COLUMNS = [
     "q_a", "q_h", "dq_a", "dq_h", "x1", "x2", "x3", "x4",
     "foot_x", "foot_z", "foot_pitch", "u1", "u2", "tau_ankle", "tau_hip", "cop", "com",
     "energy_ankle", "energy_hip", "energy_total",
+    "study_energy_u1", "study_energy_u2", "study_energy_total",
 ]
 
 
@@ -243,18 +244,21 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
 
     frame = timeseries_frame(scenario_id, force, duration, ctrl.convention, q0, time[sl],
                              q[sl], dq[sl], x[sl], foot[sl], u_step[sl], tau[sl], cop[sl],
-                             com[sl])
+                             com[sl], x0=x0)
     return summary, frame
 
 
 def timeseries_frame(scenario_id: int, force: float, duration: float, convention: str,
                      q0: np.ndarray, time: np.ndarray, q: np.ndarray, dq: np.ndarray,
                      x: np.ndarray, foot: np.ndarray, u: np.ndarray, tau: np.ndarray,
-                     cop: np.ndarray, com: np.ndarray) -> pd.DataFrame:
+                     cop: np.ndarray, com: np.ndarray, *, x0: np.ndarray) -> pd.DataFrame:
     """The long time series of one run (TIMESERIES_COLUMNS, one row per sample), with the
-    cumulative joint energies sum |tau dq| from q0. foot: [n, 3] (x, z, pitch)."""
+    cumulative joint energies of the motors sum |tau dq| from q0 and the study's (eq. 20,
+    docs/model.md) |sum u_i dx_i| of the convention's pairs from x0 [4]. foot: [n, 3] (x, z,
+    pitch)."""
     n = time.shape[0]
     energy = np.cumsum(np.abs(tau * metrics.increments(q0, q)), axis=0)
+    study = np.abs(np.cumsum(u * metrics.increments(x0[:2], x[:, :2]), axis=0))
     return pd.DataFrame({
         "scenario": np.full(n, scenario_id, dtype=np.int64),
         "force": np.full(n, float(force)),
@@ -269,6 +273,8 @@ def timeseries_frame(scenario_id: int, force: float, duration: float, convention
         "cop": cop, "com": com,
         "energy_ankle": energy[:, 0], "energy_hip": energy[:, 1],
         "energy_total": energy[:, 0] + energy[:, 1],
+        "study_energy_u1": study[:, 0], "study_energy_u2": study[:, 1],
+        "study_energy_total": study[:, 0] + study[:, 1],
     }, columns=TIMESERIES_COLUMNS)
 
 

@@ -450,16 +450,31 @@ def table_figure(table: pd.DataFrame, *, config: Config | None = None, axes=None
     ax.set_title(f"Longest push that still recovers ({force.size} forces)", fontsize=10)
 
     recovered_01 = (table["outcome_01"].astype(str) == RECOVERED_TEXT).to_numpy()
-    for column, style, label in (("energy_total_01", "s-", "total, T = 0.1 s"),
-                                 ("energy_total_max", "o-", "total, T = max acting time"),
-                                 ("energy_ankle_max", ".--", "ankle, T = max acting time"),
-                                 ("energy_hip_max", ".:", "hip, T = max acting time")):
+    convention = config.controller.convention if config else str(table["convention"].iloc[0])
+    # the paper convention headlines the study's energy (eq. 20, docs/model.md), the motors'
+    # absolute work beside it in grey; the joint convention, the motors' alone
+    study = convention == "paper" and "study_energy_total_max" in table
+    lines = [("energy_total_01", "s-", "total, T = 0.1 s", {}),
+             ("energy_total_max", "o-", "total, T = max acting time", {}),
+             ("energy_ankle_max", ".--", "ankle, T = max acting time", {}),
+             ("energy_hip_max", ".:", "hip, T = max acting time", {})]
+    if study:
+        grey = {"color": "0.55", "lw": 1, "ms": 4}
+        lines = [("study_energy_total_01", "s-", "study's total, T = 0.1 s", {}),
+                 ("study_energy_total_max", "o-", "study's total, T = max acting time", {}),
+                 ("study_energy_u1_max", ".--", "study's (τ1, q1), T = max acting time", {}),
+                 ("study_energy_u2_max", ".:", "study's (τ2, q2), T = max acting time", {}),
+                 ("energy_total_01", "s-", "motors' total ∫|τ·dq/dt|, T = 0.1 s",
+                  {**grey, "mfc": "white"}),
+                 ("energy_total_max", "o-", "motors' total ∫|τ·dq/dt|, T = max acting time",
+                  grey)]
+    for column, style, label, options in lines:
         values = table[column].to_numpy(dtype=float)
         ok = np.isfinite(values) & (values > 0)
         if column.endswith("_01"):
             ok &= recovered_01  # energies of pushes that did not recover are not plotted
         if ok.any():
-            ax2.plot(force[ok], values[ok], style, label=label)
+            ax2.plot(force[ok], values[ok], style, label=label, **options)
     failed_01 = ~recovered_01 & (table["outcome_01"].astype(str) != "")
     if failed_01.any():
         ax2.plot(force[failed_01], np.zeros(failed_01.sum()), "x", color="C3", ms=8, mew=2,
@@ -468,11 +483,12 @@ def table_figure(table: pd.DataFrame, *, config: Config | None = None, axes=None
     ax2.set_yscale("log")
     _plain_log_labels(ax2.yaxis)
     ax2.set_xlabel("push force F [N]")
-    ax2.set_ylabel("joint energy [J]  (∫|τ·dq/dt| dt)")
+    ax2.set_ylabel("joint energy [J]  (study's eq. 20: |∫τ_i dq_i|; grey: ∫|τ·dq/dt| dt)"
+                   if study else "joint energy [J]  (∫|τ·dq/dt| dt)")
     ax2.grid(True, which="both", alpha=0.3)
-    ax2.legend(fontsize=8)
-    ax2.set_title("Energy of the recovered runs", fontsize=10)
-    convention = config.controller.convention if config else str(table["convention"].iloc[0])
+    ax2.legend(fontsize=7 if study else 8)
+    ax2.set_title("Energy of the recovered runs"
+                  + (": the study's (eq. 20), the motors' in grey" if study else ""), fontsize=10)
     fig.suptitle(f"Robustness table — {CONVENTION_TEXT.get(convention, convention)}", fontsize=11)
     return fig
 

@@ -40,6 +40,9 @@ WEIGHTS_SHOWN = ["weight", "scale", "outcome", "settle_time", "fall_time", "ener
 TABLE_SHOWN = ["force", "max_acting_time", "ending_outcome", "energy_ankle_01", "energy_hip_01",
                "energy_total_01", "outcome_01", "energy_ankle_max", "energy_hip_max",
                "energy_total_max", "energy_u1_max", "energy_u2_max", "note"]
+# In the paper convention the study's energy (eq. 20, docs/model.md) heads each table and the
+# motors' absolute work is beside it (shown_columns); the lists above are the joint convention's.
+STUDY_ENERGY = ["study_energy_u1", "study_energy_u2", "study_energy_total"]
 STUDY_SHOWN = ["label", "area", "fraction", "recovered_cells", "cells", "f_max_ref",
                "area_change", "gained_cells", "lost_cells"]
 
@@ -205,20 +208,60 @@ def _delay_lines(rows: pd.DataFrame) -> list[str]:
 # Figures from saved tables
 
 
+# The weight study's bars: the study's energy (eq. 20, docs/model.md) heads the paper
+# convention's figure, the motors' absolute work in the row below; the joint convention's, the
+# motors' alone (weight_rows).
+MOTOR_BARS = [("energy_ankle", "ankle motor", "#0072B2"), ("energy_hip", "hip motor", "#D55E00"),
+              ("energy_total", "total", "0.3")]
+STUDY_BARS = [("study_energy_u1", "(τ1, q1)", "#009E73"),
+              ("study_energy_u2", "(τ2, q2)", "#CC79A7"), ("study_energy_total", "total", "0.3")]
+
+
+def weight_rows(weights: pd.DataFrame, convention: str) -> list[tuple[list, str]]:
+    """The bar rows of the weight figure: (parts, y label), the headline first."""
+    motor = (MOTOR_BARS, r"motors' energy $\int|\tau\,\dot q|\,dt$ [J]")
+    if convention == "paper" and all(c in weights for c, _, _ in STUDY_BARS):
+        return [(STUDY_BARS, r"study's energy (eq. 20) $|\int\tau_i\,\dot q_i\,dt|$ [J]"), motor]
+    return [motor]
+
+
 def weight_figure(weights: pd.DataFrame, convention: str, axes=None):
-    """Bar charts: ankle, hip and total energy for each Q (left) and each R (right) setting.
-    A setting that did not recover has hatched, pale bars (its energy up to the fall or t_end,
-    not a recovery's) and its outcome written above. ``axes``: two matplotlib Axes to draw on
-    (None: a new figure). Returns the Figure."""
+    """Bar charts: the energies for each Q (left) and each R (right) setting; in the paper
+    convention the study's (eq. 20) on top and the motors' below, in the joint convention the
+    motors' (:func:`weight_rows`). A setting that did not recover has hatched, pale bars (its
+    energy up to the fall or t_end, not a recovery's) and its outcome written above.
+    ``axes``: matplotlib Axes to draw on, two per row (two Axes: the headline row only; None:
+    a new figure). Returns the Figure."""
     import matplotlib.pyplot as plt
     from matplotlib.patches import Patch
 
+    rows = weight_rows(weights, convention)
     if axes is None:
-        fig, axes = plt.subplots(1, 2, figsize=(12, 4.6), layout="constrained")
+        fig, axes = plt.subplots(len(rows), 2, figsize=(12, 4.6 * len(rows)),
+                                 layout="constrained", squeeze=False)
     else:
-        fig = axes[0].figure
-    parts = [("energy_ankle", "ankle", "#0072B2"), ("energy_hip", "hip", "#D55E00"),
-             ("energy_total", "total", "0.3")]
+        axes = np.asarray(axes, dtype=object).reshape(-1, 2)
+        fig = axes[0, 0].figure
+    handles, labels = [], []
+    for (parts, ylabel), row_axes in zip(rows, axes):
+        _weight_bars(row_axes, weights, parts, ylabel)
+        handles += [Patch(color=colour) for _, _, colour in parts]
+        which = "study" if parts is STUDY_BARS else "motors"
+        labels += [name if len(rows) == 1 else f"{name} ({which})" for _, name, _ in parts]
+    if (weights["outcome"] != OUTCOMES[RECOVERED]).any():
+        handles.append(Patch(facecolor="0.6", alpha=0.35, hatch="///", edgecolor="0.3"))
+        labels.append("did not recover: energy up to the fall / t_end (outcome above)")
+    fig.legend(handles, labels, loc="outside lower center", ncol=4, fontsize=8, frameon=False)
+    force = weights["force"].iloc[0]
+    duration = weights["duration"].iloc[0]
+    fig.suptitle(f"Weight study, {convention} convention: F = {force:g} N, T = {duration:g} s"
+                 + ("; top: the study's energy (eq. 20), bottom: the motors'"
+                    if len(rows) > 1 else ""), fontsize=11)
+    return fig
+
+
+def _weight_bars(axes, weights: pd.DataFrame, parts: list, ylabel: str) -> None:
+    """One row of the weight figure: the bars of ``parts`` for the Q and the R settings."""
     for ax, which, label in ((axes[0], "Q", r"Q = s$\cdot$I$_4$  (R default)"),
                              (axes[1], "R", r"R = s$\cdot$diag(1000, 1)  (Q default)")):
         rows = weights[weights["weight"] == which].reset_index(drop=True)
@@ -244,19 +287,8 @@ def weight_figure(weights: pd.DataFrame, convention: str, axes=None):
         else:
             ax.set_ylim(0, 1.15 * (positive.max() if positive.size else 1.0))
         ax.set_xlabel(f"s, {label}")
-        ax.set_ylabel(r"joint energy $\int|\tau\,\dot q|\,dt$ [J]")
+        ax.set_ylabel(ylabel)
         ax.grid(axis="y", which="both", alpha=0.3)
-    handles = [Patch(color=colour) for _, _, colour in parts]
-    labels = [name for _, name, _ in parts]
-    if (weights["outcome"] != OUTCOMES[RECOVERED]).any():
-        handles.append(Patch(facecolor="0.6", alpha=0.35, hatch="///", edgecolor="0.3"))
-        labels.append("did not recover: energy up to the fall / t_end (outcome above)")
-    fig.legend(handles, labels, loc="outside lower center", ncol=4, fontsize=8, frameon=False)
-    force = weights["force"].iloc[0]
-    duration = weights["duration"].iloc[0]
-    fig.suptitle(f"Weight study, {convention} convention: F = {force:g} N, T = {duration:g} s",
-                 fontsize=11)
-    return fig
 
 
 def conventions_figure(tables: dict[str, pd.DataFrame], ax=None):
@@ -501,17 +533,45 @@ def overview_section(page: Page) -> dict:
         _params(run),
         _para("Pushes start at upright rest: a horizontal force F (+ forward) on the upper "
               "body's centre of mass for T seconds. " + _outcomes_text(page.config)
-              + " Energies are ∫|τ·dq/dt| dt of the ankle and hip motors; for the paper "
-              "convention energy_u1/u2 are those of the generalised pairs (τ1, q1), (τ2, q2). "
-              "Energies are those of recovered runs; a value of a run that did not recover is "
-              "marked with its outcome in brackets, or left out (–)."),
+              + " Two energies. The study's (its eq. 20), headlined in the paper convention: "
+              "|∫ τ1 dq1| and |∫ τ2 dq2|, the magnitude of the signed work of its generalised "
+              "pairs (study_energy_u1/u2, their sum study_energy_total; a recovery's signed work "
+              "is negative). The motors' absolute mechanical work ∫|τ·dq/dt| dt of the ankle "
+              "and hip (energy_ankle/hip/total), headlined in the joint convention and shown "
+              "beside the study's in the paper convention; energy_u1/u2 are ∫|τ_i dq_i| of the "
+              "convention's pairs. Energies are those of recovered runs; a value of a run that "
+              "did not recover is marked with its outcome in brackets, or left out (–)."),
         {"kind": "heading", "text": "Key numbers"},
         {"kind": "list", "entries": key_numbers(page.results)},
         {"kind": "nav", "links": [(k, h) for k, h in page.headings.items() if k != "overview"]})
 
 
-ENERGY_COLUMNS = ["energy_ankle", "energy_hip", "energy_total", "energy_u1", "energy_u2"]
+ENERGY_COLUMNS = ["energy_ankle", "energy_hip", "energy_total", "energy_u1", "energy_u2",
+                  *STUDY_ENERGY]
 ENERGY_01 = [f"{c}_01" for c in ENERGY_COLUMNS]
+
+
+def shown_columns(kind: str, convention: str, frame: pd.DataFrame | None = None) -> list[str]:
+    """The columns a section's table shows (kind: summary, weights or table): in the paper
+    convention the study's energies (eq. 20) come first among the energies, the motors' after
+    them; in the joint convention the motors' alone (SUMMARY_SHOWN, WEIGHTS_SHOWN,
+    TABLE_SHOWN). Only columns ``frame`` has (a table saved before a column existed)."""
+    base = {"summary": SUMMARY_SHOWN, "weights": WEIGHTS_SHOWN, "table": TABLE_SHOWN}[kind]
+    columns = list(base)
+    if convention == "paper":
+        if kind == "table":
+            study = [f"{c}_{s}" for s in ("01", "max") for c in STUDY_ENERGY]
+            first = columns.index("energy_ankle_01")
+        else:
+            study = list(STUDY_ENERGY)
+            first = columns.index("energy_ankle")
+        columns[first:first] = study
+    return [c for c in columns if frame is None or c in frame]
+
+
+def _marked(frame: pd.DataFrame, columns: list[str], outcome: str = "outcome") -> pd.DataFrame:
+    """mark_outcomes on the energy columns that ``frame`` has."""
+    return mark_outcomes(frame, [c for c in columns if c in frame], outcome)
 
 
 def timeseries_section(page: Page, convention: str, res: dict) -> dict:
@@ -533,8 +593,11 @@ def timeseries_section(page: Page, convention: str, res: dict) -> dict:
         _row(_img(paths["cop"], "CoP"), _img(paths["com"], "CoM")),
         _row(_img(paths["ankle_torque"], "ankle torque"),
              _img(paths["hip_torque"], "hip torque")),
-        _img(paths["energy"], "cumulative joint energy"),
-        _table(mark_outcomes(res["summary"], ENERGY_COLUMNS), SUMMARY_SHOWN))
+        _img(paths["energy"], "cumulative joint energy" + (
+            ": the study's (eq. 20, top) and the motors' (bottom)"
+            if convention == "paper" else "")),
+        _table(_marked(res["summary"], ENERGY_COLUMNS),
+               shown_columns("summary", convention, res["summary"])))
 
 
 def weights_section(page: Page, convention: str, res: dict) -> dict:
@@ -548,11 +611,13 @@ def weights_section(page: Page, convention: str, res: dict) -> dict:
                 f"T = {plan['push_duration']:g} s; Q = s·I4 for s in "
                 f"{_numbers(plan['q_scales'])} (R default); "
                 f"R = s·diag(1000, 1) for s in {_numbers(plan['r_scales'])} (Q default)."),
-        _img(path, "ankle, hip and total energy per weight setting"),
+        _img(path, ("the study's energy (eq. 20, top) and the motors' (bottom) per weight "
+                    "setting" if convention == "paper"
+                    else "ankle, hip and total energy per weight setting")),
         _para(f"{recovered} of {len(weights)} settings recover; for a push that did not "
               "recover the energies are those up to the fall (or t_end) and carry its outcome "
               "in brackets."),
-        _table(mark_outcomes(weights, ENERGY_COLUMNS), WEIGHTS_SHOWN))
+        _table(_marked(weights, ENERGY_COLUMNS), shown_columns("weights", convention, weights)))
 
 
 def _sustained(table: pd.DataFrame) -> str:
@@ -575,12 +640,15 @@ def table_section(page: Page, convention: str, res: dict) -> dict:
                 f"{cfg.scenario.t_end:g} s (coarse scan, then bisection; "
                 f"sweep.max_acting_time). Energies at T = 0.1 s (_01) and at the max "
                 f"acting time (_max), of recovered runs only (– when that run did not "
-                f"recover; its outcome is outcome_01). Sustained-push limit, the largest "
+                f"recover; its outcome is outcome_01)"
+                + ("; study_energy_*: the study's energy (eq. 20), energy_*: the motors' "
+                   "absolute work" if convention == "paper" else "")
+                + f". Sustained-push limit, the largest "
                 f"force held (not fallen) when it pushes for the whole window: "
                 f"{_sustained(res['table'])}."),
         _img(path, "max acting time and energies"),
-        _table(mark_outcomes(res["table"], ENERGY_01, "outcome_01"), TABLE_SHOWN,
-               note_column="note"))
+        _table(_marked(res["table"], ENERGY_01, "outcome_01"),
+               shown_columns("table", convention, res["table"]), note_column="note"))
 
 
 def region_section(page: Page, convention: str, res: dict) -> dict:

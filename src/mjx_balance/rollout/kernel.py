@@ -68,6 +68,8 @@ class Accumulators(NamedTuple):
     work_hip: jax.Array
     energy_u1: jax.Array
     energy_u2: jax.Array
+    work_u1: jax.Array  # signed sum u_i Δx_i: the study's energy is its magnitude (eq. 20)
+    work_u2: jax.Array
     max_bound_violation: jax.Array
     control_periods: jax.Array  # int32, periods counted (started before the fall)
     saturated_ankle: jax.Array  # int32, counted periods with u[0] at a bound
@@ -92,7 +94,8 @@ class Accumulators(NamedTuple):
             cop_min=f(inf), cop_max=f(-inf), com_min=f(inf), com_max=f(-inf),
             peak_tau_ankle=f(-inf), peak_tau_hip=f(-inf),
             energy_ankle=f(0), energy_hip=f(0), work_ankle=f(0), work_hip=f(0),
-            energy_u1=f(0), energy_u2=f(0), max_bound_violation=f(0),
+            energy_u1=f(0), energy_u2=f(0), work_u1=f(0), work_u2=f(0),
+            max_bound_violation=f(0),
             control_periods=i0, saturated_ankle=i0, saturated_hip=i0,
             nonconverged_solves=i0, max_residual=f(-inf), admm_iterations=i0,
             fall_cause=i0 + outcomes.NO_CAUSE, first_infeasible=i0 - 1,
@@ -253,6 +256,8 @@ def sample_update(acc: Accumulators, s: Sample, i: jax.Array, torques: jax.Array
         work_hip=upd(acc.work_hip, acc.work_hip + power[1]),
         energy_u1=upd(acc.energy_u1, acc.energy_u1 + jnp.abs(power_u[0])),
         energy_u2=upd(acc.energy_u2, acc.energy_u2 + jnp.abs(power_u[1])),
+        work_u1=upd(acc.work_u1, acc.work_u1 + power_u[0]),
+        work_u2=upd(acc.work_u2, acc.work_u2 + power_u[1]),
         max_bound_violation=upd(acc.max_bound_violation,
                                 jnp.maximum(acc.max_bound_violation, excess)),
     )

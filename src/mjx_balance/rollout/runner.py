@@ -27,6 +27,7 @@ from .. import outcomes
 from .. import offset_free
 from ..linear import S as JOINT_TO_ABS
 from ..linear import delay_predictor
+from ..metrics import study_energies
 from ..outcomes import FELL, RECOVERED, Limits, summary_frame
 from ..params import Config
 from ..qp import build_qp
@@ -342,6 +343,7 @@ def summarize(acc: Accumulators, config: Config) -> dict[str, np.ndarray]:
         "work_hip": f64(acc.work_hip),
         "energy_u1": f64(acc.energy_u1),
         "energy_u2": f64(acc.energy_u2),
+        **study_energies(f64(acc.work_u1), f64(acc.work_u2)),
         "nonconverged_solves": np.asarray(acc.nonconverged_solves, np.int64),
         "max_residual": finite_or_nan(acc.max_residual),
         "max_bound_violation": f64(acc.max_bound_violation),

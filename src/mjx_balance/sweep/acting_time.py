@@ -35,15 +35,36 @@ from .store import (TABLE, TABLE_RUNS, OutputFolder, TableCells, folder_lock, wr
 # always included (the table reports the energies there); t_end is added.
 COARSE_DURATIONS = (0.01, 0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
 
-TABLE_COLUMNS = [
-    "force", "max_acting_time",
+# Energies at T = 0.1 s (_01) and at the max acting time (_max): the study's (eq. 20,
+# |sum u_i Δx_i| of the convention's pairs, docs/model.md) and the motors' absolute work.
+STUDY_ENERGY_COLUMNS = [
+    "study_energy_u1_01", "study_energy_u2_01", "study_energy_total_01",
+    "study_energy_u1_max", "study_energy_u2_max", "study_energy_total_max",
+]
+MOTOR_ENERGY_COLUMNS = [
     "energy_ankle_01", "energy_hip_01", "energy_total_01",
     "energy_ankle_max", "energy_hip_max", "energy_total_max",
+]
+# table.csv of the paper convention: the study's energies come first (its headline); the joint
+# convention's puts the motors' first (table_columns).
+TABLE_COLUMNS = [
+    "force", "max_acting_time",
+    *STUDY_ENERGY_COLUMNS,
+    *MOTOR_ENERGY_COLUMNS,
     "ending_outcome", "monotone", "recovered_beyond_failure",
     "outcome_01", "settle_time_01", "settle_time_max",
     "energy_u1_01", "energy_u2_01", "energy_u1_max", "energy_u2_max",
     "convention", "evaluations", "note", "sustained_push_limit",
 ]
+
+
+def table_columns(convention: str) -> list[str]:
+    """The columns of table.csv in their order: TABLE_COLUMNS in the paper convention (the
+    study's energy first); in the joint convention the motors' energies first."""
+    if convention == "paper":
+        return list(TABLE_COLUMNS)
+    rest = TABLE_COLUMNS[2 + len(STUDY_ENERGY_COLUMNS) + len(MOTOR_ENERGY_COLUMNS):]
+    return [*TABLE_COLUMNS[:2], *MOTOR_ENERGY_COLUMNS, *STUDY_ENERGY_COLUMNS, *rest]
 
 # Forces [N] of the sustained-push limit's coarse scan (each pushed for the whole window).
 SUSTAINED_COARSE = (0.0, 2.5, 5.0, 7.5, 10.0, 12.5, 15.0, 20.0, 30.0, 50.0, 80.0, 120.0, 200.0)
@@ -163,7 +184,7 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
 
     rows = [table_row(i, force, brackets, steps, resolution, t_end, config)
             for i, force in enumerate(forces)]
-    table = pd.DataFrame(rows, columns=TABLE_COLUMNS)
+    table = pd.DataFrame(rows, columns=table_columns(config.controller.convention))
     runs_frame = pd.concat(runs, ignore_index=True)
     seconds = time.perf_counter() - start
     say(f"table: {len(runs_frame)} scenarios in {seconds:.1f} s")
@@ -321,6 +342,9 @@ def table_row(i: int, force: float, b: Brackets, steps: np.ndarray, resolution: 
         "energy_ankle_max": _get(energy_max, "energy_ankle"),
         "energy_hip_max": _get(energy_max, "energy_hip"),
         "energy_total_max": _get(energy_max, "energy_total"),
+        **{f"{c}_{suffix}": _get(row, c)
+           for suffix, row in (("01", energy_01), ("max", energy_max))
+           for c in ("study_energy_u1", "study_energy_u2", "study_energy_total")},
         "ending_outcome": hi_row["outcome"] if hi_row is not None else "",
         "monotone": bool(b.monotone[i]),
         "recovered_beyond_failure": beyond,
@@ -464,7 +488,8 @@ def _run_table(out: str | Path, config: Config, forces: np.ndarray, run_batch: R
     if recorded is not None and same_values(recorded["forces"], forces) and table_path.exists():
         try:
             done = pd.read_csv(table_path)
-            if same_values(done["force"], forces):
+            # a table from before a column (e.g. the study's energies) is made again
+            if same_values(done["force"], forces) and set(TABLE_COLUMNS) <= set(done):
                 say(f"table already complete: {table_path} ({forces.size} forces); nothing to do")
                 return None
         except Exception:  # noqa: BLE001 - recompute a damaged table
