@@ -165,3 +165,20 @@ def test_compare_on_a_local_cluster_gives_the_local_numbers(tmp_path, monkeypatc
     for name in configs:
         assert ((tmp_path / "cluster" / name / "region.parquet").read_bytes()
                 == (tmp_path / "plain" / name / "region.parquet").read_bytes())
+
+
+def test_sweep_definitions_are_configurations_too(tmp_path, stand_in):
+    """A sweep definition (a file with [sweep], or a shipped name) gives its configuration;
+    its grid is not used (the comparison's is)."""
+    plain = tmp_path / "plain.toml"
+    plain.write_text('[controller]\nconvention = "paper"\n')
+    out = tmp_path / "out"
+    assert main(["compare", "--config", str(plain), "--config", "study_offset_free", "--forces",
+                 FORCES, "--durations", DURATIONS, "--table-forces", TABLE_FORCES, "--out",
+                 str(out)]) == 0
+    made = json.loads((out / "study_offset_free" / "manifest.json").read_text())
+    assert made["config"]["controller"]["offset_free"] is True
+    region = pd.read_parquet(out / "study_offset_free" / "region.parquet")
+    assert sorted(region.force.unique()) == [0.0, 10.0, 20.0, 30.0, 40.0]  # FORCES, not its own
+    with pytest.raises(SystemExit):
+        main(["compare", "--config", "no_such_sweep", "--out", str(out)])

@@ -28,7 +28,8 @@ import numpy as np
 import pandas as pd
 
 from . import studies
-from .params import Config, ParameterError, load_config
+from .params import Config, ParameterError, load_config, read_toml
+from .sweep.definitions import load_sweep
 from .sweep.grid import check_durations, describe, parse_grid, same_values
 from .sweep.store import REGION, TABLE, OutputFolder, config_dict, config_differences
 
@@ -85,10 +86,18 @@ def load_configs(paths: Sequence[str | Path]) -> dict[str, Config]:
     configs = {}
     for name, path in zip(names_for(paths), paths):
         try:
-            configs[name] = load_config(path)
+            configs[name] = load_one(path)
         except ParameterError as exc:
             raise ParameterError(f"{path}: {exc}") from None
     return configs
+
+
+def load_one(path: str | Path) -> Config:
+    """A configuration file's configuration, or a sweep definition's (a file with a [sweep]
+    table: its grid is not used, the comparison has its own)."""
+    if "sweep" in read_toml(Path(path)):
+        return load_sweep(path, Config()).config
+    return load_config(path)
 
 
 def check_folder(folder: Path, name: str, config: Config, forces: np.ndarray,

@@ -82,6 +82,13 @@ STUDIES: tuple[Study, ...] = (
            Variant("delay_comp_100ms", "100 ms, compensated", "study_delay_comp_100ms.toml"),
            Variant("delay_comp_150ms", "150 ms, compensated",
                    "study_delay_comp_150ms.toml"))),
+    Study("offset_free", "Offset-free MPC",
+          "The controller estimates the push as a constant disturbance (an observer) and "
+          "regulates to the steady posture that cancels it within every bound, leaning only "
+          "when upright cannot hold it (docs/model.md); the base is the study's controller, "
+          "which regulates to upright and does not know of the push.",
+          (Variant("plain", "study's MPC (base)", None),
+           Variant("offset_free", "offset-free MPC", "study_offset_free.toml"))),
     Study("older_adult", "Weaker ankle and an older-adult body",
           "The ankle torque bound is scaled by 0.6 (weaker ankle), and in the older-adult "
           "profile also the body (3 % shorter, 10 % heavier) and the hip torque bound (0.8).",

@@ -502,9 +502,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("compare", help="several configurations on one grid: their recovery "
                                        "boundaries in one figure, their numbers in one table")
-    p.add_argument("--config", type=input_file, action="append", required=True,
-                   metavar="FILE", help="a TOML configuration (repeat for each; the folder "
-                                        "name is the file's stem)")
+    p.add_argument("--config", type=sweep_file, action="append", required=True,
+                   metavar="FILE", help="a TOML configuration, or a sweep definition (a file "
+                                        "or a shipped name such as study_offset_free: its "
+                                        "configuration, not its grid); repeat for each; the "
+                                        "folder name is the file's stem")
     p.add_argument("--forces", default=None,
                    help="start:stop:step or a comma list [N] (default: the default sweep's, "
                         "0:150:10)")
