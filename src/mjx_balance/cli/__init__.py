@@ -8,6 +8,7 @@ and drives the library below it:
     bench solver  cli.bench:solver_command       batched ADMM vs OSQP vs CasADi/IPOPT
     bench physics cli.bench:physics_command      where the time goes; MJX vs MuJoCo C
     sweep         cli.sweep:sweep_command        force x duration region map (MJX + ADMM)
+    landscape     cli.landscape                  area, sustained limit, energy over Q x R scales
     table         cli.sweep:table_command        max acting time per force (batched bisection)
     animate       cli.animate:animate_command    stick-figure GIF of one push (reference)
     report        cli.report:report_command      HTML report: the study's experiments and studies
@@ -522,6 +523,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output folder: one sweep folder per configuration, compare.csv, "
                         "compare.png")
     p.set_defaults(target="mjx_balance.cli.compare:compare_command")
+
+    from .landscape import add_parser as landscape_parser  # light: no library import
+
+    landscape_parser(sub)
 
     p = sub.add_parser("animate", help="stick-figure GIF of one push (matplotlib, no OpenGL)")
     p.add_argument("--force", type=finite_float, required=True, help="push force [N]")

@@ -1,0 +1,93 @@
+"""``mjx-balance landscape``: recoverable area, sustained-push limit and mean recovery energy
+over a grid of Q and R scales, with and without delay (``mjx_balance.landscape``).
+
+Only the parser (:func:`add_parser`) is imported when the command line is built; the command
+imports the library when it runs.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+
+def add_parser(sub: Any) -> None:
+    """The ``landscape`` sub-command's options (``sub.add_parser`` of ``cli.build_parser``,
+    which adds the common options, the defaults in the help and the epilog)."""
+    from . import _engine_options, _wait, out_folder, setting, sweep_file
+
+    p = sub.add_parser(
+        "landscape", help="the weight landscape: recoverable area, sustained-push limit and "
+                          "mean recovery energy over a grid of Q and R scales, with and without "
+                          "delay; each (delay, Q scale, R scale) runs as compare runs a "
+                          "configuration, in DIR/<delay>/q<q>_r<r>/ (resumable), then "
+                          "landscape.csv, landscape.png (heatmaps), landscape.txt")
+    from ..landscape import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES
+
+    p.add_argument("--sweep", type=sweep_file, default=None,
+                   help="sweep definition whose configuration and grid are the base (a TOML "
+                        "file or a shipped name, e.g. landscape_weights); default: the "
+                        "defaults and the default sweep's grid")
+    p.add_argument("--set", type=setting, action="append", default=None,
+                   metavar="SECTION.KEY=VALUE",
+                   help="override one value of the base configuration (repeatable)")
+    p.add_argument("--q-scales", default=DEFAULT_SCALES,
+                   help="factors on controller.q_diag, comma list")
+    p.add_argument("--r-scales", default=DEFAULT_SCALES,
+                   help="factors on controller.r_diag, comma list")
+    p.add_argument("--delay", default=DEFAULT_DELAYS,
+                   help="delay settings, comma list in ms, a trailing c for the "
+                        "delay-compensated controller (controller.delay_compensation), "
+                        "e.g. 0,10,100c; each replaces the base's scenario.controller_delay")
+    p.add_argument("--forces", default=None,
+                   help="start:stop:step or a comma list [N] (default: the --sweep file's, "
+                        "else the default sweep's)")
+    p.add_argument("--durations", default=None,
+                   help="start:stop:step or a comma list [s] (default: the --sweep file's, "
+                        "else the default sweep's)")
+    p.add_argument("--table-forces", default=None,
+                   help="forces of each setting's max-acting-time table [N] (default: the "
+                        f"--sweep file's, else {DEFAULT_TABLE_FORCES})")
+    _engine_options(p)
+    _wait(p)
+    p.add_argument("--out", type=out_folder, required=True,
+                   help="output folder: one sweep folder per setting, landscape.csv, "
+                        "landscape.png, landscape.txt")
+    p.set_defaults(target="mjx_balance.cli.landscape:landscape_command")
+
+
+def landscape_command(args: Any) -> int:
+    """Every setting's map and table, then landscape.csv, .png and .txt in --out. Every input
+    is checked (``landscape.check_landscape``) before the folder is touched."""
+    import logging
+
+    from ..landscape import DEFAULT_TABLE_FORCES, check_landscape, run_landscape
+    from ..params import apply_overrides
+    from ..sweep import DEFAULT_SWEEP, load_sweep
+    from . import base_config, progress_enabled
+    from .sweep import _in_folder, _physics
+
+    definition = load_sweep(args.sweep, base_config(args, overrides=False))
+    config = apply_overrides(definition.config, getattr(args, "set", None))
+
+    def pick(given: Any, from_file: Any, fallback: Any) -> Any:
+        return given if given is not None else (from_file if from_file is not None
+                                                else fallback)
+
+    forces = pick(args.forces, definition.forces, DEFAULT_SWEEP["forces"])
+    durations = pick(args.durations, definition.durations, DEFAULT_SWEEP["durations"])
+    table_forces = pick(args.table_forces, definition.table_forces if args.sweep else None,
+                        DEFAULT_TABLE_FORCES)
+    out = Path(args.out)
+    check_landscape(out, config, forces, durations, args.q_scales, args.r_scales, args.delay,
+                    table_forces)
+    engine = {"slots": args.slots, "full_length": args.full_length,
+              "physics": _physics(args, definition)}
+
+    def work() -> None:
+        run_landscape(out, config, forces, durations, q_scales=args.q_scales,
+                      r_scales=args.r_scales, delays=args.delay, table_forces=table_forces,
+                      progress=progress_enabled(args),
+                      log=logging.getLogger("mjx_balance").info, **engine)
+
+    return _in_folder(out, work, wait=getattr(args, "wait", False))
