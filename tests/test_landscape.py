@@ -230,3 +230,29 @@ def test_landscape_numbers_equal_a_direct_compare_with_the_real_rollout(
     a, b = (frame[frame["r_scale"] == r].iloc[0] for r in (0.1, 1.0))
     assert (a["sustained_push_limit"], a["mean_recovery_energy"]) != (
         b["sustained_push_limit"], b["mean_recovery_energy"])
+
+
+def test_the_report_section_is_read_from_the_folder(tmp_path, stand_in):
+    import base64
+
+    from mjx_balance.report.landscape import landscape_section
+
+    assert landscape_section(tmp_path) is None  # no landscape there
+    out = tmp_path / "land"
+    assert cli(out) == 0
+    section = landscape_section(out)
+    kinds = [b["kind"] for b in section["blocks"]]
+    assert section["id"] == "landscape" and kinds[:3] == ["paragraph", "figure", "table"]
+    figure = section["blocks"][1]
+    assert base64.b64decode(figure["data"]) == (out / "landscape.png").read_bytes()
+    table = section["blocks"][2]
+    rows = [dict(zip(table["header"], r)) for r in table["rows"]]
+    assert [r["which"] for r in rows] == ["base weights (1, 1)", "largest area",
+                                          "largest sustained limit"] * 2
+    frame = pd.read_csv(out / "landscape.csv", dtype={"delay": str})
+    base = frame[(frame["delay"] == "100c") & frame["study"]].iloc[0]
+    assert rows[3]["delay"] == "100 ms, compensated"
+    assert rows[3]["area [N s]"] == f"{base['area']:.4g}"
+    assert rows[1]["Q scale"] == "10" and rows[1]["R scale"] == "0.1"  # the largest area
+    text = " ".join(b["text"] for b in section["blocks"] if b["kind"] == "paragraph")
+    assert (out / "landscape.txt").read_text().strip().splitlines()[0] in text
