@@ -97,6 +97,7 @@ def test_landscape_writes_its_numbers_figure_and_reading(tmp_path, stand_in):
         assert row["sustained_push_limit"] == pytest.approx(np.floor(c / 12 * 10 - 1e-9) / 10)
         assert row["max_acting_time_10N"] == expected_max_time(10, c, 12.0)
         assert row["study"] == (row["q_scale"] == 1 and row["r_scale"] == 1)
+        assert row["nonconverged_solves"] == 0
         # the same pushes recovered x the energy factor: exactly the factors' ratio when this
         # setting recovers at least the base's cells
         base = landscape.setting_config(Config(), landscape.Delay(row["delay_ms"],

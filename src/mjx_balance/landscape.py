@@ -23,7 +23,8 @@ Energy columns: ``mean_recovery_energy`` is the mean motor energy of the setting
 recovered cells (as compare.csv's), so a setting that recovers harder pushes pays for them;
 ``energy_vs_study`` compares like with like: the setting's mean energy over the cells that it
 and the base weights (same delay) both recover, divided by the base weights' mean over the
-same cells.
+same cells. ``nonconverged_solves`` counts the region's QP solves that the ADMM did not report
+solved (a check that an extreme weight's numbers are the controller's, not the solver's).
 """
 
 from __future__ import annotations
@@ -56,7 +57,8 @@ DEFAULT_TABLE_FORCES = "50"  # N: each setting's table (max acting time at 50 N)
 KEY_COLUMNS = ["delay", "delay_ms", "compensated", "q_scale", "r_scale"]
 COLUMNS = [*KEY_COLUMNS, "study", "area", "fraction", "recovered_cells", "cells", "t_ref",
            "f_max_ref", "rest_recovered", "mean_recovery_energy", "sustained_push_limit",
-           "paired_cells", "energy_vs_study"]  # then max_acting_time_<F>N per table force
+           "paired_cells", "energy_vs_study", "nonconverged_solves"]
+# then max_acting_time_<F>N per table force
 
 
 @dataclass(frozen=True)
@@ -247,7 +249,10 @@ def run_landscape(out: str | Path, base: Config, forces: Any, durations: Any, *,
         regions[name] = pd.read_parquet(folder / REGION)
         row = {"delay": delay.spec, "delay_ms": delay.ms, "compensated": delay.compensated,
                "q_scale": q, "r_scale": r, "study": q == 1.0 and r == 1.0,
-               **comparison.numbers(regions[name], pd.read_csv(folder / TABLE))}
+               **comparison.numbers(regions[name], pd.read_csv(folder / TABLE)),
+               # QP solves the ADMM did not report solved, over the region's cells (a check
+               # that an extreme weight's numbers are the controller's, not the solver's)
+               "nonconverged_solves": int(regions[name]["nonconverged_solves"].sum())}
         rows.append(row)
         frame = _frame(rows, regions, settings)
         write_atomic(out / LANDSCAPE_CSV, lambda tmp: frame.to_csv(tmp, index=False))
