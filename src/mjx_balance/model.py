@@ -153,3 +153,18 @@ def cell_x(body: BodyParams) -> np.ndarray:
     """Sole-frame x of the four load cells, in LOAD_CELLS order."""
     hx = body.foot_length / 2
     return np.array([hx, hx, -hx, -hx])
+
+
+def settled_rest(model: mujoco.MjModel, seconds: float = 1.0) -> np.ndarray:
+    """qpos of upright rest after the contact has settled: ``seconds`` of MuJoCo C with zero
+    torques from qpos = 0, where the foot merely touches the floor (its load cells carry no
+    force yet; the sole then sinks 0.27 mm into the soft contact within ~0.1 s).
+
+    A scenario that starts away from rest (``reference.simulate_scenario(initial=...)``, the
+    batched engine's initial states: the recovery basin) starts with this foot, so that the
+    controller's first torques act on a loaded foot; from qpos = 0 they would spin the unloaded
+    foot (1.3 kg) in the first steps. Push scenarios keep starting at qpos = 0."""
+    data = mujoco.MjData(model)
+    for _ in range(int(round(seconds / model.opt.timestep))):
+        mujoco.mj_step(model, data)
+    return data.qpos.copy()

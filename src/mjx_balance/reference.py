@@ -35,7 +35,7 @@ import pandas as pd
 from . import metrics, outcomes
 from . import offset_free as offset_free_mod
 from .linear import delay_predictor, predict
-from .model import build_model, indices
+from .model import build_model, indices, settled_rest
 from .osqp_mpc import ReferenceMPC
 from .outcomes import SUMMARY_COLUMNS, Limits
 from .params import BodyParams, Config, ControllerParams
@@ -105,14 +105,16 @@ def _model(body, physics_dt: float) -> mujoco.MjModel:
 
 
 def simulate_scenario(config: Config, force: float, duration: float, *, record: bool = True,
-                      scenario_id: int = 0,
-                      mpc: MPC | None = None) -> tuple[dict[str, Any], pd.DataFrame | None]:
+                      scenario_id: int = 0, mpc: MPC | None = None,
+                      initial: Any = None) -> tuple[dict[str, Any], pd.DataFrame | None]:
     """Run one push scenario; return (summary row, long time series or None).
 
     ``force`` [N] (+ forward) and ``duration`` [s] override config.scenario's; the summary row
     has the keys ``outcomes.SUMMARY_COLUMNS``; the time series has ``TIMESERIES_COLUMNS``, one
     row per physics step (time = (i+1) dt), ending at the fall sample if the body fell.
     ``mpc``: the controller (default: OSQP, :func:`reference_mpc`); it is reset first.
+    ``initial``: the initial joint state [q_a, q_h, dq_a, dq_h] (default upright rest; the
+    foot as at rest), as the batched engine's per-scenario initial state.
     """
     config = config.replace(scenario={"force": float(force), "duration": float(duration)})
     body, ctrl, sc = config.body, config.controller, config.scenario
@@ -124,6 +126,10 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
     lm = mpc.qp.linear
     ix = indices(model)
     data = mujoco.MjData(model)
+    if initial is not None and np.any(initial):  # the foot settled (model.settled_rest)
+        data.qpos[:] = settled_rest(model)
+        data.qpos[[ix.ankle_qpos, ix.hip_qpos]] = np.asarray(initial, float)[:2]
+        data.qvel[[ix.ankle_dof, ix.hip_dof]] = np.asarray(initial, float)[2:]
     mujoco.mj_forward(model, data)
 
     dt, substeps, n_control = sc.physics_dt, sc.substeps, sc.n_control

@@ -10,6 +10,7 @@ and drives the library below it:
     sweep         cli.sweep:sweep_command        force x duration region map (MJX + ADMM)
     landscape     cli.landscape                  area, sustained limit, energy over Q x R scales
     table         cli.sweep:table_command        max acting time per force (batched bisection)
+    basin         cli.basin:basin_command        recovery basin over initial CoM states
     animate       cli.animate:animate_command    stick-figure GIF of one push (reference)
     report        cli.report:report_command      HTML report: the study's experiments and studies
     model         cli.model:model_command        the MJCF of the configured body
@@ -527,6 +528,10 @@ def build_parser() -> argparse.ArgumentParser:
     from .landscape import add_parser as landscape_parser  # light: no library import
 
     landscape_parser(sub)
+
+    from .basin import add_parser as basin_parser  # light: no library import
+
+    basin_parser(sub)
 
     p = sub.add_parser("animate", help="stick-figure GIF of one push (matplotlib, no OpenGL)")
     p.add_argument("--force", type=finite_float, required=True, help="push force [N]")

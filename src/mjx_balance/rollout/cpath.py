@@ -430,9 +430,13 @@ class CEngine(Engine):
         split, _ = self.runner._shardings()
         return jnp.asarray(a) if split is None else jax.device_put(a, split)
 
-    def stream(self, forces: np.ndarray, n_push: np.ndarray
+    def stream(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None
                ) -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:
-        """As :meth:`engine.Engine.stream`, one control period per call."""
+        """As :meth:`engine.Engine.stream`, one control period per call (from upright rest
+        only: ``inits`` must be None or zero)."""
+        if inits is not None and np.any(inits):
+            raise ValueError("the MuJoCo C path starts every scenario at upright rest; "
+                             "initial states need --physics mjx")
         forces = np.asarray(forces, np.float64)
         n_push = np.asarray(n_push, np.int32)
         n = forces.shape[0]
@@ -453,7 +457,7 @@ class CEngine(Engine):
         remaining, finished, p = n, False, 0
         try:
             while remaining:
-                cells, f, pp = queue.offer()
+                cells, f, pp, _ = queue.offer()
                 floats, ints = pack(rows, last_qpos, cells, f, pp, p, r.dtype)
                 cs, out_f, out_i = fn(self._leaves, cs, self._put(floats), self._put(ints))
                 out_f, out_i = jax.device_get((out_f, out_i))

@@ -34,7 +34,7 @@ import numpy as np
 from .. import certificate as cert_mod
 from .._xla import deterministic_flags
 from .runner import MATMUL_PRECISION
-from .kernel import Accumulators, Arrays, Carry, initial_carry, period, select
+from .kernel import Accumulators, Arrays, Carry, initial_carry, period, select, start
 from .physics import whole_body_com
 
 def default_slots(platform: str) -> int:
@@ -86,15 +86,18 @@ def _broadcast(tree, n):
     return jax.tree.map(lambda v: jnp.broadcast_to(v, (n,) + jnp.shape(v)), tree)
 
 
-def refill(slots: Slots, rest: Carry, taken, vacant, refill_cell, refill_force, refill_push
-           ) -> tuple[Slots, jax.Array]:
-    """Vacant slots take the next refill cells, in slot order (``taken`` already used)."""
+def refill(slots: Slots, rest: Carry, taken, vacant, refill_cell, refill_force, refill_push,
+           starts: Carry | None = None) -> tuple[Slots, jax.Array]:
+    """Vacant slots take the next refill cells, in slot order (``taken`` already used).
+    ``starts`` [R]: each refill cell's first carry (:func:`kernel.start`, a per-scenario
+    initial state); None: upright rest (``rest``)."""
     R = refill_cell.shape[0]
     rank = taken + jnp.cumsum(vacant) - 1
     source = jnp.clip(rank, 0, R - 1)
     take = vacant & (rank < R) & (refill_cell[source] >= 0)
+    first = rest if starts is None else jax.tree.map(lambda v: v[source], starts)
     slots = Slots(
-        carry=select(take, rest, slots.carry),
+        carry=select(take, first, slots.carry),
         cell=jnp.where(take, refill_cell[source], slots.cell),
         force=jnp.where(take, refill_force[source], slots.force),
         n_push=jnp.where(take, refill_push[source], slots.n_push),
@@ -171,19 +174,22 @@ def checker(cert, periods: int | None = None):
     return jax.vmap(lambda x, acc, over, left: cert_mod.check(jnp, cert, x, acc, over, left))
 
 
-def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push, *,
-          periods: int, early: bool, packing: Packing):
+def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push, refill_init,
+          *, periods: int, early: bool, packing: Packing):
     """``periods`` control periods of one device's slots with refill and harvest (pure JAX).
 
-    refill_*: [R] the next cells for this device (cell -1: none). Returns the slots, the number
-    of refill cells taken [1] and the finished buffer [slots + R]. ``slots.carry`` is packed
+    refill_*: [R] the next cells for this device (cell -1: none), refill_init [R, 4] their
+    initial joint states (0: upright rest). Returns the slots, the number of refill cells
+    taken [1] and the finished buffer [slots + R]. ``slots.carry`` is packed
     (:class:`Packing`).
     """
     S = slots.cell.shape[0]
     slots = slots._replace(carry=packing.unpack(slots.carry, S))
     R = refill_cell.shape[0]
     dtype = ar.d0.qpos.dtype
-    rest = _broadcast(initial_carry(ar, sn, st), S)
+    single = initial_carry(ar, sn, st)
+    rest = _broadcast(single, S)
+    starts = jax.vmap(lambda init: start(ar, sn, single, init))(refill_init)
     run = jax.vmap(lambda c, k, f, n: period(ar, sn, st, c, k, f, n)[0])
     every = cert_mod.CHECK_EVERY
     check = checker(cert if early else None, periods)
@@ -197,7 +203,7 @@ def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push
         if check is not None:
             vacant = vacant & (s % every == 0)
         slots, taken = refill(slots, rest, taken, vacant, refill_cell, refill_force,
-                              refill_push)
+                              refill_push, starts)
         # 2. one control period of every slot
         active = slots.cell >= 0
         carry = run(slots.carry, slots.k, slots.force, slots.n_push)
@@ -223,15 +229,18 @@ class Queue:
     ``refill`` cells (device d gets offer[d::D]: neighbouring cells, of similar cost, spread
     over the devices); what a device did not take is offered first the next time."""
 
-    def __init__(self, forces: np.ndarray, n_push: np.ndarray, devices: int, refill: int):
+    def __init__(self, forces: np.ndarray, n_push: np.ndarray, devices: int, refill: int,
+                 inits: np.ndarray | None = None):
         self.forces, self.n_push = forces, n_push
+        self.inits = np.zeros((forces.shape[0], 4)) if inits is None else inits
         self.D, self.R = devices, refill
         self.head = 0
         self.returned = np.zeros(0, np.int64)
         self._per: list[np.ndarray] = []
 
-    def offer(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(cells [D R], -1: none; their forces; their push steps) for the next call."""
+    def offer(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(cells [D R], -1: none; their forces; their push steps; their initial joint states
+        [D R, 4]) for the next call."""
         D, R = self.D, self.R
         fresh = np.arange(self.head, min(self.forces.shape[0],
                                          self.head + D * R - self.returned.size))
@@ -245,7 +254,9 @@ class Queue:
         f = np.zeros(D * R, np.float64)
         p = np.zeros(D * R, np.int32)
         f[used], p[used] = self.forces[cells[used]], self.n_push[cells[used]]
-        return cells, f, p
+        init = np.zeros((D * R, 4), np.float64)
+        init[used] = self.inits[cells[used]]
+        return cells, f, p, init
 
     def took(self, taken: np.ndarray) -> None:
         """How many of its offered cells each device took [D]."""
@@ -320,15 +331,15 @@ class Engine:
             sn, st, periods, early = r.sensors, r.static, self.block, self.cert is not None
             packing = self.packing
 
-            def call(arrays, cert, slots, cell, force, push):
-                return block(arrays, sn, st, cert, slots, cell, force, push, periods=periods,
-                             early=early, packing=packing)
+            def call(arrays, cert, slots, cell, force, push, init):
+                return block(arrays, sn, st, cert, slots, cell, force, push, init,
+                             periods=periods, early=early, packing=packing)
 
             if r.mesh is not None:
                 P = jax.sharding.PartitionSpec
                 call = jax.shard_map(call, mesh=r.mesh,
                                      in_specs=(P(), P(), P("batch"), P("batch"), P("batch"),
-                                               P("batch")),
+                                               P("batch"), P("batch")),
                                      out_specs=P("batch"), check_vma=False)
             slots = jax.eval_shape(self._vacant, r.arrays)
             split, _ = r._shardings()
@@ -339,7 +350,8 @@ class Engine:
                     r.arrays, self.cert, jax.tree.map(spec, slots),
                     jax.ShapeDtypeStruct((n,), jnp.int32, sharding=split),
                     jax.ShapeDtypeStruct((n,), r.dtype, sharding=split),
-                    jax.ShapeDtypeStruct((n,), jnp.int32, sharding=split)).compile()
+                    jax.ShapeDtypeStruct((n,), jnp.int32, sharding=split),
+                    jax.ShapeDtypeStruct((n, 4), r.dtype, sharding=split)).compile()
             _COMPILED[key] = fn
         self.compile_seconds = _time.perf_counter() - t0
         self._fn = fn
@@ -361,11 +373,12 @@ class Engine:
 
     # -- running --------------------------------------------------------------------------
 
-    def stream(self, forces: np.ndarray, n_push: np.ndarray
+    def stream(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None
                ) -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:
-        """Run every cell (forces [n], push steps [n]); yield (cell indices, finished raw
-        results) after each call, as cells complete. Raw results: the accumulators' fields,
-        ``periods`` and ``certified``, numpy, one entry per index."""
+        """Run every cell (forces [n], push steps [n], initial joint states [n, 4] or None:
+        upright rest); yield (cell indices, finished raw results) after each call, as cells
+        complete. Raw results: the accumulators' fields, ``periods`` and ``certified``, numpy,
+        one entry per index."""
         forces = np.asarray(forces, np.float64)
         n_push = np.asarray(n_push, np.int32)
         n = forces.shape[0]
@@ -376,12 +389,13 @@ class Engine:
         split, _ = r._shardings()
         state = self._state if self._state is not None else self._initial_state()
         self._state = None
-        queue = Queue(forces, n_push, self.n_devices, self.refill)
+        queue = Queue(forces, n_push, self.n_devices, self.refill, inits)
         remaining, finished = n, False
         try:
             while remaining:
-                cells, f, p = queue.offer()
-                args = (jnp.asarray(cells), jnp.asarray(f.astype(r.dtype)), jnp.asarray(p))
+                cells, f, p, init = queue.offer()
+                args = (jnp.asarray(cells), jnp.asarray(f.astype(r.dtype)), jnp.asarray(p),
+                        jnp.asarray(init.astype(r.dtype)))
                 if split is not None:
                     args = tuple(jax.device_put(a, split) for a in args)
                 state, taken, done = fn(r.arrays, self.cert, state, *args)
@@ -400,12 +414,13 @@ class Engine:
             if finished:
                 self._state = state  # every slot vacant: reusable by the next run
 
-    def run(self, forces: np.ndarray, n_push: np.ndarray) -> dict[str, np.ndarray]:
+    def run(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None
+            ) -> dict[str, np.ndarray]:
         """Every cell's raw results (see :meth:`stream`), in the order of the cells."""
         n = np.asarray(forces).shape[0]
         out: dict[str, Any] = {}
         seen = np.zeros(n, bool)
-        for index, raw in self.stream(forces, n_push):
+        for index, raw in self.stream(forces, n_push, inits):
             for name, v in raw.items():
                 if name not in out:
                     out[name] = np.zeros((n,) + v.shape[1:], v.dtype)

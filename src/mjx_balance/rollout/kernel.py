@@ -127,6 +127,7 @@ class Arrays(NamedTuple):
     pred_A: jax.Array  # [4, 4] the delay compensator's A_h^d (identity without one)
     pred_G: jax.Array  # [P, 4, 2] its input matrices (P = 0 without one)
     ofs: offset_free_mod.OffsetFree  # the offset-free controller's matrices (used if enabled)
+    settled: jax.Array  # [nq] upright rest with the contact settled (model.settled_rest)
 
 
 class Sample(NamedTuple):
@@ -304,6 +305,21 @@ def initial_carry(ar: Arrays, sn: Sensors, st: Static) -> Carry:
                  x_prev=x0, acc=Accumulators.initial(dtype),
                  inputs=jnp.zeros((ar.pred_G.shape[0], 2), dtype),
                  dist=jnp.zeros(2, dtype), x_last=x0, u_last=jnp.zeros(2, dtype))
+
+
+def start(ar: Arrays, sn: Sensors, rest: Carry, init: jax.Array) -> Carry:
+    """The carry of a scenario that starts from joint state ``init`` = [q_a, q_h, dq_a, dq_h]
+    instead of upright rest (``rest``: :func:`initial_carry`): the foot settled on the floor
+    (``ar.settled``, as the reference), a cold controller, the measurement buffer full of the
+    initial state. init = 0 gives ``rest`` exactly (push scenarios start at qpos = 0)."""
+    init = jnp.asarray(init, rest.x_prev.dtype)
+    q, dq = init[:2], init[2:]
+    qpos = jnp.where(jnp.any(init != 0), ar.settled, rest.d.qpos)
+    d = rest.d.replace(qpos=qpos.at[sn.joints_q].set(q),
+                       qvel=rest.d.qvel.at[sn.joints_v].set(dq))
+    x = state(ar, q, dq)
+    return rest._replace(d=d, history=jnp.broadcast_to(init, rest.history.shape), q_prev=q,
+                         x_prev=x, x_last=x)
 
 
 def control(ar: Arrays, st: Static, carry: Carry, k: jax.Array

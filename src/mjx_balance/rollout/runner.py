@@ -32,6 +32,7 @@ from ..outcomes import FELL, RECOVERED, Limits, summary_frame
 from ..params import Config
 from ..qp import build_qp
 from .kernel import Accumulators, Arrays, Static, scenario
+from ..model import settled_rest
 from .physics import mj_model, mjx_model, rest_data, sensors
 
 
@@ -95,6 +96,7 @@ class BatchRunner:
             torque_map=jnp.asarray(lm.torque_map, self.dtype),
             pred_A=jnp.asarray(pred_A, self.dtype), pred_G=jnp.asarray(pred_G, self.dtype),
             ofs=offset_free.cast(offset_free.build(qp, ctrl), jnp, self.dtype),
+            settled=jnp.asarray(settled_rest(self.model), self.dtype),
         )
         self.static = Static(
             n_control=sc.n_control, substeps=sc.substeps, delay_steps=sc.delay_steps,
@@ -234,15 +236,22 @@ class BatchRunner:
             raise ValueError("durations must be >= 0")
         return forces, durations
 
-    def run_raw(self, forces, durations) -> tuple[Accumulators, dict[str, np.ndarray] | None]:
+    def run_raw(self, forces, durations, inits=None
+                ) -> tuple[Accumulators, dict[str, np.ndarray] | None]:
         """Device results as numpy (accumulators, series), padding removed.
 
         Without trajectories the scenarios run on the continuous-batching engine (stopped when
-        decided); with them, every scenario runs to t_end in one batch (padded)."""
+        decided); with them, every scenario runs to t_end in one batch (padded). ``inits``
+        [n, 4]: each scenario's initial joint state [q_a, q_h, dq_a, dq_h] (None: upright
+        rest; the engine on the MJX path only)."""
         forces, durations = self._inputs(forces, durations)
         n = forces.shape[0]
+        inits = self._initial_states(inits, n)
+        if inits is not None and self.trajectories:
+            raise ValueError("initial states run on the engine only (no trajectories)")
         if not self.trajectories:
-            raw = self.engine.run(forces, push_steps(durations, self.config.scenario.physics_dt))
+            raw = self.engine.run(forces, push_steps(durations, self.config.scenario.physics_dt),
+                                  inits)
             self.last_periods = raw.pop("periods").astype(np.int64)
             self.last_certified = raw.pop("certified").astype(bool)
             return Accumulators(*(raw[name] for name in Accumulators._fields)), None
@@ -263,14 +272,24 @@ class BatchRunner:
             series = {k: np.asarray(v)[:n] for k, v in series.items()}
         return acc, series
 
-    def run(self, forces, durations) -> dict[str, np.ndarray]:
+    @staticmethod
+    def _initial_states(inits, n: int) -> np.ndarray | None:
+        if inits is None:
+            return None
+        inits = np.asarray(inits, np.float64)
+        if inits.shape != (n, 4) or not np.isfinite(inits).all():
+            raise ValueError(f"initial states must be finite, one [q_a, q_h, dq_a, dq_h] per "
+                             f"scenario ({n}, 4), got shape {inits.shape}")
+        return inits
+
+    def run(self, forces, durations, inits=None) -> dict[str, np.ndarray]:
         """Summary of each scenario (SUMMARY_COLUMNS except convention, plus
         ``admm_iterations``, the ADMM iterations summed over the counted control periods):
         numpy arrays, one entry per scenario, outcome as int codes (``outcomes.OUTCOMES``).
         With ``trajectories=True`` the per-physics-step series of the batch are left in
         ``self.last_trajectories`` (arrays [B, n_steps, ...], plus time [n_steps])."""
         forces, durations = self._inputs(forces, durations)
-        acc, series = self.run_raw(forces, durations)
+        acc, series = self.run_raw(forces, durations, inits)
         summary = {"force": forces, "duration": durations, **summarize(acc, self.config)}
         if series is not None:
             sc = self.config.scenario
@@ -279,22 +298,23 @@ class BatchRunner:
         self.last_trajectories = series
         return summary
 
-    def stream(self, forces, durations):
+    def stream(self, forces, durations, inits=None):
         """Run the scenarios on the engine; yield (indices, summary columns) as they are
         decided (the columns of :meth:`run`, plus ``periods``, the control periods simulated,
-        and ``certified``)."""
+        and ``certified``). ``inits``: as :meth:`run_raw`."""
         forces, durations = self._inputs(forces, durations)
+        inits = self._initial_states(inits, forces.shape[0])
         steps = push_steps(durations, self.config.scenario.physics_dt)
-        for index, raw in self.engine.stream(forces, steps):
+        for index, raw in self.engine.stream(forces, steps, inits):
             acc = Accumulators(*(raw[name] for name in Accumulators._fields))
             yield index, {"force": forces[index], "duration": durations[index],
                           **summarize(acc, self.config), "periods": raw["periods"],
                           "certified": raw["certified"]}
 
-    def run_frame(self, forces, durations) -> pd.DataFrame:
+    def run_frame(self, forces, durations, inits=None) -> pd.DataFrame:
         """As :meth:`run`, as a table with columns ``outcomes.SUMMARY_COLUMNS`` (outcome as
         strings)."""
-        summary = self.run(forces, durations)
+        summary = self.run(forces, durations, inits)
         return summary_frame(summary, self.config.controller.convention, extra=False)
 
 

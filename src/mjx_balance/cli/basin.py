@@ -1,0 +1,62 @@
+"""``mjx-balance basin``: the recovery basin in the (x_com, v_com) plane (``mjx_balance.basin``).
+
+Only the parser (:func:`add_parser`) is imported when the command line is built; the command
+imports the library when it runs.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+
+def add_parser(sub: Any) -> None:
+    """The ``basin`` sub-command's options (``sub.add_parser`` of ``cli.build_parser``)."""
+    from . import _common, _wait, positive_int
+
+    p = sub.add_parser(
+        "basin", help="the recovery basin: which initial CoM states (x_com, v_com) recover "
+                      "with no push, with the foot's edges, the capture-point bound and the "
+                      "push map's end-of-push states (basin.parquet, basin.png; resumable)")
+    from ..basin import DEFAULT_V, DEFAULT_X, POSTURES
+
+    p.add_argument("--x-com", default=DEFAULT_X,
+                   help="CoM positions relative to the ankle [m], start:stop:step or a list")
+    p.add_argument("--v-com", default=DEFAULT_V,
+                   help="CoM velocities [m/s], start:stop:step or a list")
+    p.add_argument("--posture", choices=tuple(POSTURES), default="rigid",
+                   help="posture family realising each (x_com, v_com): "
+                        + "; ".join(f"{k}: {v}" for k, v in POSTURES.items()))
+    p.add_argument("--push-forces", default="10:150:20",
+                   help="forces [N] of the push cells whose end-of-push states are drawn "
+                        "(reference runs; 'none': no push cells)")
+    p.add_argument("--push-durations", default="0.1,0.2,0.5",
+                   help="durations [s] of those push cells")
+    p.add_argument("--slots", type=positive_int, default=None,
+                   help="scenarios in flight per device (default: 32 on a CPU, 4096 on a GPU)")
+    p.add_argument("--full-length", action="store_true",
+                   help="run every cell to t_end (no early stop of certified recoveries)")
+    _wait(p)
+    _common(p, out_help="output folder: basin.parquet, basin.png, pushes.csv, "
+                        "basin_cells/ (finished cells, for resuming)")
+    p.set_defaults(target="mjx_balance.cli.basin:basin_command")
+
+
+def basin_command(args: Any) -> int:
+    """The basin map in --out (every input checked before the folder is touched)."""
+    from ..basin import check_basin, run_basin
+    from . import load_run_config, progress_enabled
+    from .sweep import _in_folder
+
+    config = load_run_config(args)
+    pushes = (None if str(args.push_forces).strip().lower() == "none"
+              else (args.push_forces, args.push_durations))
+    out = Path(args.out)
+    check_basin(config, args.x_com, args.v_com, args.posture, pushes)
+    engine = {"slots": args.slots, "early_stop": not args.full_length}
+
+    def work() -> None:
+        run_basin(out, config, args.x_com, args.v_com, args.posture, pushes,
+                  progress=progress_enabled(args), **engine)
+
+    return _in_folder(out, work, wait=getattr(args, "wait", False))

@@ -1,0 +1,107 @@
+"""The recovery basin (basin.py): initial states in both engines, the map's rules, resuming."""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import numpy as np
+import pandas as pd
+import pytest
+
+from mjx_balance import basin, reference
+from mjx_balance.params import Config, ParameterError
+from mjx_balance.rollout import BatchRunner
+from test_rollout import AdmmMPC
+
+CONFIG = Config().replace(scenario={"t_end": 3.0})
+
+
+@pytest.fixture(scope="module")
+def runner():
+    return BatchRunner(CONFIG, devices=jax.local_devices()[:1], slots=8)
+
+
+@pytest.fixture(scope="module")
+def plane():
+    return basin.Plane(CONFIG)
+
+
+def test_the_posture_realises_the_cell(plane):
+    """The lean found puts the CoM at x_com, and the rate gives v_com (finite difference)."""
+    for posture in basin.POSTURES:
+        init = plane.initial_state(posture, 0.06, -0.2)
+        assert plane.com_x(posture, init[0]) == pytest.approx(0.06, abs=1e-10)
+        h = 1e-5
+        v = (plane.com_x(posture, init[0] + h * init[2])
+             - plane.com_x(posture, init[0] - h * init[2])) / (2 * h)
+        assert v == pytest.approx(-0.2, rel=1e-6)
+        assert init[1] == (0.0 if posture == "rigid" else -init[0])
+    assert plane.heel == pytest.approx(-0.15) and plane.toe == pytest.approx(0.15)
+    with pytest.raises(ParameterError, match="beyond any lean"):
+        plane.initial_state("rigid", 3.0, 0.0)
+
+
+def test_initial_states_in_both_engines_alike(runner):
+    """The batched engine from initial states (leans, rates, both directions) against the
+    reference with the same float32 ADMM: the same outcomes and fall samples; energies of
+    recoveries to 1e-3 (float32 physics; falls' rounding grows, test_delay_compensation);
+    an all-zero initial state is upright rest, bit for bit."""
+    inits = np.array([[0.0, 0, 0, 0], [0.03, 0, 0, 0], [0.05, 0, 0.3, 0],
+                      [-0.04, 0.04, -0.2, 0.2], [0.0, 0, -0.15, 0]])
+    zeros = np.zeros(len(inits))
+    frame = runner.run_frame(zeros, zeros, inits)
+    plain = runner.run_frame(zeros[:1], zeros[:1])
+    numeric = [c for c in plain.columns if plain[c].dtype.kind == "f"]
+    np.testing.assert_array_equal(frame.iloc[:1][numeric].to_numpy(), plain[numeric].to_numpy())
+    mpc = AdmmMPC(runner)
+    outcomes = []
+    for b, init in enumerate(inits):
+        ref = reference.simulate_scenario(CONFIG, 0.0, 0.0, record=False, mpc=mpc,
+                                          initial=init)[0]
+        mine = frame.iloc[b]
+        outcomes.append(ref["outcome"])
+        assert mine.outcome == ref["outcome"], init
+        assert (math.isnan(ref["fall_time"]) and math.isnan(mine.fall_time)) or \
+            abs(mine.fall_time - ref["fall_time"]) <= 1e-12
+        tol = 1e-2 if ref["outcome"] == "fell" else 1e-3
+        assert abs(mine.energy_total - ref["energy_total"]) <= tol * ref["energy_total"] + 1e-6
+    assert {"recovered", "fell"} <= set(outcomes)
+
+
+def test_the_map_rest_recovers_beyond_the_capture_point_falls(tmp_path, plane):
+    """Upright rest recovers; a state whose capture point lies beyond the toe, moving that
+    way, falls; the map is resumable and refuses another grid with nothing lost."""
+    out = tmp_path / "basin"
+    frame = basin.run_basin(out, CONFIG, "0,0.1", "0,0.5", progress=False, say=lambda s: None,
+                            devices=jax.local_devices()[:1], slots=8)
+    cell = frame.set_index(["x_com", "v_com"])
+    assert cell.loc[(0.0, 0.0), "outcome"] == "recovered"
+    assert cell.loc[(0.0, 0.0), "capture_inside"]
+    assert not cell.loc[(0.1, 0.5), "capture_inside"]  # 0.1 + 0.5 / 3.2 > 0.15
+    assert cell.loc[(0.1, 0.5), "outcome"] == "fell"
+    assert (out / basin.BASIN_PNG).stat().st_size > 10_000
+    parts = sorted((out / basin.CELLS_DIR).iterdir())
+    said = []
+    again = basin.run_basin(out, CONFIG, "0,0.1", "0,0.5", progress=False, say=said.append)
+    assert said[0] == "basin: all 4 cells done"
+    assert sorted((out / basin.CELLS_DIR).iterdir()) == parts
+    pd.testing.assert_frame_equal(again, frame)
+    with pytest.raises(ParameterError, match="another --out folder"):
+        basin.run_basin(out, CONFIG, "0,0.1", "0,0.4", progress=False, say=lambda s: None)
+    with pytest.raises(ParameterError, match="posture"):
+        basin.run_basin(out, CONFIG, "0,0.1", "0,0.5", "bent", progress=False)
+    assert sorted((out / basin.CELLS_DIR).iterdir()) == parts  # nothing lost
+
+
+def test_a_push_end_state_as_initial_state_ends_alike(runner, plane):
+    """The joint state at the end of a push, run as an initial state with no push, ends as
+    the push run did (a recovery and a fall after the push; the foot and the controller's warm
+    start are those of a fresh start, so cells near the boundary are not asked)."""
+    ends = basin.push_ends(CONFIG, plane, "20,60", "0.1,0.3")
+    ends = ends[np.isfinite(ends.x_com)]
+    assert set(ends.outcome) == {"recovered", "fell"}
+    inits = ends[["q_a", "q_h", "dq_a", "dq_h"]].to_numpy()
+    zeros = np.zeros(len(inits))
+    frame = runner.run_frame(zeros, zeros, inits)
+    assert list(frame.outcome) == list(ends.outcome)
