@@ -31,7 +31,7 @@ from .params import Config, ParameterError, load_config  # noqa: E402 - after th
 # Figures and saved reports, for notebooks: each figure function draws on the matplotlib Axes
 # it is given (or a new figure) and returns the Figure.
 _LAZY = {
-    "simulate": "api", "table": "api", "compare": "api",
+    "simulate": "api", "table": "api", "compare": "api", "basin": "api",
     "load_report": "report.html:load_results",
     "region_map": "region_plots", "energy_map": "region_plots", "table_figure": "region_plots",
     "timeseries_figure": "plots", "weight_figure": "report.html",
@@ -39,7 +39,7 @@ _LAZY = {
     "study_reading": "studies:reading",
 }
 
-__all__ = ["Config", "ParameterError", "__version__", "compare", "conventions_figure",
+__all__ = ["Config", "ParameterError", "__version__", "basin", "compare", "conventions_figure",
            "energy_map",
            "load_config", "load_report", "region_map", "region_numbers", "simulate", "study",
            "study_reading", "sweep", "table", "table_figure", "timeseries_figure",

@@ -268,6 +268,24 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
                            full_length=full_length, physics=physics, cluster=cluster)
 
 
+def basin(out: str | os.PathLike[str], config: ConfigLike = None, *, x_com: Values = None,
+          v_com: Values = None, posture: str = "rigid", pushes: Any = None,
+          slots: int | None = None, full_length: bool = False,
+          progress: bool = False) -> "pd.DataFrame":
+    """The recovery basin (``mjx-balance basin``): one unpushed scenario per (x_com, v_com)
+    cell from the ``posture`` family's initial state, in ``out`` (basin.parquet, basin.png;
+    resumable). Returns basin.parquet's rows. ``pushes``: None or (forces, durations) whose
+    end-of-push states are drawn (pushes.csv). Grids default to -0.2:0.2:0.02 m and
+    -0.6:0.6:0.06 m/s."""
+    from .recovery_basin import DEFAULT_V, DEFAULT_X, run_basin
+
+    with _session("basin"):
+        return run_basin(out, as_config(config), DEFAULT_X if x_com is None else x_com,
+                         DEFAULT_V if v_com is None else v_com, posture, pushes,
+                         progress=progress, say=log.info, slots=slots,
+                         early_stop=not full_length)
+
+
 def read_table(path: str | os.PathLike[str]) -> "pd.DataFrame":
     """A table.csv as :func:`table` returns it (pandas reads the floats it wrote back exactly)."""
     import pandas as pd
