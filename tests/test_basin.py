@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from mjx_balance import recovery_basin as basin
-from mjx_balance import reference
+from mjx_balance import outcomes, reference
 from mjx_balance.params import Config, ParameterError
 from mjx_balance.rollout import BatchRunner
 from test_rollout import AdmmMPC
@@ -81,6 +81,7 @@ def test_the_map_rest_recovers_beyond_the_capture_point_falls(tmp_path, plane):
     assert cell.loc[(0.0, 0.0), "capture_inside"]
     assert not cell.loc[(0.1, 0.5), "capture_inside"]  # 0.1 + 0.5 / 3.2 > 0.15
     assert cell.loc[(0.1, 0.5), "outcome"] == "fell"
+    assert cell.loc[(0.1, 0.5), "fall_cause"] in outcomes.FALL_CAUSES[1:]  # a name, not a code
     assert (out / basin.BASIN_PNG).stat().st_size > 10_000
     parts = sorted((out / basin.CELLS_DIR).iterdir())
     said = []

@@ -36,7 +36,7 @@ import scipy.optimize
 
 from . import reference
 from .model import indices, settled_rest
-from .outcomes import OUTCOMES
+from .outcomes import FALL_CAUSES, OUTCOMES
 from .params import Config, ParameterError
 from .sweep.grid import check_durations, describe, parse_grid, same_values
 from .sweep.store import OutputFolder, folder_lock, write_parquet
@@ -223,6 +223,7 @@ def _run_cells(out: Path, config: Config, cells: pd.DataFrame, inits: np.ndarray
             part = cells.iloc[index].reset_index(drop=True)
             summary = {k: v for k, v in columns.items() if k not in ("force", "duration")}
             summary["outcome"] = np.asarray(OUTCOMES, dtype=object)[summary["outcome"]]
+            summary["fall_cause"] = np.asarray(FALL_CAUSES, dtype=object)[summary["fall_cause"]]
             part = pd.concat([part, pd.DataFrame(summary)], axis=1)
             part[["q_a0", "q_h0", "dq_a0", "dq_h0"]] = inits[index]
             pending.append(part)
