@@ -11,6 +11,7 @@ and drives the library below it:
     landscape     cli.landscape                  area, sustained limit, energy over Q x R scales
     table         cli.sweep:table_command        max acting time per force (batched bisection)
     basin         cli.basin:basin_command        recovery basin over initial CoM states
+    sensitivity   cli.sensitivity                the table under every reading of the study
     animate       cli.animate:animate_command    stick-figure GIF of one push (reference)
     report        cli.report:report_command      HTML report: the study's experiments and studies
     model         cli.model:model_command        the MJCF of the configured body
@@ -532,6 +533,10 @@ def build_parser() -> argparse.ArgumentParser:
     from .basin import add_parser as basin_parser  # light: no library import
 
     basin_parser(sub)
+
+    from .sensitivity import add_parser as sensitivity_parser
+
+    sensitivity_parser(sub)
 
     p = sub.add_parser("animate", help="stick-figure GIF of one push (matplotlib, no OpenGL)")
     p.add_argument("--force", type=finite_float, required=True, help="push force [N]")

@@ -1,0 +1,207 @@
+"""Sensitivity of the reproduction table to the reading of the study (``mjx-balance
+sensitivity``): the same robustness table (max acting time per force, the energies of its
+runs, the sustained-push limit) under every reading the package supports, and the spread.
+
+Readings: the convention (``paper``: the study's absolute tilts and generalised torques;
+``joint``: joint angles and motor torques) x the controller (the study's ``plain`` MPC or the
+``offset-free`` MPC, docs/model.md), four tables; each reports both energies, the study's own
+(eq. 20, ``study_energy_*``) and the motors' (``energy_*``). Each reading's table lives in its
+own resumable folder OUT/<reading>/ (as ``mjx-balance table`` writes one), then:
+
+- ``sensitivity.csv``: one row per force: each reading's max acting time and energies (of the
+  longest recovered push, ``*_max``), and across readings the min, max and max/min of the max
+  acting time and the min and max of each energy;
+- ``sensitivity.png``: max acting time and both energies against force, one line per reading;
+- ``sensitivity.txt``: which conclusions hold under every reading and which depend on it,
+  written from the numbers (:func:`reading_text`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import pandas as pd
+
+from .params import Config, ParameterError
+from .sweep.grid import parse_grid
+from .sweep.store import TABLE
+
+READINGS = {  # key -> (label, configuration changes)
+    "paper_plain": ("paper, plain MPC", {"controller": {"convention": "paper"}}),
+    "joint_plain": ("joint, plain MPC", {"controller": {"convention": "joint"}}),
+    "paper_offset_free": ("paper, offset-free MPC",
+                          {"controller": {"convention": "paper", "offset_free": True}}),
+    "joint_offset_free": ("joint, offset-free MPC",
+                          {"controller": {"convention": "joint", "offset_free": True}}),
+}
+ENERGIES = {"study": "study_energy_total_max", "motors": "energy_total_max"}
+SENSITIVITY_CSV, SENSITIVITY_PNG, SENSITIVITY_TXT = ("sensitivity.csv", "sensitivity.png",
+                                                     "sensitivity.txt")
+DEFAULT_FORCES = "20,50,80,100,120"  # the default sweep's table forces
+
+
+def reading_configs(base: Config, readings: Any = None) -> dict[str, Config]:
+    """key -> configuration of each reading (``readings``: keys, default all), on ``base``."""
+    keys = list(READINGS) if readings is None else list(readings)
+    unknown = [k for k in keys if k not in READINGS]
+    if unknown or not keys:
+        raise ParameterError(f"unknown reading(s) {', '.join(unknown) or '(none)'}; known: "
+                             f"{', '.join(READINGS)}")
+    configs = {}
+    for key in keys:
+        changes = READINGS[key][1]
+        try:
+            configs[key] = base.replace(controller={**changes["controller"]})
+        except ParameterError as exc:
+            raise ParameterError(f"reading {key!r}: {exc}") from None
+    return configs
+
+
+def run_sensitivity(out: str | Path, base: Config, forces: Any = DEFAULT_FORCES, *,
+                    readings: Any = None, progress: bool = False,
+                    say: Callable[[str], None] = print,
+                    run_batches: dict[str, Any] | None = None,
+                    **engine: Any) -> pd.DataFrame:
+    """Every reading's table in OUT/<key>/, then sensitivity.csv, .png and .txt (module
+    docstring); returns sensitivity.csv's frame. engine: ``api.run_table_folder``'s options
+    (slots, full_length, physics, cluster); run_batches: a batch function per key (tests)."""
+    from . import api
+
+    out = Path(out)
+    forces = parse_grid(forces, "forces")
+    configs = reading_configs(base, readings)  # every configuration checked before any work
+    tables = {}
+    for key, config in configs.items():
+        folder = out / key
+        say(f"sensitivity: {READINGS[key][0]} -> {folder}")
+        api.run_table_folder(folder, config, forces, run_batch=(run_batches or {}).get(key),
+                             progress=progress, **engine)
+        tables[key] = pd.read_csv(folder / TABLE)
+    frame = spread(tables)
+    frame.to_csv(out / SENSITIVITY_CSV, index=False)
+    text = reading_text(frame, tables)
+    (out / SENSITIVITY_TXT).write_text(text + "\n")
+    plot_sensitivity(frame, tables, out / SENSITIVITY_PNG)
+    say(text)
+    say(f"wrote {out / SENSITIVITY_CSV}, {out / SENSITIVITY_PNG} and {out / SENSITIVITY_TXT}")
+    return frame
+
+
+def spread(tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
+    """One row per force: each reading's max acting time and energies, and their spread."""
+    forces = sorted(set.intersection(*(set(t["force"]) for t in tables.values())))
+    rows = []
+    for force in forces:
+        row: dict[str, float] = {"force": float(force)}
+        times, energies = [], {name: [] for name in ENERGIES}
+        for key, table in tables.items():
+            r = table[table["force"] == force].iloc[0]
+            row[f"max_acting_time_{key}"] = float(r["max_acting_time"])
+            times.append(float(r["max_acting_time"]))
+            for name, column in ENERGIES.items():
+                value = float(r[column]) if column in r else float("nan")
+                row[f"energy_{name}_{key}"] = value
+                energies[name].append(value)
+        row["max_acting_time_min"], row["max_acting_time_max"] = min(times), max(times)
+        row["max_acting_time_ratio"] = (max(times) / min(times) if min(times) > 0
+                                        else float("inf") if max(times) > 0 else float("nan"))
+        for name, values in energies.items():
+            finite = [v for v in values if np.isfinite(v)]
+            row[f"energy_{name}_min"] = min(finite) if finite else float("nan")
+            row[f"energy_{name}_max"] = max(finite) if finite else float("nan")
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def _monotone(values: np.ndarray, falling: bool) -> bool:
+    steps = np.diff(values[np.isfinite(values)])
+    return bool((steps <= 0).all() if falling else (steps >= 0).all())
+
+
+def conclusions(frame: pd.DataFrame, keys: list[str]) -> list[tuple[str, list[str]]]:
+    """(conclusion, the readings under which it holds) for each conclusion checked."""
+    out = []
+
+    def holds(test: Callable[[str], bool]) -> list[str]:
+        return [k for k in keys if test(k)]
+
+    out.append(("the max acting time falls (or stays) as the force grows",
+                holds(lambda k: _monotone(frame[f"max_acting_time_{k}"].to_numpy(), True))))
+    for name, what in (("study", "the study's energy (eq. 20)"), ("motors", "the motors' energy")):
+        out.append((f"{what} of the longest recovered push rises with the force",
+                    holds(lambda k, n=name: _monotone(frame[f"energy_{n}_{k}"].to_numpy(),
+                                                      False))))
+    pairs = [(k, k.replace("offset_free", "plain")) for k in keys if k.endswith("offset_free")
+             and k.replace("offset_free", "plain") in keys]
+    if pairs:
+        out.append(("the offset-free MPC's max acting time is at least the plain MPC's at every "
+                    "force (same convention)",
+                    [k for k, p in pairs if (frame[f"max_acting_time_{k}"]
+                                             >= frame[f"max_acting_time_{p}"]).all()]))
+    return out
+
+
+def reading_text(frame: pd.DataFrame, tables: dict[str, pd.DataFrame]) -> str:
+    """A paragraph from the numbers: the spread per force, what holds under every reading and
+    what depends on it."""
+    keys = list(tables)
+    parts = []
+    ratios = frame["max_acting_time_ratio"].to_numpy()
+    parts.append(
+        f"Under the {len(keys)} readings ({'; '.join(READINGS[k][0] for k in keys)}), the max "
+        "acting time at " + ", ".join(
+            f"{f:g} N ranges {lo:.2f}-{hi:.2f} s (x{r:.2f})"
+            for f, lo, hi, r in zip(frame.force, frame.max_acting_time_min,
+                                    frame.max_acting_time_max, ratios)) + ".")
+    limits = {k: float(t["sustained_push_limit"].iloc[0]) for k, t in tables.items()
+              if "sustained_push_limit" in t and np.isfinite(t["sustained_push_limit"].iloc[0])}
+    if limits:
+        parts.append("The sustained-push limit is " + "; ".join(
+            f"{v:g} N ({READINGS[k][0]})" for k, v in limits.items()) + ".")
+    every, some = [], []
+    for text, where in conclusions(frame, keys):
+        candidates = ([k for k in keys if k.endswith("offset_free")] if "offset-free" in text
+                      else keys)
+        if len(where) == len(candidates):
+            every.append(text)
+        elif where:
+            some.append(f"{text} (only {'; '.join(READINGS[k][0] for k in where)})")
+        else:
+            some.append(f"not: {text}")
+    if every:
+        parts.append("Under every reading: " + "; ".join(every) + ".")
+    if some:
+        parts.append("Depending on the reading: " + "; ".join(some) + ".")
+    return " ".join(parts)
+
+
+def plot_sensitivity(frame: pd.DataFrame, tables: dict[str, pd.DataFrame], path: Path) -> None:
+    """Max acting time and the two energies against force, one line per reading."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.6), layout="constrained")
+    markers = ["o", "s", "^", "D"]
+    for i, key in enumerate(tables):
+        style = dict(marker=markers[i % 4], color=f"C{i}", label=READINGS[key][0],
+                     ls="-" if key.endswith("plain") else "--")
+        axes[0].plot(frame.force, frame[f"max_acting_time_{key}"], **style)
+        axes[1].plot(frame.force, frame[f"energy_study_{key}"], **style)
+        axes[2].plot(frame.force, frame[f"energy_motors_{key}"], **style)
+    axes[0].fill_between(frame.force, frame.max_acting_time_min, frame.max_acting_time_max,
+                         color="0.85", zorder=0, label="spread")
+    titles = ("max acting time [s]", "study's energy (eq. 20) of the longest recovery [J]",
+              "motors' energy of the longest recovery [J]")
+    for ax, title in zip(axes, titles):
+        ax.set_xlabel("push force F [N]")
+        ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3)
+    axes[0].set_yscale("log")
+    axes[0].legend(fontsize=8)
+    fig.suptitle("The reproduction table under every reading of the study")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
