@@ -93,3 +93,21 @@ def test_bad_input_is_refused_before_any_work(tmp_path, stand_in):
     assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
     assert not (tmp_path / "z").exists()
     assert not stand_in  # no batch function was even made
+
+
+def test_the_report_shows_a_sensitivity_folder_inside_it(tmp_path, stand_in):
+    """report/extra.py: DIR/sensitivity's results become a section (the numbers of
+    sensitivity.csv, the figure, the reading); without the folder there is none."""
+    from mjx_balance.report.extra import extra_sections
+
+    report = tmp_path / "report"
+    assert extra_sections(report) == []
+    frame = sensitivity.run_sensitivity(report / "sensitivity", Config(), FORCES,
+                                        say=lambda s: None)
+    (section,) = extra_sections(report)
+    assert section["id"] == "sensitivity"
+    table = next(b for b in section["blocks"] if b["kind"] == "table")
+    assert [row[0] for row in table["rows"]] == ["20", "50", "80"]
+    assert table["rows"][1][1] == f"{frame['max_acting_time_paper_plain'][1]:.2f}"
+    assert any(b["kind"] == "figure" for b in section["blocks"])
+    assert section["blocks"][-1]["text"].startswith("Under the 4 readings")

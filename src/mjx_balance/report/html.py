@@ -116,6 +116,9 @@ def sections(out: str | Path) -> list[tuple[str, str]]:
         ids.append(("conventions", "Side by side: paper vs joint convention"))
     for entry in record["studies"]:
         ids.append((f"study-{entry['key']}", "Study: " + studies.study(entry["key"]).title))
+    from .extra import extra_sections
+
+    ids += [(s["id"], s["heading"]) for s in extra_sections(out)]
     return ids
 
 
@@ -782,6 +785,9 @@ def build_report(out: str | Path) -> Path:
         body.append(conventions_section(page))
     for key, res in page.results["studies"].items():
         body.append(study_section(page, key, res))
+    from .extra import extra_sections
+
+    body += extra_sections(out)  # DIR/landscape, DIR/sensitivity when they hold results
     path = out / HTML
     text = page_html(body, banner(page.record, page.config))
     write_atomic(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))

@@ -1,0 +1,66 @@
+"""Report sections read from result folders that other commands wrote inside the report's
+folder (nothing is computed here):
+
+    DIR/landscape/    mjx-balance landscape --out DIR/landscape     (report/landscape.py)
+    DIR/sensitivity/  mjx-balance sensitivity --out DIR/sensitivity
+
+``build_report`` adds a section for each folder that holds its results, after the studies;
+they are too costly for the report's own run (98 and 4 configurations' tables), so the
+report shows them when they are there.
+"""
+
+from __future__ import annotations
+
+import base64
+from pathlib import Path
+
+import pandas as pd
+
+LANDSCAPE_DIR, SENSITIVITY_DIR = "landscape", "sensitivity"
+SENSITIVITY_HEADING = "Sensitivity: the robustness table under every reading of the study"
+
+
+def sensitivity_section(folder: str | Path) -> dict | None:
+    """The section of a ``mjx-balance sensitivity`` folder (None without sensitivity.csv)."""
+    from ..sensitivity import READINGS, SENSITIVITY_CSV, SENSITIVITY_PNG, SENSITIVITY_TXT
+
+    folder = Path(folder)
+    if not (folder / SENSITIVITY_CSV).exists():
+        return None
+    frame = pd.read_csv(folder / SENSITIVITY_CSV)
+    keys = [k for k in READINGS if f"max_acting_time_{k}" in frame]
+    blocks: list[dict] = [{
+        "kind": "paragraph", "cls": "",
+        "text": ("The robustness table (max acting time per force, the energies of the longest "
+                 "recovered push) run under each reading of the study the package supports: "
+                 "the convention (paper: the study's absolute tilts and generalised torques; "
+                 "joint: joint angles and motor torques) and the controller (the study's MPC "
+                 "or the offset-free MPC), each with both energies (the study's eq. 20 and "
+                 "the motors'). The spread shows which conclusions survive every reading.")}]
+    if (folder / SENSITIVITY_PNG).exists():
+        data = base64.b64encode((folder / SENSITIVITY_PNG).read_bytes()).decode("ascii")
+        blocks.append({"kind": "figure", "data": data, "alt": "sensitivity",
+                       "caption": "One line per reading; grey: the spread of the max acting "
+                                  "time."})
+    header = (["force [N]"] + [f"max acting time, {READINGS[k][0]} [s]" for k in keys]
+              + ["max/min", "study's energy, range [J]", "motors' energy, range [J]"])
+    rows = []
+    for _, r in frame.iterrows():
+        rows.append([f"{r['force']:g}"] + [f"{r[f'max_acting_time_{k}']:.2f}" for k in keys]
+                    + [f"{r['max_acting_time_ratio']:.2f}",
+                       f"{r['energy_study_min']:.3g}-{r['energy_study_max']:.3g}",
+                       f"{r['energy_motors_min']:.3g}-{r['energy_motors_max']:.3g}"])
+    blocks.append({"kind": "table", "header": header, "rows": rows, "notes": []})
+    if (folder / SENSITIVITY_TXT).exists():
+        blocks.append({"kind": "paragraph", "cls": "reading",
+                       "text": (folder / SENSITIVITY_TXT).read_text().strip()})
+    return {"id": "sensitivity", "heading": SENSITIVITY_HEADING, "blocks": blocks}
+
+
+def extra_sections(out: str | Path) -> list[dict]:
+    """The sections of the result folders inside the report's folder, in a fixed order."""
+    from .landscape import landscape_section
+
+    out = Path(out)
+    found = [landscape_section(out / LANDSCAPE_DIR), sensitivity_section(out / SENSITIVITY_DIR)]
+    return [s for s in found if s is not None]
