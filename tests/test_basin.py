@@ -83,6 +83,13 @@ def test_the_map_rest_recovers_beyond_the_capture_point_falls(tmp_path, plane):
     assert cell.loc[(0.1, 0.5), "outcome"] == "fell"
     assert cell.loc[(0.1, 0.5), "fall_cause"] in outcomes.FALL_CAUSES[1:]  # a name, not a code
     assert (out / basin.BASIN_PNG).stat().st_size > 10_000
+    k = int((frame.outcome == "recovered").sum())
+    assert (out / basin.BASIN_TXT).read_text().startswith(f"{k} of 4 initial states recover")
+    from mjx_balance.report.extra import basin_section  # the report's section of this folder
+
+    section = basin_section(out)
+    assert section["id"] == "basin" and [b["kind"] for b in section["blocks"]] == [
+        "paragraph", "figure", "paragraph"]
     parts = sorted((out / basin.CELLS_DIR).iterdir())
     said = []
     again = basin.run_basin(out, CONFIG, "0,0.1", "0,0.5", progress=False, say=said.append)

@@ -48,6 +48,7 @@ POSTURES = {
 BASIN = "basin.parquet"
 BASIN_PNG = "basin.png"
 PUSHES = "pushes.csv"
+BASIN_TXT = "basin.txt"
 CELLS_DIR = "basin_cells"
 DEFAULT_X = "-0.2:0.2:0.02"  # m
 DEFAULT_V = "-0.6:0.6:0.06"  # m/s
@@ -194,7 +195,10 @@ def run_basin(out: str | Path, config: Config, x_com: Any = DEFAULT_X, v_com: An
         ends = push_ends(config, plane, *pushes, cached=out / PUSHES, progress=progress)
         ends.to_csv(out / PUSHES, index=False)
     plot_basin(frame, plane, out / BASIN_PNG, ends, posture)
-    say(f"wrote {out / BASIN} and {out / BASIN_PNG}")
+    text = reading(frame, ends)
+    (out / BASIN_TXT).write_text(text + "\n")
+    say(text)
+    say(f"wrote {out / BASIN}, {out / BASIN_PNG} and {out / BASIN_TXT}")
     return frame
 
 
@@ -262,6 +266,48 @@ def push_ends(config: Config, plane: Plane, forces: Any, durations: Any, *,
                    "q_a": last.q_a, "q_h": last.q_h, "dq_a": last.dq_a, "dq_h": last.dq_h}
         rows.append({**row, **end})
     return pd.DataFrame(rows)
+
+
+def nearest_outcomes(frame: pd.DataFrame, ends: pd.DataFrame) -> np.ndarray:
+    """The basin's outcome at the cell nearest each push end (grid-step units)."""
+    xs, vs = np.sort(frame.x_com.unique()), np.sort(frame.v_com.unique())
+    dx = np.diff(xs).min() if len(xs) > 1 else 1.0
+    dv = np.diff(vs).min() if len(vs) > 1 else 1.0
+    d = (((frame.x_com.to_numpy()[None] - ends.x_com.to_numpy()[:, None]) / dx) ** 2
+         + ((frame.v_com.to_numpy()[None] - ends.v_com.to_numpy()[:, None]) / dv) ** 2)
+    return frame.outcome.to_numpy()[d.argmin(axis=1)]
+
+
+def reading(frame: pd.DataFrame, ends: pd.DataFrame | None = None) -> str:
+    """A paragraph from the map's numbers: how much recovers, against the capture-point bound,
+    the basin's extent through rest, the energies, and whether the push cells' end states
+    fall where the basin predicts."""
+    ok = frame.outcome == "recovered"
+    n, k = len(frame), int(ok.sum())
+    inside = frame.capture_inside.astype(bool)
+    text = (f"{k} of {n} initial states recover ({k / n:.0%}); {int((ok & inside).sum())} of "
+            f"them have the capture point on the foot, {int((ok & ~inside).sum())} not; of the "
+            f"{int(inside.sum())} capturable cells {(ok & inside).sum() / max(inside.sum(), 1):.0%}"
+            " recover.")
+    for name, fixed, along, unit in (("x_com", "x_com", "v_com", "m/s"),
+                                     ("v_com", "v_com", "x_com", "m")):
+        line = frame[np.isclose(frame[fixed], 0.0) & ok]
+        if len(line):
+            text += (f" At {name} = 0 the recovered {along} span {line[along].min():g} to "
+                     f"{line[along].max():g} {unit}.")
+    if k:
+        energy = frame.energy_total[ok]
+        text += (f" Recovery energy: median {energy.median():.3g} J, largest {energy.max():.3g} "
+                 "J.")
+    if ends is not None:
+        ends = ends[np.isfinite(ends.x_com)]
+        if len(ends):
+            basin_says = nearest_outcomes(frame, ends)
+            pushed = ends.outcome.to_numpy()
+            agree = int(((basin_says == "recovered") == (pushed == "recovered")).sum())
+            text += (f" Of {len(ends)} push cells' end-of-push states, {agree} land where the "
+                     "basin (nearest cell) predicts the push run's outcome.")
+    return text
 
 
 def plot_basin(frame: pd.DataFrame, plane: Plane, path: Path, ends: pd.DataFrame | None,

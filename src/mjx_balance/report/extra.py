@@ -3,10 +3,11 @@ folder (nothing is computed here):
 
     DIR/landscape/    mjx-balance landscape --out DIR/landscape     (report/landscape.py)
     DIR/sensitivity/  mjx-balance sensitivity --out DIR/sensitivity
+    DIR/basin/        mjx-balance basin --out DIR/basin
 
 ``build_report`` adds a section for each folder that holds its results, after the studies;
-they are too costly for the report's own run (98 and 4 configurations' tables), so the
-report shows them when they are there.
+they are too costly for the report's own run (98 and 4 configurations' tables, 441 scenarios
+and 24 reference pushes), so the report shows them when they are there.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from pathlib import Path
 
 import pandas as pd
 
-LANDSCAPE_DIR, SENSITIVITY_DIR = "landscape", "sensitivity"
+LANDSCAPE_DIR, SENSITIVITY_DIR, BASIN_DIR = "landscape", "sensitivity", "basin"
 SENSITIVITY_HEADING = "Sensitivity: the robustness table under every reading of the study"
 
 
@@ -57,10 +58,35 @@ def sensitivity_section(folder: str | Path) -> dict | None:
     return {"id": "sensitivity", "heading": SENSITIVITY_HEADING, "blocks": blocks}
 
 
+def basin_section(folder: str | Path) -> dict | None:
+    """The section of a ``mjx-balance basin`` folder (None without basin.parquet)."""
+    from ..recovery_basin import BASIN, BASIN_PNG, PUSHES, reading
+
+    folder = Path(folder)
+    if not (folder / BASIN).exists():
+        return None
+    frame = pd.read_parquet(folder / BASIN)
+    ends = pd.read_csv(folder / PUSHES) if (folder / PUSHES).exists() else None
+    blocks: list[dict] = [{
+        "kind": "paragraph", "cls": "",
+        "text": ("Which initial states recover with no push at all: each cell is a whole-body "
+                 "CoM position relative to the ankle and a CoM velocity, realised by a posture "
+                 "family (docs/model.md), run with the outcome rules of the push maps. The "
+                 "dashed lines bound the linear inverted pendulum's capture point on the foot; "
+                 "the markers are the push map's cells at the end of their pushes.")}]
+    if (folder / BASIN_PNG).exists():
+        data = base64.b64encode((folder / BASIN_PNG).read_bytes()).decode("ascii")
+        blocks.append({"kind": "figure", "data": data, "alt": "recovery basin",
+                       "caption": "Left: outcome (green recovers); right: recovery energy."})
+    blocks.append({"kind": "paragraph", "cls": "reading", "text": reading(frame, ends)})
+    return {"id": "basin", "heading": "The recovery basin in the CoM plane", "blocks": blocks}
+
+
 def extra_sections(out: str | Path) -> list[dict]:
     """The sections of the result folders inside the report's folder, in a fixed order."""
     from .landscape import landscape_section
 
     out = Path(out)
-    found = [landscape_section(out / LANDSCAPE_DIR), sensitivity_section(out / SENSITIVITY_DIR)]
+    found = [basin_section(out / BASIN_DIR), landscape_section(out / LANDSCAPE_DIR),
+             sensitivity_section(out / SENSITIVITY_DIR)]
     return [s for s in found if s is not None]
