@@ -83,18 +83,18 @@ def test_report_has_every_section_and_embedded_figures(out, page):
     for convention in CONVENTIONS:
         expected += [f"timeseries-{convention}", f"weights-{convention}", f"table-{convention}",
                      f"region-{convention}"]
-    expected += [f"study-{s.key}" for s in studies.STUDIES]
+    expected += [f"study-{s.key}" for s in studies.STUDIES] + ["sensitivity"]
     assert sorted(ids) == sorted(expected)
     for key, heading in report.sections(out):
         assert f'<section id="{key}"><h2>{html.escape(heading)}</h2>' in page, key
     images = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
     # 11 time-series (with states and inputs), weights, table, 2 region figures per
-    # convention; 1 + 2 side by side; one region map per study variant
+    # convention; 1 + 2 side by side; one region map per study variant; the sensitivity
     variants = sum(len(s.variants) for s in studies.STUDIES)
-    assert len(images) == 2 * 15 + 3 + variants
+    assert len(images) == 2 * 15 + 3 + variants + 1
     assert all(len(b) > 1000 for b in images)
     assert "http://" not in page and "https://" not in page  # self-contained
-    assert page.count('class="reading"') == len(studies.STUDIES) + 1
+    assert page.count('class="reading"') == len(studies.STUDIES) + 2
 
 
 def test_experiment_sections_show_the_saved_tables(out, page):
@@ -213,6 +213,29 @@ def test_report_saves_its_tables(out):
                                    "delay_comp_100ms", "delay_comp_150ms"]
     signed = pd.read_parquet(out / "studies" / "backward" / "signed" / "region.parquet")
     assert signed.force.min() < 0 < signed.force.max()
+
+
+def test_sensitivity_section_runs_every_reading_and_reuses_the_experiments_tables(out, page):
+    """The report's sensitivity stage: the plan's table forces under the four readings; the
+    plain readings' tables are the experiments' (copied, not recomputed: the same scenarios),
+    the offset-free ones its own; the section shows sensitivity.csv."""
+    folder = out / "sensitivity"
+    frame = pd.read_csv(folder / "sensitivity.csv")
+    assert list(frame.force) == [20.0, 100.0]  # the tiny plan's table forces
+    for convention in CONVENTIONS:
+        plain = pd.read_csv(folder / f"{convention}_plain" / "table.csv")
+        pd.testing.assert_frame_equal(plain, pd.read_csv(out / convention / "table" / "table.csv"))
+        for name in ("table.csv", "table_runs.parquet"):  # copied (times kept), not rewritten
+            assert ((folder / f"{convention}_plain" / name).stat().st_mtime_ns
+                    == (out / convention / "table" / name).stat().st_mtime_ns), name
+        free = pd.read_csv(folder / f"{convention}_offset_free" / "table.csv")
+        assert list(free.force) == [20.0, 100.0] and free.sustained_push_limit.isna().all()
+        assert list(frame[f"max_acting_time_{convention}_offset_free"]) == list(
+            free.max_acting_time)
+    (shown,) = _tables(_section(page, "sensitivity"))
+    assert [row[0] for row in shown[1]] == ["20", "100"]
+    assert [float(row[1]) for row in shown[1]] == pytest.approx(
+        list(frame.max_acting_time_paper_plain), abs=5e-3)
 
 
 def test_report_json_records_plan_configuration_and_timings(out):

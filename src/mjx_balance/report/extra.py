@@ -5,9 +5,11 @@ folder (nothing is computed here):
     DIR/sensitivity/  mjx-balance sensitivity --out DIR/sensitivity
     DIR/basin/        mjx-balance basin --out DIR/basin
 
-``build_report`` adds a section for each folder that holds its results, after the studies;
-they are too costly for the report's own run (98 and 4 configurations' tables, 441 scenarios
-and 24 reference pushes), so the report shows them when they are there.
+``build_report`` adds a section for each folder that holds its results, after the studies.
+The landscape and the basin are too costly for the report's own run (98 configurations'
+tables, 441 scenarios and 24 reference pushes), so the report shows them when they are there;
+the sensitivity folder is also filled by the report's run itself (report/run.py
+``run_sensitivity_stage``: the plan's table forces, the experiments' tables reused).
 """
 
 from __future__ import annotations
@@ -42,15 +44,22 @@ def sensitivity_section(folder: str | Path) -> dict | None:
         data = base64.b64encode((folder / SENSITIVITY_PNG).read_bytes()).decode("ascii")
         blocks.append({"kind": "figure", "data": data, "alt": "sensitivity",
                        "caption": "One line per reading; grey: the spread of the max acting "
-                                  "time."})
+                                  "time; energies of the longest recovered push (top) and of "
+                                  "the 0.1-s push where it recovers (bottom)."})
     header = (["force [N]"] + [f"max acting time, {READINGS[k][0]} [s]" for k in keys]
-              + ["max/min", "study's energy, range [J]", "motors' energy, range [J]"])
+              + ["max/min", "study's energy, longest push, range [J]",
+                 "motors' energy, longest push, range [J]", "study's energy, 0.1-s push, range [J]",
+                 "motors' energy, 0.1-s push, range [J]"])
+
+    def span(r: pd.Series, name: str) -> str:
+        lo, hi = r.get(f"energy_{name}_min"), r.get(f"energy_{name}_max")
+        return "–" if lo is None or pd.isna(lo) else f"{lo:.3g}-{hi:.3g}"
+
     rows = []
     for _, r in frame.iterrows():
         rows.append([f"{r['force']:g}"] + [f"{r[f'max_acting_time_{k}']:.2f}" for k in keys]
-                    + [f"{r['max_acting_time_ratio']:.2f}",
-                       f"{r['energy_study_min']:.3g}-{r['energy_study_max']:.3g}",
-                       f"{r['energy_motors_min']:.3g}-{r['energy_motors_max']:.3g}"])
+                    + [f"{r['max_acting_time_ratio']:.2f}"]
+                    + [span(r, n) for n in ("study", "motors", "study_01", "motors_01")])
     blocks.append({"kind": "table", "header": header, "rows": rows, "notes": []})
     if (folder / SENSITIVITY_TXT).exists():
         blocks.append({"kind": "paragraph", "cls": "reading",

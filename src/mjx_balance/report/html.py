@@ -2,8 +2,10 @@
 
 :func:`load_results` reads every table of a folder (what the figures and the notebook use).
 :func:`build_report` draws the figures into DIR/figures and writes DIR/report.html: one section
-per experiment and convention, the conventions side by side, one section per study, each built
-by its own function below from the saved tables as a list of blocks (paragraphs, figures,
+per experiment and convention, the conventions side by side, one section per study, then the
+sections of report/extra.py (the sensitivity of the robustness table, which the report's run
+computes in DIR/sensitivity; the basin and the weight landscape when their folders are there),
+each built by its own function from the saved tables as a list of blocks (paragraphs, figures,
 tables with footnotes) that the Jinja2 template ``templates/report.html.j2`` (package data)
 renders with autoescaping; every figure is embedded in the page, which loads nothing from
 elsewhere. A tiny-scale report carries a banner saying its numbers are not meaningful.

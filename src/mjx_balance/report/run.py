@@ -2,7 +2,9 @@
 
 :func:`run_report` runs, for each convention, the time series (experiment 1), the weight study
 (2), the region map (4) and the robustness table (3), then, in the base configuration's
-convention, every variant of every study and the study's numbers. Each of these is one function
+convention, every variant of every study and the study's numbers, and last the robustness
+table under every reading of the study (convention x plain/offset-free MPC, sensitivity.py) in
+sensitivity/, whose section report/extra.py draws. Each of these is one function
 below, given the :class:`ReportRun` that holds what they share. A finished step is not rerun:
 the time series and the weight study are recorded in report.json with their parameters
 (:func:`run_stage`), and the sweeps resume chunk by chunk (``sweep.run_sweep``,
@@ -400,6 +402,52 @@ def run_study(run: ReportRun, st: studies.Study) -> None:
 
 
 # ---------------------------------------------------------------------------------------------
+# The sensitivity of the robustness table to the reading of the study (sensitivity.py)
+
+
+def sensitivity_readings(config: Config, conventions: tuple[str, ...]) -> dict[str, Config]:
+    """The readings the report runs: those of its conventions (plain and offset-free MPC) that
+    the base configuration admits (the offset-free MPC refuses a controller delay)."""
+    from .. import sensitivity
+
+    configs = {}
+    for key in sensitivity.READINGS:
+        if sensitivity.reading_convention(key) in conventions:
+            try:
+                configs.update(sensitivity.reading_configs(config, [key]))
+            except ParameterError:
+                pass
+    return configs
+
+
+def run_sensitivity_stage(run: ReportRun) -> None:
+    """The robustness table (the plan's table forces and sustained setting) under every reading
+    of :func:`sensitivity_readings`, each in sensitivity/<reading>/ (a table folder), then
+    sensitivity/sensitivity.csv, .png and .txt. A reading whose configuration is an
+    experiment's reuses that table (copied, then resumed: nothing is recomputed)."""
+    from .. import sensitivity
+
+    folder = run.out / sensitivity.REPORT_DIR
+    configs = sensitivity_readings(run.config, tuple(run.record["conventions"]))
+    run.log.stage(f"sensitivity: the robustness table under {len(configs)} readings "
+                  f"({', '.join(configs)}), {len(run.plan.table_forces)} forces")
+    if not configs:
+        return
+    tables = {}
+    for key, cfg in configs.items():
+        convention = sensitivity.reading_convention(key)
+        done = run.out / convention / "table"
+        if (cfg == with_convention(run.config, convention) and (done / "table.csv").exists()
+                and not (folder / key / "table.csv").exists()):
+            shutil.copytree(done, folder / key, dirs_exist_ok=True)
+        run_table(folder / key, cfg, list(run.plan.table_forces), run_batch=run.batches(cfg),
+                  batch=None if run.backend == "reference" else run.chunk,
+                  progress=not run.quiet, log=run.sweep_log, sustained=run.plan.sustained)
+        tables[key] = pd.read_csv(folder / key / "table.csv")
+    sensitivity.write_sensitivity(folder, tables, say=run.sweep_log or (lambda _m: None))
+
+
+# ---------------------------------------------------------------------------------------------
 # The whole run
 
 
@@ -411,7 +459,7 @@ def start_report(out: Path, config: Config, plan: Plan, *, backend: str,
     out.mkdir(parents=True, exist_ok=True)
     record = open_record(out, config, plan, backend, conventions)
     n_variants = sum(len(s.variants) for s in study_list)
-    log = StageLog(4 * len(conventions) + n_variants, quiet)
+    log = StageLog(4 * len(conventions) + n_variants + 1, quiet)  # + 1: the sensitivity
     forces = parse_grid(plan.region_forces, "region forces")
     durations = parse_grid(plan.region_durations, "region durations")
     return ReportRun(out=out, config=config, plan=plan, backend=backend, record=record, log=log,
@@ -448,6 +496,7 @@ def run_report(out: str | Path, config: Config = Config(), plan: Plan = PLANS["d
             run_experiments(run, convention)
         for st in study_list:
             run_study(run, st)
+        run_sensitivity_stage(run)
     finally:
         if client is not None:
             cluster_mod.close(client, local, owned=client is not cluster)
