@@ -138,9 +138,10 @@ def _done(folder: Path) -> pd.DataFrame:
 
 
 def check_basin(config: Config, x_com: Any, v_com: Any, posture: str,
-                pushes: Any = None) -> tuple[np.ndarray, np.ndarray]:
+                pushes: Any = None) -> tuple[np.ndarray, np.ndarray, "Plane"]:
     """Every input of :func:`run_basin` checked (ParameterError) before any work: the grids,
-    the posture, every (x_com, v_com) reachable by a lean, the push grid and the window."""
+    the posture, every (x_com, v_com) reachable by a lean, the push grid and the window.
+    Returns the grids and the body's :class:`Plane`."""
     if posture not in POSTURES:
         raise ParameterError(f"posture must be one of {', '.join(POSTURES)}, got {posture!r}")
     xs, vs = parse_grid(x_com, "x_com"), parse_grid(v_com, "v_com")
@@ -152,7 +153,7 @@ def check_basin(config: Config, x_com: Any, v_com: Any, posture: str,
         parse_grid(forces, "push forces")
         check_durations(parse_grid(durations, "push durations"), config.scenario.t_end,
                         "push durations", physics_dt=config.scenario.physics_dt)
-    return xs, vs
+    return xs, vs, plane
 
 
 def run_basin(out: str | Path, config: Config, x_com: Any = DEFAULT_X, v_com: Any = DEFAULT_V,
@@ -167,9 +168,8 @@ def run_basin(out: str | Path, config: Config, x_com: Any = DEFAULT_X, v_com: An
     if physics not in ("mjx", "auto"):
         raise ParameterError("the basin runs on the MJX path (--physics mjx): the MuJoCo C "
                              "path starts every scenario at upright rest")
-    xs, vs = check_basin(config, x_com, v_com, posture, pushes)
+    xs, vs, plane = check_basin(config, x_com, v_com, posture, pushes)
     out = Path(out)
-    plane = Plane(config)
     grid = cells_of(xs, vs)
     inits = np.array([plane.initial_state(posture, x, v)
                       for x, v in zip(grid.x_com, grid.v_com)])  # checks the grid first

@@ -14,10 +14,11 @@ the sensitivity folder is also filled by the report's run itself (report/run.py
 
 from __future__ import annotations
 
-import base64
 from pathlib import Path
 
 import pandas as pd
+
+from .html import _img
 
 LANDSCAPE_DIR, SENSITIVITY_DIR, BASIN_DIR = "landscape", "sensitivity", "basin"
 SENSITIVITY_HEADING = "Sensitivity: the robustness table under every reading of the study"
@@ -41,11 +42,10 @@ def sensitivity_section(folder: str | Path) -> dict | None:
                  "or the offset-free MPC), each with both energies (the study's eq. 20 and "
                  "the motors'). The spread shows which conclusions survive every reading.")}]
     if (folder / SENSITIVITY_PNG).exists():
-        data = base64.b64encode((folder / SENSITIVITY_PNG).read_bytes()).decode("ascii")
-        blocks.append({"kind": "figure", "data": data, "alt": "sensitivity",
-                       "caption": "One line per reading; grey: the spread of the max acting "
-                                  "time; energies of the longest recovered push (top) and of "
-                                  "the 0.1-s push where it recovers (bottom)."})
+        blocks.append(_img(folder / SENSITIVITY_PNG,
+                           "One line per reading; grey: the spread of the max acting time; "
+                           "energies of the longest recovered push (top) and of the 0.1-s push "
+                           "where it recovers (bottom).", alt="sensitivity"))
     header = (["force [N]"] + [f"max acting time, {READINGS[k][0]} [s]" for k in keys]
               + ["max/min", "study's energy, longest push, range [J]",
                  "motors' energy, longest push, range [J]", "study's energy, 0.1-s push, range [J]",
@@ -84,9 +84,8 @@ def basin_section(folder: str | Path) -> dict | None:
                  "dashed lines bound the linear inverted pendulum's capture point on the foot; "
                  "the markers are the push map's cells at the end of their pushes.")}]
     if (folder / BASIN_PNG).exists():
-        data = base64.b64encode((folder / BASIN_PNG).read_bytes()).decode("ascii")
-        blocks.append({"kind": "figure", "data": data, "alt": "recovery basin",
-                       "caption": "Left: outcome (green recovers); right: recovery energy."})
+        blocks.append(_img(folder / BASIN_PNG, "Left: outcome (green recovers); right: "
+                           "recovery energy.", alt="recovery basin"))
     blocks.append({"kind": "paragraph", "cls": "reading", "text": reading(frame, ends)})
     return {"id": "basin", "heading": "The recovery basin in the CoM plane", "blocks": blocks}
 

@@ -389,9 +389,12 @@ def draw_study(key: str, res: dict, figures: Path) -> list[tuple[Path, str]]:
 # Blocks: what the template draws (templates/report.html.j2); every text is escaped there
 
 
-def _img(path: Path, caption: str = "") -> dict:
+def _img(path: Path, caption: str = "", alt: str | None = None) -> dict:
+    """A figure block of the PNG at ``path`` (embedded); ``alt`` defaults to the caption, else
+    the file's stem."""
     data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
-    return {"kind": "figure", "data": data, "caption": caption, "alt": caption or Path(path).stem}
+    return {"kind": "figure", "data": data, "caption": caption,
+            "alt": alt or caption or Path(path).stem}
 
 
 def _row(*figures: dict) -> dict:

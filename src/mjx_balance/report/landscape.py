@@ -10,13 +10,13 @@ numbers are landscape.csv's, the reading is written again from them
 
 from __future__ import annotations
 
-import base64
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
 from ..landscape import LANDSCAPE_CSV, LANDSCAPE_PNG, Delay, reading
+from .html import _img
 
 SECTION_ID = "landscape"
 HEADING = "The weight landscape: Q and R scales, with and without delay"
@@ -66,10 +66,8 @@ def landscape_section(folder: str | Path) -> dict | None:
                  "like: the mean energy over the pushes that the setting and the base weights "
                  "both recover, as a multiple of the base weights'.")}]
     if (folder / LANDSCAPE_PNG).exists():
-        data = base64.b64encode((folder / LANDSCAPE_PNG).read_bytes()).decode("ascii")
-        blocks.append({"kind": "figure", "data": data, "alt": "weight landscape",
-                       "caption": "Heatmaps: rows are delay settings, the base weights' cell "
-                                  "is outlined in red."})
+        blocks.append(_img(folder / LANDSCAPE_PNG, "Heatmaps: rows are delay settings, the "
+                           "base weights' cell is outlined in red.", alt="weight landscape"))
     table = summary_rows(frame)
     blocks.append({"kind": "table", "header": list(table.columns),
                    "rows": table.astype(str).values.tolist(), "notes": []})
