@@ -15,7 +15,7 @@ import pytest
 
 jax.config.update("jax_enable_x64", True)
 
-# The persistent compilation cache (mjx_balance.cache) is off in the test session and in the
+# The persistent compilation cache (mjx_balance.runtime.cache) is off in the test session and in the
 # processes it starts: tests never write into the user's cache folder (tests/test_cache.py
 # gives its processes their own folders).
 os.environ["MJX_BALANCE_CACHE_DIR"] = "off"
@@ -45,7 +45,7 @@ def batch_runner():
     off), as it was compiled.
     """
     from mjx_balance import rollout
-    from mjx_balance.params import Config
+    from mjx_balance.model.params import Config
 
     with jax.enable_x64(False):
         runner = rollout.BatchRunner(Config().replace(scenario={"t_end": SHARED_T_END}),

@@ -11,12 +11,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_balance import admm
+from mjx_balance.control import admm
 from mjx_balance.bench.states import (ACCURACY, admm_along_trajectories, closed_loop_states,
                                       first_control_error, misses, truth_solutions)
-from mjx_balance.osqp_mpc import osqp_solve, osqp_solver
-from mjx_balance.params import BodyParams, ControllerParams
-from mjx_balance.qp import build_qp
+from mjx_balance.control.osqp_mpc import osqp_solve, osqp_solver
+from mjx_balance.model.params import BodyParams, ControllerParams
+from mjx_balance.control.qp import build_qp
 
 FORCES = tuple(np.arange(20.0, 121.0, 10.0))
 DURATIONS = (0.1, 0.2)

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from PIL import Image, ImageSequence
 
-from mjx_balance import animate
-from mjx_balance.params import Config
-from mjx_balance.reference import simulate_scenario
+from mjx_balance.figures import animation as animate
+from mjx_balance.model.params import Config
+from mjx_balance.reference.loop import simulate_scenario
 
 PUSH_ORANGE = np.array([255, 127, 14])  # the push arrow's colour (matplotlib tab:orange)
 

@@ -20,7 +20,7 @@ from test_sweep import DEFAULT_BATCH, FakeThresholdBatch
 
 import mjx_balance as mb
 from mjx_balance.cli import main
-from mjx_balance.params import ParameterError
+from mjx_balance.model.params import ParameterError
 
 
 @pytest.fixture
@@ -55,7 +55,7 @@ def test_the_package_exports_the_api_and_stays_light():
 
 
 def test_sweep_is_the_function_and_the_subpackage():
-    from mjx_balance import sweep as subpackage
+    from mjx_balance import runs as subpackage
 
     assert subpackage is mb.sweep and callable(mb.sweep)
     assert hasattr(mb.sweep, "run_sweep")  # the machinery, as before

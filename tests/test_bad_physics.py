@@ -3,8 +3,8 @@
 import math
 
 
-from mjx_balance.params import Config
-from mjx_balance.reference import simulate_scenario
+from mjx_balance.model.params import Config
+from mjx_balance.reference.loop import simulate_scenario
 
 
 def short(t_end: float) -> Config:

@@ -9,9 +9,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mjx_balance import recovery_basin as basin
-from mjx_balance import outcomes, reference
-from mjx_balance.params import Config, ParameterError
+from mjx_balance.studies import basin as basin
+from mjx_balance.measures import outcomes
+from mjx_balance.reference import loop as reference
+from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.rollout import BatchRunner
 from test_rollout import AdmmMPC
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from mjx_balance import cache
+from mjx_balance.runtime import cache
 
 # One jitted batched ADMM solve of the QP of a configuration given by --set-style overrides,
 # with the small executables JAX builds on the way (array conversions, broadcasts: under
@@ -30,8 +30,8 @@ from mjx_balance import cache
 print(json.dumps({"cache_dir": cache.enable()}))
 import jax, jax.numpy as jnp
 from mjx_balance import admm
-from mjx_balance.params import Config, apply_overrides
-from mjx_balance.qp import build_qp
+from mjx_balance.model.params import Config, apply_overrides
+from mjx_balance.control.qp import build_qp
 config = apply_overrides(Config(), sys.argv[1:])
 with cache.CompileCounter() as counter:
     qp = build_qp(config.controller, config.body, config.scenario.control_dt)

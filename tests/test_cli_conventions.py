@@ -18,8 +18,8 @@ from test_sweep import DEFAULT_BATCH, FakeThresholdBatch
 
 from mjx_balance import cli
 from mjx_balance.cli import build_parser, main
-from mjx_balance.params import Config
-from mjx_balance.sweep import store
+from mjx_balance.model.params import Config
+from mjx_balance.store import folder as store
 
 REPO = Path(__file__).resolve().parents[1]
 GRID = ["--forces", "0:20:10", "--durations", "0.5,1", "--set", "scenario.t_end=2"]

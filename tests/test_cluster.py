@@ -27,8 +27,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mjx_balance.outcomes import SUMMARY_COLUMNS
-from mjx_balance.params import Config
+from mjx_balance.measures.outcomes import SUMMARY_COLUMNS
+from mjx_balance.model.params import Config
 
 try:
     import distributed
@@ -80,7 +80,7 @@ def reference(tmp_path_factory, compile_cache) -> Path:
     out = tmp_path_factory.mktemp("local") / "sweep"
     code = textwrap.dedent(f"""
         from mjx_balance import api
-        from mjx_balance.params import Config
+        from mjx_balance.model.params import Config
         config = Config().replace(scenario={{"t_end": {T_END}}})
         api.run_region({str(out)!r}, config, {FORCES!r}, {DURATIONS!r}, chunk={CHUNK},
                        slots={SLOTS})
@@ -92,7 +92,7 @@ def reference(tmp_path_factory, compile_cache) -> Path:
 
 
 def _sweep(out, cluster, **kwargs):
-    from mjx_balance.sweep import LazyBatch, run_sweep
+    from mjx_balance.runs import LazyBatch, run_sweep
 
     config = tiny_config()
     with jax.enable_x64(False):  # as sweeps run (conftest switches x64 on for the session)
@@ -172,7 +172,7 @@ def test_table_on_the_cluster_is_the_local_table(tmp_path, reference, cluster):
     """``table --cluster``: each bisection round's calls run as tasks on the workers (split
     between them) and come back in order; table.csv, table_runs.parquet, every kept part
     file of table_runs/ and the engine record are those of the plain local table."""
-    from mjx_balance.sweep import LazyBatch, run_table, table_batch_size
+    from mjx_balance.runs import LazyBatch, run_table, table_batch_size
 
     local, client = cluster
     config = tiny_config()
@@ -197,7 +197,7 @@ def test_table_on_the_cluster_is_the_local_table(tmp_path, reference, cluster):
 
 
 def _other_version():
-    import mjx_balance.sweep.store as store
+    import mjx_balance.store.folder as store
 
     store.__version__ = "0.0.0+other"
 
@@ -206,8 +206,8 @@ def _other_version():
 def test_worker_of_another_version_is_refused(tmp_path):
     """A worker that reports another mjx_balance version is refused at connect time, with a
     message naming it; nothing is computed. A task on such a worker refuses too."""
-    from mjx_balance.sweep import run_sweep
-    from mjx_balance.sweep.cluster import ChunkSpec, ClusterError, compute_chunk, local_facts
+    from mjx_balance.runs import run_sweep
+    from mjx_balance.runs.cluster import ChunkSpec, ClusterError, compute_chunk, local_facts
 
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as local, \
@@ -239,7 +239,7 @@ def _run_by_value(client, function):
 
 @needs_dask
 def test_cluster_spec_errors():
-    from mjx_balance.sweep.cluster import ClusterError, parse_cluster
+    from mjx_balance.runs.cluster import ClusterError, parse_cluster
 
     assert parse_cluster("local:3") == ("local", 3)
     assert parse_cluster("tcp://10.0.0.1:8786") == ("address", "tcp://10.0.0.1:8786")
@@ -276,9 +276,9 @@ def test_plain_install_runs_without_dask(tmp_path):
         sys.meta_path.insert(0, NoDask())
         import pytest
         from mjx_balance.cli import main
-        from mjx_balance.params import Config
+        from mjx_balance.model.params import Config
         from mjx_balance.sweep import run_sweep
-        from mjx_balance.sweep.cluster import ClusterError
+        from mjx_balance.runs.cluster import ClusterError
         sys.path.insert(0, {str(Path(__file__).parent)!r})
         from test_cluster import Fake
 

@@ -11,8 +11,8 @@ from PIL import Image
 
 import mjx_balance as mb
 from mjx_balance.cli import main
-from mjx_balance.comparison import boundary_segments, names_for
-from mjx_balance.params import Config, ParameterError
+from mjx_balance.studies.compare import boundary_segments, names_for
+from mjx_balance.model.params import Config, ParameterError
 from test_sweep import DEFAULT_BATCH, FakeThresholdBatch, expected_max_time
 
 FORCES, DURATIONS, TABLE_FORCES = "0:40:10", "0.5,1,2", "10,20"
@@ -134,8 +134,8 @@ def test_compare_on_a_local_cluster_gives_the_local_numbers(tmp_path, monkeypatc
     import cloudpickle
 
     import test_sweep
-    from mjx_balance.comparison import run_compare
-    from mjx_balance.sweep import cluster as cluster_mod
+    from mjx_balance.studies.compare import run_compare
+    from mjx_balance.runs import cluster as cluster_mod
 
     configs = {"paper": Config(), "joint": Config().replace(controller={"convention": "joint"})}
 

@@ -15,12 +15,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjx_balance import metrics, reference
-from mjx_balance.model import build_model, indices
-from mjx_balance.params import Config, ParameterError
+from mjx_balance.measures import metrics
+from mjx_balance.reference import loop as reference
+from mjx_balance.model.mjcf import build_model, indices
+from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.rollout import BatchRunner
 from mjx_balance.rollout import cpath
-from mjx_balance.sweep.batch import LazyBatch, resume_engine
+from mjx_balance.runs.batch import LazyBatch, resume_engine
 from test_rollout import AdmmMPC
 
 CONFIG = Config().replace(scenario={"t_end": 2.0})
@@ -191,7 +192,7 @@ def test_the_path_is_resolved_and_recorded():
 
 
 def test_a_sweep_definition_names_its_physics(tmp_path):
-    from mjx_balance.sweep.definitions import load_sweep
+    from mjx_balance.runs.definitions import load_sweep
 
     path = tmp_path / "s.toml"
     path.write_text('[sweep]\nforces = "0,10"\ndurations = "0.1"\nphysics = "c"\n')

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from mjx_balance import reference
-from mjx_balance.linear import delay_predictor, linear_model, predict, zoh
-from mjx_balance.params import Config, ParameterError
+from mjx_balance.reference import loop as reference
+from mjx_balance.model.linear import delay_predictor, linear_model, predict, zoh
+from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.rollout import BatchRunner
 from test_rollout import AdmmMPC
 

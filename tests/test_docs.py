@@ -19,8 +19,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mjx_balance import outcomes
-from mjx_balance.params import CONVENTIONS, Config
+from mjx_balance.measures import outcomes
+from mjx_balance.model.params import CONVENTIONS, Config
 
 REPO = Path(__file__).resolve().parents[1]
 OUTPUTS = REPO / "docs" / "outputs.md"
@@ -56,7 +56,7 @@ def test_summary_columns_are_documented():
 
 
 def test_table_columns_are_documented():
-    from mjx_balance.sweep.acting_time import TABLE_COLUMNS, max_acting_time
+    from mjx_balance.runs.acting_time import TABLE_COLUMNS, max_acting_time
 
     config = Config().replace(scenario={"t_end": 1.0})
     result = max_acting_time([20.0, 100.0], config, run_batch=standin_batch, progress=False,
@@ -72,7 +72,7 @@ def test_table_columns_are_documented():
 
 
 def test_timeseries_columns_are_documented():
-    from mjx_balance import reference
+    from mjx_balance.reference import loop as reference
 
     config = Config().replace(scenario={"t_end": 0.05, "duration": 0.02})
     summary, frame = reference.simulate_scenario(config, 10.0, 0.02)
@@ -83,7 +83,7 @@ def test_timeseries_columns_are_documented():
 
 
 def test_report_json_keys_are_documented(tmp_path):
-    from mjx_balance.report import run
+    from mjx_balance.studies import experiments as run
 
     plan = run.PLANS["tiny"]
     record = run.open_record(tmp_path, run.plan_config(Config(), plan), plan, "reference",
@@ -99,7 +99,7 @@ def test_report_json_keys_are_documented(tmp_path):
 
 
 def test_manifest_records_are_documented():
-    from mjx_balance.sweep import store
+    from mjx_balance.store import folder as store
 
     names = {key for keys in store.MANIFEST_KEYS.values() for key in keys}
     names |= set(store.MANIFEST_KEYS) | {"region.engine", "table_engine", "slots", "early_stop"}

@@ -22,11 +22,11 @@ import pytest
 
 import jax
 
-from mjx_balance import certificate as cert_mod
-from mjx_balance.linear import zoh
-from mjx_balance.outcomes import OUTCOMES, SUMMARY_COLUMNS
-from mjx_balance.params import Config
-from mjx_balance.qp import build_qp
+from mjx_balance.control import certificate as cert_mod
+from mjx_balance.model.linear import zoh
+from mjx_balance.measures.outcomes import OUTCOMES, SUMMARY_COLUMNS
+from mjx_balance.model.params import Config
+from mjx_balance.control.qp import build_qp
 
 pytestmark = pytest.mark.usefixtures("float32")
 
@@ -219,7 +219,7 @@ TWO_DEVICES = textwrap.dedent("""
     import numpy as np
     import mjx_balance
     import jax
-    from mjx_balance.params import Config
+    from mjx_balance.model.params import Config
     from mjx_balance.rollout import BatchRunner
     forces, durations = (np.array(v) for v in json.loads(sys.argv[1]))
     runner = BatchRunner(Config().replace(scenario={"t_end": 3.0}), slots=8)
@@ -250,7 +250,7 @@ def test_one_and_two_host_devices_give_the_same_bits():
 def test_interrupted_sweep_resumes_to_the_same_bytes(tmp_path):
     """A sweep killed after its first chunk file, resumed, equals an uninterrupted one with
     another chunk size, byte for byte (region.parquet)."""
-    from mjx_balance.sweep import LazyBatch, run_sweep
+    from mjx_balance.runs import LazyBatch, run_sweep
 
     config = Config().replace(scenario={"t_end": 2.0})
     forces, durations = np.array([0.0, 30.0, 70.0, 100.0, -50.0]), np.array([0.1, 0.2, 1.0])
@@ -301,7 +301,7 @@ def test_early_stopping_on_a_larger_grid():
 
 
 def test_a_damaged_engine_record_is_a_bad_manifest():
-    from mjx_balance.sweep.store import manifest_problem
+    from mjx_balance.store.folder import manifest_problem
 
     region = {"forces": [0.0], "durations": [0.1], "chunk_size": 8, "cells": 1}
     good = {"region": {**region, "engine": {"slots": 8, "early_stop": True, "physics": "c"}},

@@ -16,9 +16,10 @@ import pytest  # noqa: E402
 from matplotlib.collections import QuadMesh  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 
-from mjx_balance import plots, region_plots, sweep  # noqa: E402
-from mjx_balance.outcomes import OUTCOMES  # noqa: E402
-from mjx_balance.params import Config  # noqa: E402
+from mjx_balance.figures import timeseries as plots, region as region_plots
+from mjx_balance import runs as sweep  # noqa: E402
+from mjx_balance.measures.outcomes import OUTCOMES  # noqa: E402
+from mjx_balance.model.params import Config  # noqa: E402
 
 from test_sweep import FakeThresholdBatch  # noqa: E402
 
@@ -54,7 +55,7 @@ def test_cell_bounds():
     single = region_plots.cell_bounds([0.005])  # one sample: a band, never below 0
     assert single[0] >= 0 and single[0] < 0.005 < single[1]
     # the bounds of a grid are the area cells of studies.region_numbers
-    from mjx_balance import studies
+    from mjx_balance.studies import catalog as studies
     np.testing.assert_allclose(np.diff(region_plots.cell_bounds([0, 1, 3])),
                                studies.cell_widths([0, 1, 3]))
 

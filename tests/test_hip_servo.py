@@ -13,12 +13,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjx_balance import reference, rollout
-from mjx_balance.model import build_model, indices, mjcf
-from mjx_balance.outcomes import OUTCOMES
-from mjx_balance.params import BodyParams, Config, ParameterError
-from mjx_balance.sweep import load_sweep
-from mjx_balance.studies import sweeps_dir
+from mjx_balance.reference import loop as reference
+from mjx_balance import rollout
+from mjx_balance.model.mjcf import build_model, indices, mjcf
+from mjx_balance.measures.outcomes import OUTCOMES
+from mjx_balance.model.params import BodyParams, Config, ParameterError
+from mjx_balance.runs import load_sweep
+from mjx_balance.studies.catalog import sweeps_dir
 
 STUDY = load_sweep(sweeps_dir() / "study_ankle_only.toml", Config()).config
 K, D = STUDY.body.hip_servo_stiffness, STUDY.body.hip_servo_damping
@@ -98,8 +99,8 @@ def test_terminal_weight_uses_only_inputs_that_can_act(convention):
     on Q_f is the plain DARE of (A, B, Q, R)."""
     import scipy.linalg
 
-    from mjx_balance.params import Config
-    from mjx_balance.qp import build_qp
+    from mjx_balance.model.params import Config
+    from mjx_balance.control.qp import build_qp
 
     servo = Config().replace(
         body={"hip_servo_stiffness": 2e4, "hip_servo_damping": 580.0},

@@ -27,8 +27,8 @@ import numpy as np
 import pytest
 
 from mjx_balance import cli
-from mjx_balance.params import Config, ParameterError
-from mjx_balance.sweep.grid import check_whole_steps
+from mjx_balance.model.params import Config, ParameterError
+from mjx_balance.runs.grid import check_whole_steps
 
 from test_bad_input import assert_refused, run
 from test_store_faults import HOLD_LOCK, cli_sweep, fake_rollout  # noqa: F401 (a fixture)
@@ -73,7 +73,7 @@ def test_durations_off_the_physics_steps_are_refused(tmp_path, capsys, monkeypat
 
     def refuse(*args, **kwargs):
         raise Called
-    monkeypatch.setattr("mjx_balance.reference.simulate_many", refuse)
+    monkeypatch.setattr("mjx_balance.reference.loop.simulate_many", refuse)
     monkeypatch.setattr(animate, "simulate_scenario", refuse)
     out = tmp_path / ("push.gif" if name == "animate" else "out")
     code, err = run([name, "--force", "10", "--duration", "0.1005", "--out", str(out)], capsys)
@@ -91,7 +91,7 @@ def test_simulate_reads_forces_and_durations_as_sweep_does(tmp_path, capsys, mon
     def record(config, forces, durations, **_options):
         asked.update(forces=list(forces), durations=list(durations))
         raise Called
-    monkeypatch.setattr("mjx_balance.reference.simulate_many", record)
+    monkeypatch.setattr("mjx_balance.reference.loop.simulate_many", record)
     with pytest.raises(Called):
         cli.main(["simulate", "--force", "0:40:20", "--duration", "0.05:0.1:0.05",
                   "--out", str(tmp_path / "out")])
@@ -117,7 +117,7 @@ def test_simulate_reads_forces_and_durations_as_sweep_does(tmp_path, capsys, mon
 def test_simulate_refuses_a_sweep_folder(tmp_path, capsys, monkeypatch, holds):
     def refuse(*args, **kwargs):
         raise Called
-    monkeypatch.setattr("mjx_balance.reference.simulate_many", refuse)
+    monkeypatch.setattr("mjx_balance.reference.loop.simulate_many", refuse)
     out = tmp_path / "sweep"
     out.mkdir()
     for name in holds:
@@ -140,7 +140,8 @@ def test_outputs_are_whole_or_old_after_a_failed_write(tmp_path, capsys, monkeyp
     import pandas as pd
     from PIL import Image
 
-    from mjx_balance.report import html, run as report_run
+    from mjx_balance.report import html
+    from mjx_balance.studies import experiments as report_run
 
     # simulate: a first run, then reruns in which one kind of write fails half-way.
     out = tmp_path / "sim"
@@ -255,8 +256,8 @@ def test_wait_for_the_run_that_holds_the_folder(tmp_path, fake_rollout, capsys):
 
 
 def test_batched_path_calls_huge_values_diverged():
-    from mjx_balance.outcomes import OUTCOMES
-    from mjx_balance.reference import simulate_scenario
+    from mjx_balance.measures.outcomes import OUTCOMES
+    from mjx_balance.reference.loop import simulate_scenario
     from mjx_balance.rollout import BatchRunner
 
     config = Config().replace(scenario={"t_end": 0.1})

@@ -14,10 +14,10 @@ import pandas as pd
 import pytest
 from PIL import Image
 
-from mjx_balance import landscape
+from mjx_balance.studies import landscape
 from mjx_balance.cli import main
-from mjx_balance.comparison import run_compare
-from mjx_balance.params import Config, ParameterError
+from mjx_balance.studies.compare import run_compare
+from mjx_balance.model.params import Config, ParameterError
 from test_compare import expected_area
 from test_sweep import DEFAULT_BATCH, FakeThresholdBatch, expected_max_time
 

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from mjx_balance.linear import S, linear_model
-from mjx_balance.model import build_model
-from mjx_balance.params import BodyParams, Config
-from mjx_balance.reference import simulate_scenario
+from mjx_balance.model.linear import S, linear_model
+from mjx_balance.model.mjcf import build_model
+from mjx_balance.model.params import BodyParams, Config
+from mjx_balance.reference.loop import simulate_scenario
 
 CONVENTIONS = ("paper", "joint")
 

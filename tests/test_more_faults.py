@@ -5,10 +5,10 @@ from __future__ import annotations
 import pytest
 
 from mjx_balance import cli
-from mjx_balance.params import Config, ParameterError
+from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.report import PLANS
-from mjx_balance.report.run import open_record, read_record
-from mjx_balance.sweep import load_sweep
+from mjx_balance.studies.experiments import open_record, read_record
+from mjx_balance.runs import load_sweep
 
 DAMAGED = [
     ("not json", "{not json", "damaged"),

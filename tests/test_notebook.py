@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mjx_balance import studies
+from mjx_balance.studies import catalog as studies
 
 from tiny_report import tiny_report
 

@@ -12,11 +12,11 @@ import osqp
 import pytest
 import scipy.sparse as sp
 
-from mjx_balance import offset_free as ofm
-from mjx_balance import reference
-from mjx_balance.osqp_mpc import ReferenceMPC
-from mjx_balance.params import Config, ParameterError
-from mjx_balance.qp import build_qp
+from mjx_balance.control import offset_free as ofm
+from mjx_balance.reference import loop as reference
+from mjx_balance.control.osqp_mpc import ReferenceMPC
+from mjx_balance.model.params import Config, ParameterError
+from mjx_balance.control.qp import build_qp
 from mjx_balance.rollout import BatchRunner
 from test_rollout import AdmmMPC
 

@@ -26,10 +26,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mjx_balance import outcomes
-from mjx_balance.outcomes import (DIVERGED, FELL, NOT_SETTLED, OUTCOMES, RECOVERED,
-                                  SATURATION_TOL, SUMMARY_COLUMNS, Limits)
-from mjx_balance.params import ControllerParams, ScenarioParams
+from mjx_balance.measures import outcomes
+from mjx_balance.measures.outcomes import (DIVERGED, FELL, NOT_SETTLED, OUTCOMES, RECOVERED,
+                                           SATURATION_TOL, SUMMARY_COLUMNS, Limits)
+from mjx_balance.model.params import ControllerParams, ScenarioParams
 
 LIMITS = Limits.from_params(ScenarioParams(), ControllerParams())
 

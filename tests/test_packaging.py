@@ -56,8 +56,8 @@ INSTALLED = """
 import json, sys
 import mjx_balance
 from mjx_balance import studies
-from mjx_balance.params import Config
-from mjx_balance.sweep.definitions import find_sweep, shipped_sweeps, sweeps_dir
+from mjx_balance.model.params import Config
+from mjx_balance.runs.definitions import find_sweep, shipped_sweeps, sweeps_dir
 loaded = 0
 for st in studies.STUDIES:
     for variant in st.variants:

@@ -5,10 +5,10 @@ from importlib import resources
 
 import pytest
 
-from mjx_balance.model import default_model_path, mjcf
-from mjx_balance.params import (BodyParams, Config, ControllerParams, ParameterError,
-                                ScenarioParams, config_from_dict, dumps_config, load_config,
-                                run_config, save_config)
+from mjx_balance.model.mjcf import default_model_path, mjcf
+from mjx_balance.model.params import (BodyParams, Config, ControllerParams, ParameterError,
+                                      ScenarioParams, config_from_dict, dumps_config, load_config,
+                                      run_config, save_config)
 
 
 @pytest.mark.parametrize("make,field", [

@@ -6,12 +6,12 @@ import math
 import numpy as np
 import pytest
 
-from mjx_balance.params import (LENGTH_RANGE, MASS_RANGE, MAX_FRICTION, MAX_GRAVITY,
-                                MAX_PHYSICS_DT, BodyParams, Config, ControllerParams, ParameterError,
-                                ScenarioParams, load_config)
-from mjx_balance.reference import simulate_scenario
-from mjx_balance.sweep import load_sweep
-from mjx_balance.sweep.definitions import sweeps_dir
+from mjx_balance.model.params import (LENGTH_RANGE, MASS_RANGE, MAX_FRICTION, MAX_GRAVITY,
+                                      MAX_PHYSICS_DT, BodyParams, Config, ControllerParams,
+                                      ParameterError, ScenarioParams, load_config)
+from mjx_balance.reference.loop import simulate_scenario
+from mjx_balance.runs import load_sweep
+from mjx_balance.runs.definitions import sweeps_dir
 
 SWEEPS = sorted(sweeps_dir().glob("*.toml"))  # the shipped definitions (package data)
 MASSES = ("foot_mass", "lower_mass", "upper_mass")

@@ -6,13 +6,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjx_balance import metrics
-from mjx_balance.model import build_model, indices
-from mjx_balance.osqp_mpc import ReferenceMPC, osqp_solve, osqp_solver
-from mjx_balance.outcomes import SUMMARY_COLUMNS, Limits
-from mjx_balance.params import Config, ControllerParams, ScenarioParams
-from mjx_balance.qp import build_qp
-from mjx_balance.reference import TIMESERIES_COLUMNS, simulate_scenario
+from mjx_balance.measures import metrics
+from mjx_balance.model.mjcf import build_model, indices
+from mjx_balance.control.osqp_mpc import ReferenceMPC, osqp_solve, osqp_solver
+from mjx_balance.measures.outcomes import SUMMARY_COLUMNS, Limits
+from mjx_balance.model.params import Config, ControllerParams, ScenarioParams
+from mjx_balance.control.qp import build_qp
+from mjx_balance.reference.loop import TIMESERIES_COLUMNS, simulate_scenario
 
 CONVENTIONS = ("paper", "joint")
 

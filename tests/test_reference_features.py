@@ -9,11 +9,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjx_balance.model import build_model, indices
-from mjx_balance.osqp_mpc import ReferenceMPC
-from mjx_balance.params import Config
-from mjx_balance.qp import build_qp
-from mjx_balance.reference import push_wrench, simulate_scenario
+from mjx_balance.model.mjcf import build_model, indices
+from mjx_balance.control.osqp_mpc import ReferenceMPC
+from mjx_balance.model.params import Config
+from mjx_balance.control.qp import build_qp
+from mjx_balance.reference.loop import push_wrench, simulate_scenario
 
 SHORT = {"t_end": 1.0}
 

@@ -16,11 +16,12 @@ import pandas as pd
 import pytest
 
 import mjx_balance
-from mjx_balance import report, studies
+from mjx_balance import report
+from mjx_balance.studies import catalog as studies
 from mjx_balance.cli import main
-from mjx_balance.outcomes import OUTCOMES
-from mjx_balance.params import Config, ParameterError, load_config
-from mjx_balance.sweep import load_sweep, parse_grid, run_sweep
+from mjx_balance.measures.outcomes import OUTCOMES
+from mjx_balance.model.params import Config, ParameterError, load_config
+from mjx_balance.runs import load_sweep, parse_grid, run_sweep
 
 from tiny_report import tiny_report
 
@@ -293,7 +294,7 @@ def test_report_refuses_another_configuration(out):
 
 
 def test_library_does_not_import_the_command_line():
-    code = ("import sys, mjx_balance.report, mjx_balance.studies; "
+    code = ("import sys, mjx_balance.report, mjx_balance.studies.catalog; "
             "print(sorted(m for m in sys.modules if m.startswith('mjx_balance.cli')))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True)
@@ -397,7 +398,7 @@ def test_energies_in_report_tables_carry_their_outcome(out, page):
 def test_infeasibility_numbers_count_falls_after_an_infeasible_qp():
     """Three falls, two after an infeasible QP (30 and 50 ms before); a recovered run with an
     infeasible QP and a fall without one are not counted as preceded."""
-    from mjx_balance import studies
+    from mjx_balance.studies import catalog as studies
 
     region = pd.DataFrame({
         "outcome": ["fell", "fell", "fell", "recovered"],

@@ -21,11 +21,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjx_balance import admm as admm_mod
-from mjx_balance import metrics, reference, rollout
-from mjx_balance.model import build_model, indices
-from mjx_balance.outcomes import OUTCOMES, SUMMARY_COLUMNS
-from mjx_balance.params import Config
+from mjx_balance.control import admm as admm_mod
+from mjx_balance.measures import metrics
+from mjx_balance.reference import loop as reference
+from mjx_balance import rollout
+from mjx_balance.model.mjcf import build_model, indices
+from mjx_balance.measures.outcomes import OUTCOMES, SUMMARY_COLUMNS
+from mjx_balance.model.params import Config
 
 CONFIG = Config()  # the physics tests' body and time step; t_end comes from the runner
 DT = CONFIG.scenario.physics_dt
@@ -35,7 +37,7 @@ DT = CONFIG.scenario.physics_dt
 # rounds each step at ~1e-7 relative; the open-loop body is unstable (time constant ~0.3 s), so
 # rounding grows by about e^(1/0.3) ~ 30 over the second, and more where the foot's contacts
 # switch. Measured: 3.1e-5 (the largest in the hip) with XLA's default vector width, 2.2e-4 with
-# the 128-bit width the package sets for schedule-independent results (mjx_balance._xla): the
+# the 128-bit width the package sets for schedule-independent results (mjx_balance.runtime.xla): the
 # same float32 arithmetic rounded in another order moves this unstable loop by that much, so
 # the tolerance is the larger figure with a factor 2. The solver cap (4 Newton iterations; the
 # C solver needs at most 3 here) adds nothing measurable: 100 iterations give the same error;

@@ -8,9 +8,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mjx_balance import sensitivity
+from mjx_balance.studies import sensitivity
 from mjx_balance.cli import main
-from mjx_balance.params import Config, ParameterError
+from mjx_balance.model.params import Config, ParameterError
 from test_sweep import DEFAULT_BATCH, FakeThresholdBatch, expected_max_time
 
 # the stand-in's threshold c [N s] per reading: recovered iff F T < c
@@ -158,7 +158,7 @@ def test_command_line_writes_says_and_resumes(tmp_path, stand_in, capsys):
 def test_refused_readings(tmp_path, stand_in):
     """The offset-free MPC refuses a controller delay: the command names the reading and does
     nothing; the report runs the readings that the configuration admits."""
-    from mjx_balance.report.run import sensitivity_readings
+    from mjx_balance.studies.experiments import sensitivity_readings
 
     delayed = Config().replace(scenario={"controller_delay": 0.1})
     with pytest.raises(ParameterError, match="reading 'paper_offset_free'"):

@@ -35,9 +35,9 @@ import sys
 
 import numpy as np
 
-from mjx_balance import outcomes
-from mjx_balance.outcomes import Limits
-from mjx_balance.params import Config
+from mjx_balance.measures import outcomes
+from mjx_balance.measures.outcomes import Limits
+from mjx_balance.model.params import Config
 
 CONFIG = Config().replace(scenario={"t_end": 0.15})
 
@@ -52,7 +52,7 @@ SCRIPT = r"""
 import json, sys
 import jax
 import numpy as np
-from mjx_balance.params import Config
+from mjx_balance.model.params import Config
 from mjx_balance.rollout import BatchRunner
 
 config = Config().replace(scenario={"t_end": 0.15})

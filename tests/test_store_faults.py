@@ -25,11 +25,11 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from mjx_balance import sweep
+from mjx_balance import runs as sweep
 from mjx_balance.cli import main
-from mjx_balance.params import ParameterError
-from mjx_balance.sweep import region as region_module
-from mjx_balance.sweep.store import folder_lock, readable_png
+from mjx_balance.model.params import ParameterError
+from mjx_balance.runs import region as region_module
+from mjx_balance.store.folder import folder_lock, readable_png
 
 from test_sweep import DEFAULT_BATCH, GRID, FakeThresholdBatch, sweep_fake, tiny_config
 
@@ -180,7 +180,7 @@ def test_lost_manifest_of_a_table_folder_lets_a_sweep_start(tmp_path):
 
 HOLD_LOCK = textwrap.dedent("""
     import sys
-    from mjx_balance.sweep.store import folder_lock
+    from mjx_balance.store.folder import folder_lock
     with folder_lock(sys.argv[1]):
         print("locked", flush=True)
         sys.stdin.read()  # until the test closes our stdin
@@ -268,8 +268,8 @@ FAKE_SWEEP = textwrap.dedent("""
     import resource, sys
     sys.path.insert(0, sys.argv[1])
     from test_sweep import FakeThresholdBatch
-    import mjx_balance.sweep.batch
-    mjx_balance.sweep.batch.default_batch = lambda config, **engine: FakeThresholdBatch()
+    import mjx_balance.runs.batch
+    mjx_balance.runs.batch.default_batch = lambda config, **engine: FakeThresholdBatch()
     limit = int(sys.argv[2])
     if limit:
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))

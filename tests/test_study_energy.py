@@ -25,9 +25,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mjx_balance import certificate, metrics, reference
-from mjx_balance.outcomes import SUMMARY_COLUMNS, Limits
-from mjx_balance.params import Config
+from mjx_balance.control import certificate
+from mjx_balance.measures import metrics
+from mjx_balance.reference import loop as reference
+from mjx_balance.measures.outcomes import SUMMARY_COLUMNS, Limits
+from mjx_balance.model.params import Config
 from mjx_balance.rollout import kernel, runner
 
 U = (10.0, -40.0)
@@ -159,9 +161,9 @@ def test_time_series_carries_the_cumulative_study_energy():
 def test_paper_convention_outputs_headline_the_study_energy():
     """Paper convention: the study's energy first in the time-series figure, the weight
     figure, the report tables and table.csv, the motors' beside it; joint: the motors'."""
-    from mjx_balance import plots
+    from mjx_balance.figures import timeseries as plots
     from mjx_balance.report import html
-    from mjx_balance.sweep import acting_time
+    from mjx_balance.runs import acting_time
 
     s = _series()
     n = len(Q1)

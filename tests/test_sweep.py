@@ -5,7 +5,7 @@ recovers iff |F| * T < c). It says nothing about balance; it only makes the expe
 thresholds and outcomes known exactly. The last test runs the real MJX rollout (the session's
 compiled runner, conftest ``batch_runner``) through the command line.
 
-The command-line tests replace the rollout by patching ``mjx_balance.sweep.batch.default_batch``,
+The command-line tests replace the rollout by patching ``mjx_balance.runs.batch.default_batch``,
 where LazyBatch looks it up when it first runs a batch.
 """
 
@@ -19,13 +19,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mjx_balance import sweep
-from mjx_balance.outcomes import SUMMARY_COLUMNS
-from mjx_balance.params import Config, ParameterError
-from mjx_balance.sweep.definitions import sweeps_dir
+from mjx_balance import runs as sweep
+from mjx_balance.measures.outcomes import SUMMARY_COLUMNS
+from mjx_balance.model.params import Config, ParameterError
+from mjx_balance.runs.definitions import sweeps_dir
 
 REPO = Path(__file__).resolve().parents[1]
-DEFAULT_BATCH = "mjx_balance.sweep.batch.default_batch"  # what LazyBatch calls
+DEFAULT_BATCH = "mjx_balance.runs.batch.default_batch"  # what LazyBatch calls
 
 
 class FakeThresholdBatch:
@@ -370,7 +370,7 @@ def test_sweep_definition_errors(tmp_path):
 
 
 def test_figures_from_fake_results(tmp_path):
-    from mjx_balance import region_plots
+    from mjx_balance.figures import region as region_plots
 
     sweep.run_sweep(tmp_path, Config(), "-20:120:10", "0.05:2:0.05",
                     run_batch=FakeThresholdBatch(window=(1.5, 1.6)), progress=False, log=None)
@@ -390,7 +390,7 @@ def test_figures_from_fake_results(tmp_path):
 
 
 def test_reference_points_file(tmp_path):
-    from mjx_balance import region_plots
+    from mjx_balance.figures import region as region_plots
 
     good = tmp_path / "points.csv"
     good.write_text("force,duration\n20,1.4\n50,0.5\n")

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import pytest
 
-from mjx_balance import sweep
-from mjx_balance.params import Config, ParameterError
+from mjx_balance import runs as sweep
+from mjx_balance.model.params import Config, ParameterError
 
 from test_sweep import FakeThresholdBatch, sweep_fake
 
@@ -91,7 +91,7 @@ KILLED_TABLE = textwrap.dedent("""
     sys.path.insert(0, sys.argv[1])
     from test_sweep import FakeThresholdBatch
     from mjx_balance import sweep
-    from mjx_balance.params import Config
+    from mjx_balance.model.params import Config
 
     log = Path(sys.argv[3])
 

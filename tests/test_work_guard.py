@@ -8,11 +8,11 @@ import pytest
 
 from mjx_balance.cli import main
 from mjx_balance.cli import sweep as cli_sweep
-from mjx_balance.params import Config, ParameterError
-from mjx_balance.report.run import PLANS
-from mjx_balance.sweep import check_durations, load_sweep, parse_grid
-from mjx_balance.sweep.definitions import sweeps_dir
-from mjx_balance.sweep.grid import check_cell_count, check_whole_steps
+from mjx_balance.model.params import Config, ParameterError
+from mjx_balance.studies.experiments import PLANS
+from mjx_balance.runs import check_durations, load_sweep, parse_grid
+from mjx_balance.runs.definitions import sweeps_dir
+from mjx_balance.runs.grid import check_cell_count, check_whole_steps
 
 SWEEPS = sorted(sweeps_dir().glob("*.toml"))  # the shipped definitions (package data)
 

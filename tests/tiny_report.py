@@ -14,7 +14,7 @@ def tiny_report(tmp_path_factory) -> Path:
     stderr), the page it wrote (on stdout)."""
     if "out" not in _CACHE:
         from mjx_balance.cli import main
-        from mjx_balance.studies import STUDIES
+        from mjx_balance.studies.catalog import STUDIES
 
         out = tmp_path_factory.mktemp("tiny_report")
         stdout, stderr = io.StringIO(), io.StringIO()

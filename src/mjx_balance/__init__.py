@@ -13,58 +13,102 @@ The public API (``mjx_balance.api``, documented in the README)::
 JAX nor MuJoCo; the API functions import them when called.
 """
 
-from importlib.metadata import PackageNotFoundError, version
+import importlib
+import importlib.abc
+import importlib.util
+import sys
+import types
+import warnings
 
-from ._xla import deterministic_flags
+from .runtime.xla import deterministic_flags
 
 # XLA options that make every scenario's result independent of its slot and batch (see
 # rollout/engine.py); they only take effect if set before JAX starts its CPU backend.
 deterministic_flags()
 
-try:
-    __version__ = version("mjx_balance")
-except PackageNotFoundError:  # running from a source tree without installation
-    __version__ = "0.0.0+local"
+from .runtime.version import __version__  # noqa: E402 - after the flags
+from .model.params import Config, ParameterError, load_config  # noqa: E402
 
-from .params import Config, ParameterError, load_config  # noqa: E402 - after the flags
-
-# Figures and saved reports, for notebooks: each figure function draws on the matplotlib Axes
-# it is given (or a new figure) and returns the Figure.
+# The public functions, imported on first use (JAX, MuJoCo and pandas with them). Figures and
+# saved reports, for notebooks: each figure function draws on the matplotlib Axes it is given
+# (or a new figure) and returns the Figure.
 _LAZY = {
-    "simulate": "api", "table": "api", "compare": "api", "basin": "api",
+    "simulate": "api", "sweep": "api", "table": "api", "compare": "api", "basin": "api",
     "load_report": "report.html:load_results",
-    "region_map": "region_plots", "energy_map": "region_plots", "table_figure": "region_plots",
-    "timeseries_figure": "plots", "weight_figure": "report.html",
-    "conventions_figure": "report.html", "region_numbers": "studies", "study": "studies",
-    "study_reading": "studies:reading",
+    "region_map": "figures.region", "energy_map": "figures.region",
+    "table_figure": "figures.region", "timeseries_figure": "figures.timeseries",
+    "weight_figure": "report.html", "conventions_figure": "report.html",
+    "region_numbers": "studies.catalog", "study": "studies.catalog",
+    "study_reading": "studies.catalog:reading",
 }
 
 __all__ = ["Config", "ParameterError", "__version__", "basin", "compare", "conventions_figure",
-           "energy_map",
-           "load_config", "load_report", "region_map", "region_numbers", "simulate", "study",
-           "study_reading", "sweep", "table", "table_figure", "timeseries_figure",
-           "weight_figure"]
-
-_API = tuple(_LAZY) + ("sweep",)
+           "energy_map", "load_config", "load_report", "region_map", "region_numbers",
+           "simulate", "study", "study_reading", "sweep", "table", "table_figure",
+           "timeseries_figure", "weight_figure"]
 
 
 def __getattr__(name: str):
-    # The API functions live in mjx_balance.api, imported on first use (JAX, MuJoCo and pandas
-    # with it). ``mjx_balance.sweep`` is also the subpackage of the sweep machinery, which
-    # Python binds to this name whenever it is imported: that subpackage is callable and its
-    # call is ``api.sweep`` (sweep/__init__.py), so ``mjx_balance.sweep(...)`` runs the sweep
-    # and ``from mjx_balance import sweep`` still gives the subpackage.
-    if name == "sweep":
-        import importlib
-
-        return importlib.import_module(".sweep", __name__)
     if name in _LAZY:
-        import importlib
-
         module, _, attribute = _LAZY[name].partition(":")
         return getattr(importlib.import_module("." + module, __name__), attribute or name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_API))
+    return sorted(set(globals()) | set(_LAZY))
+
+
+# -- the modules' old names, for one release (0.1 -> 0.2: docs/architecture.md) ----------------
+# ``from mjx_balance.params import Config`` or ``mjx_balance.sweep.definitions`` still import,
+# with a DeprecationWarning naming the new module; the old module is the new one (one object).
+
+LEGACY = {
+    "_xla": "runtime.xla", "cache": "runtime.cache", "params": "model.params",
+    "linear": "model.linear", "outcomes": "measures.outcomes", "metrics": "measures.metrics",
+    "qp": "control.qp", "admm": "control.admm", "osqp_mpc": "control.osqp_mpc",
+    "offset_free": "control.offset_free", "certificate": "control.certificate",
+    "sweep": "runs", "sweep.store": "store.folder", "sweep.grid": "runs.grid",
+    "sweep.chunks": "runs.chunks", "sweep.batch": "runs.batch",
+    "sweep.progress": "runs.progress", "sweep.region": "runs.region",
+    "sweep.acting_time": "runs.acting_time", "sweep.definitions": "runs.definitions",
+    "sweep.cluster": "runs.cluster", "plots": "figures.timeseries",
+    "region_plots": "figures.region", "animate": "figures.animation",
+    "comparison": "studies.compare",
+    "landscape": "studies.landscape", "sensitivity": "studies.sensitivity",
+    "recovery_basin": "studies.basin", "report.run": "studies.experiments",
+}
+
+
+class _Legacy(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """Finds ``mjx_balance.<old name>`` and hands out the module at its new name."""
+
+    def find_spec(self, fullname, path=None, target=None):
+        old = fullname[len(__name__) + 1:] if fullname.startswith(__name__ + ".") else None
+        if old not in LEGACY:
+            return None
+        return importlib.util.spec_from_loader(fullname, self)
+
+    def create_module(self, spec):
+        new = f"{__name__}.{LEGACY[spec.name[len(__name__) + 1:]]}"
+        warnings.warn(f"{spec.name} is now {new} (the old name goes in the next release)",
+                      DeprecationWarning, stacklevel=2)
+        return importlib.import_module(new)
+
+    def exec_module(self, module):
+        pass  # the new module is already executed
+
+
+class _Package(types.ModuleType):
+    """This package: the name ``sweep`` stays the function (``help(mjx_balance.sweep)``) when
+    the legacy subpackage ``mjx_balance.sweep`` is imported (Python binds a subpackage to its
+    parent's attribute)."""
+
+    def __setattr__(self, name, value):
+        if name == "sweep" and isinstance(value, types.ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+sys.meta_path.insert(0, _Legacy())
+sys.modules[__name__].__class__ = _Package

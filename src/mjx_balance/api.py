@@ -8,9 +8,9 @@
     region = mb.sweep("0:150:10", [0.1, 0.2], config, out="out/region")   # resumable on disk
     table = mb.table([20, 50, 80], config)                     # max acting time per force
 
-``config`` is a :class:`~mjx_balance.params.Config`, the path of a TOML configuration file,
+``config`` is a :class:`~mjx_balance.model.params.Config`, the path of a TOML configuration file,
 a dict with ``body`` / ``controller`` / ``scenario`` tables, or None (the defaults); it is
-validated as a TOML file is (:class:`~mjx_balance.params.ParameterError` naming the field and
+validated as a TOML file is (:class:`~mjx_balance.model.params.ParameterError` naming the field and
 the rule). Forces and durations are a sequence of numbers or a grid string (``"0:150:10"`` or
 ``"20,50,80"``), as on the command line.
 
@@ -18,7 +18,7 @@ the rule). Forces and durations are a sequence of numbers or a grid string (``"0
 and ``mjx-balance table`` write there (the same store: manifest, chunks, resume); with
 ``out=None`` they work in a temporary folder that is removed before they return, so nothing
 is kept. They compile the batched closed loop on first use; JAX's persistent compilation cache
-(``mjx_balance.cache``) keeps the executable for the next process. Messages go to the
+(``mjx_balance.runtime.cache``) keeps the executable for the next process. Messages go to the
 ``mjx_balance`` logger (INFO); progress bars are off unless ``progress=True``.
 
 The command line (``mjx_balance.cli``) is a thin layer over these functions: it resolves its
@@ -35,20 +35,22 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterator, Union
 
-from .params import Config, ParameterError, config_from_dict, load_config
+from .model.params import Config, ParameterError, config_from_dict, load_config
+from .runs.folders import (Values, batch_function, duration_values, grid_values, run_region,
+                           run_table_folder)
 
 if TYPE_CHECKING:  # heavy modules are imported inside the functions
     import numpy as np
     import pandas as pd
 
-    from .sweep import SweepResult, TableResult
+    from .runs import SweepResult, TableResult
 
-__all__ = ["Config", "ParameterError", "load_config", "simulate", "sweep", "table"]
+__all__ = ["Config", "ParameterError", "basin", "batch_function", "compare", "load_config",
+           "run_region", "run_table_folder", "simulate", "sweep", "table"]
 
 log = logging.getLogger("mjx_balance")
 
 ConfigLike = Union[Config, str, "os.PathLike[str]", Mapping[str, Any], None]
-Values = Union[str, float, Sequence[float], "np.ndarray"]
 
 
 def as_config(config: ConfigLike = None) -> Config:
@@ -65,30 +67,11 @@ def as_config(config: ConfigLike = None) -> Config:
                          f"{type(config).__name__}")
 
 
-def _grid(values: Values, name: str) -> "np.ndarray":
-    """Forces or durations as ``sweep`` reads a grid: sorted, each value once."""
-    from .sweep.grid import parse_grid
-
-    if isinstance(values, (int, float)) and not isinstance(values, bool):
-        values = [values]
-    if not isinstance(values, str):
-        values = [float(v) for v in values]
-    return parse_grid(values, name)
-
-
-def _durations(values: Values, config: Config, name: str = "durations") -> "np.ndarray":
-    """Durations on the grid, in [0, t_end] and whole physics steps (snapped to them)."""
-    from .sweep.grid import check_durations
-
-    return check_durations(_grid(values, name), config.scenario.t_end, name,
-                           physics_dt=config.scenario.physics_dt)
-
-
 @contextmanager
 def _session(call: str, physics: str = "mjx") -> Iterator[None]:
     """What the output folder's provenance records: this call (unless a command line made it)
     and the physics path."""
-    from .sweep.store import run_context
+    from .store.folder import run_context
 
     with run_context(command=f"python: mjx_balance.{call}", physics=physics):
         yield
@@ -109,11 +92,11 @@ def simulate(forces: Values, durations: Values, config: ConfigLike = None, *,
     duration for the first force, then the next. ``progress``: a progress bar on stderr.
     Raises ParameterError for a bad value before any work."""
     config = as_config(config)
-    forces = _grid(forces, "forces")
-    durations = _durations(durations, config)
+    forces = grid_values(forces, "forces")
+    durations = duration_values(durations, config)
     for duration in durations:  # every other rule, before any work
         config.replace(scenario={"duration": float(duration)})
-    from . import reference
+    from .reference import loop as reference
 
     return reference.simulate_many(config, forces.tolist(), durations.tolist(),
                                    progress=progress)
@@ -121,67 +104,6 @@ def simulate(forces: Values, durations: Values, config: ConfigLike = None, *,
 
 # ---------------------------------------------------------------------------------------------
 # sweep and table: the batched closed loop (MJX + ADMM) on the continuous-batching engine
-
-
-def batch_function(config: Config, *, slots: int | None = None, full_length: bool = False,
-                   physics: str = "auto"):
-    """The batch function of ``sweep`` and ``table``: the batched closed loop of ``config`` on
-    the continuous-batching engine, built and compiled on its first call (with the persistent
-    compilation cache on, :func:`mjx_balance.cache.enable`). ``physics``: "mjx", "c" (MuJoCo C
-    stepped on a thread pool, the ADMM in JAX) or "auto" (docs/engine.md)."""
-    from .sweep import LazyBatch
-
-    return LazyBatch(config, slots=slots, early_stop=not full_length, physics=physics)
-
-
-def run_region(out: str | os.PathLike[str], config: Config, forces: Values, durations: Values,
-               *, run_batch: Any = None, chunk: int | None = None, slots: int | None = None,
-               full_length: bool = False, progress: bool = False,
-               wait: bool = False, cluster: Any = None, physics: str = "auto") -> "SweepResult":
-    """The region sweep into the folder ``out`` (resumable; ``sweep.run_sweep``) under its lock
-    (``wait``: wait for another run that holds it). ``run_batch``: a batch function (default:
-    :func:`batch_function`); ``cluster``: run the chunks on a Dask cluster (``"local:N"``, a
-    scheduler address or file, or a ``distributed.Client``; docs/cluster.md). Returns the
-    SweepResult (the command line draws its figures)."""
-    from . import cache
-    from .sweep import run_sweep
-    from .sweep.store import folder_lock
-
-    forces = _grid(forces, "forces")
-    durations = _durations(durations, config)
-    if run_batch is None:
-        run_batch = batch_function(config, slots=slots, full_length=full_length,
-                                   physics=physics)
-    cache.enable()
-    with folder_lock(out, wait=wait):
-        return run_sweep(out, config, forces, durations, run_batch=run_batch, chunk_size=chunk,
-                         progress=progress, log=log.info, cluster=cluster)
-
-
-def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values, *,
-                     run_batch: Any = None, batch: int | None = None, slots: int | None = None,
-                     full_length: bool = False, progress: bool = False,
-                     wait: bool = False, cluster: Any = None,
-                     physics: str = "auto") -> "TableResult | None":
-    """The max-acting-time table into the folder ``out`` (``sweep.run_table``: resumable, the
-    scenarios it ran kept) under its lock. ``batch``: scenarios per call (default:
-    ``sweep.table_batch_size``); ``cluster``: run each round's calls on a Dask cluster (as
-    :func:`run_region`; the same table). Returns None when the folder already held this
-    table."""
-    from . import cache
-    from .sweep import run_table, table_batch_size
-    from .sweep.store import folder_lock
-
-    forces = _grid(forces, "forces")
-    if run_batch is None:
-        run_batch = batch_function(config, slots=slots, full_length=full_length,
-                                   physics=physics)
-    if batch is None:
-        batch = table_batch_size(config, forces.size)
-    cache.enable()
-    with folder_lock(out, wait=wait):
-        return run_table(out, config, forces, run_batch=run_batch, batch=batch,
-                         progress=progress, log=log.info, cluster=cluster)
 
 
 @contextmanager
@@ -232,7 +154,7 @@ def table(forces: Values, config: ConfigLike = None,
     Dask cluster (``"local:N"``, a scheduler address or file, or a ``distributed.Client``;
     ``pip install "mjx_balance[cluster]"``, docs/cluster.md); the table is the same.
     ``physics``: "auto", "mjx" or "c" (as :func:`sweep`)."""
-    from .sweep.store import TABLE
+    from .store.folder import TABLE
 
     config = as_config(config)
     with _session("table"), _folder(out, "table") as folder:
@@ -252,8 +174,8 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
     (every recovery boundary on one plane). ``configs``: name -> configuration (a Config, a
     dict or a TOML path), or a list of TOML paths (named by their stems). Grids default to the
     default sweep's."""
-    from .comparison import load_configs, run_compare
-    from .sweep import DEFAULT_SWEEP
+    from .studies.compare import load_configs, run_compare
+    from .runs import DEFAULT_SWEEP
 
     if isinstance(configs, dict):
         configs = {str(name): as_config(c) for name, c in configs.items()}
@@ -277,7 +199,7 @@ def basin(out: str | os.PathLike[str], config: ConfigLike = None, *, x_com: Valu
     resumable). Returns basin.parquet's rows. ``pushes``: None or (forces, durations) whose
     end-of-push states are drawn (pushes.csv). Grids default to -0.2:0.2:0.02 m and
     -0.6:0.6:0.06 m/s."""
-    from .recovery_basin import DEFAULT_V, DEFAULT_X, run_basin
+    from .studies.basin import DEFAULT_V, DEFAULT_X, run_basin
 
     with _session("basin"):
         return run_basin(out, as_config(config), DEFAULT_X if x_com is None else x_com,

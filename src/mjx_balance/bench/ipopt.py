@@ -18,8 +18,8 @@ import math
 
 import numpy as np
 
-from ..params import BodyParams, ControllerParams
-from ..qp import CondensedQP, build_qp
+from ..model.params import BodyParams, ControllerParams
+from ..control.qp import CondensedQP, build_qp
 
 
 def ipopt_mpc(qp: CondensedQP, controller: ControllerParams):

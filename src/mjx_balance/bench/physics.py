@@ -42,9 +42,9 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
-from .. import admm as admm_mod
-from ..params import Config
-from ..rollout.runner import MATMUL_PRECISION
+from ..control import admm as admm_mod
+from ..model.params import Config
+from ..runtime.compiled import MATMUL_PRECISION
 
 # a C path must beat the MJX pipeline by this factor to be worth a second physics path
 WORTH_IT = 1.5
@@ -136,7 +136,7 @@ class CPhysics:
         self.control = np.zeros((slots, self.substeps, nc))
         self.out = np.empty((slots, self.substeps, size))
         self.sensordata = np.empty((slots, self.substeps, self.model.nsensordata))
-        from ..model import indices
+        from ..model.mjcf import indices
 
         ix = indices(self.model)
         nq = self.model.nq

@@ -43,8 +43,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..outcomes import OUTCOMES
-from ..params import Config
+from ..measures.outcomes import OUTCOMES
+from ..model.params import Config
 
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 FORCE_RANGE = (0.0, 150.0)
@@ -110,7 +110,7 @@ def _study_mpc(config: Config):
 
 
 def _warm_reference(config: Config, mpc=None) -> int:
-    from .. import reference
+    from ..reference import loop as reference
 
     reference.simulate_scenario(config, 0.0, 0.05, record=False, mpc=mpc)  # model, QP, MPC
     return os.getpid()
@@ -118,7 +118,7 @@ def _warm_reference(config: Config, mpc=None) -> int:
 
 def _run_reference(config: Config, force: float, duration: float,
                    mpc=None) -> tuple[int, float]:
-    from .. import reference
+    from ..reference import loop as reference
 
     t0 = time.perf_counter()
     row, _ = reference.simulate_scenario(config, force, duration, record=False, mpc=mpc)
@@ -318,7 +318,7 @@ def pipeline_figures(*, counts: tuple[int, int, int], t_end: float, workers: int
 
 def memory_child(cells: int, t_end: float, chunk: int | None, out: str) -> None:
     """(In a fresh process) one sweep of about ``cells`` cells with t_end; prints a JSON line."""
-    from .. import sweep
+    from .. import runs as sweep
 
     config = Config().replace(scenario={"t_end": t_end, "duration": min(0.1, t_end)})
     # durations: every whole number of physics steps up to t_end (at most 100 of them), forces

@@ -29,10 +29,10 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
-from ..params import BodyParams, ControllerParams
-from ..qp import CondensedQP
-from .states import (TILE, Truth, admm_along_trajectories, closed_loop_states,
-                     first_control_error, misses, osqp_loop, truth_solutions)
+from ..model.params import BodyParams, ControllerParams
+from ..control.qp import CondensedQP
+from .states import (TILE, Truth, admm_along_trajectories, closed_loop_states, first_control_error,
+                     misses, osqp_loop, truth_solutions)
 
 OSQP_EPS = (1e-4, 1e-5, 1e-6)  # tried loosest first
 IPOPT_SOLVES = 50  # CasADi/IPOPT solves timed
@@ -85,7 +85,7 @@ def admm_accuracy(qp: CondensedQP, trajectories: list[np.ndarray], truth: Truth,
     max_err (over truth-solved states), max_err_both (over states both solved), mean_iters,
     status_counts [solved, max_iter, infeasible] and seconds (the whole pass).
     """
-    from .. import admm
+    from ..control import admm
 
     t0 = time.perf_counter()
     seq = admm_along_trajectories(qp, trajectories, settings, dtype)
@@ -113,7 +113,7 @@ def time_admm_batch(qp: CondensedQP, settings, dtype, states: np.ndarray,
     import jax
     import jax.numpy as jnp
 
-    from .. import admm
+    from ..control import admm
 
     data = admm.build_admm(qp, settings, dtype)
     it_flops, chk_flops = flops_per_solve_step(qp, settings)
@@ -219,7 +219,7 @@ def cpu_peak_gflops(dtype: str = "float32") -> tuple[float, str]:
 
 def flops_per_solve_step(qp: CondensedQP, settings) -> tuple[int, int]:
     """(flops per ADMM iteration, flops per convergence check) of this QP and settings."""
-    from .. import admm
+    from ..control import admm
 
     return admm.flops_per_iteration(qp.n, qp.m, settings.sigma), admm.flops_per_check(qp.n, qp.m)
 

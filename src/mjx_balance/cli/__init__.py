@@ -26,7 +26,7 @@ JAX's, jaxlib's and MuJoCo's versions; messages and progress go through ``loggin
 warnings and errors and turns progress bars off, ``-v`` adds debug messages); ``--help`` shows
 every default; ``--set SECTION.KEY=VALUE`` overrides the configuration of any command that
 takes ``--config``; ``--no-cache`` turns JAX's persistent compilation cache off
-(``mjx_balance.cache``).
+(``mjx_balance.runtime.cache``).
 
 A command module is imported only when its command runs (after :func:`use_host_cores`, which
 must see JAX not yet imported).
@@ -49,8 +49,8 @@ import shlex
 import sys
 from pathlib import Path
 
-from .._xla import deterministic_flags
-from ..params import CONVENTIONS, Config, ParameterError, run_config
+from ..runtime.xla import deterministic_flags
+from ..model.params import CONVENTIONS, Config, ParameterError, run_config
 
 log = logging.getLogger("mjx_balance")
 
@@ -78,7 +78,7 @@ def one_push(args: argparse.Namespace) -> tuple[Config, float]:
     """(configuration, duration) of a one-push command (``animate``, ``view``): --t-end
     applied, the duration checked as ``sweep`` checks it (whole physics steps in [0, t_end],
     snapped to them) and every other rule of the configuration checked before any work."""
-    from ..sweep.grid import check_durations
+    from ..runs.grid import check_durations
 
     config = load_run_config(args)
     if args.t_end is not None:
@@ -177,7 +177,7 @@ def input_file(text: str) -> str:
 def sweep_file(text: str) -> str:
     """A sweep definition: a TOML file, or the name of one the package ships
     (``region_dense_paper``; ``mjx_balance/sweeps/``)."""
-    from ..sweep.definitions import find_sweep
+    from ..runs.definitions import find_sweep
 
     path = Path(text)
     if not path.exists() and path.parent == Path("."):
@@ -190,7 +190,7 @@ def sweep_file(text: str) -> str:
 
 def setting(text: str) -> str:
     """A --set SECTION.KEY=VALUE (its value is checked with the configuration)."""
-    from ..params import parse_override
+    from ..model.params import parse_override
 
     try:
         parse_override(text)
@@ -322,7 +322,7 @@ def _wait(p: argparse.ArgumentParser) -> None:
 
 def cluster_spec(text: str) -> str:
     """A Dask cluster: local:N, a scheduler address or a scheduler file (sweep/cluster.py)."""
-    from ..sweep.cluster import ClusterError, parse_cluster
+    from ..runs.cluster import ClusterError, parse_cluster
 
     try:
         parse_cluster(text)
@@ -408,7 +408,7 @@ class _Version(argparse.Action):
 
 def version_text() -> str:
     """One line: ``mjx-balance 0.1.0 (jax 0.10.2, jaxlib 0.10.2, mujoco 3.17.0, ...)``."""
-    from ..sweep.store import versions
+    from ..store.folder import versions
 
     v = versions()
     return (f"mjx-balance {v['package']} (jax {v['jax']}, jaxlib {v['jaxlib']}, "
@@ -665,12 +665,12 @@ def main(argv: list[str] | None = None) -> int:
     use_host_cores()
     deterministic_flags()
     if getattr(args, "no_cache", False):
-        from .. import cache
+        from ..runtime import cache
 
         cache.disable()
     restore = _logging({-1: logging.WARNING, 0: logging.INFO, 1: logging.DEBUG}[verbosity(args)])
     try:
-        from ..sweep.store import run_context
+        from ..store.folder import run_context
 
         words = sys.argv[1:] if argv is None else list(argv)
         with run_context(command=" ".join(shlex.quote(w) for w in ["mjx-balance", *words])):

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import logging
 
-from ..animate import FAST_FORWARD, animate_timeseries
-from ..reference import simulate_scenario
+from ..figures.animation import FAST_FORWARD, animate_timeseries
+from ..reference.loop import simulate_scenario
 from . import one_push
 
 log = logging.getLogger("mjx_balance")

@@ -1,4 +1,4 @@
-"""``mjx-balance basin``: the recovery basin over (x_com, v_com) (``mjx_balance.recovery_basin``).
+"""``mjx-balance basin``: the recovery basin over (x_com, v_com) (``mjx_balance.studies.basin``).
 
 Only the parser (:func:`add_parser`) is imported when the command line is built; the command
 imports the library when it runs.
@@ -18,7 +18,7 @@ def add_parser(sub: Any) -> None:
         "basin", help="the recovery basin: which initial CoM states (x_com, v_com) recover "
                       "with no push, with the foot's edges, the capture-point bound and the "
                       "push map's end-of-push states (basin.parquet, basin.png; resumable)")
-    from ..recovery_basin import DEFAULT_V, DEFAULT_X, POSTURES
+    from ..studies.basin import DEFAULT_V, DEFAULT_X, POSTURES
 
     p.add_argument("--x-com", default=DEFAULT_X,
                    help="CoM positions relative to the ankle [m], start:stop:step or a list")
@@ -44,7 +44,7 @@ def add_parser(sub: Any) -> None:
 
 def basin_command(args: Any) -> int:
     """The basin map in --out (every input checked before the folder is touched)."""
-    from ..recovery_basin import check_basin, run_basin
+    from ..studies.basin import check_basin, run_basin
     from . import load_run_config, progress_enabled
     from .sweep import _in_folder
 

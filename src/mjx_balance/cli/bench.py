@@ -17,8 +17,8 @@ import numpy as np
 
 from ..bench import pipeline, solver
 from ..bench.states import PUSH_DURATIONS
-from ..params import Config, save_config
-from ..qp import build_qp
+from ..model.params import Config, save_config
+from ..control.qp import build_qp
 from . import load_run_config
 
 # One compile of the benchmark's engine in a fresh process, with the persistent compilation
@@ -29,7 +29,7 @@ from mjx_balance.cli import use_host_cores
 use_host_cores()
 from mjx_balance import cache
 from mjx_balance.bench import pipeline
-from mjx_balance.params import load_config
+from mjx_balance.model.params import load_config
 cache.enable()
 config = load_config(sys.argv[1])
 slots = None if sys.argv[2] == "none" else int(sys.argv[2])
@@ -252,7 +252,7 @@ def _memory_scaling(args: argparse.Namespace) -> list[dict]:
 
 def solver_command(args: argparse.Namespace) -> int:
     """``mjx-balance bench solver``: batched ADMM vs OSQP vs CasADi/IPOPT on the same states."""
-    from .. import admm  # JAX: imported when this command runs
+    from ..control import admm  # JAX: imported when this command runs
 
     dtype = solver.admm_dtype(args.dtype)
     config = load_run_config(args)

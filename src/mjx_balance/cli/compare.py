@@ -5,14 +5,14 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..sweep import DEFAULT_SWEEP
+from ..runs import DEFAULT_SWEEP
 from . import progress_enabled
 from .sweep import _in_folder
 
 
 def compare_command(args: Any) -> int:
     """Each --config's region map and table in OUT/<name>/, then compare.csv and compare.png."""
-    from ..comparison import load_configs, run_compare
+    from ..studies.compare import load_configs, run_compare
 
     configs = load_configs(args.config)
     out = Path(args.out)

@@ -1,5 +1,5 @@
 """``mjx-balance landscape``: recoverable area, sustained-push limit and mean recovery energy
-over a grid of Q and R scales, with and without delay (``mjx_balance.landscape``).
+over a grid of Q and R scales, with and without delay (``mjx_balance.studies.landscape``).
 
 Only the parser (:func:`add_parser`) is imported when the command line is built; the command
 imports the library when it runs.
@@ -22,7 +22,7 @@ def add_parser(sub: Any) -> None:
                           "delay; each (delay, Q scale, R scale) runs as compare runs a "
                           "configuration, in DIR/<delay>/q<q>_r<r>/ (resumable), then "
                           "landscape.csv, landscape.png (heatmaps), landscape.txt")
-    from ..landscape import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES
+    from ..studies.landscape import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES
 
     p.add_argument("--sweep", type=sweep_file, default=None,
                    help="sweep definition whose configuration and grid are the base (a TOML "
@@ -61,9 +61,9 @@ def landscape_command(args: Any) -> int:
     is checked (``landscape.check_landscape``) before the folder is touched."""
     import logging
 
-    from ..landscape import DEFAULT_TABLE_FORCES, check_landscape, run_landscape
-    from ..params import apply_overrides
-    from ..sweep import DEFAULT_SWEEP, load_sweep
+    from ..studies.landscape import DEFAULT_TABLE_FORCES, check_landscape, run_landscape
+    from ..model.params import apply_overrides
+    from ..runs import DEFAULT_SWEEP, load_sweep
     from . import base_config, progress_enabled
     from .sweep import _in_folder, _physics
 

@@ -21,7 +21,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..sweep.store import write_text
+from ..store.folder import write_text
 from . import load_run_config, one_push
 
 log = logging.getLogger("mjx_balance")
@@ -33,7 +33,7 @@ def model_command(args) -> int:
     """Write the configured body's MJCF to --out (atomically), checked by compiling it."""
     import mujoco
 
-    from ..model import mjcf
+    from ..model.mjcf import mjcf
 
     config = load_run_config(args)
     text = mjcf(config.body, config.scenario.physics_dt)
@@ -65,8 +65,8 @@ def view_command(args) -> int:
 
     import mujoco
 
-    from ..model import build_model
-    from ..reference import simulate_scenario
+    from ..model.mjcf import build_model
+    from ..reference.loop import simulate_scenario
 
     summary, series = simulate_scenario(config, args.force, duration, record=True)
     log.info(f"push {args.force:g} N for {duration:g} s: {summary['outcome']}; replaying "

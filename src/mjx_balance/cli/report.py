@@ -7,11 +7,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .. import cache
-from ..params import CONVENTIONS, ParameterError
+from ..runtime import cache
+from ..model.params import CONVENTIONS, ParameterError
 from ..report import PLANS, REPORT_JSON, build_report, run_report, selected_studies
-from ..report.run import read_record
-from ..sweep.store import run_context
+from ..studies.experiments import read_record
+from ..store.folder import run_context
 from . import load_run_config
 
 

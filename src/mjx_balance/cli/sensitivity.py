@@ -1,5 +1,5 @@
 """``mjx-balance sensitivity``: the reproduction table under every reading of the study
-(``mjx_balance.sensitivity``).
+(``mjx_balance.studies.sensitivity``).
 
 Only the parser (:func:`add_parser`) is imported when the command line is built; the command
 imports the library when it runs.
@@ -21,7 +21,7 @@ def add_parser(sub: Any) -> None:
                             "reading's table in DIR/<reading>/ (resumable), then "
                             "sensitivity.csv (the spread per force), sensitivity.png, "
                             "sensitivity.txt (what holds under every reading)")
-    from ..sensitivity import DEFAULT_FORCES, READINGS
+    from ..studies.sensitivity import DEFAULT_FORCES, READINGS
 
     p.add_argument("--forces", default=DEFAULT_FORCES,
                    help="table forces [N], start:stop:step or a comma list")
@@ -39,8 +39,8 @@ def sensitivity_command(args: Any) -> int:
     """Every reading's table, then the spread (every input checked first)."""
     import logging
 
-    from ..sensitivity import reading_configs, run_sensitivity
-    from ..sweep.grid import parse_grid
+    from ..studies.sensitivity import reading_configs, run_sensitivity
+    from ..runs.grid import parse_grid
     from . import load_run_config, progress_enabled
     from .sweep import _in_folder
 

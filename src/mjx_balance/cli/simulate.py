@@ -13,11 +13,11 @@ import numpy as np
 import pandas as pd
 
 from .. import api
-from ..params import ParameterError, dumps_config
-from ..plots import timeseries_figures
-from ..sweep.grid import check_durations, parse_grid
-from ..sweep.store import (CONFIG, MANIFEST, REGION, TABLE_CELLS, record_simulation,
-                           run_context, write_atomic, write_parquet, write_text)
+from ..model.params import ParameterError, dumps_config
+from ..figures.timeseries import timeseries_figures
+from ..runs.grid import check_durations, parse_grid
+from ..store.folder import (CONFIG, MANIFEST, REGION, TABLE_CELLS, record_simulation, run_context,
+                            write_atomic, write_parquet, write_text)
 from . import load_run_config, progress_enabled
 
 log = logging.getLogger("mjx_balance")

@@ -22,14 +22,15 @@ from typing import Any, Callable
 import numpy as np
 import pandas as pd
 
-from .. import api, region_plots
-from ..params import Config, apply_overrides, with_convention
-from ..sweep import (DEFAULT_SWEEP, MANIFEST, STUDY_TABLE_FORCES, TABLE, SweepResult,
-                     check_durations, load_sweep, parse_grid, table_batch_size)
-from ..sweep.acting_time import SUSTAINED_COARSE, coarse_steps
-from ..sweep.chunks import check_planned_work, default_chunk_size, planned_work
-from ..sweep.grid import check_cell_count
-from ..sweep.store import REGION, folder_lock, readable_png
+from .. import api
+from ..figures import region as region_plots
+from ..model.params import Config, apply_overrides, with_convention
+from ..runs import (DEFAULT_SWEEP, MANIFEST, STUDY_TABLE_FORCES, TABLE, SweepResult,
+                    check_durations, load_sweep, parse_grid, table_batch_size)
+from ..runs.acting_time import SUSTAINED_COARSE, coarse_steps
+from ..runs.chunks import check_planned_work, default_chunk_size, planned_work
+from ..runs.grid import check_cell_count
+from ..store.folder import REGION, folder_lock, readable_png
 from . import base_config, progress_enabled
 
 log = logging.getLogger("mjx_balance")

@@ -25,11 +25,11 @@ scenario (backend ``reference``, what the ``tiny`` plan uses). A finished stage 
     html.py   load_results, the figures, one function per section, build_report
 """
 
-from .html import (HTML, build_report, conventions_figure, key_numbers, load_results,
-                   save_figure, sections, weight_figure)
-from .run import (PLANS, Q_SCALES, R_SCALES, REPORT_JSON, Plan, ReferenceBatch,
-                  batch_function, plan_config, run_report, run_weights, selected_studies,
-                  weight_settings)
+from .html import (HTML, build_report, conventions_figure, key_numbers, load_results, save_figure,
+                   sections, weight_figure)
+from ..studies.experiments import (PLANS, Q_SCALES, R_SCALES, REPORT_JSON, Plan, ReferenceBatch,
+                                   batch_function, plan_config, run_report, run_weights,
+                                   selected_studies, weight_settings)
 
 __all__ = [
     "HTML", "PLANS", "Plan", "Q_SCALES", "REPORT_JSON", "R_SCALES", "ReferenceBatch",

@@ -18,7 +18,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from .html import _img
+from ..studies import basin
+from ..studies.sensitivity import READINGS, SENSITIVITY_CSV, SENSITIVITY_PNG, SENSITIVITY_TXT
+from .blocks import img
+from .landscape import landscape_section
 
 LANDSCAPE_DIR, SENSITIVITY_DIR, BASIN_DIR = "landscape", "sensitivity", "basin"
 SENSITIVITY_HEADING = "Sensitivity: the robustness table under every reading of the study"
@@ -26,8 +29,6 @@ SENSITIVITY_HEADING = "Sensitivity: the robustness table under every reading of 
 
 def sensitivity_section(folder: str | Path) -> dict | None:
     """The section of a ``mjx-balance sensitivity`` folder (None without sensitivity.csv)."""
-    from ..sensitivity import READINGS, SENSITIVITY_CSV, SENSITIVITY_PNG, SENSITIVITY_TXT
-
     folder = Path(folder)
     if not (folder / SENSITIVITY_CSV).exists():
         return None
@@ -42,7 +43,7 @@ def sensitivity_section(folder: str | Path) -> dict | None:
                  "or the offset-free MPC), each with both energies (the study's eq. 20 and "
                  "the motors'). The spread shows which conclusions survive every reading.")}]
     if (folder / SENSITIVITY_PNG).exists():
-        blocks.append(_img(folder / SENSITIVITY_PNG,
+        blocks.append(img(folder / SENSITIVITY_PNG,
                            "One line per reading; grey: the spread of the max acting time; "
                            "energies of the longest recovered push (top) and of the 0.1-s push "
                            "where it recovers (bottom).", alt="sensitivity"))
@@ -69,13 +70,11 @@ def sensitivity_section(folder: str | Path) -> dict | None:
 
 def basin_section(folder: str | Path) -> dict | None:
     """The section of a ``mjx-balance basin`` folder (None without basin.parquet)."""
-    from ..recovery_basin import BASIN, BASIN_PNG, PUSHES, reading
-
     folder = Path(folder)
-    if not (folder / BASIN).exists():
+    if not (folder / basin.BASIN).exists():
         return None
-    frame = pd.read_parquet(folder / BASIN)
-    ends = pd.read_csv(folder / PUSHES) if (folder / PUSHES).exists() else None
+    frame = pd.read_parquet(folder / basin.BASIN)
+    ends = pd.read_csv(folder / basin.PUSHES) if (folder / basin.PUSHES).exists() else None
     blocks: list[dict] = [{
         "kind": "paragraph", "cls": "",
         "text": ("Which initial states recover with no push at all: each cell is a whole-body "
@@ -83,17 +82,15 @@ def basin_section(folder: str | Path) -> dict | None:
                  "family (docs/model.md), run with the outcome rules of the push maps. The "
                  "dashed lines bound the linear inverted pendulum's capture point on the foot; "
                  "the markers are the push map's cells at the end of their pushes.")}]
-    if (folder / BASIN_PNG).exists():
-        blocks.append(_img(folder / BASIN_PNG, "Left: outcome (green recovers); right: "
+    if (folder / basin.BASIN_PNG).exists():
+        blocks.append(img(folder / basin.BASIN_PNG, "Left: outcome (green recovers); right: "
                            "recovery energy.", alt="recovery basin"))
-    blocks.append({"kind": "paragraph", "cls": "reading", "text": reading(frame, ends)})
+    blocks.append({"kind": "paragraph", "cls": "reading", "text": basin.reading(frame, ends)})
     return {"id": "basin", "heading": "The recovery basin in the CoM plane", "blocks": blocks}
 
 
 def extra_sections(out: str | Path) -> list[dict]:
     """The sections of the result folders inside the report's folder, in a fixed order."""
-    from .landscape import landscape_section
-
     out = Path(out)
     found = [basin_section(out / BASIN_DIR), landscape_section(out / LANDSCAPE_DIR),
              sensitivity_section(out / SENSITIVITY_DIR)]

@@ -22,11 +22,13 @@ import numpy as np
 import pandas as pd
 from markupsafe import Markup
 
-from .. import studies
-from ..outcomes import OUTCOMES, RECOVERED
-from ..params import Config, config_from_dict, with_convention
-from ..sweep.store import write_atomic, write_figure
-from .run import REPORT_JSON, read_record
+from ..studies import catalog as studies
+from ..measures.outcomes import OUTCOMES, RECOVERED
+from ..model.params import Config, config_from_dict, with_convention
+from ..store.folder import write_atomic, write_figure
+from ..studies.experiments import REPORT_JSON, read_record
+from .blocks import img
+from .extra import extra_sections
 
 HTML = "report.html"
 TEMPLATE = "report.html.j2"  # in templates/ (package data)
@@ -118,8 +120,6 @@ def sections(out: str | Path) -> list[tuple[str, str]]:
         ids.append(("conventions", "Side by side: paper vs joint convention"))
     for entry in record["studies"]:
         ids.append((f"study-{entry['key']}", "Study: " + studies.study(entry["key"]).title))
-    from .extra import extra_sections
-
     ids += [(s["id"], s["heading"]) for s in extra_sections(out)]
     return ids
 
@@ -332,7 +332,7 @@ def draw_timeseries(series: pd.DataFrame, figures: Path, convention: str,
                     config: Config | None = None,
                     summary: pd.DataFrame | None = None) -> dict[str, Path]:
     """The time-series figures of one convention, by name (plots.timeseries_figures)."""
-    from .. import plots
+    from ..figures import timeseries as plots
 
     folder = figures / f"timeseries_{convention}"
     return {p.stem: p for p in plots.timeseries_figures(series, folder, config=config,
@@ -346,7 +346,7 @@ def draw_weights(weights: pd.DataFrame, figures: Path, convention: str) -> Path:
 
 def draw_table(table: pd.DataFrame, figures: Path, config: Config) -> Path:
     """The max acting time and energies of one convention's table (region_plots.plot_table)."""
-    from .. import region_plots
+    from ..figures import region as region_plots
 
     convention = config.controller.convention
     return region_plots.plot_table(table, figures / f"table_{convention}.png", config=config)
@@ -361,7 +361,7 @@ def draw_region(region: pd.DataFrame, figures: Path, config: Config,
                 table: pd.DataFrame | None = None) -> tuple[Path, Path]:
     """The outcome map (with the table's max acting time) and the energy map of one
     convention's region."""
-    from .. import region_plots
+    from ..figures import region as region_plots
 
     convention = config.controller.convention
     outcome = region_plots.plot_region(region, region_figure(figures, convention), config=config,
@@ -373,7 +373,7 @@ def draw_region(region: pd.DataFrame, figures: Path, config: Config,
 
 def draw_study(key: str, res: dict, figures: Path) -> list[tuple[Path, str]]:
     """The outcome map of every variant of a study, with its label."""
-    from .. import region_plots
+    from ..figures import region as region_plots
 
     drawn = []
     for variant in res["variants"]:
@@ -387,14 +387,6 @@ def draw_study(key: str, res: dict, figures: Path) -> list[tuple[Path, str]]:
 
 # ---------------------------------------------------------------------------------------------
 # Blocks: what the template draws (templates/report.html.j2); every text is escaped there
-
-
-def _img(path: Path, caption: str = "", alt: str | None = None) -> dict:
-    """A figure block of the PNG at ``path`` (embedded); ``alt`` defaults to the caption, else
-    the file's stem."""
-    data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
-    return {"kind": "figure", "data": data, "caption": caption,
-            "alt": alt or caption or Path(path).stem}
 
 
 def _row(*figures: dict) -> dict:
@@ -593,15 +585,15 @@ def timeseries_section(page: Page, convention: str, res: dict) -> dict:
                 f"T = {page.plan['push_duration']:g} s (shaded), t_end = "
                 f"{cfg.scenario.t_end:g} s; time axes end where the action ends; dashed red: "
                 "the MPC's bounds where they apply."),
-        _row(_img(paths["ankle_angle"], "ankle angle"), _img(paths["hip_angle"], "hip angle")),
-        _img(paths["states"], "MPC states x1, x2 against their bounds"),
-        _img(paths["inputs"], "MPC inputs u1, u2 against their bounds"),
-        _row(_img(paths["phase_ankle"], "ankle phase portrait"),
-             _img(paths["phase_hip"], "hip phase portrait")),
-        _row(_img(paths["cop"], "CoP"), _img(paths["com"], "CoM")),
-        _row(_img(paths["ankle_torque"], "ankle torque"),
-             _img(paths["hip_torque"], "hip torque")),
-        _img(paths["energy"], "cumulative joint energy" + (
+        _row(img(paths["ankle_angle"], "ankle angle"), img(paths["hip_angle"], "hip angle")),
+        img(paths["states"], "MPC states x1, x2 against their bounds"),
+        img(paths["inputs"], "MPC inputs u1, u2 against their bounds"),
+        _row(img(paths["phase_ankle"], "ankle phase portrait"),
+             img(paths["phase_hip"], "hip phase portrait")),
+        _row(img(paths["cop"], "CoP"), img(paths["com"], "CoM")),
+        _row(img(paths["ankle_torque"], "ankle torque"),
+             img(paths["hip_torque"], "hip torque")),
+        img(paths["energy"], "cumulative joint energy" + (
             ": the study's (eq. 20, top) and the motors' (bottom)"
             if convention == "paper" else "")),
         _table(_marked(res["summary"], ENERGY_COLUMNS),
@@ -619,7 +611,7 @@ def weights_section(page: Page, convention: str, res: dict) -> dict:
                 f"T = {plan['push_duration']:g} s; Q = s·I4 for s in "
                 f"{_numbers(plan['q_scales'])} (R default); "
                 f"R = s·diag(1000, 1) for s in {_numbers(plan['r_scales'])} (Q default)."),
-        _img(path, ("the study's energy (eq. 20, top) and the motors' (bottom) per weight "
+        img(path, ("the study's energy (eq. 20, top) and the motors' (bottom) per weight "
                     "setting" if convention == "paper"
                     else "ankle, hip and total energy per weight setting")),
         _para(f"{recovered} of {len(weights)} settings recover; for a push that did not "
@@ -654,7 +646,7 @@ def table_section(page: Page, convention: str, res: dict) -> dict:
                 + f". Sustained-push limit, the largest "
                 f"force held (not fallen) when it pushes for the whole window: "
                 f"{_sustained(res['table'])}."),
-        _img(path, "max acting time and energies"),
+        img(path, "max acting time and energies"),
         _table(_marked(res["table"], ENERGY_01, "outcome_01"),
                shown_columns("table", convention, res["table"]), note_column="note"))
 
@@ -671,7 +663,7 @@ def region_section(page: Page, convention: str, res: dict) -> dict:
                 f"{studies.grid_text(region)}; each sampled (F, T) is one cell (bounds half-way "
                 "between samples, the outer ones on the first and last sample); blue: the "
                 "table's bisected max acting time."),
-        _row(_img(outcome, "outcome map"), _img(energy, "energy of the recovered pushes")),
+        _row(img(outcome, "outcome map"), img(energy, "energy of the recovered pushes")),
         _para(f"Recovered area {numbers['area']:.3g} N·s ({numbers['fraction']:.0%} of the "
               f"grid, {numbers['recovered_cells']} of {numbers['cells']} cells); at T = "
               f"{numbers['t_ref']:g} s the largest recovered force is "
@@ -720,7 +712,7 @@ def conventions_section(page: Page) -> dict:
         summary = mark_outcomes(results[c]["summary"], ["energy_total"])
         outcomes[f"outcome ({c})"] = summary["outcome"].to_numpy()
         outcomes[f"energy_total ({c})"] = summary["energy_total"].to_numpy()
-    images = [_img(region_figure(page.figures, c), f"region map, {c}") for c in convs]
+    images = [img(region_figure(page.figures, c), f"region map, {c}") for c in convs]
     return page.section(
         "conventions",
         _params("Both conventions with the same configuration otherwise; the paper "
@@ -728,7 +720,7 @@ def conventions_section(page: Page) -> dict:
                 "τ1, τ2 on the absolute tilts), the joint convention uses the motor "
                 "torques and joint angles. Bounds apply to each convention's own x and u. "
                 "An energy of a run that did not recover carries its outcome in brackets."),
-        _img(path, "max acting time per force"), _table(merged),
+        img(path, "max acting time per force"), _table(merged),
         {"kind": "heading", "text": f"Time-series pushes (T = {page.plan['push_duration']:g} s)"},
         _table(outcomes),
         _row(*images),
@@ -739,7 +731,7 @@ def conventions_section(page: Page) -> dict:
 def study_section(page: Page, key: str, res: dict) -> dict:
     """A study: every variant's outcome map, the numbers and the reading."""
     st = studies.study(key)
-    images = [_img(path, label) for path, label in draw_study(key, res, page.figures)]
+    images = [img(path, label) for path, label in draw_study(key, res, page.figures)]
     first = next(iter(res["regions"].values()))
     numbers = res["numbers"]
     files = ", ".join(v["file"] for v in res["variants"] if v["file"])
@@ -790,8 +782,6 @@ def build_report(out: str | Path) -> Path:
         body.append(conventions_section(page))
     for key, res in page.results["studies"].items():
         body.append(study_section(page, key, res))
-    from .extra import extra_sections
-
     body += extra_sections(out)  # DIR/landscape, DIR/sensitivity when they hold results
     path = out / HTML
     text = page_html(body, banner(page.record, page.config))

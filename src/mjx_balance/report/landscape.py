@@ -15,8 +15,8 @@ from typing import Any
 
 import pandas as pd
 
-from ..landscape import LANDSCAPE_CSV, LANDSCAPE_PNG, Delay, reading
-from .html import _img
+from ..studies.landscape import LANDSCAPE_CSV, LANDSCAPE_PNG, Delay, reading
+from .blocks import img
 
 SECTION_ID = "landscape"
 HEADING = "The weight landscape: Q and R scales, with and without delay"
@@ -66,7 +66,7 @@ def landscape_section(folder: str | Path) -> dict | None:
                  "like: the mean energy over the pushes that the setting and the base weights "
                  "both recover, as a multiple of the base weights'.")}]
     if (folder / LANDSCAPE_PNG).exists():
-        blocks.append(_img(folder / LANDSCAPE_PNG, "Heatmaps: rows are delay settings, the "
+        blocks.append(img(folder / LANDSCAPE_PNG, "Heatmaps: rows are delay settings, the "
                            "base weights' cell is outlined in red.", alt="weight landscape"))
     table = summary_rows(frame)
     blocks.append({"kind": "table", "header": list(table.columns),

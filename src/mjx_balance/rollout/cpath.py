@@ -54,13 +54,12 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
-from .. import certificate as cert_mod
-from ..model import indices
-from ..params import Config
-from .engine import (Engine, Queue, Slots, _broadcast, certify, checker, empty_finished,
-                     harvest, refill, vacate)
-from .kernel import (Carry, Sample, control, initial_carry, remember, sample_update, select,
-                     state)
+from ..control import certificate as cert_mod
+from ..model.mjcf import indices
+from ..model.params import Config
+from .engine import (Engine, Queue, Slots, broadcast, certify, checker, empty_finished, harvest,
+                     refill, vacate)
+from .kernel import Carry, Sample, control, initial_carry, remember, sample_update, select, state
 from .physics import Sensors, cell_heights, mj_model, mjx, whole_body_com
 
 PATHS = ("auto", "mjx", "c")
@@ -294,7 +293,7 @@ def call(ar, sn, st, cert, cs: CState, floats, ints, *, early: bool):
     rows, last_qpos, refill_cell, refill_force, refill_push, p = unpack(floats, ints, S)
     every = cert_mod.CHECK_EVERY
     check = checker(cert if early else None)
-    rest = _broadcast(initial_carry(ar, sn, st)._replace(d=None), B)
+    rest = broadcast(initial_carry(ar, sn, st)._replace(d=None), B)
     slots = cs.slots
     # 1. the period each busy slot ran since the previous call
     folded = jax.vmap(lambda c, r, q, k, t, u: fold_period(ar, sn, st, c, r, q, k, t, u))(
@@ -376,7 +375,7 @@ class CEngine(Engine):
     def _template(self, arrays) -> CState:
         r = self.runner
         n = self.slots * self.n_devices
-        carry = _broadcast(initial_carry(arrays, r.sensors, r.static)._replace(d=None), n)
+        carry = broadcast(initial_carry(arrays, r.sensors, r.static)._replace(d=None), n)
         slots = Slots(carry=carry, cell=jnp.full(n, -1, jnp.int32), force=jnp.zeros(n, r.dtype),
                       n_push=jnp.zeros(n, jnp.int32), k=jnp.zeros(n, jnp.int32))
         return CState(slots=slots, ran=jnp.zeros(n, bool), torques=jnp.zeros((n, 2), r.dtype),
@@ -393,29 +392,26 @@ class CEngine(Engine):
         argument handling of the latter a large part of the time.)"""
         if self._fn is not None:
             return self._fn
-        from .runner import _COMPILED, MATMUL_PRECISION
-
         t0 = _time.perf_counter()
-        key = self._key()
-        fn = _COMPILED.get(key)
         r = self.runner
-        if fn is None:
-            sn, st, early = r.sensors, r.static, self.cert is not None
+        sn, st, early = r.sensors, r.static, self.cert is not None
+        treedef = self._treedef
 
-            treedef = self._treedef
+        def one(leaves, cs, floats, ints):
+            arrays, cert = jax.tree.unflatten(treedef, leaves)
+            with jax.default_matmul_precision(MATMUL_PRECISION):
+                return call(arrays, sn, st, cert, cs, floats, ints, early=early)
 
-            def one(leaves, cs, floats, ints):
-                arrays, cert = jax.tree.unflatten(treedef, leaves)
-                with jax.default_matmul_precision(MATMUL_PRECISION):
-                    return call(arrays, sn, st, cert, cs, floats, ints, early=early)
-
+        def build():
+            run = one
             if r.mesh is not None:
                 P = jax.sharding.PartitionSpec
-                one = jax.shard_map(one, mesh=r.mesh,
+                run = jax.shard_map(one, mesh=r.mesh,
                                     in_specs=(P(), P("batch"), P("batch"), P("batch")),
                                     out_specs=P("batch"), check_vma=False)
-            fn = jax.jit(one, donate_argnums=(1,))
-            _COMPILED[key] = fn
+            return jax.jit(run, donate_argnums=(1,))
+
+        fn = get_or_compile(self._key(), build)
         state = self._state if self._state is not None else self._initial_state()
         n = self.slots * self.n_devices
         floats, ints = pack(np.zeros((n, r.static.substeps, ROW)), np.zeros((n, self.c.nq)),

@@ -31,9 +31,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import certificate as cert_mod
-from .._xla import deterministic_flags
-from .runner import MATMUL_PRECISION
+from ..control import certificate as cert_mod
+from ..runtime.xla import deterministic_flags
+from ..runtime.compiled import get_or_compile
 from .kernel import Accumulators, Arrays, Carry, initial_carry, period, select, start
 from .physics import whole_body_com
 
@@ -82,7 +82,7 @@ class Packing:
         return jax.tree.unflatten(self.treedef, leaves)
 
 
-def _broadcast(tree, n):
+def broadcast(tree, n):
     return jax.tree.map(lambda v: jnp.broadcast_to(v, (n,) + jnp.shape(v)), tree)
 
 
@@ -161,7 +161,7 @@ def vacate(decided, rest: Carry, carry: Carry, slots: Slots, k) -> Slots:
 def empty_finished(capacity: int, dtype) -> Finished:
     return Finished(
         cell=jnp.full(capacity, -1, jnp.int32),
-        acc=_broadcast(Accumulators.initial(dtype), capacity),
+        acc=broadcast(Accumulators.initial(dtype), capacity),
         periods=jnp.zeros(capacity, jnp.int32), certified=jnp.zeros(capacity, bool))
 
 
@@ -188,7 +188,7 @@ def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push
     R = refill_cell.shape[0]
     dtype = ar.d0.qpos.dtype
     single = initial_carry(ar, sn, st)
-    rest = _broadcast(single, S)
+    rest = broadcast(single, S)
     starts = jax.vmap(lambda init: start(ar, sn, single, init))(refill_init)
     run = jax.vmap(lambda c, k, f, n: period(ar, sn, st, c, k, f, n)[0])
     every = cert_mod.CHECK_EVERY
@@ -279,7 +279,7 @@ class Engine:
         platform = (jax.local_devices()[0] if runner.mesh is None else devices[0]).platform
         if platform == "cpu" and not deterministic_flags():
             warnings.warn("JAX started before mjx_balance could set its XLA options "
-                          "(mjx_balance._xla): results may depend on the slot a scenario ran "
+                          "(mjx_balance.runtime.xla): results may depend on the slot a scenario ran "
                           "in; import mjx_balance before running anything with JAX",
                           stacklevel=3)
         self.slots = int(slots or default_slots(platform))
@@ -321,38 +321,35 @@ class Engine:
         finished), sharded over the runner's devices."""
         if self._fn is not None:
             return self._fn
-        from .runner import _COMPILED
-
         t0 = _time.perf_counter()
-        key = self._key()
-        fn = _COMPILED.get(key)
-        if fn is None:
-            r = self.runner
-            sn, st, periods, early = r.sensors, r.static, self.block, self.cert is not None
-            packing = self.packing
+        r = self.runner
+        sn, st, periods, early = r.sensors, r.static, self.block, self.cert is not None
+        packing = self.packing
 
-            def call(arrays, cert, slots, cell, force, push, init):
-                return block(arrays, sn, st, cert, slots, cell, force, push, init,
-                             periods=periods, early=early, packing=packing)
+        def call(arrays, cert, slots, cell, force, push, init):
+            return block(arrays, sn, st, cert, slots, cell, force, push, init,
+                         periods=periods, early=early, packing=packing)
 
+        def build():
+            run = call
             if r.mesh is not None:
                 P = jax.sharding.PartitionSpec
-                call = jax.shard_map(call, mesh=r.mesh,
-                                     in_specs=(P(), P(), P("batch"), P("batch"), P("batch"),
-                                               P("batch"), P("batch")),
-                                     out_specs=P("batch"), check_vma=False)
+                run = jax.shard_map(call, mesh=r.mesh,
+                                    in_specs=(P(), P(), P("batch"), P("batch"), P("batch"),
+                                              P("batch"), P("batch")),
+                                    out_specs=P("batch"), check_vma=False)
             slots = jax.eval_shape(self._vacant, r.arrays)
             split, _ = r._shardings()
             spec = (lambda a: jax.ShapeDtypeStruct(a.shape, a.dtype, sharding=split))
             n = self.refill * self.n_devices
-            with jax.default_matmul_precision(MATMUL_PRECISION):
-                fn = jax.jit(call, donate_argnums=(2,)).lower(
-                    r.arrays, self.cert, jax.tree.map(spec, slots),
-                    jax.ShapeDtypeStruct((n,), jnp.int32, sharding=split),
-                    jax.ShapeDtypeStruct((n,), r.dtype, sharding=split),
-                    jax.ShapeDtypeStruct((n,), jnp.int32, sharding=split),
-                    jax.ShapeDtypeStruct((n, 4), r.dtype, sharding=split)).compile()
-            _COMPILED[key] = fn
+            return jax.jit(run, donate_argnums=(2,)).lower(
+                r.arrays, self.cert, jax.tree.map(spec, slots),
+                jax.ShapeDtypeStruct((n,), jnp.int32, sharding=split),
+                jax.ShapeDtypeStruct((n,), r.dtype, sharding=split),
+                jax.ShapeDtypeStruct((n,), jnp.int32, sharding=split),
+                jax.ShapeDtypeStruct((n, 4), r.dtype, sharding=split)).compile()
+
+        fn = get_or_compile(self._key(), build)
         self.compile_seconds = _time.perf_counter() - t0
         self._fn = fn
         return fn
@@ -362,7 +359,7 @@ class Engine:
         shapes share the compiled function, in the process and in the persistent cache)."""
         r = self.runner
         n = self.slots * self.n_devices
-        carry = _broadcast(initial_carry(arrays, r.sensors, r.static), n)
+        carry = broadcast(initial_carry(arrays, r.sensors, r.static), n)
         return Slots(carry=self.packing.pack(carry), cell=jnp.full(n, -1, jnp.int32),
                      force=jnp.zeros(n, r.dtype), n_push=jnp.zeros(n, jnp.int32),
                      k=jnp.zeros(n, jnp.int32))

@@ -36,11 +36,11 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .. import admm as admm_mod
-from .. import linear as linear_mod
-from .. import offset_free as offset_free_mod
-from .. import outcomes
-from ..outcomes import Limits
+from ..control import admm as admm_mod
+from ..model import linear as linear_mod
+from ..control import offset_free as offset_free_mod
+from ..measures import outcomes
+from ..measures.outcomes import Limits
 from .physics import Sensors, advance, cell_heights, load_cell_cop, mjx, step, whole_body_com
 
 

@@ -43,8 +43,8 @@ import numpy as np
 with contextlib.redirect_stdout(io.StringIO()):
     from mujoco import mjx
 
-from ..model import indices, mjcf
-from ..params import Config
+from ..model.mjcf import indices, mjcf
+from ..model.params import Config
 
 MJX_OPTIONS: dict[str, Any] = {
     "solver": int(mujoco.mjtSolver.mjSOL_NEWTON),

@@ -22,17 +22,18 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
-from .. import admm as admm_mod
-from .. import outcomes
-from .. import offset_free
-from ..linear import S as JOINT_TO_ABS
-from ..linear import delay_predictor
-from ..metrics import study_energies
-from ..outcomes import FELL, RECOVERED, Limits, summary_frame
-from ..params import Config
-from ..qp import build_qp
+from ..control import admm as admm_mod
+from ..measures import outcomes
+from ..control import offset_free
+from ..model.linear import S as JOINT_TO_ABS
+from ..model.linear import delay_predictor
+from ..measures.metrics import study_energies
+from ..measures.outcomes import FELL, RECOVERED, Limits, summary_frame
+from ..model.params import Config
+from ..control.qp import build_qp
+from ..runtime.compiled import MATMUL_PRECISION, get_or_compile
 from .kernel import Accumulators, Arrays, Static, scenario
-from ..model import settled_rest
+from ..model.mjcf import settled_rest
 from .physics import mj_model, mjx_model, rest_data, sensors
 
 
@@ -44,16 +45,6 @@ def push_steps(durations: np.ndarray, physics_dt: float) -> np.ndarray:
 def _bucket(n: int, minimum: int = 8) -> int:
     """Padded batch size: the next power of two (>= minimum), so few sizes are compiled."""
     return max(minimum, 1 << max(0, math.ceil(math.log2(max(n, 1)))))
-
-
-# Float32 products in full float32 precision: on NVIDIA GPUs JAX's default is TF32 (a 10-bit
-# mantissa), with which the ADMM stops converging (measured on an H100: 99.3 iterations per
-# control period at the 100 cap, against 34.5 on the CPU) and the physics drifts.
-MATMUL_PRECISION = "highest"
-
-# Compiled batch functions shared by every BatchRunner of this process, keyed by
-# BatchRunner._shape_key (all that is baked into the executable).
-_COMPILED: dict[tuple, Any] = {}
 
 
 class BatchRunner:
@@ -185,19 +176,15 @@ class BatchRunner:
 
         The model, QP and ADMM data are traced arguments, so configurations of equal shapes
         (another body, convention or weights; the same horizon, delay, t_end, ADMM
-        settings, thresholds and bounds, which are static) share one compiled function (:data:`_COMPILED`)."""
+        settings, thresholds and bounds, which are static) share one compiled function (``runtime.compiled``)."""
         fn = self._compiled_fns.get(batch)
         if fn is None:
             t0 = _time.perf_counter()
-            key = self._shape_key(batch)
-            fn = _COMPILED.get(key)
-            if fn is None:
-                split, whole = self._shardings()
-                force = jax.ShapeDtypeStruct((batch,), self.dtype, sharding=split)
-                n_push = jax.ShapeDtypeStruct((batch,), jnp.int32, sharding=split)
-                with jax.default_matmul_precision(MATMUL_PRECISION):
-                    fn = self._batched().lower(self.arrays, force, n_push).compile()
-                _COMPILED[key] = fn
+            split, _ = self._shardings()
+            force = jax.ShapeDtypeStruct((batch,), self.dtype, sharding=split)
+            n_push = jax.ShapeDtypeStruct((batch,), jnp.int32, sharding=split)
+            fn = get_or_compile(self._shape_key(batch),
+                          lambda: self._batched().lower(self.arrays, force, n_push).compile())
             self.compile_seconds[batch] = _time.perf_counter() - t0
             self._compiled_fns[batch] = fn
         return fn

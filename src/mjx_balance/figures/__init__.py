@@ -1,0 +1,8 @@
+"""Floor 8, figures: matplotlib figures drawn from saved tables, one module per family.
+
+    timeseries.py  a push's time series (angles, torques, CoP, CoM)
+    region.py      the region map, the energy map, the robustness table's figure
+    animation.py   the stick-figure GIF of one push
+
+Each function draws on the Axes it is given (or a new figure) and returns the Figure.
+"""

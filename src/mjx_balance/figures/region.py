@@ -1,0 +1,499 @@
+"""Figures of sweep results (matplotlib, Agg): the recoverable region, its energy, the table curve.
+
+All are drawn from saved tables (``region.parquet``, ``table.csv``). Each figure has a function
+that draws it on a matplotlib ``Axes`` (``ax=None``: a new figure) and returns the ``Figure``,
+so a notebook composes them, and a ``plot_*`` function that saves it to a file:
+
+region_map / plot_region     outcome of every cell over force x duration, one colour per outcome
+                             (the legend lists every outcome class with its count), the recovery
+                             boundary on the grid, the bisected max acting time (table.csv) when
+                             given or found beside the figure, lines of constant impulse F*T and
+                             optional reference points
+energy_map / plot_energy     total joint energy of the recovered cells (log colour scale); the
+                             cells that did not recover are grey, their energy is not shown
+table_figure / plot_table    max acting time against force, and the energies of the recovered
+                             runs at 0.1 s and at the max acting time
+
+Cells (:func:`cell_bounds`). Each sampled (F, T) is drawn as one cell around its sample: the
+bound between two neighbouring samples is their midpoint (on a log axis their geometric mean),
+and the outer bounds are the first and last samples themselves, so the map covers exactly the
+sampled range [min, max] of each axis (the same cells as the recovered area of
+``studies.region_numbers``) and nothing outside it is painted. Only an axis with a single
+sample, which has no neighbour to take a width from, gets a band of +-5 % of its value (at
+least 0.01), clipped at 0 when the value is >= 0. The duration axis is logarithmic when the
+durations span more than a decade (all > 0 and max / min > 10).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
+from matplotlib.ticker import FuncFormatter  # noqa: E402
+
+from ..measures.outcomes import OUTCOMES, RECOVERED  # noqa: E402
+from ..model.params import Config, ParameterError  # noqa: E402
+from ..store.folder import TABLE, write_figure  # noqa: E402
+
+RECOVERED_TEXT = OUTCOMES[RECOVERED]
+
+OUTCOME_COLOURS = {
+    "recovered": "#4daf4a",
+    "not_settled": "#ffd92f",
+    "fell": "#e41a1c",
+    "diverged": "#3a3a3a",
+}
+OUTCOME_LABELS = {
+    "recovered": "recovered",
+    "not_settled": "not settled by t_end",
+    "fell": "fell",
+    "diverged": "diverged",
+}
+CONVENTION_TEXT = {
+    "paper": "paper convention (x = [q1, q2, dq1, dq2], u = [τ1, τ2])",
+    "joint": "joint convention (x = [q_a, q_h, dq_a, dq_h], u = [τ_ankle, τ_hip])",
+}
+FORCE_LABEL = "push force F [N]  (+ forward)"
+DURATION_LABEL = "push duration T [s]"
+LOG_SPAN = 10.0  # a duration axis spanning more than this ratio (a decade) is logarithmic
+
+
+def _minor_log_label(value: float, _pos=None) -> str:
+    """Label the 2 and 5 minor ticks of a log axis in plain numbers (none else)."""
+    if not value > 0:
+        return ""
+    mantissa = round(value / 10 ** np.floor(np.log10(value)), 6)
+    return f"{value:g}" if mantissa in (2.0, 5.0) else ""
+
+
+def _plain_log_labels(axis) -> None:
+    """Plain numbers on a log axis: every decade, and the 2 and 5 between."""
+    axis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+    axis.set_minor_formatter(FuncFormatter(_minor_log_label))
+
+
+SAMPLE_DOTS = 400  # grids with at most this many cells show a dot on every sample
+
+
+def _save(fig, path: str | Path, dpi: int) -> None:
+    """Write the figure atomically (the file is whole or absent), then close it."""
+    try:
+        write_figure(fig, path, dpi=dpi)
+    finally:
+        plt.close(fig)
+
+
+def _axes(ax, figsize):
+    """(figure, axes): the given axes and its figure, or a new figure."""
+    if ax is None:
+        fig, ax = plt.subplots(figsize=figsize, layout="constrained")
+    return ax.figure, ax
+
+
+def load_reference(path: str | Path) -> pd.DataFrame:
+    """Reference points to draw over the region map: a CSV with columns force, duration
+    (an optional column ``label`` names the source in the legend)."""
+    path = Path(path)
+    try:
+        frame = pd.read_csv(path)
+    except FileNotFoundError:
+        raise ParameterError(f"reference points file not found: {path}") from None
+    except Exception as exc:  # noqa: BLE001
+        raise ParameterError(f"{path}: not a readable CSV ({exc})") from None
+    frame.columns = [str(c).strip().lower() for c in frame.columns]
+    missing = [c for c in ("force", "duration") if c not in frame]
+    if missing:
+        raise ParameterError(f"{path}: needs columns force, duration; missing {', '.join(missing)}")
+    values = frame[["force", "duration"]].apply(pd.to_numeric, errors="coerce")
+    if values.isna().any().any() or len(values) == 0:
+        raise ParameterError(f"{path}: force and duration must be numbers (and at least one row)")
+    frame[["force", "duration"]] = values
+    return frame
+
+
+def log_durations(durations) -> bool:
+    """Whether a duration axis is drawn logarithmic: every duration > 0 and max / min > 10."""
+    d = np.asarray(durations, dtype=float)
+    return bool(d.size > 1 and d.min() > 0 and d.max() / d.min() > LOG_SPAN)
+
+
+def cell_bounds(values, log: bool = False) -> np.ndarray:
+    """Cell bounds of sampled values (n + 1 for n distinct values, ascending).
+
+    Between two neighbouring samples the bound is their midpoint (``log``: their geometric
+    mean); the outer bounds are the first and last samples themselves (nothing beyond the
+    sampled range). A single sample gets v +- max(5 % of |v|, 0.01) (``log``: v / 1.1 .. v * 1.1),
+    clipped at 0 when v >= 0.
+    """
+    values = np.unique(np.asarray(values, dtype=float))
+    if values.size == 0:
+        raise ValueError("no values")
+    if values.size == 1:
+        v = values[0]
+        if log and v > 0:
+            return np.array([v / 1.1, v * 1.1])
+        half = max(0.05 * abs(v), 0.01)
+        low = max(v - half, 0.0) if v >= 0 else v - half
+        return np.array([low, v + half])
+    if log:
+        mid = np.sqrt(values[1:] * values[:-1])
+    else:
+        mid = 0.5 * (values[1:] + values[:-1])
+    return np.concatenate([[values[0]], mid, [values[-1]]])
+
+
+def _pivot(region: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    forces = np.sort(region["force"].unique())
+    durations = np.sort(region["duration"].unique())
+    table = region.pivot(index="duration", columns="force", values=column)
+    table = table.reindex(index=durations, columns=forces)
+    return forces, durations, table.to_numpy()
+
+
+def recovery_boundary(region: pd.DataFrame) -> pd.DataFrame:
+    """Per force, the longest grid duration up to which every grid duration recovered
+    (0 if the shortest fails), and whether a longer duration recovers again (not monotone)."""
+    rows = []
+    for force, group in region.sort_values("duration").groupby("force"):
+        ok = (group["outcome"] == RECOVERED_TEXT).to_numpy()
+        durations = group["duration"].to_numpy()
+        first_fail = int(np.argmin(ok)) if not ok.all() else ok.size
+        rows.append({"force": force,
+                     "boundary": durations[first_fail - 1] if first_fail else 0.0,
+                     "first_failure": durations[first_fail] if first_fail < ok.size else np.nan,
+                     "monotone": not ok[first_fail:].any()})
+    return pd.DataFrame(rows)
+
+
+def _title(kind: str, config: Config | None, region: pd.DataFrame) -> str:
+    convention = config.controller.convention if config else str(region["convention"].iloc[0])
+    t_end = f", recovery within t_end = {config.scenario.t_end:g} s" if config else ""
+    return f"{kind}\n{CONVENTION_TEXT.get(convention, convention)}{t_end}"
+
+
+def _grid_text(forces: np.ndarray, durations: np.ndarray) -> str:
+    return (f"grid: {forces.size} forces {forces.min():g}..{forces.max():g} N x "
+            f"{durations.size} durations {durations.min():g}..{durations.max():g} s")
+
+
+def duration_axis(ax, durations: np.ndarray, bounds: np.ndarray, log: bool) -> None:
+    if log:
+        ax.set_yscale("log")
+        _plain_log_labels(ax.yaxis)
+    ax.set_ylim(bounds[0], bounds[-1])
+    ax.set_ylabel(DURATION_LABEL + ("  (log scale)" if log else ""))
+
+
+def _nice_impulses(low: float, high: float, count: int = 4) -> list[float]:
+    """Up to ``count`` round impulses (1, 2, 5 x 10^k N s) strictly inside (low, high),
+    spread evenly on a log scale."""
+    if not (low > 0 and high > low):
+        return []
+    candidates = [m * 10.0 ** k for k in range(int(np.floor(np.log10(low))) - 1,
+                                                int(np.ceil(np.log10(high))) + 1)
+                  for m in (1, 2, 5)]
+    inside = [c for c in candidates if low * 1.05 < c < high / 1.05]
+    if len(inside) <= count:
+        return inside
+    picks = np.unique(np.round(np.linspace(0, len(inside) - 1, count)).astype(int))
+    return [inside[i] for i in picks]
+
+
+def _impulse_lines(ax, fx: np.ndarray, dy: np.ndarray, log: bool) -> list[float]:
+    """Labelled lines of constant impulse |F| T over the map; returns the impulses drawn."""
+    f_abs = np.abs(fx)
+    f_low = max(f_abs.min() if (fx.min() > 0 or fx.max() < 0) else 0.0, 0.1 * f_abs.max())
+    t_low, t_high = max(dy[0], 1e-9), dy[-1]
+    impulses = _nice_impulses(f_low * t_low, f_abs.max() * t_high)
+    if not impulses:
+        return []
+    f = np.linspace(fx[0], fx[-1], 400)
+    t = np.geomspace(t_low, t_high, 300) if log else np.linspace(dy[0], dy[-1], 300)
+    grid_f, grid_t = np.meshgrid(f, t)
+    lines = ax.contour(grid_f, grid_t, np.abs(grid_f) * grid_t, levels=impulses, colors="0.15",
+                       linestyles="dashed", linewidths=0.9, alpha=0.8)
+    name = "|F|·T" if fx[0] < 0 else "F·T"
+    ax.clabel(lines, fmt=lambda v: f"{name} = {v:g} N·s", fontsize=7, inline=True)
+    return impulses
+
+
+def _table_beside(path: str | Path, region: pd.DataFrame) -> pd.DataFrame | None:
+    """table.csv in the figure's folder (a sweep folder), if it is of the region's convention."""
+    candidate = Path(path).parent / TABLE
+    if not candidate.exists():
+        return None
+    try:
+        table = pd.read_csv(candidate)
+    except Exception:  # noqa: BLE001 - a damaged table is not drawn
+        return None
+    if "convention" in table and "convention" in region and len(table) and len(region):
+        if str(table["convention"].iloc[0]) != str(region["convention"].iloc[0]):
+            return None
+    return table if {"force", "max_acting_time"} <= set(table.columns) else None
+
+
+def region_map(region: pd.DataFrame, *, config: Config | None = None,
+               reference: pd.DataFrame | None = None, table: pd.DataFrame | None = None,
+               impulses: bool = True, ax=None):
+    """Draw the outcome map of ``region`` on ``ax`` (None: a new figure); returns the Figure.
+
+    Cells as in :func:`cell_bounds` (the axes' limits are the grid's cell bounds), coloured by
+    outcome; the legend names every outcome class with its number of cells (0 included). The
+    black step line is the recovery boundary on the grid (the top of each force's first
+    recovered range of durations); ``table`` (table.csv) adds the bisected max acting time of
+    its forces. ``impulses`` draws labelled lines of constant impulse F T.
+    """
+    forces, durations, outcome = _pivot(region, "outcome")
+    codes = np.full(outcome.shape, np.nan)
+    for code, name in enumerate(OUTCOMES):
+        codes[outcome == name] = code
+    cmap = ListedColormap([OUTCOME_COLOURS[name] for name in OUTCOMES]).with_extremes(bad="white")
+    norm = BoundaryNorm(np.arange(len(OUTCOMES) + 1) - 0.5, cmap.N)
+    log = log_durations(durations)
+    fx, dy = cell_bounds(forces), cell_bounds(durations, log)
+
+    fig, ax = _axes(ax, (8.5, 7.5))
+    ax.pcolormesh(fx, dy, np.ma.masked_invalid(codes), cmap=cmap, norm=norm, shading="flat")
+    ax.set_xlim(fx[0], fx[-1])
+    duration_axis(ax, durations, dy, log)
+    handles: list = []
+    if forces.size * durations.size <= SAMPLE_DOTS:
+        grid_f, grid_d = np.meshgrid(forces, durations)
+        ax.plot(grid_f.ravel(), grid_d.ravel(), ".", color="0.1", ms=5, alpha=0.7,
+                clip_on=False, zorder=3)
+        handles.append(Line2D([], [], ls="", marker=".", color="0.1", ms=5,
+                              label="sampled (F, T): one cell each"))
+
+    # Boundary on the grid: a step line along the top of each force's first recovered range.
+    boundary = recovery_boundary(region).set_index("force").reindex(forces)
+    d_index = {d: i for i, d in enumerate(durations)}
+    tops = np.array([dy[d_index[b] + 1] if b in d_index else dy[0]
+                     for b in boundary["boundary"].to_numpy()])
+    (line,) = ax.plot(np.repeat(fx, 2)[1:-1], np.repeat(tops, 2), color="black", lw=2.0,
+                      label="recovery boundary on the grid")
+    handles.append(line)
+    if not boundary["monotone"].all():
+        odd = boundary.index[~boundary["monotone"].to_numpy()]
+        (mark,) = ax.plot(odd, np.full(odd.size, dy[-1]), "v", color="black", ms=6,
+                          clip_on=False, label="recovers again beyond a failure (not monotone)")
+        handles.append(mark)
+    if table is not None and len(table):
+        handles += _table_overlay(ax, table, fx, dy)
+    if impulses:
+        drawn = _impulse_lines(ax, fx, dy, log)
+        if drawn:
+            handles.append(Line2D([], [], color="0.15", ls="--", lw=0.9,
+                                  label="constant impulse " + ("|F|·T" if fx[0] < 0 else "F·T")
+                                  + " [N·s]"))
+    if reference is not None and len(reference):
+        label = str(reference["label"].iloc[0]) if "label" in reference else "reference points"
+        (ref,) = ax.plot(reference["force"], reference["duration"], "o", mfc="white", mec="black",
+                         mew=1.5, ms=6, label=label)
+        handles.append(ref)
+
+    counts = region["outcome"].value_counts()
+    outcome_handles = [Patch(facecolor=OUTCOME_COLOURS[n], edgecolor="0.3", lw=0.5,
+                             label=f"{OUTCOME_LABELS[n]} ({counts.get(n, 0)})")
+                       for n in OUTCOMES]
+    ax.set_xlabel(FORCE_LABEL)
+    ax.set_title(_title("Outcome of a push (F, T) from upright rest", config, region)
+                 + "\n" + _grid_text(forces, durations), fontsize=9)
+    ax.legend(handles=outcome_handles + handles, loc="upper center",
+              bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8, frameon=False,
+              title=f"{len(region)} cells by outcome (count)", title_fontsize=8)
+    return fig
+
+
+def _table_overlay(ax, table: pd.DataFrame, fx: np.ndarray, dy: np.ndarray) -> list:
+    """The bisected max acting time of the table's forces inside the map's force range."""
+    t = table.sort_values("force")
+    force = t["force"].to_numpy(dtype=float)
+    tmax = t["max_acting_time"].to_numpy(dtype=float)
+    inside = (force >= fx[0]) & (force <= fx[-1]) & np.isfinite(tmax)
+    if not inside.any():
+        return []
+    force, tmax = force[inside], tmax[inside]
+    shown = (tmax >= dy[0]) & (tmax <= dy[-1])
+    handles = []
+    if shown.any():
+        (curve,) = ax.plot(force[shown], tmax[shown], "o-", color="#1f3fbf", mfc="white",
+                           mew=1.5, ms=5, lw=1.5,
+                           label="max acting time, bisected to 0.01 s (table.csv)")
+        handles.append(curve)
+    below = tmax < dy[0]
+    if below.any():
+        (low,) = ax.plot(force[below], np.full(below.sum(), dy[0]), "v", color="#1f3fbf", ms=7,
+                         clip_on=False, label="max acting time below the grid (table.csv)")
+        handles.append(low)
+    above = tmax > dy[-1]
+    if above.any():
+        (high,) = ax.plot(force[above], np.full(above.sum(), dy[-1]), "^", color="#1f3fbf",
+                          ms=7, clip_on=False, label="max acting time above the grid (table.csv)")
+        handles.append(high)
+    return handles
+
+
+def plot_region(region: pd.DataFrame, path: str | Path, *, config: Config | None = None,
+                reference: pd.DataFrame | None = None,
+                table: pd.DataFrame | None = None) -> Path:
+    """Save the outcome map (:func:`region_map`) as ``path``. ``table`` None: the table.csv in
+    the folder of ``path`` is drawn when there is one (of the same convention)."""
+    if table is None:
+        table = _table_beside(path, region)
+    fig = region_map(region, config=config, reference=reference, table=table)
+    _save(fig, path, dpi=130)
+    return Path(path)
+
+
+def energy_map(region: pd.DataFrame, *, config: Config | None = None, ax=None):
+    """Draw the total joint energy (∫|τ_ankle dq_a| + |τ_hip dq_h| dt) of the recovered cells on
+    ``ax`` (None: a new figure), log colour scale; the cells that did not recover are grey and
+    their energy is not drawn. Cells as in :func:`cell_bounds`. Returns the Figure."""
+    recovered = region.assign(energy=np.where(region["outcome"] == RECOVERED_TEXT,
+                                              region["energy_total"], np.nan))
+    forces, durations, energy = _pivot(recovered, "energy")
+    log = log_durations(durations)
+    fx, dy = cell_bounds(forces), cell_bounds(durations, log)
+    fig, ax = _axes(ax, (8.5, 6.5))
+    ax.set_facecolor("#bdbdbd")
+    positive = energy[np.isfinite(energy) & (energy > 0)]
+    vmin = None
+    if positive.size:
+        vmax = positive.max()
+        vmin = max(positive.min(), vmax * 1e-4)
+        if vmin >= vmax:
+            vmin = vmax / 10
+        cmap = plt.get_cmap("viridis").with_extremes(under="white")
+        mesh = ax.pcolormesh(fx, dy, np.ma.masked_invalid(energy), cmap=cmap,
+                             norm=LogNorm(vmin=vmin, vmax=vmax), shading="flat")
+        fig.colorbar(mesh, ax=ax, label="total joint energy [J]  (ankle + hip, ∫|τ·dq/dt| dt)")
+    not_recovered = int((region["outcome"] != RECOVERED_TEXT).sum())
+    handles = [Patch(facecolor="#bdbdbd", edgecolor="0.3", lw=0.5,
+                     label=f"not recovered ({not_recovered} cells): energy not shown")]
+    if vmin is not None and np.nanmin(energy) < vmin:
+        handles.append(Patch(facecolor="white", edgecolor="black", lw=0.5,
+                             label=f"< {vmin:.2g} J (about 0, e.g. F = 0)"))
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), fontsize=8,
+              frameon=False, ncol=2)
+    ax.set_xlabel(FORCE_LABEL)
+    ax.set_xlim(fx[0], fx[-1])
+    duration_axis(ax, durations, dy, log)
+    ax.set_title(_title("Joint energy of the recovered pushes", config, region)
+                 + "\n" + _grid_text(forces, durations), fontsize=9)
+    return fig
+
+
+def plot_energy(region: pd.DataFrame, path: str | Path, *, config: Config | None = None) -> Path:
+    """Save the energy map (:func:`energy_map`) as ``path``."""
+    _save(energy_map(region, config=config), path, dpi=130)
+    return Path(path)
+
+
+def table_figure(table: pd.DataFrame, *, config: Config | None = None, axes=None):
+    """Max acting time against force (``axes[0]``) and the energies of the recovered runs of
+    the table (``axes[1]``); ``axes`` None: a new figure. Returns the Figure.
+
+    Energies are drawn only for runs that recovered (table.csv leaves the others NaN; an
+    older table's ``_01`` energies of a run that did not recover are left out by its
+    ``outcome_01``); the forces whose T = 0.1 s push did not recover are marked on the axis."""
+    table = table.sort_values("force")
+    t_end = config.scenario.t_end if config else None
+    if axes is None:
+        fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.8), layout="constrained")
+    else:
+        ax, ax2 = axes
+        fig = ax.figure
+    force = table["force"].to_numpy(dtype=float)
+    tmax = table["max_acting_time"].to_numpy(dtype=float)
+    monotone = table["monotone"].astype(str).str.lower().isin(["true", "1"]).to_numpy()
+    full = np.isfinite(tmax) & (t_end is not None) & np.isclose(tmax, t_end if t_end else -1)
+    zero = np.isfinite(tmax) & (tmax <= 0)
+    regular = np.isfinite(tmax) & ~full & ~zero
+
+    floor = 0.005
+    ax.plot(force[np.isfinite(tmax) & ~zero], tmax[np.isfinite(tmax) & ~zero], "-", color="C0",
+            lw=1, alpha=0.6)
+    window = (table["ending_outcome"].astype(str) == "not_settled").to_numpy() & regular
+    ax.plot(force[regular & monotone & ~window], tmax[regular & monotone & ~window], "o",
+            color="C0", label="max acting time")
+    if (window & monotone).any():
+        ax.plot(force[window & monotone], tmax[window & monotone], "s", mfc="white", mec="C0",
+                mew=1.5, label="max acting time (longer pushes do not settle by t_end)")
+    if (regular & ~monotone).any():
+        ax.plot(force[regular & ~monotone], tmax[regular & ~monotone], "o", mfc="white", mec="C3",
+                mew=1.5, label="not monotone (recovers again later)")
+    if full.any():
+        ax.plot(force[full], tmax[full], "^", color="C2", ms=8,
+                label=f"recovers for every T up to t_end = {t_end:g} s")
+    if zero.any():
+        ax.plot(force[zero], np.full(zero.sum(), floor), "x", color="C3", ms=8,
+                label="fails at the shortest push (0.01 s)")
+    shown = tmax[np.isfinite(tmax) & (tmax > 0)]
+    if zero.any() or (shown.size and shown.max() / shown.min() > 30):
+        ax.set_yscale("log")  # from 0.01 s to t_end: a log axis keeps both ends readable
+        _plain_log_labels(ax.yaxis)
+    else:
+        ax.set_ylim(0, 1.1 * shown.max() if shown.size else 1.0)
+    ax.set_xlabel("push force F [N]")
+    ax.set_ylabel("max acting time [s]  (resolution 0.01 s)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(f"Longest push that still recovers ({force.size} forces)", fontsize=10)
+
+    recovered_01 = (table["outcome_01"].astype(str) == RECOVERED_TEXT).to_numpy()
+    convention = config.controller.convention if config else str(table["convention"].iloc[0])
+    # the paper convention headlines the study's energy (eq. 20, docs/model.md), the motors'
+    # absolute work beside it in grey; the joint convention, the motors' alone
+    study = convention == "paper" and "study_energy_total_max" in table
+    lines = [("energy_total_01", "s-", "total, T = 0.1 s", {}),
+             ("energy_total_max", "o-", "total, T = max acting time", {}),
+             ("energy_ankle_max", ".--", "ankle, T = max acting time", {}),
+             ("energy_hip_max", ".:", "hip, T = max acting time", {})]
+    if study:
+        grey = {"color": "0.55", "lw": 1, "ms": 4}
+        lines = [("study_energy_total_01", "s-", "study's total, T = 0.1 s", {}),
+                 ("study_energy_total_max", "o-", "study's total, T = max acting time", {}),
+                 ("study_energy_u1_max", ".--", "study's (τ1, q1), T = max acting time", {}),
+                 ("study_energy_u2_max", ".:", "study's (τ2, q2), T = max acting time", {}),
+                 ("energy_total_01", "s-", "motors' total ∫|τ·dq/dt|, T = 0.1 s",
+                  {**grey, "mfc": "white"}),
+                 ("energy_total_max", "o-", "motors' total ∫|τ·dq/dt|, T = max acting time",
+                  grey)]
+    for column, style, label, options in lines:
+        values = table[column].to_numpy(dtype=float)
+        ok = np.isfinite(values) & (values > 0)
+        if column.endswith("_01"):
+            ok &= recovered_01  # energies of pushes that did not recover are not plotted
+        if ok.any():
+            ax2.plot(force[ok], values[ok], style, label=label, **options)
+    failed_01 = ~recovered_01 & (table["outcome_01"].astype(str) != "")
+    if failed_01.any():
+        ax2.plot(force[failed_01], np.zeros(failed_01.sum()), "x", color="C3", ms=8, mew=2,
+                 transform=ax2.get_xaxis_transform(), clip_on=False,
+                 label="T = 0.1 s did not recover: energy not shown")
+    ax2.set_yscale("log")
+    _plain_log_labels(ax2.yaxis)
+    ax2.set_xlabel("push force F [N]")
+    ax2.set_ylabel("joint energy [J]  (study's eq. 20: |∫τ_i dq_i|; grey: ∫|τ·dq/dt| dt)"
+                   if study else "joint energy [J]  (∫|τ·dq/dt| dt)")
+    ax2.grid(True, which="both", alpha=0.3)
+    ax2.legend(fontsize=7 if study else 8)
+    ax2.set_title("Energy of the recovered runs"
+                  + (": the study's (eq. 20), the motors' in grey" if study else ""), fontsize=10)
+    fig.suptitle(f"Robustness table — {CONVENTION_TEXT.get(convention, convention)}", fontsize=11)
+    return fig
+
+
+def plot_table(table: pd.DataFrame, path: str | Path, *, config: Config | None = None) -> Path:
+    """Save the table's figure (:func:`table_figure`) as ``path``."""
+    _save(table_figure(table, config=config), path, dpi=130)
+    return Path(path)

@@ -1,0 +1,225 @@
+"""Measurements of one closed-loop run from MuJoCo C data, and its summary row (numpy).
+
+The scalar reference (``reference.py``) samples a run with the functions of the first section
+and turns the sample series into one summary row with :func:`summarize`; the outcome rules
+(fall, settle band, saturation, classification) are those of ``outcomes.py``, shared with the
+batched closed loop.
+
+Samples. Metrics are evaluated after every physics step i = 0..n-1, at time t = (i+1) dt. Joint
+angles, foot pose, load-cell heights and the CoM are those of the state at t (the reference
+refreshes positions with ``mj_kinematics`` + ``mj_comPos`` after ``mj_step``); the load-cell
+forces are the contact forces that acted during step i (as ``mj_step`` leaves them in ``data``).
+Everything is accumulated up to and including the first fall sample and nothing after it;
+control periods count if their control instant lies before the fall sample's time.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from . import outcomes
+from .outcomes import DIVERGED, FELL, OUTCOMES, RECOVERED, Limits
+from ..model.params import ControllerParams, ScenarioParams
+
+
+# --- measurements from MuJoCo C data -------------------------------------------------------
+
+def load_cell_cop(model: mujoco.MjModel, data: mujoco.MjData,
+                  cell_geoms: tuple[int, ...]) -> tuple[float, float]:
+    """(CoP x, total normal force) from the contacts that involve a load-cell geom.
+
+    CoP = sum F_i x_i / sum F_i (the study's eq. 18), F_i the contact normal force
+    (``mj_contactForce``, first component of the contact frame), x_i the contact point's world x.
+    NaN when the load cells carry no load (sum F_i <= 0).
+    """
+    cells = set(cell_geoms)
+    wrench = np.zeros(6)
+    moment = 0.0
+    total = 0.0
+    for i in range(data.ncon):
+        contact = data.contact[i]
+        if contact.geom1 in cells or contact.geom2 in cells:
+            mujoco.mj_contactForce(model, data, i, wrench)
+            moment += wrench[0] * contact.pos[0]
+            total += wrench[0]
+    return (moment / total if total > 0 else math.nan), total
+
+
+def whole_body_com(data: mujoco.MjData, foot_body: int) -> float:
+    """Horizontal CoM of the whole body (the foot's subtree), world x (the study's eq. 19)."""
+    return float(data.subtree_com[foot_body, 0])
+
+
+def cell_heights(model: mujoco.MjModel, data: mujoco.MjData,
+                 cell_geoms: tuple[int, ...]) -> np.ndarray:
+    """Lowest point (centre z - radius) of each load-cell sphere [4]."""
+    cells = list(cell_geoms)
+    return data.geom_xpos[cells, 2] - model.geom_size[cells, 0]
+
+
+# --- rules over a series ----------------------------------------------------------------
+
+def settle_time(time: np.ndarray, q: np.ndarray, dq: np.ndarray, limits: Limits) -> float:
+    """Time of the last sample outside the settle band (0.0 if never outside)."""
+    outside = ~outcomes.in_settle_band(np, np.asarray(q), np.asarray(dq), limits)
+    if not outside.any():
+        return 0.0
+    return float(np.asarray(time)[np.flatnonzero(outside)[-1]])
+
+
+def saturation_fractions(u: np.ndarray, limits: Limits) -> tuple[float, float]:
+    """Fraction of control periods with each input at a bound (outcomes.at_input_bound).
+    u: [K, 2]; NaN when K = 0."""
+    u = np.asarray(u, float).reshape(-1, 2)
+    if u.shape[0] == 0:
+        return math.nan, math.nan
+    at_bound = outcomes.at_input_bound(np, u, limits)
+    return float(np.mean(at_bound[:, 0])), float(np.mean(at_bound[:, 1]))
+
+
+# --- the summary row -----------------------------------------------------------------------
+
+def study_energies(work_u1, work_u2) -> dict[str, Any]:
+    """The study's joint energy (its eq. 20, docs/model.md) from the signed work of the
+    convention's pairs, W_i = sum u_i Δx_i (∫ u_i dx_i): ``work_u1``, ``work_u2`` themselves,
+    ``study_energy_u1/u2`` = |W_i| (a recovery's signed work is negative; the study reports its
+    magnitude) and ``study_energy_total`` = |W_1| + |W_2|. Floats or numpy arrays (summary
+    columns of the reference and of the batched paths alike)."""
+    e1, e2 = abs(work_u1), abs(work_u2)
+    return {"work_u1": work_u1, "work_u2": work_u2, "study_energy_u1": e1,
+            "study_energy_u2": e2, "study_energy_total": e1 + e2}
+
+
+def increments(initial: np.ndarray, series: np.ndarray) -> np.ndarray:
+    """Per-sample increments of ``series`` [n, ...] starting from ``initial`` [...]."""
+    return np.diff(np.concatenate([np.asarray(initial)[None], series]), axis=0)
+
+
+def _nanmax_abs(values: np.ndarray) -> float:
+    values = np.abs(np.asarray(values, float))
+    values = values[np.isfinite(values)]
+    return float(values.max()) if values.size else math.nan
+
+
+def _finite_min_max(values: np.ndarray) -> tuple[float, float]:
+    values = np.asarray(values, float)
+    values = values[np.isfinite(values)]
+    if not values.size:
+        return math.nan, math.nan
+    return float(values.min()), float(values.max())
+
+
+def summarize(*, force: float, duration: float, convention: str,
+              scenario: ScenarioParams, controller: ControllerParams,
+              time: np.ndarray, q: np.ndarray, dq: np.ndarray, x: np.ndarray,
+              foot_pitch: np.ndarray, cell_low_z: np.ndarray, cop: np.ndarray, com: np.ndarray,
+              tau: np.ndarray, u: np.ndarray, q0: np.ndarray, x0: np.ndarray,
+              u_control: np.ndarray, converged: np.ndarray, residual: np.ndarray,
+              completed: bool, diverged: bool = False,
+              infeasible: np.ndarray | None = None) -> dict[str, Any]:
+    """The per-scenario summary row (keys = SUMMARY_COLUMNS) from the sample series.
+
+    Sample series (one entry per physics step, time = (i+1) dt): time [n]; q, dq [n, 2] joint
+    angles/rates; x [n, 4] the convention state; foot_pitch [n]; cell_low_z [n, 4]; cop, com [n]
+    (cop NaN where the load cells carry nothing); tau [n, 2] motor torques and u [n, 2] the
+    convention's input held during step i. q0 [2], x0 [4]: the state at t = 0.
+    Control series (one entry per control instant k, t_k = k control_dt): u_control [K, 2] the
+    clipped input; converged [K] bool; residual [K] primal residual; infeasible [K] bool, the
+    period's QP found infeasible (None: never).
+    completed: the series reach t_end (False when the caller stopped early at a fall or a
+    non-finite value). Series may run past a fall; they are cut at the first fall sample.
+    """
+    time = np.asarray(time, float)
+    q, dq, x = np.asarray(q, float), np.asarray(dq, float), np.asarray(x, float)
+    tau, u = np.asarray(tau, float), np.asarray(u, float)
+    n = time.shape[0]
+
+    finite = (np.isfinite(q).all(axis=-1) & np.isfinite(dq).all(axis=-1)
+              & np.isfinite(tau).all(axis=-1) & np.isfinite(x).all(axis=-1))
+    diverged = bool(diverged or not finite.all()
+                    or not np.isfinite(np.asarray(u_control, float)).all())
+
+    limits = Limits.from_params(scenario, controller)
+    excess = outcomes.bound_excess(np, x, limits) if n else np.zeros(0)  # [n]
+    flags = outcomes.falls(np, np.asarray(foot_pitch, float), np.asarray(cell_low_z, float),
+                           excess, q[:, 0], limits) if n else np.zeros(0, bool)
+    fell = bool(flags.any())
+    end = int(np.flatnonzero(flags)[0]) + 1 if fell else n  # samples kept: [0, end)
+    fall_time = float(time[end - 1]) if fell else math.nan
+
+    # control periods whose instant precedes the last kept sample's time
+    n_ctrl = len(u_control)
+    if fell:
+        n_ctrl = min(n_ctrl, int(math.ceil(fall_time / scenario.control_dt - 1e-9)))
+    u_control = np.asarray(u_control, float)[:n_ctrl]
+    converged = np.asarray(converged, bool)[:n_ctrl]
+    residual = np.asarray(residual, float)[:n_ctrl]
+    infeasible = (np.zeros(n_ctrl, bool) if infeasible is None
+                  else np.asarray(infeasible, bool)[:n_ctrl])
+    first_infeasible = (float(np.flatnonzero(infeasible)[0] * scenario.control_dt)
+                        if infeasible.any() else math.nan)
+
+    sl = slice(0, end)
+    dq_step = increments(q0, q)[sl]
+    dx_step = increments(x0, x)[sl]
+    tau_k, u_k = tau[sl], u[sl]
+    power_ankle = tau_k[:, 0] * dq_step[:, 0]
+    power_hip = tau_k[:, 1] * dq_step[:, 1]
+    power_u = u_k * dx_step[:, :2]  # the convention's pairs (u_i, x_i)
+
+    settled = bool(completed and n and outcomes.in_settle_band(np, q[-1:], dq[-1:], limits)[0])
+    code = int(outcomes.classify(np, diverged, fell, settled and not fell))
+    if code == DIVERGED:
+        cause = outcomes.NON_FINITE
+    elif code == FELL:
+        cause = int(outcomes.fall_cause(np, np.asarray(foot_pitch, float)[end - 1],
+                                        np.asarray(cell_low_z, float)[end - 1], excess[end - 1],
+                                        q[end - 1, 0], limits))
+    else:
+        cause = outcomes.NO_CAUSE
+    settle = settle_time(time, q, dq, limits) if code == RECOVERED else math.nan
+
+    saturation_ankle, saturation_hip = saturation_fractions(u_control, limits)
+    cop_min, cop_max = _finite_min_max(np.asarray(cop, float)[sl])
+    com_min, com_max = _finite_min_max(np.asarray(com, float)[sl])
+    energy_ankle = float(np.nansum(np.abs(power_ankle)))
+    energy_hip = float(np.nansum(np.abs(power_hip)))
+    excess = excess[sl]
+    excess = excess[np.isfinite(excess)]
+    res = residual[np.isfinite(residual)]
+    return {
+        "force": float(force),
+        "duration": float(duration),
+        "convention": convention,
+        "outcome": OUTCOMES[code],
+        "settle_time": settle,
+        "fall_time": fall_time if code == FELL else math.nan,
+        "peak_ankle": _nanmax_abs(q[sl, 0]),
+        "peak_hip": _nanmax_abs(q[sl, 1]),
+        "peak_foot_pitch": _nanmax_abs(np.asarray(foot_pitch, float)[sl]),
+        "cop_min": cop_min,
+        "cop_max": cop_max,
+        "com_min": com_min,
+        "com_max": com_max,
+        "peak_tau_ankle": _nanmax_abs(tau_k[:, 0]),
+        "peak_tau_hip": _nanmax_abs(tau_k[:, 1]),
+        "ankle_saturation_fraction": saturation_ankle,
+        "hip_saturation_fraction": saturation_hip,
+        "energy_ankle": energy_ankle,
+        "energy_hip": energy_hip,
+        "energy_total": energy_ankle + energy_hip,
+        "work_ankle": float(np.nansum(power_ankle)),
+        "work_hip": float(np.nansum(power_hip)),
+        "energy_u1": float(np.nansum(np.abs(power_u[:, 0]))),
+        "energy_u2": float(np.nansum(np.abs(power_u[:, 1]))),
+        **study_energies(float(np.nansum(power_u[:, 0])), float(np.nansum(power_u[:, 1]))),
+        "nonconverged_solves": int(np.count_nonzero(~converged)),
+        "max_residual": float(res.max()) if res.size else math.nan,
+        "max_bound_violation": float(excess.max()) if excess.size else 0.0,
+        "fall_cause": outcomes.FALL_CAUSES[cause],
+        "first_infeasible_time": first_infeasible,
+    }

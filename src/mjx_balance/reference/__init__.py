@@ -1,0 +1,10 @@
+"""Floor 4, reference: the scalar closed loop, one scenario at a time (MuJoCo C physics, the MPC
+solved by OSQP), and its time series and summary (``loop.py``). The batched paths are tested
+against it.
+"""
+
+from .loop import (TIMESERIES_COLUMNS, push_wrench, reference_mpc, simulate_many,
+                   simulate_scenario, timeseries_frame)
+
+__all__ = ["TIMESERIES_COLUMNS", "push_wrench", "reference_mpc", "simulate_many",
+           "simulate_scenario", "timeseries_frame"]

@@ -1,0 +1,138 @@
+"""How many scenarios go into one batch call: the memory budget, power-of-two chunk sizes."""
+
+from __future__ import annotations
+
+import math
+
+from ..model.params import Config, ParameterError
+
+
+def scenario_bytes(config: Config, dtype_bytes: int = 4) -> int:
+    """Rough device memory of one scenario in a batched rollout [bytes].
+
+    Counts the per-scenario arrays that live through the rollout: the MJX data of the five-dof,
+    four-contact model (about 4000 numbers: positions, velocities, mass matrix, contact Jacobians
+    and constraint rows, body frames) and the ADMM iterates and warm start (about 8 vectors of the
+    QP size n + m), times a factor of 16 for XLA's temporaries inside one physics step and one
+    ADMM iteration, which the scan keeps alive at once. The estimate only has to be right to a
+    factor of a few: chunks sized from it use a fraction of the budget.
+    """
+    n = 2 * config.controller.horizon
+    m = 6 * config.controller.horizon
+    numbers = 4000 + 8 * (n + m) + 2 * n * n  # n^2: per-scenario factor slices in some solvers
+    return int(numbers * dtype_bytes * 16)
+
+
+def memory_budget() -> int:
+    """Bytes a chunk may use: a quarter of the device memory (GPU) or of the free RAM (CPU)."""
+    try:
+        import jax
+
+        device = jax.devices()[0]
+        stats = device.memory_stats() if device.platform != "cpu" else None
+        if stats and "bytes_limit" in stats:
+            return int(0.25 * (stats["bytes_limit"] - stats.get("bytes_in_use", 0)))
+    except Exception:  # noqa: BLE001 - no device information: fall back to host memory
+        pass
+    try:
+        with open("/proc/meminfo") as fh:
+            info = {line.split(":")[0]: int(line.split()[1]) * 1024 for line in fh}
+        return int(0.25 * info.get("MemAvailable", info["MemTotal"]))
+    except (OSError, KeyError, ValueError):
+        return 1 << 30
+
+
+def _is_cpu() -> bool:
+    try:
+        import jax
+
+        return jax.default_backend() == "cpu"
+    except Exception:  # noqa: BLE001
+        return True
+
+
+# On a CPU the throughput stops growing beyond batches of a few dozen scenarios (compare
+# `mjx-balance bench --chunk N --reference 0 --ipopt 0` for N = 8, 64, 256), and a smaller
+# chunk shows progress sooner and loses less when interrupted.
+CPU_CHUNK_CAP = 128
+ACCELERATOR_CHUNK_CAP = 16384
+
+
+def batch_limit(config: Config) -> int:
+    """Most scenarios per batch call: what fits the memory budget, capped (CPU_CHUNK_CAP)."""
+    fit = max(1, memory_budget() // scenario_bytes(config))
+    return min(fit, CPU_CHUNK_CAP if _is_cpu() else ACCELERATOR_CHUNK_CAP)
+
+
+def default_chunk_size(config: Config, n_cells: int) -> int:
+    """Scenarios per chunk file: a power of two within ``batch_limit``, see
+    ``power_of_two_chunk``. (The engine streams every chunk through one queue of fixed slots,
+    so the chunk size only sets how much a killed sweep loses; batch functions that run fixed
+    batches are padded to it.)"""
+    return power_of_two_chunk(n_cells, batch_limit(config))
+
+
+def power_of_two_chunk(n_cells: int, limit: int, minimum: int = 64, waste: float = 0.1) -> int:
+    """The largest power of two c (minimum <= c <= limit, as far as possible) whose chunks,
+    all padded to c, evaluate at most ``(1 + waste) * n_cells`` scenarios; if none does, the
+    one that wastes least."""
+    limit = max(1, int(limit))
+    sizes = [1 << e for e in range(0, max(1, limit).bit_length()) if (1 << e) <= limit]
+    small = 1 << max(3, math.ceil(math.log2(max(n_cells, 1))))  # a batch as small as the grid
+    sizes = [c for c in sizes if c >= min(minimum, small, sizes[-1])]
+    cost = {c: math.ceil(n_cells / c) * c for c in sizes}
+    good = [c for c in sizes if cost[c] <= (1 + waste) * n_cells]
+    return max(good) if good else min(sizes, key=lambda c: (cost[c], -c))
+
+
+def chunk_slices(n_cells: int, chunk_size: int) -> list[slice]:
+    """Consecutive slices of size chunk_size (the last may be shorter) covering range(n_cells)."""
+    if chunk_size < 1:
+        raise ParameterError(f"chunk size must be >= 1, got {chunk_size}")
+    return [slice(i, min(i + chunk_size, n_cells)) for i in range(0, n_cells, chunk_size)]
+
+
+# The guard on enormous work (issue 11). The rate is the engine's throughput measured on the
+# 2-core CPU of this project with two host devices, counted in scenario windows (a scenario
+# stops when decided, so what it simulates depends on the grid): 88-94 scenarios of 12 s per
+# second on the benchmark's mix (`mjx-balance bench`, 1024 scenarios) to 113-130 on the dense
+# study map (`mjx-balance sweep --sweep region_dense_paper`: 15,200 cells in
+# 117-135 s), BENCHMARKS.md. A GPU is far faster (the estimate is then pessimistic: --yes).
+SIMULATED_SECONDS_PER_SECOND = (88 * 12.0, 130 * 12.0)
+# Disk per scenario in a chunk file: a 64-row chunk parquet of the default sweep is 23 kB
+# (365 bytes a row; the merged region.parquet holds the same rows again).
+CHUNK_BYTES_PER_SCENARIO = 400
+MAX_PLANNED_SCENARIOS = 2_000_000  # more than this needs --yes
+MAX_PLANNED_HOURS = 24.0  # an estimate (at the slower rate) beyond this needs --yes
+
+
+def _wall_time(seconds: float) -> str:
+    """A duration in the unit that reads best (s, min or h)."""
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:,.1f} h"
+
+
+def planned_work(n_scenarios: int, t_end: float, chunk_size: int, what: str = "cells") -> str:
+    """One line: scenarios, chunks, simulated time, estimated wall time and disk."""
+    simulated = n_scenarios * t_end
+    longest, shortest = (simulated / rate for rate in SIMULATED_SECONDS_PER_SECOND)
+    disk = 2 * n_scenarios * CHUNK_BYTES_PER_SCENARIO  # chunks + the merged table
+    low, high = SIMULATED_SECONDS_PER_SECOND
+    return (f"planned work: {n_scenarios:,} {what} in {math.ceil(n_scenarios / chunk_size):,} "
+            f"chunks of {chunk_size}, {simulated:,.0f} s of scenario windows, about "
+            f"{_wall_time(shortest)} to {_wall_time(longest)} at {low:g}-{high:g} window-s/s "
+            f"(2-core CPU, BENCHMARKS.md; compile not included), about {disk / 1e6:.3g} MB on disk")
+
+
+def check_planned_work(n_scenarios: int, t_end: float, what: str = "cells") -> None:
+    """Refuse work above MAX_PLANNED_SCENARIOS or MAX_PLANNED_HOURS (ParameterError, one line
+    saying how to go ahead anyway: --yes)."""
+    hours = n_scenarios * t_end / SIMULATED_SECONDS_PER_SECOND[0] / 3600
+    if n_scenarios > MAX_PLANNED_SCENARIOS or hours > MAX_PLANNED_HOURS:
+        raise ParameterError(
+            f"{n_scenarios:,} {what} of {t_end:g} s (up to {hours:,.1f} h on a 2-core CPU) is "
+            f"beyond the limit of {MAX_PLANNED_SCENARIOS:,} {what} or {MAX_PLANNED_HOURS:g} h; "
+            "use a coarser grid, or pass --yes to run it anyway")

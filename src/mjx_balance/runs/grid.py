@@ -1,0 +1,148 @@
+"""Grids of forces and durations: parsing, checks, and the cells of a force x duration grid."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..model.params import ParameterError
+from ..store.folder import GRID_TOL, same_values  # noqa: F401 - grids compare as the store does
+
+
+
+
+
+def parse_grid(spec: str | float | Sequence[float], name: str = "grid") -> np.ndarray:
+    """Values of a grid: ``"start:stop:step"`` (stop included when it lands on the grid, up to
+    float error), a comma list ``"a,b,c"``, a number or a list of numbers.
+
+    Returns the values sorted ascending (float64). Raises ParameterError for an empty grid, a
+    non-finite value, a step <= 0, a repeated value or text that is not a number.
+    """
+    if isinstance(spec, str):
+        text = spec.strip()
+        if not text:
+            raise ParameterError(f"{name}: empty grid")
+        if ":" in text:
+            values = _parse_range(text, name)
+        else:
+            values = [_number(item, name) for item in text.split(",") if item.strip()]
+    elif isinstance(spec, (int, float)) and not isinstance(spec, bool):
+        values = [float(spec)]
+    elif isinstance(spec, (list, tuple, np.ndarray)):
+        values = [_number(item, name) for item in spec]
+    else:
+        raise ParameterError(f"{name} = {spec!r}: must be 'start:stop:step', a comma list or numbers")
+    values = np.asarray(values, dtype=np.float64)
+    if values.size == 0:
+        raise ParameterError(f"{name}: empty grid")
+    if not np.all(np.isfinite(values)):
+        raise ParameterError(f"{name}: every value must be finite, got {values[~np.isfinite(values)][:3]}")
+    values = np.sort(values)
+    repeated = values[1:][np.diff(values) == 0]
+    if repeated.size:
+        raise ParameterError(f"{name}: value {repeated[0]:g} appears more than once")
+    return values
+
+
+def _number(item: Any, name: str) -> float:
+    if isinstance(item, bool):
+        raise ParameterError(f"{name}: {item!r} is not a number")
+    try:
+        return float(item.strip() if isinstance(item, str) else item)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name}: {item!r} is not a number") from None
+
+
+def _parse_range(text: str, name: str) -> list[float]:
+    parts = text.split(":")
+    if len(parts) != 3:
+        raise ParameterError(f"{name} = {text!r}: a range is start:stop:step")
+    start, stop, step = (_number(p, name) for p in parts)
+    if not all(math.isfinite(v) for v in (start, stop, step)):
+        raise ParameterError(f"{name} = {text!r}: start, stop and step must be finite")
+    if step <= 0:
+        raise ParameterError(f"{name} = {text!r}: step must be > 0")
+    if stop < start:
+        raise ParameterError(f"{name} = {text!r}: empty grid (stop < start)")
+    count = math.floor((stop - start) / step + 1e-9) + 1
+    if count > 10_000_000:
+        raise ParameterError(f"{name} = {text!r}: {count} values is too many")
+    values = start + step * np.arange(count)
+    # Remove float error (0.1 * 3 = 0.30000000000000004) without moving any real grid value.
+    return [float(v) for v in np.round(values, 12)]
+
+
+STEP_TOL = 1e-6  # how far from a whole number of physics steps a duration may sit (in steps)
+
+
+def check_whole_steps(durations: Sequence[float], physics_dt: float,
+                      name: str = "durations") -> np.ndarray:
+    """Durations must be whole numbers of physics steps (the push acts for whole steps, so any
+    other value would be rounded silently), up to float error (STEP_TOL steps); returns them
+    snapped to the whole steps (0.10000000001 -> 0.1 at 0.002 s), sorted as given.
+
+    Raises ParameterError naming the first offending value and its two nearest valid values, or
+    a value that appears twice once snapped.
+    """
+    durations = np.asarray(durations, dtype=np.float64)
+    steps = durations / physics_dt
+    off = np.abs(steps - np.round(steps)) > STEP_TOL
+    if np.any(off):
+        bad = float(durations[off][0])
+        below = math.floor(bad / physics_dt) * physics_dt
+        raise ParameterError(
+            f"{name}: push duration {bad!r} s is not a whole number of physics steps "
+            f"(scenario.physics_dt = {physics_dt:g} s); nearest valid values: "
+            f"{round(below, 12):g} or {round(below + physics_dt, 12):g} s")
+    snapped = np.round(np.round(steps) * physics_dt, 12)
+    values, counts = np.unique(snapped, return_counts=True)
+    if np.any(counts > 1):
+        raise ParameterError(f"{name}: push duration {values[counts > 1][0]:g} s appears more "
+                             "than once (up to float error)")
+    return snapped
+
+
+def check_durations(durations: np.ndarray, t_end: float, name: str = "durations",
+                    physics_dt: float | None = None) -> np.ndarray:
+    """Durations must lie in [0, t_end] (t_end = scenario.t_end) and, given physics_dt, be whole
+    physics steps (check_whole_steps: then returned snapped to them); returns them."""
+    if physics_dt is not None:
+        durations = check_whole_steps(durations, physics_dt, name)
+    if np.any(durations < 0):
+        raise ParameterError(f"{name}: push durations must be >= 0, got {durations.min():g}")
+    if np.any(durations > t_end + GRID_TOL):
+        raise ParameterError(
+            f"{name}: push durations must not exceed scenario.t_end = {t_end:g} s, "
+            f"got {durations.max():g}")
+    return durations
+
+
+MAX_CELLS = 100_000_000  # cells of one grid, even with --yes: its cell arrays alone are 1.6 GB
+
+
+def check_cell_count(n_forces: int, n_durations: int) -> int:
+    """The number of cells of a grid, refused (ParameterError) above MAX_CELLS before any array
+    of cells is built."""
+    n_cells = int(n_forces) * int(n_durations)
+    if n_cells > MAX_CELLS:
+        raise ParameterError(
+            f"{n_forces:,} forces x {n_durations:,} durations = {n_cells:,} cells is more than "
+            f"one grid may hold ({MAX_CELLS:,}); use coarser steps")
+    return n_cells
+
+
+def grid_cells(forces: np.ndarray, durations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """All (force, duration) cells, force-major: [F0 d0, F0 d1, ..., F1 d0, ...]."""
+    check_cell_count(np.size(forces), np.size(durations))
+    f, d = np.meshgrid(forces, durations, indexing="ij")
+    return f.ravel(), d.ravel()
+
+
+def describe(values: Sequence[float]) -> str:
+    values = list(values)
+    if len(values) <= 4:
+        return ",".join(f"{v:g}" for v in values)
+    return f"{values[0]:g}..{values[-1]:g} ({len(values)} values)"

@@ -1,0 +1,9 @@
+"""Floor 0, runtime: what every run needs before any model exists.
+
+    xla.py       the XLA flags that make results schedule-independent (set before JAX starts)
+    cache.py     JAX's persistent compilation cache (folder, on/off)
+    compiled.py  the process-wide cache of compiled batch functions: the one compile path
+    version.py   the installed package's version
+
+Nothing here imports JAX or MuJoCo at import time.
+"""

@@ -1,0 +1,49 @@
+"""The process-wide cache of compiled batch functions: one place that compiles and keeps them.
+
+Every compiled program of the batched closed loop (the padded batch of ``rollout.runner``, the
+engine's block of ``rollout.engine``, the C path's period call of ``rollout.cpath``) is kept here
+under a key of everything baked into it (tree structure, shapes and dtypes, static settings,
+batch or slot count, devices, x64), so that runners of equal shapes share one executable. JAX's
+persistent cache (``runtime.cache``) keeps them across processes.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any, Callable
+
+# Float32 products in full float32 precision: on NVIDIA GPUs JAX's default is TF32 (a 10-bit
+# mantissa), with which the ADMM stops converging (measured on an H100: 99.3 iterations per
+# control period at the 100 cap, against 34.5 on the CPU) and the physics drifts.
+MATMUL_PRECISION = "highest"
+
+_COMPILED: dict[tuple, Any] = {}
+_LOCK = threading.Lock()
+
+
+def get_or_compile(key: tuple, build: Callable[[], Any]) -> Any:
+    """The function compiled for ``key``, built by ``build()`` on the first request only.
+
+    ``build`` runs under full float32 matmul precision (:data:`MATMUL_PRECISION`)."""
+    with _LOCK:
+        fn = _COMPILED.get(key)
+    if fn is None:
+        import jax  # lazy: this floor loads before the XLA flags are set
+
+        with jax.default_matmul_precision(MATMUL_PRECISION):
+            fn = build()
+        with _LOCK:
+            fn = _COMPILED.setdefault(key, fn)
+    return fn
+
+
+def is_compiled(key: tuple) -> bool:
+    """Whether a function for ``key`` is in the cache."""
+    with _LOCK:
+        return key in _COMPILED
+
+
+def clear() -> None:
+    """Forget every compiled function (tests; the persistent cache is untouched)."""
+    with _LOCK:
+        _COMPILED.clear()

@@ -1,0 +1,270 @@
+"""Several configurations on one grid (``mjx-balance compare``, :func:`run_compare`).
+
+Each configuration gets a sweep folder ``OUT/<name>/`` with its region map and its table (the
+sweep's and the table's own resumable store, so a rerun computes only what is missing), then
+``OUT/compare.csv`` holds one row per configuration (:func:`numbers`) and ``OUT/compare.png``
+draws every configuration's recovery boundary on one force x duration plane
+(:func:`plot_compare`).
+
+Numbers of a configuration:
+
+area, fraction, recovered_cells, cells, t_ref, f_max_ref, rest_recovered
+    of its region map (``studies.region_numbers``: area in N s over the grid's cells)
+mean_recovery_energy
+    the mean total joint energy [J] of its recovered cells
+sustained_push_limit
+    the largest force held for the whole window (table.csv, ``acting_time.sustained_push_limit``)
+max_acting_time_<F>N
+    the max acting time [s] at each table force
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+import pandas as pd
+
+from . import catalog as studies
+from ..model.params import Config, ParameterError, load_config, read_toml
+from ..runs.definitions import load_sweep
+from ..runs.grid import check_durations, describe, parse_grid, same_values
+from ..store.folder import REGION, TABLE, OutputFolder, config_dict, config_differences
+from ..runs.folders import run_region, run_table_folder
+
+COMPARE_CSV = "compare.csv"
+COMPARE_PNG = "compare.png"
+RESERVED = (COMPARE_CSV, COMPARE_PNG)  # names a configuration's folder cannot take
+
+
+def names_for(paths: Sequence[str | Path]) -> list[str]:
+    """A folder name per configuration file: its stem (characters other than letters, digits,
+    '.', '_' and '-' replaced), made unique with -2, -3, ... (also against compare.csv and
+    compare.png, the comparison's own files)."""
+    names: list[str] = []
+    for path in paths:
+        stem = re.sub(r"[^A-Za-z0-9._-]", "_", Path(path).stem).strip(".") or "config"
+        name, n = stem, 1
+        while name in names or name in RESERVED:
+            n += 1
+            name = f"{stem}-{n}"
+        names.append(name)
+    return names
+
+
+def check_names(names: Sequence[str]) -> None:
+    """Names given to configurations (``mb.compare`` with a dict) must be usable folder names
+    in OUT, distinct from each other and from the comparison's own files."""
+    seen: set[str] = set()
+    for name in names:
+        if (not name or name in (".", "..") or "/" in name or "\\" in name
+                or name != name.strip()):
+            raise ParameterError(f"configuration name {name!r} is not a folder name (letters, "
+                                 "digits, '.', '_', '-'; no path separators)")
+        if name in RESERVED:
+            raise ParameterError(f"configuration name {name!r} is taken by the comparison's "
+                                 "own output file")
+        if name.lower() in seen:  # a case-insensitive filesystem would merge them
+            raise ParameterError(f"configuration name {name!r} is given twice")
+        seen.add(name.lower())
+
+
+def load_configs(paths: Sequence[str | Path]) -> dict[str, Config]:
+    """name -> configuration of every file (ParameterError naming the file that is wrong, or
+    a file given twice: its map would be computed twice)."""
+    if not paths:
+        raise ParameterError("compare needs at least one configuration (--config FILE)")
+    seen: dict[Path, str | Path] = {}
+    for path in paths:
+        key = Path(path).resolve()
+        if key in seen:
+            also = f" (also as {seen[key]})" if str(seen[key]) != str(path) else ""
+            raise ParameterError(f"{path}: this configuration file is given twice{also}; give "
+                                 "each configuration once")
+        seen[key] = path
+    configs = {}
+    for name, path in zip(names_for(paths), paths):
+        try:
+            configs[name] = load_one(path)
+        except ParameterError as exc:
+            raise ParameterError(f"{path}: {exc}") from None
+    return configs
+
+
+def load_one(path: str | Path) -> Config:
+    """A configuration file's configuration, or a sweep definition's (a file with a [sweep]
+    table: its grid is not used, the comparison has its own)."""
+    if "sweep" in read_toml(Path(path)):
+        return load_sweep(path, Config()).config
+    return load_config(path)
+
+
+def check_folder(folder: Path, name: str, config: Config, forces: np.ndarray,
+                 durations: np.ndarray) -> None:
+    """Refuse, before any configuration runs, a folder OUT/<name> left by another
+    configuration or holding a region map over another grid (the sweep itself would refuse
+    it, but only once the configurations before it had run)."""
+    folder_ = OutputFolder(folder, config)
+    try:
+        manifest = folder_.read_manifest()
+    except ParameterError as exc:
+        raise ParameterError(f"configuration {name!r}: {exc}") from None
+    if manifest is None:
+        return
+    differences = config_differences(manifest.get("config", {}), config_dict(config))
+    if differences:
+        raise ParameterError(
+            f"configuration {name!r}: {folder} was made with a different configuration; use "
+            "another --out folder or the same configuration. Differences: "
+            + "; ".join(differences[:6]) + (" ..." if len(differences) > 6 else ""))
+    recorded = manifest.get("region")
+    if recorded is not None and not (same_values(recorded["forces"], forces)
+                                     and same_values(recorded["durations"], durations)):
+        raise ParameterError(
+            f"configuration {name!r}: {folder} holds a sweep over another grid (forces "
+            f"{describe(recorded['forces'])}, durations {describe(recorded['durations'])}); "
+            "use another --out folder or the same grid")
+
+
+def numbers(region: pd.DataFrame, table: pd.DataFrame | None) -> dict[str, float]:
+    """The comparison's numbers of one configuration (module docstring)."""
+    row: dict[str, float] = dict(studies.region_numbers(region))
+    recovered = region[studies.is_recovered(region)]
+    row["mean_recovery_energy"] = (float(recovered["energy_total"].mean()) if len(recovered)
+                                   else float("nan"))
+    row["sustained_push_limit"] = float("nan")
+    if table is not None and len(table):
+        if "sustained_push_limit" in table:
+            row["sustained_push_limit"] = float(table["sustained_push_limit"].iloc[0])
+        for force, t in zip(table["force"], table["max_acting_time"]):
+            row[f"max_acting_time_{force:g}N"] = float(t)
+    return row
+
+
+def run_compare(out: str | Path, configs: dict[str, Config], forces: Any, durations: Any,
+                table_forces: Any, *, run_batches: dict[str, Any] | None = None,
+                progress: bool = False, log: Callable[[str], None] | None = print,
+                **engine: Any) -> pd.DataFrame:
+    """Every configuration's region map and table in ``out/<name>/``, then compare.csv and
+    compare.png in ``out``; returns the comparison (one row per configuration, in order).
+
+    forces, durations, table_forces: grids (``parse_grid``); every duration must fit every
+    configuration's window (checked for all before anything runs). run_batches: a batch
+    function per name (tests); engine: ``slots``, ``full_length``, ``physics``, ``cluster``
+    for ``runs.folders.run_region`` / ``run_table_folder``."""
+    say = log or (lambda _msg: None)
+    out = Path(out)
+    forces = parse_grid(forces, "forces")
+    durations = parse_grid(durations, "durations")
+    table_forces = parse_grid(table_forces, "table forces")
+    check_names(list(configs))
+    for name, config in configs.items():  # every grid check before any work
+        try:
+            check_durations(durations, config.scenario.t_end,
+                            physics_dt=config.scenario.physics_dt)
+        except ParameterError as exc:
+            raise ParameterError(f"configuration {name!r}: {exc}") from None
+        check_folder(out / name, name, config, forces, durations)
+    cluster = engine.get("cluster")
+    if isinstance(cluster, str):  # one connection for every configuration's work
+        from ..runs import cluster as cluster_mod
+
+        client, local = cluster_mod.connect(cluster, say)
+        try:
+            return run_compare(out, configs, forces, durations, table_forces,
+                               run_batches=run_batches, progress=progress, log=log,
+                               **{**engine, "cluster": client})
+        finally:
+            cluster_mod.close(client, local, owned=True)
+    windows = {name: config.scenario.t_end for name, config in configs.items()}
+    if len(set(windows.values())) > 1:
+        say("note: the configurations' windows differ ("
+            + ", ".join(f"{n}: {t:g} s" for n, t in windows.items()) + "); 'recovered' and "
+            "the sustained-push limit are judged over each one's own window")
+    regions, tables, rows = {}, {}, []
+    for name, config in configs.items():
+        folder = out / name
+        say(f"compare: {name} ({config.controller.convention} convention) -> {folder}")
+        batch = (run_batches or {}).get(name)
+        run_region(folder, config, forces, durations, run_batch=batch, progress=progress,
+                       **engine)
+        run_table_folder(folder, config, table_forces, run_batch=batch, progress=progress,
+                             **engine)
+        regions[name] = pd.read_parquet(folder / REGION)
+        tables[name] = pd.read_csv(folder / TABLE)
+        rows.append({"name": name, "convention": config.controller.convention,
+                     "t_end": config.scenario.t_end, **numbers(regions[name], tables[name])})
+    frame = pd.DataFrame(rows)
+    out.mkdir(parents=True, exist_ok=True)
+    frame.to_csv(out / COMPARE_CSV, index=False)
+    plot_compare(regions, out / COMPARE_PNG, frame)
+    say(f"wrote {out / COMPARE_CSV} and {out / COMPARE_PNG}")
+    return frame
+
+
+def boundary_segments(region: pd.DataFrame, log: bool) -> list[tuple[tuple[float, float],
+                                                                      tuple[float, float]]]:
+    """The edges between recovered and other cells of a region map, as ((F0, T0), (F1, T1))
+    segments on the cells' bounds (``region_plots.cell_bounds``: where each cell is drawn)."""
+    from ..figures.region import cell_bounds
+
+    forces = np.sort(region["force"].unique())
+    durations = np.sort(region["duration"].unique())
+    fb, db = cell_bounds(forces), cell_bounds(durations, log=log)
+    ok = np.zeros((forces.size + 2, durations.size + 2), bool)  # padded with "not recovered"
+    rec = region[studies.is_recovered(region)]
+    fi = np.searchsorted(forces, rec["force"].to_numpy())
+    di = np.searchsorted(durations, rec["duration"].to_numpy())
+    ok[fi + 1, di + 1] = True
+    segments = []
+    for i in range(forces.size + 1):  # vertical edges at force bound i (between i-1 and i)
+        for j in range(durations.size):
+            if ok[i, j + 1] != ok[i + 1, j + 1]:
+                segments.append(((fb[i], db[j]), (fb[i], db[j + 1])))
+    for i in range(forces.size):  # horizontal edges at duration bound j
+        for j in range(durations.size + 1):
+            if ok[i + 1, j] != ok[i + 1, j + 1]:
+                segments.append(((fb[i], db[j]), (fb[i + 1], db[j])))
+    return segments
+
+
+def plot_compare(regions: dict[str, pd.DataFrame], path: Path, frame: pd.DataFrame) -> None:
+    """One figure: every configuration's recovery boundary (the outline of its recovered
+    cells) in its own colour and line style, the legend naming it with its area and
+    sustained-push limit."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import LineCollection
+
+    from ..figures.region import duration_axis, cell_bounds, log_durations
+
+    every = pd.concat(regions.values())
+    durations = np.sort(every["duration"].unique())
+    log = log_durations(durations)
+    fig, ax = plt.subplots(figsize=(8, 5.5), layout="constrained")
+    styles = ["-", "--", "-.", ":"]
+    numbers_of = frame.set_index("name")
+    several_windows = frame["t_end"].nunique() > 1
+    for k, (name, region) in enumerate(regions.items()):
+        segments = boundary_segments(region, log)
+        row = numbers_of.loc[name]
+        limit = row["sustained_push_limit"]
+        label = (f"{name}: {row['area']:.3g} N·s"
+                 + (f", holds {limit:g} N" if np.isfinite(limit) else "")
+                 + (f" ({row['t_end']:g}-s window)" if several_windows else ""))
+        ax.add_collection(LineCollection(segments, colors=f"C{k}", linewidths=2.2,
+                                         linestyles=styles[k % len(styles)], label=label))
+    forces = np.sort(every["force"].unique())
+    fb = cell_bounds(forces)
+    ax.set_xlim(fb[0], fb[-1])
+    duration_axis(ax, durations, cell_bounds(durations, log=log), log)
+    ax.set_xlabel("push force F [N]")
+    ax.set_title("Recovery boundaries: recovered cells lie inside each outline")
+    ax.legend(loc="upper right", fontsize=9, title="configuration: recoverable area")
+    ax.grid(alpha=0.3)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
