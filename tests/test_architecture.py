@@ -307,3 +307,29 @@ def test_help_of_the_sweep_function():
         warnings.simplefilter("ignore", DeprecationWarning)
         from mjx_balance.sweep.definitions import load_sweep  # noqa: F401
     assert mjx_balance.sweep is api.sweep
+
+
+def test_old_module_names_warn_and_give_the_new_modules():
+    # docs/cluster.md told users to import these before the re-layering (one release).
+    code = (
+        "import warnings, importlib\n"
+        "warnings.simplefilter('always')\n"
+        "import mjx_balance\n"
+        "pairs = [('mjx_balance.params', 'mjx_balance.model.params'),\n"
+        "         ('mjx_balance.sweep', 'mjx_balance.runs'),\n"
+        "         ('mjx_balance.sweep.definitions', 'mjx_balance.runs.definitions'),\n"
+        "         ('mjx_balance.sweep.store', 'mjx_balance.store.folder')]\n"
+        "for old, new in pairs:\n"
+        "    with warnings.catch_warnings(record=True) as caught:\n"
+        "        warnings.simplefilter('always')\n"
+        "        module = importlib.import_module(old)\n"
+        "    assert module is importlib.import_module(new), old\n"
+        "    assert any(issubclass(w.category, DeprecationWarning) and new in str(w.message)\n"
+        "               for w in caught), (old, [str(w.message) for w in caught])\n"
+        "from mjx_balance.sweep import run_sweep\n"
+        "from mjx_balance.api import sweep\n"
+        "assert mjx_balance.sweep is sweep and callable(run_sweep)\n"
+        "print('ok')\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr

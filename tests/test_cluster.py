@@ -277,7 +277,7 @@ def test_plain_install_runs_without_dask(tmp_path):
         import pytest
         from mjx_balance.cli import main
         from mjx_balance.model.params import Config
-        from mjx_balance.sweep import run_sweep
+        from mjx_balance.runs import run_sweep
         from mjx_balance.runs.cluster import ClusterError
         sys.path.insert(0, {str(Path(__file__).parent)!r})
         from test_cluster import Fake
@@ -294,7 +294,7 @@ def test_plain_install_runs_without_dask(tmp_path):
         with pytest.raises(ClusterError, match="mjx_balance\\\\[cluster\\\\]"):
             run_sweep({str(tmp_path / "asked")!r}, config, "0,60", "0.1,0.5",
                       run_batch=Fake(), progress=False, log=None, cluster="local:2")
-        from mjx_balance.sweep import run_table
+        from mjx_balance.runs import run_table
         table = run_table({str(tmp_path / "plain_table")!r}, config, "0,60", run_batch=Fake(),
                           progress=False, log=None)
         assert len(table.table) == 2

@@ -38,8 +38,14 @@ from typing import TYPE_CHECKING, Any, Iterator, Union
 from .model.params import Config, ParameterError, config_from_dict, load_config
 from .runs.folders import (Values, batch_function, duration_values, grid_values, run_region,
                            run_table_folder)
+from .store.folder import run_context
+from .reference import loop as reference
+from .store.folder import TABLE
+from .studies.compare import load_configs, run_compare
+from .runs import DEFAULT_SWEEP
+from .studies.basin import DEFAULT_V, DEFAULT_X, run_basin
 
-if TYPE_CHECKING:  # heavy modules are imported inside the functions
+if TYPE_CHECKING:
     import numpy as np
     import pandas as pd
 
@@ -71,8 +77,6 @@ def as_config(config: ConfigLike = None) -> Config:
 def _session(call: str, physics: str = "mjx") -> Iterator[None]:
     """What the output folder's provenance records: this call (unless a command line made it)
     and the physics path."""
-    from .store.folder import run_context
-
     with run_context(command=f"python: mjx_balance.{call}", physics=physics):
         yield
 
@@ -96,8 +100,6 @@ def simulate(forces: Values, durations: Values, config: ConfigLike = None, *,
     durations = duration_values(durations, config)
     for duration in durations:  # every other rule, before any work
         config.replace(scenario={"duration": float(duration)})
-    from .reference import loop as reference
-
     return reference.simulate_many(config, forces.tolist(), durations.tolist(),
                                    progress=progress)
 
@@ -154,8 +156,6 @@ def table(forces: Values, config: ConfigLike = None,
     Dask cluster (``"local:N"``, a scheduler address or file, or a ``distributed.Client``;
     ``pip install "mjx_balance[cluster]"``, docs/cluster.md); the table is the same.
     ``physics``: "auto", "mjx" or "c" (as :func:`sweep`)."""
-    from .store.folder import TABLE
-
     config = as_config(config)
     with _session("table"), _folder(out, "table") as folder:
         run_table_folder(folder, config, forces, slots=slots, full_length=full_length,
@@ -174,9 +174,6 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
     (every recovery boundary on one plane). ``configs``: name -> configuration (a Config, a
     dict or a TOML path), or a list of TOML paths (named by their stems). Grids default to the
     default sweep's."""
-    from .studies.compare import load_configs, run_compare
-    from .runs import DEFAULT_SWEEP
-
     if isinstance(configs, dict):
         configs = {str(name): as_config(c) for name, c in configs.items()}
     else:
@@ -199,8 +196,6 @@ def basin(out: str | os.PathLike[str], config: ConfigLike = None, *, x_com: Valu
     resumable). Returns basin.parquet's rows. ``pushes``: None or (forces, durations) whose
     end-of-push states are drawn (pushes.csv). Grids default to -0.2:0.2:0.02 m and
     -0.6:0.6:0.06 m/s."""
-    from .studies.basin import DEFAULT_V, DEFAULT_X, run_basin
-
     with _session("basin"):
         return run_basin(out, as_config(config), DEFAULT_X if x_com is None else x_com,
                          DEFAULT_V if v_com is None else v_com, posture, pushes,

@@ -45,6 +45,13 @@ from mujoco import rollout as mj_rollout
 from ..control import admm as admm_mod
 from ..model.params import Config
 from ..runtime.compiled import MATMUL_PRECISION
+from ..rollout.physics import mjx
+from ..rollout import kernel
+from ..rollout.physics import mj_model
+from ..model.mjcf import indices
+from ..rollout import BatchRunner
+from ..rollout.runner import push_steps as to_push_steps
+from .pipeline import scenario_set
 
 # a C path must beat the MJX pipeline by this factor to be worth a second physics path
 WORTH_IT = 1.5
@@ -64,8 +71,6 @@ def _best(fn, repeats: int) -> float:
 
 def _mjx_steps(runner, forces: np.ndarray, n_steps: int, kinematics: bool) -> float:
     """Seconds per scenario-step of vmap(mjx.step) (+ mjx.kinematics) over the local devices."""
-    from ..rollout.physics import mjx
-
     ar, sn = runner.arrays, runner.sensors
     devices = jax.local_devices()
     mesh = jax.sharding.Mesh(np.array(devices), ("batch",))
@@ -90,8 +95,6 @@ def _closed_loop_steps(runner, forces: np.ndarray, push_steps: np.ndarray,
                        periods: int) -> float:
     """Seconds per scenario-step of ``periods`` control periods of ``kernel.period`` for every
     scenario in lock-step, split over the local devices."""
-    from ..rollout import kernel
-
     ar, sn, st = runner.arrays, runner.sensors, runner.static
     devices = jax.local_devices()
     split = jax.sharding.NamedSharding(jax.sharding.Mesh(np.array(devices), ("batch",)),
@@ -115,8 +118,6 @@ class CPhysics:
     """MuJoCo C stepping of every slot by one control period per call (``mujoco.rollout``)."""
 
     def __init__(self, config: Config, slots: int, threads: int):
-        from ..rollout.physics import mj_model
-
         self.model = mj_model(config)  # the MJX options, also on the C side
         self.slots, self.threads = slots, threads
         self.substeps = config.scenario.substeps
@@ -136,7 +137,6 @@ class CPhysics:
         self.control = np.zeros((slots, self.substeps, nc))
         self.out = np.empty((slots, self.substeps, size))
         self.sensordata = np.empty((slots, self.substeps, self.model.nsensordata))
-        from ..model.mjcf import indices
 
         ix = indices(self.model)
         nq = self.model.nq
@@ -211,10 +211,6 @@ def measure(config: Config, *, slots: int = 64, seconds: float = 3.0,
     """Every figure of the module docstring, per scenario-step in microseconds, and the
     ratios; ``slots`` scenarios side by side (split over the local devices for MJX, over
     ``threads`` C threads, default one per local device), ``seconds`` of simulated time."""
-    from ..rollout import BatchRunner
-    from ..rollout.runner import push_steps as to_push_steps
-    from .pipeline import scenario_set
-
     sc = config.scenario
     config = config.replace(scenario={"t_end": seconds})
     threads = threads or len(jax.local_devices())

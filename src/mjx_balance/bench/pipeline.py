@@ -45,6 +45,10 @@ import numpy as np
 
 from ..measures.outcomes import OUTCOMES
 from ..model.params import Config
+from .ipopt import study_mpc
+from ..reference import loop as reference
+from ..rollout import BatchRunner
+from .. import runs as sweep
 
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 FORCE_RANGE = (0.0, 150.0)
@@ -103,23 +107,17 @@ def peak_rss_mib(who: int) -> float:
 
 def _study_mpc(config: Config):
     """This worker's CasADi/IPOPT controller for ``config`` (built once per process)."""
-    from .ipopt import study_mpc
-
     sc = config.scenario
     return study_mpc(config.controller, config.body, sc.control_dt)
 
 
 def _warm_reference(config: Config, mpc=None) -> int:
-    from ..reference import loop as reference
-
     reference.simulate_scenario(config, 0.0, 0.05, record=False, mpc=mpc)  # model, QP, MPC
     return os.getpid()
 
 
 def _run_reference(config: Config, force: float, duration: float,
                    mpc=None) -> tuple[int, float]:
-    from ..reference import loop as reference
-
     t0 = time.perf_counter()
     row, _ = reference.simulate_scenario(config, force, duration, record=False, mpc=mpc)
     return OUTCOMES.index(row["outcome"]), time.perf_counter() - t0
@@ -183,8 +181,6 @@ def build_batched(config: Config, *, slots: int | None = None,
     MJX or the MuJoCo C path). Returns runner, slots (per device), build_s, compile_s, devices,
     platform."""
     import jax
-
-    from ..rollout import BatchRunner
 
     t0 = time.perf_counter()
     runner = BatchRunner(config, slots=slots, early_stop=early_stop, physics=physics)
@@ -318,8 +314,6 @@ def pipeline_figures(*, counts: tuple[int, int, int], t_end: float, workers: int
 
 def memory_child(cells: int, t_end: float, chunk: int | None, out: str) -> None:
     """(In a fresh process) one sweep of about ``cells`` cells with t_end; prints a JSON line."""
-    from .. import runs as sweep
-
     config = Config().replace(scenario={"t_end": t_end, "duration": min(0.1, t_end)})
     # durations: every whole number of physics steps up to t_end (at most 100 of them), forces
     # as many as the cell count needs

@@ -33,6 +33,8 @@ from ..model.params import BodyParams, ControllerParams
 from ..control.qp import CondensedQP
 from .states import (TILE, Truth, admm_along_trajectories, closed_loop_states, first_control_error,
                      misses, osqp_loop, truth_solutions)
+from ..control import admm
+from .ipopt import ipopt_mpc
 
 OSQP_EPS = (1e-4, 1e-5, 1e-6)  # tried loosest first
 IPOPT_SOLVES = 50  # CasADi/IPOPT solves timed
@@ -85,8 +87,6 @@ def admm_accuracy(qp: CondensedQP, trajectories: list[np.ndarray], truth: Truth,
     max_err (over truth-solved states), max_err_both (over states both solved), mean_iters,
     status_counts [solved, max_iter, infeasible] and seconds (the whole pass).
     """
-    from ..control import admm
-
     t0 = time.perf_counter()
     seq = admm_along_trajectories(qp, trajectories, settings, dtype)
     err = first_control_error(qp, seq["u0"], truth)
@@ -112,8 +112,6 @@ def time_admm_batch(qp: CondensedQP, settings, dtype, states: np.ndarray,
     """
     import jax
     import jax.numpy as jnp
-
-    from ..control import admm
 
     data = admm.build_admm(qp, settings, dtype)
     it_flops, chk_flops = flops_per_solve_step(qp, settings)
@@ -170,8 +168,6 @@ def time_ipopt(qp: CondensedQP, controller: ControllerParams, trajectories: list
     Returns solves, seconds_per_solve and errors (first-control error against the truth, on the
     truth-solved states). Raises ImportError when casadi is not installed.
     """
-    from .ipopt import ipopt_mpc
-
     solve, shift = ipopt_mpc(qp, controller)
     done, errs, t_ipopt = 0, [], 0.0
     for traj, start in zip(trajectories, np.cumsum([0] + [len(t) for t in trajectories])):
@@ -219,8 +215,6 @@ def cpu_peak_gflops(dtype: str = "float32") -> tuple[float, str]:
 
 def flops_per_solve_step(qp: CondensedQP, settings) -> tuple[int, int]:
     """(flops per ADMM iteration, flops per convergence check) of this QP and settings."""
-    from ..control import admm
-
     return admm.flops_per_iteration(qp.n, qp.m, settings.sigma), admm.flops_per_check(qp.n, qp.m)
 
 

@@ -28,6 +28,8 @@ import numpy as np
 from ..control.osqp_mpc import osqp_solve, osqp_solver
 from ..model.params import BodyParams
 from ..control.qp import CondensedQP, shift_warm_start
+from ..control import admm
+from ..control.admm import shift_index
 
 ACCURACY = 1e-3  # of each input's range
 TILE = 32  # batch tile of admm_solve_batch: small tiles stop early (measured 32..4096)
@@ -126,8 +128,6 @@ def admm_along_trajectories(qp: CondensedQP, trajectories: list[np.ndarray], set
     import jax
     import jax.numpy as jnp
 
-    from ..control import admm
-
     dtype = jnp.float32 if dtype is None else dtype
     settings = admm.ADMMSettings() if settings is None else settings
     data = admm.build_admm(qp, settings, dtype)
@@ -166,8 +166,6 @@ def osqp_loop(qp: CondensedQP, trajectories: list[np.ndarray], eps: float,
     the certificate instead of running to max_iter as in the closed-loop policy), which favours
     OSQP in the comparison.
     """
-    from ..control.admm import shift_index
-
     solver = osqp_solver(qp, eps, max_iter, detect_infeasible=True)
     _, y_shift = shift_index(qp.rows, qp.n, qp.m, qp.horizon)
     u0, iters, seconds = [], [], []

@@ -29,6 +29,8 @@ from ..store.folder import write_atomic, write_figure
 from ..studies.experiments import REPORT_JSON, read_record
 from .blocks import img
 from .extra import extra_sections
+from ..figures import timeseries as plots
+from ..figures import region as region_plots
 
 HTML = "report.html"
 TEMPLATE = "report.html.j2"  # in templates/ (package data)
@@ -332,8 +334,6 @@ def draw_timeseries(series: pd.DataFrame, figures: Path, convention: str,
                     config: Config | None = None,
                     summary: pd.DataFrame | None = None) -> dict[str, Path]:
     """The time-series figures of one convention, by name (plots.timeseries_figures)."""
-    from ..figures import timeseries as plots
-
     folder = figures / f"timeseries_{convention}"
     return {p.stem: p for p in plots.timeseries_figures(series, folder, config=config,
                                                        summary=summary)}
@@ -346,8 +346,6 @@ def draw_weights(weights: pd.DataFrame, figures: Path, convention: str) -> Path:
 
 def draw_table(table: pd.DataFrame, figures: Path, config: Config) -> Path:
     """The max acting time and energies of one convention's table (region_plots.plot_table)."""
-    from ..figures import region as region_plots
-
     convention = config.controller.convention
     return region_plots.plot_table(table, figures / f"table_{convention}.png", config=config)
 
@@ -361,8 +359,6 @@ def draw_region(region: pd.DataFrame, figures: Path, config: Config,
                 table: pd.DataFrame | None = None) -> tuple[Path, Path]:
     """The outcome map (with the table's max acting time) and the energy map of one
     convention's region."""
-    from ..figures import region as region_plots
-
     convention = config.controller.convention
     outcome = region_plots.plot_region(region, region_figure(figures, convention), config=config,
                                        table=table if table is not None else pd.DataFrame())
@@ -373,8 +369,6 @@ def draw_region(region: pd.DataFrame, figures: Path, config: Config,
 
 def draw_study(key: str, res: dict, figures: Path) -> list[tuple[Path, str]]:
     """The outcome map of every variant of a study, with its label."""
-    from ..figures import region as region_plots
-
     drawn = []
     for variant in res["variants"]:
         path = region_plots.plot_region(res["regions"][variant["key"]],

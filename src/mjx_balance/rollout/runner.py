@@ -32,6 +32,8 @@ from ..measures.outcomes import FELL, RECOVERED, Limits, summary_frame
 from ..model.params import Config
 from ..control.qp import build_qp
 from ..runtime.compiled import MATMUL_PRECISION, get_or_compile
+from .cpath import CEngine, unsupported
+from .engine import Engine
 from .kernel import Accumulators, Arrays, Static, scenario
 from ..model.mjcf import settled_rest
 from .physics import mj_model, mjx_model, rest_data, sensors
@@ -105,8 +107,6 @@ class BatchRunner:
         self.last_trajectories: dict[str, np.ndarray] | None = None
         self._engine_options = dict(slots=slots, early=early_stop)
         if physics == "c":
-            from .cpath import unsupported
-
             reason = unsupported(config, trajectories)
             if reason:
                 raise ValueError(reason)
@@ -120,11 +120,8 @@ class BatchRunner:
         """The continuous-batching engine (``engine.py``) that runs scenarios without
         trajectories."""
         if self._engine is None:
-            if self.physics == "c":
-                from .cpath import CEngine as Engine
-            else:
-                from .engine import Engine
-            self._engine = Engine(self, **self._engine_options)
+            engine = CEngine if self.physics == "c" else Engine
+            self._engine = engine(self, **self._engine_options)
         return self._engine
 
     def is_prepared(self) -> bool:

@@ -19,6 +19,10 @@ import pandas as pd
 from ..measures.outcomes import SUMMARY_COLUMNS, summary_frame
 from ..model.params import Config, ParameterError
 from .chunks import chunk_slices
+from ..rollout import BatchRunner
+from ..rollout.cpath import PATHS
+from ..rollout.cpath import resolve
+from ..store.folder import note_physics
 
 RunBatch = Callable[[np.ndarray, np.ndarray], "pd.DataFrame | dict[str, np.ndarray]"]
 
@@ -27,8 +31,6 @@ def default_batch(config: Config, **engine: Any) -> RunBatch:
     """The batched rollout for this configuration on the continuous-batching engine (compiled
     on first call); ``engine``: ``slots``, ``early_stop``, ``physics`` ("mjx" or "c"; see
     ``rollout.BatchRunner``)."""
-    from ..rollout import BatchRunner
-
     return BatchRunner(config, **engine).run_frame
 
 
@@ -42,8 +44,6 @@ class LazyBatch:
 
     def __init__(self, config: Config, *, slots: int | None = None, early_stop: bool = True,
                  physics: str = "auto"):
-        from ..rollout.cpath import PATHS
-
         if physics not in PATHS:
             raise ValueError(f"physics must be one of {', '.join(PATHS)}, got {physics!r}")
         self.config = config
@@ -57,8 +57,6 @@ class LazyBatch:
     def physics(self) -> str:
         """The physics path that runs ("mjx" or "c"; "auto" resolved on first use)."""
         if self._physics is None:
-            from ..rollout.cpath import resolve
-
             self._physics = resolve(self.asked_physics, self.config)
         return self._physics
 
@@ -79,7 +77,6 @@ class LazyBatch:
             options = ({} if self.slots is None and self.early_stop
                        else {"slots": self.slots, "early_stop": self.early_stop})
             self._run = default_batch(self.config, physics=self.physics, **options)
-        from ..store.folder import note_physics
 
         note_physics("mujoco" if self.physics == "c" else "mjx")
         return self._run

@@ -58,6 +58,8 @@ from .batch import LazyBatch, chunk_frames, evaluate, streams
 from .chunks import chunk_slices
 from .grid import same_values
 from ..store.folder import config_dict, versions
+from ..runtime import xla as _xla
+from ..runtime import cache
 
 EXTRA = 'pip install "mjx_balance[cluster]"'
 LOCAL = "local:"
@@ -75,8 +77,6 @@ class ClusterError(ParameterError):
 
 def local_facts() -> dict[str, Any]:
     """The versions and settings that decide a chunk's bytes, in this process."""
-    from ..runtime import xla as _xla
-
     found = versions()
     facts: dict[str, Any] = {name: found.get(name) for name in CHECKED[:5]}
     facts["python"] = ".".join(platform.python_version_tuple()[:2])
@@ -163,8 +163,6 @@ def _runner(spec: ChunkSpec) -> Any:
     key = spec.runner_key()
     run = _RUNNERS.get(key)
     if run is None:
-        from ..runtime import cache
-
         cache.enable()  # the persistent compilation cache, where the worker has one
         run = _RUNNERS[key] = LazyBatch(spec.config, slots=spec.slots,
                                         early_stop=spec.early_stop, physics=spec.physics)

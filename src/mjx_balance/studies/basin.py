@@ -40,6 +40,7 @@ from ..measures.outcomes import FALL_CAUSES, OUTCOMES
 from ..model.params import Config, ParameterError
 from ..runs.grid import check_durations, describe, parse_grid, same_values
 from ..store.folder import OutputFolder, folder_lock, write_parquet
+from ..rollout import BatchRunner
 
 POSTURES = {
     "rigid": "hip straight: the body leans as one rigid body about the ankle",
@@ -205,8 +206,6 @@ def run_basin(out: str | Path, config: Config, x_com: Any = DEFAULT_X, v_com: An
 def _run_cells(out: Path, config: Config, cells: pd.DataFrame, inits: np.ndarray,
                progress: bool, engine: dict[str, Any]) -> None:
     from tqdm import tqdm
-
-    from ..rollout import BatchRunner
 
     runner = BatchRunner(config, physics="mjx", **engine)
     zeros = np.zeros(len(cells))

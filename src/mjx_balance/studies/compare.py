@@ -33,6 +33,9 @@ from ..runs.definitions import load_sweep
 from ..runs.grid import check_durations, describe, parse_grid, same_values
 from ..store.folder import REGION, TABLE, OutputFolder, config_dict, config_differences
 from ..runs.folders import run_region, run_table_folder
+from ..runs import cluster as cluster_mod
+from ..figures.region import cell_bounds
+from ..figures.region import duration_axis, cell_bounds, log_durations
 
 COMPARE_CSV = "compare.csv"
 COMPARE_PNG = "compare.png"
@@ -169,7 +172,6 @@ def run_compare(out: str | Path, configs: dict[str, Config], forces: Any, durati
         check_folder(out / name, name, config, forces, durations)
     cluster = engine.get("cluster")
     if isinstance(cluster, str):  # one connection for every configuration's work
-        from ..runs import cluster as cluster_mod
 
         client, local = cluster_mod.connect(cluster, say)
         try:
@@ -208,8 +210,6 @@ def boundary_segments(region: pd.DataFrame, log: bool) -> list[tuple[tuple[float
                                                                       tuple[float, float]]]:
     """The edges between recovered and other cells of a region map, as ((F0, T0), (F1, T1))
     segments on the cells' bounds (``region_plots.cell_bounds``: where each cell is drawn)."""
-    from ..figures.region import cell_bounds
-
     forces = np.sort(region["force"].unique())
     durations = np.sort(region["duration"].unique())
     fb, db = cell_bounds(forces), cell_bounds(durations, log=log)
@@ -239,8 +239,6 @@ def plot_compare(regions: dict[str, pd.DataFrame], path: Path, frame: pd.DataFra
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.collections import LineCollection
-
-    from ..figures.region import duration_axis, cell_bounds, log_durations
 
     every = pd.concat(regions.values())
     durations = np.sort(every["duration"].unique())

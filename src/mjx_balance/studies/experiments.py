@@ -31,6 +31,10 @@ from ..model.params import CONVENTIONS, Config, ParameterError, dumps_config, wi
 from ..runs import (DEFAULT_SWEEP, STUDY_TABLE_FORCES, LazyBatch, SweepDefinition,
                     default_chunk_size, parse_grid, run_sweep, run_table)
 from ..store.folder import write_atomic, write_parquet, write_text
+from ..reference.loop import simulate_scenario
+from ..reference.loop import simulate_many
+from . import sensitivity
+from ..runs import cluster as cluster_mod
 
 REPORT_JSON = "report.json"
 CONFIG_TOML = "config.toml"
@@ -114,8 +118,6 @@ class ReferenceBatch:
         self._done: dict[tuple[float, float], dict[str, Any]] = {}
 
     def __call__(self, forces: np.ndarray, durations: np.ndarray) -> pd.DataFrame:
-        from ..reference.loop import simulate_scenario
-
         rows = []
         for f, d in zip(np.asarray(forces, float), np.asarray(durations, float)):
             key = (round(float(f), 9), round(float(d), 9))
@@ -288,8 +290,6 @@ def run_stage(run: ReportRun, key: str, params: dict, files: list[Path],
 
 def run_timeseries(run: ReportRun, convention: str) -> None:
     """Experiment 1: summary.csv and timeseries.parquet of the time-series pushes."""
-    from ..reference.loop import simulate_many
-
     plan, folder = run.plan, run.out / convention
     cfg = with_convention(run.config, convention)
 
@@ -309,8 +309,6 @@ def run_timeseries(run: ReportRun, convention: str) -> None:
 def run_weights(config: Config, plan: Plan) -> pd.DataFrame:
     """The weight study's summary rows: one per setting of :func:`weight_settings`, the push
     of ``plan.weight_force`` for ``plan.push_duration`` through the reference loop."""
-    from ..reference.loop import simulate_scenario
-
     rows = []
     for which, scale, overrides in weight_settings(plan):
         summary, _ = simulate_scenario(config.replace(controller=overrides), plan.weight_force,
@@ -409,8 +407,6 @@ def run_study(run: ReportRun, st: studies.Study) -> None:
 def sensitivity_readings(config: Config, conventions: tuple[str, ...]) -> dict[str, Config]:
     """The readings the report runs: those of its conventions (plain and offset-free MPC) that
     the base configuration admits (the offset-free MPC refuses a controller delay)."""
-    from . import sensitivity
-
     configs = {}
     for key in sensitivity.READINGS:
         if sensitivity.reading_convention(key) in conventions:
@@ -426,8 +422,6 @@ def run_sensitivity_stage(run: ReportRun) -> None:
     of :func:`sensitivity_readings`, each in sensitivity/<reading>/ (a table folder), then
     sensitivity/sensitivity.csv, .png and .txt. A reading whose configuration is an
     experiment's reuses that table (copied, then resumed: nothing is recomputed)."""
-    from . import sensitivity
-
     folder = run.out / sensitivity.REPORT_DIR
     configs = sensitivity_readings(run.config, tuple(run.record["conventions"]))
     run.log.stage(f"sensitivity: the robustness table under {len(configs)} readings "
@@ -488,8 +482,6 @@ def run_report(out: str | Path, config: Config = Config(), plan: Plan = PLANS["d
                        conventions=conventions, sweeps=sweeps, quiet=quiet, physics=physics)
     client = local = None
     if cluster is not None:
-        from ..runs import cluster as cluster_mod
-
         client, local = cluster_mod.connect(cluster, (lambda _m: None) if quiet else print)
         run.batches.cluster = client
     try:
