@@ -16,10 +16,11 @@ import mujoco
 import pytest
 from test_sweep import DEFAULT_BATCH, FakeThresholdBatch
 
-from mjx_balance import cli
-from mjx_balance.cli import build_parser, main
+from mjx_balance.cli.common import load_run_config
+from mjx_balance.cli.main import build_parser, main
 from mjx_balance.model.params import Config
 from mjx_balance.store import folder as store
+from mjx_balance.store import provenance
 
 REPO = Path(__file__).resolve().parents[1]
 GRID = ["--forces", "0:20:10", "--durations", "0.5,1", "--set", "scenario.t_end=2"]
@@ -68,7 +69,7 @@ def test_every_command_with_config_takes_set(name):
              "model": ["--out", "m.xml"]}.get(name, ["--out", "x"])
     args = build_parser().parse_args([name, "--set", "controller.horizon=30", "--set",
                                       "scenario.t_end=6", *extra])
-    config = cli.load_run_config(args)
+    config = load_run_config(args)
     assert config.controller.horizon == 30 and config.scenario.t_end == 6.0
     assert config.replace(controller={"horizon": 20}, scenario={"t_end": 12.0}) == Config()
 
@@ -101,8 +102,8 @@ def test_set_is_checked_as_a_toml_file_is(tmp_path, capsys):
     path.write_text('[controller]\nconvention = "joint"\nhorizon = 10\n')
     args = build_parser().parse_args(["sweep", "--config", str(path), "--set",
                                       "controller.convention=paper", "--out", "x"])
-    assert cli.load_run_config(args).controller.convention == "paper"
-    assert cli.load_run_config(args).controller.horizon == 10
+    assert load_run_config(args).controller.convention == "paper"
+    assert load_run_config(args).controller.horizon == 10
 
 
 def test_model_writes_the_configured_body(tmp_path, capsys):
@@ -180,9 +181,9 @@ def test_manifest_records_provenance_and_a_resume_is_not_refused_for_it(tmp_path
 
 
 def test_provenance_without_git(monkeypatch):
-    monkeypatch.setattr(store, "_GIT", {})
+    monkeypatch.setattr(provenance, "_GIT", {})
     monkeypatch.setenv("PATH", "/nonexistent")  # no git executable
-    record = store.provenance()
+    record = provenance.provenance()
     assert "git_commit" not in record and record["jax"] == version("jax")
 
 

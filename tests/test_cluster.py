@@ -197,9 +197,9 @@ def test_table_on_the_cluster_is_the_local_table(tmp_path, reference, cluster):
 
 
 def _other_version():
-    import mjx_balance.store.folder as store
+    import mjx_balance.store.provenance as provenance
 
-    store.__version__ = "0.0.0+other"
+    provenance.__version__ = "0.0.0+other"
 
 
 @needs_dask

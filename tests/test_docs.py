@@ -99,12 +99,13 @@ def test_report_json_keys_are_documented(tmp_path):
 
 
 def test_manifest_records_are_documented():
+    from mjx_balance.store import files
     from mjx_balance.store import folder as store
 
     names = {key for keys in store.MANIFEST_KEYS.values() for key in keys}
     names |= set(store.MANIFEST_KEYS) | {"region.engine", "table_engine", "slots", "early_stop"}
-    names |= {store.MANIFEST, store.CONFIG, store.REGION, store.TABLE, store.TABLE_RUNS,
-              store.LOCK}
+    names |= {files.MANIFEST, files.CONFIG, files.REGION, files.TABLE, files.TABLE_RUNS,
+              files.LOCK}
     assert missing(sorted(names)) == []
 
 

@@ -29,7 +29,8 @@ from mjx_balance import runs as sweep
 from mjx_balance.cli import main
 from mjx_balance.model.params import ParameterError
 from mjx_balance.runs import region as region_module
-from mjx_balance.store.folder import folder_lock, readable_png
+from mjx_balance.store.files import readable_png
+from mjx_balance.store.folder import FolderBusy, folder_lock
 
 from test_sweep import DEFAULT_BATCH, GRID, FakeThresholdBatch, sweep_fake, tiny_config
 
@@ -199,7 +200,7 @@ def test_second_run_is_refused_while_another_holds_the_folder(tmp_path, fake_rol
         assert len(lines) == 1
         assert f"in use by another run (PID {holder.pid}, started " in lines[0]
         assert fake.calls == [] and not (out / "manifest.json").exists()
-        with pytest.raises(sweep.store.FolderBusy):
+        with pytest.raises(FolderBusy):
             sweep_fake(out, FakeThresholdBatch())
     finally:
         holder.stdin.close()

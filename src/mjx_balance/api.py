@@ -38,18 +38,16 @@ from typing import TYPE_CHECKING, Any, Iterator, Union
 from .model.params import Config, ParameterError, config_from_dict, load_config
 from .runs.folders import (Values, batch_function, duration_values, grid_values, run_region,
                            run_table_folder)
-from .store.folder import run_context
+from .store.provenance import run_context
 from .reference import loop as reference
-from .store.folder import TABLE
+from .store.files import TABLE
 from .studies.compare import load_configs, run_compare
 from .runs import DEFAULT_SWEEP
 from .studies.basin import DEFAULT_V, DEFAULT_X, run_basin
 
 if TYPE_CHECKING:
-    import numpy as np
     import pandas as pd
 
-    from .runs import SweepResult, TableResult
 
 __all__ = ["Config", "ParameterError", "basin", "batch_function", "compare", "load_config",
            "run_region", "run_table_folder", "simulate", "sweep", "table"]

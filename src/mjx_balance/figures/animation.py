@@ -24,7 +24,7 @@ import pandas as pd  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 
 from ..model.params import BodyParams, ScenarioParams  # noqa: E402
-from ..store.folder import write_atomic  # noqa: E402
+from ..store.files import write_atomic
 
 FIGSIZE = (9.6, 5.4)  # inches: 768 x 432 px at 80 dpi
 ARROW_M_PER_N = 0.004  # push arrow length per newton (100 N -> 0.4 m)
@@ -117,42 +117,44 @@ def _outcome_text(summary: Mapping[str, Any] | None, settled: float | None,
     return f"not settled at {t_last:.2f} s (the series ends)", "not_settled"
 
 
-def animate_timeseries(ts: pd.DataFrame, out: str | Path, body: BodyParams = BodyParams(),
-                       fps: float = 25.0, dpi: int = 80, *,
-                       summary: Mapping[str, Any] | None = None,
-                       scenario: ScenarioParams = ScenarioParams(),
-                       fast_forward: int = FAST_FORWARD) -> int:
-    """Write an animated GIF of one scenario's time series atomically (the file is whole, or
-    the old one or none is left); returns the number of frames.
+class _Frames:
+    """What the n frames of an animation of the series ``ts`` (sorted by time) show: t
+    [samples] the series' times; times [n] the frame times; rows [n] the sample each frame
+    shows and pts its stick figure (segment_points, [n, 2] each); the push (force [N],
+    duration [s], arrow_len [m]); fast_from [s] where the frames start to step
+    fast_forward / fps (inf: never); the outcome's text and class (from ``summary`` when
+    given, else the series)."""
 
-    summary: the run's summary row (reference.simulate_scenario's first result), for its
-    outcome; None: read from the series (the settle band of ``scenario``). fast_forward: the
-    frame step multiple once settled (1: real time throughout).
-    """
-    out = Path(out)
-    if ts.empty:
-        raise ValueError("empty time series: nothing to animate")
-    ts = ts.sort_values("time")
-    t = ts["time"].to_numpy()
-    force = float(ts["force"].iloc[0])
-    duration = float(ts["duration"].iloc[0])
-    settled = settle_time(ts, scenario)
-    if summary is not None:
-        settled = (float(summary["settle_time"]) if summary["outcome"] == "recovered"
-                   else None)
-    text, outcome = _outcome_text(summary, settled, float(t[-1]))
-    times = frame_times(t[-1], fps, settled_at=settled, push=duration if force else 0.0,
-                        fast_forward=fast_forward)
-    fast_from = (settled + SETTLED_HOLD_S) if settled is not None and fast_forward > 1 else np.inf
-    idx = np.clip(np.searchsorted(t, times - 1e-12), 0, len(t) - 1)
-    rows = ts.iloc[idx]
-    pts = segment_points(body, rows["foot_x"].to_numpy(), rows["foot_z"].to_numpy(),
-                         rows["foot_pitch"].to_numpy(), rows["q_a"].to_numpy(), rows["q_h"].to_numpy())
+    def __init__(self, ts: pd.DataFrame, body: BodyParams, fps: float,
+                 summary: Mapping[str, Any] | None, scenario: ScenarioParams,
+                 fast_forward: int):
+        t = ts["time"].to_numpy()
+        force = float(ts["force"].iloc[0])
+        duration = float(ts["duration"].iloc[0])
+        settled = settle_time(ts, scenario)
+        if summary is not None:
+            settled = (float(summary["settle_time"]) if summary["outcome"] == "recovered"
+                       else None)
+        self.text, self.outcome = _outcome_text(summary, settled, float(t[-1]))
+        times = frame_times(t[-1], fps, settled_at=settled, push=duration if force else 0.0,
+                            fast_forward=fast_forward)
+        self.fast_from = ((settled + SETTLED_HOLD_S) if settled is not None and fast_forward > 1
+                          else np.inf)
+        idx = np.clip(np.searchsorted(t, times - 1e-12), 0, len(t) - 1)
+        rows = ts.iloc[idx]
+        self.pts = segment_points(body, rows["foot_x"].to_numpy(), rows["foot_z"].to_numpy(),
+                                  rows["foot_pitch"].to_numpy(), rows["q_a"].to_numpy(),
+                                  rows["q_h"].to_numpy())
+        self.t, self.times, self.rows = t, times, rows
+        self.force, self.duration, self.arrow_len = force, duration, ARROW_M_PER_N * force
+
+
+def _stick_axes(ax, fr: _Frames, body: BodyParams) -> tuple:
+    """Set up the stick-figure axes: floor, limits, title and the (empty) moving artists;
+    returns (foot, body, CoP, CoM, arrow, arrow text, clock, state)."""
+    force, arrow_len = fr.force, fr.arrow_len
     height = body.lower_length + body.upper_length
-    arrow_len = ARROW_M_PER_N * force
     half_width = max(1.0, abs(arrow_len) + 0.5)
-
-    fig, (ax, axt) = plt.subplots(1, 2, figsize=FIGSIZE, width_ratios=(1.0, 1.15))
     ax.set_xlim(-half_width, half_width)
     ax.set_ylim(-0.1, height + 0.25)
     ax.set_aspect("equal")
@@ -169,16 +171,19 @@ def animate_timeseries(ts: pd.DataFrame, out: str | Path, body: BodyParams = Bod
     arrow_text = ax.text(0, 0, f"F = {force:g} N", color="tab:orange", fontsize=9,
                          ha="center", va="bottom", fontweight="bold")
     ax.legend(loc="upper left", fontsize=7, frameon=False)
-    ax.set_title(f"push F = {force:g} N for T = {duration:g} s "
+    ax.set_title(f"push F = {force:g} N for T = {fr.duration:g} s "
                  f"(arrow {ARROW_M_PER_N * 100:g} m per 100 N)", fontsize=9)
     clock = ax.text(0.98, 0.97, "", transform=ax.transAxes, ha="right", va="top", fontsize=11,
                     family="monospace")
     state = ax.text(0.98, 0.90, "", transform=ax.transAxes, ha="right", va="top", fontsize=9)
-    fig.suptitle(f"outcome: {text}", fontsize=11, fontweight="bold",
-                 color=OUTCOME_COLOURS.get(outcome, "black"))
+    return foot_line, body_line, cop_dot, com_dot, arrow, arrow_text, clock, state
 
-    # Beside: the joint angles against time, with a cursor.
-    if duration > 0 and force:
+
+def _angle_axes(axt, ts: pd.DataFrame, fr: _Frames, fast_forward: int):
+    """Draw the joint angles against time (the push and the fast-forwarded end shaded);
+    returns the time cursor."""
+    t, duration, fast_from = fr.t, fr.duration, fr.fast_from
+    if duration > 0 and fr.force:
         axt.axvspan(0.0, duration, color="#fddbc7", lw=0, label=f"push (0 to {duration:g} s)")
     axt.plot(t, ts["q_a"], color="#2166ac", lw=1.3, label=r"ankle $q_a$")
     axt.plot(t, ts["q_h"], color="#1b7837", lw=1.3, label=r"hip $q_h$")
@@ -191,32 +196,65 @@ def animate_timeseries(ts: pd.DataFrame, out: str | Path, body: BodyParams = Bod
     axt.grid(alpha=0.3)
     axt.legend(fontsize=7, loc="best")
     axt.set_title("joint angles", fontsize=9)
+    return cursor
 
-    def draw(i: int):
-        foot_line.set_data([pts["heel"][i, 0], pts["toe"][i, 0]], [pts["heel"][i, 1], pts["toe"][i, 1]])
-        chain = np.stack([pts["ankle"][i], pts["hip"][i], pts["head"][i]])
-        body_line.set_data(chain[:, 0], chain[:, 1])
-        cop = rows["cop"].iloc[i]
-        cop_dot.set_data([cop] if np.isfinite(cop) else [], [0.0] if np.isfinite(cop) else [])
-        com_dot.set_data([rows["com"].iloc[i]], [0.0])
-        pushing = force != 0 and times[i] < duration - 1e-9  # the push acts on [0, T)
-        tip = pts["upper_com"][i]
-        arrow.xy = tuple(tip)
-        arrow.set_position((tip[0] - arrow_len, tip[1]))
-        arrow.set_visible(bool(pushing))
-        arrow_text.set_position((tip[0] - arrow_len / 2, tip[1] + 0.04))
-        arrow_text.set_visible(bool(pushing))
-        clock.set_text(f"t = {times[i]:5.2f} s")
-        state.set_text("pushing" if pushing else
-                       f"settled: ×{fast_forward} speed" if times[i] > fast_from + 1e-9 else "")
-        cursor.set_xdata([times[i], times[i]])
-        return foot_line, body_line, cop_dot, com_dot, arrow, arrow_text, clock, state, cursor
+
+def _draw_frame(i: int, fr: _Frames, artists: tuple, fast_forward: int) -> tuple:
+    """Move the artists (foot, body, CoP, CoM, arrow, arrow text, clock, state, cursor) to
+    frame i; returns them."""
+    foot_line, body_line, cop_dot, com_dot, arrow, arrow_text, clock, state, cursor = artists
+    pts, rows, times, force = fr.pts, fr.rows, fr.times, fr.force
+    foot_line.set_data([pts["heel"][i, 0], pts["toe"][i, 0]], [pts["heel"][i, 1], pts["toe"][i, 1]])
+    chain = np.stack([pts["ankle"][i], pts["hip"][i], pts["head"][i]])
+    body_line.set_data(chain[:, 0], chain[:, 1])
+    cop = rows["cop"].iloc[i]
+    cop_dot.set_data([cop] if np.isfinite(cop) else [], [0.0] if np.isfinite(cop) else [])
+    com_dot.set_data([rows["com"].iloc[i]], [0.0])
+    pushing = force != 0 and times[i] < fr.duration - 1e-9  # the push acts on [0, T)
+    tip = pts["upper_com"][i]
+    arrow.xy = tuple(tip)
+    arrow.set_position((tip[0] - fr.arrow_len, tip[1]))
+    arrow.set_visible(bool(pushing))
+    arrow_text.set_position((tip[0] - fr.arrow_len / 2, tip[1] + 0.04))
+    arrow_text.set_visible(bool(pushing))
+    clock.set_text(f"t = {times[i]:5.2f} s")
+    state.set_text("pushing" if pushing else
+                   f"settled: ×{fast_forward} speed" if times[i] > fr.fast_from + 1e-9 else "")
+    cursor.set_xdata([times[i], times[i]])
+    return artists
+
+
+def animate_timeseries(ts: pd.DataFrame, out: str | Path, body: BodyParams = BodyParams(),
+                       fps: float = 25.0, dpi: int = 80, *,
+                       summary: Mapping[str, Any] | None = None,
+                       scenario: ScenarioParams = ScenarioParams(),
+                       fast_forward: int = FAST_FORWARD) -> int:
+    """Write an animated GIF of one scenario's time series atomically (the file is whole, or
+    the old one or none is left); returns the number of frames.
+
+    summary: the run's summary row (reference.simulate_scenario's first result), for its
+    outcome; None: read from the series (the settle band of ``scenario``). fast_forward: the
+    frame step multiple once settled (1: real time throughout).
+    """
+    out = Path(out)
+    if ts.empty:
+        raise ValueError("empty time series: nothing to animate")
+    ts = ts.sort_values("time")
+    fr = _Frames(ts, body, fps, summary, scenario, fast_forward)
+
+    fig, (ax, axt) = plt.subplots(1, 2, figsize=FIGSIZE, width_ratios=(1.0, 1.15))
+    stick = _stick_axes(ax, fr, body)
+    fig.suptitle(f"outcome: {fr.text}", fontsize=11, fontweight="bold",
+                 color=OUTCOME_COLOURS.get(fr.outcome, "black"))
+    # Beside: the joint angles against time, with a cursor.
+    artists = (*stick, _angle_axes(axt, ts, fr, fast_forward))
 
     fig.tight_layout()
-    anim = FuncAnimation(fig, draw, frames=len(times), blit=False)
+    anim = FuncAnimation(fig, lambda i: _draw_frame(i, fr, artists, fast_forward),
+                         frames=len(fr.times), blit=False)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         write_atomic(out, lambda tmp: anim.save(tmp, writer=_GifWriter(fps=fps), dpi=dpi))
     finally:
         plt.close(fig)
-    return len(times)
+    return len(fr.times)

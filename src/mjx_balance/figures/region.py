@@ -42,7 +42,7 @@ from matplotlib.ticker import FuncFormatter  # noqa: E402
 
 from ..measures.outcomes import OUTCOMES, RECOVERED  # noqa: E402
 from ..model.params import Config, ParameterError  # noqa: E402
-from ..store.folder import TABLE, write_figure  # noqa: E402
+from ..store.files import TABLE, write_figure
 
 RECOVERED_TEXT = OUTCOMES[RECOVERED]
 
@@ -398,20 +398,9 @@ def plot_energy(region: pd.DataFrame, path: str | Path, *, config: Config | None
     return Path(path)
 
 
-def table_figure(table: pd.DataFrame, *, config: Config | None = None, axes=None):
-    """Max acting time against force (``axes[0]``) and the energies of the recovered runs of
-    the table (``axes[1]``); ``axes`` None: a new figure. Returns the Figure.
-
-    Energies are drawn only for runs that recovered (table.csv leaves the others NaN; an
-    older table's ``_01`` energies of a run that did not recover are left out by its
-    ``outcome_01``); the forces whose T = 0.1 s push did not recover are marked on the axis."""
-    table = table.sort_values("force")
-    t_end = config.scenario.t_end if config else None
-    if axes is None:
-        fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.8), layout="constrained")
-    else:
-        ax, ax2 = axes
-        fig = ax.figure
+def _acting_time_axes(ax, table: pd.DataFrame, t_end: float | None) -> None:
+    """Draw the max acting time against force on ``ax`` (``table`` sorted by force; t_end
+    None: no configuration, so no force is marked as recovering up to t_end)."""
     force = table["force"].to_numpy(dtype=float)
     tmax = table["max_acting_time"].to_numpy(dtype=float)
     monotone = table["monotone"].astype(str).str.lower().isin(["true", "1"]).to_numpy()
@@ -449,8 +438,14 @@ def table_figure(table: pd.DataFrame, *, config: Config | None = None, axes=None
     ax.legend(fontsize=8)
     ax.set_title(f"Longest push that still recovers ({force.size} forces)", fontsize=10)
 
+
+def _energy_axes(ax2, table: pd.DataFrame, convention: str) -> None:
+    """Draw the energies of the recovered runs against force on ``ax2`` (``table`` sorted by
+    force): the study's (eq. 20) headlined and the motors' in grey in the paper convention,
+    the motors' alone in the joint one; the forces whose T = 0.1 s push did not recover are
+    marked on the axis."""
+    force = table["force"].to_numpy(dtype=float)
     recovered_01 = (table["outcome_01"].astype(str) == RECOVERED_TEXT).to_numpy()
-    convention = config.controller.convention if config else str(table["convention"].iloc[0])
     # the paper convention headlines the study's energy (eq. 20, docs/model.md), the motors'
     # absolute work beside it in grey; the joint convention, the motors' alone
     study = convention == "paper" and "study_energy_total_max" in table
@@ -489,6 +484,25 @@ def table_figure(table: pd.DataFrame, *, config: Config | None = None, axes=None
     ax2.legend(fontsize=7 if study else 8)
     ax2.set_title("Energy of the recovered runs"
                   + (": the study's (eq. 20), the motors' in grey" if study else ""), fontsize=10)
+
+
+def table_figure(table: pd.DataFrame, *, config: Config | None = None, axes=None):
+    """Max acting time against force (``axes[0]``) and the energies of the recovered runs of
+    the table (``axes[1]``); ``axes`` None: a new figure. Returns the Figure.
+
+    Energies are drawn only for runs that recovered (table.csv leaves the others NaN; an
+    older table's ``_01`` energies of a run that did not recover are left out by its
+    ``outcome_01``); the forces whose T = 0.1 s push did not recover are marked on the axis."""
+    table = table.sort_values("force")
+    t_end = config.scenario.t_end if config else None
+    if axes is None:
+        fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.8), layout="constrained")
+    else:
+        ax, ax2 = axes
+        fig = ax.figure
+    _acting_time_axes(ax, table, t_end)
+    convention = config.controller.convention if config else str(table["convention"].iloc[0])
+    _energy_axes(ax2, table, convention)
     fig.suptitle(f"Robustness table — {CONVENTION_TEXT.get(convention, convention)}", fontsize=11)
     return fig
 

@@ -32,7 +32,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from ..model.params import Config, load_config  # noqa: E402
-from ..store.folder import CONFIG, write_figure  # noqa: E402
+from ..store.files import CONFIG, write_figure
 
 # Okabe-Ito colours without the yellow (all with contrast on white), then darker extras.
 PALETTE = ["#0072B2", "#D55E00", "#009E73", "#CC79A7", "#000000", "#E69F00", "#56B4E9",

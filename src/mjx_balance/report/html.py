@@ -13,7 +13,6 @@ elsewhere. A tiny-scale report carries a banner saying its numbers are not meani
 
 from __future__ import annotations
 
-import base64
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,7 +24,7 @@ from markupsafe import Markup
 from ..studies import catalog as studies
 from ..measures.outcomes import OUTCOMES, RECOVERED
 from ..model.params import Config, config_from_dict, with_convention
-from ..store.folder import write_atomic, write_figure
+from ..store.files import write_atomic, write_figure
 from ..studies.experiments import REPORT_JSON, read_record
 from .blocks import img
 from .extra import extra_sections

@@ -59,6 +59,7 @@ from ..model.mjcf import indices
 from ..model.params import Config
 from .engine import (Engine, Queue, Slots, broadcast, certify, checker, empty_finished, harvest,
                      refill, vacate)
+from ..runtime.compiled import MATMUL_PRECISION, get_or_compile
 from .kernel import Carry, Sample, control, initial_carry, remember, sample_update, select, state
 from .physics import Sensors, cell_heights, mj_model, mjx, whole_body_com
 
@@ -239,8 +240,9 @@ class CState(NamedTuple):
 
 
 def fold_period(ar, sn: Sensors, st, carry: Carry, rows: jax.Array, last_qpos: jax.Array,
-                k: jax.Array, torques: jax.Array, u: jax.Array) -> Carry:
-    """The S samples of period k (decoded ``rows`` [S, ROW]) folded into one slot's carry."""
+                k: jax.Array, *, torques: jax.Array, u: jax.Array) -> Carry:
+    """The S samples of period k (decoded ``rows`` [S, ROW]; ``last_qpos`` [nq] the last
+    sample's) folded into one slot's carry; torques [2] and u [2] held during the period."""
     dtype = ar.d0.qpos.dtype
     S = st.substeps
     d = mjx.kinematics(ar.mx, ar.d0.replace(qpos=last_qpos.astype(dtype)))
@@ -296,8 +298,8 @@ def call(ar, sn, st, cert, cs: CState, floats, ints, *, early: bool):
     rest = broadcast(initial_carry(ar, sn, st)._replace(d=None), B)
     slots = cs.slots
     # 1. the period each busy slot ran since the previous call
-    folded = jax.vmap(lambda c, r, q, k, t, u: fold_period(ar, sn, st, c, r, q, k, t, u))(
-        slots.carry, rows, last_qpos, slots.k, cs.torques, cs.u)
+    fold = (lambda c, r, q, k, t, u: fold_period(ar, sn, st, c, r, q, k, torques=t, u=u))
+    folded = jax.vmap(fold)(slots.carry, rows, last_qpos, slots.k, cs.torques, cs.u)
     carry = select(cs.ran, folded, slots.carry)
     k = jnp.where(cs.ran, slots.k + 1, slots.k)
     ended = ~carry.acc.alive | (k >= st.n_control)

@@ -32,9 +32,10 @@ from .chunks import (ACCELERATOR_CHUNK_CAP, CPU_CHUNK_CAP, batch_limit, chunk_sl
 from .definitions import DEFAULT_SWEEP, STUDY_TABLE_FORCES, SweepDefinition, load_sweep
 from .grid import GRID_TOL, check_durations, describe, grid_cells, parse_grid, same_values
 from .region import SweepResult, check_region, run_sweep
-from ..store.folder import (MANIFEST, REGION, TABLE, TABLE_CELLS, TABLE_RUNS, OutputFolder,
-                            TableCells, chunk_path, manifest_problem, merge_chunks, read_chunk,
-                            write_atomic, write_parquet, write_text)
+from ..store.files import (MANIFEST, REGION, TABLE, TABLE_CELLS, TABLE_RUNS, write_atomic,
+                           write_parquet, write_text)
+from ..store.folder import (OutputFolder, TableCells, chunk_path, manifest_problem, merge_chunks,
+                            read_chunk)
 
 __all__ = [
     "ACCELERATOR_CHUNK_CAP", "Brackets", "COARSE_DURATIONS", "CPU_CHUNK_CAP", "DEFAULT_SWEEP",

@@ -29,8 +29,8 @@ from .chunks import batch_limit, chunk_slices
 from .cluster import ClusterBatch
 from .grid import GRID_TOL, describe, parse_grid, same_values
 from .progress import NoBar, progress_bar
-from ..store.folder import (TABLE, TABLE_RUNS, OutputFolder, TableCells, folder_lock, write_atomic,
-                            write_parquet)
+from ..store.files import TABLE, TABLE_RUNS, write_atomic, write_parquet
+from ..store.folder import OutputFolder, TableCells, folder_lock
 
 # Coarse scan of the table: durations [s] tried for every force before bisecting. 0.1 s is
 # always included (the table reports the energies there); t_end is added.
@@ -139,14 +139,7 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
     start = time.perf_counter()
     forces = parse_grid(forces, "table forces")
     t_end = config.scenario.t_end
-    if not resolution > 0:
-        raise ParameterError(f"resolution must be > 0, got {resolution}")
-    if batch is not None and not (isinstance(batch, int) and batch >= 1):
-        raise ParameterError(f"batch must be an integer >= 1, got {batch!r}")
-    if points_per_round is None:
-        points_per_round = max(1, batch // forces.size) if batch else 1
-    if not (isinstance(points_per_round, int) and points_per_round >= 1):
-        raise ParameterError(f"points_per_round must be an integer >= 1, got {points_per_round!r}")
+    points_per_round = _points_per_round(resolution, batch, points_per_round, forces.size)
     steps = coarse_steps(t_end, resolution, coarse)
     n_max = int(math.floor(t_end / resolution + 1e-9))
     run_batch = run_batch or LazyBatch(config)
@@ -160,26 +153,10 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
         + f" to {resolution:g} s" + (f" in batches of {batch}" if batch else "")
         + f"; convention {config.controller.convention}")
     bar = progress_bar(n_f * (n_c + rounds * points_per_round), 0, progress)
-    runs: list[pd.DataFrame] = []
     try:
-        coarse_frame = evaluate_cells(run_batch, np.repeat(forces, n_c),
-                                      np.round(np.tile(steps * resolution, n_f), 12),
-                                      config, batch, None, cells)
-        runs.append(coarse_frame)
-        bar.update(n_f * n_c)
-        brackets = coarse_brackets(coarse_frame, steps, n_max)
-        for _round in range(64):
-            if not brackets.active().size:
-                break
-            frame = refine_round(brackets, forces, run_batch, config, batch, resolution,
-                                 points_per_round, cells)
-            runs.append(frame)
-            bar.update(len(frame))
-        else:  # pragma: no cover - the bracket halves every round
-            raise RuntimeError("bisection did not converge")
-        if not isinstance(bar, NoBar):
-            bar.total = bar.n  # the round count was an upper estimate
-            bar.refresh()
+        brackets, runs = _bracket_rounds(run_batch, forces, steps, n_max, config, batch=batch,
+                                         resolution=resolution,
+                                         points_per_round=points_per_round, cells=cells, bar=bar)
     finally:
         bar.close()
 
@@ -190,6 +167,52 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
     seconds = time.perf_counter() - start
     say(f"table: {len(runs_frame)} scenarios in {seconds:.1f} s")
     return TableResult(table, runs_frame, seconds)
+
+
+def _points_per_round(resolution: float, batch: int | None, points_per_round: int | None,
+                      n_forces: int) -> int:
+    """Check the table's resolution and batch; the points per bracket and round (default
+    max(1, batch // n_forces) with a batch, else 1: bisection)."""
+    if not resolution > 0:
+        raise ParameterError(f"resolution must be > 0, got {resolution}")
+    if batch is not None and not (isinstance(batch, int) and batch >= 1):
+        raise ParameterError(f"batch must be an integer >= 1, got {batch!r}")
+    if points_per_round is None:
+        points_per_round = max(1, batch // n_forces) if batch else 1
+    if not (isinstance(points_per_round, int) and points_per_round >= 1):
+        raise ParameterError(f"points_per_round must be an integer >= 1, got {points_per_round!r}")
+    return points_per_round
+
+
+def _bracket_rounds(run_batch: RunBatch, forces: np.ndarray, steps: np.ndarray, n_max: int,
+                    config: Config, *, batch: int | None, resolution: float,
+                    points_per_round: int, cells: TableCells | None,
+                    bar: Any) -> tuple[Brackets, list[pd.DataFrame]]:
+    """The coarse scan of the durations ``steps`` (in resolution units) for every force [n_f],
+    then refine rounds until every bracket is one resolution step wide; returns the brackets
+    and each call's summary rows (the coarse scan first). ``bar`` counts the scenarios (its
+    total, an upper estimate, is set to the count at the end)."""
+    n_f, n_c = forces.size, steps.size
+    runs: list[pd.DataFrame] = []
+    coarse_frame = evaluate_cells(run_batch, np.repeat(forces, n_c),
+                                  np.round(np.tile(steps * resolution, n_f), 12),
+                                  config, batch, None, cells)
+    runs.append(coarse_frame)
+    bar.update(n_f * n_c)
+    brackets = coarse_brackets(coarse_frame, steps, n_max)
+    for _round in range(64):
+        if not brackets.active().size:
+            break
+        frame = refine_round(brackets, forces, run_batch, config, batch, resolution,
+                             points_per_round, cells)
+        runs.append(frame)
+        bar.update(len(frame))
+    else:  # pragma: no cover - the bracket halves every round
+        raise RuntimeError("bisection did not converge")
+    if not isinstance(bar, NoBar):
+        bar.total = bar.n  # the round count was an upper estimate
+        bar.refresh()
+    return brackets, runs
 
 
 @dataclass

@@ -22,7 +22,7 @@ from .chunks import chunk_slices
 from ..rollout import BatchRunner
 from ..rollout.cpath import PATHS
 from ..rollout.cpath import resolve
-from ..store.folder import note_physics
+from ..store.provenance import note_physics
 
 RunBatch = Callable[[np.ndarray, np.ndarray], "pd.DataFrame | dict[str, np.ndarray]"]
 

@@ -24,15 +24,14 @@ from typing import Any, Callable
 import numpy as np
 import pandas as pd
 
-from ..measures.outcomes import summary_frame
 from ..model.params import Config, ParameterError
 from .batch import LazyBatch, RunBatch, chunk_frames, evaluate, resume_engine, streams
 from .chunks import chunk_slices, default_chunk_size
 from .cluster import ClusterBatch
 from .grid import check_durations, describe, grid_cells, parse_grid, same_values
 from .progress import progress_bar
-from ..store.folder import (MANIFEST, REGION, OutputFolder, chunk_path, folder_lock, merge_chunks,
-                            read_chunk, write_atomic, write_parquet)
+from ..store.files import MANIFEST, REGION, write_atomic, write_parquet
+from ..store.folder import OutputFolder, chunk_path, folder_lock, merge_chunks, read_chunk
 
 
 @dataclass
@@ -127,8 +126,8 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
             run_batch.prepare(chunk_size, log=log)
         bar = progress_bar(n_cells, n_cells - remaining, progress)
         try:
-            _compute_chunks(run_batch, folder.path, slices, todo, cell_f, cell_d, config,
-                            chunk_size, bar)
+            _compute_chunks(run_batch, folder.path, slices, todo, cell_f, cell_d, config=config,
+                            chunk_size=chunk_size, bar=bar)
         finally:
             bar.close()
 
@@ -203,7 +202,7 @@ def _chunks_to_do(path: Path, slices: list[slice], cell_f: np.ndarray, cell_d: n
 
 
 def _compute_chunks(run_batch: RunBatch, path: Path, slices: list[slice], todo: list[int],
-                    cell_f: np.ndarray, cell_d: np.ndarray, config: Config, chunk_size: int,
+                    cell_f: np.ndarray, cell_d: np.ndarray, *, config: Config, chunk_size: int,
                     bar: Any) -> None:
     """Compute the chunks ``todo`` and write each chunk file: through the engine's queue when
     the batch function streams, else one padded call per chunk (or on a cluster's workers)."""

@@ -2,15 +2,14 @@
 
 ``DIR/manifest.json`` records the package version, the configuration and what was computed
 (the region's grid and chunk size, the table's forces), and, in ``runs``, one provenance record
-per run that worked in the folder (:func:`provenance`: versions, physics path, device, git
+per run that worked in the folder (``provenance.py``: versions, physics path, device, git
 commit, command line, start and end times, how it ended); ``DIR/config.toml`` holds the
 configuration as TOML. Only the configuration and the grids decide whether a run may resume a
 folder; the provenance records differ between runs by design and are never compared. A folder made with another configuration is refused; a folder that lost
 its manifest is taken up again when its config.toml matches the run's (the region sweep then
 checks its chunk files against the grid before it rewrites the manifest). Every file is
-written atomically (a temporary file in the same folder, then ``os.replace``), so a file is
-either complete or absent, with the mode the umask gives (:func:`write_atomic`, figures through
-:func:`write_figure`). Region chunks live in ``DIR/chunks/chunk-NNNNN.parquet``; a chunk file
+written atomically (``files.py``: a temporary file in the same folder, then ``os.replace``), so
+a file is either complete or absent, with the mode the umask gives. Region chunks live in ``DIR/chunks/chunk-NNNNN.parquet``; a chunk file
 is used only if it reads back with exactly its cells (:func:`read_chunk`), and the merge
 streams the chunks into ``DIR/region.parquet`` one at a time (:func:`merge_chunks`).
 
@@ -30,17 +29,10 @@ import fcntl
 import json
 import logging
 import os
-import platform
-import shlex
-import subprocess
-import sys
-import tempfile
-import threading
-import uuid
 from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Callable, Iterator, Sequence
+from typing import Any, Iterator, Sequence
 
 import numpy as np
 import pandas as pd
@@ -48,242 +40,12 @@ import pandas as pd
 from ..runtime.version import __version__
 from ..measures.outcomes import OUTCOMES, SUMMARY_COLUMNS
 from ..model.params import Config, ParameterError, dumps_config, load_config
+from .files import (CONFIG, LOCK, MANIFEST, TABLE, TABLE_CELLS, TABLE_RUNS, write_parquet, write_text)
+from .provenance import finish_run, now, with_run
 
 GRID_TOL = 1e-9  # how far a value may sit beyond a limit (float error) and still count
-MANIFEST = "manifest.json"
-REGION = "region.parquet"
-TABLE = "table.csv"
-TABLE_RUNS = "table_runs.parquet"
-TABLE_CELLS = "table_runs"  # folder: the table's evaluated scenarios, one file per batch call
-CONFIG = "config.toml"
-LOCK = ".lock"
-
-_UMASK_LOCK = threading.Lock()
 
 log = logging.getLogger(__name__)
-
-
-# ---------------------------------------------------------------------------------------------
-# Provenance: what ran, where and when (manifest "runs").
-
-def _now() -> str:
-    return datetime.now(timezone.utc).isoformat(timespec="seconds")
-
-
-# This process's run: one record per output folder it works in, updated at every manifest
-# write and when the folder's lock is let go (end time, status).
-_RUN: dict[str, Any] = {"run_id": uuid.uuid4().hex[:12], "started": _now(), "command": None,
-                        "physics": "mjx"}
-
-
-@contextmanager
-def run_context(*, command: str | None = None, physics: str | None = None) -> Iterator[None]:
-    """The command line (or API call) and the physics path that this process's manifest
-    records name, while in the block (an outer context's command is kept: the command line
-    that called the API is what ran)."""
-    saved = dict(_RUN)
-    if command is not None and _RUN["command"] is None:
-        _RUN["command"] = command
-    if physics is not None:
-        _RUN["physics"] = physics
-    try:
-        yield
-    finally:
-        _RUN["command"], _RUN["physics"] = saved["command"], saved["physics"]
-
-
-def note_physics(physics: str) -> None:
-    """The physics this process's work in the current run context uses (the rollout, once
-    built, says which path it runs: "mjx", or "mujoco" for MuJoCo C)."""
-    _RUN["physics"] = physics
-
-
-def _distribution_version(name: str) -> str | None:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version(name)
-    except PackageNotFoundError:
-        return None
-
-
-def versions() -> dict[str, str | None]:
-    """The versions of the package and of what computes its results (no import of JAX)."""
-    return {"package": __version__, "python": platform.python_version(),
-            "jax": _distribution_version("jax"), "jaxlib": _distribution_version("jaxlib"),
-            "mujoco": _distribution_version("mujoco"),
-            "mujoco_mjx": _distribution_version("mujoco-mjx")}
-
-
-def device_record() -> dict[str, Any]:
-    """JAX's devices when JAX has started in this process (platform, device kind, count); else
-    the host's CPU (the scalar reference runs there, or JAX has not started yet)."""
-    if "jax" in sys.modules:
-        try:
-            from jax._src import xla_bridge
-
-            if xla_bridge._backends:  # noqa: SLF001 - started: asking starts nothing new
-                import jax
-
-                devices = jax.local_devices()
-                return {"platform": devices[0].platform, "kind": devices[0].device_kind,
-                        "count": len(devices)}
-        except Exception:  # noqa: BLE001 - fall back to the host
-            pass
-    return {"platform": "cpu", "kind": platform.processor() or platform.machine(),
-            "count": os.cpu_count() or 1}
-
-
-_GIT: dict[str, Any] = {}
-
-
-def git_record() -> dict[str, Any]:
-    """The git commit of the package's checkout (and whether it has uncommitted changes), when
-    it runs from one; empty when it does not or git is missing (computed once per process)."""
-    if _GIT:
-        return dict(_GIT.get("record", {}))
-    record: dict[str, Any] = {}
-    here = Path(__file__).resolve().parent
-    try:
-        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True,
-                                text=True, timeout=10)
-        if commit.returncode == 0 and commit.stdout.strip():
-            record["git_commit"] = commit.stdout.strip()
-            dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
-                                   cwd=here, capture_output=True, text=True, timeout=30)
-            if dirty.returncode == 0:
-                record["git_dirty"] = bool(dirty.stdout.strip())
-    except (OSError, subprocess.SubprocessError):
-        pass
-    _GIT["record"] = record
-    return dict(record)
-
-
-def default_command() -> str:
-    """The command line of this process, as a shell would take it back."""
-    argv = list(sys.argv) or ["python"]
-    if argv and argv[0].endswith(("/mjx-balance", "mjx_balance/__main__.py")):
-        argv[0] = "mjx-balance" if argv[0].endswith("mjx-balance") else "python -m mjx_balance"
-    return " ".join(shlex.quote(a) for a in argv)
-
-
-def provenance() -> dict[str, Any]:
-    """This run's provenance record (see the module docstring; docs/outputs.md, ``runs``)."""
-    return {"run_id": _RUN["run_id"], "command": _RUN["command"] or default_command(),
-            "started": _RUN["started"], "ended": None, "status": "running",
-            **versions(), "physics": _RUN["physics"], "device": device_record(), **git_record()}
-
-
-def _with_run(manifest: dict[str, Any], **changes: Any) -> dict[str, Any]:
-    """``manifest`` with this run's record in its ``runs`` (added, or refreshed)."""
-    runs = manifest.get("runs")
-    runs = [r for r in runs if isinstance(r, dict)] if isinstance(runs, list) else []
-    mine = next((r for r in runs if r.get("run_id") == _RUN["run_id"]), None)
-    if mine is None:
-        mine = provenance()
-        runs.append(mine)
-    else:
-        mine["device"] = device_record()
-        mine["physics"] = _RUN["physics"]
-    mine.update(changes)
-    manifest["runs"] = runs
-    return manifest
-
-
-def _finish_run(folder: Path, status: str) -> None:
-    """Record the end time and how the run ended in the folder's manifest, if this run wrote
-    one; a failure here (the disk that just failed the run) is not reported again."""
-    path = folder / MANIFEST
-    try:
-        manifest = json.loads(path.read_text())
-        runs = manifest.get("runs") if isinstance(manifest, dict) else None
-        if not isinstance(runs, list) or not any(
-                isinstance(r, dict) and r.get("run_id") == _RUN["run_id"] for r in runs):
-            return
-        write_text(json.dumps(_with_run(manifest, ended=_now(), status=status), indent=2) + "\n",
-                   path)
-    except Exception:  # noqa: BLE001 - provenance never fails a run
-        pass
-
-
-def current_umask() -> int:
-    """The process's umask: from /proc where Linux shows it, else by setting it and setting it
-    back (which another thread creating a file at that moment could see)."""
-    try:
-        with open("/proc/self/status") as fh:
-            for line in fh:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except (OSError, ValueError, IndexError):
-        pass
-    with _UMASK_LOCK:
-        mask = os.umask(0o022)
-        os.umask(mask)
-    return mask
-
-
-def write_atomic(path: Path, write: Callable[[Path], None]) -> None:
-    """Write a file atomically: ``write(tmp)`` to a temporary file beside it, then rename.
-
-    The file gets the mode a plain ``open`` would give it (0o666 less the umask), not
-    mkstemp's 0o600, so that collaborators sharing the folder can read it."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        os.chmod(tmp, 0o666 & ~current_umask())
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def write_figure(fig: Any, path: str | Path, **savefig: Any) -> Path:
-    """Save a matplotlib figure atomically, in the format its file name ends with."""
-    path = Path(path)
-    fmt = path.suffix.lstrip(".").lower() or "png"
-    write_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, **savefig))
-    return path
-
-
-PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"  # the IEND chunk: length 0, type, CRC
-
-
-def readable_png(path: str | Path) -> bool:
-    """Whether ``path`` is a whole PNG file: its signature, its IEND chunk last, and every
-    chunk's CRC (PIL's verify). A file cut short while being written fails."""
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(len(PNG_SIGNATURE))
-            fh.seek(0, os.SEEK_END)
-            if fh.tell() < len(PNG_SIGNATURE) + len(PNG_END):
-                return False
-            fh.seek(-len(PNG_END), os.SEEK_END)
-            tail = fh.read()
-    except OSError:
-        return False
-    if head != PNG_SIGNATURE or tail != PNG_END:
-        return False
-    from PIL import Image
-
-    try:
-        with Image.open(path) as image:
-            image.verify()
-    except Exception:  # noqa: BLE001 - any failure means: draw it again
-        return False
-    return True
-
-
-def write_parquet(frame: pd.DataFrame, path: Path) -> None:
-    write_atomic(path, lambda tmp: frame.to_parquet(tmp, index=False))
-
-
-def write_text(text: str, path: Path) -> None:
-    write_atomic(path, lambda tmp: tmp.write_text(text))
 
 
 def config_dict(config: Config) -> dict[str, Any]:
@@ -312,7 +74,7 @@ def record_simulation(folder: str | Path, config: Config, forces: Any, durations
                 "config": config_dict(config),
                 "simulate": {"forces": [float(f) for f in forces],
                              "durations": [float(d) for d in durations]}}
-    write_text(json.dumps(_with_run(manifest, ended=_now(), status="completed"), indent=2)
+    write_text(json.dumps(with_run(manifest, ended=now(), status="completed"), indent=2)
                + "\n", Path(folder) / MANIFEST)
 
 
@@ -380,7 +142,7 @@ def folder_lock(path: str | Path, *, wait: bool = False) -> Iterator[None]:
             raise
     finally:
         _HELD.pop(key, None)
-        _finish_run(folder, status)
+        finish_run(folder, status)
         os.close(fd)  # releases the flock
 
 
@@ -486,7 +248,7 @@ class OutputFolder:
 
     def write_manifest(self, manifest: dict[str, Any]) -> None:
         """Write the manifest, with this run's provenance record in its ``runs``."""
-        write_text(json.dumps(_with_run(manifest), indent=2) + "\n", self.manifest_path)
+        write_text(json.dumps(with_run(manifest), indent=2) + "\n", self.manifest_path)
 
 
 # What a manifest must hold: its sections and, in each, the keys a run reads.

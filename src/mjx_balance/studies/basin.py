@@ -39,7 +39,8 @@ from ..model.mjcf import indices, settled_rest
 from ..measures.outcomes import FALL_CAUSES, OUTCOMES
 from ..model.params import Config, ParameterError
 from ..runs.grid import check_durations, describe, parse_grid, same_values
-from ..store.folder import OutputFolder, folder_lock, write_parquet
+from ..store.files import write_parquet
+from ..store.folder import OutputFolder, folder_lock
 from ..rollout import BatchRunner
 
 POSTURES = {

@@ -31,11 +31,12 @@ from . import catalog as studies
 from ..model.params import Config, ParameterError, load_config, read_toml
 from ..runs.definitions import load_sweep
 from ..runs.grid import check_durations, describe, parse_grid, same_values
-from ..store.folder import REGION, TABLE, OutputFolder, config_dict, config_differences
+from ..store.files import REGION, TABLE
+from ..store.folder import OutputFolder, config_dict, config_differences
 from ..runs.folders import run_region, run_table_folder
 from ..runs import cluster as cluster_mod
 from ..figures.region import cell_bounds
-from ..figures.region import duration_axis, cell_bounds, log_durations
+from ..figures.region import duration_axis, log_durations
 
 COMPARE_CSV = "compare.csv"
 COMPARE_PNG = "compare.png"

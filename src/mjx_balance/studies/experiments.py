@@ -30,7 +30,7 @@ from ..measures.outcomes import SUMMARY_COLUMNS
 from ..model.params import CONVENTIONS, Config, ParameterError, dumps_config, with_convention
 from ..runs import (DEFAULT_SWEEP, STUDY_TABLE_FORCES, LazyBatch, SweepDefinition,
                     default_chunk_size, parse_grid, run_sweep, run_table)
-from ..store.folder import write_atomic, write_parquet, write_text
+from ..store.files import write_atomic, write_parquet, write_text
 from ..reference.loop import simulate_scenario
 from ..reference.loop import simulate_many
 from . import sensitivity

@@ -42,7 +42,7 @@ import pandas as pd
 from . import compare as comparison, catalog as studies
 from ..model.params import Config, ParameterError
 from ..runs.grid import check_durations, parse_grid
-from ..store.folder import REGION, TABLE, write_atomic
+from ..store.files import REGION, TABLE, write_atomic
 from ..runs.folders import batch_function, run_region, run_table_folder
 
 LANDSCAPE_CSV = "landscape.csv"

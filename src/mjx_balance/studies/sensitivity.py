@@ -31,7 +31,7 @@ import pandas as pd
 
 from ..model.params import Config, ParameterError
 from ..runs.grid import parse_grid
-from ..store.folder import TABLE, write_atomic, write_text
+from ..store.files import TABLE, write_atomic, write_text
 from ..runs.folders import run_table_folder
 
 READINGS = {  # key -> (label, configuration changes); plain sets offset_free = false, so a
