@@ -215,6 +215,51 @@ def test_one_process_may_nest_the_folder_lock(tmp_path):
     assert "PID" in (tmp_path / ".lock").read_text()
 
 
+def test_another_thread_is_refused_while_one_holds_the_folder(tmp_path):
+    """Issue 26.2: the lock is re-entrant within the thread that holds it, not across threads.
+    Two threads of one process sweeping into one folder with different bodies would otherwise
+    write one body's manifest beside the other body's rows. The second thread is refused at the
+    named point (its folder_lock) while the first is inside its own."""
+    import threading
+
+    outcome = {}
+
+    def other():
+        try:
+            sweep_fake(tmp_path, FakeThresholdBatch())
+            outcome["result"] = "ran"
+        except FolderBusy as exc:
+            outcome["result"] = str(exc)
+
+    with folder_lock(tmp_path):
+        worker = threading.Thread(target=other)
+        worker.start()
+        worker.join(timeout=120)
+    assert "in use by another run" in outcome["result"]
+    assert not (tmp_path / "region.parquet").exists()
+    sweep_fake(tmp_path, FakeThresholdBatch())  # the folder is free again
+    assert (tmp_path / "region.parquet").exists()
+
+
+def test_a_waiting_thread_runs_after_the_holder_lets_go(tmp_path):
+    import threading
+
+    order = []
+    entered = threading.Event()
+
+    def other():
+        with folder_lock(tmp_path, wait=True):
+            order.append("second")
+
+    with folder_lock(tmp_path):
+        worker = threading.Thread(target=other)
+        worker.start()
+        entered.wait(0.5)  # give it time to block on the lock (it must not get in)
+        order.append("first")
+    worker.join(timeout=60)
+    assert order == ["first", "second"]
+
+
 def test_a_folder_that_cannot_hold_a_lock_file_is_still_read(tmp_path, monkeypatch):
     """A finished sweep shared read-only: no lock file can be made, and none is needed."""
     sweep_fake(tmp_path, FakeThresholdBatch())

@@ -29,6 +29,7 @@ import fcntl
 import json
 import logging
 import os
+import threading
 from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
@@ -82,7 +83,13 @@ class FolderBusy(ParameterError):
     """Another run holds the output folder's lock."""
 
 
-_HELD: dict[str, list[int]] = {}  # resolved folder -> [lock file descriptor, nesting depth]
+# The folders this process holds: resolved folder -> (holding thread's id, nesting depth). The
+# lock is re-entrant within the thread that took it (compare and report nest sweeps) and
+# exclusive across threads (another thread takes a flock of its own: flock locks belong to an
+# open file description, so a second open file conflicts even in the same process), processes
+# and cluster clients.
+_HELD: dict[str, list[int]] = {}
+_HELD_LOCK = threading.Lock()
 
 
 @contextmanager
@@ -91,16 +98,22 @@ def folder_lock(path: str | Path, *, wait: bool = False) -> Iterator[None]:
     ``DIR/.lock``, which records this process's PID and start time. Another process holding it
     makes this raise :class:`FolderBusy` at once, naming that run, or with ``wait`` print one
     line naming that run (stderr) and wait until it lets go; nested calls in one process share
-    the lock. The lock goes with the process, however it ends (the file stays)."""
+    the lock within one thread; another thread is refused (or waits) as another process is.
+    The lock goes with the process, however it ends (the file stays)."""
     folder = Path(path)
     folder.mkdir(parents=True, exist_ok=True)
     key = str(folder.resolve())
-    if key in _HELD:
-        _HELD[key][1] += 1
+    me = threading.get_ident()
+    with _HELD_LOCK:
+        mine = key in _HELD and _HELD[key][0] == me
+        if mine:
+            _HELD[key][1] += 1
+    if mine:
         try:
             yield
         finally:
-            _HELD[key][1] -= 1
+            with _HELD_LOCK:
+                _HELD[key][1] -= 1
         return
     try:
         fd = os.open(folder / LOCK, os.O_RDWR | os.O_CREAT, 0o666)
@@ -133,7 +146,8 @@ def folder_lock(path: str | Path, *, wait: bool = False) -> Iterator[None]:
         started = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"PID {os.getpid()}, started {started}\n".encode(), 0)
-        _HELD[key] = [fd, 1]
+        with _HELD_LOCK:
+            _HELD[key] = [me, 1]
         try:
             yield
             status = "completed"
@@ -141,7 +155,8 @@ def folder_lock(path: str | Path, *, wait: bool = False) -> Iterator[None]:
             status = "failed"
             raise
     finally:
-        _HELD.pop(key, None)
+        with _HELD_LOCK:
+            _HELD.pop(key, None)
         finish_run(folder, status)
         os.close(fd)  # releases the flock
 
