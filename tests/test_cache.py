@@ -26,10 +26,10 @@ from mjx_balance.runtime import cache
 TINY = """
 import json, sys
 import mjx_balance
-from mjx_balance import cache
+from mjx_balance.runtime import cache
 print(json.dumps({"cache_dir": cache.enable()}))
 import jax, jax.numpy as jnp
-from mjx_balance import admm
+from mjx_balance.control import admm
 from mjx_balance.model.params import Config, apply_overrides
 from mjx_balance.control.qp import build_qp
 config = apply_overrides(Config(), sys.argv[1:])
@@ -98,7 +98,7 @@ def test_cache_dir_follows_the_conventions(tmp_path, monkeypatch):
 
 
 def test_no_cache_option_turns_it_off(monkeypatch):
-    from mjx_balance.cli import build_parser
+    from mjx_balance.cli.main import build_parser
 
     monkeypatch.setenv(cache.ENV, "/somewhere")
     args = build_parser().parse_args(["sweep", "--no-cache", "--out", "x"])
@@ -117,9 +117,9 @@ def test_the_rollout_of_another_body_is_loaded_not_compiled(tmp_path):
     bakes the configuration's arrays in as constants, is compiled again."""
     env = {**os.environ, cache.ENV: str(tmp_path / "jax-cache")}
     script = ("import sys, json\n"
-              "from mjx_balance.cli import main, use_host_cores\n"
+              "from mjx_balance.cli.main import main, use_host_cores\n"
               "use_host_cores()  # as the command does, before JAX starts\n"
-              "from mjx_balance import cache\n"
+              "from mjx_balance.runtime import cache\n"
               "with cache.CompileCounter() as c:\n"
               "    code = main(sys.argv[1:])\n"
               "print(json.dumps(c.as_dict()))\n"
@@ -138,3 +138,62 @@ def test_the_rollout_of_another_body_is_loaded_not_compiled(tmp_path):
     assert "jit(call)" in second["loaded"]
     assert {name for name, _ in second["compiled"]} <= {"jit(_vacant)"}
     assert sum(seconds for _, seconds in second["compiled"]) < 5.0
+
+
+# A tiny jitted function, for the cache's healing (issue 26.9): compiled, cached, and counted.
+HEAL = """
+import json, logging, sys
+import mjx_balance
+from mjx_balance.runtime import cache
+logging.basicConfig(level=logging.WARNING, stream=sys.stderr, format="%(message)s")
+print(json.dumps({"cache_dir": cache.enable()}))
+import jax, jax.numpy as jnp
+with cache.CompileCounter() as counter:
+    jax.block_until_ready(jax.jit(lambda x: jnp.sin(x) * 2.0 + 1.0)(jnp.arange(3.0)))
+print(json.dumps(counter.as_dict()))
+"""
+
+
+def run_heal(folder: Path) -> tuple[dict, str]:
+    env = {**os.environ, cache.ENV: str(folder)}
+    done = subprocess.run([sys.executable, "-c", HEAL], env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout.strip().splitlines()[-1]), done.stderr
+
+
+@pytest.mark.parametrize("damage", ["cut short", "corrupt"])
+def test_a_damaged_cache_entry_is_removed_and_compiled_once_again(tmp_path, damage):
+    folder = tmp_path / "jax-cache"
+    first, _ = run_heal(folder)
+    assert first["compiles"] >= 1
+    entries = sorted(folder.glob(f"*{cache.ENTRY_SUFFIX}"))
+    assert entries
+    for entry in entries:  # as a full disk or a killed writer leaves it, or a bad sector
+        data = entry.read_bytes()
+        if damage == "cut short":
+            entry.write_bytes(data[:len(data) // 2])
+        else:
+            middle = len(data) // 2
+            entry.write_bytes(data[:middle] + bytes([data[middle] ^ 0xFF]) + data[middle + 1:])
+    second, said = run_heal(folder)
+    assert f"removed {len(entries)} damaged entr" in said  # one line
+    assert said.count("compilation cache:") == 1
+    assert second["compiles"] == first["compiles"]  # compiled again, once, and written anew
+    third, said = run_heal(folder)
+    assert third["compiles"] == 0 and third["cache_hits"] == first["requests"]
+    assert "damaged" not in said
+
+
+def test_healing_checks_each_entry_once_and_leaves_other_files(tmp_path):
+    import zlib
+
+    (tmp_path / "a-cache").write_bytes(zlib.compress(b"x" * 1000))
+    (tmp_path / "b-cache").write_bytes(zlib.compress(b"y" * 1000)[:-3])
+    (tmp_path / "b-atime").write_bytes(b"12345678")
+    (tmp_path / "notes.txt").write_text("not an entry")
+    assert cache.heal(tmp_path) == ["b-cache"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a-cache", "notes.txt",
+                                                          cache.VERIFIED]
+    assert json.loads((tmp_path / cache.VERIFIED).read_text()).keys() == {"a-cache"}
+    assert cache.heal(tmp_path) == []

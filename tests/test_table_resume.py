@@ -90,7 +90,7 @@ KILLED_TABLE = textwrap.dedent("""
     from pathlib import Path
     sys.path.insert(0, sys.argv[1])
     from test_sweep import FakeThresholdBatch
-    from mjx_balance import sweep
+    from mjx_balance import runs as sweep
     from mjx_balance.model.params import Config
 
     log = Path(sys.argv[3])

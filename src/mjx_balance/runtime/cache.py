@@ -18,14 +18,23 @@ Windows. A ``jax_compilation_cache_dir`` that the user configured (JAX_COMPILATI
 ``jax.config.update``) is left alone. ``mjx-balance --no-cache`` turns it off for one run.
 Delete the folder to empty it; JAX does not bound its size by default.
 
+The cache heals (:func:`heal`, called by :func:`enable`): JAX writes an entry in place and never
+replaces one that exists, so an entry cut short (a full disk, a killed process) or damaged would
+make every later run fail to read it and compile again, with at most a warning. Each entry
+not yet checked is decompressed once (zlib's checksum, or zstd's frame); one that fails is
+removed, with one line in the log, and the next compile writes it anew. The entries found whole
+are remembered (name, size, mtime) in ``verified.json`` so that a run checks only new ones.
+
 Importing this module does not import JAX.
 """
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import sys
+import zlib
 from pathlib import Path
 
 log = logging.getLogger(__name__)
@@ -92,6 +101,7 @@ def enable() -> str | None:
     path = str(folder)
     if _state["dir"] == path:
         return path
+    heal(folder)
     jax.config.update("jax_compilation_cache_dir", path)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
@@ -101,6 +111,78 @@ def enable() -> str | None:
     _state["dir"] = path
     log.debug("persistent compilation cache: %s", path)
     return path
+
+
+ENTRY_SUFFIX = "-cache"  # JAX's file cache: <key>-cache (and <key>-atime beside it)
+VERIFIED = "verified.json"
+ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
+
+
+def _whole(data: bytes) -> bool | None:
+    """Whether a cache entry decompresses completely (None: zstd without the module here)."""
+    if data[:4] == ZSTD_MAGIC:
+        try:
+            import zstandard  # optional: JAX uses it when installed
+        except ImportError:
+            return None
+        try:
+            zstandard.ZstdDecompressor().decompressobj().decompress(data)
+            return True
+        except zstandard.ZstdError:
+            return False
+    try:
+        decompressor = zlib.decompressobj()
+        decompressor.decompress(data)
+        return decompressor.eof and not decompressor.unused_data
+    except zlib.error:
+        return False
+
+
+def heal(folder: str | Path) -> list[str]:
+    """Remove the persistent cache's entries in ``folder`` that are cut short or damaged (they
+    do not decompress); returns their file names and logs one line when there are any. Entries
+    checked before and unchanged since (``verified.json``: name, size, mtime) are not read
+    again. Never raises: a cache it cannot read or clean is left to JAX."""
+    folder = Path(folder)
+    try:
+        known = json.loads((folder / VERIFIED).read_text())
+        known = known if isinstance(known, dict) else {}
+    except (OSError, ValueError):
+        known = {}
+    checked, removed = {}, []
+    try:
+        entries = sorted(folder.glob(f"*{ENTRY_SUFFIX}"))
+    except OSError:
+        return []
+    for entry in entries:
+        try:
+            stat = entry.stat()
+            stamp = [stat.st_size, stat.st_mtime_ns]
+            if known.get(entry.name) == stamp:
+                checked[entry.name] = stamp
+                continue
+            whole = _whole(entry.read_bytes())
+            if whole is False:
+                entry.unlink()
+                (folder / (entry.name[:-len(ENTRY_SUFFIX)] + "-atime")).unlink(missing_ok=True)
+                removed.append(entry.name)
+            elif whole:
+                checked[entry.name] = stamp
+        except OSError:
+            continue
+    if removed:
+        log.warning("compilation cache: removed %d damaged entr%s from %s (cut short or "
+                    "corrupt); %s compiled again once", len(removed),
+                    "y" if len(removed) == 1 else "ies", folder,
+                    "it is" if len(removed) == 1 else "they are")
+    if checked != known or removed:
+        try:
+            tmp = folder / f".{VERIFIED}.{os.getpid()}.tmp"
+            tmp.write_text(json.dumps(checked))
+            os.replace(tmp, folder / VERIFIED)
+        except OSError:
+            pass
+    return removed
 
 
 def _reset() -> None:
