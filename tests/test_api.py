@@ -147,3 +147,32 @@ def test_the_real_rollout_through_the_api_equals_the_cli_file(tmp_path):
                  "scenario.t_end=1", "--slots", "4", "--out", str(out)]) == 0
     region = mb.sweep([20, 150], [0.1, 0.2], {"scenario": {"t_end": 1.0}}, slots=4)
     pd.testing.assert_frame_equal(region, pd.read_parquet(out / "region.parquet"))
+
+
+# -- bad arguments (issue 26.10): a ValueError naming the argument, nothing written ------------
+
+@pytest.mark.parametrize("forces", [True, [True, 20.0], ["abc"], None, {"a": 1}])
+def test_forces_that_are_not_numbers_are_refused(forces, tmp_path):
+    with pytest.raises(ValueError, match="forces: expected a number, a sequence of numbers"):
+        mb.sweep(forces, [0.1], out=tmp_path / "out")
+    with pytest.raises(ValueError, match="forces: expected"):
+        mb.simulate(forces, [0.1])
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("name, value", [("chunk", 2.5), ("chunk", 0), ("chunk", "4"),
+                                         ("slots", 0), ("slots", True), ("slots", -3)])
+def test_sizes_that_are_not_whole_positive_numbers_are_refused(name, value, tmp_path):
+    with pytest.raises(ValueError, match=f"{name} = .*must be a whole number >= 1"):
+        mb.sweep([10.0], [0.1], out=tmp_path / "out", **{name: value})
+    assert not (tmp_path / "out").exists()
+
+
+def test_numpy_numbers_are_accepted(fake, tmp_path):
+    config = mb.Config().replace(body={"upper_mass": np.int64(40)},
+                                 controller={"horizon": np.int64(20)},
+                                 scenario={"t_end": np.float32(2.0)})
+    assert config.body.upper_mass == 40.0 and type(config.controller.horizon) is int
+    region = mb.sweep(np.array([10.0, 60.0]), [np.float64(0.1)], config, chunk=np.int64(2),
+                      slots=np.int32(4))
+    assert len(region) == 2

@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any, Iterator, Union
 
 from .model.params import Config, ParameterError, config_from_dict, load_config
 from .runs.folders import (Values, batch_function, duration_values, grid_values, run_region,
-                           run_table_folder)
+                           run_table_folder, size_value)
 from .store.provenance import run_context
 from .reference import loop as reference
 from .store.files import TABLE
@@ -197,7 +197,7 @@ def basin(out: str | os.PathLike[str], config: ConfigLike = None, *, x_com: Valu
     with _session("basin"):
         return run_basin(out, as_config(config), DEFAULT_X if x_com is None else x_com,
                          DEFAULT_V if v_com is None else v_com, posture, pushes,
-                         progress=progress, say=log.info, slots=slots,
+                         progress=progress, say=log.info, slots=size_value(slots, "slots"),
                          early_stop=not full_length)
 
 

@@ -414,7 +414,18 @@ class Config:
 _SECTIONS = {"body": BodyParams, "controller": ControllerParams, "scenario": ScenarioParams}
 
 
+def _plain(value: Any) -> Any:
+    """A NumPy scalar (or a list or array of them) as the Python value it holds, so that a
+    configuration built from arrays is read as the same numbers (numpy is not imported)."""
+    if type(value).__module__ == "numpy" and hasattr(value, "tolist"):
+        return value.tolist()
+    if isinstance(value, (list, tuple)):
+        return type(value)(_plain(v) for v in value)
+    return value
+
+
 def _build(cls: type, section: str, values: dict[str, Any]) -> Any:
+    values = {key: _plain(value) for key, value in values.items()}
     known = {f.name: f for f in fields(cls)}
     unknown = sorted(set(values) - set(known))
     if unknown:

@@ -9,11 +9,13 @@ landscape, sensitivity) all call these, so the three run a folder the same way.
 from __future__ import annotations
 
 import logging
+import math
+import numbers
 import os
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Union
 
-from ..model.params import Config
+from ..model.params import Config, ParameterError
 from ..runtime import cache
 from ..store.folder import folder_lock
 from .acting_time import TableResult, run_table, table_batch_size
@@ -29,12 +31,48 @@ log = logging.getLogger("mjx_balance")
 Values = Union[str, float, Sequence[float], "np.ndarray"]
 
 def grid_values(values: Values, name: str) -> "np.ndarray":
-    """Forces or durations as ``sweep`` reads a grid: sorted, each value once."""
-    if isinstance(values, (int, float)) and not isinstance(values, bool):
+    """Forces or durations as ``sweep`` reads a grid: sorted, each value once. ``values``: a
+    grid string (``"0:150:10"``, ``"20,50,80"``), a number or a sequence of numbers (NumPy's
+    too); a bool, a string inside a list or anything else is refused (ParameterError, a
+    ValueError naming ``name``)."""
+    if isinstance(values, str):
+        return parse_grid(values, name)
+    expected = ("a number, a sequence of numbers or a grid string such as '0:150:10' or "
+                "'20,50,80'")
+    if _is_bool(values):
+        raise ParameterError(f"{name}: expected {expected}; got a bool ({values!r})")
+    if isinstance(values, numbers.Real):
         values = [values]
-    if not isinstance(values, str):
-        values = [float(v) for v in values]
-    return parse_grid(values, name)
+    try:
+        items = list(values)
+    except TypeError:
+        raise ParameterError(f"{name}: expected {expected}; got {type(values).__name__} "
+                             f"({values!r})") from None
+    for item in items:
+        if _is_bool(item) or not isinstance(item, numbers.Real):
+            raise ParameterError(f"{name}: expected {expected}; got {item!r} "
+                                 f"({type(item).__name__}) in the list")
+    return parse_grid([float(v) for v in items], name)
+
+
+def _is_bool(value: Any) -> bool:
+    return isinstance(value, bool) or type(value).__name__ == "bool_"
+
+
+def size_value(value: Any, name: str) -> int | None:
+    """An optional size (``chunk``, ``slots``, ``batch``): None, or a whole number >= 1 (Python
+    or NumPy integer, or a float with no fraction); anything else is refused with a
+    ParameterError (a ValueError) naming ``name``."""
+    if value is None:
+        return None
+    if _is_bool(value) or not isinstance(value, numbers.Real):
+        raise ParameterError(f"{name} = {value!r}: must be a whole number >= 1 (or None for "
+                             f"the default); got {type(value).__name__}")
+    if not (math.isfinite(value) and float(value) == int(value) and value >= 1):
+        raise ParameterError(f"{name} = {value!r}: must be a whole number >= 1 (or None for "
+                             "the default)")
+    return int(value)
+
 
 def duration_values(values: Values, config: Config, name: str = "durations") -> "np.ndarray":
     """Durations on the grid, in [0, t_end] and whole physics steps (snapped to them)."""
@@ -60,6 +98,7 @@ def run_region(out: str | os.PathLike[str], config: Config, forces: Values, dura
     SweepResult (the command line draws its figures)."""
     forces = grid_values(forces, "forces")
     durations = duration_values(durations, config)
+    chunk, slots = size_value(chunk, "chunk"), size_value(slots, "slots")
     if run_batch is None:
         run_batch = batch_function(config, slots=slots, full_length=full_length,
                                    physics=physics)
@@ -79,6 +118,7 @@ def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values
     :func:`run_region`; the same table). Returns None when the folder already held this
     table."""
     forces = grid_values(forces, "forces")
+    batch, slots = size_value(batch, "batch"), size_value(slots, "slots")
     if run_batch is None:
         run_batch = batch_function(config, slots=slots, full_length=full_length,
                                    physics=physics)
