@@ -205,6 +205,22 @@ def test_damaged_region_file_is_rebuilt_from_chunks(tmp_path):
     pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "region.parquet"), good)
 
 
+def test_a_folder_without_results_is_not_locked_to_its_configuration(tmp_path):
+    """Issue 26.6: a run that failed before its first chunk (a bad value found late) leaves a
+    manifest but no results; the corrected configuration takes the folder over. Once the
+    folder holds results, another configuration is refused again."""
+    from mjx_balance.store.folder import OutputFolder
+
+    bad = tiny_config().replace(controller={"horizon": 10})
+    OutputFolder(tmp_path, bad).open()  # what the failed run left
+    assert (tmp_path / "manifest.json").exists() and not (tmp_path / "chunks").exists()
+    sweep_fake(tmp_path, FakeThresholdBatch())  # the corrected configuration
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["config"]["controller"]["horizon"] == tiny_config().controller.horizon
+    with pytest.raises(ParameterError, match="different configuration"):
+        sweep_fake(tmp_path, FakeThresholdBatch(), config=bad)
+
+
 def test_other_configuration_or_grid_is_refused(tmp_path):
     sweep_fake(tmp_path, FakeThresholdBatch())
     other = tiny_config().replace(controller={"horizon": 10})

@@ -214,6 +214,16 @@ class OutputFolder:
             write_text(dumps_config(self.config), self.path / CONFIG)
             return manifest
         differences = config_differences(manifest.get("config", {}), config)
+        if differences and not self.holds_results():
+            # A run that failed before its first result (a bad value found late, a signal):
+            # nothing here depends on its configuration, so this run takes the folder over.
+            log.warning("note: %s holds no results of the configuration it was made with; "
+                        "starting it anew with this run's configuration", self.path)
+            manifest = {"package": "mjx_balance", "version": __version__, "config": config,
+                        "runs": manifest.get("runs", [])}
+            self.write_manifest(manifest)
+            write_text(dumps_config(self.config), self.path / CONFIG)
+            return manifest
         if differences:
             raise ParameterError(
                 f"{self.path} was made with a different configuration; use another --out folder "
@@ -227,6 +237,12 @@ class OutputFolder:
         except OSError:  # a finished folder shared read-only: read, not recorded
             pass
         return manifest
+
+    def holds_results(self) -> bool:
+        """Whether the folder holds anything computed: a merged table or region, a chunk file,
+        a kept table scenario (a manifest and config.toml alone are not results)."""
+        patterns = ("*.parquet", "*.csv", "chunks/*.parquet", f"{TABLE_CELLS}/*.parquet")
+        return any(any(self.path.glob(pattern)) for pattern in patterns)
 
     def _check_lost_manifest(self, config: dict[str, Any]) -> None:
         """Results without a manifest: go on only if config.toml holds this run's configuration."""
