@@ -117,7 +117,7 @@ def test_an_unwritable_place_is_refused(tmp_path, capsys, monkeypatch, name):
     parent = tmp_path / "read_only"
     parent.mkdir()
     real_access = os.access
-    monkeypatch.setattr(cli.os, "access", lambda path, mode: (
+    monkeypatch.setattr(os, "access", lambda path, mode: (
         False if str(path) == str(parent) else real_access(path, mode)))
     out = parent / "new" / "deeper"
     code, err = run(command(name, out), capsys)

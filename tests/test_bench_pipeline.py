@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from mjx_balance.bench.pipeline import scenario_set, stratified_subset
-from mjx_balance.cli import build_parser
+from mjx_balance.cli.main import build_parser
 
 
 def test_scenario_set_covers_the_ranges():

@@ -94,10 +94,8 @@ def test_parse_values():
 def test_full_window_reaches_the_figures(tmp_path, short_config, monkeypatch):
     """--full-window asks the figures for time axes up to t_end; they get the run's
     configuration and summary (bounds and outcomes) either way."""
-    from mjx_balance.cli import simulate as simulate_cli
-
     seen = []
-    monkeypatch.setattr(simulate_cli, "timeseries_figures",
+    monkeypatch.setattr("mjx_balance.figures.timeseries.timeseries_figures",
                         lambda series, out, **kw: seen.append(kw) or [])
     for flag in ([], ["--full-window"]):
         code = cli.main(["simulate", "--force", "30", "--duration", "0.1", "--config",

@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 
 from mjx_balance import cli
+from mjx_balance.cli.main import build_parser
 from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.runs.grid import check_whole_steps
 
@@ -69,12 +70,10 @@ def leftovers(folder: Path) -> list[str]:
 
 @pytest.mark.parametrize("name", ["simulate", "animate"])
 def test_durations_off_the_physics_steps_are_refused(tmp_path, capsys, monkeypatch, name):
-    from mjx_balance.cli import animate
-
     def refuse(*args, **kwargs):
         raise Called
     monkeypatch.setattr("mjx_balance.reference.loop.simulate_many", refuse)
-    monkeypatch.setattr(animate, "simulate_scenario", refuse)
+    monkeypatch.setattr("mjx_balance.reference.loop.simulate_scenario", refuse)
     out = tmp_path / ("push.gif" if name == "animate" else "out")
     code, err = run([name, "--force", "10", "--duration", "0.1005", "--out", str(out)], capsys)
     assert_refused(code, err, whole_steps_message(0.1005))
@@ -224,8 +223,8 @@ def test_outputs_are_whole_or_old_after_a_failed_write(tmp_path, capsys, monkeyp
 
 
 def test_wait_for_the_run_that_holds_the_folder(tmp_path, fake_rollout, capsys):  # noqa: F811
-    assert cli.build_parser().parse_args(["table", "--wait", "--out", "x"]).wait is True
-    assert cli.build_parser().parse_args(["sweep", "--out", "x"]).wait is False
+    assert build_parser().parse_args(["table", "--wait", "--out", "x"]).wait is True
+    assert build_parser().parse_args(["sweep", "--out", "x"]).wait is False
     out = tmp_path / "shared"
     holder = subprocess.Popen([sys.executable, "-c", HOLD_LOCK, str(out)], stdin=subprocess.PIPE,
                               stdout=subprocess.PIPE, text=True)

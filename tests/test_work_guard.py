@@ -21,7 +21,7 @@ SWEEPS = sorted(sweeps_dir().glob("*.toml"))  # the shipped definitions (package
 def ran(monkeypatch):
     """The folders the command would have worked in: no sweep runs here, even if a guard broke."""
     calls = []
-    monkeypatch.setattr(cli_sweep, "_in_folder", lambda out, work, **_: calls.append(out) or 0)
+    monkeypatch.setattr(cli_sweep, "in_folder", lambda out, work, **_: calls.append(out) or 0)
     return calls
 
 

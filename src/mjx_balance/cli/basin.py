@@ -1,7 +1,7 @@
 """``mjx-balance basin``: the recovery basin over (x_com, v_com) (``mjx_balance.studies.basin``).
 
-Only the parser (:func:`add_parser`) is imported when the command line is built; the command
-imports the library when it runs.
+The parser is built without the library (``--help`` stays light); the command imports it when
+it runs.
 """
 
 from __future__ import annotations
@@ -9,17 +9,25 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from .common import in_folder, load_run_config, progress_enabled
+from .options import common_options, positive_int, wait_option
+
+# The defaults and posture families of studies.basin (DEFAULT_X, DEFAULT_V, POSTURES), written
+# out here: importing that module loads JAX and MuJoCo, which --help must not.
+DEFAULT_X = "-0.2:0.2:0.02"  # m
+DEFAULT_V = "-0.6:0.6:0.06"  # m/s
+POSTURES = {
+    "rigid": "hip straight: the body leans as one rigid body about the ankle",
+    "trunk": "trunk vertical: the lower body leans, the upper body stays upright",
+}
+
 
 def add_parser(sub: Any) -> None:
-    """The ``basin`` sub-command's options (``sub.add_parser`` of ``cli.build_parser``)."""
-    from . import _common, _wait, positive_int
-
+    """The ``basin`` sub-command's options (``sub.add_parser`` of ``main.build_parser``)."""
     p = sub.add_parser(
         "basin", help="the recovery basin: which initial CoM states (x_com, v_com) recover "
                       "with no push, with the foot's edges, the capture-point bound and the "
                       "push map's end-of-push states (basin.parquet, basin.png; resumable)")
-    from ..studies.basin import DEFAULT_V, DEFAULT_X, POSTURES
-
     p.add_argument("--x-com", default=DEFAULT_X,
                    help="CoM positions relative to the ankle [m], start:stop:step or a list")
     p.add_argument("--v-com", default=DEFAULT_V,
@@ -36,17 +44,15 @@ def add_parser(sub: Any) -> None:
                    help="scenarios in flight per device (default: 32 on a CPU, 4096 on a GPU)")
     p.add_argument("--full-length", action="store_true",
                    help="run every cell to t_end (no early stop of certified recoveries)")
-    _wait(p)
-    _common(p, out_help="output folder: basin.parquet, basin.png, pushes.csv, "
-                        "basin_cells/ (finished cells, for resuming)")
+    wait_option(p)
+    common_options(p, out_help="output folder: basin.parquet, basin.png, pushes.csv, "
+                                "basin_cells/ (finished cells, for resuming)")
     p.set_defaults(target="mjx_balance.cli.basin:basin_command")
 
 
 def basin_command(args: Any) -> int:
     """The basin map in --out (every input checked before the folder is touched)."""
-    from ..studies.basin import check_basin, run_basin
-    from . import load_run_config, progress_enabled
-    from .sweep import _in_folder
+    from ..studies.basin import check_basin, run_basin  # lazy: JAX, MuJoCo; not for --help
 
     config = load_run_config(args)
     pushes = (None if str(args.push_forces).strip().lower() == "none"
@@ -59,4 +65,4 @@ def basin_command(args: Any) -> int:
         run_basin(out, config, args.x_com, args.v_com, args.posture, pushes,
                   progress=progress_enabled(args), **engine)
 
-    return _in_folder(out, work, wait=getattr(args, "wait", False))
+    return in_folder(out, work, wait=getattr(args, "wait", False))

@@ -12,22 +12,21 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
-import numpy as np
-
-from ..bench import pipeline, solver
-from ..bench.states import PUSH_DURATIONS
 from ..model.params import Config, save_config
-from ..control.qp import build_qp
-from . import load_run_config
+from .common import load_run_config
+from .options import (EPILOG, HelpFormatter, batch_sizes, common_options, conventions_parent,
+                      engine_options, nonnegative_int, positive_float, positive_int,
+                      positive_int_list)
 
 # One compile of the benchmark's engine in a fresh process, with the persistent compilation
 # cache in the folder given by MJX_BALANCE_CACHE_DIR: seconds, and JAX's compile events.
 _COMPILE_SCRIPT = """
 import json, sys, time
-from mjx_balance.cli import use_host_cores
+from mjx_balance.cli.main import use_host_cores
 use_host_cores()
-from mjx_balance import cache
+from mjx_balance.runtime import cache
 from mjx_balance.bench import pipeline
 from mjx_balance.model.params import load_config
 cache.enable()
@@ -38,6 +37,74 @@ with cache.CompileCounter() as counter:
                                    physics=sys.argv[4])
 print(json.dumps({"compile_s": built["compile_s"], **counter.as_dict()}))
 """
+
+
+def add_parser(sub: Any) -> None:
+    """``bench`` and its sub-commands ``bench solver`` and ``bench physics`` (``sub.add_parser``
+    of ``main.build_parser``)."""
+    p = sub.add_parser("bench", help="pipeline benchmark: batched MJX + ADMM vs the scalar reference "
+                                     "vs CasADi/IPOPT, scenarios per second (or: bench solver)")
+    _pipeline_arguments(p)
+    common_options(p, out_required=False)
+    p.set_defaults(target="mjx_balance.cli.bench:pipeline_command")
+    bench = p.add_subparsers(dest="bench", required=False, metavar="{solver,physics}")
+    conventions = conventions_parent()
+    p = bench.add_parser("solver", help="batched ADMM vs OSQP vs CasADi/IPOPT, solves per second",
+                         description="batched ADMM vs OSQP vs CasADi/IPOPT, solves per second",
+                         formatter_class=HelpFormatter, epilog=EPILOG, parents=[conventions])
+    p.add_argument("--batch", type=batch_sizes, default="1,16,256,4096,16384",
+                   help="comma-separated batch sizes")
+    p.add_argument("--states", type=positive_int, default=4096, help="number of test states")
+    p.add_argument("--dtype", choices=("float32", "float64"), default="float32")
+    p.add_argument("--json", action="store_true", help="print a final JSON line with the figures")
+    common_options(p, out_required=False)
+    p.set_defaults(target="mjx_balance.cli.bench:solver_command")
+    p = bench.add_parser("physics", help="where a CPU sweep's time goes: bare MJX step, closed "
+                                         "loop, pipeline, ADMM, MuJoCo C (mujoco.rollout) and "
+                                         "a C path's bound, per scenario-step",
+                         description="per scenario-step costs of the physics paths side by "
+                                     "side (bench/physics.py explains each figure)",
+                         formatter_class=HelpFormatter, epilog=EPILOG, parents=[conventions])
+    p.add_argument("--slots", type=positive_int, default=64,
+                   help="scenarios side by side (split over the host devices / C threads)")
+    p.add_argument("--seconds", type=positive_float, default=2.0,
+                   help="simulated window of each scenario [s]")
+    p.add_argument("--json", action="store_true", help="print a final JSON line with the figures")
+    common_options(p, out_required=False)
+    p.set_defaults(target="mjx_balance.cli.bench:physics_command")
+
+
+def _pipeline_arguments(p: argparse.ArgumentParser) -> None:
+    """Options of ``mjx-balance bench`` (the pipeline benchmark)."""
+    p.add_argument("--scenarios", type=positive_int, default=1024,
+                   help="scenarios through MJX + ADMM (continuous batching and --full-length)")
+    p.add_argument("--reference", type=nonnegative_int, default=16,
+                   help="of those, how many through the scalar reference (0: skip)")
+    p.add_argument("--ipopt", type=nonnegative_int, default=8,
+                   help="of those, how many through CasADi/IPOPT + MuJoCo C, with the "
+                        "reference's outcome mix (0: skip)")
+    p.add_argument("--workers", type=positive_int, default=os.cpu_count() or 2,
+                   help="worker processes of the reference and the study toolchain")
+    engine_options(p)
+    p.add_argument("--repeats", type=positive_int, default=1, help="timed MJX runs (median)")
+    p.add_argument("--t-end", type=positive_float, default=None,
+                   help="scenario length [s] (default 12)")
+    p.add_argument("--osqp-max-iter", type=positive_int, default=None,
+                   help="reference OSQP iteration cap (default: the configuration's, 20000)")
+    p.add_argument("--memory-scaling", type=positive_int_list,
+                   default=None, help="comma list of sweep sizes (cells), e.g. 10000,100000")
+    p.add_argument("--memory-t-end", type=positive_float, default=0.02,
+                   help="t_end of those sweeps [s]")
+    p.add_argument("--memory-chunk", type=positive_int, default=None,
+                   help="chunk size of those sweeps")
+    p.add_argument("--memory-timeout", type=positive_float, default=900.0,
+                   help="seconds per sweep")
+    p.add_argument("--no-cache-times", action="store_true",
+                   help="skip measuring the engine's compile time with an empty and with a "
+                        "filled persistent compilation cache (two fresh processes, one compile "
+                        "each; JSON keys compile_first_s, compile_cached_s, "
+                        "compile_cached_hits, compile_cached_compiles)")
+    p.add_argument("--json", action="store_true", help="print a final JSON line with the figures")
 
 
 def compile_cache_times(config: Config, slots: int | None, early_stop: bool,
@@ -72,6 +139,8 @@ def compile_cache_times(config: Config, slots: int | None, early_stop: bool,
 
 def pipeline_command(args: argparse.Namespace) -> int:
     """``mjx-balance bench``: batched pipeline vs scalar reference vs the study's toolchain."""
+    from ..bench import pipeline  # lazy: JAX and MuJoCo load when the command runs
+
     config, ref_config = pipeline.benchmark_configs(load_run_config(args),
                                                     getattr(args, "t_end", None),
                                                     getattr(args, "osqp_max_iter", None))
@@ -86,6 +155,48 @@ def pipeline_command(args: argparse.Namespace) -> int:
           f"{os.cpu_count()} CPUs, load average {load[0]:.2f} at start", flush=True)
 
     # Worker pools first: they are spawned (not forked) anyway, and this keeps JAX idle meanwhile.
+    ref, ipopt, ipopt_idx = _run_pools(args, config, ref_config, forces, durations, counts)
+    default, runs, backends = _run_physics_paths(args, config, forces, durations)
+    built, batched = runs.get("continuous batching", runs["--full-length"])
+    full = None
+    if "continuous batching" in runs:
+        full = pipeline.early_vs_full(batched, runs["--full-length"][1])
+        print(f"  continuous vs --full-length: {full['speedup']:.2f}x faster; columns that "
+              f"must agree exactly and differ: {full['exact_columns_differ'] or 'none'}; "
+              f"energies and work within {full['energy_max_rel_diff']:.2g} (relative)",
+              flush=True)
+    _print_backends(backends, default)
+
+    cmp = pipeline.compare(counts, batched, ref, ipopt, ipopt_idx)
+    rss = dict(main=pipeline.peak_rss_mib(resource.RUSAGE_SELF),
+               workers=pipeline.peak_rss_mib(resource.RUSAGE_CHILDREN))
+    _print_pipeline_table(counts, built, batched, ref, ipopt, cmp, rss, full)
+    memory = _memory_scaling(args) if args.memory_scaling else None
+    caching = {}
+    if not getattr(args, "no_cache_times", False):
+        caching = _compile_cache_step(config, args, default)
+    if args.json:
+        figures = pipeline.pipeline_figures(
+            counts=counts, t_end=sc.t_end, workers=args.workers, load_average=load[0],
+            built=built, batched=batched, ref=ref, ipopt=ipopt, ref_config=ref_config,
+            comparison=cmp, peak_rss_mib=rss, memory_scaling=memory, full_length=full)
+        figures["physics"] = default
+        figures["backends"] = {name: {k: v for k, v in b.items() if k != "outcomes"}
+                               for name, b in backends.items()}
+        print(json.dumps({**figures, **caching}))
+    return 0
+
+
+def _run_pools(args: argparse.Namespace, config: Config, ref_config: Config, forces: Any,
+               durations: Any, counts: tuple[int, int, int]) -> tuple[Any, Any, Any]:
+    """The scalar reference and the study toolchain in worker processes (each skipped at a
+    count of 0; IPOPT also without casadi): (reference, ipopt, the IPOPT scenarios' indices,
+    with the reference's outcome mix when it ran)."""
+    import numpy as np
+
+    from ..bench import pipeline  # lazy: JAX and MuJoCo load when the command runs
+
+    _, n_ref, n_ipopt = counts
     ref = ipopt = None
     if n_ref:
         cap = ref_config.controller.osqp_max_iter
@@ -102,9 +213,18 @@ def pipeline_command(args: argparse.Namespace) -> int:
             ipopt = pipeline.run_ipopt_pool(config, forces[ipopt_idx], durations[ipopt_idx],
                                             args.workers)
             _print_pool(ipopt, args.workers, "study toolchain (MuJoCo C + CasADi/IPOPT)")
+    return ref, ipopt, ipopt_idx
 
-    from ..rollout.cpath import PATHS, resolve, unsupported
 
+def _run_physics_paths(args: argparse.Namespace, config: Config, forces: Any,
+                       durations: Any) -> tuple[str, dict, dict]:
+    """Every physics path on the same scenarios: the default one with continuous batching and
+    --full-length (or only --full-length), the others with continuous batching. Returns (the
+    default path, label -> (built, result) of the default path's runs, path -> its figures)."""
+    from ..bench import pipeline  # lazy: JAX and MuJoCo load when the command runs
+    from ..rollout.cpath import PATHS, resolve, unsupported  # lazy: as above
+
+    n_mjx = len(forces)
     default = resolve(args.physics or "auto", config)
     paths = [default] + [p for p in PATHS[1:] if p != default
                          and not (p == "c" and unsupported(config))]
@@ -133,42 +253,20 @@ def pipeline_command(args: argparse.Namespace) -> int:
                                       seconds=round(result["seconds"], 3),
                                       compile_s=round(built["compile_s"], 3),
                                       slots=built["slots"], outcomes=result["outcomes"])
-    built, batched = runs.get("continuous batching", runs["--full-length"])
-    full = None
-    if "continuous batching" in runs:
-        full = pipeline.early_vs_full(batched, runs["--full-length"][1])
-        print(f"  continuous vs --full-length: {full['speedup']:.2f}x faster; columns that "
-              f"must agree exactly and differ: {full['exact_columns_differ'] or 'none'}; "
-              f"energies and work within {full['energy_max_rel_diff']:.2g} (relative)",
-              flush=True)
-    _print_backends(backends, default)
+    return default, runs, backends
 
-    cmp = pipeline.compare(counts, batched, ref, ipopt, ipopt_idx)
-    rss = dict(main=pipeline.peak_rss_mib(resource.RUSAGE_SELF),
-               workers=pipeline.peak_rss_mib(resource.RUSAGE_CHILDREN))
-    _print_pipeline_table(counts, built, batched, ref, ipopt, cmp, rss, full)
-    memory = _memory_scaling(args) if args.memory_scaling else None
-    caching = {}
-    if not getattr(args, "no_cache_times", False):
-        caching = compile_cache_times(config, args.slots, not args.full_length,
-                                      physics=default)
-        if "compile_cache_error" in caching:
-            print(f"compile, persistent cache: not measured ({caching['compile_cache_error']})")
-        else:
-            print(f"compile in a fresh process: {caching['compile_first_s']:.1f} s with an empty "
-                  f"persistent cache, {caching['compile_cached_s']:.1f} s from the cache "
-                  f"({caching['compile_cached_hits']} cache hits, "
-                  f"{caching['compile_cached_compiles']} XLA compilations)", flush=True)
-    if args.json:
-        figures = pipeline.pipeline_figures(
-            counts=counts, t_end=sc.t_end, workers=args.workers, load_average=load[0],
-            built=built, batched=batched, ref=ref, ipopt=ipopt, ref_config=ref_config,
-            comparison=cmp, peak_rss_mib=rss, memory_scaling=memory, full_length=full)
-        figures["physics"] = default
-        figures["backends"] = {name: {k: v for k, v in b.items() if k != "outcomes"}
-                               for name, b in backends.items()}
-        print(json.dumps({**figures, **caching}))
-    return 0
+
+def _compile_cache_step(config: Config, args: argparse.Namespace, physics: str) -> dict:
+    """:func:`compile_cache_times` of the default path, printed as it comes."""
+    caching = compile_cache_times(config, args.slots, not args.full_length, physics=physics)
+    if "compile_cache_error" in caching:
+        print(f"compile, persistent cache: not measured ({caching['compile_cache_error']})")
+    else:
+        print(f"compile in a fresh process: {caching['compile_first_s']:.1f} s with an empty "
+              f"persistent cache, {caching['compile_cached_s']:.1f} s from the cache "
+              f"({caching['compile_cached_hits']} cache hits, "
+              f"{caching['compile_cached_compiles']} XLA compilations)", flush=True)
+    return caching
 
 
 _PATH_NAMES = {"mjx": "MJX + ADMM", "c": "MuJoCo C + ADMM"}
@@ -189,6 +287,8 @@ def _print_backends(backends: dict, default: str) -> None:
 
 def _print_pipeline_table(counts, built, batched, ref, ipopt, cmp, rss, full=None) -> None:
     """The pipeline benchmark's closing table: rates, ratios, outcomes, memory, targets."""
+    from ..bench import pipeline  # lazy: JAX and MuJoCo load when the command runs
+
     n_mjx, n_ref, n_ipopt = counts
     r_mjx, r_ref, r_ipopt = cmp["mjx"], cmp["reference"], cmp["ipopt"]
     print()
@@ -224,6 +324,8 @@ def _met(ok: bool) -> str:
 
 
 def _print_pool(result: dict, workers: int, label: str) -> None:
+    import numpy as np
+
     per = result["per"]
     print(f"  {label}: {len(per)} scenarios in {result['seconds']:.1f} s on {workers} processes "
           f"(warm-up {result['warm_s']:.1f} s; per scenario median {np.median(per):.2f} s, "
@@ -231,6 +333,8 @@ def _print_pool(result: dict, workers: int, label: str) -> None:
 
 
 def _memory_scaling(args: argparse.Namespace) -> list[dict]:
+    from ..bench import pipeline  # lazy: JAX and MuJoCo load when the command runs
+
     rows = []
     print(f"memory scaling: sweeps with t_end = {args.memory_t_end} s, each in a fresh process",
           flush=True)
@@ -252,7 +356,11 @@ def _memory_scaling(args: argparse.Namespace) -> list[dict]:
 
 def solver_command(args: argparse.Namespace) -> int:
     """``mjx-balance bench solver``: batched ADMM vs OSQP vs CasADi/IPOPT on the same states."""
-    from ..control import admm  # JAX: imported when this command runs
+    # lazy: JAX: imported when this command runs
+    from ..bench import solver
+    from ..bench.states import PUSH_DURATIONS  # lazy: as above
+    from ..control import admm  # lazy: as above
+    from ..control.qp import build_qp  # lazy: as above
 
     dtype = solver.admm_dtype(args.dtype)
     config = load_run_config(args)
@@ -302,17 +410,7 @@ def solver_command(args: argparse.Namespace) -> int:
               f"{per_solved * 1e6:8.1f} us/solve over the OSQP-solved states "
               f"({1 / per_solved:6.0f} solves/s)", flush=True)
 
-    ipopt_per_solve = float("nan")
-    try:
-        ip = solver.time_ipopt(qp, controller, trajectories, truth)
-    except ImportError:
-        print("  CasADi/IPOPT: casadi not installed, skipped")
-    else:
-        ipopt_per_solve, errs = ip["seconds_per_solve"], ip["errors"]
-        print(f"  CasADi/IPOPT (multiple shooting, RK4 on Ac, Bc): {ip['solves']} solves, "
-              f"{ipopt_per_solve * 1e3:.2f} ms/solve ({1 / ipopt_per_solve:.0f} solves/s); "
-              f"first control vs the ZOH QP: median {np.median(errs):.1e}, max {max(errs):.1e} "
-              f"of range (RK4 on Ac differs from exact ZOH)")
+    ipopt_per_solve = _time_ipopt(qp, controller, trajectories, truth)
 
     _print_solver_table(rows, osqp_rows[-1], ipopt_per_solve, peak, peak_note,
                         (it_flops, chk_flops), time.perf_counter() - t_start)
@@ -328,6 +426,27 @@ def solver_command(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(figures))
     return 0
+
+
+def _time_ipopt(qp: Any, controller: Any, trajectories: Any, truth: Any) -> float:
+    """CasADi/IPOPT's seconds per solve on the benchmark's states, printed (NaN, and said,
+    without casadi)."""
+    import numpy as np
+
+    from ..bench import solver  # lazy: JAX: imported when this command runs
+
+    ipopt_per_solve = float("nan")
+    try:
+        ip = solver.time_ipopt(qp, controller, trajectories, truth)
+    except ImportError:
+        print("  CasADi/IPOPT: casadi not installed, skipped")
+    else:
+        ipopt_per_solve, errs = ip["seconds_per_solve"], ip["errors"]
+        print(f"  CasADi/IPOPT (multiple shooting, RK4 on Ac, Bc): {ip['solves']} solves, "
+              f"{ipopt_per_solve * 1e3:.2f} ms/solve ({1 / ipopt_per_solve:.0f} solves/s); "
+              f"first control vs the ZOH QP: median {np.median(errs):.1e}, max {max(errs):.1e} "
+              f"of range (RK4 on Ac differs from exact ZOH)")
+    return ipopt_per_solve
 
 
 def _print_solver_table(rows: list[dict], chosen: dict, ipopt_per_solve: float, peak: float,
@@ -364,7 +483,7 @@ def _print_solver_table(rows: list[dict], chosen: dict, ipopt_per_solve: float, 
 
 def physics_command(args: argparse.Namespace) -> int:
     """``mjx-balance bench physics``: per scenario-step costs, MJX and MuJoCo C side by side."""
-    from ..bench import physics  # JAX: imported when this command runs
+    from ..bench import physics  # lazy: JAX: imported when this command runs
 
     config = load_run_config(args)
     print(f"physics paths side by side: {args.slots} slots, {args.seconds:g} s windows "

@@ -1,29 +1,36 @@
 """``mjx-balance landscape``: recoverable area, sustained-push limit and mean recovery energy
 over a grid of Q and R scales, with and without delay (``mjx_balance.studies.landscape``).
 
-Only the parser (:func:`add_parser`) is imported when the command line is built; the command
-imports the library when it runs.
+The parser is built without the library (``--help`` stays light); the command imports it when
+it runs.
 """
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 from typing import Any
 
+from ..model.params import apply_overrides
+from .common import base_config, chosen_physics, in_folder, progress_enabled
+from .options import engine_options, out_folder, setting, sweep_file, wait_option
+
+# The defaults of studies.landscape (DEFAULT_SCALES, DEFAULT_DELAYS, DEFAULT_TABLE_FORCES),
+# written out here: importing that module loads JAX and MuJoCo, which --help must not.
+DEFAULT_SCALES = "0.001,0.01,0.1,1,10,100,1000"
+DEFAULT_DELAYS = "0,100c"
+DEFAULT_TABLE_FORCES = "50"
+
 
 def add_parser(sub: Any) -> None:
-    """The ``landscape`` sub-command's options (``sub.add_parser`` of ``cli.build_parser``,
+    """The ``landscape`` sub-command's options (``sub.add_parser`` of ``main.build_parser``,
     which adds the common options, the defaults in the help and the epilog)."""
-    from . import _engine_options, _wait, out_folder, setting, sweep_file
-
     p = sub.add_parser(
         "landscape", help="the weight landscape: recoverable area, sustained-push limit and "
                           "mean recovery energy over a grid of Q and R scales, with and without "
                           "delay; each (delay, Q scale, R scale) runs as compare runs a "
                           "configuration, in DIR/<delay>/q<q>_r<r>/ (resumable), then "
                           "landscape.csv, landscape.png (heatmaps), landscape.txt")
-    from ..studies.landscape import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES
-
     p.add_argument("--sweep", type=sweep_file, default=None,
                    help="sweep definition whose configuration and grid are the base (a TOML "
                         "file or a shipped name, e.g. landscape_weights); default: the "
@@ -48,8 +55,8 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--table-forces", default=None,
                    help="forces of each setting's max-acting-time table [N] (default: the "
                         f"--sweep file's, else {DEFAULT_TABLE_FORCES})")
-    _engine_options(p)
-    _wait(p)
+    engine_options(p)
+    wait_option(p)
     p.add_argument("--out", type=out_folder, required=True,
                    help="output folder: one sweep folder per setting, landscape.csv, "
                         "landscape.png, landscape.txt")
@@ -59,13 +66,10 @@ def add_parser(sub: Any) -> None:
 def landscape_command(args: Any) -> int:
     """Every setting's map and table, then landscape.csv, .png and .txt in --out. Every input
     is checked (``landscape.check_landscape``) before the folder is touched."""
-    import logging
-
-    from ..studies.landscape import DEFAULT_TABLE_FORCES, check_landscape, run_landscape
-    from ..model.params import apply_overrides
+    # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
     from ..runs import DEFAULT_SWEEP, load_sweep
-    from . import base_config, progress_enabled
-    from .sweep import _in_folder, _physics
+    from ..studies.landscape import (DEFAULT_TABLE_FORCES, check_landscape,  # lazy: as above
+                                     run_landscape)
 
     definition = load_sweep(args.sweep, base_config(args, overrides=False))
     config = apply_overrides(definition.config, getattr(args, "set", None))
@@ -82,7 +86,7 @@ def landscape_command(args: Any) -> int:
     check_landscape(out, config, forces, durations, args.q_scales, args.r_scales, args.delay,
                     table_forces)
     engine = {"slots": args.slots, "full_length": args.full_length,
-              "physics": _physics(args, definition)}
+              "physics": chosen_physics(args, definition)}
 
     def work() -> None:
         run_landscape(out, config, forces, durations, q_scales=args.q_scales,
@@ -90,4 +94,4 @@ def landscape_command(args: Any) -> int:
                       progress=progress_enabled(args),
                       log=logging.getLogger("mjx_balance").info, **engine)
 
-    return _in_folder(out, work, wait=getattr(args, "wait", False))
+    return in_folder(out, work, wait=getattr(args, "wait", False))

@@ -20,20 +20,43 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
-from ..store.folder import write_text
-from . import load_run_config, one_push
+from .common import load_run_config, one_push
+from .options import config_options, finite_float, nonnegative_float, out_file, positive_float
 
 log = logging.getLogger("mjx_balance")
 
 NO_DISPLAY = 1  # exit code of `view` without a display (a failure, not a usage error)
 
 
+def add_parser(sub: Any) -> None:
+    """The ``model`` and ``view`` sub-commands (``sub.add_parser`` of ``main.build_parser``)."""
+    p = sub.add_parser("model", help="write the MJCF (MuJoCo XML) of the configured body (its "
+                                     "time step: scenario.physics_dt)")
+    config_options(p)
+    p.add_argument("--out", type=out_file, required=True, help="output MJCF file, e.g. body.xml")
+    p.set_defaults(target="mjx_balance.cli.model:model_command")
+
+    p = sub.add_parser("view", help="replay one push in MuJoCo's interactive (passive) viewer "
+                                    "(needs a display)")
+    p.add_argument("--force", type=finite_float, required=True, help="push force [N]")
+    p.add_argument("--duration", type=nonnegative_float, default=0.1, help="push duration [s]")
+    p.add_argument("--t-end", type=positive_float, default=None,
+                   help="simulate only this long [s] (default: the configuration's t_end)")
+    p.add_argument("--speed", type=positive_float, default=1.0,
+                   help="playback speed (1: real time)")
+    p.add_argument("--loop", action="store_true", help="replay until the viewer is closed")
+    config_options(p)
+    p.set_defaults(target="mjx_balance.cli.model:view_command")
+
+
 def model_command(args) -> int:
     """Write the configured body's MJCF to --out (atomically), checked by compiling it."""
     import mujoco
 
-    from ..model.mjcf import mjcf
+    from ..model.mjcf import mjcf  # lazy: MuJoCo; not for --help
+    from ..store.files import write_text  # lazy: the store floor loads pandas
 
     config = load_run_config(args)
     text = mjcf(config.body, config.scenario.physics_dt)
@@ -65,8 +88,8 @@ def view_command(args) -> int:
 
     import mujoco
 
-    from ..model.mjcf import build_model
-    from ..reference.loop import simulate_scenario
+    from ..model.mjcf import build_model  # lazy: MuJoCo, after the display check
+    from ..reference.loop import simulate_scenario  # lazy: as above
 
     summary, series = simulate_scenario(config, args.force, duration, record=True)
     log.info(f"push {args.force:g} N for {duration:g} s: {summary['outcome']}; replaying "

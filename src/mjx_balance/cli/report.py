@@ -7,17 +7,54 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ..runtime import cache
 from ..model.params import CONVENTIONS, ParameterError
-from ..report import PLANS, REPORT_JSON, build_report, run_report, selected_studies
-from ..studies.experiments import read_record
-from ..store.folder import run_context
-from . import load_run_config
+from .common import load_run_config
+from .options import (cluster_option, input_file, input_folder, out_folder, physics_option,
+                      setting)
+
+
+def add_parser(sub: Any) -> None:
+    """The ``report`` sub-command (``sub.add_parser`` of ``main.build_parser``)."""
+    p = sub.add_parser("report", help="HTML report: the study's experiments (both conventions) "
+                                      "and the studies beyond it, with their saved tables")
+    p.add_argument("--scale", choices=("tiny", "default", "dense"), default="default",
+                   help="tiny: 2 s runs on tiny grids (tests); default: the study's table and "
+                        "coarse region maps; dense: dense region maps (GPU)")
+    p.add_argument("--backend", choices=("mjx", "reference"), default=None,
+                   help="batch function of the table and region maps (default: mjx; tiny: reference)")
+    p.add_argument("--studies", default="all",
+                   help="comma list of studies (ankle_only, backward, delay, older_adult, "
+                        "recovery_definition, push_height), 'all' or 'none'")
+    p.add_argument("--conventions", default=None, help="experiments' conventions (default: paper,joint)")
+    p.add_argument("--sweeps", type=input_folder, default=None,
+                   help="folder of the study sweep definitions (default: the shipped ones, "
+                        "mjx_balance/sweeps/)")
+    p.add_argument("--html-only", action="store_true",
+                   help="redraw figures and report.html from the tables saved in --out")
+    cluster_option(p)
+    physics_option(p)
+    p.add_argument("--convention", choices=CONVENTIONS, default=None,
+                   help="the studies' convention (default: the configuration's, 'paper'); the "
+                        "study's experiments run every convention of --conventions")
+    p.add_argument("--config", type=input_file, default=None,
+                   help="TOML configuration file (body, controller, scenario)")
+    p.add_argument("--set", type=setting, action="append", default=None,
+                   metavar="SECTION.KEY=VALUE",
+                   help="override one value of the configuration (repeatable; see sweep --help)")
+    p.add_argument("--out", type=out_folder, required=True,
+                   help="output folder (tables, figures, report.html)")
+    p.set_defaults(target="mjx_balance.cli.report:report_command")
 
 
 def report_command(args: Any) -> int:
     """Without --html-only: run everything missing in --out and say where the tables are (on
     stderr); then, or with --html-only alone, draw the figures and report.html."""
+    # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
+    from ..report import PLANS, REPORT_JSON, build_report, run_report, selected_studies
+    from ..runtime import cache  # lazy: as above
+    from ..store.provenance import run_context  # lazy: as above
+    from ..studies.experiments import read_record  # lazy: as above
+
     out = Path(args.out)
     if not getattr(args, "html_only", False):
         conventions = _conventions(args.conventions)

@@ -1,48 +1,49 @@
 """``mjx-balance sensitivity``: the reproduction table under every reading of the study
 (``mjx_balance.studies.sensitivity``).
 
-Only the parser (:func:`add_parser`) is imported when the command line is built; the command
-imports the library when it runs.
+The parser is built without the library (``--help`` stays light); the command imports it when
+it runs.
 """
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 from typing import Any
 
+from .common import in_folder, load_run_config, progress_enabled
+from .options import cluster_option, common_options, engine_options, wait_option
+
+# The defaults of studies.sensitivity (DEFAULT_FORCES, the keys of READINGS), written out here:
+# importing that module loads JAX and MuJoCo, which --help must not.
+DEFAULT_FORCES = "20,50,80,100,120"
+READINGS = ("paper_plain", "joint_plain", "paper_offset_free", "joint_offset_free")
+
 
 def add_parser(sub: Any) -> None:
-    """The ``sensitivity`` sub-command's options (``sub.add_parser`` of ``cli.build_parser``)."""
-    from . import _cluster, _common, _engine_options, _wait
-
+    """The ``sensitivity`` sub-command's options (``sub.add_parser`` of ``main.build_parser``)."""
     p = sub.add_parser(
         "sensitivity", help="the robustness table under every reading of the study (paper/joint "
                             "convention x plain/offset-free MPC, both energy definitions): each "
                             "reading's table in DIR/<reading>/ (resumable), then "
                             "sensitivity.csv (the spread per force), sensitivity.png, "
                             "sensitivity.txt (what holds under every reading)")
-    from ..studies.sensitivity import DEFAULT_FORCES, READINGS
-
     p.add_argument("--forces", default=DEFAULT_FORCES,
                    help="table forces [N], start:stop:step or a comma list")
     p.add_argument("--readings", default=",".join(READINGS),
                    help="comma list of readings to run")
-    _engine_options(p)
-    _cluster(p)
-    _wait(p)
-    _common(p, out_help="output folder: one table folder per reading, sensitivity.csv, "
-                        "sensitivity.png, sensitivity.txt")
+    engine_options(p)
+    cluster_option(p)
+    wait_option(p)
+    common_options(p, out_help="output folder: one table folder per reading, sensitivity.csv, "
+                               "sensitivity.png, sensitivity.txt")
     p.set_defaults(target="mjx_balance.cli.sensitivity:sensitivity_command")
 
 
 def sensitivity_command(args: Any) -> int:
     """Every reading's table, then the spread (every input checked first)."""
-    import logging
-
-    from ..studies.sensitivity import reading_configs, run_sensitivity
-    from ..runs.grid import parse_grid
-    from . import load_run_config, progress_enabled
-    from .sweep import _in_folder
+    from ..runs.grid import parse_grid  # lazy: JAX, MuJoCo; not for --help
+    from ..studies.sensitivity import reading_configs, run_sensitivity  # lazy: as above
 
     base = load_run_config(args)
     readings = [r.strip() for r in args.readings.split(",") if r.strip()]
@@ -57,4 +58,4 @@ def sensitivity_command(args: Any) -> int:
                         progress=progress_enabled(args),
                         say=logging.getLogger("mjx_balance").info, **engine)
 
-    return _in_folder(out, work, wait=getattr(args, "wait", False))
+    return in_folder(out, work, wait=getattr(args, "wait", False))

@@ -9,16 +9,9 @@ import logging
 import math
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
-
-from .. import api
 from ..model.params import ParameterError, dumps_config
-from ..figures.timeseries import timeseries_figures
-from ..runs.grid import check_durations, parse_grid
-from ..store.folder import (CONFIG, MANIFEST, REGION, TABLE_CELLS, record_simulation, run_context,
-                            write_atomic, write_parquet, write_text)
-from . import load_run_config, progress_enabled
+from .common import load_run_config, progress_enabled
+from .options import common_options
 
 log = logging.getLogger("mjx_balance")
 
@@ -27,6 +20,18 @@ PRINTED_COLUMNS = ["force", "duration", "convention", "outcome", "settle_time", 
                    "peak_ankle", "peak_hip", "peak_tau_ankle", "peak_tau_hip",
                    "ankle_saturation_fraction", "energy_ankle", "energy_hip", "energy_total",
                    "nonconverged_solves", "max_bound_violation"]
+
+
+def add_parser(sub) -> None:
+    """The ``simulate`` sub-command (``sub.add_parser`` of ``main.build_parser``)."""
+    p = sub.add_parser("simulate", help="scalar reference closed loop (MuJoCo C + OSQP) for a few pushes")
+    p.add_argument("--force", default="0,20,50,80,100,120", help="comma-separated forces [N]")
+    p.add_argument("--duration", default="0.1", help="comma-separated push durations [s]")
+    p.add_argument("--full-window", action="store_true",
+                   help="time axes of the figures up to t_end (default: trimmed to the action, "
+                        "the last settle or fall plus a margin)")
+    common_options(p)
+    p.set_defaults(target="mjx_balance.cli.simulate:simulate_command")
 
 
 def parse_values(text: str, name: str, *, nonnegative: bool = False) -> list[float]:
@@ -51,6 +56,8 @@ def parse_values(text: str, name: str, *, nonnegative: bool = False) -> list[flo
 def parse_option_grid(text: str, name: str) -> list[float]:
     """``--name``'s values as ``sweep`` reads a grid (sweep.grid.parse_grid): ``start:stop:step``
     or a comma list, sorted, each value once; ParameterError naming ``--name`` otherwise."""
+    from ..runs.grid import parse_grid  # lazy: the runs floor loads JAX
+
     if not any(item.strip() for item in str(text).split(",")):
         raise ParameterError(f"--{name}: give at least one value")
     return [float(v) for v in parse_grid(str(text), f"--{name}")]
@@ -60,6 +67,8 @@ def sweep_folder(out: Path) -> bool:
     """Whether ``out`` holds a sweep, a table or a report (its config.toml must not be
     overwritten): a manifest other than simulate's own, or a config.toml beside chunks, a
     region, the table's kept scenarios or a report's record."""
+    from ..store.files import CONFIG, MANIFEST, REGION, TABLE_CELLS  # lazy: loads pandas
+
     return (((out / MANIFEST).exists() and not _simulate_manifest(out / MANIFEST))
             or ((out / CONFIG).exists() and any(
                 (out / name).exists() for name in ("chunks", REGION, TABLE_CELLS, "report.json"))))
@@ -77,6 +86,18 @@ def _simulate_manifest(path: Path) -> bool:
 def simulate_command(args: argparse.Namespace) -> int:
     """``mjx-balance simulate``: run the pushes, write tables, configuration and figures
     (each file atomically: whole or absent)."""
+    import numpy as np
+    import pandas as pd
+
+    # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
+    from .. import api
+    from ..figures.timeseries import timeseries_figures  # lazy: matplotlib
+    from ..runs.grid import check_durations  # lazy: the runs floor loads JAX
+    from ..store.files import (CONFIG, MANIFEST, write_atomic,  # lazy: the store floor: pandas
+                               write_parquet, write_text)
+    from ..store.folder import record_simulation  # lazy: as above
+    from ..store.provenance import run_context  # lazy: as above
+
     forces = parse_option_grid(args.force, "force")
     config = load_run_config(args)
     # As ``sweep``: durations in [0, t_end] and whole physics steps (snapped to them).

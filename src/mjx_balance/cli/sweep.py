@@ -11,31 +11,58 @@ Derived figures missing or damaged (a PNG cut short) are drawn again on a rerun.
 
 from __future__ import annotations
 
-import errno
 import json
 import logging
 import math
-import sys
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-import pandas as pd
-
-from .. import api
-from ..figures import region as region_plots
 from ..model.params import Config, apply_overrides, with_convention
-from ..runs import (DEFAULT_SWEEP, MANIFEST, STUDY_TABLE_FORCES, TABLE, SweepResult,
-                    check_durations, load_sweep, parse_grid, table_batch_size)
-from ..runs.acting_time import SUSTAINED_COARSE, coarse_steps
-from ..runs.chunks import check_planned_work, default_chunk_size, planned_work
-from ..runs.grid import check_cell_count
-from ..store.folder import REGION, folder_lock, readable_png
-from . import base_config, progress_enabled
+from .common import base_config, chosen_physics, in_folder, progress_enabled
+from .options import (cluster_option, common_options, engine_options, input_file,
+                      positive_int, sweep_file, wait_option, yes_option)
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from ..runs import SweepResult
 
 log = logging.getLogger("mjx_balance")
 
-WRITE_FAILED = 1  # exit code of a run whose writing failed (2: bad arguments, before any work)
+
+def add_parser(sub: Any) -> None:
+    """The ``sweep`` and ``table`` sub-commands (``sub.add_parser`` of ``main.build_parser``)."""
+    p = sub.add_parser("sweep", help="recoverable region over a force x duration grid")
+    p.add_argument("--forces", default=None, help="start:stop:step or a comma list [N]")
+    p.add_argument("--durations", default=None, help="start:stop:step or a comma list [s]")
+    p.add_argument("--sweep", type=sweep_file, default=None,
+                   help="sweep definition: a TOML file or the name of a shipped one "
+                        "(default, region_dense_paper, study_...; see mjx_balance/sweeps/)")
+    p.add_argument("--chunk", type=positive_int, default=None,
+                   help="scenarios per chunk (default: from memory budget)")
+    p.add_argument("--reference", type=input_file, default=None,
+                   help="CSV of points (force, duration) to draw over the map")
+    engine_options(p)
+    cluster_option(p)
+    yes_option(p)
+    wait_option(p)
+    common_options(p)
+    p.set_defaults(target="mjx_balance.cli.sweep:sweep_command")
+
+    p = sub.add_parser("table", help="max acting time per force (robustness table) and the "
+                                     "sustained-push limit")
+    p.add_argument("--forces", default=None,
+                   help="comma list or start:stop:step [N] (default: the --sweep file's table_forces, "
+                        "else the study's 5,10,15,20,30,40,50,60,80,100,120)")
+    p.add_argument("--sweep", type=sweep_file, default=None,
+                   help="sweep definition: a TOML file or the name of a shipped one "
+                        "(study_table_paper, ...; see mjx_balance/sweeps/)")
+    engine_options(p)
+    cluster_option(p)
+    yes_option(p)
+    wait_option(p)
+    common_options(p)
+    p.set_defaults(target="mjx_balance.cli.sweep:table_command")
 
 
 def sweep_command(args: Any) -> int:
@@ -44,6 +71,14 @@ def sweep_command(args: Any) -> int:
     Without --forces, --durations or --sweep it runs the built-in default sweep and also writes
     the table (table.csv, table.png) into the same folder.
     """
+    # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
+    from .. import api
+    from ..figures import region as region_plots  # lazy: matplotlib
+    from ..runs import (DEFAULT_SWEEP, MANIFEST, check_durations,  # lazy: the runs floor: JAX
+                        load_sweep, parse_grid)
+    from ..runs.chunks import default_chunk_size  # lazy: as above
+    from ..runs.grid import check_cell_count  # lazy: as above
+
     use_default = args.sweep is None and args.forces is None and args.durations is None
     definition = load_sweep(args.sweep, base_config(args, overrides=False))
     if args.sweep is None and not use_default:
@@ -79,7 +114,7 @@ def sweep_command(args: Any) -> int:
     def work() -> None:
         # built (and compiled) only if a scenario must run
         run_batch = api.batch_function(config, slots=args.slots, full_length=args.full_length,
-                                       physics=_physics(args, definition))
+                                       physics=chosen_physics(args, definition))
         result = api.run_region(out, config, forces, durations, run_batch=run_batch,
                                 chunk=chunk, progress=progress, cluster=args.cluster)
         _make_region_figures(out, result, config, reference)
@@ -94,11 +129,20 @@ def sweep_command(args: Any) -> int:
             _make_region_figures(out, result, config, reference, only="region.png",
                                  force=table is not None)
 
-    return _in_folder(out, work, wait=getattr(args, "wait", False))
+    return in_folder(out, work, wait=getattr(args, "wait", False))
 
 
 def table_command(args: Any) -> int:
     """``mjx-balance table``: table.csv and table.png in --out."""
+    import pandas as pd
+
+    # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
+    from .. import api
+    from ..figures import region as region_plots  # lazy: matplotlib
+    from ..runs import (STUDY_TABLE_FORCES, TABLE, load_sweep,  # lazy: the runs floor: JAX
+                        parse_grid, table_batch_size)
+    from ..store.files import REGION  # lazy: pandas
+
     definition = (load_sweep(args.sweep, base_config(args, overrides=False)) if args.sweep
                   else None)
     config = with_convention(apply_overrides(definition.config, getattr(args, "set", None))
@@ -118,7 +162,7 @@ def table_command(args: Any) -> int:
     def work() -> None:
         table = api.run_table_folder(out, config, forces, batch=batch, slots=args.slots,
                                      full_length=args.full_length,
-                                     physics=_physics(args, definition),
+                                     physics=chosen_physics(args, definition),
                                      progress=progress_enabled(args),
                                      cluster=getattr(args, "cluster", None))
         _make_table_figure(out, config, force=table is not None)
@@ -128,19 +172,17 @@ def table_command(args: Any) -> int:
                 region_plots.plot_region(pd.read_parquet(out / REGION), path, config=config)
                 log.info(f"wrote {path}")
 
-    return _in_folder(out, work, wait=getattr(args, "wait", False))
-
-
-def _physics(args: Any, definition: Any) -> str:
-    """--physics, else the --sweep file's [sweep] physics, else auto."""
-    return (getattr(args, "physics", None) or getattr(definition, "physics", None)
-            or "auto")
+    return in_folder(out, work, wait=getattr(args, "wait", False))
 
 
 def table_scenarios(config: Config, n_forces: int) -> int:
     """Scenarios a table evaluates, at most: every force's (:func:`table_scenarios_per_force`)
     and the sustained-push limit's (its coarse scan and rounds to 0.1 N from its widest
     bracket)."""
+    import numpy as np
+
+    from ..runs.acting_time import SUSTAINED_COARSE  # lazy: the runs floor loads JAX
+
     coarse = np.asarray(SUSTAINED_COARSE)
     rounds = math.ceil(math.log(np.diff(coarse).max() / 0.1) / math.log(8))
     return n_forces * table_scenarios_per_force(config) + coarse.size + 7 * rounds
@@ -149,6 +191,10 @@ def table_scenarios(config: Config, n_forces: int) -> int:
 def table_scenarios_per_force(config: Config, resolution: float = 0.01) -> int:
     """Scenarios the table evaluates per force, at most: its coarse scan, then one bisection of
     the widest bracket (a planning estimate; resumed or monotone forces need fewer)."""
+    import numpy as np
+
+    from ..runs.acting_time import coarse_steps  # lazy: the runs floor loads JAX
+
     steps = coarse_steps(config.scenario.t_end, resolution)
     widest = int(max(np.diff(np.concatenate([[0], steps])).max(), 1))
     return int(steps.size + math.ceil(math.log2(widest)) + 1)
@@ -157,6 +203,8 @@ def table_scenarios_per_force(config: Config, resolution: float = 0.01) -> int:
 def _guard_work(args: Any, config: Config, n_scenarios: int, chunk_size: int, what: str,
                 extra: int = 0) -> None:
     """Say the planned work; refuse it above the limit unless --yes (before any compile)."""
+    from ..runs.chunks import check_planned_work, planned_work  # lazy: the runs floor loads JAX
+
     t_end = config.scenario.t_end
     log.info(planned_work(n_scenarios, t_end, chunk_size, what)
              + (f" (+ about {extra:,} table scenarios)" if extra else ""))
@@ -164,35 +212,11 @@ def _guard_work(args: Any, config: Config, n_scenarios: int, chunk_size: int, wh
         check_planned_work(n_scenarios + extra, t_end, what)
 
 
-def _in_folder(out: Path, work: Callable[[], None], *, wait: bool = False) -> int:
-    """Run ``work`` holding the folder's lock (``wait``: waiting for another run to let go of
-    it, else refused at once); a failed write ends in one line, exit code 1."""
-    try:
-        with folder_lock(out, wait=wait):
-            work()
-    except OSError as exc:
-        print(f"mjx-balance: error: {_write_failure(out, exc)}", file=sys.stderr)
-        return WRITE_FAILED
-    return 0
-
-
-def _write_failure(out: Path, exc: OSError) -> str:
-    """One line: which write in which folder failed, why, and what to do."""
-    reason = exc.strerror or (str(exc).splitlines() or [type(exc).__name__])[0]
-    where = f" ({Path(exc.filename).name})" if exc.filename else ""
-    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-        fix = f"free some space on the disk of {out}"
-    elif exc.errno == errno.EFBIG:
-        fix = "raise the file-size limit (ulimit -f)"
-    else:
-        fix = "fix the cause"
-    return (f"writing in {out} failed: {reason}{where}; what was finished is kept: {fix}, "
-            "then run the same command again to resume")
-
-
 def _stale(figure: Path, source: Path) -> bool:
     """A figure to draw again: missing, damaged (cut short by a failed write), or older than
     the table it is drawn from (a run that failed after rewriting the table)."""
+    from ..store.files import readable_png  # lazy: the store floor loads pandas
+
     return (not readable_png(figure)
             or figure.stat().st_mtime_ns < source.stat().st_mtime_ns)
 
@@ -204,6 +228,10 @@ def _make_region_figures(out: Path, result: SweepResult, config: Config,
     or merged anything, with reference points, when ``force``d, or when stale (older than
     region.parquet, or region.png older than the table.csv whose curve it overlays); read
     from region.parquet only then."""
+    from ..figures import region as region_plots  # lazy: matplotlib
+    from ..runs import TABLE  # lazy: the runs floor loads JAX
+    from ..store.files import readable_png  # lazy: the store floor loads pandas
+
     targets = {"region.png": region_plots.plot_region, "energy.png": region_plots.plot_energy}
     region = None
     for name, plot in targets.items():
@@ -221,6 +249,11 @@ def _make_region_figures(out: Path, result: SweepResult, config: Config,
 
 
 def _make_table_figure(out: Path, config: Config, force: bool) -> None:
+    import pandas as pd
+
+    from ..figures import region as region_plots  # lazy: matplotlib
+    from ..runs import TABLE  # lazy: the runs floor loads JAX
+
     path = out / "table.png"
     if force or _stale(path, out / TABLE):
         region_plots.plot_table(pd.read_csv(out / TABLE, keep_default_na=True), path, config=config)

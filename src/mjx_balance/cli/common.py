@@ -1,0 +1,93 @@
+"""Helpers the commands share when they run: the run's configuration from the options, one
+push's configuration and duration, progress on or off, the chosen physics path, and the work
+in an output folder under its lock.
+
+Light at import (the parser imports the command modules): what needs the library below the
+configuration imports it when called.
+"""
+
+from __future__ import annotations
+
+import argparse
+import errno
+import sys
+from pathlib import Path
+from typing import Any, Callable
+
+from ..model.params import Config, run_config
+
+WRITE_FAILED = 1  # exit code of a run whose writing failed (2: bad arguments, before any work)
+
+
+def base_config(args: argparse.Namespace, overrides: bool = True) -> Config:
+    """The --config file's configuration (or the defaults) with the --set overrides on top
+    (--convention not applied). ``overrides=False``: without them (the base of a --sweep file,
+    which the overrides go on top of: a value may only be valid with the file's others)."""
+    return run_config(getattr(args, "config", None), None,
+                      getattr(args, "set", None) if overrides else None)
+
+
+def load_run_config(args: argparse.Namespace) -> Config:
+    """The run's configuration: --config file (or defaults), --set overrides, then --convention
+    on top."""
+    return run_config(getattr(args, "config", None), getattr(args, "convention", None),
+                      getattr(args, "set", None))
+
+
+def one_push(args: argparse.Namespace) -> tuple[Config, float]:
+    """(configuration, duration) of a one-push command (``animate``, ``view``): --t-end
+    applied, the duration checked as ``sweep`` checks it (whole physics steps in [0, t_end],
+    snapped to them) and every other rule of the configuration checked before any work."""
+    from ..runs.grid import check_durations  # lazy: the runs floor loads JAX
+
+    config = load_run_config(args)
+    if args.t_end is not None:
+        config = config.replace(scenario={"t_end": args.t_end})
+    duration = float(check_durations([args.duration], config.scenario.t_end, "--duration",
+                                      physics_dt=config.scenario.physics_dt)[0])
+    config.replace(scenario={"duration": duration})
+    return config, duration
+
+
+def verbosity(args: argparse.Namespace) -> int:
+    """-1 with -q, 1 with -v, else 0 (-q wins)."""
+    return -1 if getattr(args, "quiet", 0) else (1 if getattr(args, "verbose", 0) else 0)
+
+
+def progress_enabled(args: argparse.Namespace) -> bool:
+    """Progress bars: on unless -q."""
+    return verbosity(args) >= 0
+
+
+def chosen_physics(args: Any, definition: Any) -> str:
+    """--physics, else the --sweep file's [sweep] physics, else auto."""
+    return (getattr(args, "physics", None) or getattr(definition, "physics", None)
+            or "auto")
+
+
+def in_folder(out: Path, work: Callable[[], None], *, wait: bool = False) -> int:
+    """Run ``work`` holding the folder's lock (``wait``: waiting for another run to let go of
+    it, else refused at once); a failed write ends in one line, exit code 1."""
+    from ..store.folder import folder_lock  # lazy: the store floor loads pandas
+
+    try:
+        with folder_lock(out, wait=wait):
+            work()
+    except OSError as exc:
+        print(f"mjx-balance: error: {_write_failure(out, exc)}", file=sys.stderr)
+        return WRITE_FAILED
+    return 0
+
+
+def _write_failure(out: Path, exc: OSError) -> str:
+    """One line: which write in which folder failed, why, and what to do."""
+    reason = exc.strerror or (str(exc).splitlines() or [type(exc).__name__])[0]
+    where = f" ({Path(exc.filename).name})" if exc.filename else ""
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        fix = f"free some space on the disk of {out}"
+    elif exc.errno == errno.EFBIG:
+        fix = "raise the file-size limit (ulimit -f)"
+    else:
+        fix = "fix the cause"
+    return (f"writing in {out} failed: {reason}{where}; what was finished is kept: {fix}, "
+            "then run the same command again to resume")

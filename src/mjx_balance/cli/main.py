@@ -1,0 +1,159 @@
+"""``mjx-balance``: the parser, built from the command modules, and :func:`main`, which sets
+up the process (host devices, XLA flags, compilation cache, logging) and runs one command.
+
+Each command module has ``add_parser(sub)``, which defines its sub-command(s) and sets its
+handler (``target``: ``"mjx_balance.cli.MODULE:FUNCTION"``, looked up when the command runs).
+Command modules are light at import: they import the library inside their command functions,
+so building the parser (and ``--help``) loads neither JAX, MuJoCo nor pandas, and
+:func:`use_host_cores` still sees JAX not yet imported when a command starts.
+
+Exit codes: 0 success, 1 failure during the work, 2 bad usage (options.EPILOG).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import os
+import shlex
+import sys
+
+from ..model.params import ParameterError
+from ..runtime.xla import deterministic_flags
+from . import (animate, basin, bench, compare, landscape, model, report, sensitivity, simulate,
+               sweep)
+from .common import verbosity
+from .options import EPILOG, HelpFormatter, conventions, conventions_parent
+
+# In the order of ``mjx-balance --help``: sweep adds sweep and table, model adds model and view.
+COMMANDS = (simulate, bench, sweep, compare, landscape, basin, sensitivity, animate, report,
+            model)
+
+
+class _Version(argparse.Action):
+    """--version: the package's, JAX's, jaxlib's and MuJoCo's versions (no import of JAX)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS,
+                 help="print the versions of mjx_balance, JAX, jaxlib and MuJoCo and exit"):
+        super().__init__(option_strings, dest, nargs=0, default=default, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(version_text())
+        parser.exit(0)
+
+
+def version_text() -> str:
+    """One line: ``mjx-balance 0.1.0 (jax 0.10.2, jaxlib 0.10.2, mujoco 3.17.0, ...)``."""
+    from ..store.provenance import versions  # lazy: the store floor loads pandas; only --version
+
+    v = versions()
+    return (f"mjx-balance {v['package']} (jax {v['jax']}, jaxlib {v['jaxlib']}, "
+            f"mujoco {v['mujoco']}, mujoco-mjx {v['mujoco_mjx']}, python {v['python']})")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="mjx-balance", formatter_class=HelpFormatter, epilog=EPILOG,
+        description="Standing-balance recovery under constrained MPC: pushes, sweeps, tables.")
+    parser.add_argument("--version", action=_Version)
+    conventions(parser)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    parent = conventions_parent()
+    add_parser = sub.add_parser
+
+    def command(name: str, **kwargs) -> argparse.ArgumentParser:
+        return add_parser(name, formatter_class=HelpFormatter, epilog=EPILOG,
+                          parents=[parent], description=kwargs.get("help"), **kwargs)
+
+    sub.add_parser = command  # every command: the conventions' options, defaults, epilog
+    for module in COMMANDS:
+        module.add_parser(sub)
+    return parser
+
+
+def use_host_cores() -> None:
+    """Give XLA's CPU platform one device per core (a power of two, at most 8) before JAX
+    starts, so that the batched rollout, which shards each batch over the local devices, keeps
+    every core busy: XLA runs one device's rollout on one thread (BENCHMARKS.md, "Devices").
+    Skipped when XLA_FLAGS already sets a host device count, when JAX is already imported, or
+    with MJX_BALANCE_HOST_DEVICES=1 (any value sets the count)."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_force_host_platform_device_count" in flags or "jax" in sys.modules:
+        return
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:
+        cores = os.cpu_count() or 1
+    wanted = int(os.environ.get("MJX_BALANCE_HOST_DEVICES", min(cores, 8)))
+    count = 1 << (max(1, wanted).bit_length() - 1)
+    if count > 1:
+        os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={count}".strip()
+
+
+class ConsoleHandler(logging.Handler):
+    """Messages of the command line: information on stdout (the streams of the moment, so that
+    a caller's redirection sees them), warnings and errors on stderr."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            stream = sys.stdout if record.levelno < logging.WARNING else sys.stderr
+            stream.write(self.format(record) + "\n")
+            stream.flush()
+        except Exception:  # noqa: BLE001 - logging's own convention
+            self.handleError(record)
+
+
+def _logging(level: int):
+    """Route the package's messages to the console at ``level`` for one command; returns a
+    function that puts the logger back as it was."""
+    logger = logging.getLogger("mjx_balance")
+    saved = (logger.level, logger.propagate)
+    handler = ConsoleHandler()
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    logger.addHandler(handler)
+    logger.setLevel(level)
+    logger.propagate = False
+
+    def restore() -> None:
+        logger.removeHandler(handler)
+        logger.setLevel(saved[0])
+        logger.propagate = saved[1]
+    return restore
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    use_host_cores()
+    deterministic_flags()
+    if getattr(args, "no_cache", False):
+        from ..runtime import cache  # lazy: after use_host_cores, before JAX starts
+
+        cache.disable()
+    restore = _logging({-1: logging.WARNING, 0: logging.INFO, 1: logging.DEBUG}[verbosity(args)])
+    try:
+        from ..store.provenance import run_context  # lazy: after use_host_cores (pandas, not --help)
+
+        words = sys.argv[1:] if argv is None else list(argv)
+        with run_context(command=" ".join(shlex.quote(w) for w in ["mjx-balance", *words])):
+            return _run(args)
+    finally:
+        restore()
+
+
+def _run(args: argparse.Namespace) -> int:
+    module, func = args.target.split(":")
+    command = getattr(importlib.import_module(module), func)
+    try:
+        return int(command(args) or 0)
+    except ParameterError as exc:
+        print(f"mjx-balance: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # a failure during the work: a refused write, a full disk
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"mjx-balance: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
