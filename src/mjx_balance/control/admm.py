@@ -265,17 +265,27 @@ class _Carry(NamedTuple):
     dual_res: jax.Array
 
 
-def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
-               settings: ADMMSettings, offset: jax.Array | None = None) -> ADMMResult:
-    """Solve the QP at state ``x0`` [4] from ``warm``; pure, jit-able (settings static).
+class _Solve(NamedTuple):
+    """The per-solve terms of one :func:`admm_solve` (scaled unless said; n, m as above)."""
 
-    ``offset`` [m] (the offset-free MPC's deviation QP, offset_free.py): every row's bounds
-    move down by it, and the first input returned is offset[:2] + z[:2] (the input rows' offset
-    is the target input u_s), clipped to the input bounds. None: the plain QP.
+    alpha: jax.Array  # [] over-relaxation
+    eps_abs: jax.Array  # []
+    eps_rel: jax.Array  # []
+    eps_pinf: jax.Array  # [] primal infeasibility tolerance
+    rho: jax.Array  # [m]
+    E: jax.Array  # [m] row scaling
+    E_inv: jax.Array  # [m]
+    c: jax.Array  # [] cost scale
+    q: jax.Array  # [n] unscaled linear term F x0
+    g: jax.Array  # [n] x̃ offset -K⁻¹ q̄
+    lo: jax.Array  # [m] scaled lower bounds
+    hi: jax.Array  # [m] scaled upper bounds
 
-    Batch with ``jax.vmap(admm_solve, in_axes=(None, 0, 0, None))`` (see
-    :func:`admm_solve_batch`).
-    """
+
+def _setup(data: ADMMData, x0: jax.Array, settings: ADMMSettings,
+           offset: jax.Array | None) -> _Solve:
+    """The per-solve terms at state ``x0`` [4]: only q and the bounds move with x0 (and
+    ``offset`` [m], which moves every row's bounds down)."""
     dtype = data.MwT.dtype
     x0 = jnp.asarray(x0, dtype)
     alpha = jnp.asarray(settings.alpha, dtype)
@@ -291,79 +301,99 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
     if offset is not None:
         shift = shift + E * jnp.asarray(offset, dtype)
     lo, hi = data.l0 - shift, data.u0 - shift  # scaled bounds
-
-    def iteration(_, state):
-        # The loop carries the dual divided by ρ, v = y / ρ (ρ is folded into MwT).
-        x, s, v = state
-        # OSQP alg. 1, line 4: solve the reduced KKT system (eq. 23) for x̃, z̃ = Ā x̃;
-        # its right-hand side σx - q̄ + Āᵀ(ρz - y) = σx - q̄ + Āᵀ ρ(z - v).
-        x_tilde = (s - v) @ data.MwT + g
-        if settings.sigma > 0:
-            x_tilde = x_tilde + x @ data.MxT
-        s_tilde = x_tilde @ data.AT
-        # line 5: x ← α x̃ + (1 - α) x
-        x_next = alpha * x_tilde + (1.0 - alpha) * x
-        # line 6: z ← Π_[l,u](α z̃ + (1 - α) z + y / ρ)
-        s_relaxed = alpha * s_tilde + (1.0 - alpha) * s
-        s_next = jnp.clip(s_relaxed + v, lo, hi)
-        # line 7: y ← y + ρ (α z̃ + (1 - α) z - z), i.e. v ← v + (α z̃ + (1 - α) z - z)
-        v_next = v + (s_relaxed - s_next)
-        return x_next, s_next, v_next
-
-    def residuals(x, s, y):
-        """Unscaled primal/dual residuals and OSQP's termination test (§3.4)."""
-        z = x @ data.T.T
-        Cz = z @ data.CT
-        s_u = E_inv * s
-        y_u = E * y / c
-        Hz = z @ data.H
-        CTy = y_u @ data.CT.T
-        prim = _inf_norm(Cz - s_u)
-        prim_tol = eps_abs + eps_rel * jnp.maximum(_inf_norm(Cz), _inf_norm(s_u))
-        dual = _inf_norm(Hz + q + CTy)
-        dual_tol = eps_abs + eps_rel * jnp.maximum(
-            jnp.maximum(_inf_norm(Hz), _inf_norm(CTy)), _inf_norm(q))
-        return prim, dual, (prim <= prim_tol) & (dual <= dual_tol)
-
     eps_pinf = jnp.asarray(settings.eps_prim_inf, dtype)
+    return _Solve(alpha=alpha, eps_abs=eps_abs, eps_rel=eps_rel, eps_pinf=eps_pinf, rho=rho,
+                  E=E, E_inv=E_inv, c=c, q=q, g=g, lo=lo, hi=hi)
 
-    def infeasible(y, y_check):
-        """OSQP's primal infeasibility certificate on δy (§3.4, unscaled terms; homogeneous
-        in δy, so c drops out)."""
-        dy = E * rho * (y - y_check)
-        dy_norm = _inf_norm(dy)
-        return ((dy_norm > 0)
-                & (_inf_norm(dy @ data.CT.T) <= eps_pinf * dy_norm)
-                & ((E_inv * hi) @ jnp.maximum(dy, 0) + (E_inv * lo) @ jnp.minimum(dy, 0)
-                   < eps_pinf * dy_norm))
 
-    def cond(carry: _Carry):
-        return (~carry.stop) & (carry.chunk < settings.n_chunks)
+def _iteration(data: ADMMData, p: _Solve, settings: ADMMSettings,
+               state: tuple[jax.Array, jax.Array, jax.Array]
+               ) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """One ADMM iteration (OSQP alg. 1, lines 4-7) on (x [n], s [m], v [m])."""
+    # The loop carries the dual divided by ρ, v = y / ρ (ρ is folded into MwT).
+    x, s, v = state
+    alpha = p.alpha
+    # OSQP alg. 1, line 4: solve the reduced KKT system (eq. 23) for x̃, z̃ = Ā x̃;
+    # its right-hand side σx - q̄ + Āᵀ(ρz - y) = σx - q̄ + Āᵀ ρ(z - v).
+    x_tilde = (s - v) @ data.MwT + p.g
+    if settings.sigma > 0:
+        x_tilde = x_tilde + x @ data.MxT
+    s_tilde = x_tilde @ data.AT
+    # line 5: x ← α x̃ + (1 - α) x
+    x_next = alpha * x_tilde + (1.0 - alpha) * x
+    # line 6: z ← Π_[l,u](α z̃ + (1 - α) z + y / ρ)
+    s_relaxed = alpha * s_tilde + (1.0 - alpha) * s
+    s_next = jnp.clip(s_relaxed + v, p.lo, p.hi)
+    # line 7: y ← y + ρ (α z̃ + (1 - α) z - z), i.e. v ← v + (α z̃ + (1 - α) z - z)
+    v_next = v + (s_relaxed - s_next)
+    return x_next, s_next, v_next
 
-    def body(carry: _Carry):
-        x, s, y = jax.lax.fori_loop(0, settings.check_every, iteration,
-                                    (carry.x, carry.s, carry.y))
-        prim, dual, converged = residuals(x, s, rho * y)
-        stop = converged
-        if settings.stop_on_infeasible:
-            stop = stop | infeasible(y, carry.y)
-        return _Carry(x, s, y, carry.y, carry.chunk + 1, converged, stop, prim, dual)
 
-    # Warm start (unscaled -> scaled): x̄ = T⁻¹ z, ȳ = c Ē⁻¹ y, z̄ = Ā x̄ (as OSQP's warm start).
+def _residuals(data: ADMMData, p: _Solve, x: jax.Array, s: jax.Array,
+               y: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """Unscaled primal/dual residuals [] and OSQP's termination test (§3.4) of the scaled
+    iterate x [n], s [m] and dual y [m]."""
+    E, E_inv, c, eps_abs, eps_rel = p.E, p.E_inv, p.c, p.eps_abs, p.eps_rel
+    z = x @ data.T.T
+    Cz = z @ data.CT
+    s_u = E_inv * s
+    y_u = E * y / c
+    Hz = z @ data.H
+    CTy = y_u @ data.CT.T
+    prim = _inf_norm(Cz - s_u)
+    prim_tol = eps_abs + eps_rel * jnp.maximum(_inf_norm(Cz), _inf_norm(s_u))
+    dual = _inf_norm(Hz + p.q + CTy)
+    dual_tol = eps_abs + eps_rel * jnp.maximum(
+        jnp.maximum(_inf_norm(Hz), _inf_norm(CTy)), _inf_norm(p.q))
+    return prim, dual, (prim <= prim_tol) & (dual <= dual_tol)
+
+
+def _infeasible(data: ADMMData, p: _Solve, y: jax.Array, y_check: jax.Array) -> jax.Array:
+    """OSQP's primal infeasibility certificate on δy (§3.4, unscaled terms; homogeneous
+    in δy, so c drops out) of the duals y, y_check [m] (carried as y / ρ); bool []."""
+    E_inv, eps_pinf = p.E_inv, p.eps_pinf
+    dy = p.E * p.rho * (y - y_check)
+    dy_norm = _inf_norm(dy)
+    return ((dy_norm > 0)
+            & (_inf_norm(dy @ data.CT.T) <= eps_pinf * dy_norm)
+            & ((E_inv * p.hi) @ jnp.maximum(dy, 0) + (E_inv * p.lo) @ jnp.minimum(dy, 0)
+               < eps_pinf * dy_norm))
+
+
+def _chunk(data: ADMMData, p: _Solve, settings: ADMMSettings, carry: _Carry) -> _Carry:
+    """``check_every`` iterations, then the termination test (the while loop's body)."""
+    x, s, y = jax.lax.fori_loop(0, settings.check_every,
+                                lambda _, state: _iteration(data, p, settings, state),
+                                (carry.x, carry.s, carry.y))
+    prim, dual, converged = _residuals(data, p, x, s, p.rho * y)
+    stop = converged
+    if settings.stop_on_infeasible:
+        stop = stop | _infeasible(data, p, y, carry.y)
+    return _Carry(x, s, y, carry.y, carry.chunk + 1, converged, stop, prim, dual)
+
+
+def _start(data: ADMMData, p: _Solve, warm: ADMMWarm) -> _Carry:
+    """The loop's first carry from the warm start (unscaled -> scaled): x̄ = T⁻¹ z,
+    ȳ = c Ē⁻¹ y, z̄ = Ā x̄ (as OSQP's warm start)."""
+    dtype = data.MwT.dtype
     x_start = jnp.asarray(warm.z, dtype) @ data.T_inv.T
-    y_start = c * E_inv * jnp.asarray(warm.y, dtype) / rho  # carried as y / ρ
+    y_start = p.c * p.E_inv * jnp.asarray(warm.y, dtype) / p.rho  # carried as y / ρ
     s_start = x_start @ data.AT
     zero = jnp.zeros((), dtype)
-    carry = _Carry(x_start, s_start, y_start, y_start, jnp.zeros((), jnp.int32),
-                   jnp.zeros((), bool), jnp.zeros((), bool), zero, zero)
-    carry = jax.lax.while_loop(cond, body, carry)
+    return _Carry(x_start, s_start, y_start, y_start, jnp.zeros((), jnp.int32),
+                  jnp.zeros((), bool), jnp.zeros((), bool), zero, zero)
 
-    # Primal infeasibility certificate on δy over the last chunk.
-    certificate = infeasible(carry.y, carry.y_check)
+
+def _finish(data: ADMMData, p: _Solve, settings: ADMMSettings, carry: _Carry,
+            offset: jax.Array | None) -> ADMMResult:
+    """The result of the last carry: status (the primal infeasibility certificate on δy over
+    the last chunk), unscaled z [n] and y [m], the first input and the shifted warm start."""
+    dtype = data.MwT.dtype
+    certificate = _infeasible(data, p, carry.y, carry.y_check)
     status = jnp.where(carry.done, SOLVED, jnp.where(certificate, PRIMAL_INFEASIBLE, MAX_ITER))
 
     z = carry.x @ data.T.T
-    y = E * rho * carry.y / c
+    y = p.E * p.rho * carry.y / p.c
     first = z[:2] if offset is None else z[:2] + jnp.asarray(offset[:2], dtype)
     u0 = jnp.clip(first, data.input_lower, data.input_upper)
     return ADMMResult(
@@ -371,6 +401,28 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
         dual_res=carry.dual_res, iters=(carry.chunk * settings.check_every).astype(jnp.int32),
         warm_next=ADMMWarm(z=z[data.z_shift], y=y[data.y_shift]),
     )
+
+
+def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
+               settings: ADMMSettings, offset: jax.Array | None = None) -> ADMMResult:
+    """Solve the QP at state ``x0`` [4] from ``warm``; pure, jit-able (settings static).
+
+    ``offset`` [m] (the offset-free MPC's deviation QP, offset_free.py): every row's bounds
+    move down by it, and the first input returned is offset[:2] + z[:2] (the input rows' offset
+    is the target input u_s), clipped to the input bounds. None: the plain QP.
+
+    Batch with ``jax.vmap(admm_solve, in_axes=(None, 0, 0, None))`` (see
+    :func:`admm_solve_batch`).
+
+    Steps: :func:`_setup` (per-solve terms), :func:`_start` (warm start), chunks of
+    :func:`_chunk` (``check_every`` :func:`_iteration` s, then :func:`_residuals` and
+    :func:`_infeasible`) in a ``lax.while_loop``, :func:`_finish` (status and result).
+    """
+    p = _setup(data, x0, settings, offset)
+    carry = jax.lax.while_loop(
+        lambda carry: (~carry.stop) & (carry.chunk < settings.n_chunks),
+        lambda carry: _chunk(data, p, settings, carry), _start(data, p, warm))
+    return _finish(data, p, settings, carry, offset)
 
 
 def admm_solve_batch(data: ADMMData, x0: jax.Array, warm: ADMMWarm, settings: ADMMSettings,

@@ -113,6 +113,80 @@ def _finite_min_max(values: np.ndarray) -> tuple[float, float]:
     return float(values.min()), float(values.max())
 
 
+def _first_fall(time: np.ndarray, q: np.ndarray, x: np.ndarray, foot_pitch: np.ndarray,
+                cell_low_z: np.ndarray, limits: Limits) -> tuple[np.ndarray, bool, int, float]:
+    """(bound excess [n] of the states x [n, 4], fell, samples kept ``end`` (up to and
+    including the first fall sample; n if none), fall time (NaN if none)) of the series."""
+    n = time.shape[0]
+    excess = outcomes.bound_excess(np, x, limits) if n else np.zeros(0)  # [n]
+    flags = (outcomes.falls(np, foot_pitch, cell_low_z, excess, q[:, 0], limits) if n
+             else np.zeros(0, bool))
+    fell = bool(flags.any())
+    end = int(np.flatnonzero(flags)[0]) + 1 if fell else n  # samples kept: [0, end)
+    fall_time = float(time[end - 1]) if fell else math.nan
+    return excess, fell, end, fall_time
+
+
+def _control_columns(u_control: np.ndarray, converged: np.ndarray, residual: np.ndarray,
+                     infeasible: np.ndarray | None, *, fell: bool, fall_time: float,
+                     control_dt: float, limits: Limits
+                     ) -> tuple[float, float, int, float, float]:
+    """(ankle and hip saturation fractions, non-converged solves, max residual, first
+    infeasible time) of the control periods [K] whose instant precedes the fall sample."""
+    n_ctrl = len(u_control)
+    if fell:
+        n_ctrl = min(n_ctrl, int(math.ceil(fall_time / control_dt - 1e-9)))
+    u_control = np.asarray(u_control, float)[:n_ctrl]
+    converged = np.asarray(converged, bool)[:n_ctrl]
+    residual = np.asarray(residual, float)[:n_ctrl]
+    infeasible = (np.zeros(n_ctrl, bool) if infeasible is None
+                  else np.asarray(infeasible, bool)[:n_ctrl])
+    first_infeasible = (float(np.flatnonzero(infeasible)[0] * control_dt)
+                        if infeasible.any() else math.nan)
+    saturation_ankle, saturation_hip = saturation_fractions(u_control, limits)
+    res = residual[np.isfinite(residual)]
+    return (saturation_ankle, saturation_hip, int(np.count_nonzero(~converged)),
+            float(res.max()) if res.size else math.nan, first_infeasible)
+
+
+def _fall_cause(code: int, end: int, foot_pitch: np.ndarray, cell_low_z: np.ndarray,
+                excess: np.ndarray, q: np.ndarray, limits: Limits) -> int:
+    """The fall cause (outcomes.FALL_CAUSES index) of a run of outcome ``code``: that of the
+    fall sample end - 1 for a fall."""
+    if code == DIVERGED:
+        return outcomes.NON_FINITE
+    if code == FELL:
+        return int(outcomes.fall_cause(np, foot_pitch[end - 1], cell_low_z[end - 1],
+                                       excess[end - 1], q[end - 1, 0], limits))
+    return outcomes.NO_CAUSE
+
+
+def _energy_columns(q0: np.ndarray, x0: np.ndarray, q: np.ndarray, x: np.ndarray,
+                    tau: np.ndarray, u: np.ndarray, end: int) -> dict[str, Any]:
+    """The energy and work columns of the first ``end`` samples: the motors' sum |tau dq|
+    and sum tau dq from q0 [2], the convention's pairs' sum |u_i dx_i| and the study's
+    (:func:`study_energies`) from x0 [4]."""
+    sl = slice(0, end)
+    dq_step = increments(q0, q)[sl]
+    dx_step = increments(x0, x)[sl]
+    tau_k, u_k = tau[sl], u[sl]
+    power_ankle = tau_k[:, 0] * dq_step[:, 0]
+    power_hip = tau_k[:, 1] * dq_step[:, 1]
+    power_u = u_k * dx_step[:, :2]  # the convention's pairs (u_i, x_i)
+    energy_ankle = float(np.nansum(np.abs(power_ankle)))
+    energy_hip = float(np.nansum(np.abs(power_hip)))
+    return {
+        "energy_ankle": energy_ankle,
+        "energy_hip": energy_hip,
+        "energy_total": energy_ankle + energy_hip,
+        "work_ankle": float(np.nansum(power_ankle)),
+        "work_hip": float(np.nansum(power_hip)),
+        "energy_u1": float(np.nansum(np.abs(power_u[:, 0]))),
+        "energy_u2": float(np.nansum(np.abs(power_u[:, 1]))),
+        **study_energies(float(np.nansum(power_u[:, 0])), float(np.nansum(power_u[:, 1]))),
+    }
+
+
 def summarize(*, force: float, duration: float, convention: str,
               scenario: ScenarioParams, controller: ControllerParams,
               time: np.ndarray, q: np.ndarray, dq: np.ndarray, x: np.ndarray,
@@ -136,6 +210,7 @@ def summarize(*, force: float, duration: float, convention: str,
     time = np.asarray(time, float)
     q, dq, x = np.asarray(q, float), np.asarray(dq, float), np.asarray(x, float)
     tau, u = np.asarray(tau, float), np.asarray(u, float)
+    foot_pitch, cell_low_z = np.asarray(foot_pitch, float), np.asarray(cell_low_z, float)
     n = time.shape[0]
 
     finite = (np.isfinite(q).all(axis=-1) & np.isfinite(dq).all(axis=-1)
@@ -144,53 +219,22 @@ def summarize(*, force: float, duration: float, convention: str,
                     or not np.isfinite(np.asarray(u_control, float)).all())
 
     limits = Limits.from_params(scenario, controller)
-    excess = outcomes.bound_excess(np, x, limits) if n else np.zeros(0)  # [n]
-    flags = outcomes.falls(np, np.asarray(foot_pitch, float), np.asarray(cell_low_z, float),
-                           excess, q[:, 0], limits) if n else np.zeros(0, bool)
-    fell = bool(flags.any())
-    end = int(np.flatnonzero(flags)[0]) + 1 if fell else n  # samples kept: [0, end)
-    fall_time = float(time[end - 1]) if fell else math.nan
-
+    excess, fell, end, fall_time = _first_fall(time, q, x, foot_pitch, cell_low_z, limits)
     # control periods whose instant precedes the last kept sample's time
-    n_ctrl = len(u_control)
-    if fell:
-        n_ctrl = min(n_ctrl, int(math.ceil(fall_time / scenario.control_dt - 1e-9)))
-    u_control = np.asarray(u_control, float)[:n_ctrl]
-    converged = np.asarray(converged, bool)[:n_ctrl]
-    residual = np.asarray(residual, float)[:n_ctrl]
-    infeasible = (np.zeros(n_ctrl, bool) if infeasible is None
-                  else np.asarray(infeasible, bool)[:n_ctrl])
-    first_infeasible = (float(np.flatnonzero(infeasible)[0] * scenario.control_dt)
-                        if infeasible.any() else math.nan)
-
-    sl = slice(0, end)
-    dq_step = increments(q0, q)[sl]
-    dx_step = increments(x0, x)[sl]
-    tau_k, u_k = tau[sl], u[sl]
-    power_ankle = tau_k[:, 0] * dq_step[:, 0]
-    power_hip = tau_k[:, 1] * dq_step[:, 1]
-    power_u = u_k * dx_step[:, :2]  # the convention's pairs (u_i, x_i)
+    saturation_ankle, saturation_hip, nonconverged, max_residual, first_infeasible = (
+        _control_columns(u_control, converged, residual, infeasible, fell=fell,
+                         fall_time=fall_time, control_dt=scenario.control_dt, limits=limits))
 
     settled = bool(completed and n and outcomes.in_settle_band(np, q[-1:], dq[-1:], limits)[0])
     code = int(outcomes.classify(np, diverged, fell, settled and not fell))
-    if code == DIVERGED:
-        cause = outcomes.NON_FINITE
-    elif code == FELL:
-        cause = int(outcomes.fall_cause(np, np.asarray(foot_pitch, float)[end - 1],
-                                        np.asarray(cell_low_z, float)[end - 1], excess[end - 1],
-                                        q[end - 1, 0], limits))
-    else:
-        cause = outcomes.NO_CAUSE
+    cause = _fall_cause(code, end, foot_pitch, cell_low_z, excess, q, limits)
     settle = settle_time(time, q, dq, limits) if code == RECOVERED else math.nan
 
-    saturation_ankle, saturation_hip = saturation_fractions(u_control, limits)
+    sl = slice(0, end)
     cop_min, cop_max = _finite_min_max(np.asarray(cop, float)[sl])
     com_min, com_max = _finite_min_max(np.asarray(com, float)[sl])
-    energy_ankle = float(np.nansum(np.abs(power_ankle)))
-    energy_hip = float(np.nansum(np.abs(power_hip)))
     excess = excess[sl]
     excess = excess[np.isfinite(excess)]
-    res = residual[np.isfinite(residual)]
     return {
         "force": float(force),
         "duration": float(duration),
@@ -200,25 +244,18 @@ def summarize(*, force: float, duration: float, convention: str,
         "fall_time": fall_time if code == FELL else math.nan,
         "peak_ankle": _nanmax_abs(q[sl, 0]),
         "peak_hip": _nanmax_abs(q[sl, 1]),
-        "peak_foot_pitch": _nanmax_abs(np.asarray(foot_pitch, float)[sl]),
+        "peak_foot_pitch": _nanmax_abs(foot_pitch[sl]),
         "cop_min": cop_min,
         "cop_max": cop_max,
         "com_min": com_min,
         "com_max": com_max,
-        "peak_tau_ankle": _nanmax_abs(tau_k[:, 0]),
-        "peak_tau_hip": _nanmax_abs(tau_k[:, 1]),
+        "peak_tau_ankle": _nanmax_abs(tau[sl, 0]),
+        "peak_tau_hip": _nanmax_abs(tau[sl, 1]),
         "ankle_saturation_fraction": saturation_ankle,
         "hip_saturation_fraction": saturation_hip,
-        "energy_ankle": energy_ankle,
-        "energy_hip": energy_hip,
-        "energy_total": energy_ankle + energy_hip,
-        "work_ankle": float(np.nansum(power_ankle)),
-        "work_hip": float(np.nansum(power_hip)),
-        "energy_u1": float(np.nansum(np.abs(power_u[:, 0]))),
-        "energy_u2": float(np.nansum(np.abs(power_u[:, 1]))),
-        **study_energies(float(np.nansum(power_u[:, 0])), float(np.nansum(power_u[:, 1]))),
-        "nonconverged_solves": int(np.count_nonzero(~converged)),
-        "max_residual": float(res.max()) if res.size else math.nan,
+        **_energy_columns(q0, x0, q, x, tau, u, end),
+        "nonconverged_solves": nonconverged,
+        "max_residual": max_residual,
         "max_bound_violation": float(excess.max()) if excess.size else 0.0,
         "fall_cause": outcomes.FALL_CAUSES[cause],
         "first_infeasible_time": first_infeasible,

@@ -104,6 +104,160 @@ def _model(body, physics_dt: float) -> mujoco.MjModel:
     return build_model(body, physics_dt, foot="free")
 
 
+def _initial_data(model: mujoco.MjModel, ix: Any, initial: Any) -> mujoco.MjData:
+    """MuJoCo data at the run's start: upright rest, or the joint state ``initial`` [4]
+    (q_a, q_h, dq_a, dq_h) with the foot as at rest (model.settled_rest); kinematics done."""
+    data = mujoco.MjData(model)
+    if initial is not None and np.any(initial):  # the foot settled (model.settled_rest)
+        data.qpos[:] = settled_rest(model)
+        data.qpos[[ix.ankle_qpos, ix.hip_qpos]] = np.asarray(initial, float)[:2]
+        data.qvel[[ix.ankle_dof, ix.hip_dof]] = np.asarray(initial, float)[2:]
+    mujoco.mj_forward(model, data)
+    return data
+
+
+class _Series:
+    """The series of one run, filled as it goes. Samples (index i: after physics step i, time
+    (i+1) dt): time [n], q, dq [n, 2], x [n, 4], foot [n, 3] (x, z, pitch), cell_low [n, 4],
+    cop, com [n], tau, u [n, 2]. Control periods (index k): u_control [K, 2], converged,
+    infeasible [K] bool, residual [K]. The joint history for a delayed measurement:
+    history_q, history_dq [n + 1, 2], entry j the state at t = j dt. q0 [2], x0 [4]: the
+    state at t = 0 (joint state q0, dq0 [2])."""
+
+    def __init__(self, n_steps: int, n_control: int, dt: float, q0: np.ndarray,
+                 dq0: np.ndarray, lm: Any):
+        self.time = (np.arange(n_steps) + 1) * dt
+        self.q = np.zeros((n_steps, 2))
+        self.dq = np.zeros((n_steps, 2))
+        self.x = np.zeros((n_steps, 4))
+        self.foot = np.zeros((n_steps, 3))
+        self.cell_low = np.zeros((n_steps, 4))
+        self.cop = np.zeros(n_steps)
+        self.com = np.zeros(n_steps)
+        self.tau = np.zeros((n_steps, 2))
+        self.u = np.zeros((n_steps, 2))
+        self.u_control = np.zeros((n_control, 2))
+        self.converged = np.zeros(n_control, bool)
+        self.infeasible = np.zeros(n_control, bool)
+        self.residual = np.zeros(n_control)
+        self.history_q = np.zeros((n_steps + 1, 2))
+        self.history_dq = np.zeros((n_steps + 1, 2))
+        self.history_q[0] = q0
+        self.history_dq[0] = dq0
+        self.q0 = self.history_q[0].copy()
+        self.x0 = lm.state_from_joints(self.q0, self.history_dq[0])
+
+
+class _Controller:
+    """The controller side of the loop (see the module docstring): the measurement, delayed
+    by scenario.delay_steps; with delay compensation, the prediction from the inputs applied
+    since (``applied`` [P, 2], the last P periods' inputs, newest first: linear.predict);
+    with offset-free MPC, the disturbance estimate and the previous measurement and input
+    (offset_free.py); the MPC solve."""
+
+    def __init__(self, mpc: MPC, ctrl: ControllerParams, sc: Any, lm: Any, x0: np.ndarray):
+        self.mpc, self.lm = mpc, lm
+        self.substeps, self.delay_steps = sc.substeps, sc.delay_steps
+        self.compensate = ctrl.delay_compensation and sc.assumed_delay_steps > 0
+        if self.compensate:
+            self.pred_A, self.pred_G = delay_predictor(lm.Ac, lm.Bc, sc.physics_dt,
+                                                       sc.assumed_delay_steps, sc.substeps)
+            self.applied = np.zeros((self.pred_G.shape[0], 2))
+        self.ofs = offset_free_mod.build(mpc.qp, ctrl) if ctrl.offset_free else None
+        self.d_hat, self.x_last, self.u_last = np.zeros(2), x0.copy(), np.zeros(2)
+
+    def act(self, k: int, series: _Series) -> tuple[np.ndarray, bool, float, bool]:
+        """(u [2] clipped first input, converged, primal residual, whether an unsolved QP is
+        infeasible) at control instant k, from the joint history in ``series``."""
+        s = max(k * self.substeps - self.delay_steps, 0)
+        x_meas = self.lm.state_from_joints(series.history_q[s], series.history_dq[s])
+        if self.compensate:
+            x_meas = predict(np, self.pred_A, self.pred_G, x_meas, self.applied)
+        offset = None
+        if self.ofs is not None:
+            self.d_hat = offset_free_mod.observe(np, self.ofs, self.d_hat, self.x_last,
+                                                 self.u_last, x_meas)
+            x_s, _, _, offset = offset_free_mod.steady_state(np, self.ofs, self.d_hat)
+            self.x_last, x_meas = x_meas, x_meas - x_s
+        mpc = self.mpc
+        u, _, ok, prim_res = mpc.solve(x_meas) if offset is None else mpc.solve(x_meas, offset)
+        self.u_last = u
+        if self.compensate:
+            self.applied = np.concatenate([u[None], self.applied[:-1]])
+        # a QP the solver did not solve: is it infeasible (an exact LP test, run only here)?
+        infeasible = (not ok and np.isfinite(x_meas).all()
+                      and not mpc.qp.feasible(x_meas, offset))
+        return u, ok, prim_res, infeasible
+
+
+def _record(model: mujoco.MjModel, data: mujoco.MjData, ix: Any, lm: Any, series: _Series,
+            i: int, *, torques: np.ndarray, u: np.ndarray) -> None:
+    """Sample i into ``series``: positions refreshed to t = (i+1) dt, contacts and forces
+    those of step i; the torques [2] and input u [2] held during step i."""
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    q, dq = series.q, series.dq
+    q[i] = data.qpos[[ix.ankle_qpos, ix.hip_qpos]]
+    dq[i] = data.qvel[[ix.ankle_dof, ix.hip_dof]]
+    series.history_q[i + 1], series.history_dq[i + 1] = q[i], dq[i]
+    series.x[i] = lm.state_from_joints(q[i], dq[i])
+    series.foot[i] = data.qpos[[ix.foot_x, ix.foot_z, ix.foot_pitch]]
+    series.cell_low[i] = metrics.cell_heights(model, data, ix.cell_geoms)
+    series.cop[i] = metrics.load_cell_cop(model, data, ix.cell_geoms)[0]
+    series.com[i] = metrics.whole_body_com(data, ix.foot_body)
+    series.tau[i], series.u[i] = torques, u
+
+
+def _closed_loop(model: mujoco.MjModel, data: mujoco.MjData, ix: Any, series: _Series,
+                 controller: _Controller, *, force: float, n_push: int, sc: Any,
+                 limits: Limits) -> tuple[int, int, bool]:
+    """Run the control periods from ``data`` until t_end, the first fall sample or a
+    non-finite value, filling ``series``; the push acts during physics steps i < n_push.
+    Returns (samples taken, control periods done, diverged)."""
+    lm, upper = controller.lm, ix.upper_body
+    n = 0  # samples taken
+    k_done = 0
+    stop = False
+    diverged = False
+    for k in range(sc.n_control):
+        u, ok, prim_res, infeasible = controller.act(k, series)
+        torques = lm.motor_torques(u)
+        series.u_control[k], series.converged[k], series.residual[k] = u, ok, prim_res
+        series.infeasible[k] = infeasible
+        k_done = k + 1
+        if not (np.isfinite(u).all() and np.isfinite(torques).all()):
+            diverged = True
+            break
+        data.ctrl[:] = torques
+        for j in range(sc.substeps):
+            i = k * sc.substeps + j
+            push = push_wrench(data, upper, force, sc.push_body) if i < n_push else 0.0
+            data.xfrc_applied[upper] = push
+            warned = _bad_value_warnings(data)
+            mujoco.mj_step(model, data)
+            if _bad_value_warnings(data) > warned:
+                # MuJoCo met a NaN/Inf/huge value and reset the data to the model's initial
+                # state: what follows would be a fresh start from rest, not this scenario.
+                diverged = True
+                stop = True
+                break
+            _record(model, data, ix, lm, series, i, torques=torques, u=u)
+            n = i + 1
+            if not (np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
+                diverged = True
+                stop = True
+                break
+            if outcomes.falls(np, series.foot[i, 2], series.cell_low[i],
+                              outcomes.bound_excess(np, series.x[i], limits), series.q[i, 0],
+                              limits):
+                stop = True
+                break
+        if stop:
+            break
+    data.xfrc_applied[upper] = 0.0
+    return n, k_done, diverged
+
+
 def simulate_scenario(config: Config, force: float, duration: float, *, record: bool = True,
                       scenario_id: int = 0, mpc: MPC | None = None,
                       initial: Any = None) -> tuple[dict[str, Any], pd.DataFrame | None]:
@@ -125,143 +279,41 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
     limits = Limits.from_params(sc, ctrl)
     lm = mpc.qp.linear
     ix = indices(model)
-    data = mujoco.MjData(model)
-    if initial is not None and np.any(initial):  # the foot settled (model.settled_rest)
-        data.qpos[:] = settled_rest(model)
-        data.qpos[[ix.ankle_qpos, ix.hip_qpos]] = np.asarray(initial, float)[:2]
-        data.qvel[[ix.ankle_dof, ix.hip_dof]] = np.asarray(initial, float)[2:]
-    mujoco.mj_forward(model, data)
+    data = _initial_data(model, ix, initial)
 
-    dt, substeps, n_control = sc.physics_dt, sc.substeps, sc.n_control
-    n_steps = n_control * substeps
-    n_push = math.ceil(duration / dt - 1e-9)
-    joints_q = [ix.ankle_qpos, ix.hip_qpos]
-    joints_v = [ix.ankle_dof, ix.hip_dof]
-    upper = ix.upper_body
-
-    # sample buffers (index i: after physics step i)
-    time = (np.arange(n_steps) + 1) * dt
-    q = np.zeros((n_steps, 2))
-    dq = np.zeros((n_steps, 2))
-    x = np.zeros((n_steps, 4))
-    foot = np.zeros((n_steps, 3))
-    cell_low = np.zeros((n_steps, 4))
-    cop = np.zeros(n_steps)
-    com = np.zeros(n_steps)
-    tau = np.zeros((n_steps, 2))
-    u_step = np.zeros((n_steps, 2))
-    u_control = np.zeros((n_control, 2))
-    converged = np.zeros(n_control, bool)
-    infeasible = np.zeros(n_control, bool)
-    residual = np.zeros(n_control)
-    # joint history for a delayed measurement: entry j is the state at t = j dt
-    history_q = np.zeros((n_steps + 1, 2))
-    history_dq = np.zeros((n_steps + 1, 2))
-    history_q[0] = data.qpos[joints_q]
-    history_dq[0] = data.qvel[joints_v]
-    q0 = history_q[0].copy()
-    x0 = lm.state_from_joints(q0, history_dq[0])
-
-    # delay compensation: the inputs of the last P periods, newest first (linear.predict)
-    compensate = ctrl.delay_compensation and sc.assumed_delay_steps > 0
-    if compensate:
-        pred_A, pred_G = delay_predictor(lm.Ac, lm.Bc, dt, sc.assumed_delay_steps, substeps)
-        applied = np.zeros((pred_G.shape[0], 2))
-    # offset-free: the disturbance estimate, the previous measurement and input (offset_free.py)
-    ofs = offset_free_mod.build(mpc.qp, ctrl) if ctrl.offset_free else None
-    d_hat, x_last, u_last = np.zeros(2), x0.copy(), np.zeros(2)
-
-    n = 0  # samples taken
-    k_done = 0
-    stop = False
-    diverged = False
-    for k in range(n_control):
-        s = max(k * substeps - sc.delay_steps, 0)
-        x_meas = lm.state_from_joints(history_q[s], history_dq[s])
-        if compensate:
-            x_meas = predict(np, pred_A, pred_G, x_meas, applied)
-        offset = None
-        if ofs is not None:
-            d_hat = offset_free_mod.observe(np, ofs, d_hat, x_last, u_last, x_meas)
-            x_s, _, _, offset = offset_free_mod.steady_state(np, ofs, d_hat)
-            x_last, x_meas = x_meas, x_meas - x_s
-        u, _, ok, prim_res = mpc.solve(x_meas) if offset is None else mpc.solve(x_meas, offset)
-        u_last = u
-        if compensate:
-            applied = np.concatenate([u[None], applied[:-1]])
-        torques = lm.motor_torques(u)
-        u_control[k], converged[k], residual[k] = u, ok, prim_res
-        # a QP the solver did not solve: is it infeasible (an exact LP test, run only here)?
-        infeasible[k] = (not ok and np.isfinite(x_meas).all()
-                         and not mpc.qp.feasible(x_meas, offset))
-        k_done = k + 1
-        if not (np.isfinite(u).all() and np.isfinite(torques).all()):
-            diverged = True
-            break
-        data.ctrl[:] = torques
-        for j in range(substeps):
-            i = k * substeps + j
-            push = push_wrench(data, upper, force, sc.push_body) if i < n_push else 0.0
-            data.xfrc_applied[upper] = push
-            warned = _bad_value_warnings(data)
-            mujoco.mj_step(model, data)
-            if _bad_value_warnings(data) > warned:
-                # MuJoCo met a NaN/Inf/huge value and reset the data to the model's initial
-                # state: what follows would be a fresh start from rest, not this scenario.
-                diverged = True
-                stop = True
-                break
-            # positions at t = (i+1) dt; contacts/forces stay those of step i
-            mujoco.mj_kinematics(model, data)
-            mujoco.mj_comPos(model, data)
-            q[i] = data.qpos[joints_q]
-            dq[i] = data.qvel[joints_v]
-            history_q[i + 1], history_dq[i + 1] = q[i], dq[i]
-            x[i] = lm.state_from_joints(q[i], dq[i])
-            foot[i] = data.qpos[[ix.foot_x, ix.foot_z, ix.foot_pitch]]
-            cell_low[i] = metrics.cell_heights(model, data, ix.cell_geoms)
-            cop[i] = metrics.load_cell_cop(model, data, ix.cell_geoms)[0]
-            com[i] = metrics.whole_body_com(data, ix.foot_body)
-            tau[i], u_step[i] = torques, u
-            n = i + 1
-            if not (np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
-                diverged = True
-                stop = True
-                break
-            if outcomes.falls(np, foot[i, 2], cell_low[i], outcomes.bound_excess(np, x[i], limits),
-                              q[i, 0], limits):
-                stop = True
-                break
-        if stop:
-            break
-    data.xfrc_applied[upper] = 0.0
+    n_steps = sc.n_control * sc.substeps
+    s = _Series(n_steps, sc.n_control, sc.physics_dt, data.qpos[[ix.ankle_qpos, ix.hip_qpos]],
+                data.qvel[[ix.ankle_dof, ix.hip_dof]], lm)
+    n, k_done, diverged = _closed_loop(
+        model, data, ix, s, _Controller(mpc, ctrl, sc, lm, s.x0), force=force,
+        n_push=math.ceil(duration / sc.physics_dt - 1e-9), sc=sc, limits=limits)
 
     sl = slice(0, n)
     summary = metrics.summarize(
         force=force, duration=duration, convention=ctrl.convention, scenario=sc, controller=ctrl,
-        time=time[sl], q=q[sl], dq=dq[sl], x=x[sl], foot_pitch=foot[sl, 2],
-        cell_low_z=cell_low[sl], cop=cop[sl], com=com[sl], tau=tau[sl], u=u_step[sl],
-        q0=q0, x0=x0, u_control=u_control[:k_done], converged=converged[:k_done],
-        residual=residual[:k_done], completed=(n == n_steps), diverged=diverged,
-        infeasible=infeasible[:k_done],
+        time=s.time[sl], q=s.q[sl], dq=s.dq[sl], x=s.x[sl], foot_pitch=s.foot[sl, 2],
+        cell_low_z=s.cell_low[sl], cop=s.cop[sl], com=s.com[sl], tau=s.tau[sl], u=s.u[sl],
+        q0=s.q0, x0=s.x0, u_control=s.u_control[:k_done], converged=s.converged[:k_done],
+        residual=s.residual[:k_done], completed=(n == n_steps), diverged=diverged,
+        infeasible=s.infeasible[:k_done],
     )
     if not record:
         return summary, None
 
-    frame = timeseries_frame(scenario_id, force, duration, ctrl.convention, q0, time[sl],
-                             q[sl], dq[sl], x[sl], foot[sl], u_step[sl], tau[sl], cop[sl],
-                             com[sl], x0=x0)
+    frame = timeseries_frame(scenario_id, force, duration, ctrl.convention, q0=s.q0, x0=s.x0,
+                             time=s.time[sl], q=s.q[sl], dq=s.dq[sl], x=s.x[sl], foot=s.foot[sl],
+                             u=s.u[sl], tau=s.tau[sl], cop=s.cop[sl], com=s.com[sl])
     return summary, frame
 
 
-def timeseries_frame(scenario_id: int, force: float, duration: float, convention: str,
-                     q0: np.ndarray, time: np.ndarray, q: np.ndarray, dq: np.ndarray,
-                     x: np.ndarray, foot: np.ndarray, u: np.ndarray, tau: np.ndarray,
-                     cop: np.ndarray, com: np.ndarray, *, x0: np.ndarray) -> pd.DataFrame:
+def timeseries_frame(scenario_id: int, force: float, duration: float, convention: str, *,
+                     q0: np.ndarray, x0: np.ndarray, time: np.ndarray, q: np.ndarray,
+                     dq: np.ndarray, x: np.ndarray, foot: np.ndarray, u: np.ndarray,
+                     tau: np.ndarray, cop: np.ndarray, com: np.ndarray) -> pd.DataFrame:
     """The long time series of one run (TIMESERIES_COLUMNS, one row per sample), with the
-    cumulative joint energies of the motors sum |tau dq| from q0 and the study's (eq. 20,
-    docs/model.md) |sum u_i dx_i| of the convention's pairs from x0 [4]. foot: [n, 3] (x, z,
-    pitch)."""
+    cumulative joint energies of the motors sum |tau dq| from q0 [2] and the study's (eq. 20,
+    docs/model.md) |sum u_i dx_i| of the convention's pairs from x0 [4]. Series [n]: time, cop,
+    com; [n, 2]: q, dq, u, tau; x [n, 4]; foot [n, 3] (x, z, pitch)."""
     n = time.shape[0]
     energy = np.cumsum(np.abs(tau * metrics.increments(q0, q)), axis=0)
     study = np.abs(np.cumsum(u * metrics.increments(x0[:2], x[:, :2]), axis=0))

@@ -174,8 +174,8 @@ def checker(cert, periods: int | None = None):
     return jax.vmap(lambda x, acc, over, left: cert_mod.check(jnp, cert, x, acc, over, left))
 
 
-def block(ar, sn, st, cert, slots: Slots, refill_cell, refill_force, refill_push, refill_init,
-          *, periods: int, early: bool, packing: Packing):
+def block(ar, sn, st, cert, slots: Slots, *, refill_cell, refill_force, refill_push,
+          refill_init, periods: int, early: bool, packing: Packing):
     """``periods`` control periods of one device's slots with refill and harvest (pure JAX).
 
     refill_*: [R] the next cells for this device (cell -1: none), refill_init [R, 4] their
@@ -327,8 +327,9 @@ class Engine:
         packing = self.packing
 
         def call(arrays, cert, slots, cell, force, push, init):
-            return block(arrays, sn, st, cert, slots, cell, force, push, init,
-                         periods=periods, early=early, packing=packing)
+            return block(arrays, sn, st, cert, slots, refill_cell=cell, refill_force=force,
+                         refill_push=push, refill_init=init, periods=periods, early=early,
+                         packing=packing)
 
         def build():
             run = call
