@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any, Iterator, Union
 
 from .model.params import Config, ParameterError, config_from_dict, load_config
 from .runs.folders import (Values, batch_function, duration_values, grid_values, run_region,
-                           run_table_folder, size_value)
+                           run_table_folder, size_value, check_reference)
 from .store.provenance import run_context
 from .reference import loop as reference
 from .store.files import TABLE
@@ -98,6 +98,7 @@ def simulate(forces: Values, durations: Values, config: ConfigLike = None, *,
     durations = duration_values(durations, config)
     for duration in durations:  # every other rule, before any work
         config.replace(scenario={"duration": float(duration)})
+    check_reference(config)
     return reference.simulate_many(config, forces.tolist(), durations.tolist(),
                                    progress=progress)
 

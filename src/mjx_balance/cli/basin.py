@@ -10,16 +10,9 @@ from pathlib import Path
 from typing import Any
 
 from .common import in_folder, load_run_config, progress_enabled
+from ..studies.defaults import DEFAULT_V, DEFAULT_X, POSTURES  # light: no JAX
 from .options import common_options, positive_int, wait_option
 
-# The defaults and posture families of studies.basin (DEFAULT_X, DEFAULT_V, POSTURES), written
-# out here: importing that module loads JAX and MuJoCo, which --help must not.
-DEFAULT_X = "-0.2:0.2:0.02"  # m
-DEFAULT_V = "-0.6:0.6:0.06"  # m/s
-POSTURES = {
-    "rigid": "hip straight: the body leans as one rigid body about the ankle",
-    "trunk": "trunk vertical: the lower body leans, the upper body stays upright",
-}
 
 
 def add_parser(sub: Any) -> None:

@@ -12,14 +12,10 @@ from pathlib import Path
 from typing import Any
 
 from ..model.params import apply_overrides
+from ..studies.defaults import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES  # light
 from .common import base_config, chosen_physics, in_folder, progress_enabled
 from .options import engine_options, out_folder, setting, sweep_file, wait_option
 
-# The defaults of studies.landscape (DEFAULT_SCALES, DEFAULT_DELAYS, DEFAULT_TABLE_FORCES),
-# written out here: importing that module loads JAX and MuJoCo, which --help must not.
-DEFAULT_SCALES = "0.001,0.01,0.1,1,10,100,1000"
-DEFAULT_DELAYS = "0,100c"
-DEFAULT_TABLE_FORCES = "50"
 
 
 def add_parser(sub: Any) -> None:
@@ -68,7 +64,7 @@ def landscape_command(args: Any) -> int:
     is checked (``landscape.check_landscape``) before the folder is touched."""
     # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
     from ..runs import DEFAULT_SWEEP, load_sweep
-    from ..studies.landscape import (DEFAULT_TABLE_FORCES, check_landscape,  # lazy: as above
+    from ..studies.landscape import (check_landscape,  # lazy: as above
                                      run_landscape)
 
     definition = load_sweep(args.sweep, base_config(args, overrides=False))

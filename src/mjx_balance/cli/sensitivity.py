@@ -12,12 +12,9 @@ from pathlib import Path
 from typing import Any
 
 from .common import in_folder, load_run_config, progress_enabled
+from ..studies.defaults import DEFAULT_FORCES, READINGS  # light: no JAX
 from .options import cluster_option, common_options, engine_options, wait_option
 
-# The defaults of studies.sensitivity (DEFAULT_FORCES, the keys of READINGS), written out here:
-# importing that module loads JAX and MuJoCo, which --help must not.
-DEFAULT_FORCES = "20,50,80,100,120"
-READINGS = ("paper_plain", "joint_plain", "paper_offset_free", "joint_offset_free")
 
 
 def add_parser(sub: Any) -> None:

@@ -92,6 +92,7 @@ def simulate_command(args: argparse.Namespace) -> int:
     # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
     from .. import api
     from ..figures.timeseries import timeseries_figures  # lazy: matplotlib
+    from ..runs.folders import check_reference  # lazy: the runs floor loads JAX
     from ..runs.grid import check_durations  # lazy: the runs floor loads JAX
     from ..store.files import (CONFIG, MANIFEST, write_atomic,  # lazy: the store floor: pandas
                                write_parquet, write_text)
@@ -106,6 +107,7 @@ def simulate_command(args: argparse.Namespace) -> int:
                                 physics_dt=config.scenario.physics_dt).tolist()
     for duration in durations:  # fail before creating anything
         config.replace(scenario={"duration": duration})
+    check_reference(config)  # memory, the MPC and the model build: before creating anything
     out = Path(args.out)
     if sweep_folder(out):
         raise ParameterError(f"{out} holds a sweep or a report (its {CONFIG} would be "

@@ -77,6 +77,7 @@ def sweep_command(args: Any) -> int:
     from ..runs import (DEFAULT_SWEEP, MANIFEST, check_durations,  # lazy: the runs floor: JAX
                         load_sweep, parse_grid)
     from ..runs.chunks import default_chunk_size  # lazy: as above
+    from ..runs.folders import check_batched  # lazy: as above
     from ..runs.grid import check_cell_count  # lazy: as above
 
     use_default = args.sweep is None and args.forces is None and args.durations is None
@@ -102,6 +103,7 @@ def sweep_command(args: Any) -> int:
     _guard_work(args, config, n_cells, chunk or default_chunk_size(config, n_cells), "cells",
                 extra=(table_scenarios(config, table_forces.size)
                        if table_forces is not None else 0))
+    check_batched(config)  # derived rules (memory, float32), before the folder is made
     reference = region_plots.load_reference(args.reference) if args.reference else None
     if use_default:
         log.info("no grid given: running the built-in default sweep "
@@ -141,6 +143,7 @@ def table_command(args: Any) -> int:
     from ..figures import region as region_plots  # lazy: matplotlib
     from ..runs import (STUDY_TABLE_FORCES, TABLE, load_sweep,  # lazy: the runs floor: JAX
                         parse_grid, table_batch_size)
+    from ..runs.folders import check_batched  # lazy: the runs floor: JAX
     from ..store.files import REGION  # lazy: pandas
 
     definition = (load_sweep(args.sweep, base_config(args, overrides=False)) if args.sweep
@@ -157,6 +160,7 @@ def table_command(args: Any) -> int:
     batch = table_batch_size(config, forces.size)
     _guard_work(args, config, table_scenarios(config, forces.size), batch,
                 "scenarios (estimated)")
+    check_batched(config)  # derived rules (memory, float32), before the folder is made
     out = Path(args.out)
 
     def work() -> None:

@@ -39,11 +39,14 @@ CONVENTIONS = ("paper", "joint")
 #   the forces overflow (1e308 kg ends in a numpy error). Bodies at the ends of both ranges
 #   (each end, mixed ends, both conventions; 1-s reference runs) simulate without an error or a
 #   MuJoCo warning.
-# - gravity <= 100 m/s^2 (10 g; Jupiter's is 25): at 1e6 OSQP's factorisation fails.
+# - gravity in [0.1, 100] m/s^2 (Jupiter's is 25, the Moon's 1.6): at 1e6 OSQP's factorisation
+#   fails; at 1e-300 the body has no unstable mode left to control, the reference's OSQP fails
+#   mid-run and the offset-free target has no posture-dependent constraint.
 MAX_PHYSICS_DT = 0.01  # s
 MASS_RANGE = (1e-3, 1e4)  # kg
 LENGTH_RANGE = (1e-3, 10.0)  # m
 MAX_GRAVITY = 100.0  # m/s^2
+MIN_GRAVITY = 0.1  # m/s^2
 # - friction <= 2: the load cells are pyramidal-cone contacts, whose normal direction MuJoCo
 #   softens as the friction coefficient grows. Measured with the reference at rest (no push,
 #   2 s, default body): the foot sinks 0.27 mm at friction 1 and 1.4 mm at 2 and stays upright;
@@ -158,9 +161,9 @@ class BodyParams:
             _fail("body", "friction",
                   f"must be <= {MAX_FRICTION:g} (above it the pyramidal contact softens the "
                   "floor until the body cannot stand at rest)", self.friction)
-        if self.gravity > MAX_GRAVITY:
-            _fail("body", "gravity", f"must be <= {MAX_GRAVITY:g} m/s^2 (plausible range)",
-                  self.gravity)
+        if not MIN_GRAVITY <= self.gravity <= MAX_GRAVITY:
+            _fail("body", "gravity", f"must lie in [{MIN_GRAVITY:g}, {MAX_GRAVITY:g}] m/s^2 "
+                  "(plausible range)", self.gravity)
         for name, length in (("lower_com", self.lower_length), ("upper_com", self.upper_length)):
             value = getattr(self, name)
             if not 0 <= value <= length:

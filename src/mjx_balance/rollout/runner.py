@@ -31,7 +31,7 @@ from ..measures.metrics import study_energies
 from ..measures.outcomes import FELL, RECOVERED, Limits, summary_frame
 from ..model.params import Config
 from ..control.qp import build_qp
-from ..runtime.compiled import MATMUL_PRECISION, get_or_compile
+from ..runtime.compiled import get_or_compile
 from .cpath import CEngine, unsupported
 from .engine import Engine
 from .kernel import Accumulators, Arrays, Static, scenario

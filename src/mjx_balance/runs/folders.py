@@ -13,18 +13,22 @@ import math
 import numbers
 import os
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any, Union
+from typing import Any, Union
 
+import numpy as np
+
+from ..control.qp import build_qp, float32_conditioning, qp_bytes
 from ..model.params import Config, ParameterError
+from ..model.mjcf import build_model
+from ..reference.loop import reference_mpc
+from ..rollout.runner import BatchRunner
 from ..runtime import cache
 from ..store.folder import folder_lock
 from .acting_time import TableResult, run_table, table_batch_size
 from .batch import LazyBatch
+from .chunks import memory_budget, scenario_bytes
 from .grid import check_durations, parse_grid
 from .region import SweepResult, run_sweep
-
-if TYPE_CHECKING:
-    import numpy as np
 
 log = logging.getLogger("mjx_balance")
 
@@ -79,6 +83,88 @@ def duration_values(values: Values, config: Config, name: str = "durations") -> 
     return check_durations(grid_values(values, name), config.scenario.t_end, name,
                            physics_dt=config.scenario.physics_dt)
 
+FLOAT32_RANGE = (1.1754944e-38, 3.4028235e38)  # float32's smallest normal, largest finite
+
+
+def _gib(n: int) -> str:
+    return f"{n / 2 ** 30:.3g} GiB"
+
+
+def check_memory(config: Config, *, batched: bool = True) -> None:
+    """Refuse (ParameterError), before anything is built, a horizon whose dense QP (and, on the
+    batched path, one scenario) does not fit the memory budget (``chunks.memory_budget``: a
+    quarter of the available memory). Sizes in Python integers: any horizon is answered."""
+    horizon = config.controller.horizon
+    need = qp_bytes(horizon) + (scenario_bytes(config) if batched else 0)
+    budget = memory_budget()
+    if need > budget:
+        raise ParameterError(
+            f"controller.horizon = {horizon}: the MPC's dense QP ({2 * horizon} inputs, "
+            f"{6 * horizon} constraint rows){' and one scenario' if batched else ''} need "
+            f"about {_gib(need)}, more than the memory budget of {_gib(budget)} (a quarter of "
+            "the available memory); use a shorter horizon (the study's: 20)")
+
+
+def check_batched(config: Config) -> None:
+    """Refuse (ParameterError), before any work or any file, a configuration that the batched
+    path (float32 ADMM, MJX) cannot run meaningfully, naming the value and the bound:
+
+    - memory (:func:`check_memory`);
+    - the ADMM's settings must be float32 numbers whose reciprocals are too (rho, the
+      tolerances; sigma when not 0): 1e-300 becomes 0 in float32;
+    - the QP must build (a Riccati solution, finite matrices) from the weights and bounds;
+    - float32 must resolve it: κ(H)·ε_float32 < 1 (``qp.float32_conditioning``), which bounds
+      horizon x control_dt for an unstable body (measured: docs/reliability.md)."""
+    check_memory(config)
+    c = config.controller
+    low, high = FLOAT32_RANGE
+    for name in ("admm_rho", "admm_eps_abs", "admm_eps_rel", "admm_sigma"):
+        value = float(getattr(c, name))
+        if name == "admm_sigma" and value == 0:
+            continue
+        if not (low <= value <= high and low <= 1.0 / value <= high):
+            raise ParameterError(
+                f"controller.{name} = {value!r}: the batched ADMM computes in float32, where "
+                f"this value or its reciprocal is not a normal number (range {low:.3g} to "
+                f"{high:.3g})")
+    try:
+        qp = build_qp(c, config.body, config.scenario.control_dt)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+        raise ParameterError(
+            f"the MPC's QP cannot be built from this configuration ({type(exc).__name__}: "
+            f"{exc}); check controller.q_diag, r_diag and the bounds") from None
+    ratio = float32_conditioning(qp)
+    if not ratio < 1.0:
+        prediction = c.horizon * config.scenario.control_dt
+        raise ParameterError(
+            f"the MPC's QP is too ill-conditioned for the batched float32 ADMM: "
+            f"cond(H) x eps_float32 = {ratio:.3g} >= 1 (controller.horizon = {c.horizon} x "
+            f"scenario.control_dt = {config.scenario.control_dt:g} s: a {prediction:g}-s "
+            "prediction of an unstable body, with these weights); shorten the prediction (the "
+            "study's: 20 x 0.01 s) or run the scalar reference (mjx-balance simulate)")
+    try:  # everything else the batched closed loop builds (models, observer, predictor)
+        BatchRunner(config)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+        raise ParameterError(
+            f"the batched closed loop cannot be built from this configuration "
+            f"({type(exc).__name__}: {exc})") from None
+
+
+def check_reference(config: Config) -> None:
+    """Refuse (ParameterError), before any run, a configuration the scalar reference cannot
+    run: a QP that does not fit memory (:func:`check_memory`), or an MPC (QP and OSQP) or
+    MuJoCo model that cannot be built from it."""
+    check_memory(config, batched=False)
+    try:
+        reference_mpc(config.controller, config.body, config.scenario.control_dt)
+        build_model(config.body, config.scenario.physics_dt)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+        raise ParameterError(
+            f"the scalar reference cannot be built from this configuration "
+            f"({type(exc).__name__}: {exc}); check controller.q_diag, r_diag, the bounds and "
+            "the body") from None
+
+
 def batch_function(config: Config, *, slots: int | None = None, full_length: bool = False,
                    physics: str = "auto"):
     """The batch function of ``sweep`` and ``table``: the batched closed loop of ``config`` on
@@ -99,6 +185,8 @@ def run_region(out: str | os.PathLike[str], config: Config, forces: Values, dura
     forces = grid_values(forces, "forces")
     durations = duration_values(durations, config)
     chunk, slots = size_value(chunk, "chunk"), size_value(slots, "slots")
+    if run_batch is None or isinstance(run_batch, LazyBatch):  # the batched engine's run
+        check_batched(config)
     if run_batch is None:
         run_batch = batch_function(config, slots=slots, full_length=full_length,
                                    physics=physics)
@@ -106,6 +194,7 @@ def run_region(out: str | os.PathLike[str], config: Config, forces: Values, dura
     with folder_lock(out, wait=wait):
         return run_sweep(out, config, forces, durations, run_batch=run_batch, chunk_size=chunk,
                          progress=progress, log=log.info, cluster=cluster)
+
 
 def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values, *,
                      run_batch: Any = None, batch: int | None = None, slots: int | None = None,
@@ -119,6 +208,8 @@ def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values
     table."""
     forces = grid_values(forces, "forces")
     batch, slots = size_value(batch, "batch"), size_value(slots, "slots")
+    if run_batch is None or isinstance(run_batch, LazyBatch):  # the batched engine's run
+        check_batched(config)
     if run_batch is None:
         run_batch = batch_function(config, slots=slots, full_length=full_length,
                                    physics=physics)

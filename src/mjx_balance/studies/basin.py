@@ -42,18 +42,13 @@ from ..runs.grid import check_durations, describe, parse_grid, same_values
 from ..store.files import write_parquet
 from ..store.folder import OutputFolder, folder_lock
 from ..rollout import BatchRunner
+from .defaults import DEFAULT_V, DEFAULT_X, POSTURES
 
-POSTURES = {
-    "rigid": "hip straight: the body leans as one rigid body about the ankle",
-    "trunk": "trunk vertical: the lower body leans, the upper body stays upright",
-}
 BASIN = "basin.parquet"
 BASIN_PNG = "basin.png"
 PUSHES = "pushes.csv"
 BASIN_TXT = "basin.txt"
 CELLS_DIR = "basin_cells"
-DEFAULT_X = "-0.2:0.2:0.02"  # m
-DEFAULT_V = "-0.6:0.6:0.06"  # m/s
 FLUSH_SECONDS = 20.0
 
 

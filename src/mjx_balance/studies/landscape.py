@@ -44,16 +44,11 @@ from ..model.params import Config, ParameterError
 from ..runs.grid import check_durations, parse_grid
 from ..store.files import REGION, TABLE, write_atomic
 from ..runs.folders import batch_function, run_region, run_table_folder
+from .defaults import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES
 
 LANDSCAPE_CSV = "landscape.csv"
 LANDSCAPE_PNG = "landscape.png"
 LANDSCAPE_TXT = "landscape.txt"
-# 7 scales a decade apart around the base weights (1): Q/R ratios from 1e-6 to 1e6 of the base's
-DEFAULT_SCALES = "0.001,0.01,0.1,1,10,100,1000"
-# no delay, and the human-like 100 ms with the delay-compensated controller (a plain MPC keeps
-# no recoverable area at 20 ms or more: docs/studies.md)
-DEFAULT_DELAYS = "0,100c"
-DEFAULT_TABLE_FORCES = "50"  # N: each setting's table (max acting time at 50 N)
 
 KEY_COLUMNS = ["delay", "delay_ms", "compensated", "q_scale", "r_scale"]
 COLUMNS = [*KEY_COLUMNS, "study", "area", "fraction", "recovered_cells", "cells", "t_ref",

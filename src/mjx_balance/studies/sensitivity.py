@@ -33,26 +33,8 @@ from ..model.params import Config, ParameterError
 from ..runs.grid import parse_grid
 from ..store.files import TABLE, write_atomic, write_text
 from ..runs.folders import run_table_folder
+from .defaults import DEFAULT_FORCES, READINGS
 
-READINGS = {  # key -> (label, configuration changes); plain sets offset_free = false, so a
-    # plain reading stays plain on an offset-free base configuration
-    "paper_plain": ("paper, plain MPC",
-                    {"controller": {"convention": "paper", "offset_free": False}}),
-    "joint_plain": ("joint, plain MPC",
-                    {"controller": {"convention": "joint", "offset_free": False}}),
-    "paper_offset_free": ("paper, offset-free MPC",
-                          {"controller": {"convention": "paper", "offset_free": True}}),
-    "joint_offset_free": ("joint, offset-free MPC",
-                          {"controller": {"convention": "joint", "offset_free": True}}),
-}
-# sensitivity.csv's energy columns -> table.csv's: of the longest recovered push (energy_<def>_*)
-# and of the 0.1-s push at the same force (energy_<def>_01_*; NaN where that push is not
-# recovered), each in both definitions: the study's eq. 20 and the motors'
-ENERGIES = {"study": "study_energy_total_max", "motors": "energy_total_max",
-            "study_01": "study_energy_total_01", "motors_01": "energy_total_01"}
-SENSITIVITY_CSV, SENSITIVITY_PNG, SENSITIVITY_TXT = ("sensitivity.csv", "sensitivity.png",
-                                                     "sensitivity.txt")
-DEFAULT_FORCES = "20,50,80,100,120"  # the default sweep's table forces
 REPORT_DIR = "sensitivity"  # the report's folder of this analysis (report/run.py, report/extra.py)
 
 
