@@ -12,10 +12,14 @@ batched closed loop must build.
 
 from __future__ import annotations
 
+import json
+
+import numpy as np
 import pytest
 
 import mjx_balance as mb
 from mjx_balance.cli import main
+from mjx_balance.measures.outcomes import NotAResult
 from mjx_balance.control.qp import FLOAT32_EPS, build_qp, float32_conditioning, qp_bytes
 from mjx_balance.model.params import Config, ParameterError
 
@@ -72,3 +76,59 @@ def test_the_conditioning_rule_on_known_horizons():
     assert ratios[20] < 1e-3 < ratios[60] < 1.0 <= ratios[80]
     assert FLOAT32_EPS == 2.0 ** -23
     assert qp_bytes(20) == 2 * 16 * 40 * 40 * 8 and qp_bytes(2 ** 70) > 2 ** 140
+
+
+# -- a run that is not a result (issue 26.3): half or more of its scenarios diverged ---------
+
+class DivergingBatch:
+    """A stand-in rollout whose scenarios diverge where F > ``above`` (else recover), as a
+    controller whose numbers leave the finite range would."""
+
+    def __init__(self, above: float):
+        self.above = above
+
+    def __call__(self, forces, durations):
+        from mjx_balance.measures.outcomes import DIVERGED, SUMMARY_COLUMNS
+
+        forces = np.asarray(forces, np.float32)
+        out = {c: np.zeros(forces.size) for c in SUMMARY_COLUMNS if c != "convention"}
+        out["force"], out["duration"] = forces, np.asarray(durations, np.float32)
+        out["outcome"] = np.where(forces > self.above, DIVERGED, 0).astype(np.int32)
+        out["settle_time"] = np.where(forces > self.above, np.nan, 1.0)
+        out["fall_time"] = np.full(forces.size, np.nan)
+        return out
+
+
+@pytest.fixture
+def diverging(monkeypatch):
+    def use(above):
+        monkeypatch.setattr("mjx_balance.runs.batch.default_batch",
+                            lambda config, **_engine: DivergingBatch(above))
+    return use
+
+
+@pytest.mark.parametrize("command", ["sweep", "table"])
+def test_a_mostly_diverged_run_fails_with_one_line(tmp_path, capsys, diverging, command):
+    diverging(above=15.0)  # forces 20, 40, 60 of 10..60 diverge: 75 % of the cells
+    out = tmp_path / "out"
+    grid = ["--forces", "10,20,40,60"] + (["--durations", "0.1,0.2"] if command == "sweep"
+                                          else [])
+    assert main(["-q", command, *grid, "--set", "scenario.t_end=2", "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "diverged" in err[0] and "not results" in err[0], err
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["runs"][-1]["status"] == "failed"
+    assert not (out / "region.png").exists() and not (out / "table.png").exists()
+    # the same folder again: the finished numbers are still not results
+    assert main(["-q", command, *grid, "--set", "scenario.t_end=2", "--out", str(out)]) == 1
+
+
+def test_a_few_diverged_cells_are_results(tmp_path, diverging):
+    diverging(above=50.0)  # one force of four: 25 % diverged
+    out = tmp_path / "out"
+    assert main(["-q", "sweep", "--forces", "10,20,40,60", "--durations", "0.1,0.2", "--set",
+                 "scenario.t_end=2", "--out", str(out)]) == 0
+    assert (out / "region.png").exists()
+    with pytest.raises(NotAResult):  # the API raises it
+        diverging(above=0.0)
+        mb.sweep([10.0, 20.0], [0.1], Config().replace(scenario={"t_end": 2.0}))

@@ -149,6 +149,13 @@ def _run(args: argparse.Namespace) -> int:
     except ParameterError as exc:
         print(f"mjx-balance: error: {exc}", file=sys.stderr)
         return 2
+    except RuntimeError as exc:
+        from ..measures.outcomes import NotAResult  # lazy: numpy; only after a failure
+
+        if not isinstance(exc, NotAResult):
+            raise
+        print(f"mjx-balance: error: {exc}", file=sys.stderr)  # ran, but not results
+        return 1
     except OSError as exc:  # a failure during the work: a refused write, a full disk
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"mjx-balance: error: {where}{exc.strerror or exc}", file=sys.stderr)

@@ -188,3 +188,38 @@ def summary_frame(result: pd.DataFrame | Mapping[str, Any], convention: str, *,
     frame["convention"] = frame["convention"].astype(str)
     others = [c for c in frame.columns if c not in SUMMARY_COLUMNS] if extra else []
     return frame[SUMMARY_COLUMNS + others].reset_index(drop=True)
+
+
+# -- a run that is not a result -----------------------------------------------------------------
+
+# A run whose scenarios are half or more ``diverged`` (the controller's or the physics' numbers
+# left the finite range: a NaN, an overflow, MuJoCo's bad-value reset) is not a map of
+# recovery: a figure of it shows a region that does not exist. Such a run ends as a failure.
+DIVERGED_LIMIT = 0.5
+
+
+class NotAResult(RuntimeError):
+    """Half or more of a run's scenarios diverged (:data:`DIVERGED_LIMIT`)."""
+
+
+def diverged_share(outcomes) -> float:
+    """The share of ``outcomes`` (names, or codes of :data:`OUTCOMES`) that diverged."""
+    values = list(outcomes)
+    if not values:
+        return 0.0
+    hits = sum(1 for v in values if v == "diverged" or (not isinstance(v, str) and v == DIVERGED))
+    return hits / len(values)
+
+
+def check_results(outcomes, what: str) -> None:
+    """Raise :class:`NotAResult` (one line naming the likely causes) when
+    :data:`DIVERGED_LIMIT` or more of ``outcomes`` diverged."""
+    values = list(outcomes)
+    share = diverged_share(values)
+    if share >= DIVERGED_LIMIT:
+        raise NotAResult(
+            f"{share:.0%} of the {len(values)} {what} diverged (the numbers left the finite "
+            "range), so these are not results; likely cause: the controller's settings for "
+            "this body (horizon x control_dt, the ADMM's rho and tolerances, extreme weights "
+            "or bounds) or the physics step (docs/reliability.md)")
+

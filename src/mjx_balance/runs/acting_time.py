@@ -22,7 +22,7 @@ from typing import Any, Callable, Iterable, Sequence
 import numpy as np
 import pandas as pd
 
-from ..measures.outcomes import NOT_SETTLED, OUTCOMES, RECOVERED
+from ..measures.outcomes import NOT_SETTLED, OUTCOMES, RECOVERED, check_results
 from ..model.params import Config, ParameterError
 from .batch import LazyBatch, RunBatch, evaluate, evaluate_batches, resume_engine
 from .chunks import batch_limit, chunk_slices
@@ -487,12 +487,19 @@ def run_table(out: str | Path, config: Config, forces: np.ndarray | str | Sequen
     (:func:`sustained_push_limit`; False: the column is NaN, as in a report's tiny plan).
     """
     forces = parse_grid(forces, "table forces")
-    with folder_lock(out):
+    with folder_lock(out):  # a failure below marks this run failed in the manifest
         if cluster is None:
-            return _run_table(out, config, forces, run_batch, progress, log, options, sustained)
-        with ClusterBatch(cluster, run_batch or LazyBatch(config), config, log) as on_cluster:
-            return _run_table(out, config, forces, on_cluster, progress, log, options,
-                              sustained)
+            result = _run_table(out, config, forces, run_batch, progress, log, options,
+                                sustained)
+        else:
+            with ClusterBatch(cluster, run_batch or LazyBatch(config), config,
+                              log) as on_cluster:
+                result = _run_table(out, config, forces, on_cluster, progress, log, options,
+                                    sustained)
+        runs = (result.runs if result is not None
+                else pd.read_parquet(Path(out) / TABLE_RUNS, columns=["outcome"]))
+        check_results(runs["outcome"], "scenarios the table ran")
+        return result
 
 
 def _run_table(out: str | Path, config: Config, forces: np.ndarray, run_batch: RunBatch | None,

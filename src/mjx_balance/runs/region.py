@@ -24,6 +24,7 @@ from typing import Any, Callable
 import numpy as np
 import pandas as pd
 
+from ..measures.outcomes import check_results
 from ..model.params import Config, ParameterError
 from .batch import LazyBatch, RunBatch, chunk_frames, evaluate, resume_engine, streams
 from .chunks import chunk_slices, default_chunk_size
@@ -76,13 +77,18 @@ def run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np
     forces = parse_grid(forces, "forces")
     durations = check_durations(parse_grid(durations, "durations"), config.scenario.t_end,
                                 physics_dt=config.scenario.physics_dt)
-    with folder_lock(out):
+    with folder_lock(out):  # a failure below marks this run failed in the manifest
         if cluster is None:
-            return _run_sweep(out, config, forces, durations, run_batch, chunk_size, progress,
-                              log)
-        with ClusterBatch(cluster, run_batch or LazyBatch(config), config, log) as on_cluster:
-            return _run_sweep(out, config, forces, durations, on_cluster, chunk_size, progress,
-                              log)
+            result = _run_sweep(out, config, forces, durations, run_batch, chunk_size,
+                                progress, log)
+        else:
+            with ClusterBatch(cluster, run_batch or LazyBatch(config), config,
+                              log) as on_cluster:
+                result = _run_sweep(out, config, forces, durations, on_cluster, chunk_size,
+                                    progress, log)
+        check_results(pd.read_parquet(result.region_path, columns=["outcome"])["outcome"],
+                      "cells")
+        return result
 
 
 def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np.ndarray,
