@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 
 import mjx_balance as mb
@@ -132,3 +133,15 @@ def test_a_few_diverged_cells_are_results(tmp_path, diverging):
     with pytest.raises(NotAResult):  # the API raises it
         diverging(above=0.0)
         mb.sweep([10.0, 20.0], [0.1], Config().replace(scenario={"t_end": 2.0}))
+
+
+def test_an_absurd_push_gives_its_outcome_row_and_figures(tmp_path, capsys):
+    """Issue 26.7: 1e12 N diverges at the first step; the run still writes its summary row and
+    figures that say there is nothing to draw, instead of a traceback."""
+    out = tmp_path / "out"
+    assert main(["-q", "simulate", "--force", "1e12", "--duration", "0.1", "--set",
+                 "scenario.t_end=0.2", "--out", str(out)]) == 0
+    summary = pd.read_csv(out / "summary.csv")
+    assert list(summary["outcome"]) == ["diverged"]
+    assert (out / "ankle_angle.png").exists() and (out / "energy.png").exists()
+    assert "Traceback" not in capsys.readouterr().err

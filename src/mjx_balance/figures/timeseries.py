@@ -256,6 +256,23 @@ def _shade_push(ax, df: pd.DataFrame) -> None:
                        else ("push windows" if i == 0 else None))
 
 
+def _no_samples(ax, q: Quantity, summary: pd.DataFrame | None) -> None:
+    """The panel of a quantity when no run has a sample: what happened, from the summary."""
+    why = "every run ended before its first sample"
+    if summary is not None and len(summary) and "outcome" in summary:
+        causes = summary.get("fall_cause", pd.Series([""] * len(summary))).fillna("")
+        ends = sorted({f"{o}" + (f" ({c})" if c else "")
+                       for o, c in zip(summary["outcome"], causes)})
+        why += ": " + ", ".join(ends)
+    ax.text(0.5, 0.5, f"nothing to draw\n{why}\n(summary.csv has the outcome rows)",
+            ha="center", va="center", transform=ax.transAxes, fontsize=10)
+    ax.set_title(q.title)
+    ax.set_xlabel(q.xlabel)
+    ax.set_ylabel(q.ylabel)
+    ax.set_xticks([])
+    ax.set_yticks([])
+
+
 def timeseries_figure(df: pd.DataFrame, quantity: str, *, config: Config | None = None,
                       summary: pd.DataFrame | None = None, full_window: bool = False,
                       ax=None, legend: bool = True):
@@ -267,6 +284,9 @@ def timeseries_figure(df: pd.DataFrame, quantity: str, *, config: Config | None 
     if ax is None:
         fig, ax = plt.subplots(figsize=(7.5, 4.6), layout="constrained")
     fig = ax.figure
+    if df.empty:  # every run ended before its first sample (e.g. diverged at once)
+        _no_samples(ax, q, summary)
+        return fig
     runs = runs_of(df, summary, config)
     convention = str(df.convention.iloc[0])
     t_end = time_limit(runs, df, full_window)
@@ -382,6 +402,8 @@ def _overview(ax, runs: list[Run], q: Quantity, limit, x_limit, t_end: float,
 
 
 def _subtitle(df: pd.DataFrame, config: Config | None) -> str:
+    if df.empty:
+        return "no samples"
     conventions = ", ".join(sorted(df.convention.unique()))
     text = f"convention: {conventions}"
     if df.duration.nunique() == 1:
