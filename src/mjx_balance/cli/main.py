@@ -17,7 +17,9 @@ import importlib
 import logging
 import os
 import shlex
+import signal
 import sys
+import threading
 
 from ..model.params import ParameterError
 from ..runtime.xla import deterministic_flags
@@ -100,6 +102,8 @@ class ConsoleHandler(logging.Handler):
             stream = sys.stdout if record.levelno < logging.WARNING else sys.stderr
             stream.write(self.format(record) + "\n")
             stream.flush()
+        except (OSError, ValueError, AttributeError):
+            pass  # a closed or full stream: the run goes on, its results are in files
         except Exception:  # noqa: BLE001 - logging's own convention
             self.handleError(record)
 
@@ -122,6 +126,23 @@ def _logging(level: int):
     return restore
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread as Ctrl-C is: the same clean-up runs (the folder's
+    lock is let go, its manifest records the run as interrupted, finished chunks stay)."""
+
+
+def _on_sigterm(_signum, _frame) -> None:
+    raise Terminated()
+
+
+def say_error(text: str) -> None:
+    """One line on stderr, if there is a stderr to write to (a closed one is not an error)."""
+    try:
+        print(f"mjx-balance: error: {text}", file=sys.stderr, flush=True)
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     use_host_cores()
@@ -131,13 +152,22 @@ def main(argv: list[str] | None = None) -> int:
 
         cache.disable()
     restore = _logging({-1: logging.WARNING, 0: logging.INFO, 1: logging.DEBUG}[verbosity(args)])
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _on_sigterm) if in_main else None
     try:
         from ..store.provenance import run_context  # lazy: after use_host_cores (pandas, not --help)
 
         words = sys.argv[1:] if argv is None else list(argv)
         with run_context(command=" ".join(shlex.quote(w) for w in ["mjx-balance", *words])):
             return _run(args)
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM, wherever the work was
+        name, code = ("SIGTERM", 143) if isinstance(exc, Terminated) else ("SIGINT", 130)
+        say_error(f"interrupted ({name}); what finished is kept: run the same command to "
+                  "resume")
+        return code
     finally:
+        if in_main:
+            signal.signal(signal.SIGTERM, previous)
         restore()
 
 
@@ -147,18 +177,18 @@ def _run(args: argparse.Namespace) -> int:
     try:
         return int(command(args) or 0)
     except ParameterError as exc:
-        print(f"mjx-balance: error: {exc}", file=sys.stderr)
+        say_error(str(exc))
         return 2
     except RuntimeError as exc:
         from ..measures.outcomes import NotAResult  # lazy: numpy; only after a failure
 
         if not isinstance(exc, NotAResult):
             raise
-        print(f"mjx-balance: error: {exc}", file=sys.stderr)  # ran, but not results
+        say_error(str(exc))  # it ran, but its numbers are not results
         return 1
     except OSError as exc:  # a failure during the work: a refused write, a full disk
         where = f"{exc.filename}: " if exc.filename else ""
-        print(f"mjx-balance: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        say_error(f"{where}{exc.strerror or exc}")
         return 1
 
 

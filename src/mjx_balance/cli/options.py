@@ -169,6 +169,9 @@ def out_folder(text: str) -> str:
     if not text.strip():
         raise argparse.ArgumentTypeError("give a folder name")
     path = Path(text)
+    if path.is_symlink() and not path.exists():
+        raise argparse.ArgumentTypeError(f"{text!r} is a symbolic link to a missing target "
+                                         f"({os.readlink(path)!r})")
     if path.exists() and not path.is_dir():
         raise argparse.ArgumentTypeError(f"{text!r} exists and is not a folder")
     reason = _unwritable(path)
