@@ -145,3 +145,48 @@ def test_an_absurd_push_gives_its_outcome_row_and_figures(tmp_path, capsys):
     assert list(summary["outcome"]) == ["diverged"]
     assert (out / "ankle_angle.png").exists() and (out / "energy.png").exists()
     assert "Traceback" not in capsys.readouterr().err
+
+
+# -- numerics on resume (issue 26.4) -------------------------------------------------------------
+
+def test_the_numerics_fingerprint_is_recorded_and_a_mismatch_refused(tmp_path, caplog):
+    from test_sweep import FakeThresholdBatch, sweep_fake
+
+    from mjx_balance.runtime import fingerprint
+    from mjx_balance.store.folder import chunk_numerics
+
+    sweep_fake(tmp_path, FakeThresholdBatch())
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert set(manifest["numerics"]) == {*fingerprint.RESULT_KEYS, *fingerprint.INFO_KEYS}
+    assert manifest["numerics"] == fingerprint.numerics()
+    chunk = sorted((tmp_path / "chunks").glob("chunk-*.parquet"))[0]
+    assert chunk_numerics(chunk) == fingerprint.numerics()  # each chunk keeps its own
+    assert pd.read_parquet(tmp_path / "region.parquet").attrs == {}  # the merge carries none
+
+    # a folder computed under x64 (as if by JAX_ENABLE_X64=1): resuming it is refused, naming
+    # what differs and how to start afresh
+    manifest["numerics"]["x64"] = not manifest["numerics"]["x64"]
+    (tmp_path / "manifest.json").write_text(json.dumps(manifest))
+    (tmp_path / "region.parquet").unlink()  # unfinished: there is work to resume
+    with pytest.raises(ParameterError, match=r"other numerics \(x64: .*start a fresh folder"):
+        sweep_fake(tmp_path, FakeThresholdBatch())
+
+    # another CPU ISA only warns, and the run goes on
+    manifest["numerics"]["x64"] = not manifest["numerics"]["x64"]
+    manifest["numerics"]["cpu_isa"] = "SSE4_2-elsewhere"
+    (tmp_path / "manifest.json").write_text(json.dumps(manifest))
+    with caplog.at_level("WARNING"):
+        sweep_fake(tmp_path, FakeThresholdBatch())
+    assert "cpu_isa: 'SSE4_2-elsewhere'" in caplog.text
+    assert (tmp_path / "region.parquet").exists()
+
+
+def test_the_fingerprint_reads_the_environment_without_jax():
+    from mjx_balance.runtime import fingerprint
+
+    assert fingerprint.result_flags("--xla_force_host_platform_device_count=2 --b=1 --a=2") == [
+        "--a=2", "--b=1"]
+    assert fingerprint.cpu_isa("--xla_cpu_max_isa=avx") == "AVX"
+    assert fingerprint.differences({"x64": False, "cpu_isa": "AVX2"},
+                                   {"x64": True, "cpu_isa": "AVX"}) == (
+        ["x64: False -> True"], ["cpu_isa: 'AVX2' -> 'AVX'"])

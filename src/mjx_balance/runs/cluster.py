@@ -61,11 +61,13 @@ from ..store.folder import config_dict
 from ..store.provenance import versions
 from ..runtime import xla as _xla
 from ..runtime import cache
+from ..runtime.fingerprint import numerics
 
 EXTRA = 'pip install "mjx_balance[cluster]"'
 LOCAL = "local:"
 # What the driver and every worker must agree on (store.versions() names, plus the XLA flags).
-CHECKED = ("package", "jax", "jaxlib", "mujoco", "mujoco_mjx", "python", "deterministic_xla")
+CHECKED = ("package", "jax", "jaxlib", "mujoco", "mujoco_mjx", "python", "deterministic_xla",
+           "xla_flags", "matmul_precision")
 WAIT_FOR_WORKERS_S = 300.0  # how long a scheduler may take to get its first worker
 
 
@@ -83,6 +85,9 @@ def local_facts() -> dict[str, Any]:
     facts["python"] = ".".join(platform.python_version_tuple()[:2])
     flags = os.environ.get("XLA_FLAGS", "")
     facts["deterministic_xla"] = all(f in flags for f in _xla.DETERMINISTIC_XLA_FLAGS)
+    # the numerics that change results (runtime/fingerprint.py; x64 travels with each task)
+    found = numerics()
+    facts["xla_flags"], facts["matmul_precision"] = found["xla_flags"], found["matmul_precision"]
     return facts
 
 

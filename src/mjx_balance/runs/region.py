@@ -31,8 +31,9 @@ from .chunks import chunk_slices, default_chunk_size
 from .cluster import ClusterBatch
 from .grid import check_durations, describe, grid_cells, parse_grid, same_values
 from .progress import progress_bar
-from ..store.files import MANIFEST, REGION, write_atomic, write_parquet
-from ..store.folder import OutputFolder, chunk_path, folder_lock, merge_chunks, read_chunk
+from ..store.files import MANIFEST, REGION, write_atomic
+from ..store.folder import (OutputFolder, chunk_path, folder_lock, merge_chunks, read_chunk,
+                            write_chunk)
 
 
 @dataclass
@@ -214,7 +215,7 @@ def _compute_chunks(run_batch: RunBatch, path: Path, slices: list[slice], todo: 
     the batch function streams, else one padded call per chunk (or on a cluster's workers)."""
     if hasattr(run_batch, "compute_chunks"):  # cluster.ClusterBatch: written here as they return
         run_batch.compute_chunks(slices, todo, cell_f, cell_d, chunk_size,
-                                 lambda index, frame: write_parquet(frame, chunk_path(path, index)),
+                                 lambda index, frame: write_chunk(frame, path, index),
                                  bar)
         return
     if streams(run_batch):
@@ -224,7 +225,7 @@ def _compute_chunks(run_batch: RunBatch, path: Path, slices: list[slice], todo: 
     for index in todo:
         cells = slices[index]
         frame = evaluate(run_batch, cell_f[cells], cell_d[cells], config, pad_to=chunk_size)
-        write_parquet(frame, chunk_path(path, index))
+        write_chunk(frame, path, index)
         bar.update(cells.stop - cells.start)
 
 
@@ -233,7 +234,7 @@ def _stream_chunks(run_batch: Any, path: Path, slices: list[slice], indices: lis
     """Every cell of the chunks through the engine's queue at once (its slots stay busy across
     chunk boundaries); a chunk file is written as soon as its last cell is decided."""
     for k, rows in chunk_frames(run_batch, slices, cell_f, cell_d, config, bar.update):
-        write_parquet(rows, chunk_path(path, indices[k]))
+        write_chunk(rows, path, indices[k])
 
 
 def _adopt_results(path: Path, found: list[Path], forces: np.ndarray, durations: np.ndarray,

@@ -38,6 +38,7 @@ from typing import Any, Iterator, Sequence
 import numpy as np
 import pandas as pd
 
+from ..runtime.fingerprint import differences, numerics
 from ..runtime.version import __version__
 from ..measures.outcomes import OUTCOMES, SUMMARY_COLUMNS
 from ..model.params import Config, ParameterError, dumps_config, load_config
@@ -201,7 +202,8 @@ class OutputFolder:
         manifest = self.read_manifest()
         config = config_dict(self.config)
         if manifest is None:
-            manifest = {"package": "mjx_balance", "version": __version__, "config": config}
+            manifest = {"package": "mjx_balance", "version": __version__, "config": config,
+                        "numerics": numerics()}
             if (any(self.path.glob("*.parquet")) or (self.path / "chunks").exists()
                     or (self.path / TABLE_CELLS).exists()):
                 self._check_lost_manifest(config)
@@ -232,11 +234,33 @@ class OutputFolder:
         if manifest.get("version") != __version__:
             log.warning("note: %s was made by mjx_balance %s, this is %s; continuing",
                         self.path, manifest.get("version"), __version__)
+        self._check_numerics(manifest)
         try:  # this run's provenance record, even if it finds nothing to do
             self.write_manifest(manifest)
         except OSError:  # a finished folder shared read-only: read, not recorded
             pass
         return manifest
+
+    def _check_numerics(self, manifest: dict[str, Any]) -> None:
+        """Refuse to resume a folder computed under other numerics that change results (x64,
+        XLA flags, matmul precision: runtime/fingerprint.py); warn for another package
+        version, JAX, MuJoCo or CPU ISA. A folder made before fingerprints gets this run's."""
+        recorded = manifest.get("numerics")
+        current = numerics()
+        if not isinstance(recorded, dict):
+            manifest["numerics"] = current
+            return
+        refuse, warn = differences(recorded, current)
+        warn = [w for w in warn if not w.startswith("package:")]  # said above
+        if refuse and self.holds_results():
+            raise ParameterError(
+                f"{self.path} was computed under other numerics ({'; '.join(refuse)}); "
+                "resuming would mix rows computed differently. Run with the settings it "
+                "was made with (JAX_ENABLE_X64, XLA_FLAGS, JAX_DEFAULT_MATMUL_PRECISION), or "
+                "start a fresh folder (another --out, or delete this one)")
+        if warn:
+            log.warning("note: %s was computed under %s; continuing (each chunk keeps the "
+                        "numerics it was computed under)", self.path, "; ".join(warn))
 
     def holds_results(self) -> bool:
         """Whether the folder holds anything computed: a merged table or region, a chunk file,
@@ -392,6 +416,22 @@ def chunk_path(folder: Path, index: int) -> Path:
     return folder / "chunks" / f"chunk-{index:05d}.parquet"
 
 
+def write_chunk(frame: pd.DataFrame, folder: Path, index: int) -> None:
+    """Chunk ``index`` of a region, with the numerics it was computed under
+    (``runtime.fingerprint.numerics``) in the parquet file's metadata (``frame.attrs``, which
+    pandas keeps there; read back by :func:`chunk_numerics`). The merged region.parquet does
+    not carry them: its bytes depend on the rows alone."""
+    frame = frame.copy(deep=False)
+    frame.attrs = {"numerics": numerics()}
+    write_parquet(frame, chunk_path(folder, index))
+
+
+def chunk_numerics(path: Path) -> dict | None:
+    """The numerics a chunk file was computed under (None for a chunk written before them)."""
+    found = pd.read_parquet(path).attrs.get("numerics")
+    return found if isinstance(found, dict) else None
+
+
 def read_chunk(path: Path, forces: np.ndarray, durations: np.ndarray,
                convention: str) -> tuple[pd.DataFrame | None, str]:
     """A chunk file if it holds exactly the given cells in order, else (None, reason)."""
@@ -442,6 +482,7 @@ def merge_chunks(folder: Path, slices: list[slice], cell_f: np.ndarray, cell_d: 
                                        convention)
             if frame is None:
                 raise RuntimeError(f"chunk {index} changed while merging: {reason}")
+            frame.attrs = {}  # the chunk's own metadata stays with the chunk
             table = pa.Table.from_pandas(frame, preserve_index=False)
             if writer is None:
                 schema = table.schema
