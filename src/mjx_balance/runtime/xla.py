@@ -15,10 +15,22 @@ import sys
 # (docs/engine.md). The vector width changes float32 rounding (tests/test_rollout.py's open-loop
 # drift against MuJoCo C). All three are known to jaxlib 0.10 and 0.11 (XLA refuses unknown
 # flags when it starts).
+#
+# And no FMA: XLA's CPU compiler always lets LLVM fuse a multiply and an add into one FMA (one
+# rounding instead of two) where the target has it, and whether it does can depend on the code
+# path a lane takes (vector body or scalar remainder), so a scenario's bits depended on its
+# slot. Measured on an AMD EPYC (Zen 1, AVX2 + FMA, 2 cores): with the three flags above, the
+# same 40 cells in another order and split gave other peak_ankle bits
+# (tests/test_engine.py::test_same_bits_in_any_order_and_split), and so did early-stopped
+# against full-length runs; with the ISA capped at AVX (no FMA, no AVX2) or SSE4_2 they are
+# equal, at the same speed (a 160-cell sweep, warm cache: 23.5-24.3 s without the cap,
+# 24.3-25.2 s with it). With no FMA and 128-bit vectors every x86-64 CPU from AVX on computes
+# each lane with the same instructions (docs/reliability.md: what is bitwise across CPUs).
 DETERMINISTIC_XLA_FLAGS = (
     "--xla_cpu_strict_dot_conv_math=true",
     "--xla_cpu_enable_platform_dependent_math=false",
     "--xla_cpu_prefer_vector_width=128",
+    "--xla_cpu_max_isa=AVX",
 )
 
 
