@@ -30,11 +30,4 @@ READINGS = {  # key -> (label, configuration changes); plain sets offset_free = 
     "joint_offset_free": ("joint, offset-free MPC",
                           {"controller": {"convention": "joint", "offset_free": True}}),
 }
-# sensitivity.csv's energy columns -> table.csv's: of the longest recovered push (energy_<def>_*)
-# and of the 0.1-s push at the same force (energy_<def>_01_*; NaN where that push is not
-# recovered), each in both definitions: the study's eq. 20 and the motors'
-ENERGIES = {"study": "study_energy_total_max", "motors": "energy_total_max",
-            "study_01": "study_energy_total_01", "motors_01": "energy_total_01"}
-SENSITIVITY_CSV, SENSITIVITY_PNG, SENSITIVITY_TXT = ("sensitivity.csv", "sensitivity.png",
-                                                     "sensitivity.txt")
 DEFAULT_FORCES = "20,50,80,100,120"  # N

@@ -35,6 +35,14 @@ from ..store.files import TABLE, write_atomic, write_text
 from ..runs.folders import run_table_folder
 from .defaults import DEFAULT_FORCES, READINGS
 
+# sensitivity.csv's energy columns -> table.csv's: of the longest recovered push (energy_<def>_*)
+# and of the 0.1-s push at the same force (energy_<def>_01_*; NaN where that push is not
+# recovered), each in both definitions: the study's eq. 20 and the motors'
+ENERGIES = {"study": "study_energy_total_max", "motors": "energy_total_max",
+            "study_01": "study_energy_total_01", "motors_01": "energy_total_01"}
+SENSITIVITY_CSV, SENSITIVITY_PNG, SENSITIVITY_TXT = ("sensitivity.csv", "sensitivity.png",
+                                                     "sensitivity.txt")
+
 REPORT_DIR = "sensitivity"  # the report's folder of this analysis (report/run.py, report/extra.py)
 
 
