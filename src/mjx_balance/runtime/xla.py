@@ -26,11 +26,20 @@ import sys
 # equal, at the same speed (a 160-cell sweep, warm cache: 23.5-24.3 s without the cap,
 # 24.3-25.2 s with it). With no FMA and 128-bit vectors every x86-64 CPU from AVX on computes
 # each lane with the same instructions (docs/reliability.md: what is bitwise across CPUs).
+#
+# And single-threaded Eigen inside each device's ops: with several threads per device Eigen
+# splits a product's sums over them, and how it splits depends on the threads a device has, so
+# one device (both cores) and two (a core each) gave other bits: on the same Zen 1 EPYC, a
+# 160-cell sweep's region.parquet differed between MJX_BALANCE_HOST_DEVICES=1 and 2 without
+# this flag and was the same with it (tests/test_engine.py::
+# test_one_and_two_host_devices_give_the_same_bits). Cost on that machine, 2 devices, warm
+# cache: 32.1-32.5 s against 24.3-30.1 s without it (BENCHMARKS.md).
 DETERMINISTIC_XLA_FLAGS = (
     "--xla_cpu_strict_dot_conv_math=true",
     "--xla_cpu_enable_platform_dependent_math=false",
     "--xla_cpu_prefer_vector_width=128",
     "--xla_cpu_max_isa=AVX",
+    "--xla_cpu_multi_thread_eigen=false",
 )
 
 
