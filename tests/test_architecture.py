@@ -17,6 +17,7 @@ package can show every rule failing (``test_each_rule_fails_on_a_broken_fixture`
 from __future__ import annotations
 
 import ast
+import os
 import pkgutil
 import subprocess
 import sys
@@ -333,3 +334,18 @@ def test_old_module_names_warn_and_give_the_new_modules():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=300)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr
+
+
+def test_no_library_module_switches_the_matplotlib_backend():
+    # A notebook's inline backend stays (the command line picks Agg for itself): importing
+    # every module leaves the backend the user chose.
+    code = (
+        "import importlib, matplotlib\n"
+        f"for name in {_library_modules()!r}:\n"
+        "    importlib.import_module(name)\n"
+        "print(matplotlib.get_backend())\n"
+    )
+    env = {**os.environ, "MPLBACKEND": "svg"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, timeout=300, env=env)
+    assert out.stdout.strip().splitlines()[-1] == "svg", out.stdout

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from mjx_balance.model.params import (LENGTH_RANGE, MASS_RANGE, MAX_FRICTION, MAX_GRAVITY,
+from mjx_balance.model.params import (LENGTH_RANGE, MASS_RANGE, MAX_FRICTION, MAX_GRAVITY, MIN_GRAVITY,
                                       MAX_PHYSICS_DT, BodyParams, Config, ControllerParams,
                                       ParameterError, ScenarioParams, load_config)
 from mjx_balance.reference.loop import simulate_scenario
@@ -83,8 +83,11 @@ def test_negative_masses_and_lengths_still_say_positive():
 
 def test_gravity_and_ankle_height_ranges():
     assert BodyParams(gravity=MAX_GRAVITY).gravity == MAX_GRAVITY
-    with pytest.raises(ParameterError, match=r"body\.gravity = 1000000\.0: must be <= 100"):
+    with pytest.raises(ParameterError, match=r"body\.gravity = 1000000\.0: must lie in \[0\.1, 100\]"):
         BodyParams(gravity=1e6)
+    assert BodyParams(gravity=MIN_GRAVITY).gravity == MIN_GRAVITY
+    with pytest.raises(ParameterError, match=r"body\.gravity = 1e-300: must lie in"):
+        BodyParams(gravity=1e-300)
     assert BodyParams(ankle_height=LENGTH_RANGE[1]).ankle_height == LENGTH_RANGE[1]
     with pytest.raises(ParameterError, match=r"body\.ankle_height = 11\.0: must lie in \[0, 10\]"):
         BodyParams(ankle_height=11.0)

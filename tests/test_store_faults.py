@@ -284,15 +284,16 @@ def test_full_disk_mid_sweep_is_one_line_and_the_rerun_resumes(tmp_path, fake_ro
     assert cli_sweep(whole) == 0
     out = tmp_path / "full"
     writes = []
-    real_write = region_module.write_parquet
+    real_write = region_module.write_chunk
 
-    def fill_disk_on_third_chunk(frame, path):
-        writes.append(path)
+    def fill_disk_on_third_chunk(frame, folder, index):
+        writes.append(index)
         if len(writes) == 3:
+            path = folder / "chunks" / f"chunk-{index:05d}.parquet"
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
-        real_write(frame, path)
+        real_write(frame, folder, index)
 
-    monkeypatch.setattr(region_module, "write_parquet", fill_disk_on_third_chunk)
+    monkeypatch.setattr(region_module, "write_chunk", fill_disk_on_third_chunk)
     capsys.readouterr()
     assert cli_sweep(out) == 1
     lines = error_lines(capsys.readouterr().err)
@@ -302,7 +303,7 @@ def test_full_disk_mid_sweep_is_one_line_and_the_rerun_resumes(tmp_path, fake_ro
     assert len(list((out / "chunks").glob("chunk-*.parquet"))) == 2  # finished chunks kept
     assert not (out / "region.parquet").exists()
 
-    monkeypatch.setattr(region_module, "write_parquet", real_write)
+    monkeypatch.setattr(region_module, "write_chunk", real_write)
     resumed = fake_rollout(FakeThresholdBatch())
     assert cli_sweep(out) == 0
     assert resumed.calls == [4, 4]  # chunks 2 and 3 of 0..3

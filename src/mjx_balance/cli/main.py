@@ -144,6 +144,9 @@ def say_error(text: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # Figures are written to files: matplotlib's file-only backend, unless the user chose one
+    # (the library itself never switches backends: a notebook keeps its inline figures).
+    os.environ.setdefault("MPLBACKEND", "Agg")
     args = build_parser().parse_args(argv)
     use_host_cores()
     deterministic_flags()

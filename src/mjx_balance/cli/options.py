@@ -28,8 +28,9 @@ from pathlib import Path
 from ..model.params import CONVENTIONS, ParameterError, parse_override
 
 EPILOG = """exit codes: 0 success; 1 failure during the work (a refused write, a full disk, a run
-that broke); 2 bad usage (an unknown option, a bad value or configuration), reported before any
-work and before anything is written."""
+that broke, a run whose scenarios diverged half or more); 2 bad usage (an unknown option, a bad
+value or configuration), reported before any work and before anything is written; 130 Ctrl-C,
+143 SIGTERM (what finished is kept: the same command resumes)."""
 
 
 # ---------------------------------------------------------------------------------------------

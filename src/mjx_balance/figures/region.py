@@ -1,4 +1,4 @@
-"""Figures of sweep results (matplotlib, Agg): the recoverable region, its energy, the table curve.
+"""Figures of sweep results (matplotlib): the recoverable region, its energy, the table curve.
 
 All are drawn from saved tables (``region.parquet``, ``table.csv``). Each figure has a function
 that draws it on a matplotlib ``Axes`` (``ax=None``: a new figure) and returns the ``Figure``,
@@ -28,11 +28,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm  # noqa: E402

@@ -526,6 +526,7 @@ def _run_table(out: str | Path, config: Config, forces: np.ndarray, run_batch: R
     if recorded is not None and not same_values(recorded["forces"], forces):
         say(f"replacing the table for forces {describe(recorded['forces'])} in {folder.path} "
             "(reusing the scenarios they share)")
+    folder.check_numerics(manifest)  # new scenarios: computed as the folder's were
     # the engine settings the table's scenarios were (or will be) run with
     run_batch = run_batch or LazyBatch(config)
     if manifest.get("table_engine") is not None:

@@ -129,6 +129,7 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
         f"{len(slices)} chunks of {chunk_size}; convention {convention}; output {folder.path}")
 
     if todo:
+        folder.check_numerics(manifest)  # new rows: computed as the folder's were
         if hasattr(run_batch, "prepare"):
             run_batch.prepare(chunk_size, log=log)
         bar = progress_bar(n_cells, n_cells - remaining, progress)

@@ -234,24 +234,24 @@ class OutputFolder:
         if manifest.get("version") != __version__:
             log.warning("note: %s was made by mjx_balance %s, this is %s; continuing",
                         self.path, manifest.get("version"), __version__)
-        self._check_numerics(manifest)
+        if not isinstance(manifest.get("numerics"), dict):  # a folder from before them
+            manifest["numerics"] = numerics()
         try:  # this run's provenance record, even if it finds nothing to do
             self.write_manifest(manifest)
         except OSError:  # a finished folder shared read-only: read, not recorded
             pass
         return manifest
 
-    def _check_numerics(self, manifest: dict[str, Any]) -> None:
-        """Refuse to resume a folder computed under other numerics that change results (x64,
-        XLA flags, matmul precision: runtime/fingerprint.py); warn for another package
-        version, JAX, MuJoCo or CPU ISA. A folder made before fingerprints gets this run's."""
+    def check_numerics(self, manifest: dict[str, Any]) -> None:
+        """Before computing new rows into this folder: refuse if its results were computed
+        under other numerics that change results (x64, XLA flags, matmul precision:
+        runtime/fingerprint.py), which would merge rows computed differently; warn for another
+        JAX, MuJoCo or CPU ISA. (A finished folder is read under any numerics.)"""
         recorded = manifest.get("numerics")
-        current = numerics()
         if not isinstance(recorded, dict):
-            manifest["numerics"] = current
             return
-        refuse, warn = differences(recorded, current)
-        warn = [w for w in warn if not w.startswith("package:")]  # said above
+        refuse, warn = differences(recorded, numerics())
+        warn = [w for w in warn if not w.startswith("package:")]  # said when opened
         if refuse and self.holds_results():
             raise ParameterError(
                 f"{self.path} was computed under other numerics ({'; '.join(refuse)}); "

@@ -309,9 +309,6 @@ def plot_basin(frame: pd.DataFrame, plane: Plane, path: Path, ends: pd.DataFrame
                posture: str) -> None:
     """Outcome and recovery energy over (x_com, v_com), the foot's edges, the capture-point
     bound, and the push cells' end states."""
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.colors import ListedColormap
 

@@ -235,9 +235,6 @@ def plot_compare(regions: dict[str, pd.DataFrame], path: Path, frame: pd.DataFra
     """One figure: every configuration's recovery boundary (the outline of its recovered
     cells) in its own colour and line style, the legend naming it with its area and
     sustained-push limit."""
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.collections import LineCollection
 

@@ -320,9 +320,6 @@ def plot_landscape(frame: pd.DataFrame, path: Path) -> None:
     """Heatmaps: one row per delay setting, one column per number (:data:`PANELS`); rows are Q
     scales, columns R scales (log spaced as given), each cell's value written in it, the base
     weights' cell (1, 1) outlined; a colour scale per column, shared by the rows."""
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 

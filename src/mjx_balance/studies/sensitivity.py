@@ -224,9 +224,6 @@ def reading_text(frame: pd.DataFrame, tables: dict[str, pd.DataFrame]) -> str:
 def plot_sensitivity(frame: pd.DataFrame, tables: dict[str, pd.DataFrame], path: Path) -> None:
     """Max acting time (and the max/min ratio across readings) and the two energies, of the
     longest recovered push and of the 0.1-s push, against force, one line per reading."""
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(2, 3, figsize=(15, 8.4), layout="constrained")
