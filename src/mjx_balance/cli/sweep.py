@@ -103,7 +103,8 @@ def sweep_command(args: Any) -> int:
     _guard_work(args, config, n_cells, chunk or default_chunk_size(config, n_cells), "cells",
                 extra=(table_scenarios(config, table_forces.size)
                        if table_forces is not None else 0))
-    check_batched(config)  # derived rules (memory, float32), before the folder is made
+    check_batched(config, (forces, "forces"), (durations, "durations"),  # derived rules
+                  *([(table_forces, "table_forces")] if table_forces is not None else []))
     reference = region_plots.load_reference(args.reference) if args.reference else None
     if use_default:
         log.info("no grid given: running the built-in default sweep "
@@ -160,7 +161,7 @@ def table_command(args: Any) -> int:
     batch = table_batch_size(config, forces.size)
     _guard_work(args, config, table_scenarios(config, forces.size), batch,
                 "scenarios (estimated)")
-    check_batched(config)  # derived rules (memory, float32), before the folder is made
+    check_batched(config, (forces, "forces"))  # derived rules, before the folder is made
     out = Path(args.out)
 
     def work() -> None:

@@ -105,16 +105,33 @@ def check_memory(config: Config, *, batched: bool = True) -> None:
             "the available memory); use a shorter horizon (the study's: 20)")
 
 
-def check_batched(config: Config) -> None:
-    """Refuse (ParameterError), before any work or any file, a configuration that the batched
-    path (float32 ADMM, MJX) cannot run meaningfully, naming the value and the bound:
+FLOAT32_MAX = 3.4028235e38
 
+
+def check_float32_grid(values: "np.ndarray", name: str) -> None:
+    """Refuse grid values that the batched path's float32 cannot hold (they would become inf)."""
+    big = np.asarray(values, np.float64)
+    big = big[np.abs(big) > FLOAT32_MAX]
+    if big.size:
+        raise ParameterError(f"{name}: {big[0]:g} does not fit the batched path's float32 "
+                             f"(largest {FLOAT32_MAX:.3g}); the scalar reference (simulate) "
+                             "runs in float64")
+
+
+def check_batched(config: Config, *grids: tuple) -> None:
+    """Refuse (ParameterError), before any work or any file, a configuration (and ``grids``:
+    (values, name) pairs) that the batched path (float32 ADMM, MJX) cannot run meaningfully,
+    naming the value and the bound:
+
+    - grid values beyond float32's range;
     - memory (:func:`check_memory`);
     - the ADMM's settings must be float32 numbers whose reciprocals are too (rho, the
       tolerances; sigma when not 0): 1e-300 becomes 0 in float32;
     - the QP must build (a Riccati solution, finite matrices) from the weights and bounds;
     - float32 must resolve it: κ(H)·ε_float32 < 1 (``qp.float32_conditioning``), which bounds
       horizon x control_dt for an unstable body (measured: docs/reliability.md)."""
+    for values, name in grids:
+        check_float32_grid(values, name)
     check_memory(config)
     c = config.controller
     low, high = FLOAT32_RANGE
@@ -186,7 +203,7 @@ def run_region(out: str | os.PathLike[str], config: Config, forces: Values, dura
     durations = duration_values(durations, config)
     chunk, slots = size_value(chunk, "chunk"), size_value(slots, "slots")
     if run_batch is None or isinstance(run_batch, LazyBatch):  # the batched engine's run
-        check_batched(config)
+        check_batched(config, (forces, "forces"), (durations, "durations"))
     if run_batch is None:
         run_batch = batch_function(config, slots=slots, full_length=full_length,
                                    physics=physics)
@@ -209,7 +226,7 @@ def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values
     forces = grid_values(forces, "forces")
     batch, slots = size_value(batch, "batch"), size_value(slots, "slots")
     if run_batch is None or isinstance(run_batch, LazyBatch):  # the batched engine's run
-        check_batched(config)
+        check_batched(config, (forces, "forces"))
     if run_batch is None:
         run_batch = batch_function(config, slots=slots, full_length=full_length,
                                    physics=physics)
