@@ -19,6 +19,7 @@ import textwrap
 import time
 from pathlib import Path
 
+import jax
 import pytest
 
 from mjx_balance import runs as sweep
@@ -125,7 +126,8 @@ def test_table_killed_by_sigkill_resumes(tmp_path, whole):
     assert len(kept) >= 13 * sweep.coarse_steps(12.0, 0.01).size  # the coarse scan at least
     (out / sweep.TABLE_CELLS / ".part-00099.parquet.x.tmp").write_text("left by a kill")
     resumed = CellLog()
-    table(out, resumed)
+    with jax.enable_x64(False):  # the numerics the killed process ran under (its default)
+        table(out, resumed)
     assert set(resumed.calls) == {BATCH}
     assert len(resumed.calls) < len(whole_fake.calls)
     assert not {(round(f, 6), round(d, 6)) for f, d in kept} & resumed.all_cells()
