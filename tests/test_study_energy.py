@@ -31,6 +31,7 @@ from mjx_balance.reference import loop as reference
 from mjx_balance.measures.outcomes import SUMMARY_COLUMNS, Limits
 from mjx_balance.model.params import Config
 from mjx_balance.rollout import kernel, runner
+from margins import within
 
 U = (10.0, -40.0)
 TAU = (-30.0, -40.0)  # tau1 + tau2, tau2
@@ -72,8 +73,11 @@ def _series():
 
 def test_the_hand_trajectory_is_one_of_the_paper_convention():
     s = _series()
-    assert np.allclose(s["tau"][:, 0], s["u"][:, 0] + s["u"][:, 1])  # tau_ankle = tau1 + tau2
-    assert np.allclose(s["q"][:, 1], s["x"][:, 1] - s["x"][:, 0])  # q_h = q2 - q1
+    # np.allclose's tolerances on hand-written values
+    within(s["tau"][:, 0], s["u"][:, 0] + s["u"][:, 1], rtol=1e-5, atol=1e-8,  # tau1 + tau2
+           why="tau_ankle = tau1 + tau2 exactly in the hand values, float64 round-off")
+    within(s["q"][:, 1], s["x"][:, 1] - s["x"][:, 0], rtol=1e-5, atol=1e-8,  # q_h = q2 - q1
+           why="q_h = q2 - q1 exactly in the hand values, float64 round-off")
     # virtual work: the two pairs of signed work add up to the same total
     assert EXPECTED["work_u1"] + EXPECTED["work_u2"] == pytest.approx(
         EXPECTED["work_ankle"] + EXPECTED["work_hip"])
@@ -90,7 +94,8 @@ def test_reference_summary_gives_each_definition():
         converged=np.array([True]), residual=np.array([0.0]), completed=False)
     assert set(row) == set(SUMMARY_COLUMNS)
     for key, value in EXPECTED.items():
-        assert row[key] == pytest.approx(value, abs=1e-12), key
+        within(row[key], value, atol=1e-12, msg=key,
+               why="hand values of a few terms, summed in float64 (a few ulps)")
 
 
 def test_batched_accumulators_give_each_definition():
@@ -110,7 +115,8 @@ def test_batched_accumulators_give_each_definition():
     assert bool(acc.alive)
     summary = runner.summarize(_batch_of_one(acc), CONFIG)
     for key, value in EXPECTED.items():
-        assert float(summary[key][0]) == pytest.approx(value, rel=1e-5, abs=1e-6), key
+        within(float(summary[key][0]), value, rtol=1e-5, atol=1e-6, msg=key,
+               why="the same sums of four samples in float32 (a few eps_float32 = 1.2e-7)")
 
 
 def _batch_of_one(acc):
@@ -130,7 +136,8 @@ def test_certificate_tail_integrals_give_each_definition():
     tail = certificate.tail_integrals(np, cert, np.zeros(4), pred, n)
     assert set(tail) == set(certificate.TAIL_FIELDS)
     for key in certificate.TAIL_FIELDS:
-        assert tail[key] == pytest.approx(EXPECTED[key], abs=1e-12), key
+        within(tail[key], EXPECTED[key], atol=1e-12, msg=key,
+               why="hand values of a few terms, summed in float64 (a few ulps)")
     # only the samples before t_end count: two samples left
     short = certificate.tail_integrals(np, cert, np.zeros(4), pred, 2)
     assert short["work_u1"] == pytest.approx(10 * (0.02 + 0.01))
@@ -153,7 +160,8 @@ def test_time_series_carries_the_cumulative_study_energy():
     last = frame.iloc[-1]
     for key in ("study_energy_u1", "study_energy_u2", "study_energy_total", "energy_ankle",
                 "energy_hip", "energy_total"):
-        assert last[key] == pytest.approx(EXPECTED[key], abs=1e-12), key
+        within(last[key], EXPECTED[key], atol=1e-12, msg=key,
+               why="hand values of a few terms, summed in float64 (a few ulps)")
 
 
 # --- which energy heads the outputs ----------------------------------------------------------
@@ -163,6 +171,7 @@ def test_paper_convention_outputs_headline_the_study_energy():
     """Paper convention: the study's energy first in the time-series figure, the weight
     figure, the report tables and table.csv, the motors' beside it; joint: the motors'."""
     from mjx_balance.figures import timeseries as plots
+    from mjx_balance.figures import report as bars
     from mjx_balance.report import html
     from mjx_balance.runs import acting_time
 
@@ -177,9 +186,9 @@ def test_paper_convention_outputs_headline_the_study_energy():
     assert "study's (eq. 20)" in plots.energy_title(plots.energy_rows(frame))
 
     weights = pd.DataFrame({c: [1.0] for c in SUMMARY_COLUMNS})
-    assert html.weight_rows(weights, "paper")[0][0] is html.STUDY_BARS
-    assert html.weight_rows(weights, "paper")[1][0] is html.MOTOR_BARS
-    assert [r[0] for r in html.weight_rows(weights, "joint")] == [html.MOTOR_BARS]
+    assert bars.weight_rows(weights, "paper")[0][0] is bars.STUDY_BARS
+    assert bars.weight_rows(weights, "paper")[1][0] is bars.MOTOR_BARS
+    assert [r[0] for r in bars.weight_rows(weights, "joint")] == [bars.MOTOR_BARS]
 
     for kind, first in (("summary", "study_energy_u1"), ("weights", "study_energy_u1"),
                         ("table", "study_energy_u1_01")):

@@ -37,7 +37,7 @@ _LAZY = {
     "load_report": "report.html:load_results",
     "region_map": "figures.region", "energy_map": "figures.region",
     "table_figure": "figures.region", "timeseries_figure": "figures.timeseries",
-    "weight_figure": "report.html", "conventions_figure": "report.html",
+    "weight_figure": "figures.report", "conventions_figure": "figures.report",
     "region_numbers": "studies.catalog", "study": "studies.catalog",
     "study_reading": "studies.catalog:reading",
 }

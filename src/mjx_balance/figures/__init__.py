@@ -3,6 +3,8 @@
     timeseries.py  a push's time series (angles, torques, CoP, CoM)
     region.py      the region map, the energy map, the robustness table's figure
     animation.py   the stick-figure GIF of one push
+    report.py      the report's figures: the weight study's bars, the conventions side by side,
+                   the experiments' and studies' figures drawn into a report folder
 
 Each function draws on the Axes it is given (or a new figure) and returns the Figure.
 """

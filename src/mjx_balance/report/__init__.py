@@ -20,13 +20,15 @@ use a batch function: the MJX rollout (backend ``mjx``) or the reference loop ru
 scenario (backend ``reference``, what the ``tiny`` plan uses). A finished stage is not rerun
 (sweeps resume chunk by chunk; see the sweep package).
 
-    run.py    plans (Plan, PLANS), batch functions, one function per experiment and study,
-              run_report
-    html.py   load_results, the figures, one function per section, build_report
+    ../studies/experiments.py  plans (Plan, PLANS), batch functions, one function per
+              experiment and study, run_report
+    html.py   load_results, one function per section, build_report
+    blocks.py the blocks shared by the sections; extra.py, landscape.py: sections read from
+              result folders; the figures: ../figures/report.py
 """
 
-from .html import (HTML, build_report, conventions_figure, key_numbers, load_results, save_figure,
-                   sections, weight_figure)
+from ..figures.report import conventions_figure, save_figure, weight_figure
+from .html import HTML, build_report, key_numbers, load_results, sections
 from ..studies.experiments import (PLANS, Q_SCALES, R_SCALES, REPORT_JSON, Plan, ReferenceBatch,
                                    batch_function, plan_config, run_report, run_weights,
                                    selected_studies, weight_settings)
