@@ -101,6 +101,7 @@ def _sweep(out, cluster, **kwargs):
                          **kwargs)
 
 
+@pytest.mark.slow  # a local Dask cluster: .ci/run runs it after the default suite
 @needs_dask
 def test_local_cluster_gives_the_local_bytes(tmp_path, reference):
     """``local:2``: the same region.parquet, byte for byte, as the plain local run; the
@@ -128,6 +129,7 @@ def cluster(compile_cache):
             yield local, client
 
 
+@pytest.mark.slow  # a local Dask cluster: .ci/run runs it after the default suite
 @needs_dask
 def test_worker_killed_mid_chunk_loses_nothing(tmp_path, reference, cluster):
     """A worker SIGKILLed while it runs a chunk: Dask runs the chunk again elsewhere and the
@@ -167,6 +169,7 @@ def test_worker_killed_mid_chunk_loses_nothing(tmp_path, reference, cluster):
     assert len({t["key"] for t in finished}) == 3  # every chunk finished (once per key)
 
 
+@pytest.mark.slow  # a local Dask cluster: .ci/run runs it after the default suite
 @needs_dask
 def test_table_on_the_cluster_is_the_local_table(tmp_path, reference, cluster):
     """``table --cluster``: each bisection round's calls run as tasks on the workers (split

@@ -19,6 +19,7 @@ NOTEBOOK = Path(__file__).resolve().parents[1] / "notebooks" / "reproduce_study.
 KERNEL = "mjx_balance_test"
 
 
+@pytest.mark.slow  # 140 s on a 2-core Zen 1 EPYC: .ci/run runs it after the default suite
 def test_notebook_executes(tmp_path_factory, tmp_path, monkeypatch):
     out = tiny_report(tmp_path_factory)
     before = sorted(p.relative_to(out) for p in out.rglob("*"))
