@@ -52,3 +52,51 @@ def batch_runner():
                                      trajectories=True, devices=jax.local_devices()[:1])
         runner.compiled(SHARED_BATCH)
     return runner
+
+
+# The margin audit (tests/margins.py): with MJX_BALANCE_MARGIN_AUDIT naming a file, every
+# numpy.testing.assert_allclose and pytest.approx comparison is recorded as margins.within's
+# are (the ratio of the difference to the tolerance), without editing the tests that use them.
+if os.environ.get("MJX_BALANCE_MARGIN_AUDIT"):
+    import numpy as np
+    import numpy.testing
+    from _pytest.approx import ApproxScalar
+
+    import margins
+
+    _assert_allclose = numpy.testing.assert_allclose
+
+    def _recorded_assert_allclose(actual, desired, rtol=1e-7, atol=0, *args, **kwargs):
+        try:
+            used = margins.ratio(actual, desired, rtol, atol)
+        except (TypeError, ValueError):  # not real numbers: nothing to measure
+            used = None
+        if used is not None:
+            margins.record(kind="assert_allclose", rtol=rtol, atol=atol, used=used, why=None)
+        return _assert_allclose(actual, desired, rtol, atol, *args, **kwargs)
+
+    numpy.testing.assert_allclose = _recorded_assert_allclose
+    np.testing.assert_allclose = _recorded_assert_allclose
+
+    _approx_eq = ApproxScalar.__eq__
+
+    def _recorded_approx_eq(self, actual):
+        result = _approx_eq(self, actual)
+        expected = self.expected
+        scalar = (isinstance(actual, (int, float, np.integer, np.floating))
+                  and isinstance(expected, (int, float, np.integer, np.floating))
+                  and not isinstance(actual, (bool, np.bool_))
+                  and not isinstance(expected, (bool, np.bool_)))
+        if scalar:  # arrays come back here element by element; the tolerance is max(abs, rel |e|)
+            tolerance = float(self.tolerance)
+            diff = 0.0 if actual == expected else abs(float(actual) - float(expected))
+            used = 0.0 if diff == 0 else (diff / tolerance if tolerance > 0 else float("inf"))
+            if diff != diff:  # NaN
+                used = 0.0 if result else float("inf")
+            rel = (self.rel if self.rel is not None
+                   else 0.0 if self.abs is not None else self.DEFAULT_RELATIVE_TOLERANCE)
+            absolute = self.abs if self.abs is not None else self.DEFAULT_ABSOLUTE_TOLERANCE
+            margins.record(kind="approx", rtol=rel, atol=absolute, used=used, why=None)
+        return result
+
+    ApproxScalar.__eq__ = _recorded_approx_eq

@@ -17,6 +17,7 @@ from mjx_balance.bench.states import (ACCURACY, admm_along_trajectories, closed_
 from mjx_balance.control.osqp_mpc import osqp_solve, osqp_solver
 from mjx_balance.model.params import BodyParams, ControllerParams
 from mjx_balance.control.qp import build_qp
+from margins import admm_rounding, within
 
 FORCES = tuple(np.arange(20.0, 121.0, 10.0))
 DURATIONS = (0.1, 0.2)
@@ -54,14 +55,20 @@ def test_first_control_matches_osqp(case):
           f"{n_miss}/{truth.solved.sum()} misses ({100 * n_miss / truth.solved.sum():.2f}%), "
           f"max error {np.max(err[truth.solved]):.2e} (both solved: {np.max(err[both]):.2e}, "
           f"{both.sum()} solves), mean iterations {seq['iters'].mean():.1f}")
-    assert np.all(err[both] <= ACCURACY)
+    within(err[both], 0.0, atol=ACCURACY,
+           why="the batched controller's accuracy requirement: 1e-3 of each input's range of "
+               "OSQP at 1e-9 (bench.states.ACCURACY)")
     assert n_miss < 0.01 * truth.solved.sum()
     assert np.all(np.isfinite(seq["z"])) and np.all(np.isfinite(seq["u0"]))
 
 
 def test_float32_agrees_with_float64(case):
-    """float32 and float64 both stop at eps 1e-5 (relative), so their first controls differ by
-    solver tolerance, not by rounding; 1e-4 of the range is 10x tighter than the OSQP test."""
+    """float32 and float64 run the same iterations with the same stopping rule; float32's
+    rounding moves each iterate by at most margins.admm_rounding (1.9e-3 of the input, no credit
+    for the ADMM's contraction), i.e. half that of the range (|u0| <= half the range). Where the
+    rounding moves a stopping check by one chunk the two stop 10 iterations apart, both within
+    the residual tolerance (eps 1e-7 abs, 3e-6 rel). Measured on a 2-core AMD EPYC: 3.7e-5 of
+    the range (0.37 of the former, measured tolerance 1e-4)."""
     seq32 = case["seq32"]
     seq64 = admm_along_trajectories(case["qp"], case["trajectories"], case["settings"],
                                     jnp.float64)
@@ -71,7 +78,9 @@ def test_float32_agrees_with_float64(case):
     print(f"\n{case['convention']}: float32 vs float64 max |du0| {diff[both].max():.2e} of range "
           f"over {both.sum()} solves both solved")
     assert both.sum() >= 0.95 * np.sum(seq64["status"] == admm.SOLVED)
-    assert np.all(diff[both] <= 1e-4)
+    within(diff[both], 0.0, atol=admm_rounding(case["controller"]) / 2,
+           why="float32 rounding of the ADMM's iterations (margins.admm_rounding) on inputs "
+               "of at most half their range")
 
 
 def test_warm_start_reduces_iterations(case):

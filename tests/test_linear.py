@@ -9,6 +9,7 @@ from mjx_balance.model.linear import S, linear_model
 from mjx_balance.model.mjcf import build_model
 from mjx_balance.model.params import BodyParams, Config
 from mjx_balance.reference.loop import simulate_scenario
+from margins import within
 
 CONVENTIONS = ("paper", "joint")
 
@@ -62,8 +63,10 @@ def test_linearisation_matches_finite_differences(convention, body):
     Ac_fd = np.block([[np.zeros((2, 2)), np.eye(2)],
                       [T @ d_q @ Tinv, T @ d_dq @ Tinv]])
     Bc_fd = np.vstack([np.zeros((2, 2)), T @ d_ctrl @ lm.torque_map])
-    assert rel_err(lm.Ac[2:], Ac_fd[2:]) <= 1e-5
-    assert rel_err(lm.Bc[2:], Bc_fd[2:]) <= 1e-5
+    why = ("central differences, h = 1e-6: truncation h^2 |third derivative| / 6 and "
+           "cancellation eps_float64 |qacc| / h, both below 1e-9 relative")
+    within(rel_err(lm.Ac[2:], Ac_fd[2:]), 0.0, atol=1e-5, why=why)
+    within(rel_err(lm.Bc[2:], Bc_fd[2:]), 0.0, atol=1e-5, why=why)
     np.testing.assert_array_equal(lm.Ac[:2], Ac_fd[:2])
     np.testing.assert_array_equal(lm.Bc[:2], Bc_fd[:2])
 
@@ -122,4 +125,6 @@ def test_linear_cop_map_matches_load_cells(convention, push):
     u = last[["u1", "u2"]].to_numpy(float)
     cop_linear = lm.cop_x @ x + lm.cop_u @ u
     assert abs(last.cop) > 0.015  # the lean moves the CoP measurably
-    assert last.cop - last.foot_x == pytest.approx(cop_linear, abs=1e-5)
+    within(last.cop - last.foot_x, cop_linear, atol=1e-5,
+           why="the map is exact in statics; the compliant contacts' geometry (sole sinking "
+               "~0.3 mm, pitching ~2e-4 rad) moves the CoP by ~1 um")

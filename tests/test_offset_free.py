@@ -3,8 +3,6 @@ in the linear plant, the batched paths against the reference, and the sustained 
 
 from __future__ import annotations
 
-import math
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -19,6 +17,8 @@ from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.control.qp import build_qp
 from mjx_balance.rollout import BatchRunner
 from test_rollout import AdmmMPC
+import margins
+from margins import within
 
 CONFIG = Config().replace(controller={"offset_free": True})
 
@@ -80,7 +80,10 @@ def test_the_target_holds_what_a_steady_posture_can(built):
     bound less the target's margin, and the CoP of the steady lean inside the foot."""
     config, qp, of = built
     y, u, held = ofm.target(np, of, np.array([3.0, 1.0]))
-    assert held and np.allclose(y, 0) and np.allclose(u, [-3.0, -1.0])
+    assert held
+    # np.allclose's tolerances: the upright target is exact (no bound active), float64 round-off
+    within(y, 0.0, rtol=1e-5, atol=1e-8, why="upright: y_s = 0 exactly, float64 round-off")
+    within(u, [-3.0, -1.0], rtol=1e-5, atol=1e-8, why="u_s = -d exactly, float64 round-off")
     lo, hi = np.array(config.controller.input_bounds).T
     keep = config.controller.target_margin * (hi - lo) / 2
     lo, hi = lo + keep, hi - keep
@@ -88,7 +91,11 @@ def test_the_target_holds_what_a_steady_posture_can(built):
         d = sign * np.array([60.0, 15.0])
         y, u, held = ofm.target(np, of, d)
         assert held and not np.allclose(y, 0)
-        assert np.isclose(u, lo).any() or np.isclose(u, hi).any()
+        # one input at a bound (np.isclose's tolerances): the bound nearest in those terms
+        bounds = np.concatenate([lo, hi])
+        near = np.argmin(np.abs(np.concatenate([u, u]) - bounds) / (1e-8 + 1e-5 * np.abs(bounds)))
+        within(np.concatenate([u, u])[near], bounds[near], rtol=1e-5, atol=1e-8,
+               why="an input at its bound less the margin, to float64 round-off")
         x_s = np.concatenate([y, np.zeros(2)])
         offsets = ofm.row_offsets(np, of, x_s, u, d)
         cop = offsets[qp.rows["cop"]][0]
@@ -136,7 +143,8 @@ def test_the_observer_converges_and_the_loop_settles_upright(built):
     # the pole, to round-off (the model is exact here)
     ratios = errors[2:30] / errors[1:29]
     np.testing.assert_allclose(ratios, config.controller.observer_pole, rtol=1e-6)
-    assert np.allclose(settles_at_the_target(of, xs, us, d), 0)
+    within(settles_at_the_target(of, xs, us, d), 0.0, rtol=1e-5, atol=1e-8,
+           why="the upright target is exact (np.allclose's tolerances)")
 
 
 def test_the_loop_settles_in_the_targets_lean(built):
@@ -150,7 +158,9 @@ def test_the_loop_settles_in_the_targets_lean(built):
     d = np.array([-45.0, -10.0])
     ramp = 1500  # periods
     xs, us, ds = linear_loop(config, qp, of, lambda k: d * min(k / ramp, 1.0), periods=3000)
-    assert np.abs(ds[-1] - d).max() < 1e-9
+    within(ds[-1], d, atol=1e-9,
+           why="the estimate's error shrinks by the pole 0.8 each period: 0.8^1500 after the "
+               "ramp, float64 round-off on ~45 N m")
     assert np.abs(settles_at_the_target(of, xs, us, d)).max() > 1e-2  # a real lean
 
 
@@ -194,12 +204,20 @@ def test_batched_and_reference_offset_free_alike():
         mine = frame.iloc[b]
         outcomes.append(ref["outcome"])
         assert mine.outcome == ref["outcome"], (force, duration)
-        assert (math.isnan(ref["fall_time"]) and math.isnan(mine.fall_time)) or \
-            abs(mine.fall_time - ref["fall_time"]) <= 1e-12
-        # a fall's float32 rounding grows along the unstable direction (test_delay_compensation)
-        tol = 1e-2 if ref["outcome"] == "fell" else 1e-4
+        within(mine.fall_time, ref["fall_time"], atol=1e-12, msg=(force, duration),
+               why="the same fall sample (both compute its time as k dt)")
+        # the float32 controls' rounding (4 slots here, 1 in the reference; other CPUs sum in
+        # other orders: 1.06e-4 relative on energy_ankle seen on an Intel Xeon, 3.3e-5 on an
+        # AMD EPYC) through the stable loop, grown along the unstable direction after an
+        # infeasible QP when it falls (margins.closed_loop_rounding, as in test_cpath). The
+        # observer and the target, float32 here and float64 in the reference, round within a
+        # few eps_float32 of their sizes and the observer's pole (0.8) lets that build up at
+        # most fivefold: far below the ADMM's share.
+        tol = margins.closed_loop_rounding(config, ref, force, duration)
         for key in ("energy_ankle", "energy_hip", "energy_u1", "energy_u2"):
-            assert abs(mine[key] - ref[key]) <= tol * abs(ref[key]) + 1e-9, (key, force)
+            within(mine[key], ref[key], rtol=tol[key], atol=1e-9, msg=(key, force),
+                   why="float32 ADMM rounding x the loop's gain, grown after an infeasible QP "
+                       "when it falls (margins.closed_loop_rounding)")
     assert {"recovered", "fell"} <= set(outcomes)
     mjx = BatchRunner(config, physics="mjx", devices=jax.local_devices()[:1])
     assert list(mjx.run_frame(forces, durations).outcome) == outcomes

@@ -23,6 +23,7 @@ from mjx_balance import runs as sweep
 from mjx_balance.measures.outcomes import SUMMARY_COLUMNS
 from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.runs.definitions import sweeps_dir
+from margins import within
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_BATCH = "mjx_balance.runs.batch.default_batch"  # what LazyBatch calls
@@ -267,8 +268,9 @@ def test_bisection_finds_the_fake_threshold_to_0_01_s():
     result = sweep.max_acting_time(forces, config, run_batch=fake, progress=False, log=None)
     table = result.table.set_index("force")
     for force in forces:
-        assert table.loc[force, "max_acting_time"] == pytest.approx(
-            expected_max_time(force, 30.0, 12.0), abs=1e-9), force
+        within(table.loc[force, "max_acting_time"], expected_max_time(force, 30.0, 12.0),
+               atol=1e-9, msg=force,
+               why="whole steps of 0.01 s, rounded to 12 decimals (np.round) on both sides")
     assert table["monotone"].all()
     # Every call after the coarse scan is one batch of one midpoint per force.
     n_coarse = sweep.coarse_steps(12.0, 0.01).size
@@ -282,8 +284,10 @@ def test_bisection_finds_the_fake_threshold_to_0_01_s():
     assert math.isnan(table.loc[4000, "energy_total_max"])
     row = table.loc[20]  # 20 N: 20 T < 30 -> T <= 1.49
     assert row["max_acting_time"] == 1.49 and row["ending_outcome"] == "fell"
-    assert row["energy_total_01"] == pytest.approx(3 * 20 * 0.1, rel=1e-6)
-    assert row["energy_total_max"] == pytest.approx(3 * 20 * 1.49, rel=1e-6)
+    within(row["energy_total_01"], 3 * 20 * 0.1, rtol=1e-6,
+           why="the stand-in computes 3 |F| T from float32 F and T: three roundings, <= 1.8e-7")
+    within(row["energy_total_max"], 3 * 20 * 1.49, rtol=1e-6,
+           why="the stand-in computes 3 |F| T from float32 F and T: three roundings, <= 1.8e-7")
     assert row["outcome_01"] == "recovered"
     assert list(result.table.columns) == sweep.TABLE_COLUMNS
     assert len(result.runs) == result.table["evaluations"].sum()  # padding dropped
@@ -520,8 +524,9 @@ def test_cli_end_to_end_with_the_mjx_rollout(tmp_path, monkeypatch, batch_runner
     durations = np.round(np.arange(1, 9) * 0.01, 12)
     direct = batch_runner.run_frame(np.full(8, 300.0), durations)
     first_failure = int(np.flatnonzero(direct["outcome"] != "recovered")[0])
-    assert table.loc[300, "max_acting_time"] == pytest.approx(
-        durations[first_failure - 1] if first_failure else 0.0, abs=1e-9)
+    within(table.loc[300, "max_acting_time"],
+           durations[first_failure - 1] if first_failure else 0.0, atol=1e-9,
+           why="whole steps of 0.01 s, rounded to 12 decimals (np.round) on both sides")
     assert table.loc[300, "ending_outcome"] == direct["outcome"][first_failure]
     for name in ("region.png", "energy.png", "table.png"):
         data = (out / name).read_bytes()
