@@ -133,6 +133,7 @@ def check_batched(config: Config, *grids: tuple) -> None:
     for values, name in grids:
         check_float32_grid(values, name)
     check_memory(config)
+    cache.enable()  # the checks below run small jitted programs: through the persistent cache
     c = config.controller
     low, high = FLOAT32_RANGE
     for name in ("admm_rho", "admm_eps_abs", "admm_eps_rel", "admm_sigma"):
