@@ -167,7 +167,8 @@ def test_the_numerics_fingerprint_is_recorded_and_a_mismatch_refused(tmp_path, c
     # what differs and how to start afresh
     manifest["numerics"]["x64"] = not manifest["numerics"]["x64"]
     (tmp_path / "manifest.json").write_text(json.dumps(manifest))
-    (tmp_path / "region.parquet").unlink()  # unfinished: there is work to resume
+    (tmp_path / "region.parquet").unlink()  # unfinished: there are rows to compute again
+    sorted((tmp_path / "chunks").glob("chunk-*.parquet"))[-1].unlink()
     with pytest.raises(ParameterError, match=r"other numerics \(x64: .*start a fresh folder"):
         sweep_fake(tmp_path, FakeThresholdBatch())
 
