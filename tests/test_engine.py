@@ -245,6 +245,7 @@ def _run_child(env_flags, forces, durations):
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow  # tens of seconds on 2 cores: .ci/run runs it after the default suite
 def test_one_and_two_host_devices_give_the_same_bits():
     forces = np.array([0.0, 20.0, 60.0, 90.0, 120.0, -40.0, 10.0, 150.0, 30.0, 80.0])
     durations = np.array([0.1, 0.2, 0.2, 0.1, 0.3, 0.2, 2.0, 0.05, 0.5, 0.15])

@@ -361,6 +361,7 @@ LEAN_GRID = [(0.0, 0.1), (50.0, 0.1), (100.0, 0.1), (200.0, 0.1), (-150.0, 0.3),
              (30.0, 1.0), (60.0, 0.3), (15.0, 1.9)]
 
 
+@pytest.mark.slow  # tens of seconds on 2 cores: .ci/run runs it after the default suite
 def test_lean_physics_is_the_step_plus_kinematics_loop(runner, float32):
     """The engine's closed loop reads a sample's positions from the next step's start instead
     of an extra mjx.kinematics per step (kernel.period); the summaries it gives are those of

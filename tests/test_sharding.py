@@ -34,6 +34,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from mjx_balance.measures import outcomes
 from mjx_balance.measures.outcomes import Limits
@@ -87,6 +88,7 @@ def _result(proc: subprocess.Popen) -> dict:
     return json.loads([line for line in stdout.splitlines() if line.startswith("{")][-1])
 
 
+@pytest.mark.slow  # tens of seconds on 2 cores: .ci/run runs it after the default suite
 def test_two_devices_match_one():
     two, one = _start(2), _start(1)
     two, one = _result(two), _result(one)
