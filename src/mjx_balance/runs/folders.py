@@ -8,6 +8,7 @@ landscape, sensitivity) all call these, so the three run a folder the same way.
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import numbers
@@ -134,6 +135,15 @@ def check_batched(config: Config, *grids: tuple) -> None:
         check_float32_grid(values, name)
     check_memory(config)
     cache.enable()  # the checks below run small jitted programs: through the persistent cache
+    check_closed_loop(config)
+
+
+@functools.lru_cache(maxsize=16)
+def check_closed_loop(config: Config) -> None:
+    """The configuration-only part of :func:`check_batched` (ADMM settings, the QP and its
+    conditioning, the closed loop's build), remembered per configuration: the command line
+    checks before it makes the folder and ``run_region`` checks again, at no second cost.
+    A refused configuration raises each time (exceptions are not remembered)."""
     c = config.controller
     low, high = FLOAT32_RANGE
     for name in ("admm_rho", "admm_eps_abs", "admm_eps_rel", "admm_sigma"):
