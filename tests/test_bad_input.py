@@ -160,7 +160,7 @@ BAD_VALUES = [
     ("bench solver", ["--batch", ","], ["--batch", "at least one"]),
     ("bench solver", ["--states", "0"], ["--states", "integer >= 1"]),
     ("bench", ["--scenarios", "0"], ["--scenarios", "integer >= 1"]),
-    ("bench", ["--reference", "-1"], ["--reference", "integer >= 0"]),
+    ("bench", ["--reference-runs", "-1"], ["--reference-runs", "integer >= 0"]),
     ("bench", ["--workers", "0"], ["--workers", "integer >= 1"]),
     ("bench", ["--slots", "0"], ["--slots", "integer >= 1"]),
     ("sweep", ["--slots", "0"], ["--slots", "integer >= 1"]),

@@ -34,6 +34,7 @@ from .model.params import Config, ParameterError, load_config  # noqa: E402
 # (or a new figure) and returns the Figure.
 _LAZY = {
     "simulate": "api", "sweep": "api", "table": "api", "compare": "api", "basin": "api",
+    "scorecard": "api", "strategy_map": "figures.strategy",
     "load_report": "report.html:load_results",
     "region_map": "figures.region", "energy_map": "figures.region",
     "table_figure": "figures.region", "timeseries_figure": "figures.timeseries",
@@ -44,7 +45,8 @@ _LAZY = {
 
 __all__ = ["Config", "ParameterError", "__version__", "basin", "compare", "conventions_figure",
            "energy_map", "load_config", "load_report", "region_map", "region_numbers",
-           "simulate", "study", "study_reading", "sweep", "table", "table_figure",
+           "scorecard", "simulate", "strategy_map", "study", "study_reading", "sweep", "table",
+           "table_figure",
            "timeseries_figure", "weight_figure"]
 
 

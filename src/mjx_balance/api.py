@@ -35,26 +35,32 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterator, Union
 
+from .measures.strategy import with_strategy
 from .model.params import Config, ParameterError, config_from_dict, load_config
 from .runs.folders import (Values, batch_function, duration_values, grid_values, run_region,
                            run_table_folder, size_value, check_reference)
+from .runs.grid import check_durations, parse_pairs
 from .store.provenance import run_context
 from .reference import loop as reference
 from .store.files import TABLE
 from .studies.compare import load_configs, run_compare
 from .runs import DEFAULT_SWEEP
 from .studies.basin import DEFAULT_V, DEFAULT_X, run_basin
+from .studies.scorecard import (Reference, folder_results, read_references, reference_forces,
+                                write_scorecard)
+from .studies.scorecard import scorecard as score_results
 
 if TYPE_CHECKING:
     import pandas as pd
 
 
 __all__ = ["Config", "ParameterError", "basin", "batch_function", "compare", "load_config",
-           "run_region", "run_table_folder", "simulate", "sweep", "table"]
+           "run_region", "run_table_folder", "scorecard", "simulate", "sweep", "table"]
 
 log = logging.getLogger("mjx_balance")
 
 ConfigLike = Union[Config, str, "os.PathLike[str]", Mapping[str, Any], None]
+References = Union[str, "os.PathLike[str]", Sequence[Union[str, "os.PathLike[str]"]], None]
 
 
 def as_config(config: ConfigLike = None) -> Config:
@@ -83,24 +89,39 @@ def _session(call: str, physics: str = "mjx") -> Iterator[None]:
 # simulate: the scalar reference
 
 
-def simulate(forces: Values, durations: Values, config: ConfigLike = None, *,
-             progress: bool = False) -> "tuple[pd.DataFrame, pd.DataFrame]":
+def simulate(forces: Values = None, durations: Values = None, config: ConfigLike = None, *,
+             pairs: Any = None, progress: bool = False) -> "tuple[pd.DataFrame, pd.DataFrame]":
     """Every (force, duration) push through the scalar reference closed loop (MuJoCo C physics,
-    the MPC solved by OSQP), one scenario at a time.
+    the MPC solved by OSQP), one scenario at a time: the cross product of ``forces`` and
+    ``durations`` (every force for the first duration, then the next), or the given ``pairs``
+    in their order (``"20:0.7,30:0.45"``, a CSV file with columns force and duration, or a
+    sequence of (force, duration): the study's own pushes as one experiment).
 
     Returns ``(summary, series)``: one summary row per push (``outcomes.SUMMARY_COLUMNS``, as
-    ``mjx-balance simulate`` writes summary.csv) and the time series of every push (one row per
-    physics step, ``reference.TIMESERIES_COLUMNS``, as it writes timeseries.parquet), every
-    duration for the first force, then the next. ``progress``: a progress bar on stderr.
-    Raises ParameterError for a bad value before any work."""
+    ``mjx-balance simulate`` writes summary.csv, plus ``hip_share`` and ``strategy``:
+    ``measures.strategy``) and the time series of every push (one row per physics step,
+    ``reference.TIMESERIES_COLUMNS``, as it writes timeseries.parquet).
+    ``progress``: a progress bar on stderr. Raises ParameterError for a bad value before any
+    work."""
     config = as_config(config)
-    forces = grid_values(forces, "forces")
-    durations = duration_values(durations, config)
-    for duration in durations:  # every other rule, before any work
+    if pairs is not None:
+        if forces is not None or durations is not None:
+            raise ParameterError("give either forces and durations or pairs, not both")
+        forces, durations = parse_pairs(pairs)
+        durations = check_durations(durations, config.scenario.t_end, "pairs",
+                                    physics_dt=config.scenario.physics_dt)
+        todo = list(zip(forces.tolist(), durations.tolist()))
+    else:
+        if forces is None or durations is None:
+            raise ParameterError("give forces and durations (their cross product) or pairs")
+        forces = grid_values(forces, "forces")
+        durations = duration_values(durations, config)
+        todo = [(f, d) for d in durations.tolist() for f in forces.tolist()]
+    for _, duration in todo:  # every other rule, before any work
         config.replace(scenario={"duration": float(duration)})
     check_reference(config)
-    return reference.simulate_many(config, forces.tolist(), durations.tolist(),
-                                   progress=progress)
+    summary, series = reference.simulate_pairs(config, todo, progress=progress)
+    return with_strategy(summary), series
 
 
 # ---------------------------------------------------------------------------------------------
@@ -120,7 +141,8 @@ def _folder(out: str | os.PathLike[str] | None, what: str) -> Iterator[Path]:
 def sweep(forces: Values, durations: Values, config: ConfigLike = None,
           out: str | os.PathLike[str] | None = None, *, chunk: int | None = None,
           slots: int | None = None, full_length: bool = False, progress: bool = False,
-          wait: bool = False, cluster: Any = None, physics: str = "auto") -> "pd.DataFrame":
+          wait: bool = False, cluster: Any = None, physics: str = "auto",
+          reference: References = None) -> "pd.DataFrame":
     """The recoverable region: one summary row per (force, duration) cell, force-major (all
     durations of the first force, then the next), as region.parquet holds it.
 
@@ -132,21 +154,34 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None,
     bar on stderr, ``wait``: wait for another run that holds ``out``, ``cluster``: run the
     chunks on a Dask cluster (``"local:N"``, a scheduler address or file, or a
     ``distributed.Client``; ``pip install "mjx_balance[cluster]"``, docs/cluster.md),
-    ``physics``: "auto", "mjx" or "c" (MuJoCo C physics; docs/engine.md)."""
+    ``physics``: "auto", "mjx" or "c" (MuJoCo C physics; docs/engine.md). ``reference``:
+    reference CSV file(s) (:func:`scorecard`): their ``recovered`` rows are scored against
+    the map's cells (a table's measures need :func:`table`), into ``out``'s scorecard.csv and
+    the returned frame's ``.attrs["scorecard"]``.
+
+    Besides the summary columns, each row has ``hip_share`` (the hip's share of the motors'
+    work) and ``strategy`` (``ankle`` / ``hip_ankle`` for recovered cells;
+    ``measures.strategy``)."""
     import pandas as pd
 
     config = as_config(config)
+    refs = read_references(reference)
     with _session("sweep"), _folder(out, "sweep") as folder:
         result = run_region(folder, config, forces, durations, chunk=chunk, slots=slots,
                             full_length=full_length, progress=progress, wait=wait,
                             cluster=cluster, physics=physics)
-        return pd.read_parquet(result.region_path)
+        region = with_strategy(pd.read_parquet(result.region_path))
+        card = write_scorecard(folder, refs, figure=False)
+        if card is not None:
+            region.attrs["scorecard"] = card
+        return region
 
 
 def table(forces: Values, config: ConfigLike = None,
           out: str | os.PathLike[str] | None = None, *, slots: int | None = None,
           full_length: bool = False, progress: bool = False,
-          wait: bool = False, cluster: Any = None, physics: str = "auto") -> "pd.DataFrame":
+          wait: bool = False, cluster: Any = None, physics: str = "auto",
+          reference: References = None) -> "pd.DataFrame":
     """The robustness table: for each force, the max acting time (the largest duration, to
     0.01 s, such that every push up to it recovers) and the energies (``TABLE_COLUMNS``), as
     ``mjx-balance table`` writes table.csv (read back from it). ``out``: the output folder
@@ -154,12 +189,52 @@ def table(forces: Values, config: ConfigLike = None,
     None: a temporary folder, nothing kept. ``cluster``: run the bisection's batch calls on a
     Dask cluster (``"local:N"``, a scheduler address or file, or a ``distributed.Client``;
     ``pip install "mjx_balance[cluster]"``, docs/cluster.md); the table is the same.
-    ``physics``: "auto", "mjx" or "c" (as :func:`sweep`)."""
+    ``physics``: "auto", "mjx" or "c" (as :func:`sweep`). ``reference``: reference CSV
+    file(s) (:func:`scorecard`): their table forces join ``forces``, and ``out`` gets
+    scorecard.csv and scorecard.png; the returned table carries the scorecard in
+    ``.attrs["scorecard"]``."""
     config = as_config(config)
+    refs = read_references(reference)
+    forces = _with_forces(grid_values(forces, "forces"), refs)
     with _session("table"), _folder(out, "table") as folder:
         run_table_folder(folder, config, forces, slots=slots, full_length=full_length,
                          progress=progress, wait=wait, cluster=cluster, physics=physics)
-        return read_table(folder / TABLE)
+        result = read_table(folder / TABLE)
+        card = write_scorecard(folder, refs)
+        if card is not None:
+            result.attrs["scorecard"] = card
+        return result
+
+
+def _with_forces(forces: "Any", refs: "list[Reference]") -> "Any":
+    """``forces`` with the reference tables' forces added (sorted, each once)."""
+    import numpy as np
+
+    extra = reference_forces(refs)
+    if not extra:
+        return forces
+    merged = np.unique(np.concatenate([np.asarray(forces, float), extra]))
+    return merged[np.concatenate([[True], np.diff(merged) > 1e-9])]
+
+
+def scorecard(ours: "str | os.PathLike[str] | pd.DataFrame",
+              reference: References) -> "pd.DataFrame":
+    """The reproduction scorecard (``studies.scorecard``): every row and measure of the
+    reference file(s) beside ours, with our uncertainty, the differences, the tolerance (the
+    reference's stated or printed resolution plus our bisection step, never fitted) and whether
+    the difference is within it. ``ours``: a sweep or table folder (its table.csv,
+    table_runs.parquet and region.parquet are read; nothing is written) or a table DataFrame
+    as :func:`table` returns it. ``reference``: a CSV path or a list of them (docs/outputs.md,
+    "Reference files"); a row's ``reason`` is carried, never inferred."""
+    import pandas as pd
+
+    refs = [r for r in read_references(reference) if r.kind == "table"]
+    if isinstance(ours, pd.DataFrame):
+        return score_results(ours, refs)
+    found = folder_results(ours)
+    if found["table"] is None and found["region"] is None:
+        raise ParameterError(f"{ours}: holds neither table.csv nor region.parquet")
+    return score_results(found["table"], refs, runs=found["runs"], region=found["region"])
 
 
 def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",

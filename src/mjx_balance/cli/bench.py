@@ -16,7 +16,7 @@ from typing import Any
 
 from ..model.params import Config, save_config
 from .common import load_run_config
-from .options import (EPILOG, HelpFormatter, batch_sizes, common_options, conventions_parent,
+from .options import (EPILOG, renamed_option, HelpFormatter, batch_sizes, common_options, conventions_parent,
                       engine_options, nonnegative_int, positive_float, positive_int,
                       positive_int_list)
 
@@ -78,8 +78,10 @@ def _pipeline_arguments(p: argparse.ArgumentParser) -> None:
     """Options of ``mjx-balance bench`` (the pipeline benchmark)."""
     p.add_argument("--scenarios", type=positive_int, default=1024,
                    help="scenarios through MJX + ADMM (continuous batching and --full-length)")
-    p.add_argument("--reference", type=nonnegative_int, default=16,
+    p.add_argument("--reference-runs", dest="reference", type=nonnegative_int, default=16,
                    help="of those, how many through the scalar reference (0: skip)")
+    p.add_argument("--reference", dest="reference", type=nonnegative_int,
+                   action=renamed_option("--reference-runs"), help=argparse.SUPPRESS)
     p.add_argument("--ipopt", type=nonnegative_int, default=8,
                    help="of those, how many through CasADi/IPOPT + MuJoCo C, with the "
                         "reference's outcome mix (0: skip)")

@@ -15,6 +15,8 @@ from .options import common_options
 
 log = logging.getLogger("mjx_balance")
 
+DEFAULT_FORCES, DEFAULT_DURATIONS = "0,20,50,80,100,120", "0.1"
+
 # The summary columns printed to the terminal (summary.csv has them all).
 PRINTED_COLUMNS = ["force", "duration", "convention", "outcome", "settle_time", "fall_time",
                    "peak_ankle", "peak_hip", "peak_tau_ankle", "peak_tau_hip",
@@ -25,8 +27,14 @@ PRINTED_COLUMNS = ["force", "duration", "convention", "outcome", "settle_time", 
 def add_parser(sub) -> None:
     """The ``simulate`` sub-command (``sub.add_parser`` of ``main.build_parser``)."""
     p = sub.add_parser("simulate", help="scalar reference closed loop (MuJoCo C + OSQP) for a few pushes")
-    p.add_argument("--force", default="0,20,50,80,100,120", help="comma-separated forces [N]")
-    p.add_argument("--duration", default="0.1", help="comma-separated push durations [s]")
+    p.add_argument("--force", default=None,
+                   help=f"comma-separated forces [N] (default {DEFAULT_FORCES})")
+    p.add_argument("--duration", default=None,
+                   help=f"comma-separated push durations [s] (default {DEFAULT_DURATIONS}); "
+                        "every force with every duration")
+    p.add_argument("--pairs", default=None, metavar="F:T,... | FILE.csv",
+                   help="given (force, duration) pairs instead of the cross product, e.g. "
+                        "20:0.7,30:0.45, or a CSV with columns force, duration")
     p.add_argument("--full-window", action="store_true",
                    help="time axes of the figures up to t_end (default: trimmed to the action, "
                         "the last settle or fall plus a margin)")
@@ -83,28 +91,45 @@ def _simulate_manifest(path: Path) -> bool:
     return isinstance(manifest, dict) and manifest.get("kind") == "simulate"
 
 
+def _pushes(args: argparse.Namespace, config) -> tuple[list, list, list | None]:
+    """(forces, durations, pairs): the cross product's values, or the given pairs (then
+    forces and durations are the pairs' own, in order). ParameterError before any work."""
+    import numpy as np
+
+    from ..runs.grid import check_durations, parse_pairs  # lazy: the runs floor loads JAX
+
+    if args.pairs is not None:
+        if args.force is not None or args.duration is not None:
+            raise ParameterError("--pairs gives the pushes: leave out --force and --duration")
+        forces, durations = parse_pairs(args.pairs, "--pairs")
+        durations = check_durations(durations, config.scenario.t_end, "--pairs",
+                                    physics_dt=config.scenario.physics_dt)
+        return forces.tolist(), durations.tolist(), list(zip(forces.tolist(),
+                                                             durations.tolist()))
+    forces = parse_option_grid(args.force or DEFAULT_FORCES, "force")
+    # As ``sweep``: durations in [0, t_end] and whole physics steps (snapped to them).
+    durations = check_durations(
+        np.asarray(parse_option_grid(args.duration or DEFAULT_DURATIONS, "duration")),
+        config.scenario.t_end, "--duration", physics_dt=config.scenario.physics_dt).tolist()
+    return forces, durations, None
+
+
 def simulate_command(args: argparse.Namespace) -> int:
     """``mjx-balance simulate``: run the pushes, write tables, configuration and figures
     (each file atomically: whole or absent)."""
-    import numpy as np
     import pandas as pd
 
     # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
     from .. import api
     from ..figures.timeseries import timeseries_figures  # lazy: matplotlib
     from ..runs.folders import check_reference  # lazy: the runs floor loads JAX
-    from ..runs.grid import check_durations  # lazy: the runs floor loads JAX
     from ..store.files import (CONFIG, MANIFEST, write_atomic,  # lazy: the store floor: pandas
                                write_parquet, write_text)
     from ..store.folder import record_simulation  # lazy: as above
     from ..store.provenance import run_context  # lazy: as above
 
-    forces = parse_option_grid(args.force, "force")
     config = load_run_config(args)
-    # As ``sweep``: durations in [0, t_end] and whole physics steps (snapped to them).
-    durations = check_durations(np.asarray(parse_option_grid(args.duration, "duration")),
-                                config.scenario.t_end, "--duration",
-                                physics_dt=config.scenario.physics_dt).tolist()
+    forces, durations, pairs = _pushes(args, config)
     for duration in durations:  # fail before creating anything
         config.replace(scenario={"duration": duration})
     check_reference(config)  # memory, the MPC and the model build: before creating anything
@@ -114,15 +139,19 @@ def simulate_command(args: argparse.Namespace) -> int:
                              "overwritten); use another --out folder")
     out.mkdir(parents=True, exist_ok=True)
     with run_context(physics="mujoco"):  # the scalar reference: MuJoCo C physics
-        summary, series = api.simulate(forces, durations, config,
-                                       progress=progress_enabled(args))
+        if pairs is not None:
+            summary, series = api.simulate(config=config, pairs=pairs,
+                                           progress=progress_enabled(args))
+        else:
+            summary, series = api.simulate(forces, durations, config,
+                                           progress=progress_enabled(args))
         write_atomic(out / "summary.csv", lambda tmp: summary.to_csv(tmp, index=False))
         write_parquet(series, out / "timeseries.parquet")
         write_text(dumps_config(config), out / CONFIG)
         # written atomically (plots._save)
         figures = timeseries_figures(series, out, config=config, summary=summary,
                                      full_window=args.full_window)
-        record_simulation(out, config, forces, durations)
+        record_simulation(out, config, forces, durations, pairs=pairs)
     with pd.option_context("display.width", 200, "display.max_columns", None,
                            "display.float_format", lambda v: f"{v:.4g}"):
         print(summary[PRINTED_COLUMNS].to_string(index=False))

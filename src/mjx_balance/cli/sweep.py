@@ -40,8 +40,7 @@ def add_parser(sub: Any) -> None:
                         "(default, region_dense_paper, study_...; see mjx_balance/sweeps/)")
     p.add_argument("--chunk", type=positive_int, default=None,
                    help="scenarios per chunk (default: from memory budget)")
-    p.add_argument("--reference", type=input_file, default=None,
-                   help="CSV of points (force, duration) to draw over the map")
+    reference_option(p)
     engine_options(p)
     cluster_option(p)
     yes_option(p)
@@ -57,6 +56,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--sweep", type=sweep_file, default=None,
                    help="sweep definition: a TOML file or the name of a shipped one "
                         "(study_table_paper, ...; see mjx_balance/sweeps/)")
+    reference_option(p)
     engine_options(p)
     cluster_option(p)
     yes_option(p)
@@ -65,17 +65,52 @@ def add_parser(sub: Any) -> None:
     p.set_defaults(target="mjx_balance.cli.sweep:table_command")
 
 
+def reference_option(p: Any) -> None:
+    """``--reference FILE`` (repeatable): a published or a lab's table, or points to draw."""
+    p.add_argument("--reference", type=input_file, action="append", default=None,
+                   metavar="FILE",
+                   help="reference CSV (repeatable): points (force, duration) drawn over the "
+                        "map, or a table (force and max_acting_time, energies or recovered) "
+                        "scored beside ours in scorecard.csv / scorecard.png; its forces join "
+                        "the table (docs/outputs.md, 'Reference files')")
+
+
+def with_reference_forces(forces: Any, refs: list, what: str) -> Any:
+    """``forces`` (an array, or None) with the reference tables' forces added (sorted)."""
+    import numpy as np
+
+    from ..studies.scorecard import reference_forces  # lazy: pandas, JAX
+
+    extra = [f for f in reference_forces(refs)
+             if forces is None or not np.isclose(np.asarray(forces, float), f).any()]
+    if not extra:
+        return forces
+    log.info(f"{what}: adding the reference's forces {', '.join(f'{f:g}' for f in extra)} N")
+    merged = np.concatenate([np.asarray([] if forces is None else forces, float), extra])
+    return np.unique(merged)
+
+
+def report_scorecard(out: Path, refs: list) -> None:
+    """scorecard.csv and scorecard.png in ``out`` from its results; its summary in the log."""
+    from ..studies.scorecard import summary_text, write_scorecard  # lazy: pandas, matplotlib
+
+    card = write_scorecard(out, refs)
+    if card is not None:
+        log.info(f"wrote {out / 'scorecard.csv'} and scorecard.png\n" + summary_text(card))
+
+
 def sweep_command(args: Any) -> int:
-    """``mjx-balance sweep``: region.parquet, region.png, energy.png in --out.
+    """``mjx-balance sweep``: region.parquet, region.png, energy.png, strategy.png and
+    strategy_threshold.png in --out.
 
     Without --forces, --durations or --sweep it runs the built-in default sweep and also writes
     the table (table.csv, table.png) into the same folder.
     """
     # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
     from .. import api
-    from ..figures import region as region_plots  # lazy: matplotlib
     from ..runs import (DEFAULT_SWEEP, MANIFEST, check_durations,  # lazy: the runs floor: JAX
                         load_sweep, parse_grid)
+    from ..studies.scorecard import read_references, reference_points  # lazy: as above
     from ..runs.chunks import default_chunk_size  # lazy: as above
     from ..runs.folders import check_batched  # lazy: as above
     from ..runs.grid import check_cell_count  # lazy: as above
@@ -99,13 +134,15 @@ def sweep_command(args: Any) -> int:
                                 physics_dt=config.scenario.physics_dt)
     table_forces = (parse_grid(definition.table_forces, "table_forces")
                     if definition.table_forces is not None else None)
+    refs = read_references(args.reference)
+    table_forces = with_reference_forces(table_forces, refs, "table")
     n_cells = check_cell_count(forces.size, durations.size)
     _guard_work(args, config, n_cells, chunk or default_chunk_size(config, n_cells), "cells",
                 extra=(table_scenarios(config, table_forces.size)
                        if table_forces is not None else 0))
     check_batched(config, (forces, "forces"), (durations, "durations"),  # derived rules
                   *([(table_forces, "table_forces")] if table_forces is not None else []))
-    reference = region_plots.load_reference(args.reference) if args.reference else None
+    reference = reference_points(refs)
     if use_default:
         log.info("no grid given: running the built-in default sweep "
                  f"(forces {DEFAULT_SWEEP['forces']} N, durations {DEFAULT_SWEEP['durations']} "
@@ -131,12 +168,14 @@ def sweep_command(args: Any) -> int:
             # region.png overlays the table's max-acting-time curve: drawn again with it
             _make_region_figures(out, result, config, reference, only="region.png",
                                  force=table is not None)
+        report_scorecard(out, refs)
 
     return in_folder(out, work, wait=getattr(args, "wait", False))
 
 
 def table_command(args: Any) -> int:
-    """``mjx-balance table``: table.csv and table.png in --out."""
+    """``mjx-balance table``: table.csv and table.png in --out (and, with --reference,
+    scorecard.csv and scorecard.png)."""
     import pandas as pd
 
     # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
@@ -146,6 +185,7 @@ def table_command(args: Any) -> int:
                         parse_grid, table_batch_size)
     from ..runs.folders import check_batched  # lazy: the runs floor: JAX
     from ..store.files import REGION  # lazy: pandas
+    from ..studies.scorecard import read_references, reference_points  # lazy: as above
 
     definition = (load_sweep(args.sweep, base_config(args, overrides=False)) if args.sweep
                   else None)
@@ -157,7 +197,8 @@ def table_command(args: Any) -> int:
         forces = definition.table_forces
     else:
         forces = list(STUDY_TABLE_FORCES)
-    forces = parse_grid(forces, "forces")
+    refs = read_references(args.reference)
+    forces = with_reference_forces(parse_grid(forces, "forces"), refs, "table")
     batch = table_batch_size(config, forces.size)
     _guard_work(args, config, table_scenarios(config, forces.size), batch,
                 "scenarios (estimated)")
@@ -174,8 +215,10 @@ def table_command(args: Any) -> int:
         if (out / REGION).exists():  # a sweep's folder: its map overlays the table's curve
             path = out / "region.png"
             if table is not None or _stale(path, out / TABLE):
-                region_plots.plot_region(pd.read_parquet(out / REGION), path, config=config)
+                region_plots.plot_region(pd.read_parquet(out / REGION), path, config=config,
+                                         reference=reference_points(refs))
                 log.info(f"wrote {path}")
+        report_scorecard(out, refs)
 
     return in_folder(out, work, wait=getattr(args, "wait", False))
 
@@ -234,10 +277,13 @@ def _make_region_figures(out: Path, result: SweepResult, config: Config,
     region.parquet, or region.png older than the table.csv whose curve it overlays); read
     from region.parquet only then."""
     from ..figures import region as region_plots  # lazy: matplotlib
+    from ..figures import strategy as strategy_plots  # lazy: matplotlib
     from ..runs import TABLE  # lazy: the runs floor loads JAX
     from ..store.files import readable_png  # lazy: the store floor loads pandas
 
-    targets = {"region.png": region_plots.plot_region, "energy.png": region_plots.plot_energy}
+    targets = {"region.png": region_plots.plot_region, "energy.png": region_plots.plot_energy,
+               "strategy.png": strategy_plots.plot_strategy,
+               "strategy_threshold.png": strategy_plots.plot_threshold}
     region = None
     for name, plot in targets.items():
         if only is not None and name != only:

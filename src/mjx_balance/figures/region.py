@@ -37,10 +37,12 @@ from matplotlib.patches import Patch  # noqa: E402
 from matplotlib.ticker import FuncFormatter  # noqa: E402
 
 from ..measures.outcomes import OUTCOMES, RECOVERED  # noqa: E402
+from ..measures.strategy import HIP_SHARE_THRESHOLD, takeover  # noqa: E402
 from ..model.params import Config, ParameterError  # noqa: E402
 from ..store.files import TABLE, write_figure
 
 RECOVERED_TEXT = OUTCOMES[RECOVERED]
+TAKEOVER_COLOUR = "#CC79A7"  # the hip's take-over line (Okabe-Ito reddish purple)
 
 OUTCOME_COLOURS = {
     "recovered": "#4daf4a",
@@ -80,7 +82,7 @@ def _plain_log_labels(axis) -> None:
 SAMPLE_DOTS = 400  # grids with at most this many cells show a dot on every sample
 
 
-def _save(fig, path: str | Path, dpi: int) -> None:
+def save_png(fig, path: str | Path, dpi: int) -> None:
     """Write the figure atomically (the file is whole or absent), then close it."""
     try:
         write_figure(fig, path, dpi=dpi)
@@ -88,7 +90,7 @@ def _save(fig, path: str | Path, dpi: int) -> None:
         plt.close(fig)
 
 
-def _axes(ax, figsize):
+def new_axes(ax, figsize):
     """(figure, axes): the given axes and its figure, or a new figure."""
     if ax is None:
         fig, ax = plt.subplots(figsize=figsize, layout="constrained")
@@ -147,7 +149,7 @@ def cell_bounds(values, log: bool = False) -> np.ndarray:
     return np.concatenate([[values[0]], mid, [values[-1]]])
 
 
-def _pivot(region: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pivot(region: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     forces = np.sort(region["force"].unique())
     durations = np.sort(region["duration"].unique())
     table = region.pivot(index="duration", columns="force", values=column)
@@ -170,13 +172,13 @@ def recovery_boundary(region: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _title(kind: str, config: Config | None, region: pd.DataFrame) -> str:
+def map_title(kind: str, config: Config | None, region: pd.DataFrame) -> str:
     convention = config.controller.convention if config else str(region["convention"].iloc[0])
     t_end = f", recovery within t_end = {config.scenario.t_end:g} s" if config else ""
     return f"{kind}\n{CONVENTION_TEXT.get(convention, convention)}{t_end}"
 
 
-def _grid_text(forces: np.ndarray, durations: np.ndarray) -> str:
+def grid_text(forces: np.ndarray, durations: np.ndarray) -> str:
     return (f"grid: {forces.size} forces {forces.min():g}..{forces.max():g} N x "
             f"{durations.size} durations {durations.min():g}..{durations.max():g} s")
 
@@ -237,6 +239,35 @@ def _table_beside(path: str | Path, region: pd.DataFrame) -> pd.DataFrame | None
     return table if {"force", "max_acting_time"} <= set(table.columns) else None
 
 
+def boundary_line(ax, region: pd.DataFrame, fx: np.ndarray, dy: np.ndarray):
+    """Draw the recovery boundary on the grid (:func:`recovery_boundary`) as a black step line
+    along the top of each force's first recovered range of durations; returns the line."""
+    forces = np.sort(region["force"].unique())
+    durations = np.sort(region["duration"].unique())
+    boundary = recovery_boundary(region).set_index("force").reindex(forces)
+    d_index = {d: i for i, d in enumerate(durations)}
+    tops = np.array([dy[d_index[b] + 1] if b in d_index else dy[0]
+                     for b in boundary["boundary"].to_numpy()])
+    (line,) = ax.plot(np.repeat(fx, 2)[1:-1], np.repeat(tops, 2), color="black", lw=2.0,
+                      label="recovery boundary on the grid")
+    return line
+
+
+def takeover_line(ax, region: pd.DataFrame, threshold: float, fx: np.ndarray, dy: np.ndarray,
+                  **style):
+    """Draw, per force, the bottom of the first cell where the hip takes over (a step line
+    through the forces that have one); returns the line or None when no force has one."""
+    forces = np.sort(region["force"].unique())
+    durations = np.sort(region["duration"].unique())
+    at = takeover(region, threshold).set_index("force").reindex(forces)["takeover"].to_numpy()
+    index = {d: i for i, d in enumerate(durations)}
+    bottoms = np.array([dy[index[d]] if np.isfinite(d) and d in index else np.nan for d in at])
+    if not np.isfinite(bottoms).any():
+        return None
+    (line,) = ax.plot(np.repeat(fx, 2)[1:-1], np.repeat(bottoms, 2), **style)
+    return line
+
+
 def region_map(region: pd.DataFrame, *, config: Config | None = None,
                reference: pd.DataFrame | None = None, table: pd.DataFrame | None = None,
                impulses: bool = True, ax=None):
@@ -248,7 +279,7 @@ def region_map(region: pd.DataFrame, *, config: Config | None = None,
     recovered range of durations); ``table`` (table.csv) adds the bisected max acting time of
     its forces. ``impulses`` draws labelled lines of constant impulse F T.
     """
-    forces, durations, outcome = _pivot(region, "outcome")
+    forces, durations, outcome = pivot(region, "outcome")
     codes = np.full(outcome.shape, np.nan)
     for code, name in enumerate(OUTCOMES):
         codes[outcome == name] = code
@@ -257,7 +288,7 @@ def region_map(region: pd.DataFrame, *, config: Config | None = None,
     log = log_durations(durations)
     fx, dy = cell_bounds(forces), cell_bounds(durations, log)
 
-    fig, ax = _axes(ax, (8.5, 7.5))
+    fig, ax = new_axes(ax, (8.5, 7.5))
     ax.pcolormesh(fx, dy, np.ma.masked_invalid(codes), cmap=cmap, norm=norm, shading="flat")
     ax.set_xlim(fx[0], fx[-1])
     duration_axis(ax, durations, dy, log)
@@ -271,12 +302,14 @@ def region_map(region: pd.DataFrame, *, config: Config | None = None,
 
     # Boundary on the grid: a step line along the top of each force's first recovered range.
     boundary = recovery_boundary(region).set_index("force").reindex(forces)
-    d_index = {d: i for i, d in enumerate(durations)}
-    tops = np.array([dy[d_index[b] + 1] if b in d_index else dy[0]
-                     for b in boundary["boundary"].to_numpy()])
-    (line,) = ax.plot(np.repeat(fx, 2)[1:-1], np.repeat(tops, 2), color="black", lw=2.0,
-                      label="recovery boundary on the grid")
-    handles.append(line)
+    handles.append(boundary_line(ax, region, fx, dy))
+    if "energy_hip" in region:
+        over = takeover_line(ax, region, HIP_SHARE_THRESHOLD, fx, dy, color=TAKEOVER_COLOUR,
+                             lw=2.0, ls="--",
+                             label=f"hip takes over above (hip's share of the work "
+                                   f"> {HIP_SHARE_THRESHOLD:g}; strategy.png)")
+        if over is not None:
+            handles.append(over)
     if not boundary["monotone"].all():
         odd = boundary.index[~boundary["monotone"].to_numpy()]
         (mark,) = ax.plot(odd, np.full(odd.size, dy[-1]), "v", color="black", ms=6,
@@ -301,8 +334,8 @@ def region_map(region: pd.DataFrame, *, config: Config | None = None,
                              label=f"{OUTCOME_LABELS[n]} ({counts.get(n, 0)})")
                        for n in OUTCOMES]
     ax.set_xlabel(FORCE_LABEL)
-    ax.set_title(_title("Outcome of a push (F, T) from upright rest", config, region)
-                 + "\n" + _grid_text(forces, durations), fontsize=9)
+    ax.set_title(map_title("Outcome of a push (F, T) from upright rest", config, region)
+                 + "\n" + grid_text(forces, durations), fontsize=9)
     ax.legend(handles=outcome_handles + handles, loc="upper center",
               bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8, frameon=False,
               title=f"{len(region)} cells by outcome (count)", title_fontsize=8)
@@ -346,7 +379,7 @@ def plot_region(region: pd.DataFrame, path: str | Path, *, config: Config | None
     if table is None:
         table = _table_beside(path, region)
     fig = region_map(region, config=config, reference=reference, table=table)
-    _save(fig, path, dpi=130)
+    save_png(fig, path, dpi=130)
     return Path(path)
 
 
@@ -356,10 +389,10 @@ def energy_map(region: pd.DataFrame, *, config: Config | None = None, ax=None):
     their energy is not drawn. Cells as in :func:`cell_bounds`. Returns the Figure."""
     recovered = region.assign(energy=np.where(region["outcome"] == RECOVERED_TEXT,
                                               region["energy_total"], np.nan))
-    forces, durations, energy = _pivot(recovered, "energy")
+    forces, durations, energy = pivot(recovered, "energy")
     log = log_durations(durations)
     fx, dy = cell_bounds(forces), cell_bounds(durations, log)
-    fig, ax = _axes(ax, (8.5, 6.5))
+    fig, ax = new_axes(ax, (8.5, 6.5))
     ax.set_facecolor("#bdbdbd")
     positive = energy[np.isfinite(energy) & (energy > 0)]
     vmin = None
@@ -383,18 +416,18 @@ def energy_map(region: pd.DataFrame, *, config: Config | None = None, ax=None):
     ax.set_xlabel(FORCE_LABEL)
     ax.set_xlim(fx[0], fx[-1])
     duration_axis(ax, durations, dy, log)
-    ax.set_title(_title("Joint energy of the recovered pushes", config, region)
-                 + "\n" + _grid_text(forces, durations), fontsize=9)
+    ax.set_title(map_title("Joint energy of the recovered pushes", config, region)
+                 + "\n" + grid_text(forces, durations), fontsize=9)
     return fig
 
 
 def plot_energy(region: pd.DataFrame, path: str | Path, *, config: Config | None = None) -> Path:
     """Save the energy map (:func:`energy_map`) as ``path``."""
-    _save(energy_map(region, config=config), path, dpi=130)
+    save_png(energy_map(region, config=config), path, dpi=130)
     return Path(path)
 
 
-def _acting_time_axes(ax, table: pd.DataFrame, t_end: float | None) -> None:
+def _acting_timenew_axes(ax, table: pd.DataFrame, t_end: float | None) -> None:
     """Draw the max acting time against force on ``ax`` (``table`` sorted by force; t_end
     None: no configuration, so no force is marked as recovering up to t_end)."""
     force = table["force"].to_numpy(dtype=float)
@@ -435,7 +468,7 @@ def _acting_time_axes(ax, table: pd.DataFrame, t_end: float | None) -> None:
     ax.set_title(f"Longest push that still recovers ({force.size} forces)", fontsize=10)
 
 
-def _energy_axes(ax2, table: pd.DataFrame, convention: str) -> None:
+def _energynew_axes(ax2, table: pd.DataFrame, convention: str) -> None:
     """Draw the energies of the recovered runs against force on ``ax2`` (``table`` sorted by
     force): the study's (eq. 20) headlined and the motors' in grey in the paper convention,
     the motors' alone in the joint one; the forces whose T = 0.1 s push did not recover are
@@ -478,7 +511,7 @@ def _energy_axes(ax2, table: pd.DataFrame, convention: str) -> None:
                    if study else "joint energy [J]  (∫|τ·dq/dt| dt)")
     ax2.grid(True, which="both", alpha=0.3)
     ax2.legend(fontsize=7 if study else 8)
-    ax2.set_title("Energy of the recovered runs"
+    ax2.setmap_title("Energy of the recovered runs"
                   + (": the study's (eq. 20), the motors' in grey" if study else ""), fontsize=10)
 
 
@@ -496,14 +529,14 @@ def table_figure(table: pd.DataFrame, *, config: Config | None = None, axes=None
     else:
         ax, ax2 = axes
         fig = ax.figure
-    _acting_time_axes(ax, table, t_end)
+    _acting_timenew_axes(ax, table, t_end)
     convention = config.controller.convention if config else str(table["convention"].iloc[0])
-    _energy_axes(ax2, table, convention)
+    _energynew_axes(ax2, table, convention)
     fig.suptitle(f"Robustness table — {CONVENTION_TEXT.get(convention, convention)}", fontsize=11)
     return fig
 
 
 def plot_table(table: pd.DataFrame, path: str | Path, *, config: Config | None = None) -> Path:
     """Save the table's figure (:func:`table_figure`) as ``path``."""
-    _save(table_figure(table, config=config), path, dpi=130)
+    save_png(table_figure(table, config=config), path, dpi=130)
     return Path(path)

@@ -3,8 +3,8 @@ solved by OSQP), and its time series and summary (``loop.py``). The batched path
 against it.
 """
 
-from .loop import (TIMESERIES_COLUMNS, push_wrench, reference_mpc, simulate_many,
+from .loop import (TIMESERIES_COLUMNS, push_wrench, reference_mpc, simulate_many, simulate_pairs,
                    simulate_scenario, timeseries_frame)
 
-__all__ = ["TIMESERIES_COLUMNS", "push_wrench", "reference_mpc", "simulate_many",
+__all__ = ["TIMESERIES_COLUMNS", "push_wrench", "reference_mpc", "simulate_many", "simulate_pairs",
            "simulate_scenario", "timeseries_frame"]

@@ -341,10 +341,18 @@ def timeseries_frame(scenario_id: int, force: float, duration: float, convention
 
 def simulate_many(config: Config, forces: list[float], durations: list[float], *,
                   progress: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Every (duration, force) pair: (summary table, long time series)."""
+    """Every (force, duration) of the cross product, every force for the first duration, then
+    the next: (summary table, long time series)."""
+    return simulate_pairs(config, [(f, T) for T in durations for f in forces],
+                          progress=progress)
+
+
+def simulate_pairs(config: Config, pairs: list[tuple[float, float]], *,
+                   progress: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The given (force, duration) pairs in their order: (summary table, long time series,
+    scenario_id = the pair's index)."""
     from tqdm import tqdm
 
-    pairs = [(f, T) for T in durations for f in forces]
     for _, T in pairs:  # validate every duration before running anything
         config.replace(scenario={"duration": T})
     rows, frames = [], []

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
+import pandas as pd
 
 from ..model.params import ParameterError
 from ..store.folder import GRID_TOL, same_values  # noqa: F401 - grids compare as the store does
@@ -146,3 +148,46 @@ def describe(values: Sequence[float]) -> str:
     if len(values) <= 4:
         return ",".join(f"{v:g}" for v in values)
     return f"{values[0]:g}..{values[-1]:g} ({len(values)} values)"
+
+
+def parse_pairs(spec: Any, name: str = "pairs") -> tuple[np.ndarray, np.ndarray]:
+    """Given (force, duration) pairs, in the order given (not their cross product):
+    ``"20:0.7,30:0.45"``, a CSV file with columns force and duration (the path of an existing
+    file), or a sequence of (force, duration). Returns (forces, durations); ParameterError
+    naming ``name`` and the bad item."""
+    if isinstance(spec, (str, Path)) and Path(spec).is_file():
+        return _pairs_file(Path(spec), name)
+    if isinstance(spec, str):
+        items = [item.strip() for item in spec.split(",") if item.strip()]
+        pairs = []
+        for item in items:
+            force, sep, duration = item.partition(":")
+            if not sep or ":" in duration:
+                raise ParameterError(f"{name}: {item!r} is not FORCE:DURATION (e.g. 20:0.7), and "
+                                     "no such file")
+            pairs.append((force, duration))
+    else:
+        try:
+            pairs = [tuple(p) for p in spec]
+        except TypeError:
+            raise ParameterError(f"{name}: give (force, duration) pairs") from None
+        if any(len(p) != 2 for p in pairs):
+            raise ParameterError(f"{name}: every pair needs a force and a duration")
+    if not pairs:
+        raise ParameterError(f"{name}: give at least one (force, duration) pair")
+    forces = np.array([_number(f, name) for f, _ in pairs])
+    durations = np.array([_number(d, name) for _, d in pairs])
+    if not (np.isfinite(forces).all() and np.isfinite(durations).all()):
+        raise ParameterError(f"{name}: forces and durations must be finite numbers")
+    return forces, durations
+
+
+def _pairs_file(path: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
+    try:
+        frame = pd.read_csv(path, comment="#")
+    except Exception as exc:  # noqa: BLE001 - any parse failure is the file's
+        raise ParameterError(f"{name}: {path} is not a readable CSV ({exc})") from None
+    frame.columns = [str(c).strip().lower() for c in frame.columns]
+    if "force" not in frame or "duration" not in frame or not len(frame):
+        raise ParameterError(f"{name}: {path} needs columns force and duration and a row")
+    return parse_pairs(list(zip(frame["force"], frame["duration"])), f"{name} ({path})")

@@ -41,6 +41,7 @@ import pandas as pd
 from ..runtime.fingerprint import differences, numerics
 from ..runtime.version import __version__
 from ..measures.outcomes import OUTCOMES, SUMMARY_COLUMNS
+from ..measures.strategy import with_strategy
 from ..model.params import Config, ParameterError, dumps_config, load_config
 from .files import (CONFIG, LOCK, MANIFEST, TABLE, TABLE_CELLS, TABLE_RUNS, write_parquet, write_text)
 from .provenance import finish_run, now, with_run
@@ -69,13 +70,14 @@ def config_differences(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
     return out
 
 
-def record_simulation(folder: str | Path, config: Config, forces: Any, durations: Any) -> None:
-    """The manifest of a ``simulate`` folder: the configuration, the pushes and this run's
-    provenance (ended now)."""
+def record_simulation(folder: str | Path, config: Config, forces: Any, durations: Any,
+                      pairs: Any = None) -> None:
+    """The manifest of a ``simulate`` folder: the configuration, the pushes (the grid's forces
+    and durations, or the given ``pairs``) and this run's provenance (ended now)."""
+    pushes = ({"pairs": [[float(f), float(d)] for f, d in pairs]} if pairs is not None else
+              {"forces": [float(f) for f in forces], "durations": [float(d) for d in durations]})
     manifest = {"package": "mjx_balance", "version": __version__, "kind": "simulate",
-                "config": config_dict(config),
-                "simulate": {"forces": [float(f) for f in forces],
-                             "durations": [float(d) for d in durations]}}
+                "config": config_dict(config), "simulate": pushes}
     write_text(json.dumps(with_run(manifest, ended=now(), status="completed"), indent=2)
                + "\n", Path(folder) / MANIFEST)
 
@@ -483,6 +485,7 @@ def merge_chunks(folder: Path, slices: list[slice], cell_f: np.ndarray, cell_d: 
             if frame is None:
                 raise RuntimeError(f"chunk {index} changed while merging: {reason}")
             frame.attrs = {}  # the chunk's own metadata stays with the chunk
+            frame = with_strategy(frame)  # derived columns: hip_share, strategy
             table = pa.Table.from_pandas(frame, preserve_index=False)
             if writer is None:
                 schema = table.schema
