@@ -3,6 +3,7 @@ DIR/report.html (report.run_report, report.build_report)."""
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
 from typing import Any
@@ -31,6 +32,11 @@ def add_parser(sub: Any) -> None:
                         "mjx_balance/sweeps/)")
     p.add_argument("--html-only", action="store_true",
                    help="redraw figures and report.html from the tables saved in --out")
+    p.add_argument("--reference", type=input_file, action="append", default=None,
+                   metavar="FILE",
+                   help="reference table CSV (repeatable): scored beside the report's tables "
+                        "in its first section and DIR/scorecard.csv; its forces join the "
+                        "table (kept in DIR/references/; docs/outputs.md, 'Reference files')")
     cluster_option(p)
     physics_option(p)
     p.add_argument("--convention", choices=CONVENTIONS, default=None,
@@ -55,15 +61,26 @@ def report_command(args: Any) -> int:
     from ..store.provenance import run_context  # lazy: as above
     from ..studies.experiments import read_record  # lazy: as above
 
+    from ..report.reproduction import store_references  # lazy: as above
+    from ..studies.scorecard import read_references, reference_forces  # lazy: as above
+
     out = Path(args.out)
+    refs = read_references(args.reference)  # a bad file is refused before any work
+    plan = PLANS[args.scale]
+    extra = [f for f in reference_forces(refs) if f not in plan.table_forces]
+    if extra:
+        plan = dataclasses.replace(plan, table_forces=tuple(sorted({*plan.table_forces,
+                                                                      *extra})))
+        print(f"table: adding the reference's forces {', '.join(f'{f:g}' for f in extra)} N",
+              file=sys.stderr)
     if not getattr(args, "html_only", False):
         conventions = _conventions(args.conventions)
-        backend = args.backend or PLANS[args.scale].backend
+        backend = args.backend or plan.backend
         if backend == "mjx":
             cache.enable()  # the batched rollout compiles: keep its executables
         # what the sweep folders' manifests record as the physics path
         with run_context(physics="mjx" if backend == "mjx" else "mujoco"):
-            record = run_report(out, load_run_config(args), PLANS[args.scale],
+            record = run_report(out, load_run_config(args), plan,
                                 backend=args.backend, study_list=selected_studies(args.studies),
                                 conventions=conventions,
                                 sweeps=Path(args.sweeps) if args.sweeps else None,
@@ -72,6 +89,7 @@ def report_command(args: Any) -> int:
         print(f"tables saved in {out} ({record['seconds']:.0f} s)", file=sys.stderr)
     else:  # check the record before build_report creates anything
         read_record(out / REPORT_JSON)
+    store_references(out, args.reference)
     path = build_report(out)
     print(f"wrote {path}")
     return 0

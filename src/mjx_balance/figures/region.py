@@ -427,7 +427,7 @@ def plot_energy(region: pd.DataFrame, path: str | Path, *, config: Config | None
     return Path(path)
 
 
-def _acting_timenew_axes(ax, table: pd.DataFrame, t_end: float | None) -> None:
+def _acting_time_axes(ax, table: pd.DataFrame, t_end: float | None) -> None:
     """Draw the max acting time against force on ``ax`` (``table`` sorted by force; t_end
     None: no configuration, so no force is marked as recovering up to t_end)."""
     force = table["force"].to_numpy(dtype=float)
@@ -468,7 +468,7 @@ def _acting_timenew_axes(ax, table: pd.DataFrame, t_end: float | None) -> None:
     ax.set_title(f"Longest push that still recovers ({force.size} forces)", fontsize=10)
 
 
-def _energynew_axes(ax2, table: pd.DataFrame, convention: str) -> None:
+def _energy_axes(ax2, table: pd.DataFrame, convention: str) -> None:
     """Draw the energies of the recovered runs against force on ``ax2`` (``table`` sorted by
     force): the study's (eq. 20) headlined and the motors' in grey in the paper convention,
     the motors' alone in the joint one; the forces whose T = 0.1 s push did not recover are
@@ -511,7 +511,7 @@ def _energynew_axes(ax2, table: pd.DataFrame, convention: str) -> None:
                    if study else "joint energy [J]  (∫|τ·dq/dt| dt)")
     ax2.grid(True, which="both", alpha=0.3)
     ax2.legend(fontsize=7 if study else 8)
-    ax2.setmap_title("Energy of the recovered runs"
+    ax2.set_title("Energy of the recovered runs"
                   + (": the study's (eq. 20), the motors' in grey" if study else ""), fontsize=10)
 
 
@@ -529,9 +529,9 @@ def table_figure(table: pd.DataFrame, *, config: Config | None = None, axes=None
     else:
         ax, ax2 = axes
         fig = ax.figure
-    _acting_timenew_axes(ax, table, t_end)
+    _acting_time_axes(ax, table, t_end)
     convention = config.controller.convention if config else str(table["convention"].iloc[0])
-    _energynew_axes(ax2, table, convention)
+    _energy_axes(ax2, table, convention)
     fig.suptitle(f"Robustness table — {CONVENTION_TEXT.get(convention, convention)}", fontsize=11)
     return fig
 

@@ -37,8 +37,8 @@ def weight_rows(weights: pd.DataFrame, convention: str) -> list[tuple[list, str]
 def weight_figure(weights: pd.DataFrame, convention: str, axes=None):
     """Bar charts: the energies for each Q (left) and each R (right) setting; in the paper
     convention the study's (eq. 20) on top and the motors' below, in the joint convention the
-    motors' (:func:`weight_rows`). A setting that did not recover has hatched, pale bars (its
-    energy up to the fall or t_end, not a recovery's) and its outcome written above.
+    motors' (:func:`weight_rows`). A setting that did not recover has no bars (its energy up
+    to the fall or t_end is not a recovery cost), only its outcome written where they would be.
     ``axes``: matplotlib Axes to draw on, two per row (two Axes: the headline row only; None:
     a new figure). Returns the Figure."""
     import matplotlib.pyplot as plt
@@ -58,8 +58,9 @@ def weight_figure(weights: pd.DataFrame, convention: str, axes=None):
         which = "study" if parts is STUDY_BARS else "motors"
         labels += [name if len(rows) == 1 else f"{name} ({which})" for _, name, _ in parts]
     if (weights["outcome"] != OUTCOMES[RECOVERED]).any():
-        handles.append(Patch(facecolor="0.6", alpha=0.35, hatch="///", edgecolor="0.3"))
-        labels.append("did not recover: energy up to the fall / t_end (outcome above)")
+        handles.append(Patch(facecolor="white", edgecolor="white"))
+        labels.append("a setting that did not recover: no bars (an energy of a fall is not a "
+                      "recovery cost), its outcome written instead")
     fig.legend(handles, labels, loc="outside lower center", ncol=4, fontsize=8, frameon=False)
     force = weights["force"].iloc[0]
     duration = weights["duration"].iloc[0]
@@ -80,16 +81,13 @@ def _weight_bars(axes, weights: pd.DataFrame, parts: list, ylabel: str) -> None:
             values = rows[column].to_numpy(float)
             values = np.where(values > 0, values, np.nan)
             ax.bar(x[ok] + (j - 1) * 0.27, values[ok], 0.27, color=colour)
-            if (~ok).any():
-                ax.bar(x[~ok] + (j - 1) * 0.27, values[~ok], 0.27, color=colour, alpha=0.35,
-                       hatch="///", edgecolor=colour)
         for i, row in rows.iterrows():
             if row["outcome"] != OUTCOMES[RECOVERED]:
-                ax.annotate(row["outcome"], (i, 1), xycoords=("data", "axes fraction"),
-                            ha="center", va="top", fontsize=8, color="#b2182b",
-                            xytext=(0, -4), textcoords="offset points")
+                ax.annotate(row["outcome"], (i, 0.5), xycoords=("data", "axes fraction"),
+                            ha="center", va="center", rotation=90, fontsize=9,
+                            color="#b2182b")
         ax.set_xticks(x, [f"{s:.0e}" for s in rows["scale"]])
-        values = rows[[c for c, _, _ in parts]].to_numpy(float)
+        values = rows.loc[ok, [c for c, _, _ in parts]].to_numpy(float)
         positive = values[np.isfinite(values) & (values > 0)]
         if positive.size and positive.max() / positive.min() > 100:
             ax.set_yscale("log")  # the energies span decades
@@ -141,9 +139,11 @@ def draw_timeseries(series: pd.DataFrame, figures: Path, convention: str,
                                                        summary=summary)}
 
 
-def draw_weights(weights: pd.DataFrame, figures: Path, convention: str) -> Path:
-    """The weight study's energy bars of one convention (weight_figure)."""
-    return save_figure(weight_figure(weights, convention), figures / f"weights_{convention}.png")
+def draw_weights(weights: pd.DataFrame, figures: Path, convention: str,
+                 name: str = "weights") -> Path:
+    """The weight study's energy bars of one convention (weight_figure), as
+    ``figures/<name>_<convention>.png``."""
+    return save_figure(weight_figure(weights, convention), figures / f"{name}_{convention}.png")
 
 
 def draw_table(table: pd.DataFrame, figures: Path, config: Config) -> Path:

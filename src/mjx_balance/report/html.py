@@ -25,8 +25,11 @@ from ..studies import catalog as studies
 from ..measures.outcomes import OUTCOMES, RECOVERED
 from ..model.params import Config, config_from_dict, with_convention
 from ..store.files import write_atomic
-from ..studies.experiments import REPORT_JSON, read_record
+from ..studies.experiments import REPORT_JSON, WEIGHTS_RECOVERING, read_record
+from ..studies.scorecard import read_references
 from .blocks import img
+from .reproduction import (SCORECARD_HEADING, reference_files, scorecard_section,
+                           strategy_blocks)
 from .extra import extra_sections
 from ..figures.report import (conventions_figure, save_figure, draw_timeseries, draw_weights, draw_table, region_figure, draw_region, draw_study)
 
@@ -93,6 +96,9 @@ def load_results(out: str | Path) -> dict[str, Any]:
             "summary": pd.read_csv(folder / "summary.csv"),
             "timeseries": pd.read_parquet(folder / "timeseries.parquet"),
             "weights": pd.read_csv(folder / "weights.csv"),
+            # a report from before the recovering comparison has none
+            "weights_recovering": (pd.read_csv(folder / WEIGHTS_RECOVERING)
+                                   if (folder / WEIGHTS_RECOVERING).exists() else None),
             "table": pd.read_csv(folder / "table" / "table.csv"),
             "region": pd.read_parquet(folder / "region" / "region.parquet"),
         }
@@ -111,6 +117,8 @@ def sections(out: str | Path) -> list[tuple[str, str]]:
     """(id, heading) of every section of the report in ``out`` (what build_report writes)."""
     record = read_record(Path(out) / REPORT_JSON)
     ids = [("overview", "Overview")]
+    if any(r.kind == "table" for r in read_references(reference_files(out))):
+        ids.insert(0, ("scorecard", SCORECARD_HEADING))
     for convention in record["conventions"]:
         ids += [(f"timeseries-{convention}", f"1. Time series — {convention} convention"),
                 (f"weights-{convention}", f"2. Weight study — {convention} convention"),
@@ -234,14 +242,14 @@ def _cell(value: Any) -> str:
 
 def mark_outcomes(frame: pd.DataFrame, columns: list[str], outcome: str = "outcome",
                   ) -> pd.DataFrame:
-    """``frame`` with the values of ``columns`` as text, each value of a row whose ``outcome``
-    is not recovered followed by that outcome in brackets (``47.2 [fell]``; NaN: ``– [fell]``),
-    so an energy of a run that did not recover never reads as a recovery's."""
+    """``frame`` with the values of ``columns`` as text; in a row whose ``outcome`` is not
+    recovered the value is left out and that outcome shown instead (``– [fell]``): the energy
+    of a run that did not recover is not a recovery cost, so it is never tabulated."""
     frame = frame.copy()
     # only a known outcome other than recovered is marked (an empty outcome_01: no such run)
     ok = ~frame[outcome].astype(str).isin([o for o in OUTCOMES if o != OUTCOMES[RECOVERED]])
     for column in columns:
-        frame[column] = [(_cell(v) if good else f"{_cell(v)} [{o}]")
+        frame[column] = [(_cell(v) if good else f"– [{o}]")
                          for v, good, o in zip(frame[column], ok, frame[outcome].astype(str))]
     return frame
 
@@ -428,23 +436,42 @@ def timeseries_section(page: Page, convention: str, res: dict) -> dict:
 
 
 def weights_section(page: Page, convention: str, res: dict) -> dict:
-    """Experiment 2: the energies of every weight setting, each marked with its outcome."""
-    weights, plan = res["weights"], page.plan
-    path = draw_weights(weights, page.figures, convention)
-    recovered = studies.is_recovered(weights).sum()
-    return page.section(
-        f"weights-{convention}",
-        _params(f"Reference loop, {convention} convention, F = {plan['weight_force']:g} N, "
-                f"T = {plan['push_duration']:g} s; Q = s·I4 for s in "
-                f"{_numbers(plan['q_scales'])} (R default); "
-                f"R = s·diag(1000, 1) for s in {_numbers(plan['r_scales'])} (Q default)."),
-        img(path, ("the study's energy (eq. 20, top) and the motors' (bottom) per weight "
-                    "setting" if convention == "paper"
-                    else "ankle, hip and total energy per weight setting")),
-        _para(f"{recovered} of {len(weights)} settings recover; for a push that did not "
-              "recover the energies are those up to the fall (or t_end) and carry its outcome "
-              "in brackets."),
-        _table(_marked(weights, ENERGY_COLUMNS), shown_columns("weights", convention, weights)))
+    """Experiment 2: the energies of every weight setting, as the study ran it (its push) and
+    on a push that recovers under every setting; a setting that did not recover shows its
+    outcome, never its energy (the energy of a fall is not a recovery cost)."""
+    plan = page.plan
+    blocks = [_params(f"Reference loop, {convention} convention, T = "
+                      f"{plan['push_duration']:g} s; Q = s·I4 for s in "
+                      f"{_numbers(plan['q_scales'])} (R default); R = s·diag(1000, 1) for s in "
+                      f"{_numbers(plan['r_scales'])} (Q default).")]
+    blocks += _weight_blocks(page, convention, res["weights"], "weights",
+                             f"As the study ran it: F = {plan['weight_force']:g} N.")
+    if res.get("weights_recovering") is not None:
+        blocks += _weight_blocks(
+            page, convention, res["weights_recovering"], "weights_recovering",
+            f"On a push every setting should recover: F = "
+            f"{plan.get('weight_recovering_force', 50):g} N, the largest of the study's "
+            "time-series forces that recovers under all ten settings on the default body "
+            "(scalar reference, paper convention, measured 2026-11-25; 80 N falls under Q ≥ "
+            "1e4 and under R = 1e-5), so that the energies below compare recovery costs.")
+    return page.section(f"weights-{convention}", *blocks)
+
+
+def _weight_blocks(page: Page, convention: str, weights: pd.DataFrame, name: str,
+                   lead: str) -> list[dict]:
+    """One weight comparison: its lead, figure, outcome count and table."""
+    path = draw_weights(weights, page.figures, convention, name=name)
+    recovered = int(studies.is_recovered(weights).sum())
+    verdict = (f"{recovered} of {len(weights)} settings recover"
+               + ("." if recovered == len(weights) else
+                  "; the others show their outcome instead of an energy: the energy of a fall "
+                  "is not a recovery cost, so they are not compared."))
+    return [_para(lead + " " + verdict),
+            img(path, ("the study's energy (eq. 20, top) and the motors' (bottom) per weight "
+                       "setting" if convention == "paper"
+                       else "ankle, hip and total energy per weight setting")),
+            _table(_marked(weights, ENERGY_COLUMNS), shown_columns("weights", convention,
+                                                                   weights))]
 
 
 def _sustained(table: pd.DataFrame) -> str:
@@ -484,6 +511,7 @@ def region_section(page: Page, convention: str, res: dict) -> dict:
     outcome, energy = draw_region(region, page.figures, with_convention(page.config, convention),
                                   res["table"])
     numbers = studies.region_numbers(region)
+    cfg = with_convention(page.config, convention)
     return page.section(
         f"region-{convention}",
         _params(f"Batch backend {page.record['backend']}, {convention} convention, grid "
@@ -496,7 +524,8 @@ def region_section(page: Page, convention: str, res: dict) -> dict:
               f"{numbers['t_ref']:g} s the largest recovered force is "
               f"{studies.force_text(numbers['f_max_ref'])}."),
         _para(f"Why the falls happened ({studies.grid_text(region)}): "
-              + studies.infeasibility_text(region)))
+              + studies.infeasibility_text(region)),
+        *strategy_blocks(region, res["table"], page.figures, cfg, convention))
 
 
 def _conventions_reading(tables: dict[str, pd.DataFrame], numbers: dict[str, dict],
@@ -599,7 +628,8 @@ def build_report(out: str | Path) -> Path:
     figures = out / FIGURES
     figures.mkdir(exist_ok=True)
     page = Page(load_results(out), figures, dict(sections(out)))
-    body = [overview_section(page)]
+    card = scorecard_section(out, list(page.results["conventions"]), figures)
+    body = ([card] if card is not None else []) + [overview_section(page)]
     for convention, res in page.results["conventions"].items():
         body += [timeseries_section(page, convention, res),
                  weights_section(page, convention, res),

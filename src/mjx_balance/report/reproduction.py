@@ -1,0 +1,207 @@
+"""The report's reproduction sections: the scorecard against reference files (first section),
+and the strategy map inside each convention's region section.
+
+    DIR/references/*.csv   the reference files given with ``report --reference`` (copied, so
+                           ``--html-only`` later scores them again)
+    DIR/scorecard.csv      every reference row and measure beside ours, per convention
+                           (``studies.scorecard``; column ``convention``)
+
+Nothing here infers why a row differs: a reason comes from the reference file's ``reason``
+column, and the measured causes of the known differences are in docs/studies.md.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import pandas as pd
+
+from ..figures.scorecard import plot_scorecard
+from ..figures.strategy import plot_strategy, plot_threshold
+from ..measures.strategy import HIP_SHARE_THRESHOLD, STRATEGIES
+from ..model.params import Config
+from ..store.files import write_atomic
+from ..studies.scorecard import (SCORECARD, folder_results, read_references, scorecard,
+                                 summary)
+from .blocks import img
+
+REFERENCES_DIR = "references"
+SCORECARD_HEADING = "Scorecard: the reference tables beside ours"
+DIFFERENCES_DOC = "docs/studies.md, 'Differences from the study, and their measured causes'"
+
+
+def store_references(out: str | Path, paths: Sequence[str | Path] | None) -> list[Path]:
+    """Copy the reference files into DIR/references/ (a file of the same name is replaced);
+    returns the stored paths. Each is read first, so a bad file is refused before any copy."""
+    if not paths:
+        return []
+    read_references(paths)
+    folder = Path(out) / REFERENCES_DIR
+    folder.mkdir(parents=True, exist_ok=True)
+    stored = []
+    for path in paths:
+        target = folder / Path(path).name
+        write_atomic(target, lambda tmp, src=Path(path): shutil.copyfile(src, tmp))
+        stored.append(target)
+    return stored
+
+
+def reference_files(out: str | Path) -> list[Path]:
+    """The reference files stored in DIR/references/, by name."""
+    return sorted((Path(out) / REFERENCES_DIR).glob("*.csv"))
+
+
+def report_scorecard(out: str | Path, conventions: Sequence[str]) -> pd.DataFrame | None:
+    """Every stored reference table scored against each convention's table and region map of
+    the report; written to DIR/scorecard.csv. None when no reference file is a table."""
+    out = Path(out)
+    refs = [r for r in read_references(reference_files(out)) if r.kind == "table"]
+    if not refs:
+        return None
+    parts = []
+    for convention in conventions:
+        found = folder_results(out / convention / "table")
+        region = folder_results(out / convention / "region")["region"]
+        card = scorecard(found["table"], refs, runs=found["runs"], region=region)
+        parts.append(card.assign(convention=convention))
+    card = pd.concat(parts, ignore_index=True)
+    write_atomic(out / SCORECARD, lambda tmp: card.to_csv(tmp, index=False))
+    return card
+
+
+def _fmt(value: float, unit: str = "") -> str:
+    if value is None or not np.isfinite(value):
+        return "–"
+    return f"{value:.3g}" + (f" {unit}" if unit else "")
+
+
+def scorecard_section(out: str | Path, conventions: Sequence[str],
+                      figures: Path) -> dict | None:
+    """The scorecard section (None without a reference table): how many rows agree per source
+    and convention, every differing row with its reason, the figure and the whole table."""
+    card = report_scorecard(out, conventions)
+    if card is None:
+        return None
+    blocks: list[dict] = []
+    lines = []
+    for convention in conventions:
+        mine = card[card["convention"] == convention]
+        for row in summary(mine).itertuples():
+            lines.append(f"{convention} convention, {row.source}: {row.agree} of {row.compared} "
+                         f"compared rows agree within tolerance, {row.differ} differ "
+                         f"({row.differ_with_reason} with a reason), {row.not_compared} not "
+                         "compared (our push fell, or the value is not in our results).")
+    blocks.append({"kind": "paragraph", "cls": "reading", "text": "\n".join(lines)})
+    differs = card[card["status"] == "differs"]
+    if len(differs):
+        items = [f"{r.convention}, {r.source}: {r.measure} at {r.force:g} N"
+                 + (f" x {r.duration:g} s" if np.isfinite(r.duration) else "")
+                 + f": reference {_fmt(r.reference, r.unit)}, ours {_fmt(r.ours, r.unit)} — "
+                 + (str(r.reason) if isinstance(r.reason, str) and r.reason else
+                    f"no reason in the reference file; see {DIFFERENCES_DOC}")
+                 for r in differs.itertuples()]
+        blocks.append({"kind": "paragraph", "cls": "", "text": "Rows that differ:\n"
+                       + "\n".join(f"• {item}" for item in items)})
+    for convention in conventions:
+        mine = card[card["convention"] == convention]
+        found = folder_results(Path(out) / convention / "table")
+        path = plot_scorecard(mine, figures / f"scorecard_{convention}.png",
+                              table=found["table"])
+        if path is not None:
+            blocks.append(img(path, f"{convention} convention: ours (black, with our "
+                                    "uncertainty) and each reference (open: within "
+                                    "tolerance, filled: differs, cross: not compared)"))
+    header = ["convention", "source", "force [N]", "duration [s]", "measure", "reference",
+              "ours", "our ±", "difference", "tolerance", "status", "reason"]
+    rows = [[r.convention, r.source, f"{r.force:g}", _fmt(r.duration), r.measure,
+             _fmt(r.reference, r.unit), _fmt(r.ours, r.unit), _fmt(r.our_uncertainty),
+             _fmt(r.abs_diff), _fmt(r.tolerance), r.status,
+             r.reason if isinstance(r.reason, str) else ""] for r in card.itertuples()]
+    blocks.append({"kind": "table", "header": header, "rows": rows, "notes": []})
+    blocks.append({"kind": "paragraph", "cls": "", "text": (
+        "Tolerance: half the reference's stated (or printed) resolution plus our uncertainty "
+        "(the bisection step of 0.01 s for a max acting time; an energy's change over one "
+        "step at the max acting time), never fitted to agreement (scorecard.csv's "
+        "tolerance_basis says which, row by row). Every row is in scorecard.csv.")})
+    return {"id": "scorecard", "heading": SCORECARD_HEADING, "blocks": blocks}
+
+
+# -- the strategy map ------------------------------------------------------------------------------
+
+
+def _share(table: pd.DataFrame, when: str) -> np.ndarray:
+    hip = table.get(f"energy_hip_{when}")
+    total = table.get(f"energy_total_{when}")
+    if hip is None or total is None:
+        return np.full(len(table), np.nan)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (hip / total).to_numpy(float)
+
+
+def strategy_table(table: pd.DataFrame) -> pd.DataFrame:
+    """Per table force: the hip's share of the motors' work and the strategy at T = 0.1 s and
+    at the max acting time (the longest recovered push), where that push recovered."""
+    t = table.sort_values("force")
+    frame = pd.DataFrame({"force": t["force"].to_numpy(float),
+                          "max_acting_time": t["max_acting_time"].to_numpy(float),
+                          "share_01": _share(t, "01"), "share_max": _share(t, "max")})
+    for when in ("01", "max"):
+        share = frame[f"share_{when}"].to_numpy()
+        frame[f"strategy_{when}"] = np.where(
+            np.isfinite(share), np.where(share > HIP_SHARE_THRESHOLD, STRATEGIES[1],
+                                         STRATEGIES[0]), "")
+    return frame
+
+
+def strategy_reading(table: pd.DataFrame) -> str:
+    """The study's statement (the hip joins in for the larger forces at the longest recovered
+    duration) checked against the table's runs, in numbers."""
+    frame = strategy_table(table)
+    at_max = frame.dropna(subset=["share_max"])
+    at_01 = frame.dropna(subset=["share_01"])
+    if not len(at_max):
+        return "No table force has a recovered push to read the strategy from."
+    hip_max = at_max[at_max["strategy_max"] == STRATEGIES[1]]["force"]
+    hip_01 = at_01[at_01["strategy_01"] == STRATEGIES[1]]["force"]
+    text = (f"At each force's max acting time (its longest recovered push) the hip's share of "
+            f"the motors' work is {at_max['share_max'].min():.2f}-{at_max['share_max'].max():.2f}"
+            f": hip_ankle (share > {HIP_SHARE_THRESHOLD:g}) at {len(hip_max)} of {len(at_max)} "
+            f"forces ({', '.join(f'{f:g}' for f in hip_max) or 'none'} N).")
+    if len(at_01):
+        text += (f" For the fixed 0.1-s push it is {at_01['share_01'].min():.2f}-"
+                 f"{at_01['share_01'].max():.2f} over the forces that recover "
+                 f"({', '.join(f'{f:g}' for f in at_01['force'])} N); hip_ankle at "
+                 f"{', '.join(f'{f:g}' for f in hip_01) or 'none of them'}"
+                 + (" N." if len(hip_01) else "."))
+    rising = at_max["share_max"].is_monotonic_increasing
+    text += (" The study says the hip joins in for the larger forces at the longest recovered "
+             "duration; here the share at the max acting time "
+             + ("rises with the force." if rising else
+                "does not rise steadily with the force: the longest recovered push of a small "
+                "force is a long push, in which the hip also does much of the work."))
+    return text
+
+
+def strategy_blocks(region: pd.DataFrame, table: pd.DataFrame | None, figures: Path,
+                    config: Config, convention: str) -> list[dict]:
+    """The strategy map's blocks of a region section: the map, how it moves with its
+    threshold, and the reading of the study's statement from the table."""
+    strategy = plot_strategy(region, figures / f"strategy_{convention}.png", config=config)
+    threshold = plot_threshold(region, figures / f"strategy_threshold_{convention}.png",
+                               config=config)
+    blocks = [{"kind": "paragraph", "cls": "", "text": (
+        "Recovery strategy: the hip's share of the two motors' absolute work in each "
+        "recovered cell (docs/model.md: in this model the hip bends about as much as the ankle "
+        "after any push, so the joints' excursions cannot tell the strategies apart; the work "
+        "says which motor does the recovering). Threshold "
+        f"{HIP_SHARE_THRESHOLD:g}: about twice the share of the linear regime, the mode of "
+        "the distribution (region.parquet's strategy column).")},
+        img(strategy, "the hip's share of the work; dashed: where the hip takes over"),
+        img(threshold, "how the map moves with the threshold")]
+    if table is not None and len(table):
+        blocks.append({"kind": "paragraph", "cls": "reading",
+                       "text": strategy_reading(table)})
+    return blocks
