@@ -22,6 +22,7 @@ import sys
 import threading
 
 from ..model.params import ParameterError
+from ..runtime.version import InstallError
 from ..runtime.xla import deterministic_flags
 from . import (animate, basin, bench, compare, landscape, model, report, sensitivity, simulate,
                sweep)
@@ -185,9 +186,9 @@ def _run(args: argparse.Namespace) -> int:
     except RuntimeError as exc:
         from ..measures.outcomes import NotAResult  # lazy: numpy; only after a failure
 
-        if not isinstance(exc, NotAResult):
+        if not isinstance(exc, (NotAResult, InstallError)):
             raise
-        say_error(str(exc))  # it ran, but its numbers are not results
+        say_error(str(exc))  # not results, or an install that cannot run the physics
         return 1
     except OSError as exc:  # a failure during the work: a refused write, a full disk
         where = f"{exc.filename}: " if exc.filename else ""

@@ -20,6 +20,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
+from ..runtime.version import check_mujoco
 from .params import BodyParams
 
 FOOT_JOINTS = ("foot_x", "foot_z", "foot_pitch")
@@ -102,7 +103,9 @@ def mjcf(body: BodyParams = BodyParams(), physics_dt: float = 0.002, foot: str =
 
 def build_model(body: BodyParams = BodyParams(), physics_dt: float = 0.002,
                 foot: str = "free") -> mujoco.MjModel:
-    """Compile the generated MJCF."""
+    """Compile the generated MJCF. Every physics path starts here or at ``rollout.physics``: a
+    mismatched mujoco / mujoco-mjx pair is refused first (``runtime.version.check_mujoco``)."""
+    check_mujoco()
     return mujoco.MjModel.from_xml_string(mjcf(body, physics_dt, foot))
 
 

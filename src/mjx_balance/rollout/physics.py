@@ -30,6 +30,7 @@ compiles nothing.
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import io
 from typing import Any, NamedTuple
 
@@ -40,11 +41,17 @@ import numpy as np
 
 # mujoco.mjx prints "Failed to import warp" when its GPU-only Warp backend is not installed;
 # the JAX implementation used here does not need it, so keep that line off the user's screen.
-with contextlib.redirect_stdout(io.StringIO()):
-    from mujoco import mjx
+# Without mujoco-mjx this module still imports (the scalar reference runs on MuJoCo C alone);
+# the batched paths are refused at their first call (check_mujoco) with what to install.
+if importlib.util.find_spec("mujoco.mjx") is None:
+    mjx = None
+else:
+    with contextlib.redirect_stdout(io.StringIO()):
+        from mujoco import mjx
 
 from ..model.mjcf import indices, mjcf
 from ..model.params import Config
+from ..runtime.version import check_mujoco
 
 MJX_OPTIONS: dict[str, Any] = {
     "solver": int(mujoco.mjtSolver.mjSOL_NEWTON),
@@ -84,6 +91,7 @@ def mj_model(config: Config, options: dict[str, Any] | None = None, *,
 
     sensors: MJCF sensor elements to add (the C path's measurements, ``cpath.py``); sensors
     only read the simulation, so the physics is the same with or without them."""
+    check_mujoco(mjx=True)  # the batched paths (MJX and C) run mujoco-mjx: refuse a bad pair
     xml = mjcf(config.body, config.scenario.physics_dt, foot="free")
     if sensors:
         xml = xml.replace("</mujoco>", f"  <sensor>\n{sensors}  </sensor>\n</mujoco>")
@@ -103,6 +111,7 @@ def mj_model(config: Config, options: dict[str, Any] | None = None, *,
 
 def mjx_model(model: mujoco.MjModel, dtype=jnp.float32) -> mjx.Model:
     """``mjx.put_model`` with every floating field cast to ``dtype``."""
+    check_mujoco(mjx=True)
     return cast_floats(mjx.put_model(model, impl="jax"), dtype)
 
 
@@ -116,6 +125,7 @@ def rest_data(model: mujoco.MjModel, dtype=jnp.float32) -> mjx.Data:
     differently); one ``mjx.step`` from either gives bit-identical data (checked when this was
     changed), and the contact layout read by :func:`sensors` is the same.
     """
+    check_mujoco(mjx=True)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     d = cast_floats(mjx.put_data(model, data, impl="jax"), dtype)
