@@ -1,7 +1,7 @@
 """Packaging: the sweep definitions live once, in the repository's top-level ``sweeps/`` (the
 package's ``mjx_balance/sweeps`` is a symbolic link to it), and every install finds them: the
 editable install of the README (``pip install -e .``), ``pip install .`` and a wheel. The wheel
-also ships py.typed and the default model.
+also ships py.typed, the default model and the LICENSE.
 
 The source is copied with its symbolic link (as a clone has it, without the checkout's build
 products) and built with ``pip wheel`` / ``pip install --target`` ``--no-deps
@@ -30,12 +30,12 @@ OFFLINE = ["--no-deps", "--no-build-isolation", "--no-index", "-q"]
 @pytest.fixture(scope="module")
 def source(tmp_path_factory) -> Path:
     """A copy of the repository as a clone has it: src/ (the package's sweeps a link), sweeps/,
-    pyproject.toml and README.md."""
+    pyproject.toml, README.md and LICENSE."""
     work = tmp_path_factory.mktemp("source")
     shutil.copytree(REPO / "src", work / "src", symlinks=True,
                     ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
     shutil.copytree(REPO / "sweeps", work / "sweeps")
-    for name in ("pyproject.toml", "README.md"):
+    for name in ("pyproject.toml", "README.md", "LICENSE"):
         shutil.copy(REPO / name, work / name)
     assert (work / "src" / "mjx_balance" / "sweeps").is_symlink()
     return work
@@ -69,6 +69,10 @@ def test_the_wheel_holds_the_sweeps_py_typed_and_the_model(wheel):
     metadata = next(n for n in names if n.endswith(".dist-info/METADATA"))
     requires = zipfile.ZipFile(wheel).read(metadata).decode()
     assert "Requires-Dist: tomli-w" in requires
+    # the license travels with the wheel (pyproject's license-files) and its metadata names it
+    license_file = next(n for n in names if n.endswith(".dist-info/licenses/LICENSE"))
+    assert zipfile.ZipFile(wheel).read(license_file) == (REPO / "LICENSE").read_bytes()
+    assert "License-Expression: Apache-2.0" in requires
 
 
 def test_pip_install_dot_copies_the_sweeps(source, tmp_path):
