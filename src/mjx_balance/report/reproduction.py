@@ -156,6 +156,11 @@ def strategy_table(table: pd.DataFrame) -> pd.DataFrame:
     return frame
 
 
+def _span(values: pd.Series) -> str:
+    low, high = float(values.min()), float(values.max())
+    return f"{low:.2f}" if f"{low:.2f}" == f"{high:.2f}" else f"{low:.2f}-{high:.2f}"
+
+
 def strategy_reading(table: pd.DataFrame) -> str:
     """The study's statement (the hip joins in for the larger forces at the longest recovered
     duration) checked against the table's runs, in numbers."""
@@ -167,12 +172,12 @@ def strategy_reading(table: pd.DataFrame) -> str:
     hip_max = at_max[at_max["strategy_max"] == STRATEGIES[1]]["force"]
     hip_01 = at_01[at_01["strategy_01"] == STRATEGIES[1]]["force"]
     text = (f"At each force's max acting time (its longest recovered push) the hip's share of "
-            f"the motors' work is {at_max['share_max'].min():.2f}-{at_max['share_max'].max():.2f}"
-            f": hip_ankle (share > {HIP_SHARE_THRESHOLD:g}) at {len(hip_max)} of {len(at_max)} "
-            f"forces ({', '.join(f'{f:g}' for f in hip_max) or 'none'} N).")
+            f"the motors' work is {_span(at_max['share_max'])}: hip_ankle (share > "
+            f"{HIP_SHARE_THRESHOLD:g}) at {len(hip_max)} of {len(at_max)} forces"
+            + (f" ({', '.join(f'{f:g}' for f in hip_max)} N)." if len(hip_max) else "."))
     if len(at_01):
-        text += (f" For the fixed 0.1-s push it is {at_01['share_01'].min():.2f}-"
-                 f"{at_01['share_01'].max():.2f} over the forces that recover "
+        text += (f" For the fixed 0.1-s push it is {_span(at_01['share_01'])} over the forces "
+                 "that recover "
                  f"({', '.join(f'{f:g}' for f in at_01['force'])} N); hip_ankle at "
                  f"{', '.join(f'{f:g}' for f in hip_01) or 'none of them'}"
                  + (" N." if len(hip_01) else "."))
