@@ -8,6 +8,7 @@ from PIL import Image
 from mjx_balance import cli
 from mjx_balance.cli.simulate import PRINTED_COLUMNS, parse_values
 from mjx_balance.measures.outcomes import SUMMARY_COLUMNS
+from mjx_balance.measures.strategy import STRATEGY_COLUMNS
 from mjx_balance.model.params import ParameterError, load_config
 from mjx_balance.reference.loop import TIMESERIES_COLUMNS
 from margins import within
@@ -35,7 +36,7 @@ def test_simulate_writes_every_file(tmp_path, short_config, capsys):
                      "joint", "--config", str(short_config), "--out", str(out)])
     assert code == 0
     summary = pd.read_csv(out / "summary.csv")
-    assert list(summary.columns) == SUMMARY_COLUMNS
+    assert list(summary.columns) == SUMMARY_COLUMNS + STRATEGY_COLUMNS
     assert list(zip(summary.force, summary.duration, summary.outcome)) == EXPECTED_ROWS
     assert set(summary.convention) == {"joint"}
     assert (summary.settle_time[summary.outcome == "recovered"] >= 0).all()

@@ -90,17 +90,21 @@ def test_report_has_every_section_and_embedded_figures(out, page):
         expected += [f"timeseries-{convention}", f"weights-{convention}", f"table-{convention}",
                      f"region-{convention}"]
     expected += [f"study-{s.key}" for s in studies.STUDIES] + ["sensitivity"]
-    assert sorted(ids) == sorted(expected)
+    assert ids[0] == "scorecard"  # the tiny report ran with a reference table: it leads
+    assert sorted(ids) == sorted(expected + ["scorecard"])
     for key, heading in report.sections(out):
         assert f'<section id="{key}"><h2>{html.escape(heading)}</h2>' in page, key
     images = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
-    # 11 time-series (with states and inputs), weights, table, 2 region figures per
-    # convention; 1 + 2 side by side; one region map per study variant; the sensitivity
+    # 11 time-series (with states and inputs), 2 weights, table, 2 region and 2 strategy
+    # figures and the scorecard per convention; 1 + 2 side by side; one region map per study
+    # variant; the sensitivity
     variants = sum(len(s.variants) for s in studies.STUDIES)
-    assert len(images) == 2 * 15 + 3 + variants + 1
+    assert len(images) == 2 * 19 + 3 + variants + 1
     assert all(len(b) > 1000 for b in images)
     assert "http://" not in page and "https://" not in page  # self-contained
-    assert page.count('class="reading"') == len(studies.STUDIES) + 2
+    # a reading per study, the sensitivity's, the side by side, the scorecard's summary and
+    # the strategy reading per convention
+    assert page.count('class="reading"') == len(studies.STUDIES) + 2 + 1 + 2
 
 
 def test_experiment_sections_show_the_saved_tables(out, page):
@@ -114,8 +118,8 @@ def test_experiment_sections_show_the_saved_tables(out, page):
         weights = pd.read_csv(folder / "weights.csv")
         text = _section(page, f"weights-{convention}")
         recovered = int((weights.outcome == "recovered").sum())
-        assert f"<p>{recovered} of 6 settings recover;" in text
-        (shown,) = _tables(text)
+        assert f"{recovered} of 6 settings recover" in text
+        shown, recovering = _tables(text)  # the study's push, then one every setting recovers
         assert [r[:2] for r in shown[1]] == [["Q", "1000"], ["Q", "1e+05"], ["Q", "1e+07"],
                                              ["R", "0.0001"], ["R", "1e-06"], ["R", "1e-08"]]
         _assert_shows(shown, weights[report.html.shown_columns("weights", convention)])
@@ -252,7 +256,8 @@ def test_report_json_records_plan_configuration_and_timings(out):
     assert record["config"] == load_config(out / "config.toml").to_dict()
     assert record["config"]["scenario"]["t_end"] == 2.0  # the plan's override
     stages = record["stages"]
-    assert set(stages) == {f"{c}/{s}" for c in CONVENTIONS for s in ("timeseries", "weights")}
+    assert set(stages) == {f"{c}/{s}" for c in CONVENTIONS
+                           for s in ("timeseries", "weights", "weights_recovering")}
     assert stages["paper/timeseries"]["params"] == {"forces": [0, 50, 120], "duration": 0.1}
     assert stages["joint/weights"]["params"] == {"force": 100.0, "q": [1e3, 1e5, 1e7],
                                                  "r": [1e-4, 1e-6, 1e-8]}
@@ -391,13 +396,14 @@ def test_page_is_rendered_from_the_template_with_autoescaping(out):
 
 def test_energies_in_report_tables_carry_their_outcome(out, page):
     for convention in CONVENTIONS:
-        weights = pd.read_csv(out / convention / "weights.csv")
-        (shown,) = _tables(_section(page, f"weights-{convention}"))
-        header, rows = shown
-        column = header.index("energy_total")
-        for row, (_, expected) in zip(rows, weights.iterrows()):
-            marked = row[column].endswith(f"[{expected.outcome}]")
-            assert marked == (expected.outcome != "recovered"), row
+        tables = _tables(_section(page, f"weights-{convention}"))
+        for (header, rows), name in zip(tables, ("weights.csv", "weights_recovering.csv")):
+            weights = pd.read_csv(out / convention / name)
+            column = header.index("energy_total")
+            for row, (_, expected) in zip(rows, weights.iterrows()):
+                # a run that did not recover shows its outcome, never its energy
+                fell = expected.outcome != "recovered"
+                assert (row[column] == f"– [{expected.outcome}]") == fell, row
 
 
 def test_infeasibility_numbers_count_falls_after_an_infeasible_qp():
@@ -414,3 +420,19 @@ def test_infeasibility_numbers_count_falls_after_an_infeasible_qp():
     assert n["lead_min"] == pytest.approx(0.03) and n["lead_max"] == pytest.approx(0.05)
     assert "2 of 3 falls" in studies.infeasibility_text(region)
     assert "predates" in studies.infeasibility_text(region.drop(columns="first_infeasible_time"))
+
+
+def test_scorecard_section_leads_and_carries_the_reasons(out, page):
+    text = _section(page, "scorecard")
+    card = pd.read_csv(out / "scorecard.csv", keep_default_na=False)
+    assert set(card["convention"]) == set(CONVENTIONS)
+    assert (out / "references" / "made_up_reference.csv").exists()
+    for convention in CONVENTIONS:
+        mine = card[card["convention"] == convention]
+        agree = int((mine["status"] == "agrees").sum())
+        compared = int(mine["status"].isin(["agrees", "differs"]).sum())
+        assert f"{convention} convention, made_up_reference: {agree} of {compared}" in text
+    # a differing row shows the file's reason, or points to the measured causes: never made up
+    for row in card[card["status"] == "differs"].itertuples():
+        assert (row.reason or "no reason in the reference file") in html.unescape(text)
+    assert page.index('id="scorecard"') < page.index('id="overview"')

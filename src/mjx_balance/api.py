@@ -112,8 +112,6 @@ def simulate(forces: Values = None, durations: Values = None, config: ConfigLike
                                     physics_dt=config.scenario.physics_dt)
         todo = list(zip(forces.tolist(), durations.tolist()))
     else:
-        if forces is None or durations is None:
-            raise ParameterError("give forces and durations (their cross product) or pairs")
         forces = grid_values(forces, "forces")
         durations = duration_values(durations, config)
         todo = [(f, d) for d in durations.tolist() for f in forces.tolist()]

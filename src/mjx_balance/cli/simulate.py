@@ -99,17 +99,18 @@ def _pushes(args: argparse.Namespace, config) -> tuple[list, list, list | None]:
     from ..runs.grid import check_durations, parse_pairs  # lazy: the runs floor loads JAX
 
     if args.pairs is not None:
-        if args.force is not None or args.duration is not None:
-            raise ParameterError("--pairs gives the pushes: leave out --force and --duration")
         forces, durations = parse_pairs(args.pairs, "--pairs")
         durations = check_durations(durations, config.scenario.t_end, "--pairs",
                                     physics_dt=config.scenario.physics_dt)
+        if args.force is not None or args.duration is not None:
+            raise ParameterError("--pairs gives the pushes: leave out --force and --duration")
         return forces.tolist(), durations.tolist(), list(zip(forces.tolist(),
                                                              durations.tolist()))
-    forces = parse_option_grid(args.force or DEFAULT_FORCES, "force")
+    forces = parse_option_grid(DEFAULT_FORCES if args.force is None else args.force, "force")
     # As ``sweep``: durations in [0, t_end] and whole physics steps (snapped to them).
     durations = check_durations(
-        np.asarray(parse_option_grid(args.duration or DEFAULT_DURATIONS, "duration")),
+        np.asarray(parse_option_grid(DEFAULT_DURATIONS if args.duration is None
+                                     else args.duration, "duration")),
         config.scenario.t_end, "--duration", physics_dt=config.scenario.physics_dt).tolist()
     return forces, durations, None
 
