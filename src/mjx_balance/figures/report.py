@@ -87,6 +87,7 @@ def _weight_bars(axes, weights: pd.DataFrame, parts: list, ylabel: str) -> None:
                             ha="center", va="center", rotation=90, fontsize=9,
                             color="#b2182b")
         ax.set_xticks(x, [f"{s:.0e}" for s in rows["scale"]])
+        ax.set_xlim(-0.6, len(rows) - 0.4)  # every setting's slot, with or without bars
         values = rows.loc[ok, [c for c, _, _ in parts]].to_numpy(float)
         positive = values[np.isfinite(values) & (values > 0)]
         if positive.size and positive.max() / positive.min() > 100:
