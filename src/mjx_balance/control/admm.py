@@ -97,6 +97,10 @@ class ADMMSettings(NamedTuple):
     # Stop a solve at the first check where OSQP's primal infeasibility certificate holds
     # (instead of iterating to the cap).
     stop_on_infeasible: bool = _DEFAULTS.admm_stop_on_infeasible
+    # The exact (l1) penalty of the softenable rows (controller.infeasible = "exact_penalty"):
+    # the weight of each row group (RHO_GROUPS) on the rows' violation, inf for a hard group;
+    # None: every row hard and an infeasible QP runs to the cap ("capped", the default).
+    penalty: tuple[float, float, float, float] | None = None
 
     @property
     def n_chunks(self) -> int:
@@ -115,7 +119,16 @@ def settings_from_controller(controller: ControllerParams) -> ADMMSettings:
         check_every=int(controller.admm_check_every), eps_abs=float(controller.admm_eps_abs),
         eps_rel=float(controller.admm_eps_rel),
         stop_on_infeasible=bool(controller.admm_stop_on_infeasible),
+        penalty=penalty_of(controller),
     )
+
+
+def penalty_of(controller: ControllerParams) -> tuple[float, float, float, float] | None:
+    """The row groups' l1 weights of ``controller.infeasible = "exact_penalty"`` (inputs hard),
+    None for "capped"."""
+    if controller.infeasible != "exact_penalty":
+        return None
+    return (math.inf, *(float(w) for w in controller.penalty_weights))
 
 
 class ADMMData(NamedTuple):
@@ -140,6 +153,8 @@ class ADMMData(NamedTuple):
     input_upper: jax.Array  # [2]
     z_shift: jax.Array  # [n] int32 gather index: input sequence shifted one step
     y_shift: jax.Array  # [m] int32 gather index: constraint rows shifted one step
+    soft: jax.Array  # [m] the l1 penalty's threshold in the scaled iteration, c w / (E ρ)
+    #                  (inf: a hard row; all inf without settings.penalty)
 
 
 class ADMMWarm(NamedTuple):
@@ -217,12 +232,19 @@ def build_admm(qp: CondensedQP, settings: ADMMSettings, dtype=jnp.float32) -> AD
     K = Ps + sigma * np.eye(n) + As.T @ (rho[:, None] * As)  # OSQP eq. 23, reduced form
     K_inv = np.linalg.inv(0.5 * (K + K.T))
     q_x0 = c * T.T @ qp.F  # q̄ = q_x0 @ x0
+    # The l1 penalty w |violation| of a row, in the scaled problem c w |Ē violation| / Ē, is
+    # the prox step z = a - clip(a - Π(a), -t, t) with t = c w / (Ē ρ) (the loop carries y/ρ).
+    weight = np.full(m, np.inf)
+    if settings.penalty is not None:
+        for name, w in zip(RHO_GROUPS, settings.penalty):
+            weight[qp.rows[name]] = w
+    soft = np.where(np.isfinite(weight), c * weight / (E * rho), np.inf)
     z_idx, y_idx = shift_index(qp.rows, n, m, qp.horizon)
     arrays = dict(
         MwT=(K_inv @ As.T @ np.diag(rho)).T, MxT=(sigma * K_inv).T, GT=(-K_inv @ q_x0).T, AT=As.T,
         l0=E * qp.lower0, u0=E * qp.upper0, bT=(E[:, None] * qp.E).T, rho=rho, E=E,
         cost_scale=np.array(c), T=T, T_inv=np.linalg.inv(T), H=H, CT=C.T, FT=qp.F.T,
-        input_lower=qp.input_lower, input_upper=qp.input_upper,
+        input_lower=qp.input_lower, input_upper=qp.input_upper, soft=soft,
     )
     data = {k: jnp.asarray(v, dtype=dtype) for k, v in arrays.items()}
     return ADMMData(**data, z_shift=jnp.asarray(z_idx), y_shift=jnp.asarray(y_idx))
@@ -324,6 +346,11 @@ def _iteration(data: ADMMData, p: _Solve, settings: ADMMSettings,
     # line 6: z ← Π_[l,u](α z̃ + (1 - α) z + y / ρ)
     s_relaxed = alpha * s_tilde + (1.0 - alpha) * s
     s_next = jnp.clip(s_relaxed + v, p.lo, p.hi)
+    if settings.penalty is not None:
+        # the prox of the exact penalty w·dist(·, [l, u]) in place of the projection: a row
+        # whose violation exceeds t moves only t toward its bounds (its dual stays within w)
+        a = s_relaxed + v
+        s_next = a - jnp.clip(a - s_next, -data.soft, data.soft)
     # line 7: y ← y + ρ (α z̃ + (1 - α) z - z), i.e. v ← v + (α z̃ + (1 - α) z - z)
     v_next = v + (s_relaxed - s_next)
     return x_next, s_next, v_next
@@ -389,8 +416,18 @@ def _finish(data: ADMMData, p: _Solve, settings: ADMMSettings, carry: _Carry,
     """The result of the last carry: status (the primal infeasibility certificate on δy over
     the last chunk), unscaled z [n] and y [m], the first input and the shifted warm start."""
     dtype = data.MwT.dtype
-    certificate = _infeasible(data, p, carry.y, carry.y_check)
-    status = jnp.where(carry.done, SOLVED, jnp.where(certificate, PRIMAL_INFEASIBLE, MAX_ITER))
+    if settings.penalty is None:
+        certificate = _infeasible(data, p, carry.y, carry.y_check)
+        status = jnp.where(carry.done, SOLVED,
+                           jnp.where(certificate, PRIMAL_INFEASIBLE, MAX_ITER))
+    else:
+        # the hard QP has no solution where the penalised one's rows stay outside their bounds
+        # (with weights above every multiplier of a solvable QP, its solution is the hard one)
+        # (judged on a converged solve only: an unconverged iterate's violation says nothing)
+        violation = _inf_norm(p.E_inv * (carry.s - jnp.clip(carry.s, p.lo, p.hi)))
+        certificate = carry.done & (violation > p.eps_pinf)
+        status = jnp.where(certificate, PRIMAL_INFEASIBLE, jnp.where(carry.done, SOLVED,
+                                                                     MAX_ITER))
 
     z = carry.x @ data.T.T
     y = p.E * p.rho * carry.y / p.c

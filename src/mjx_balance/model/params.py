@@ -194,6 +194,9 @@ class BodyParams:
         return self.foot_mass * (self.foot_length**2 + self.foot_thickness**2) / 12.0
 
 
+INFEASIBLE_MODES = ("capped", "exact_penalty")
+
+
 @dataclass(frozen=True)
 class ControllerParams:
     """The constrained MPC (SPEC §2–3) and its solver settings.
@@ -237,6 +240,19 @@ class ControllerParams:
     # instead of iterating to the cap. Off by default: the shared definitions run an infeasible
     # QP to the cap and use its last iterate, as the reference's OSQP does.
     admm_stop_on_infeasible: bool = False
+    # What the controller does with a QP that has no solution (docs/model.md, "Solvers").
+    # "capped": the study's shared definition, the solver's iterate after its iteration cap
+    # (OSQP's max_iter in the reference, admm_max_iter in the batched path). "exact_penalty":
+    # the state, CoP and CoM rows get an exact l1 penalty (inputs stay hard) with the weights
+    # below, above every multiplier of a solvable QP, so that a solvable QP keeps exactly its
+    # hard solution and an infeasible one gets the least-violation solution, which both
+    # solvers reach by convergence instead of at a cap.
+    infeasible: str = "capped"
+    # l1 weights of the state, CoP and CoM rows [cost per rad, per m, per m]. Measured on the
+    # solver benchmark's closed-loop states (bench.states, OSQP at 1e-9): the largest multiplier
+    # of a solved QP is 1.76e4 on a CoP row (paper convention), 0 on the state and CoM rows
+    # (in the joint convention only input rows are active); 1e5 is above all of them.
+    penalty_weights: tuple[float, float, float] = (1e5, 1e5, 1e5)
     # Delay compensation: predict the current state from the delayed measurement with the
     # linear model and the inputs already applied (linear.delay_predictor), then solve the MPC
     # for it. Off: the MPC acts on the delayed measurement (the study's controller).
@@ -260,7 +276,7 @@ class ControllerParams:
         object.__setattr__(self, "q_diag", tuple(float(v) for v in self.q_diag))
         object.__setattr__(self, "r_diag", tuple(float(v) for v in self.r_diag))
         for name in ("input1_bounds", "input2_bounds", "state1_bounds", "state2_bounds",
-                     "cop_bounds", "com_bounds"):
+                     "cop_bounds", "com_bounds", "penalty_weights"):
             object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
         _check_finite("controller", self)
         if self.convention not in CONVENTIONS:
@@ -284,6 +300,12 @@ class ControllerParams:
             value = getattr(self, name)
             if not isinstance(value, int) or value < 1:
                 _fail("controller", name, "must be an integer >= 1", value)
+        if self.infeasible not in INFEASIBLE_MODES:
+            _fail("controller", "infeasible", f"must be one of {INFEASIBLE_MODES}",
+                  self.infeasible)
+        if len(self.penalty_weights) != 3 or not min(self.penalty_weights) > 0:
+            _fail("controller", "penalty_weights", "must be 3 positive numbers (state, CoP, "
+                  "CoM rows)", self.penalty_weights)
         if not 0 <= self.target_margin < 1:
             _fail("controller", "target_margin", "must lie in [0, 1) (a fraction of each "
                   "input's half-range)", self.target_margin)

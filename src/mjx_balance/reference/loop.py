@@ -184,9 +184,13 @@ class _Controller:
         self.u_last = u
         if self.compensate:
             self.applied = np.concatenate([u[None], self.applied[:-1]])
-        # a QP the solver did not solve: is it infeasible (an exact LP test, run only here)?
-        infeasible = (not ok and np.isfinite(x_meas).all()
-                      and not mpc.qp.feasible(x_meas, offset))
+        # a QP the solver did not solve: is it infeasible (an exact LP test, run only here,
+        # unless the exact penalty's solve ran it already)?
+        if mpc.hard_infeasible is not None:
+            infeasible = mpc.hard_infeasible
+        else:
+            infeasible = (not ok and np.isfinite(x_meas).all()
+                          and not mpc.qp.feasible(x_meas, offset))
         return u, ok, prim_res, infeasible
 
 
