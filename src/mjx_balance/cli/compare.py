@@ -1,4 +1,9 @@
-"""``mjx-balance compare``: several configurations on one grid, one figure and one table."""
+"""``mjx-balance compare``: several configurations on one grid, one figure and one table.
+
+The variants are whole configurations (positional FILEs, or --variant NAME=FILE); each one's
+values go on top of the base --config (default: the defaults), then --set and --convention on
+top of each variant. The old form, --config given for each variant and no FILE, still works
+for a release (a notice on stderr)."""
 
 from __future__ import annotations
 
@@ -6,26 +11,42 @@ from pathlib import Path
 from typing import Any
 
 from .common import in_folder, progress_enabled
-from .options import cluster_option, engine_options, out_folder, sweep_file, wait_option
+import argparse
+import sys
+
+from ..model.params import ParameterError, apply_overrides, with_convention
+from ..studies.defaults import (DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,  # light
+                                DEFAULT_SWEEP_TABLE_FORCES)
+from .options import (cluster_option, config_options, engine_options, out_folder, sweep_file,
+                      wait_option)
+
+OLD_FORM = ("mjx-balance: compare --config FILE ... (the configurations to compare) is now "
+            "compare FILE ... or --variant NAME=FILE; --config names the base configuration "
+            "(the old form goes in a later release)")
+
 
 
 def add_parser(sub: Any) -> None:
     """The ``compare`` sub-command (``sub.add_parser`` of ``main.build_parser``)."""
     p = sub.add_parser("compare", help="several configurations on one grid: their recovery "
                                        "boundaries in one figure, their numbers in one table")
-    p.add_argument("--config", type=sweep_file, action="append", required=True,
-                   metavar="FILE", help="a TOML configuration, or a sweep definition (a file "
-                                        "or a shipped name such as study_offset_free: its "
-                                        "configuration, not its grid); repeat for each; the "
-                                        "folder name is the file's stem")
+    p.add_argument("variants", nargs="*", type=sweep_file, metavar="FILE",
+                   help="the configurations to compare: TOML configuration files or sweep "
+                        "definitions (a file or a shipped name such as study_offset_free: its "
+                        "configuration, not its grid); each one's folder is the file's stem")
+    p.add_argument("--variant", type=variant, action="append", default=None,
+                   metavar="NAME=FILE", help="a configuration to compare under a name of its "
+                                             "own (repeatable; after the positional FILEs)")
+    config_options(p, repeat=True)
     p.add_argument("--forces", default=None,
                    help="start:stop:step or a comma list [N] (default: the default sweep's, "
-                        "0:150:10)")
+                        f"{DEFAULT_SWEEP_FORCES})")
     p.add_argument("--durations", default=None,
-                   help="start:stop:step or a comma list [s] (default: the default sweep's)")
+                   help="start:stop:step or a comma list [s] (default: the default sweep's, "
+                        f"{DEFAULT_SWEEP_DURATIONS})")
     p.add_argument("--table-forces", default=None,
                    help="forces of each configuration's max-acting-time table [N] (default: "
-                        "the default sweep's, 20,50,80,100,120)")
+                        f"the default sweep's, {DEFAULT_SWEEP_TABLE_FORCES})")
     engine_options(p)
     cluster_option(p)
     wait_option(p)
@@ -35,12 +56,45 @@ def add_parser(sub: Any) -> None:
     p.set_defaults(target="mjx_balance.cli.compare:compare_command")
 
 
-def compare_command(args: Any) -> int:
-    """Each --config's region map and table in OUT/<name>/, then compare.csv and compare.png."""
-    from ..runs import DEFAULT_SWEEP  # lazy: the runs floor loads JAX; not for --help
-    from ..studies.compare import load_configs, run_compare  # lazy: as above
+def variant(text: str) -> tuple[str, str]:
+    """A --variant NAME=FILE: (name, file), the file checked as a positional FILE is."""
+    name, sep, path = text.partition("=")
+    if not sep or not name.strip() or not path.strip():
+        raise argparse.ArgumentTypeError(f"give NAME=FILE, got {text!r}")
+    if "/" in name or "\\" in name or name.strip() != name:
+        raise argparse.ArgumentTypeError(f"{name!r} is not a folder name (letters, digits, "
+                                         "'.', '_', '-')")
+    return name, sweep_file(path)
 
-    configs = load_configs(args.config)
+
+def variants_and_base(args: Any) -> tuple[list[tuple[str | None, str]], str | None]:
+    """([(name or None, file)], base file or None) from the options; the old form (--config
+    for each variant, no FILE and no --variant) with its notice on stderr."""
+    variants = [(None, path) for path in args.variants or []] + list(args.variant or [])
+    configs = args.config or []
+    if not variants:
+        if not configs:
+            raise ParameterError("compare needs at least one configuration: compare FILE ... "
+                                 "or --variant NAME=FILE")
+        print(OLD_FORM, file=sys.stderr)
+        return [(None, path) for path in configs], None
+    if len(configs) > 1:
+        raise ParameterError("--config: give one base configuration (the configurations to "
+                             "compare are the FILEs or --variant NAME=FILE)")
+    return variants, (configs[0] if configs else None)
+
+
+def compare_command(args: Any) -> int:
+    """Each variant's region map and table in OUT/<name>/, then compare.csv and compare.png."""
+    from ..runs import DEFAULT_SWEEP  # lazy: the runs floor loads JAX; not for --help
+    from ..studies.compare import load_configs, load_one, run_compare  # lazy: as above
+
+    variants, base = variants_and_base(args)
+    configs = load_configs([path for _, path in variants],
+                           base=load_one(base) if base else None,
+                           names=[name for name, _ in variants])
+    configs = {name: with_convention(apply_overrides(config, args.set), args.convention)
+               for name, config in configs.items()}
     out = Path(args.out)
     engine = {"slots": args.slots, "full_length": args.full_length,
               "physics": args.physics or "auto", "cluster": args.cluster}

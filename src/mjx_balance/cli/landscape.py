@@ -7,14 +7,18 @@ it runs.
 
 from __future__ import annotations
 
+import argparse
 import logging
 from pathlib import Path
 from typing import Any
 
-from ..model.params import apply_overrides
-from ..studies.defaults import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES  # light
+from ..model.params import apply_overrides, with_convention
+from ..studies.defaults import (DEFAULT_DELAYS, DEFAULT_SCALES,  # light
+                                DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,
+                                DEFAULT_TABLE_FORCES)
 from .common import base_config, chosen_physics, in_folder, progress_enabled
-from .options import engine_options, out_folder, setting, sweep_file, wait_option
+from .options import (config_options, engine_options, out_folder, renamed_option, sweep_file,
+                      wait_option)
 
 
 
@@ -29,25 +33,26 @@ def add_parser(sub: Any) -> None:
                           "landscape.csv, landscape.png (heatmaps), landscape.txt")
     p.add_argument("--sweep", type=sweep_file, default=None,
                    help="sweep definition whose configuration and grid are the base (a TOML "
-                        "file or a shipped name, e.g. landscape_weights); default: the "
-                        "defaults and the default sweep's grid")
-    p.add_argument("--set", type=setting, action="append", default=None,
-                   metavar="SECTION.KEY=VALUE",
-                   help="override one value of the base configuration (repeatable)")
+                        "file or a shipped name, e.g. landscape_weights; its configuration goes "
+                        "on top of --config); default: the defaults and the default sweep's "
+                        "grid")
+    config_options(p)
     p.add_argument("--q-scales", default=DEFAULT_SCALES,
                    help="factors on controller.q_diag, comma list")
     p.add_argument("--r-scales", default=DEFAULT_SCALES,
                    help="factors on controller.r_diag, comma list")
-    p.add_argument("--delay", default=DEFAULT_DELAYS,
+    p.add_argument("--delays", default=DEFAULT_DELAYS,
                    help="delay settings, comma list in ms, a trailing c for the "
                         "delay-compensated controller (controller.delay_compensation), "
                         "e.g. 0,10,100c; each replaces the base's scenario.controller_delay")
+    p.add_argument("--delay", dest="delays", action=renamed_option("--delays"),
+                   help=argparse.SUPPRESS)  # the old name, kept for a release
     p.add_argument("--forces", default=None,
                    help="start:stop:step or a comma list [N] (default: the --sweep file's, "
-                        "else the default sweep's)")
+                        f"else the default sweep's {DEFAULT_SWEEP_FORCES})")
     p.add_argument("--durations", default=None,
                    help="start:stop:step or a comma list [s] (default: the --sweep file's, "
-                        "else the default sweep's)")
+                        f"else the default sweep's {DEFAULT_SWEEP_DURATIONS})")
     p.add_argument("--table-forces", default=None,
                    help="forces of each setting's max-acting-time table [N] (default: the "
                         f"--sweep file's, else {DEFAULT_TABLE_FORCES})")
@@ -68,7 +73,10 @@ def landscape_command(args: Any) -> int:
                                      run_landscape)
 
     definition = load_sweep(args.sweep, base_config(args, overrides=False))
-    config = apply_overrides(definition.config, getattr(args, "set", None))
+    # the command line wins: --set over the --config file and the sweep definition,
+    # --convention over all
+    config = with_convention(apply_overrides(definition.config, getattr(args, "set", None)),
+                             getattr(args, "convention", None))
 
     def pick(given: Any, from_file: Any, fallback: Any) -> Any:
         return given if given is not None else (from_file if from_file is not None
@@ -79,14 +87,14 @@ def landscape_command(args: Any) -> int:
     table_forces = pick(args.table_forces, definition.table_forces if args.sweep else None,
                         DEFAULT_TABLE_FORCES)
     out = Path(args.out)
-    check_landscape(out, config, forces, durations, args.q_scales, args.r_scales, args.delay,
+    check_landscape(out, config, forces, durations, args.q_scales, args.r_scales, args.delays,
                     table_forces)
     engine = {"slots": args.slots, "full_length": args.full_length,
               "physics": chosen_physics(args, definition)}
 
     def work() -> None:
         run_landscape(out, config, forces, durations, q_scales=args.q_scales,
-                      r_scales=args.r_scales, delays=args.delay, table_forces=table_forces,
+                      r_scales=args.r_scales, delays=args.delays, table_forces=table_forces,
                       progress=progress_enabled(args),
                       log=logging.getLogger("mjx_balance").info, **engine)
 

@@ -142,6 +142,18 @@ def setting(text: str) -> str:
     return text
 
 
+def convention_list(text: str) -> str:
+    """A comma list of controller conventions (paper, joint), at least one."""
+    items = [item.strip() for item in text.split(",") if item.strip()]
+    if not items:
+        raise argparse.ArgumentTypeError(f"give one or more of {', '.join(CONVENTIONS)}")
+    bad = [item for item in items if item not in CONVENTIONS]
+    if bad:
+        raise argparse.ArgumentTypeError(f"unknown {', '.join(bad)}; known: "
+                                         f"{', '.join(CONVENTIONS)}")
+    return ",".join(items)
+
+
 def input_folder(text: str) -> str:
     """An existing folder."""
     if not Path(text).is_dir():
@@ -255,12 +267,22 @@ def conventions_parent() -> argparse.ArgumentParser:
     return parent
 
 
-def config_options(p: argparse.ArgumentParser) -> None:
-    """--convention, --config and --set: the run's configuration."""
+def config_options(p: argparse.ArgumentParser, *, repeat: bool = False,
+                   convention_help: str | None = None) -> None:
+    """--convention, --config and --set: the run's configuration. ``repeat``: --config may be
+    given more than once (compare's old form, where it named the configurations to compare;
+    the command says what more than one means)."""
     p.add_argument("--convention", choices=CONVENTIONS, default=None,
-                   help="controller convention (default: the configuration's, 'paper')")
-    p.add_argument("--config", type=input_file, default=None,
-                   help="TOML configuration file (body, controller, scenario)")
+                   help=convention_help or "controller convention (default: the "
+                                           "configuration's, 'paper')")
+    if repeat:
+        p.add_argument("--config", type=sweep_file, action="append", default=None,
+                       metavar="FILE",
+                       help="base TOML configuration file (body, controller, scenario) that "
+                            "every configuration's values go on top of")
+    else:
+        p.add_argument("--config", type=input_file, default=None,
+                       help="TOML configuration file (body, controller, scenario)")
     p.add_argument("--set", type=setting, action="append", default=None,
                    metavar="SECTION.KEY=VALUE",
                    help="override one value of the configuration, e.g. --set "

@@ -10,8 +10,8 @@ from typing import Any
 
 from ..model.params import CONVENTIONS, ParameterError
 from .common import load_run_config
-from .options import (cluster_option, input_file, input_folder, out_folder, physics_option,
-                      setting)
+from .options import (cluster_option, config_options, convention_list, input_file,
+                      input_folder, out_folder, physics_option)
 
 
 def add_parser(sub: Any) -> None:
@@ -26,7 +26,6 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--studies", default="all",
                    help="comma list of studies (ankle_only, backward, delay, older_adult, "
                         "recovery_definition, push_height), 'all' or 'none'")
-    p.add_argument("--conventions", default=None, help="experiments' conventions (default: paper,joint)")
     p.add_argument("--sweeps", type=input_folder, default=None,
                    help="folder of the study sweep definitions (default: the shipped ones, "
                         "mjx_balance/sweeps/)")
@@ -39,14 +38,15 @@ def add_parser(sub: Any) -> None:
                         "table (kept in DIR/references/; docs/outputs.md, 'Reference files')")
     cluster_option(p)
     physics_option(p)
-    p.add_argument("--convention", choices=CONVENTIONS, default=None,
-                   help="the studies' convention (default: the configuration's, 'paper'); the "
-                        "study's experiments run every convention of --conventions")
-    p.add_argument("--config", type=input_file, default=None,
-                   help="TOML configuration file (body, controller, scenario)")
-    p.add_argument("--set", type=setting, action="append", default=None,
-                   metavar="SECTION.KEY=VALUE",
-                   help="override one value of the configuration (repeatable; see sweep --help)")
+    group = p.add_argument_group(
+        "configuration and conventions",
+        "--conventions (a list): the study's experiments run under each of them;\n"
+        "--convention (one, as in every other command): the studies beyond the study;\n"
+        "--config and --set: the base configuration of both")
+    group.add_argument("--conventions", type=convention_list, default=",".join(CONVENTIONS),
+                       help="the experiments' conventions, a comma list")
+    config_options(group, convention_help="the studies' convention (default: the "
+                                          "configuration's, 'paper')")
     p.add_argument("--out", type=out_folder, required=True,
                    help="output folder (tables, figures, report.html)")
     p.set_defaults(target="mjx_balance.cli.report:report_command")

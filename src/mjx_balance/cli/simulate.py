@@ -11,7 +11,7 @@ from pathlib import Path
 
 from ..model.params import ParameterError, dumps_config
 from .common import load_run_config, progress_enabled
-from .options import common_options
+from .options import common_options, renamed_option
 
 log = logging.getLogger("mjx_balance")
 
@@ -27,11 +27,16 @@ PRINTED_COLUMNS = ["force", "duration", "convention", "outcome", "settle_time", 
 def add_parser(sub) -> None:
     """The ``simulate`` sub-command (``sub.add_parser`` of ``main.build_parser``)."""
     p = sub.add_parser("simulate", help="scalar reference closed loop (MuJoCo C + OSQP) for a few pushes")
-    p.add_argument("--force", default=None,
-                   help=f"comma-separated forces [N] (default {DEFAULT_FORCES})")
-    p.add_argument("--duration", default=None,
-                   help=f"comma-separated push durations [s] (default {DEFAULT_DURATIONS}); "
-                        "every force with every duration")
+    p.add_argument("--forces", default=None,
+                   help=f"forces [N], a comma list or start:stop:step (default {DEFAULT_FORCES})")
+    p.add_argument("--durations", default=None,
+                   help=f"push durations [s], a comma list or start:stop:step (default "
+                        f"{DEFAULT_DURATIONS}); every force with every duration")
+    # the singular names, kept for a release (a notice on stderr)
+    p.add_argument("--force", dest="forces", action=renamed_option("--forces"),
+                   help=argparse.SUPPRESS)
+    p.add_argument("--duration", dest="durations", action=renamed_option("--durations"),
+                   help=argparse.SUPPRESS)
     p.add_argument("--pairs", default=None, metavar="F:T,... | FILE.csv",
                    help="given (force, duration) pairs instead of the cross product, e.g. "
                         "20:0.7,30:0.45, or a CSV with columns force, duration")
@@ -102,16 +107,16 @@ def _pushes(args: argparse.Namespace, config) -> tuple[list, list, list | None]:
         forces, durations = parse_pairs(args.pairs, "--pairs")
         durations = check_durations(durations, config.scenario.t_end, "--pairs",
                                     physics_dt=config.scenario.physics_dt)
-        if args.force is not None or args.duration is not None:
-            raise ParameterError("--pairs gives the pushes: leave out --force and --duration")
+        if args.forces is not None or args.durations is not None:
+            raise ParameterError("--pairs gives the pushes: leave out --forces and --durations")
         return forces.tolist(), durations.tolist(), list(zip(forces.tolist(),
                                                              durations.tolist()))
-    forces = parse_option_grid(DEFAULT_FORCES if args.force is None else args.force, "force")
+    forces = parse_option_grid(DEFAULT_FORCES if args.forces is None else args.forces, "forces")
     # As ``sweep``: durations in [0, t_end] and whole physics steps (snapped to them).
     durations = check_durations(
-        np.asarray(parse_option_grid(DEFAULT_DURATIONS if args.duration is None
-                                     else args.duration, "duration")),
-        config.scenario.t_end, "--duration", physics_dt=config.scenario.physics_dt).tolist()
+        np.asarray(parse_option_grid(DEFAULT_DURATIONS if args.durations is None
+                                     else args.durations, "durations")),
+        config.scenario.t_end, "--durations", physics_dt=config.scenario.physics_dt).tolist()
     return forces, durations, None
 
 

@@ -18,6 +18,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..model.params import Config, apply_overrides, with_convention
+from ..studies.defaults import (DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,  # light
+                                DEFAULT_SWEEP_TABLE_FORCES)
 from .common import base_config, chosen_physics, in_folder, progress_enabled
 from .options import (cluster_option, common_options, engine_options, input_file,
                       positive_int, sweep_file, wait_option, yes_option)
@@ -32,9 +34,17 @@ log = logging.getLogger("mjx_balance")
 
 def add_parser(sub: Any) -> None:
     """The ``sweep`` and ``table`` sub-commands (``sub.add_parser`` of ``main.build_parser``)."""
-    p = sub.add_parser("sweep", help="recoverable region over a force x duration grid")
-    p.add_argument("--forces", default=None, help="start:stop:step or a comma list [N]")
-    p.add_argument("--durations", default=None, help="start:stop:step or a comma list [s]")
+    p = sub.add_parser("sweep", help="recoverable region over a force x duration grid; "
+                                     "without --forces, --durations or --sweep the default "
+                                     f"sweep: forces {DEFAULT_SWEEP_FORCES} N x durations "
+                                     f"{DEFAULT_SWEEP_DURATIONS} s, and the table at "
+                                     f"{DEFAULT_SWEEP_TABLE_FORCES} N in the same folder")
+    p.add_argument("--forces", default=None,
+                   help="start:stop:step or a comma list [N] (default: the --sweep file's, "
+                        f"else the default sweep's {DEFAULT_SWEEP_FORCES})")
+    p.add_argument("--durations", default=None,
+                   help="start:stop:step or a comma list [s] (default: the --sweep file's, "
+                        f"else the default sweep's {DEFAULT_SWEEP_DURATIONS})")
     p.add_argument("--sweep", type=sweep_file, default=None,
                    help="sweep definition: a TOML file or the name of a shipped one "
                         "(default, region_dense_paper, study_...; see mjx_balance/sweeps/)")

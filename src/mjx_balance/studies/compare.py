@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 
 from . import catalog as studies
-from ..model.params import Config, ParameterError, load_config, read_toml
+from ..model.params import Config, ParameterError, config_from_dict, load_config, read_toml
 from ..runs.definitions import load_sweep
 from ..runs.grid import check_durations, describe, parse_grid, same_values
 from ..store.files import REGION, TABLE
@@ -75,11 +75,15 @@ def check_names(names: Sequence[str]) -> None:
         seen.add(name.lower())
 
 
-def load_configs(paths: Sequence[str | Path]) -> dict[str, Config]:
+def load_configs(paths: Sequence[str | Path], base: Config | None = None,
+                 names: Sequence[str | None] | None = None) -> dict[str, Config]:
     """name -> configuration of every file (ParameterError naming the file that is wrong, or
-    a file given twice: its map would be computed twice)."""
+    a file given twice: its map would be computed twice). ``base``: the configuration each
+    file's values go on top of (default: the defaults); ``names``: a name per file, None for
+    the file's stem (:func:`names_for`)."""
     if not paths:
-        raise ParameterError("compare needs at least one configuration (--config FILE)")
+        raise ParameterError("compare needs at least one configuration (compare FILE ... or "
+                             "--variant NAME=FILE)")
     seen: dict[Path, str | Path] = {}
     for path in paths:
         key = Path(path).resolve()
@@ -88,21 +92,33 @@ def load_configs(paths: Sequence[str | Path]) -> dict[str, Config]:
             raise ParameterError(f"{path}: this configuration file is given twice{also}; give "
                                  "each configuration once")
         seen[key] = path
+    given = list(names) if names is not None else [None] * len(paths)
+    chosen = [name or stem for name, stem in zip(given, names_for(paths))]
+    check_names(chosen)
     configs = {}
-    for name, path in zip(names_for(paths), paths):
+    for name, path in zip(chosen, paths):
         try:
-            configs[name] = load_one(path)
+            configs[name] = load_one(path, base)
         except ParameterError as exc:
             raise ParameterError(f"{path}: {exc}") from None
     return configs
 
 
-def load_one(path: str | Path) -> Config:
+def load_one(path: str | Path, base: Config | None = None) -> Config:
     """A configuration file's configuration, or a sweep definition's (a file with a [sweep]
-    table: its grid is not used, the comparison has its own)."""
-    if "sweep" in read_toml(Path(path)):
-        return load_sweep(path, Config()).config
-    return load_config(path)
+    table: its grid is not used, the comparison has its own); the file's values go on top of
+    ``base`` (default: the defaults)."""
+    data = read_toml(Path(path))
+    if "sweep" in data:
+        return load_sweep(path, base or Config()).config
+    if base is None:
+        return load_config(path)
+    merged: dict[str, Any] = base.to_dict()
+    for section, values in data.items():  # the file's values over the base's, section by section
+        known = merged.get(section)
+        merged[section] = ({**known, **values} if isinstance(known, dict)
+                           and isinstance(values, dict) else values)
+    return config_from_dict(merged)
 
 
 def check_folder(folder: Path, name: str, config: Config, forces: np.ndarray,

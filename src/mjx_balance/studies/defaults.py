@@ -31,3 +31,8 @@ READINGS = {  # key -> (label, configuration changes); plain sets offset_free = 
                           {"controller": {"convention": "joint", "offset_free": True}}),
 }
 DEFAULT_FORCES = "20,50,80,100,120"  # N
+
+# runs.DEFAULT_SWEEP's grid, as --help shows it (runs/ loads JAX; a test keeps the two equal)
+DEFAULT_SWEEP_FORCES = "0:150:10"  # N
+DEFAULT_SWEEP_DURATIONS = "0.05,0.1,0.15,0.2,0.3,0.5,1.0,1.5"  # s
+DEFAULT_SWEEP_TABLE_FORCES = "20,50,80,100,120"  # N
