@@ -19,7 +19,10 @@ and ``mjx-balance table`` write there (the same store: manifest, chunks, resume)
 ``out=None`` they work in a temporary folder that is removed before they return, so nothing
 is kept. They compile the batched closed loop on first use; JAX's persistent compilation cache
 (``mjx_balance.runtime.cache``) keeps the executable for the next process. Messages go to the
-``mjx_balance`` logger (INFO); progress bars are off unless ``progress=True``.
+``mjx_balance`` logger (INFO). Progress bars (stderr, with the time left) are on by default
+where someone watches: ``progress=None`` draws them in a terminal and in a Jupyter notebook,
+not where stderr is redirected (a file, a pipe, pytest) or closed; ``progress=True`` draws them
+wherever stderr is open, ``progress=False`` never (``runs.progress.wanted``).
 
 The command line (``mjx_balance.cli``) is a thin layer over these functions: it resolves its
 options into their arguments, then writes figures and prints.
@@ -40,6 +43,7 @@ from .model.params import Config, ParameterError, config_from_dict, load_config
 from .runs.folders import (Values, batch_function, duration_values, grid_values, run_region,
                            run_table_folder, size_value, check_reference)
 from .runs.grid import check_durations, parse_pairs
+from .runs.progress import wanted
 from .store.provenance import run_context
 from .reference import loop as reference
 from .store.files import TABLE
@@ -90,7 +94,8 @@ def _session(call: str, physics: str = "mjx") -> Iterator[None]:
 
 
 def simulate(forces: Values = None, durations: Values = None, config: ConfigLike = None, *,
-             pairs: Any = None, progress: bool = False) -> "tuple[pd.DataFrame, pd.DataFrame]":
+             pairs: Any = None,
+             progress: bool | None = None) -> "tuple[pd.DataFrame, pd.DataFrame]":
     """Every (force, duration) push through the scalar reference closed loop (MuJoCo C physics,
     the MPC solved by OSQP), one scenario at a time: the cross product of ``forces`` and
     ``durations`` (every force for the first duration, then the next), or the given ``pairs``
@@ -101,7 +106,8 @@ def simulate(forces: Values = None, durations: Values = None, config: ConfigLike
     ``mjx-balance simulate`` writes summary.csv, plus ``hip_share`` and ``strategy``:
     ``measures.strategy``) and the time series of every push (one row per physics step,
     ``reference.TIMESERIES_COLUMNS``, as it writes timeseries.parquet).
-    ``progress``: a progress bar on stderr. Raises ParameterError for a bad value before any
+    ``progress``: a progress bar on stderr (None: where someone watches, a terminal or a
+    notebook; True: always; False: never). Raises ParameterError for a bad value before any
     work."""
     config = as_config(config)
     if pairs is not None:
@@ -118,7 +124,7 @@ def simulate(forces: Values = None, durations: Values = None, config: ConfigLike
     for _, duration in todo:  # every other rule, before any work
         config.replace(scenario={"duration": float(duration)})
     check_reference(config)
-    summary, series = reference.simulate_pairs(config, todo, progress=progress)
+    summary, series = reference.simulate_pairs(config, todo, progress=wanted(progress))
     return with_strategy(summary), series
 
 
@@ -138,7 +144,7 @@ def _folder(out: str | os.PathLike[str] | None, what: str) -> Iterator[Path]:
 
 def sweep(forces: Values, durations: Values, config: ConfigLike = None,
           out: str | os.PathLike[str] | None = None, *, chunk: int | None = None,
-          slots: int | None = None, full_length: bool = False, progress: bool = False,
+          slots: int | None = None, full_length: bool = False, progress: bool | None = None,
           wait: bool = False, cluster: Any = None, physics: str = "auto",
           reference: References = None) -> "pd.DataFrame":
     """The recoverable region: one summary row per (force, duration) cell, force-major (all
@@ -149,7 +155,7 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None,
     figures; None: computed in a temporary folder, nothing kept. ``chunk``: scenarios per chunk
     file (default from the memory budget), ``slots``: scenarios in flight per device,
     ``full_length``: run every scenario that does not fall to t_end, ``progress``: a progress
-    bar on stderr, ``wait``: wait for another run that holds ``out``, ``cluster``: run the
+    bar on stderr (None: in a terminal or a notebook; True: always; False: never), ``wait``: wait for another run that holds ``out``, ``cluster``: run the
     chunks on a Dask cluster (``"local:N"``, a scheduler address or file, or a
     ``distributed.Client``; ``pip install "mjx_balance[cluster]"``, docs/cluster.md),
     ``physics``: "auto", "mjx" or "c" (MuJoCo C physics; docs/engine.md). ``reference``:
@@ -166,7 +172,7 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None,
     refs = read_references(reference)
     with _session("sweep"), _folder(out, "sweep") as folder:
         result = run_region(folder, config, forces, durations, chunk=chunk, slots=slots,
-                            full_length=full_length, progress=progress, wait=wait,
+                            full_length=full_length, progress=wanted(progress), wait=wait,
                             cluster=cluster, physics=physics)
         region = with_strategy(pd.read_parquet(result.region_path))
         card = write_scorecard(folder, refs, figure=False)
@@ -177,7 +183,7 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None,
 
 def table(forces: Values, config: ConfigLike = None,
           out: str | os.PathLike[str] | None = None, *, slots: int | None = None,
-          full_length: bool = False, progress: bool = False,
+          full_length: bool = False, progress: bool | None = None,
           wait: bool = False, cluster: Any = None, physics: str = "auto",
           reference: References = None) -> "pd.DataFrame":
     """The robustness table: for each force, the max acting time (the largest duration, to
@@ -196,7 +202,7 @@ def table(forces: Values, config: ConfigLike = None,
     forces = _with_forces(grid_values(forces, "forces"), refs)
     with _session("table"), _folder(out, "table") as folder:
         run_table_folder(folder, config, forces, slots=slots, full_length=full_length,
-                         progress=progress, wait=wait, cluster=cluster, physics=physics)
+                         progress=wanted(progress), wait=wait, cluster=cluster, physics=physics)
         result = read_table(folder / TABLE)
         card = write_scorecard(folder, refs)
         if card is not None:
@@ -239,7 +245,7 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
             out: str | os.PathLike[str], *, forces: Values = None, durations: Values = None,
             table_forces: Values = None, slots: int | None = None, full_length: bool = False,
             physics: str = "auto", cluster: Any = None,
-            progress: bool = False) -> "pd.DataFrame":
+            progress: bool | None = None) -> "pd.DataFrame":
     """Several configurations on one grid (``mjx-balance compare``): each one's region map and
     table in ``out/<name>/``, then ``out/compare.csv`` (returned: area, mean recovery energy,
     sustained-push limit, max acting times, one row per configuration) and ``out/compare.png``
@@ -255,14 +261,14 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
                            DEFAULT_SWEEP["forces"] if forces is None else forces,
                            DEFAULT_SWEEP["durations"] if durations is None else durations,
                            DEFAULT_SWEEP["table_forces"] if table_forces is None
-                           else table_forces, progress=progress, log=log.info, slots=slots,
+                           else table_forces, progress=wanted(progress), log=log.info, slots=slots,
                            full_length=full_length, physics=physics, cluster=cluster)
 
 
 def basin(out: str | os.PathLike[str], config: ConfigLike = None, *, x_com: Values = None,
           v_com: Values = None, posture: str = "rigid", pushes: Any = None,
           slots: int | None = None, full_length: bool = False,
-          progress: bool = False) -> "pd.DataFrame":
+          progress: bool | None = None) -> "pd.DataFrame":
     """The recovery basin (``mjx-balance basin``): one unpushed scenario per (x_com, v_com)
     cell from the ``posture`` family's initial state, in ``out`` (basin.parquet, basin.png;
     resumable). Returns basin.parquet's rows. ``pushes``: None or (forces, durations) whose
@@ -271,7 +277,7 @@ def basin(out: str | os.PathLike[str], config: ConfigLike = None, *, x_com: Valu
     with _session("basin"):
         return run_basin(out, as_config(config), DEFAULT_X if x_com is None else x_com,
                          DEFAULT_V if v_com is None else v_com, posture, pushes,
-                         progress=progress, say=log.info, slots=size_value(slots, "slots"),
+                         progress=wanted(progress), say=log.info, slots=size_value(slots, "slots"),
                          early_stop=not full_length)
 
 

@@ -147,12 +147,14 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
     if hasattr(run_batch, "prepare"):
         run_batch.prepare(batch or n_f * n_c, log=log)
     widest = int(np.diff(np.concatenate([[0], steps])).max())
-    rounds = math.ceil(math.log(max(2, widest)) / math.log(points_per_round + 1))
     say(f"table: {n_f} forces; coarse scan of {n_c} durations, then "
         + ("bisection" if points_per_round == 1 else f"{points_per_round + 1}-section")
         + f" to {resolution:g} s" + (f" in batches of {batch}" if batch else "")
         + f"; convention {config.controller.convention}")
-    bar = progress_bar(n_f * (n_c + rounds * points_per_round), 0, progress)
+    # a fixed total: the most scenarios the coarse scan and the rounds can take (the bar
+    # counts those run and those a force no longer needs once its bracket has closed)
+    bar = progress_bar(n_f * (n_c + bracket_cost(widest, points_per_round)), 0, progress,
+                       desc="table")
     try:
         brackets, runs = _bracket_rounds(run_batch, forces, steps, n_max, config, batch=batch,
                                          resolution=resolution,
@@ -198,21 +200,44 @@ def _bracket_rounds(run_batch: RunBatch, forces: np.ndarray, steps: np.ndarray, 
                                   np.round(np.tile(steps * resolution, n_f), 12),
                                   config, batch, None, cells)
     runs.append(coarse_frame)
-    bar.update(n_f * n_c)
     brackets = coarse_brackets(coarse_frame, steps, n_max)
+
+    def work_left() -> int:
+        return sum(bracket_cost(int(brackets.hi[i] - brackets.lo[i]), points_per_round)
+                   for i in brackets.active())
+
+    advance(bar, work_left())
     for _round in range(64):
         if not brackets.active().size:
             break
         frame = refine_round(brackets, forces, run_batch, config, batch, resolution,
                              points_per_round, cells)
         runs.append(frame)
-        bar.update(len(frame))
+        advance(bar, work_left())
     else:  # pragma: no cover - the bracket halves every round
         raise RuntimeError("bisection did not converge")
-    if not isinstance(bar, NoBar):
-        bar.total = bar.n  # the round count was an upper estimate
-        bar.refresh()
     return brackets, runs
+
+
+def bracket_cost(width: int, points_per_round: int) -> int:
+    """The most scenarios the k-section of a bracket ``width`` resolution steps wide runs
+    (``points_per_round`` = k points a round; each round leaves a gap of at most
+    ceil(width / (k + 1)))."""
+    n = 0
+    while width > 1:
+        n += min(points_per_round, width - 1)
+        width = -(-width // (points_per_round + 1))
+    return n
+
+
+def advance(bar: Any, left: int) -> None:
+    """Move ``bar`` (its total an upper bound of the scenarios, fixed) to total - ``left``:
+    the scenarios run and those no longer needed; never backwards."""
+    if bar is None or isinstance(bar, NoBar):
+        return
+    target = max(bar.n, bar.total - left)
+    if target > bar.n:
+        bar.update(target - bar.n)
 
 
 @dataclass
@@ -408,8 +433,9 @@ def sustained_push_limit(config: Config, run_batch: RunBatch, *, batch: int | No
     def held(points: np.ndarray) -> tuple[np.ndarray, pd.DataFrame]:
         frame = evaluate_cells(run_batch, np.round(points * resolution, 12),
                                np.full(points.size, t_end), config, batch, None, cells)
-        if bar is not None:
-            bar.update(points.size)
+        if bar is not None:  # never past a fixed total
+            room = getattr(bar, "total", None)
+            bar.update(points.size if room is None else min(points.size, max(0, room - bar.n)))
         return frame["outcome"].isin(HELD).to_numpy(), frame
 
     ok, frame = held(units)
@@ -445,13 +471,15 @@ def _add_sustained_limit(result: TableResult, config: Config, run_batch: RunBatc
     """The sustained-push limit into ``result``'s table (a column) and runs, with a progress
     bar and a line on how it came out."""
     start = time.perf_counter()
-    bar = progress_bar(len(SUSTAINED_COARSE) + 21, 0, progress)  # coarse scan + ~3 rounds
+    units = np.unique(np.round(np.asarray(SUSTAINED_COARSE) / 0.1).astype(np.int64))
+    # a fixed total: the coarse scan and the most its bracket's rounds can take (7 points a
+    # round, as sustained_push_limit's defaults); what was not needed is counted at the end
+    bar = progress_bar(units.size + bracket_cost(int(np.diff(units).max()), 7), 0, progress,
+                       desc="sustained limit")
     try:
         limit, note, held_runs = sustained_push_limit(config, run_batch, batch=batch,
                                                       cells=cells, bar=bar)
-        if not isinstance(bar, NoBar):
-            bar.total = bar.n
-            bar.refresh()
+        advance(bar, 0)
     finally:
         bar.close()
     say(f"table: sustained-push limit {limit:g} N (the largest force held for the whole "

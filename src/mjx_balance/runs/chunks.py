@@ -109,10 +109,23 @@ MAX_PLANNED_HOURS = 24.0  # an estimate (at the slower rate) beyond this needs -
 def _wall_time(seconds: float) -> str:
     """A duration in the unit that reads best (s, min or h)."""
     if seconds < 120:
-        return f"{seconds:.0f} s"
+        return f"{max(1, round(seconds))} s"
     if seconds < 7200:
         return f"{seconds / 60:.0f} min"
     return f"{seconds / 3600:,.1f} h"
+
+
+def wall_span(shortest: float, longest: float) -> str:
+    """An estimated wall time between ``shortest`` and ``longest`` seconds, rounded as it
+    reads: "under 1 s", "about 3 s", "about 2 to 4 min"."""
+    if longest < 1:
+        return "under 1 s"
+    low, high = _wall_time(shortest), _wall_time(longest)
+    if low == high:
+        return f"about {low}"
+    if low.split()[-1] == high.split()[-1]:  # one unit: "about 2 to 4 min"
+        return f"about {low.rsplit(' ', 1)[0]} to {high}"
+    return f"about {low} to {high}"
 
 
 def planned_work(n_scenarios: int, t_end: float, chunk_size: int, what: str = "cells") -> str:
@@ -121,9 +134,10 @@ def planned_work(n_scenarios: int, t_end: float, chunk_size: int, what: str = "c
     longest, shortest = (simulated / rate for rate in SIMULATED_SECONDS_PER_SECOND)
     disk = 2 * n_scenarios * CHUNK_BYTES_PER_SCENARIO  # chunks + the merged table
     low, high = SIMULATED_SECONDS_PER_SECOND
-    return (f"planned work: {n_scenarios:,} {what} in {math.ceil(n_scenarios / chunk_size):,} "
-            f"chunks of {chunk_size}, {simulated:,.0f} s of scenario windows, about "
-            f"{_wall_time(shortest)} to {_wall_time(longest)} at {low:g}-{high:g} window-s/s "
+    chunks = math.ceil(n_scenarios / chunk_size)
+    return (f"planned work: {n_scenarios:,} {what} in {chunks:,} "
+            f"chunk{'' if chunks == 1 else 's'} of {chunk_size}, {simulated:,.0f} s of scenario windows, "
+            f"{wall_span(shortest, longest)} at {low:g}-{high:g} window-s/s "
             f"(2-core CPU, BENCHMARKS.md; compile not included), about {disk / 1e6:.3g} MB on disk")
 
 

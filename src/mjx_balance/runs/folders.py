@@ -203,7 +203,7 @@ def batch_function(config: Config, *, slots: int | None = None, full_length: boo
 
 def run_region(out: str | os.PathLike[str], config: Config, forces: Values, durations: Values,
                *, run_batch: Any = None, chunk: int | None = None, slots: int | None = None,
-               full_length: bool = False, progress: bool = False,
+               full_length: bool = False, progress: bool | None = None,
                wait: bool = False, cluster: Any = None, physics: str = "auto") -> "SweepResult":
     """The region sweep into the folder ``out`` (resumable; ``sweep.run_sweep``) under its lock
     (``wait``: wait for another run that holds it). ``run_batch``: a batch function (default:
@@ -226,7 +226,7 @@ def run_region(out: str | os.PathLike[str], config: Config, forces: Values, dura
 
 def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values, *,
                      run_batch: Any = None, batch: int | None = None, slots: int | None = None,
-                     full_length: bool = False, progress: bool = False,
+                     full_length: bool = False, progress: bool | None = None,
                      wait: bool = False, cluster: Any = None,
                      physics: str = "auto") -> "TableResult | None":
     """The max-acting-time table into the folder ``out`` (``sweep.run_table``: resumable, the

@@ -1,4 +1,5 @@
-"""The progress bar of long sweeps (tqdm on stderr), or a silent stand-in."""
+"""The progress bar of long sweeps (tqdm on stderr), or a silent stand-in, and when to draw
+one (:func:`wanted`)."""
 
 from __future__ import annotations
 
@@ -44,10 +45,30 @@ def usable(stream) -> bool:
     return stream is not None and not getattr(stream, "closed", False)
 
 
-def progress_bar(total: int, done: int, enabled: bool):
-    if not enabled or not usable(sys.stderr):
+def in_notebook() -> bool:
+    """Whether this process is a Jupyter kernel (IPython with a kernel; nothing imported)."""
+    ipython = sys.modules.get("IPython")
+    shell = getattr(ipython, "get_ipython", lambda: None)() if ipython is not None else None
+    return shell is not None and hasattr(shell, "kernel")
+
+
+def wanted(progress: bool | None) -> bool:
+    """Whether to draw progress bars. ``None`` (the Python API's default): where someone
+    watches, a terminal on stderr or a Jupyter notebook (its stderr is no terminal; tqdm.auto
+    draws a widget there), not where stderr is redirected (a file, a pipe, pytest's capture,
+    a CI log) or closed. ``True``: wherever stderr is open. ``False``: never."""
+    if progress is not None:
+        return bool(progress) and usable(sys.stderr)
+    return usable(sys.stderr) and (SafeStream(sys.stderr).isatty() or in_notebook())
+
+
+def progress_bar(total: int, done: int, enabled: bool | None, desc: str = "scenarios"):
+    """A bar of ``total`` scenarios (fixed: it never changes while the bar runs; tqdm shows
+    the rate and the time left), ``done`` of them already, or a silent stand-in; ``enabled``
+    as :func:`wanted` reads it."""
+    if not wanted(enabled):
         return NoBar()
     from tqdm.auto import tqdm
 
-    return tqdm(total=total, initial=done, unit="scen", desc="scenarios", dynamic_ncols=True,
+    return tqdm(total=total, initial=done, unit="scen", desc=desc, dynamic_ncols=True,
                 smoothing=0.1, file=SafeStream(sys.stderr))
