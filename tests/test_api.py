@@ -73,7 +73,7 @@ def test_simulate_returns_the_frames_the_cli_writes(tmp_path):
     assert series["scenario"].nunique() == 2 and series["time"].max() == pytest.approx(0.3)
 
     out = tmp_path / "cli"
-    assert main(["-q", "simulate", "--force", "0,30", "--duration", "0.1", "--set",
+    assert main(["-q", "simulate", "--forces", "0,30", "--durations", "0.1", "--set",
                  "scenario.t_end=0.3", "--out", str(out)]) == 0
     pd.testing.assert_frame_equal(series, pd.read_parquet(out / "timeseries.parquet"))
     # summary.csv: the numbers as written (CSV reads an empty string back as a missing value)

@@ -15,7 +15,7 @@ from mjx_balance import cli
 
 # Each command with the least it needs; OUT is replaced by the --out path of the test.
 COMMANDS = {
-    "simulate": ["simulate", "--force", "10", "--out", "OUT"],
+    "simulate": ["simulate", "--forces", "10", "--out", "OUT"],
     "sweep": ["sweep", "--forces", "0", "--durations", "0.1", "--out", "OUT"],
     "table": ["table", "--forces", "10", "--out", "OUT"],
     "animate": ["animate", "--force", "10", "--out", "OUT.gif"],
@@ -173,15 +173,15 @@ BAD_VALUES = [
     ("sweep", ["--reference", "no_such.csv"], ["--reference", "not found"]),
     ("table", ["--sweep", "no_such.toml"], ["--sweep", "not found"]),
     ("report", ["--sweeps", "no_such_folder"], ["--sweeps", "not a folder"]),
-    ("simulate", ["--force", "abc"], ["--force", "not a number"]),
+    ("simulate", ["--forces", "abc"], ["--forces", "not a number"]),
     ("simulate", ["--pairs", "20"], ["--pairs", "FORCE:DURATION"]),
     ("simulate", ["--pairs", "20:abc"], ["--pairs", "not a number"]),
-    ("simulate", ["--pairs", "20:0.1", "--force", "20"], ["--pairs", "leave out --force"]),
+    ("simulate", ["--pairs", "20:0.1", "--forces", "20"], ["--pairs", "leave out --forces"]),
     ("simulate", ["--pairs", "20:0.1005"], ["--pairs", "not a whole number of physics steps"]),
     ("table", ["--reference", "no_such.csv"], ["--reference", "not found"]),
     ("report", ["--reference", "no_such.csv"], ["--reference", "not found"]),
-    ("simulate", ["--duration", "0.1005"], ["--duration", "not a whole number of physics steps"]),
-    ("simulate", ["--force", "0:10:0"], ["--force", "step must be > 0"]),
+    ("simulate", ["--durations", "0.1005"], ["--durations", "not a whole number of physics steps"]),
+    ("simulate", ["--forces", "0:10:0"], ["--forces", "step must be > 0"]),
     ("animate", ["--duration", "0.1005"], ["--duration", "not a whole number of physics steps"]),
 ]
 
@@ -213,7 +213,7 @@ def test_animate_out_must_be_a_gif_file(tmp_path, capsys, where, words):
 @pytest.mark.parametrize("argv,words", [
     (["sweep", "--forces", "0", "--durations", "0.1", "--chunk", "-3"], ["--chunk"]),
     (["animate", "--force", "10", "--fps", "nan"], ["--fps", "finite"]),
-    (["simulate", "--force", "10", "--config", "CONFIG"], ["controller.input1_bounds"]),
+    (["simulate", "--forces", "10", "--config", "CONFIG"], ["controller.input1_bounds"]),
 ])
 def test_the_process_exits_2_without_a_traceback(tmp_path, argv, words):
     """The installed entry point, in its own process: exit status 2, one error line."""

@@ -189,7 +189,7 @@ def test_provenance_without_git(monkeypatch):
 
 def test_simulate_folder_has_a_manifest_and_can_be_run_again(tmp_path, monkeypatch):
     out = tmp_path / "sim"
-    argv = ["-q", "simulate", "--force", "10", "--duration", "0.1", "--set",
+    argv = ["-q", "simulate", "--forces", "10", "--durations", "0.1", "--set",
             "scenario.t_end=0.1", "--out", str(out)]
     assert main(argv) == 0
     manifest = json.loads((out / "manifest.json").read_text())

@@ -32,7 +32,7 @@ EXPECTED_ROWS = [(0.0, 0.1, "recovered"), (30.0, 0.1, "recovered"), (0.0, 0.2, "
 
 def test_simulate_writes_every_file(tmp_path, short_config, capsys):
     out = tmp_path / "run"
-    code = cli.main(["simulate", "--force", "0,30", "--duration", "0.1,0.2", "--convention",
+    code = cli.main(["simulate", "--forces", "0,30", "--durations", "0.1,0.2", "--convention",
                      "joint", "--config", str(short_config), "--out", str(out)])
     assert code == 0
     summary = pd.read_csv(out / "summary.csv")
@@ -72,15 +72,15 @@ def test_simulate_writes_every_file(tmp_path, short_config, capsys):
 
 
 @pytest.mark.parametrize("option,value,message", [
-    ("--force", "10,abc", "not a number"),
-    ("--force", "nan", "finite"),
-    ("--force", "", "at least one"),
-    ("--duration", "-0.1", ">= 0"),
-    ("--duration", "inf", "finite"),
-    ("--duration", "0.6", "t_end"),  # longer than the configured 0.5-s scenario
+    ("--forces", "10,abc", "not a number"),
+    ("--forces", "nan", "finite"),
+    ("--forces", "", "at least one"),
+    ("--durations", "-0.1", ">= 0"),
+    ("--durations", "inf", "finite"),
+    ("--durations", "0.6", "t_end"),  # longer than the configured 0.5-s scenario
 ])
 def test_simulate_rejects_bad_values(tmp_path, short_config, capsys, option, value, message):
-    args = ["simulate", "--force", "10", "--duration", "0.1", "--config", str(short_config),
+    args = ["simulate", "--forces", "10", "--durations", "0.1", "--config", str(short_config),
             "--out", str(tmp_path / "bad")]
     args[args.index(option) + 1] = value
     assert cli.main(args) == 2
@@ -102,7 +102,7 @@ def test_full_window_reaches_the_figures(tmp_path, short_config, monkeypatch):
     monkeypatch.setattr("mjx_balance.figures.timeseries.timeseries_figures",
                         lambda series, out, **kw: seen.append(kw) or [])
     for flag in ([], ["--full-window"]):
-        code = cli.main(["simulate", "--force", "30", "--duration", "0.1", "--config",
+        code = cli.main(["simulate", "--forces", "30", "--durations", "0.1", "--config",
                          str(short_config), "--out", str(tmp_path / f"run{len(flag)}"), *flag])
         assert code == 0
     assert [kw["full_window"] for kw in seen] == [False, True]

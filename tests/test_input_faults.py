@@ -41,9 +41,9 @@ class Called(Exception):
     """Raised by a stand-in simulation: the command got as far as simulating."""
 
 
-def whole_steps_message(duration: float) -> str:
+def whole_steps_message(duration: float, name: str = "--duration") -> str:
     with pytest.raises(ParameterError) as exc:
-        check_whole_steps([duration], PHYSICS_DT, "--duration")
+        check_whole_steps([duration], PHYSICS_DT, name)
     return str(exc.value)
 
 
@@ -75,13 +75,16 @@ def test_durations_off_the_physics_steps_are_refused(tmp_path, capsys, monkeypat
     monkeypatch.setattr("mjx_balance.reference.loop.simulate_many", refuse)
     monkeypatch.setattr("mjx_balance.reference.loop.simulate_scenario", refuse)
     out = tmp_path / ("push.gif" if name == "animate" else "out")
-    code, err = run([name, "--force", "10", "--duration", "0.1005", "--out", str(out)], capsys)
-    assert_refused(code, err, whole_steps_message(0.1005))
+    # simulate takes lists (--forces, --durations), animate one push (--force, --duration)
+    force, duration = ("--force", "--duration") if name == "animate" else ("--forces",
+                                                                           "--durations")
+    code, err = run([name, force, "10", duration, "0.1005", "--out", str(out)], capsys)
+    assert_refused(code, err, whole_steps_message(0.1005, duration))
     assert list(tmp_path.iterdir()) == []
 
     # Float error is not an offence: the value is snapped to its whole steps.
     with pytest.raises(Called):
-        cli.main([name, "--force", "10", "--duration", "0.10000000001", "--out", str(out)])
+        cli.main([name, force, "10", duration, "0.10000000001", "--out", str(out)])
 
 
 def test_simulate_reads_forces_and_durations_as_sweep_does(tmp_path, capsys, monkeypatch):
@@ -92,17 +95,17 @@ def test_simulate_reads_forces_and_durations_as_sweep_does(tmp_path, capsys, mon
         raise Called
     monkeypatch.setattr("mjx_balance.reference.loop.simulate_many", record)
     with pytest.raises(Called):
-        cli.main(["simulate", "--force", "0:40:20", "--duration", "0.05:0.1:0.05",
+        cli.main(["simulate", "--forces", "0:40:20", "--durations", "0.05:0.1:0.05",
                   "--out", str(tmp_path / "out")])
     assert asked == {"forces": [0.0, 20.0, 40.0], "durations": [0.05, 0.1]}
     with pytest.raises(Called):
-        cli.main(["simulate", "--force=-20,10", "--duration", "0,0.1",
+        cli.main(["simulate", "--forces=-20,10", "--durations", "0,0.1",
                   "--out", str(tmp_path / "out")])
     assert asked == {"forces": [-20.0, 10.0], "durations": [0.0, 0.1]}
-    for bad, words in [("0:1:0", ["--duration", "step must be > 0"]),
-                       ("0.1,0.1", ["--duration", "more than once"]),
-                       ("0:0.101:0.0505", ["--duration", "not a whole number of physics steps"])]:
-        code, err = run(["simulate", "--duration", bad, "--out", str(tmp_path / "bad")], capsys)
+    for bad, words in [("0:1:0", ["--durations", "step must be > 0"]),
+                       ("0.1,0.1", ["--durations", "more than once"]),
+                       ("0:0.101:0.0505", ["--durations", "not a whole number of physics steps"])]:
+        code, err = run(["simulate", "--durations", bad, "--out", str(tmp_path / "bad")], capsys)
         assert_refused(code, err, *words)
         assert not (tmp_path / "bad").exists()
 
@@ -125,7 +128,7 @@ def test_simulate_refuses_a_sweep_folder(tmp_path, capsys, monkeypatch, holds):
         else:
             (out / name).write_text("the sweep's own\n")
     before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
-    code, err = run(["simulate", "--force", "10", "--out", str(out)], capsys)
+    code, err = run(["simulate", "--forces", "10", "--out", str(out)], capsys)
     assert_refused(code, err, str(out), "sweep")
     assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
     assert sorted(p.name for p in out.iterdir()) == sorted(n.rstrip("/") for n in holds)
@@ -144,7 +147,7 @@ def test_outputs_are_whole_or_old_after_a_failed_write(tmp_path, capsys, monkeyp
 
     # simulate: a first run, then reruns in which one kind of write fails half-way.
     out = tmp_path / "sim"
-    argv = ["simulate", "--force", "10", "--duration", "0.1", "--config",
+    argv = ["simulate", "--forces", "10", "--durations", "0.1", "--config",
             str(short_config(tmp_path)), "--out", str(out)]
     assert cli.main(argv) == 0
     before = {p.name: p.read_bytes() for p in out.iterdir()}

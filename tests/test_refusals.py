@@ -51,7 +51,7 @@ def test_the_command_refuses_before_writing(tmp_path, capsys, setting, message, 
 @pytest.mark.parametrize("setting, message", [BAD[4], BAD[6], BAD[7]])
 def test_simulate_refuses_before_writing(tmp_path, capsys, setting, message):
     out = tmp_path / "out"
-    assert main(["-q", "simulate", "--force", "20", "--duration", "0.1", "--set", setting,
+    assert main(["-q", "simulate", "--forces", "20", "--durations", "0.1", "--set", setting,
                  "--out", str(out)]) == 2
     assert message.split(":")[0] in capsys.readouterr().err
     assert not out.exists()
@@ -139,7 +139,7 @@ def test_an_absurd_push_gives_its_outcome_row_and_figures(tmp_path, capsys):
     """Issue 26.7: 1e12 N diverges at the first step; the run still writes its summary row and
     figures that say there is nothing to draw, instead of a traceback."""
     out = tmp_path / "out"
-    assert main(["-q", "simulate", "--force", "1e12", "--duration", "0.1", "--set",
+    assert main(["-q", "simulate", "--forces", "1e12", "--durations", "0.1", "--set",
                  "scenario.t_end=0.2", "--out", str(out)]) == 0
     summary = pd.read_csv(out / "summary.csv")
     assert list(summary["outcome"]) == ["diverged"]

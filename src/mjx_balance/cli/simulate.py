@@ -28,9 +28,9 @@ def add_parser(sub) -> None:
     """The ``simulate`` sub-command (``sub.add_parser`` of ``main.build_parser``)."""
     p = sub.add_parser("simulate", help="scalar reference closed loop (MuJoCo C + OSQP) for a few pushes")
     p.add_argument("--forces", default=None,
-                   help=f"forces [N], a comma list or start:stop:step (default {DEFAULT_FORCES})")
+                   help=f"forces [N], a comma list or start:stop:step (default: {DEFAULT_FORCES})")
     p.add_argument("--durations", default=None,
-                   help=f"push durations [s], a comma list or start:stop:step (default "
+                   help=f"push durations [s], a comma list or start:stop:step (default: "
                         f"{DEFAULT_DURATIONS}); every force with every duration")
     # the singular names, kept for a release (a notice on stderr)
     p.add_argument("--force", dest="forces", action=renamed_option("--forces"),
