@@ -90,10 +90,11 @@ def test_durations_off_the_physics_steps_are_refused(tmp_path, capsys, monkeypat
 def test_simulate_reads_forces_and_durations_as_sweep_does(tmp_path, capsys, monkeypatch):
     asked = {}
 
-    def record(config, forces, durations, **_options):
-        asked.update(forces=list(forces), durations=list(durations))
+    def record(config, pairs, **_options):  # the cross product, every force per duration
+        asked.update(forces=list(dict.fromkeys(f for f, _ in pairs)),
+                     durations=list(dict.fromkeys(d for _, d in pairs)))
         raise Called
-    monkeypatch.setattr("mjx_balance.reference.loop.simulate_many", record)
+    monkeypatch.setattr("mjx_balance.reference.loop.simulate_pairs", record)
     with pytest.raises(Called):
         cli.main(["simulate", "--forces", "0:40:20", "--durations", "0.05:0.1:0.05",
                   "--out", str(tmp_path / "out")])
