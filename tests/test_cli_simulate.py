@@ -14,7 +14,7 @@ from mjx_balance.reference.loop import TIMESERIES_COLUMNS
 from margins import within
 
 FIGURES = ["ankle_angle", "hip_angle", "phase_ankle", "phase_hip", "cop", "com", "ankle_torque",
-           "hip_torque", "states", "inputs", "energy"]
+           "hip_torque", "states", "inputs", "energy", "balance"]
 
 
 @pytest.fixture

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from mjx_balance.control.certificate import PITCH_PER_COP
-from mjx_balance.measures import metrics
+from mjx_balance.measures import metrics, outcomes
 from mjx_balance.reference import loop as reference
 from mjx_balance.model.mjcf import build_model, indices
 from mjx_balance.model.params import Config, ParameterError
@@ -88,6 +88,16 @@ def test_sensors_and_warm_start_reproduce_mj_step():
                                            atol=1e-9)
                 within(rows[0, j, cpath.COM], metrics.whole_body_com(data, ix.foot_body),
                        atol=1e-9, why="the same float64 kinematics of states equal to ~1e-9")
+                within(rows[0, j, cpath.VCOM], metrics.com_velocity(model, data, ix.foot_body),
+                       atol=1e-8, msg=(k, j),
+                       why="the same float64 CoM velocity (subtree momentum vs CoM Jacobian "
+                           "x qvel) of states equal to ~1e-9, rates through the contact "
+                           "solve's tolerance (1e-8)")
+                heel, toe = outcomes.support_edges(np, metrics.cell_x(data, ix.cell_geoms))
+                within(rows[0, j, [cpath.HEEL, cpath.TOE]], [heel, toe], atol=1e-9,
+                       why="the same float64 kinematics of states equal to ~1e-9")
+            within(rows[0, j, cpath.QVEL], data.qvel, atol=1e-8, msg=(k, j),
+                   why="the same physics; rates through the contact solve's tolerance (1e-8)")
             assert rows[0, j, cpath.OK] == 1
         np.testing.assert_allclose(last_q[0], data.qpos, atol=1e-9)
         warm = c.next_warm(state, states)
@@ -154,6 +164,32 @@ def test_c_path_matches_the_reference(c_runner, c_frame):
                    atol=tol["com"] * excursion["com"] + margins.kinematics_rounding(CONFIG),
                    msg=(key, force), why=why + ", of the CoM's largest excursion, plus float32 "
                                              "kinematics (margins.kinematics_rounding)")
+        # CoM velocity and margin of stability (docs/model.md): points of the same trajectory,
+        # so their error is the loop's relative rounding of their largest excursion from rest
+        # (the margin's rest value is the cells' half span, foot_length / 2); the C path's
+        # float32 rows and the last sample's float32 kinematics and Jacobian add at most
+        # 18 eps_float32 (2e-6) relative and margins.kinematics_rounding per position (CoM,
+        # toe edge), far below tol["com"] (>= admm_rounding 1.9e-3 x gain)
+        vel = max(abs(ref["com_vel_min"]), abs(ref["com_vel_max"]))
+        for key in ("com_vel_min", "com_vel_max"):
+            within(mine[key], ref[key], atol=tol["com"] * vel + 1e-9, msg=(key, force),
+                   why=why + ", of the CoM velocity's largest excursion")
+        dip = abs(CONFIG.body.foot_length / 2 - ref["mos_min"])
+        within(mine.mos_min, ref["mos_min"],
+               atol=tol["com"] * dip + 2 * margins.kinematics_rounding(CONFIG) + 1e-9,
+               msg=("mos_min", force),
+               why=why + ", of the margin's dip from rest, plus float32 kinematics of the "
+                         "CoM and the toe edge (margins.kinematics_rounding)")
+        if dip > 1e-3:  # a margin that dips (not F = 0, where its minimum is rest's jitter)
+            within(mine.mos_min_time, ref["mos_min_time"], atol=0.01, msg=force,
+                   why="the first sample at the minimum: an error d <= 1e-5 m in the margin "
+                       "(above) moves it by d / slope where the margin still falls at the "
+                       "fall sample or t_end (slope >= 1.2e-3 m/s on these pushes: <= 8 ms), "
+                       "by sqrt(2 d / |MoS''|) at a turning point (51 m/s^2 after 20 N: 0.6 ms)")
+        print(f"{force:6.1f} N {duration} s: mos_min {mine.mos_min:.6f} vs {ref['mos_min']:.6f}"
+              f" at {mine.mos_min_time:.3f} vs {ref['mos_min_time']:.3f} s; com_vel "
+              f"[{mine.com_vel_min:.5f}, {mine.com_vel_max:.5f}] vs "
+              f"[{ref['com_vel_min']:.5f}, {ref['com_vel_max']:.5f}]")
         # the foot is not in the linear model: while it rests on its sole its pitch follows the
         # CoP (certificate.py: |pitch| <= PITCH_PER_COP |CoP - rest| + PITCH_FLOOR), and so does
         # its error; when it tips at a fall it moves with the body, whose error is relative

@@ -111,7 +111,8 @@ def test_early_stopping_changes_no_decided_column(runs):
 def test_uncertified_scenarios_are_bit_identical_to_full_length(runs):
     """Falls and scenarios run to t_end go through the same steps in both modes."""
     plain = ~runs["early_certified"]
-    for column in (*EXACT, *INTEGRALS, "admm_iterations", "cop_min", "com_min"):
+    for column in (*EXACT, *INTEGRALS, "admm_iterations", "cop_min", "com_min", "com_vel_min",
+                   "com_vel_max", "mos_min", "mos_min_time"):
         assert np.array_equal(runs["early"][column][plain], runs["full"][column][plain],
                               equal_nan=True), column
 

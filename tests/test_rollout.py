@@ -264,6 +264,15 @@ def test_summary_matches_reference_for_recovered_runs(closed_loop):
         for name, floor in floors.items():
             within(summary[name][b], ref[name], rtol=0.05, atol=floor, msg=(forces[b], name),
                    why="ADMM (eps 1e-4 scaled) vs OSQP (1e-8) and float32 contacts (comment)")
+        # CoM velocity and the margin of stability's dip below its rest value (the cells' half
+        # span): the same rule, on the velocity and on the dip (docs/model.md)
+        rest = CONFIG.body.foot_length / 2
+        within(summary["com_vel_max"][b], ref["com_vel_max"], rtol=0.05, atol=1e-4,
+               msg=(forces[b], "com_vel_max"),
+               why="ADMM (eps 1e-4 scaled) vs OSQP (1e-8) and float32 contacts (comment)")
+        within(rest - summary["mos_min"][b], rest - ref["mos_min"], rtol=0.05, atol=1e-4,
+               msg=(forces[b], "mos_min"),
+               why="ADMM (eps 1e-4 scaled) vs OSQP (1e-8) and float32 contacts (comment)")
         assert summary["nonconverged_solves"][b] == ref["nonconverged_solves"] == 0
         within(summary["settle_time"][b], ref["settle_time"], atol=0.1, msg=forces[b],
                why="the settle band is crossed at a shallow slope: 0.1 s")

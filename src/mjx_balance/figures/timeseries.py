@@ -57,6 +57,10 @@ QUANTITIES: dict[str, Quantity] = {
                           r"$\dot q_h$ [rad/s]"),
     "cop": Quantity("Centre of pressure (load cells)", "time", "time [s]", "cop", "CoP x [m]"),
     "com": Quantity("Centre of mass (whole body)", "time", "time [s]", "com", "CoM x [m]"),
+    "com_vel": Quantity("CoM velocity (whole body)", "time", "time [s]", "com_vel",
+                        r"$\dot x_{CoM}$ [m/s]"),
+    "mos": Quantity("Margin of stability, push direction (< 0: XcoM beyond the foot)", "time",
+                    "time [s]", "mos", r"MoS [m]"),
     "ankle_torque": Quantity("Ankle motor torque", "time", "time [s]", "tau_ankle",
                              r"$\tau_{ankle}$ [N m]"),
     "hip_torque": Quantity("Hip motor torque", "time", "time [s]", "tau_hip",
@@ -83,7 +87,9 @@ QUANTITIES: dict[str, Quantity] = {
 SINGLE = ["ankle_angle", "hip_angle", "phase_ankle", "phase_hip", "cop", "com", "ankle_torque",
           "hip_torque"]
 PAIRS = {"states": ("x1", "x2"), "inputs": ("u1", "u2"),
-         "energy": ("energy_ankle", "energy_hip", "energy_total")}
+         "energy": ("energy_ankle", "energy_hip", "energy_total"),
+         # CoM velocity and margin of stability (Hof et al. 2005; docs/model.md)
+         "balance": ("com_vel", "mos")}
 CONVENTION_NAMES = {  # what x1, x2, u1, u2 are
     "paper": {"x1": "q1 (lower-body tilt)", "x2": "q2 (upper-body tilt)",
               "u1": "τ1 (generalised)", "u2": "τ2 (generalised)",
@@ -439,6 +445,8 @@ def timeseries_figures(df: pd.DataFrame, out_dir: str | Path, *, config: Config 
         _save(fig, path, dpi=120)
         paths.append(path)
     for stem, quantities in PAIRS.items():
+        if not set(quantities) <= set(df.columns):  # a series written before these columns
+            continue
         rows = energy_rows(df) if stem == "energy" else [quantities]
         width = max(len(r) for r in rows)
         fig, axes = plt.subplots(len(rows), width, figsize=(6.5 * width, 4.6 * len(rows)),
@@ -448,7 +456,9 @@ def timeseries_figures(df: pd.DataFrame, out_dir: str | Path, *, config: Config 
                 timeseries_figure(df, quantity, ax=ax, legend=i == 0 and r == len(rows) - 1,
                                   **options)
         fig.suptitle({"states": "MPC states", "inputs": "MPC inputs",
-                      "energy": energy_title(rows)}[stem]
+                      "energy": energy_title(rows),
+                      "balance": "CoM velocity and margin of stability (XcoM, Hof et al. 2005)"
+                      }[stem]
                      + f";  {_subtitle(df, config)}", fontsize=9)
         path = out_dir / f"{stem}.png"
         _save(fig, path, dpi=120)

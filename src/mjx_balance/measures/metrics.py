@@ -54,6 +54,31 @@ def whole_body_com(data: mujoco.MjData, foot_body: int) -> float:
     return float(data.subtree_com[foot_body, 0])
 
 
+def com_velocity(model: mujoco.MjModel, data: mujoco.MjData, foot_body: int) -> float:
+    """Horizontal velocity of the whole-body CoM (the foot's subtree): the subtree's CoM
+    Jacobian at the positions in ``data`` (``mj_jacSubtreeCom``, needs ``mj_comPos``) times
+    qvel."""
+    jacp = np.zeros((3, model.nv))
+    mujoco.mj_jacSubtreeCom(model, data, jacp, foot_body)
+    return float(jacp[0] @ data.qvel)
+
+
+def cell_x(data: mujoco.MjData, cell_geoms: tuple[int, ...]) -> np.ndarray:
+    """World x of each load-cell sphere's centre [4] (over a flat floor, its contact point's)."""
+    return np.array(data.geom_xpos[list(cell_geoms), 0])
+
+
+def pendulum_frequency(model: mujoco.MjModel, foot_body: int, ankle_dof: int) -> float:
+    """omega0 = sqrt(g / l) of the extrapolated CoM: l the whole-body CoM's height above the
+    ankle axis at upright rest (qpos = 0), g the model's gravity."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    ankle = int(model.dof_jntid[ankle_dof])
+    length = float(data.subtree_com[foot_body, 2] - data.xanchor[ankle, 2])
+    return math.sqrt(abs(float(model.opt.gravity[2])) / length)
+
+
 def cell_heights(model: mujoco.MjModel, data: mujoco.MjData,
                  cell_geoms: tuple[int, ...]) -> np.ndarray:
     """Lowest point (centre z - radius) of each load-cell sphere [4]."""
@@ -111,6 +136,21 @@ def _finite_min_max(values: np.ndarray) -> tuple[float, float]:
     if not values.size:
         return math.nan, math.nan
     return float(values.min()), float(values.max())
+
+
+def _balance_columns(time: np.ndarray, com_vel: np.ndarray | None, mos: np.ndarray | None,
+                     end: int) -> dict[str, Any]:
+    """CoM velocity extremes and the smallest margin of stability (the push direction's,
+    docs/model.md) with its time, over the first ``end`` samples; NaN without the series."""
+    nan = np.full(time.shape[0], math.nan)
+    vel = np.asarray(nan if com_vel is None else com_vel, float)[:end]
+    margin = np.asarray(nan if mos is None else mos, float)[:end]
+    vel_min, vel_max = _finite_min_max(vel)
+    finite = np.isfinite(margin)
+    at = int(np.argmin(np.where(finite, margin, np.inf))) if finite.any() else -1
+    return {"com_vel_min": vel_min, "com_vel_max": vel_max,
+            "mos_min": float(margin[at]) if at >= 0 else math.nan,
+            "mos_min_time": float(time[at]) if at >= 0 else math.nan}
 
 
 def _first_fall(time: np.ndarray, q: np.ndarray, x: np.ndarray, foot_pitch: np.ndarray,
@@ -193,8 +233,9 @@ def summarize(*, force: float, duration: float, convention: str,
               foot_pitch: np.ndarray, cell_low_z: np.ndarray, cop: np.ndarray, com: np.ndarray,
               tau: np.ndarray, u: np.ndarray, q0: np.ndarray, x0: np.ndarray,
               u_control: np.ndarray, converged: np.ndarray, residual: np.ndarray,
-              completed: bool, diverged: bool = False,
-              infeasible: np.ndarray | None = None) -> dict[str, Any]:
+              completed: bool, diverged: bool = False, infeasible: np.ndarray | None = None,
+              com_vel: np.ndarray | None = None, mos: np.ndarray | None = None
+              ) -> dict[str, Any]:
     """The per-scenario summary row (keys = SUMMARY_COLUMNS) from the sample series.
 
     Sample series (one entry per physics step, time = (i+1) dt): time [n]; q, dq [n, 2] joint
@@ -203,7 +244,8 @@ def summarize(*, force: float, duration: float, convention: str,
     convention's input held during step i. q0 [2], x0 [4]: the state at t = 0.
     Control series (one entry per control instant k, t_k = k control_dt): u_control [K, 2] the
     clipped input; converged [K] bool; residual [K] primal residual; infeasible [K] bool, the
-    period's QP found infeasible (None: never).
+    period's QP found infeasible (None: never). com_vel, mos [n] (optional): the CoM's
+    velocity and the margin of stability in the push's direction (NaN columns without them).
     completed: the series reach t_end (False when the caller stopped early at a fall or a
     non-finite value). Series may run past a fall; they are cut at the first fall sample.
     """
@@ -259,4 +301,5 @@ def summarize(*, force: float, duration: float, convention: str,
         "max_bound_violation": float(excess.max()) if excess.size else 0.0,
         "fall_cause": outcomes.FALL_CAUSES[cause],
         "first_infeasible_time": first_infeasible,
+        **_balance_columns(time, com_vel, mos, end),
     }

@@ -61,6 +61,7 @@ SUMMARY_COLUMNS = [
     "study_energy_u1", "study_energy_u2", "study_energy_total",
     "nonconverged_solves", "max_residual", "max_bound_violation",
     "fall_cause", "first_infeasible_time",
+    "com_vel_min", "com_vel_max", "mos_min", "mos_min_time",
 ]
 
 
@@ -132,6 +133,22 @@ def fall_cause(xp: Any, foot_pitch: Any, cell_low_z: Any, excess: Any, q_ankle: 
     for c, rule in reversed(list(enumerate(rules, start=1))):
         code = xp.where(rule, c, code)
     return code
+
+
+def stability_margins(xp: Any, com: Any, com_vel: Any, heel: Any, toe: Any,
+                      omega0: Any) -> tuple[Any, Any, Any]:
+    """The extrapolated centre of mass and the margins of stability (Hof et al. 2005, J Biomech
+    38:1-8; docs/model.md): XcoM = com + com_vel / omega0, the toe margin toe - XcoM and the
+    heel margin XcoM - heel (both positive while XcoM lies over the foot). com, com_vel, heel,
+    toe: [...] (heel, toe: the back and front load cells' x) -> (xcom, mos_toe, mos_heel)."""
+    xcom = com + com_vel / omega0
+    return xcom, toe - xcom, xcom - heel
+
+
+def support_edges(xp: Any, cell_x: Any) -> tuple[Any, Any]:
+    """The base of support's edges (heel, toe): the smallest x of the back (heel) load-cell
+    centres and the largest x of the front (toe) ones. cell_x: [..., 4] -> ([...], [...])."""
+    return xp.min(cell_x[..., HEEL_CELLS], axis=-1), xp.max(cell_x[..., TOE_CELLS], axis=-1)
 
 
 def in_settle_band(xp: Any, q: Any, dq: Any, limits: Limits) -> Any:

@@ -47,6 +47,7 @@ TIMESERIES_COLUMNS = [
     "foot_x", "foot_z", "foot_pitch", "u1", "u2", "tau_ankle", "tau_hip", "cop", "com",
     "energy_ankle", "energy_hip", "energy_total",
     "study_energy_u1", "study_energy_u2", "study_energy_total",
+    "com_vel", "xcom", "mos",
 ]
 
 
@@ -119,8 +120,9 @@ def _initial_data(model: mujoco.MjModel, ix: Any, initial: Any) -> mujoco.MjData
 class _Series:
     """The series of one run, filled as it goes. Samples (index i: after physics step i, time
     (i+1) dt): time [n], q, dq [n, 2], x [n, 4], foot [n, 3] (x, z, pitch), cell_low [n, 4],
-    cop, com [n], tau, u [n, 2]. Control periods (index k): u_control [K, 2], converged,
-    infeasible [K] bool, residual [K]. The joint history for a delayed measurement:
+    cop, com, com_vel [n], cell_x [n, 4], tau, u [n, 2]. Control periods (index k):
+    u_control [K, 2], converged, infeasible [K] bool, residual [K]. The joint history for a
+    delayed measurement:
     history_q, history_dq [n + 1, 2], entry j the state at t = j dt. q0 [2], x0 [4]: the
     state at t = 0 (joint state q0, dq0 [2])."""
 
@@ -134,6 +136,8 @@ class _Series:
         self.cell_low = np.zeros((n_steps, 4))
         self.cop = np.zeros(n_steps)
         self.com = np.zeros(n_steps)
+        self.com_vel = np.zeros(n_steps)
+        self.cell_x = np.zeros((n_steps, 4))
         self.tau = np.zeros((n_steps, 2))
         self.u = np.zeros((n_steps, 2))
         self.u_control = np.zeros((n_control, 2))
@@ -186,8 +190,9 @@ class _Controller:
             self.applied = np.concatenate([u[None], self.applied[:-1]])
         # a QP the solver did not solve: is it infeasible (an exact LP test, run only here,
         # unless the exact penalty's solve ran it already)?
-        if mpc.hard_infeasible is not None:
-            infeasible = mpc.hard_infeasible
+        hard = getattr(mpc, "hard_infeasible", None)  # a controller without the LP test: None
+        if hard is not None:
+            infeasible = hard
         else:
             infeasible = (not ok and np.isfinite(x_meas).all()
                           and not mpc.qp.feasible(x_meas, offset))
@@ -209,6 +214,8 @@ def _record(model: mujoco.MjModel, data: mujoco.MjData, ix: Any, lm: Any, series
     series.cell_low[i] = metrics.cell_heights(model, data, ix.cell_geoms)
     series.cop[i] = metrics.load_cell_cop(model, data, ix.cell_geoms)[0]
     series.com[i] = metrics.whole_body_com(data, ix.foot_body)
+    series.com_vel[i] = metrics.com_velocity(model, data, ix.foot_body)
+    series.cell_x[i] = metrics.cell_x(data, ix.cell_geoms)
     series.tau[i], series.u[i] = torques, u
 
 
@@ -293,13 +300,14 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
         n_push=math.ceil(duration / sc.physics_dt - 1e-9), sc=sc, limits=limits)
 
     sl = slice(0, n)
+    xcom, mos = margin_series(model, ix, force, s.com[sl], s.com_vel[sl], s.cell_x[sl])
     summary = metrics.summarize(
         force=force, duration=duration, convention=ctrl.convention, scenario=sc, controller=ctrl,
         time=s.time[sl], q=s.q[sl], dq=s.dq[sl], x=s.x[sl], foot_pitch=s.foot[sl, 2],
         cell_low_z=s.cell_low[sl], cop=s.cop[sl], com=s.com[sl], tau=s.tau[sl], u=s.u[sl],
         q0=s.q0, x0=s.x0, u_control=s.u_control[:k_done], converged=s.converged[:k_done],
         residual=s.residual[:k_done], completed=(n == n_steps), diverged=diverged,
-        infeasible=s.infeasible[:k_done],
+        infeasible=s.infeasible[:k_done], com_vel=s.com_vel[sl], mos=mos,
     )
     if not record:
         return summary, None
@@ -307,7 +315,18 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
     frame = timeseries_frame(scenario_id, force, duration, ctrl.convention, q0=s.q0, x0=s.x0,
                              time=s.time[sl], q=s.q[sl], dq=s.dq[sl], x=s.x[sl], foot=s.foot[sl],
                              u=s.u[sl], tau=s.tau[sl], cop=s.cop[sl], com=s.com[sl])
+    frame["com_vel"], frame["xcom"], frame["mos"] = s.com_vel[sl], xcom, mos
     return summary, frame
+
+
+def margin_series(model: mujoco.MjModel, ix: Any, force: float, com: np.ndarray,
+                  com_vel: np.ndarray, cell_x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(XcoM [n], margin of stability [n]) of a run's samples (docs/model.md): the toe margin
+    for a push with force >= 0, the heel margin for a backward one."""
+    omega0 = metrics.pendulum_frequency(model, ix.foot_body, ix.ankle_dof)
+    heel, toe = outcomes.support_edges(np, cell_x)
+    xcom, mos_toe, mos_heel = outcomes.stability_margins(np, com, com_vel, heel, toe, omega0)
+    return xcom, (mos_toe if force >= 0 else mos_heel)
 
 
 def timeseries_frame(scenario_id: int, force: float, duration: float, convention: str, *,

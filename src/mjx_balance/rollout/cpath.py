@@ -55,12 +55,14 @@ import numpy as np
 from mujoco import rollout as mj_rollout
 
 from ..control import certificate as cert_mod
+from ..measures import outcomes
 from ..model.mjcf import indices
 from ..model.params import Config
 from .engine import (Engine, Queue, Slots, broadcast, certify, checker, empty_finished, harvest,
                      refill, vacate)
 from ..runtime.compiled import MATMUL_PRECISION, get_or_compile
-from .kernel import Carry, Sample, control, initial_carry, remember, sample_update, select, state
+from .kernel import (Carry, Sample, com_velocity, control, initial_carry, pendulum_frequency,
+                     remember, sample_update, select, state)
 from .physics import Sensors, cell_heights, mj_model, mjx, whole_body_com
 
 PATHS = ("auto", "mjx", "c")
@@ -72,9 +74,13 @@ TIME0 = 1.0
 _CONTROL_SPEC = int(mujoco.mjtState.mjSTATE_CTRL) | int(mujoco.mjtState.mjSTATE_XFRC_APPLIED)
 _FULL = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 
-# Columns of a decoded sample row (float64 on the host, the runner's dtype in the call)
+# Columns of a decoded sample row (float64 on the host, the runner's dtype in the call): then
+# the CoM velocity, the base of support's heel and toe x, and all rates (NV: the free foot's x,
+# z, pitch, the ankle and the hip; the call reads the last sample's to compute its CoM velocity)
 Q, DQ, PITCH, CELLS, COP, COM, OK = slice(0, 2), slice(2, 4), 4, slice(5, 9), 9, 10, 11
-ROW = 12
+VCOM, HEEL, TOE, NV = 12, 13, 14, 5
+QVEL = slice(15, 15 + NV)
+ROW = 15 + NV
 
 
 # What ``auto`` picks on a CPU, from ``mjx-balance bench`` on this project's 2-core machine
@@ -124,6 +130,7 @@ def sensor_xml(model: mujoco.MjModel) -> str:
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
         lines.append(f'    <framepos objtype="geom" objname="{name}"/>\n')
     lines.append('    <subtreecom body="foot"/>\n')
+    lines.append('    <subtreelinvel body="foot"/>\n')
     return "".join(lines)
 
 
@@ -168,6 +175,9 @@ class CPhysics:
         self.contact = np.array([adr[c] for c in range(n)])  # found, force (3), pos (3)
         self.framepos = np.array([adr[n + c] for c in range(n)])
         self.subtreecom = int(adr[2 * n])
+        self.subtreelinvel = int(adr[2 * n + 1])
+        if m.nv != NV:
+            raise ValueError(f"the C path's sample rows hold {NV} rates, the model has {m.nv}")
         self.radius = np.asarray(m.geom_size[list(ix.cell_geoms), 0])
         d = mujoco.MjData(m)
         mujoco.mj_forward(m, d)
@@ -224,6 +234,10 @@ class CPhysics:
         z = sens[:, 1:, self.framepos + 2]
         rows[:, :-1, CELLS] = z - self.radius
         rows[:, :-1, COM] = sens[:, 1:, self.subtreecom]
+        rows[:, :-1, VCOM] = sens[:, 1:, self.subtreelinvel]
+        rows[:, :-1, HEEL], rows[:, :-1, TOE] = outcomes.support_edges(
+            np, sens[:, 1:, self.framepos])
+        rows[..., QVEL] = qvel
         expected = TIME0 + (np.arange(S) + 1) * self.dt
         rows[..., OK] = np.abs(states[..., 0] - expected) < 0.5 * self.dt
         return rows, qpos[:, -1]
@@ -249,13 +263,20 @@ def fold_period(ar, sn: Sensors, st, carry: Carry, rows: jax.Array, last_qpos: j
     rows = rows.astype(dtype)
     rows = rows.at[S - 1, CELLS].set(cell_heights(ar.mx, d, sn))
     rows = rows.at[S - 1, COM].set(whole_body_com(ar.mx, d, sn))
+    rows = rows.at[S - 1, VCOM].set(com_velocity(ar.mx, d, sn, rows[S - 1, QVEL]))
+    heel, toe = outcomes.support_edges(jnp, d.geom_xpos[sn.cells, 0])
+    rows = rows.at[S - 1, HEEL].set(heel).at[S - 1, TOE].set(toe)
+    omega0 = pendulum_frequency(ar, sn).astype(dtype)
 
     def one(carry: Carry, inputs):
         j, r = inputs
         q, dq = r[Q], r[DQ]
+        _, mos_toe, mos_heel = outcomes.stability_margins(jnp, r[COM], r[VCOM], r[HEEL],
+                                                          r[TOE], omega0)
         s = Sample(q=q, dq=dq, x=state(ar, q, dq), pitch=r[PITCH], cell_low=r[CELLS],
                    cop=r[COP], com=r[COM],
-                   magnitude=jnp.where(r[OK] > 0, jnp.zeros((), dtype), jnp.inf))
+                   magnitude=jnp.where(r[OK] > 0, jnp.zeros((), dtype), jnp.inf),
+                   qvel=r[QVEL], com_vel=r[VCOM], mos_toe=mos_toe, mos_heel=mos_heel)
         acc = sample_update(carry.acc, s, k * S + j, torques, u, carry.q_prev, carry.x_prev,
                             st.limits)
         return carry._replace(acc=acc, q_prev=s.q, x_prev=s.x,

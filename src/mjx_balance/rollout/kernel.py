@@ -35,6 +35,8 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import mujoco
+import numpy as np
 
 from ..control import admm as admm_mod
 from ..model import linear as linear_mod
@@ -79,6 +81,12 @@ class Accumulators(NamedTuple):
     admm_iterations: jax.Array  # int32, total over counted periods
     fall_cause: jax.Array  # int32 code into outcomes.FALL_CAUSES (0: none yet)
     first_infeasible: jax.Array  # int32, first counted period reported infeasible (-1: none)
+    com_vel_min: jax.Array
+    com_vel_max: jax.Array
+    mos_toe_min: jax.Array  # smallest toe margin of stability (outcomes.stability_margins)
+    mos_toe_step: jax.Array  # int32, the step of it (-1: none)
+    mos_heel_min: jax.Array  # smallest heel margin
+    mos_heel_step: jax.Array  # int32
 
     @staticmethod
     def initial(dtype) -> "Accumulators":
@@ -99,6 +107,8 @@ class Accumulators(NamedTuple):
             control_periods=i0, saturated_ankle=i0, saturated_hip=i0,
             nonconverged_solves=i0, max_residual=f(-inf), admm_iterations=i0,
             fall_cause=i0 + outcomes.NO_CAUSE, first_infeasible=i0 - 1,
+            com_vel_min=f(inf), com_vel_max=f(-inf), mos_toe_min=f(inf), mos_toe_step=i0 - 1,
+            mos_heel_min=f(inf), mos_heel_step=i0 - 1,
         )
 
 
@@ -141,6 +151,11 @@ class Sample(NamedTuple):
     cop: jax.Array  # load-cell CoP x (NaN when unloaded)
     com: jax.Array  # whole-body CoM x
     magnitude: jax.Array  # largest |value| of qpos, qvel, qacc and ctrl (NaN if any is NaN)
+    # (defaults: a sample built without them has NaN CoM velocity and margins)
+    qvel: Any = None  # [nv] all rates (for the CoM velocity)
+    com_vel: Any = math.nan  # whole-body CoM x velocity
+    mos_toe: Any = math.nan  # margins of stability (outcomes.stability_margins)
+    mos_heel: Any = math.nan
 
 
 # MuJoCo's bound on qpos, qvel, qacc and ctrl (mjMAXVAL): beyond it, or NaN, the C library
@@ -195,12 +210,69 @@ def measure_step(ar: Arrays, sn: Sensors, d: mjx.Data) -> Sample:
     nan = jnp.full((), jnp.nan, d.qpos.dtype)
     return Sample(q=q, dq=dq, x=state(ar, q, dq), pitch=d.qpos[sn.foot_pitch],
                   cell_low=jnp.full((sn.cells.shape[0],), nan), cop=cop, com=nan,
-                  magnitude=jnp.max(jnp.abs(jnp.concatenate([d.qpos, d.qvel, d.qacc, d.ctrl]))))
+                  magnitude=jnp.max(jnp.abs(jnp.concatenate([d.qpos, d.qvel, d.qacc, d.ctrl]))),
+                  qvel=d.qvel, com_vel=nan, mos_toe=nan, mos_heel=nan)
 
 
 def with_positions(s: Sample, ar: Arrays, sn: Sensors, d: mjx.Data) -> Sample:
-    """``s`` with the load-cell heights and the CoM of the body and geom positions in ``d``."""
-    return s._replace(cell_low=cell_heights(ar.mx, d, sn), com=whole_body_com(ar.mx, d, sn))
+    """``s`` with the load-cell heights, the CoM, its velocity (from ``s.qvel``) and the
+    margins of stability of the body and geom positions in ``d``."""
+    com = whole_body_com(ar.mx, d, sn)
+    com_vel = com_velocity(ar.mx, d, sn, s.qvel)
+    _, mos_toe, mos_heel = margins(ar, sn, com, com_vel, d.geom_xpos[sn.cells, 0])
+    return s._replace(cell_low=cell_heights(ar.mx, d, sn), com=com, com_vel=com_vel,
+                      mos_toe=mos_toe, mos_heel=mos_heel)
+
+
+def com_velocity(mx: mjx.Model, d: mjx.Data, sn: Sensors, qvel: jax.Array) -> jax.Array:
+    """Horizontal velocity of the whole-body CoM (the foot's subtree): sum over its bodies of
+    m_b J_b qvel / M, J_b the Jacobian of the body's CoM (xipos) from the joint axes and
+    anchors of the positions in ``d`` (``mjx.kinematics``), as ``mj_jacSubtreeCom`` times
+    qvel in the reference. Slide and hinge joints only."""
+    bodies = np.asarray(sn.subtree)
+    mass = mx.body_mass[bodies]
+    total = jnp.zeros((), qvel.dtype)
+    for j in range(int(mx.njnt)):
+        moved = np.array([_moves(mx, int(mx.jnt_bodyid[j]), int(b)) for b in bodies])
+        if not moved.any():
+            continue
+        dof, kind = int(mx.jnt_dofadr[j]), int(mx.jnt_type[j])
+        weight = mass[moved]
+        if kind == int(mujoco.mjtJoint.mjJNT_SLIDE):
+            velocity = d.xaxis[j] * weight.sum()
+        elif kind == int(mujoco.mjtJoint.mjJNT_HINGE):
+            lever = (weight[:, None] * (d.xipos[bodies[moved]] - d.xanchor[j])).sum(axis=0)
+            velocity = jnp.cross(d.xaxis[j], lever)
+        else:
+            raise ValueError("the CoM velocity supports slide and hinge joints only")
+        total = total + velocity[0] * qvel[dof]
+    return (total / mass.sum()).astype(qvel.dtype)
+
+
+def _moves(mx: mjx.Model, joint_body: int, body: int) -> bool:
+    """Whether a joint of ``joint_body`` moves ``body`` (it is that body or a descendant)."""
+    while body != joint_body and body > 0:
+        body = int(mx.body_parentid[body])
+    return body == joint_body
+
+
+def pendulum_frequency(ar: Arrays, sn: Sensors) -> jax.Array:
+    """omega0 = sqrt(g / l), l the whole-body CoM's height above the ankle axis at upright
+    rest (``ar.d0``), as ``metrics.pendulum_frequency``."""
+    mass = ar.mx.body_mass[sn.subtree]
+    com_z = (mass * ar.d0.xipos[sn.subtree, 2]).sum() / mass.sum()
+    ankle = int(ar.mx.dof_jntid[int(sn.joints_v[0])])
+    return jnp.sqrt(jnp.abs(ar.mx.opt.gravity[2]) / (com_z - ar.d0.xanchor[ankle, 2]))
+
+
+def margins(ar: Arrays, sn: Sensors, com: jax.Array, com_vel: jax.Array,
+            cell_x: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """(XcoM, toe margin, heel margin) of a sample from its CoM, CoM velocity and the load-cell
+    centres' x [4] (outcomes.support_edges, outcomes.stability_margins)."""
+    heel, toe = outcomes.support_edges(jnp, cell_x)
+    dtype = com.dtype
+    return tuple(v.astype(dtype) for v in outcomes.stability_margins(
+        jnp, com, com_vel, heel, toe, pendulum_frequency(ar, sn).astype(dtype)))
 
 
 def remember(history: jax.Array, s: Sample) -> jax.Array:
@@ -261,6 +333,12 @@ def sample_update(acc: Accumulators, s: Sample, i: jax.Array, torques: jax.Array
         work_u2=upd(acc.work_u2, acc.work_u2 + power_u[1]),
         max_bound_violation=upd(acc.max_bound_violation,
                                 jnp.maximum(acc.max_bound_violation, excess)),
+        com_vel_min=upd(acc.com_vel_min, jnp.minimum(acc.com_vel_min, s.com_vel)),
+        com_vel_max=upd(acc.com_vel_max, jnp.maximum(acc.com_vel_max, s.com_vel)),
+        mos_toe_min=upd(acc.mos_toe_min, jnp.minimum(acc.mos_toe_min, s.mos_toe)),
+        mos_toe_step=jnp.where(ok & (s.mos_toe < acc.mos_toe_min), i, acc.mos_toe_step),
+        mos_heel_min=upd(acc.mos_heel_min, jnp.minimum(acc.mos_heel_min, s.mos_heel)),
+        mos_heel_step=jnp.where(ok & (s.mos_heel < acc.mos_heel_min), i, acc.mos_heel_step),
     )
 
 

@@ -274,7 +274,7 @@ class BatchRunner:
         ``self.last_trajectories`` (arrays [B, n_steps, ...], plus time [n_steps])."""
         forces, durations = self._inputs(forces, durations)
         acc, series = self.run_raw(forces, durations, inits)
-        summary = {"force": forces, "duration": durations, **summarize(acc, self.config)}
+        summary = {"force": forces, "duration": durations, **summarize(acc, self.config, forces)}
         if series is not None:
             sc = self.config.scenario
             n_steps = sc.n_control * sc.substeps
@@ -292,7 +292,7 @@ class BatchRunner:
         for index, raw in self.engine.stream(forces, steps, inits):
             acc = Accumulators(*(raw[name] for name in Accumulators._fields))
             yield index, {"force": forces[index], "duration": durations[index],
-                          **summarize(acc, self.config), "periods": raw["periods"],
+                          **summarize(acc, self.config, forces[index]), "periods": raw["periods"],
                           "certified": raw["certified"]}
 
     def run_frame(self, forces, durations, inits=None) -> pd.DataFrame:
@@ -302,8 +302,9 @@ class BatchRunner:
         return summary_frame(summary, self.config.controller.convention, extra=False)
 
 
-def summarize(acc: Accumulators, config: Config) -> dict[str, np.ndarray]:
-    """Summary columns from the final accumulators [B] (host side, float64)."""
+def summarize(acc: Accumulators, config: Config, force=None) -> dict[str, np.ndarray]:
+    """Summary columns from the final accumulators [B] (host side, float64); ``force`` [B]
+    picks each margin of stability's edge (None: forward pushes)."""
     sc = config.scenario
     dt = sc.physics_dt
 
@@ -355,4 +356,22 @@ def summarize(acc: Accumulators, config: Config) -> dict[str, np.ndarray]:
         "first_infeasible_time": np.where(acc.first_infeasible >= 0,
                                           f64(acc.first_infeasible) * sc.control_dt, np.nan),
         "admm_iterations": np.asarray(acc.admm_iterations, np.int64),
+        **balance_columns(acc, dt, force),
     }
+
+
+def balance_columns(acc: Accumulators, dt: float, force=None) -> dict[str, np.ndarray]:
+    """The CoM velocity extremes and the smallest margin of stability in each push's direction
+    (the toe margin for force >= 0, the heel margin for a backward push; None: forward) with
+    the time of its sample (docs/model.md)."""
+    def finite_or_nan(v):
+        v = np.asarray(v, np.float64)
+        return np.where(np.isfinite(v), v, np.nan)
+
+    forward = np.ones(np.shape(acc.mos_toe_min), bool) if force is None else (
+        np.asarray(force, np.float64) >= 0)
+    step = np.where(forward, acc.mos_toe_step, acc.mos_heel_step)
+    return {"com_vel_min": finite_or_nan(acc.com_vel_min),
+            "com_vel_max": finite_or_nan(acc.com_vel_max),
+            "mos_min": finite_or_nan(np.where(forward, acc.mos_toe_min, acc.mos_heel_min)),
+            "mos_min_time": np.where(step >= 0, (np.asarray(step, np.float64) + 1) * dt, np.nan)}
