@@ -106,6 +106,36 @@ def test_early_stopping_changes_no_decided_column(runs):
         print(f"{column}: largest difference {diff:.3g} m")
         within(early[column], full[column], atol=EXTREME_ATOL[column[:3]], msg=column,
                why="the settle band's reach through the CoP/CoM map (margins.band_excursion)")
+    # CoM velocity and margin of stability (docs/model.md): in the band the CoM moves at most
+    # at (ankle lever + hip lever) x settle_rate_tol, the levers the CoM's velocity per unit
+    # joint rate at rest; the XcoM reaches the CoM's band plus that velocity / omega0
+    vel_band, omega0 = _band_velocity(Config())
+    for column, atol in (("com_vel_min", vel_band), ("com_vel_max", vel_band),
+                         ("mos_min", EXTREME_ATOL["com"] + vel_band / omega0)):
+        diff = np.nanmax(np.abs(early[column] - full[column]))
+        print(f"{column}: largest difference {diff:.3g}")
+        within(early[column], full[column], atol=atol, msg=column,
+               why="the settle band's reach in CoM velocity and XcoM (comment)")
+
+
+def _band_velocity(config) -> tuple[float, float]:
+    """(largest |CoM velocity| (m/s) with the joint rates in the settle band at upright rest,
+    omega0 of the margin of stability)."""
+    import mujoco
+    from mjx_balance.measures import metrics
+    from mjx_balance.model.mjcf import build_model, indices
+
+    model = build_model(config.body, config.scenario.physics_dt)
+    ix = indices(model)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    levers = []
+    for dof in (ix.ankle_dof, ix.hip_dof):
+        data.qvel[:] = 0.0
+        data.qvel[dof] = 1.0
+        levers.append(abs(metrics.com_velocity(model, data, ix.foot_body)))
+    return (sum(levers) * config.scenario.settle_rate_tol,
+            metrics.pendulum_frequency(model, ix.foot_body, ix.ankle_dof))
 
 
 def test_uncertified_scenarios_are_bit_identical_to_full_length(runs):
