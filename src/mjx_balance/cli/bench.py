@@ -1,5 +1,5 @@
-"""``mjx-balance bench`` and ``mjx-balance bench solver``: run the benchmarks of
-``mjx_balance.bench`` step by step and print their figures as they come."""
+"""``mjx-balance bench`` and its sub-commands ``solver``, ``physics`` and ``engine``: run the
+benchmarks of ``mjx_balance.bench`` step by step and print their figures as they come."""
 
 from __future__ import annotations
 
@@ -16,9 +16,19 @@ from typing import Any
 
 from ..model.params import Config, save_config
 from .common import load_run_config
-from .options import (EPILOG, renamed_option, HelpFormatter, batch_sizes, common_options, conventions_parent,
-                      engine_options, nonnegative_int, positive_float, positive_int,
-                      positive_int_list)
+from .options import (
+    EPILOG,
+    HelpFormatter,
+    batch_sizes,
+    common_options,
+    conventions_parent,
+    engine_options,
+    nonnegative_int,
+    positive_float,
+    positive_int,
+    positive_int_list,
+    renamed_option,
+)
 
 # One compile of the benchmark's engine in a fresh process, with the persistent compilation
 # cache in the folder given by MJX_BALANCE_CACHE_DIR: seconds, and JAX's compile events.
@@ -40,14 +50,14 @@ print(json.dumps({"compile_s": built["compile_s"], **counter.as_dict()}))
 
 
 def add_parser(sub: Any) -> None:
-    """``bench`` and its sub-commands ``bench solver`` and ``bench physics`` (``sub.add_parser``
-    of ``main.build_parser``)."""
+    """``bench`` and its sub-commands ``bench solver``, ``bench physics`` and ``bench engine``
+    (``sub.add_parser`` of ``main.build_parser``)."""
     p = sub.add_parser("bench", help="pipeline benchmark: batched MJX + ADMM vs the scalar reference "
                                      "vs CasADi/IPOPT, scenarios per second (or: bench solver)")
     _pipeline_arguments(p)
     common_options(p, out_required=False)
     p.set_defaults(target="mjx_balance.cli.bench:pipeline_command")
-    bench = p.add_subparsers(dest="bench", required=False, metavar="{solver,physics}")
+    bench = p.add_subparsers(dest="bench", required=False, metavar="{solver,physics,engine}")
     conventions = conventions_parent()
     p = bench.add_parser("solver", help="batched ADMM vs OSQP vs CasADi/IPOPT, solves per second",
                          description="batched ADMM vs OSQP vs CasADi/IPOPT, solves per second",
@@ -72,6 +82,49 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--json", action="store_true", help="print a final JSON line with the figures")
     common_options(p, out_required=False)
     p.set_defaults(target="mjx_balance.cli.bench:physics_command")
+    _engine_parser(bench, conventions)
+
+
+def _engine_parser(bench: Any, conventions: argparse.ArgumentParser) -> None:
+    """``bench engine``: the engine's time per control period, split, on each physics path."""
+    p = bench.add_parser("engine", help="the engine's time per control period split into "
+                                        "physics, QP build, ADMM, certificate, refill, "
+                                        "transfers and Python, on each physics path",
+                         description="the continuous-batching engine as sweep runs it, its "
+                                     "time per control period split into its parts on each "
+                                     "physics path (bench/engine.py explains each figure); "
+                                     "about 2 minutes on 2 cores with a warm compilation "
+                                     "cache, longer the first time (it compiles each stage)",
+                         formatter_class=HelpFormatter, epilog=EPILOG, parents=[conventions])
+    p.add_argument("--forces", default="0:155:5",
+                   help="push forces [N], as sweep --forces (default: 32 forces)")
+    p.add_argument("--durations", default="0.05,0.1,0.15,0.2,0.3,0.5,1.0,1.5",
+                   help="push durations [s], as sweep --durations (default: the default "
+                        "sweep's)")
+    p.add_argument("--physics", default="mjx,c",
+                   type=_physics_paths, help="comma-separated physics paths (mjx, c)")
+    p.add_argument("--slots", type=positive_int, default=None,
+                   help="slots per device (default: the engine's, as sweep)")
+    p.add_argument("--t-end", type=positive_float, default=None,
+                   help="scenario length [s] (default: the configuration's, 12)")
+    p.add_argument("--runs", type=positive_int, default=2,
+                   help="timed runs of every cell (the figures in run are their mean)")
+    p.add_argument("--repeats", type=positive_int, default=3,
+                   help="timed calls of each stage over each block's replayed periods "
+                        "(median)")
+    p.add_argument("--sampled", type=positive_int, default=10,
+                   help="of every 100 control periods (every block), how many are replayed "
+                        "stage by stage (the stage times are scaled up to all)")
+    p.add_argument("--json", action="store_true", help="print a final JSON line with the figures")
+    common_options(p, out_required=False)
+    p.set_defaults(target="mjx_balance.cli.bench:engine_command")
+
+
+def _physics_paths(text: str) -> tuple[str, ...]:
+    paths = tuple(dict.fromkeys(t.strip() for t in text.split(",") if t.strip()))
+    if not paths or any(t not in ("mjx", "c") for t in paths):
+        raise argparse.ArgumentTypeError(f"expected a comma list of mjx and c, got {text!r}")
+    return paths
 
 
 def _pipeline_arguments(p: argparse.ArgumentParser) -> None:
@@ -501,3 +554,96 @@ def physics_command(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(figures))
     return 0
+
+
+def engine_command(args: argparse.Namespace) -> int:
+    """``mjx-balance bench engine``: the engine's time per control period, split, per path."""
+    from ..bench import engine  # lazy: JAX: imported when this command runs
+    from ..runtime import cache  # lazy: as above
+
+    cache.enable()  # as sweep: the engine (and here its stages) from the persistent cache
+    config = load_run_config(args)
+    if args.t_end:
+        config = config.replace(scenario={"t_end": args.t_end,
+                                          "duration": min(config.scenario.duration, args.t_end)})
+    load = os.getloadavg()
+    print(f"engine split: forces {args.forces} N x durations {args.durations} s, "
+          f"{config.scenario.t_end:g} s windows, early stop; {os.cpu_count()} CPUs, load "
+          f"average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} at start", flush=True)
+    figures = engine.measure(config, forces=args.forces, durations=args.durations,
+                             paths=args.physics, slots=args.slots, runs=args.runs,
+                             repeats=args.repeats, sampled=args.sampled,
+                             log=lambda text: print(text, flush=True))
+    for path, fig in figures["paths"].items():
+        print()
+        for line in engine_table(fig):
+            print(line)
+    end = figures["load_average_end"]
+    print(f"\nload average {end[0]:.2f} {end[1]:.2f} {end[2]:.2f} at the end")
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "bench_engine.json").write_text(json.dumps(figures, indent=1))
+        print(f"figures written to {out / 'bench_engine.json'}")
+    if args.json:
+        print(json.dumps(figures))
+    return 0
+
+
+def _agreement(replay: dict, path: str) -> str:
+    """The replay's bit-for-bit check, in words."""
+    if replay["identical"] is None:
+        return " (no whole block replayed: the replay's bits are not checked)"
+    what = "blocks' end states" if path == "mjx" else "calls' outputs"
+    if replay["identical"]:
+        return f"; replay = engine bit for bit ({replay['checked']} {what}): yes"
+    return (f"; replay = engine bit for bit ({replay['checked']} {what}): NO, "
+            f"{replay['differ']} of {replay['values']} values differ, largest relative "
+            f"difference {replay['max_rel_diff']:.1e}")
+
+
+_HOW = {"isolated": "isolated", "in run": "in run", "remainder": "REMAINDER",
+        "measured": "measured"}
+
+
+def engine_table(fig: dict) -> list[str]:
+    """One path's split as table lines: each part, how it was measured, its seconds over the
+    run, per control period, per slot and period, and its share of the end-to-end time."""
+    name = _PATH_NAMES.get(fig["physics"], fig["physics"])
+    it = fig["admm_iterations"]
+    lines = [
+        f"{name}: {fig['scenarios']} scenarios in {fig['seconds']:.2f} s ({fig['scen_per_s']:.1f}"
+        f" scen/s; mean of runs {', '.join(f'{s:.2f}' for s in fig['runs'])} s); "
+        f"{fig['slots']} slots x {fig['devices']} device(s) = {fig['lanes']} slots, "
+        f"{fig['periods']} control periods in {fig['calls']} calls (block {fig['block']}), "
+        f"slots busy {100 * fig['occupancy']:.1f} % of slot-periods, {fig['certified']} "
+        f"certified; compile {fig['compile_s']:.1f} s",
+        f"ADMM iterations per period: {it['per_busy_slot']:.1f} per busy slot, "
+        f"{it['per_block']:.1f} per device and period (its slowest slot: "
+        f"{it['block_over_slot']:.2f}x); at the cap of {it['cap']}: "
+        f"{100 * it['busy_slots_at_cap']:.1f} % of busy slots' solves, "
+        f"{100 * it['blocks_at_cap']:.1f} % of devices' periods",
+        f"a compiled call that does nothing: {1e3 * fig['call']['seconds']:.2f} ms "
+        f"({fig['call']['arrays_in']} arrays in, {fig['call']['arrays_out']} out); replayed "
+        f"{fig['replay']['sampled_periods']} periods stage by stage ({fig['repeats']} calls "
+        f"each, median)" + _agreement(fig["replay"], fig["physics"]),
+        f"{'part':48s} {'how':>9s} {'s':>8s} {'ms/period':>10s} {'us/slot-period':>14s} "
+        f"{'share':>6s}"]
+
+    def row(r: dict, indent: str = "") -> str:
+        return (f"{indent + r['label']:48.48s} {_HOW.get(r['how'], r['how']):>9s} "
+                f"{r['seconds']:8.3f} {r['ms_per_period']:10.3f} "
+                f"{r['us_per_slot_period']:14.2f} {100 * r['share']:5.1f}%")
+
+    lines += [row(r) for r in fig["parts"].values()]
+    rem = fig["remainder"]
+    lines.append(row(rem))
+    lines.append(f"  (of it: inside the compiled calls {rem['device_s']:.3f} s = the calls' time "
+                 f"in run minus the isolated parts; on the host {rem['host_s']:.3f} s)")
+    lines.append(row(fig["total"]))
+    lines.append("not in the sum:")
+    lines += [row(r, "  ") for r in fig["info"].values()]
+    if fig.get("below_resolution"):
+        lines.append(f"counted as 0 (below the no-op's correction): "
+                     f"{', '.join(fig['below_resolution'])}")
+    return lines
