@@ -27,7 +27,7 @@ from .runtime.xla import deterministic_flags
 deterministic_flags()
 
 from .runtime.version import __version__  # noqa: E402 - after the flags
-from .model.params import Config, ParameterError, load_config  # noqa: E402
+from .model.params import Config, ParameterError, Subject, load_config  # noqa: E402
 
 # The public functions, imported on first use (JAX, MuJoCo and pandas with them). Figures and
 # saved reports, for notebooks: each figure function draws on the matplotlib Axes it is given
@@ -43,8 +43,8 @@ _LAZY = {
     "study_reading": "studies.catalog:reading",
 }
 
-__all__ = ["Config", "ParameterError", "__version__", "basin", "compare", "conventions_figure",
-           "energy_map", "load_config", "load_report", "region_map", "region_numbers",
+__all__ = ["Config", "ParameterError", "Subject", "__version__", "basin", "compare",
+           "conventions_figure", "energy_map", "load_config", "load_report", "region_map", "region_numbers",
            "scorecard", "simulate", "strategy_map", "study", "study_reading", "sweep", "table",
            "table_figure",
            "timeseries_figure", "weight_figure"]

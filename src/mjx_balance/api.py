@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterator, Union
 
 from .measures.strategy import with_strategy
-from .model.params import Config, ParameterError, config_from_dict, load_config
+from .model.params import Config, ParameterError, Subject, config_from_dict, load_config
 from .runs.folders import (Values, batch_function, duration_values, grid_values, run_region,
                            run_table_folder, size_value, check_reference)
 from .runs.grid import check_durations, parse_pairs
@@ -63,22 +63,25 @@ __all__ = ["Config", "ParameterError", "basin", "batch_function", "compare", "lo
 
 log = logging.getLogger("mjx_balance")
 
-ConfigLike = Union[Config, str, "os.PathLike[str]", Mapping[str, Any], None]
+ConfigLike = Union[Config, Subject, str, "os.PathLike[str]", Mapping[str, Any], None]
 References = Union[str, "os.PathLike[str]", Sequence[Union[str, "os.PathLike[str]"]], None]
 
 
 def as_config(config: ConfigLike = None) -> Config:
-    """A :class:`Config` from a Config, a TOML file's path, a dict of tables or None."""
+    """A :class:`Config` from a Config, a :class:`Subject` (its ``config()``), a TOML file's
+    path, a dict of tables or None."""
     if config is None:
         return Config()
     if isinstance(config, Config):
         return config
+    if isinstance(config, Subject):  # that person's body on the defaults
+        return config.config()
     if isinstance(config, (str, os.PathLike)):
         return load_config(config)
     if isinstance(config, Mapping):
         return config_from_dict(dict(config))
-    raise ParameterError(f"config must be a Config, a TOML file's path, a dict or None; got "
-                         f"{type(config).__name__}")
+    raise ParameterError(f"config must be a Config, a Subject, a TOML file's path, a dict or "
+                         f"None; got {type(config).__name__}")
 
 
 @contextmanager

@@ -20,18 +20,20 @@ WRITE_FAILED = 1  # exit code of a run whose writing failed (2: bad arguments, b
 
 
 def base_config(args: argparse.Namespace, overrides: bool = True) -> Config:
-    """The --config file's configuration (or the defaults) with the --set overrides on top
-    (--convention not applied). ``overrides=False``: without them (the base of a --sweep file,
-    which the overrides go on top of: a value may only be valid with the file's others)."""
+    """The --config file's configuration (or the defaults) with --subject in place of its
+    [subject] and the --set overrides on top (--convention not applied). ``overrides=False``:
+    without them (the base of a --sweep file, which the overrides go on top of: a value may
+    only be valid with the file's others)."""
     return run_config(getattr(args, "config", None), None,
-                      getattr(args, "set", None) if overrides else None)
+                      getattr(args, "set", None) if overrides else None,
+                      getattr(args, "subject", None))
 
 
 def load_run_config(args: argparse.Namespace) -> Config:
-    """The run's configuration: --config file (or defaults), --set overrides, then --convention
-    on top."""
+    """The run's configuration: --config file (or defaults) with --subject, --set overrides,
+    then --convention on top."""
     return run_config(getattr(args, "config", None), getattr(args, "convention", None),
-                      getattr(args, "set", None))
+                      getattr(args, "set", None), getattr(args, "subject", None))
 
 
 def one_push(args: argparse.Namespace) -> tuple[Config, float]:

@@ -14,7 +14,7 @@ from .common import in_folder, progress_enabled
 import argparse
 import sys
 
-from ..model.params import ParameterError, apply_overrides, with_convention
+from ..model.params import ParameterError, apply_overrides, run_config, with_convention
 from ..studies.defaults import (DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,  # light
                                 DEFAULT_SWEEP_TABLE_FORCES)
 from .options import (cluster_option, config_options, engine_options, out_folder, sweep_file,
@@ -91,7 +91,8 @@ def compare_command(args: Any) -> int:
 
     variants, base = variants_and_base(args)
     configs = load_configs([path for _, path in variants],
-                           base=load_one(base) if base else None,
+                           base=(run_config(base, subject=args.subject) if args.subject
+                                 else load_one(base) if base else None),
                            names=[name for name, _ in variants])
     configs = {name: with_convention(apply_overrides(config, args.set), args.convention)
                for name, config in configs.items()}

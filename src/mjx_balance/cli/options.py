@@ -6,7 +6,7 @@ prints its usage and ``mjx-balance CMD: error: argument --X: ...``, exit code 2)
 helpers add one group of options to a command's parser:
 
     conventions        -q, -v, --no-cache (before or after the command)
-    config_options     --convention, --config, --set
+    config_options     --convention, --config, --set, --subject
     common_options     config_options and --out
     yes_option         --yes (work beyond the limit)
     wait_option        --wait (for another run's lock on --out)
@@ -26,7 +26,7 @@ import math
 import os
 from pathlib import Path
 
-from ..model.params import CONVENTIONS, ParameterError, parse_override
+from ..model.params import CONVENTIONS, ParameterError, Subject, parse_override, parse_subject
 
 EPILOG = """exit codes: 0 success; 1 failure during the work (a refused write, a full disk, a run
 that broke, a run whose scenarios diverged half or more); 2 bad usage (an unknown option, a bad
@@ -140,6 +140,14 @@ def setting(text: str) -> str:
     except ParameterError as exc:
         raise argparse.ArgumentTypeError(str(exc).removeprefix(f"--set {text!r}: ")) from None
     return text
+
+
+def subject(text: str) -> Subject:
+    """A --subject height=H,mass=M[,sex=female][,ankle_strength=F][,hip_strength=F]."""
+    try:
+        return parse_subject(text)
+    except ParameterError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix(f"--subject {text!r}: ")) from None
 
 
 def convention_list(text: str) -> str:
@@ -288,6 +296,13 @@ def config_options(p: argparse.ArgumentParser, *, repeat: bool = False,
                    help="override one value of the configuration, e.g. --set "
                         "controller.horizon=30 --set scenario.t_end=6 (repeatable; checked "
                         "as in a TOML file; applied after --config and a sweep definition)")
+    p.add_argument("--subject", type=subject, default=None,
+                   metavar="height=H,mass=M[,sex=female]",
+                   help="a person's body from de Leva's (1996) segment table: stature H [m], "
+                        "mass M [kg], sex male (default) or female, optional ankle_strength "
+                        "and hip_strength factors (default 1) on the mass-scaled torque "
+                        "bounds; replaces the --config file's [subject] and goes under a sweep "
+                        "definition and --set (docs/model.md, 'Subjects')")
 
 
 def common_options(p: argparse.ArgumentParser, out_required: bool = True,

@@ -83,8 +83,8 @@ def mass_gravity_abs(body: BodyParams) -> tuple[np.ndarray, np.ndarray, np.ndarr
     m1, m2 = body.lower_mass, body.upper_mass
     c1, c2, L1 = body.lower_com, body.upper_com, body.lower_length
     M = np.array([
-        [body.lower_inertia + m1 * c1**2 + m2 * L1**2, m2 * L1 * c2],
-        [m2 * L1 * c2, body.upper_inertia + m2 * c2**2],
+        [body.lower_pitch_inertia + m1 * c1**2 + m2 * L1**2, m2 * L1 * c2],
+        [m2 * L1 * c2, body.upper_pitch_inertia + m2 * c2**2],
     ])
     G = body.gravity * np.diag([m1 * c1 + m2 * L1, m2 * c2])
     J = np.array([m1 * c1 + m2 * L1, m2 * c2])

@@ -27,6 +27,23 @@ FOOT_JOINTS = ("foot_x", "foot_z", "foot_pitch")
 LOAD_CELLS = ("cell_front_left", "cell_front_right", "cell_back_left", "cell_back_right")
 
 
+def foot_diaginertia(b: BodyParams) -> tuple[float, float, float]:
+    """The foot's (roll, pitch, yaw) inertias about its CoM: the slab's, with the pitch
+    ``b.foot_pitch_inertia``."""
+    roll, pitch, yaw = (b.foot_mass * (b.foot_width**2 + b.foot_thickness**2) / 12,
+                        b.foot_pitch_inertia,
+                        b.foot_mass * (b.foot_length**2 + b.foot_width**2) / 12)
+    if b.foot_inertia is not None:
+        # A given pitch inertia (e.g. a subject's, below the slab's) with the slab's roll and
+        # yaw can break MuJoCo's triangle inequality; only the pitch acts in the plane, so the
+        # yaw or roll is moved where it is broken (1 % inside it, clear of rounding).
+        if roll + pitch < yaw:
+            yaw = 0.99 * (roll + pitch)
+        if roll + yaw < pitch:
+            roll = 1.01 * (pitch - yaw)
+    return roll, pitch, yaw
+
+
 def mjcf(body: BodyParams = BodyParams(), physics_dt: float = 0.002, foot: str = "free") -> str:
     """MJCF text of the body. ``foot`` is "free" (planar joints, contacts) or "fixed"."""
     if foot not in ("free", "fixed"):
@@ -34,15 +51,11 @@ def mjcf(body: BodyParams = BodyParams(), physics_dt: float = 0.002, foot: str =
     b = body
     r = b.contact_radius
     hx, hy = b.foot_length / 2, b.foot_width / 2
-    foot_inertia = (
-        b.foot_mass * (b.foot_width**2 + b.foot_thickness**2) / 12,
-        b.foot_inertia,
-        b.foot_mass * (b.foot_length**2 + b.foot_width**2) / 12,
-    )
+    foot_inertia = foot_diaginertia(b)
     # Rods: only the pitch inertia matters in the plane; the other axes get the same value
     # (a rod's roll inertia) and a small yaw value that keeps MuJoCo's triangle inequality.
-    lower_i = (b.lower_inertia, b.lower_inertia, 1e-3 * b.lower_inertia)
-    upper_i = (b.upper_inertia, b.upper_inertia, 1e-3 * b.upper_inertia)
+    lower_i = (b.lower_pitch_inertia, b.lower_pitch_inertia, 1e-3 * b.lower_pitch_inertia)
+    upper_i = (b.upper_pitch_inertia, b.upper_pitch_inertia, 1e-3 * b.upper_pitch_inertia)
     foot_joints = ""
     if foot == "free":
         foot_joints = (

@@ -16,12 +16,18 @@ motor torques u = [tau_ankle, tau_hip].
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import numbers
 import tomllib
+import warnings
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
+
+from .subject import SEXES, segments
+
+log = logging.getLogger(__name__)
 
 CONVENTIONS = ("paper", "joint")
 
@@ -53,10 +59,18 @@ MIN_GRAVITY = 0.1  # m/s^2
 #   at 2.5 it sinks 3.1 mm and never settles, at 3.5 it sinks 12 mm and falls with no push.
 #   Shoe soles on floors have 0.3-1.
 MAX_FRICTION = 2.0
+# - Segment pitch inertias (optional) in [1e-10, 1e4] kg m^2: the uniform shapes' values over
+#   the mass and length ranges above span 1e-10 (1e-3 kg, 1e-3 m) to 1e4 * 10^2 / 12 ~ 8e3.
+INERTIA_FIELDS = ("foot_inertia", "lower_inertia", "upper_inertia")
+INERTIA_RANGE = (1e-10, 1e4)  # kg m^2
 
 
 class ParameterError(ValueError):
     """A parameter value breaks a rule; the message names the field and the rule."""
+
+
+class ParameterWarning(UserWarning):
+    """A configuration that runs but holds a limit that can never bind (``config_warnings``)."""
 
 
 def _fail(record: str, name: str, rule: str, value: Any) -> None:
@@ -84,6 +98,8 @@ def _check_types(record: str, obj: Any) -> None:
                 _fail(record, f.name, "must be a list of numbers", value)
         elif isinstance(default, (int, float)) and not _is_number(value):
             _fail(record, f.name, "must be a number", value)
+        elif default is None and value is not None and not _is_number(value):
+            _fail(record, f.name, "must be a number (or left out)", value)
 
 
 def _check_range(record: str, obj: Any, names: tuple[str, ...], low: float, high: float,
@@ -141,6 +157,14 @@ class BodyParams:
     # can be switched off (ankle-only strategy). 0 = no servo (the default model).
     hip_servo_stiffness: float = 0.0  # K [N m/rad]
     hip_servo_damping: float = 0.0  # D [N m s/rad]
+    # Pitch inertias about each segment's CoM [kg m^2]. None (the default, and what a TOML
+    # file without them means): the uniform shapes of the study's Table 1, m L^2 / 12 for the
+    # rods and m (L^2 + t^2) / 12 for the foot slab (the *_pitch_inertia properties). A None
+    # field is left out of the configuration's TOML and manifest, so a configuration without
+    # them is recorded, compared and resumed as before they existed.
+    foot_inertia: float | None = None
+    lower_inertia: float | None = None
+    upper_inertia: float | None = None
 
     def __post_init__(self) -> None:
         _check_types("body", self)
@@ -174,23 +198,37 @@ class BodyParams:
         for name in ("hip_servo_stiffness", "hip_servo_damping"):
             if not getattr(self, name) >= 0:
                 _fail("body", name, "must be >= 0", getattr(self, name))
+        for name in INERTIA_FIELDS:
+            value = getattr(self, name)
+            if value is not None and not INERTIA_RANGE[0] <= value <= INERTIA_RANGE[1]:
+                _fail("body", name, f"must lie in [{INERTIA_RANGE[0]:g}, {INERTIA_RANGE[1]:g}] "
+                      "kg m^2 (plausible range), or be left out for the uniform shape's", value)
 
     @property
     def total_mass(self) -> float:
         return self.foot_mass + self.lower_mass + self.upper_mass
 
     @property
-    def lower_inertia(self) -> float:
-        """Pitch inertia of the lower body about its CoM (uniform rod, m L^2 / 12)."""
+    def lower_pitch_inertia(self) -> float:
+        """Pitch inertia of the lower body about its CoM: ``lower_inertia``, or a uniform rod's
+        m L^2 / 12 when it is None."""
+        if self.lower_inertia is not None:
+            return self.lower_inertia
         return self.lower_mass * self.lower_length**2 / 12.0
 
     @property
-    def upper_inertia(self) -> float:
+    def upper_pitch_inertia(self) -> float:
+        """``upper_inertia``, or a uniform rod's m L^2 / 12 when it is None."""
+        if self.upper_inertia is not None:
+            return self.upper_inertia
         return self.upper_mass * self.upper_length**2 / 12.0
 
     @property
-    def foot_inertia(self) -> float:
-        """Pitch inertia of the foot slab about its CoM."""
+    def foot_pitch_inertia(self) -> float:
+        """Pitch inertia of the foot about its CoM: ``foot_inertia``, or the slab's
+        m (L^2 + t^2) / 12 when it is None."""
+        if self.foot_inertia is not None:
+            return self.foot_inertia
         return self.foot_mass * (self.foot_length**2 + self.foot_thickness**2) / 12.0
 
 
@@ -411,6 +449,7 @@ class Config:
     scenario: ScenarioParams = field(default_factory=ScenarioParams)
 
     def __post_init__(self) -> None:
+        check_linked_limits(self)
         if self.controller.offset_free and self.scenario.delay_steps > 0:
             raise ParameterError(
                 "controller.offset_free = true with scenario.controller_delay (or delay_error) "
@@ -419,7 +458,16 @@ class Config:
                 "measurement does not match; set controller_delay = 0 or offset_free = false")
 
     def replace(self, **sections: Any) -> "Config":
-        """Return a copy with fields replaced, e.g. ``cfg.replace(controller={"horizon": 10})``."""
+        """Return a copy with fields replaced, e.g. ``cfg.replace(controller={"horizon": 10})``.
+        ``subject={"height": 1.62, "mass": 58}`` (or a :class:`Subject`) first puts that
+        person's body on this configuration (:meth:`Subject.config`); a value the subject
+        derives may then not be given in ``body`` or ``controller`` too (ParameterError
+        naming both)."""
+        if "subject" in sections:
+            sections = dict(sections)
+            subject = as_subject(sections.pop("subject"))
+            check_subject_conflicts(subject, sections)
+            return subject.config(self).replace(**sections)
         updated = {}
         for name, changes in sections.items():
             if name not in ("body", "controller", "scenario"):
@@ -429,11 +477,249 @@ class Config:
         return dataclasses.replace(self, **updated)
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
+        """The configuration as nested plain values; an optional field left at None (e.g.
+        ``body.lower_inertia``) is left out, as in a TOML file that does not give it."""
         return {
             name: {k: (list(v) if isinstance(v, tuple) else v)
-                   for k, v in dataclasses.asdict(getattr(self, name)).items()}
+                   for k, v in dataclasses.asdict(getattr(self, name)).items() if v is not None}
             for name in ("body", "controller", "scenario")
         }
+
+
+# -- linked limits --------------------------------------------------------------------------
+# Rules between values of different records, checked for every configuration (Config's
+# construction): a contradiction is an error naming both values; a limit that can never bind
+# is a warning (ParameterWarning, the log, and the output folder's manifest, config_warnings).
+EDGE_TOL = 1e-9  # m: a bound this close to the sole's edge counts as on it (float error)
+
+
+def check_linked_limits(config: Config) -> None:
+    """Refuse a configuration whose limits contradict each other (the message names both
+    values) and warn for a limit that can never bind (:func:`config_warnings`)."""
+    body, ctrl = config.body, config.controller
+    half = body.foot_length / 2
+    for name, what in (("cop_bounds", "CoP"), ("com_bounds", "CoM")):
+        low, high = getattr(ctrl, name)
+        if low > half + EDGE_TOL or high < -half - EDGE_TOL:
+            raise ParameterError(
+                f"controller.{name} = [{low:g}, {high:g}] m lies wholly outside the sole of "
+                f"body.foot_length = {body.foot_length:g} m (its edges at +-{half:g} m): the "
+                f"upright body's {what} (x = 0) breaks it at rest, so no run means anything; "
+                f"bring the bounds onto the sole or lengthen the foot")
+    (a1, b1), (a2, b2) = ctrl.input1_bounds, ctrl.input2_bounds
+    if a1 == b1 and a2 == b2:
+        raise ParameterError(
+            f"controller.input1_bounds = [{a1:g}, {b1:g}] N m and controller.input2_bounds = "
+            f"[{a2:g}, {b2:g}] N m: neither input has any range, so the controller cannot act "
+            "on any push; give at least one of them a range")
+    for message in config_warnings(config):
+        warn_parameter(message)
+
+
+def config_warnings(config: Config) -> list[str]:
+    """The limits of ``config`` that can never bind, one sentence each (empty: none). Recorded
+    in an output folder's manifest (``config_warnings``)."""
+    body, ctrl = config.body, config.controller
+    half = body.foot_length / 2
+    low, high = ctrl.cop_bounds
+    out = []
+    if low < -half - EDGE_TOL or high > half + EDGE_TOL:
+        out.append(f"controller.cop_bounds = [{low:g}, {high:g}] m reaches beyond the sole of "
+                   f"body.foot_length = {body.foot_length:g} m (its edges at +-{half:g} m): "
+                   "the CoP cannot leave the sole (the foot tips first), so the bound can never "
+                   "bind beyond the edge")
+    return out
+
+
+_WARNED: set[str] = set()
+
+
+def warn_parameter(message: str) -> None:
+    """A ParameterWarning, and the same sentence in the log once per process."""
+    warnings.warn(message, ParameterWarning, stacklevel=4)
+    if message not in _WARNED:
+        _WARNED.add(message)
+        log.warning("warning: %s", message)
+
+
+# -- subjects -------------------------------------------------------------------------------
+# The study's body (BodyParams' defaults) weighs 66.3 kg: a subject's torque bounds are the
+# configuration's bounds (read as those of that body) times mass / 66.3 times a strength factor.
+STUDY_BODY_MASS = 66.3  # kg, BodyParams().total_mass
+HEIGHT_RANGE = (0.5, 2.5)  # m: small children to the tallest adults
+SUBJECT_MASS_RANGE = (5.0, 300.0)  # kg
+STRENGTH_RANGE = (0.0, 10.0)  # factor, > 0
+# What a subject derives (a configuration's values that [subject] replaces).
+SUBJECT_BODY_KEYS = ("foot_mass", "foot_length", "foot_inertia", "lower_mass", "lower_length",
+                     "lower_com", "lower_inertia", "upper_mass", "upper_length", "upper_com",
+                     "upper_inertia")
+SUBJECT_CONTROLLER_KEYS = ("cop_bounds", "com_bounds")
+
+
+@dataclass(frozen=True)
+class Subject:
+    """A person: stature ``height`` [m], body ``mass`` [kg], ``sex`` ("male" or "female") and
+    strength factors for the ankle and the hip (1: the mass-scaled study's body).
+
+    ``config(base)`` is ``base`` (default: the study's configuration) with this person's body
+    from de Leva (1996) Table 4 (model/subject.py; docs/model.md, "Subjects"): every segment's
+    mass, length, CoM and pitch inertia, the foot's length and mass, CoP and CoM bounds at the
+    sole's edges (+-foot_length / 2, as the study's +-0.15 m on its 0.30-m foot), and the input
+    bounds of ``base`` times ``mass / 66.3`` (the study's body mass) times ``ankle_strength``
+    (input 1) or ``hip_strength`` (input 2)."""
+
+    height: float
+    mass: float
+    sex: str = "male"
+    ankle_strength: float = 1.0
+    hip_strength: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("height", "mass", "ankle_strength", "hip_strength"):
+            if not _is_number(getattr(self, name)):
+                _fail("subject", name, "must be a number", getattr(self, name))
+            object.__setattr__(self, name, float(getattr(self, name)))
+        _check_finite("subject", self)
+        if self.sex not in SEXES:
+            _fail("subject", "sex", f"must be one of {SEXES}", self.sex)
+        _check_range("subject", self, ("height",), *HEIGHT_RANGE, "m")
+        _check_range("subject", self, ("mass",), *SUBJECT_MASS_RANGE, "kg")
+        for name in ("ankle_strength", "hip_strength"):
+            value = getattr(self, name)
+            if not STRENGTH_RANGE[0] < value <= STRENGTH_RANGE[1]:
+                _fail("subject", name, f"must lie in ({STRENGTH_RANGE[0]:g}, "
+                      f"{STRENGTH_RANGE[1]:g}] (a factor on the mass-scaled torque bounds)",
+                      value)
+
+    def body_values(self) -> dict[str, float]:
+        """The body's values this subject derives (``SUBJECT_BODY_KEYS``)."""
+        return segments(self.height, self.mass, self.sex)
+
+    def controller_values(self, base: ControllerParams) -> dict[str, tuple[float, float]]:
+        """CoP and CoM bounds at the sole's edges and ``base``'s input bounds scaled."""
+        half = self.body_values()["foot_length"] / 2
+        scale = self.mass / STUDY_BODY_MASS
+        return {"cop_bounds": (-half, half), "com_bounds": (-half, half),
+                "input1_bounds": tuple(v * scale * self.ankle_strength
+                                       for v in base.input1_bounds),
+                "input2_bounds": tuple(v * scale * self.hip_strength
+                                       for v in base.input2_bounds)}
+
+    def config(self, base: Config | None = None) -> Config:
+        """``base`` (None: the defaults, the study's configuration) with this subject's body."""
+        base = Config() if base is None else base
+        return base.replace(body=self.body_values(),
+                            controller=self.controller_values(base.controller))
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    def describe(self) -> str:
+        """``height=1.62,mass=58,sex=female`` (the --subject form; strengths when not 1)."""
+        parts = [f"height={self.height:g}", f"mass={self.mass:g}", f"sex={self.sex}"]
+        parts += [f"{n}={getattr(self, n):g}" for n in ("ankle_strength", "hip_strength")
+                  if getattr(self, n) != 1.0]
+        return ",".join(parts)
+
+
+def as_subject(value: Any) -> Subject:
+    """A Subject from a Subject or a table of its fields (a TOML [subject])."""
+    if isinstance(value, Subject):
+        return value
+    if not isinstance(value, dict):
+        raise ParameterError(f"section 'subject' must be a table (height, mass, sex, "
+                             f"ankle_strength, hip_strength), got {value!r}")
+    known = [f.name for f in fields(Subject)]
+    unknown = sorted(set(value) - set(known))
+    if unknown:
+        raise ParameterError(f"subject: unknown key(s) {', '.join(unknown)}; known keys: "
+                             f"{', '.join(known)}")
+    missing = [name for name in ("height", "mass") if name not in value]
+    if missing:
+        raise ParameterError(f"subject: give {' and '.join(missing)} (known keys: "
+                             f"{', '.join(known)})")
+    return Subject(**{k: _plain(v) for k, v in value.items()})
+
+
+def check_subject_conflicts(subject: Subject, sections: dict[str, Any]) -> None:
+    """Refuse a value given beside ``subject`` in the same place that the subject derives
+    (SUBJECT_BODY_KEYS, SUBJECT_CONTROLLER_KEYS), naming both."""
+    derived = {"body": SUBJECT_BODY_KEYS, "controller": SUBJECT_CONTROLLER_KEYS}
+    for section, keys in derived.items():
+        given = sections.get(section)
+        if not isinstance(given, dict):
+            continue
+        clash = [k for k in keys if k in given]
+        if clash:
+            key = clash[0]
+            values = subject.body_values() if section == "body" else {
+                "cop_bounds": "+-foot_length / 2", "com_bounds": "+-foot_length / 2"}
+            derived_value = values[key]
+            shown = f"{derived_value:.6g}" if isinstance(derived_value, float) else derived_value
+            raise ParameterError(
+                f"{section}.{key} = {given[key]!r} and subject {subject.describe()} (which "
+                f"derives {section}.{key} = {shown}) both set it: give one of them (a later "
+                "--set overrides a subject's value)")
+
+
+def parse_subject(text: str) -> Subject:
+    """``--subject height=1.62,mass=58[,sex=female][,ankle_strength=0.6][,hip_strength=0.8]``
+    as a Subject (ParameterError naming the part that is wrong)."""
+    values: dict[str, Any] = {}
+    for part in str(text).split(","):
+        key, sep, raw = part.partition("=")
+        key, raw = key.strip(), raw.strip()
+        if not sep or not key or not raw:
+            raise ParameterError(f"--subject {text!r}: {part.strip()!r} is not KEY=VALUE "
+                                 "(e.g. height=1.62,mass=58,sex=female)")
+        if key in values:
+            raise ParameterError(f"--subject {text!r}: {key} given twice")
+        if key == "sex":
+            values[key] = raw
+            continue
+        try:
+            values[key] = float(raw)
+        except ValueError:
+            raise ParameterError(f"--subject {text!r}: {key}={raw!r} is not a number") from None
+    try:
+        return as_subject(values)
+    except ParameterError as exc:
+        raise ParameterError(f"--subject {text!r}: {exc}") from None
+
+
+def subjects_from_csv(path: str | Path) -> list[Subject]:
+    """The subjects of a CSV file with a header: columns ``height`` and ``mass`` (required),
+    ``sex``, ``ankle_strength``, ``hip_strength`` (optional; empty cells take the defaults);
+    other columns (an id, notes) are ignored. ParameterError naming the file and line."""
+    import csv
+
+    path = Path(path)
+    try:
+        with path.open(newline="", encoding="utf-8") as fh:
+            rows = list(csv.DictReader(fh))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise ParameterError(f"{path}: cannot be read as a CSV file ({exc})") from None
+    known = [f.name for f in fields(Subject)]
+    subjects = []
+    for line, row in enumerate(rows, start=2):
+        values: dict[str, Any] = {}
+        for key in known:
+            raw = (row.get(key) or "").strip()
+            if not raw:
+                continue
+            if key == "sex":
+                values[key] = raw
+                continue
+            try:
+                values[key] = float(raw)
+            except ValueError:
+                raise ParameterError(f"{path}, line {line}: {key} = {raw!r} is not a "
+                                     "number") from None
+        try:
+            subjects.append(as_subject(values))
+        except ParameterError as exc:
+            raise ParameterError(f"{path}, line {line}: {exc}") from None
+    return subjects
 
 
 _SECTIONS = {"body": BodyParams, "controller": ControllerParams, "scenario": ScenarioParams}
@@ -473,16 +759,28 @@ def _build(cls: type, section: str, values: dict[str, Any]) -> Any:
                 raise ParameterError(f"{section}.{key} = {value!r}: must be a number")
         elif isinstance(default, str) and not isinstance(value, str):
             raise ParameterError(f"{section}.{key} = {value!r}: must be a string")
+        elif default is None and value is not None:
+            if not _is_number(value):
+                raise ParameterError(f"{section}.{key} = {value!r}: must be a number")
+            value = float(value)
         coerced[key] = value
     return cls(**coerced)
 
 
 def config_from_dict(data: dict[str, Any]) -> Config:
-    """Build a validated Config from a nested dict (missing keys take their defaults)."""
+    """Build a validated Config from a nested dict (missing keys take their defaults). A
+    ``subject`` table (height, mass, sex, ankle_strength, hip_strength) puts that person's body
+    on the configuration the other sections make (:meth:`Config.replace`'s ``subject``)."""
+    if "subject" in data:
+        rest = {k: v for k, v in data.items() if k != "subject"}
+        subject = as_subject(data["subject"])
+        check_subject_conflicts(subject, rest)
+        return subject.config(config_from_dict(rest))
     unknown = sorted(set(data) - set(_SECTIONS))
     if unknown:
         raise ParameterError(
-            f"unknown section(s) {', '.join(unknown)}; known sections: body, controller, scenario")
+            f"unknown section(s) {', '.join(unknown)}; known sections: body, controller, "
+            "scenario, subject")
     parts = {}
     for name, cls in _SECTIONS.items():
         section = data.get(name, {})
@@ -573,8 +871,18 @@ def apply_overrides(config: Config, overrides: "list[str] | tuple[str, ...] | No
 
 
 def run_config(path: str | Path | None = None, convention: str | None = None,
-               overrides: "list[str] | tuple[str, ...] | None" = None) -> Config:
-    """A run's configuration: the TOML file at ``path`` (or the defaults), then ``--set``
-    ``overrides``, then ``convention`` on top (None keeps the configuration's)."""
-    config = load_config(path) if path else Config()
+               overrides: "list[str] | tuple[str, ...] | None" = None,
+               subject: "Subject | None" = None) -> Config:
+    """A run's configuration: the TOML file at ``path`` (or the defaults) with ``subject``
+    (``--subject``) in place of its [subject] table, then ``--set`` ``overrides``, then
+    ``convention`` on top (None keeps the configuration's)."""
+    if subject is None:
+        config = load_config(path) if path else Config()
+    else:
+        data = dict(read_toml(path)) if path else {}
+        data["subject"] = subject
+        try:
+            config = config_from_dict(data)
+        except ParameterError as exc:
+            raise ParameterError(f"{path}: {exc}" if path else str(exc)) from None
     return with_convention(apply_overrides(config, overrides), convention)

@@ -42,7 +42,7 @@ from ..runtime.fingerprint import differences, numerics
 from ..runtime.version import __version__
 from ..measures.outcomes import OUTCOMES, SUMMARY_COLUMNS
 from ..measures.strategy import with_strategy
-from ..model.params import Config, ParameterError, dumps_config, load_config
+from ..model.params import Config, ParameterError, config_warnings, dumps_config, load_config
 from .files import (CONFIG, LOCK, MANIFEST, TABLE, TABLE_CELLS, TABLE_RUNS, write_parquet, write_text)
 from .provenance import finish_run, now, with_run
 
@@ -53,6 +53,17 @@ log = logging.getLogger(__name__)
 
 def config_dict(config: Config) -> dict[str, Any]:
     return json.loads(json.dumps(config.to_dict()))
+
+
+def with_config_warnings(manifest: dict[str, Any], config: Config) -> dict[str, Any]:
+    """``manifest`` with the configuration's never-binding limits (``config_warnings``: one
+    sentence each) under ``config_warnings``, or without that key when there are none."""
+    found = config_warnings(config)
+    if found:
+        manifest["config_warnings"] = found
+    else:
+        manifest.pop("config_warnings", None)
+    return manifest
 
 
 def config_differences(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
@@ -78,6 +89,7 @@ def record_simulation(folder: str | Path, config: Config, forces: Any, durations
               {"forces": [float(f) for f in forces], "durations": [float(d) for d in durations]})
     manifest = {"package": "mjx_balance", "version": __version__, "kind": "simulate",
                 "config": config_dict(config), "simulate": pushes}
+    with_config_warnings(manifest, config)
     write_text(json.dumps(with_run(manifest, ended=now(), status="completed"), indent=2)
                + "\n", Path(folder) / MANIFEST)
 
@@ -206,6 +218,7 @@ class OutputFolder:
         if manifest is None:
             manifest = {"package": "mjx_balance", "version": __version__, "config": config,
                         "numerics": numerics()}
+            with_config_warnings(manifest, self.config)
             if (any(self.path.glob("*.parquet")) or (self.path / "chunks").exists()
                     or (self.path / TABLE_CELLS).exists()):
                 self._check_lost_manifest(config)
@@ -225,6 +238,7 @@ class OutputFolder:
                         "starting it anew with this run's configuration", self.path)
             manifest = {"package": "mjx_balance", "version": __version__, "config": config,
                         "runs": manifest.get("runs", [])}
+            with_config_warnings(manifest, self.config)
             self.write_manifest(manifest)
             write_text(dumps_config(self.config), self.path / CONFIG)
             return manifest

@@ -113,6 +113,8 @@ def load_one(path: str | Path, base: Config | None = None) -> Config:
         return load_sweep(path, base or Config()).config
     if base is None:
         return load_config(path)
+    if "subject" in data:  # the subject's body on the base; its conflicts are the file's own
+        return base.replace(**data)
     merged: dict[str, Any] = base.to_dict()
     for section, values in data.items():  # the file's values over the base's, section by section
         known = merged.get(section)
