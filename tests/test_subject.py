@@ -22,9 +22,17 @@ from mjx_balance import cli
 from mjx_balance.cli.main import build_parser
 from mjx_balance.model.linear import linear_model
 from mjx_balance.model.mjcf import mjcf
-from mjx_balance.model.params import (BodyParams, Config, ParameterError, ParameterWarning,
-                                      Subject, config_warnings, load_config, parse_subject,
-                                      run_config)
+from mjx_balance.model.params import (
+    BodyParams,
+    Config,
+    ParameterError,
+    ParameterWarning,
+    Subject,
+    config_warnings,
+    load_config,
+    parse_subject,
+    run_config,
+)
 from mjx_balance.runs.definitions import load_sweep
 from mjx_balance.store.folder import OutputFolder, record_simulation
 
