@@ -20,8 +20,9 @@ import shlex
 import signal
 import sys
 import threading
+import warnings
 
-from ..model.params import ParameterError
+from ..model.params import ParameterError, ParameterWarning
 from ..runtime.version import InstallError
 from ..runtime.xla import deterministic_flags
 from . import (animate, basin, bench, compare, landscape, model, report, sensitivity, simulate,
@@ -162,7 +163,11 @@ def main(argv: list[str] | None = None) -> int:
         from ..store.provenance import run_context  # lazy: after use_host_cores (pandas, not --help)
 
         words = sys.argv[1:] if argv is None else list(argv)
-        with run_context(command=" ".join(shlex.quote(w) for w in ["mjx-balance", *words])):
+        with (run_context(command=" ".join(shlex.quote(w) for w in ["mjx-balance", *words])),
+              warnings.catch_warnings()):
+            # a never-binding limit is logged where it is found (params.warn_parameter): the
+            # Python warning's own copy on stderr would say it twice
+            warnings.simplefilter("ignore", ParameterWarning)
             return _run(args)
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM, wherever the work was
         name, code = ("SIGTERM", 143) if isinstance(exc, Terminated) else ("SIGINT", 130)
