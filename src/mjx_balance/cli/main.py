@@ -181,10 +181,15 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from ..figures.style import figure_style  # lazy: light; after the parser (--help)
+
     module, func = args.target.split(":")
     command = getattr(importlib.import_module(module), func)
     try:
-        return int(command(args) or 0)
+        # --figure-format / --figure-size of a command that writes figures (the defaults else)
+        with figure_style(getattr(args, "figure_format", None),
+                          getattr(args, "figure_size", None)):
+            return int(command(args) or 0)
     except ParameterError as exc:
         say_error(str(exc))
         return 2

@@ -17,7 +17,10 @@ from .options import (cluster_option, config_options, convention_list, input_fil
 def add_parser(sub: Any) -> None:
     """The ``report`` sub-command (``sub.add_parser`` of ``main.build_parser``)."""
     p = sub.add_parser("report", help="HTML report: the study's experiments (both conventions) "
-                                      "and the studies beyond it, with their saved tables")
+                                      "and the studies beyond it, with their saved tables; its "
+                                      "figures are PNG at screen size, embedded in the page (no "
+                                      "--figure-format / --figure-size: the figure commands "
+                                      "take them)")
     p.add_argument("--scale", choices=("tiny", "default", "dense"), default="default",
                    help="tiny: 2 s runs on tiny grids (tests); default: the study's table and "
                         "coarse region maps; dense: dense region maps (GPU)")

@@ -23,14 +23,14 @@ from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 
 from ..model.params import BodyParams, ScenarioParams  # noqa: E402
 from ..store.files import write_atomic
+from . import style
 
 FIGSIZE = (9.6, 5.4)  # inches: 768 x 432 px at 80 dpi
 ARROW_M_PER_N = 0.004  # push arrow length per newton (100 N -> 0.4 m)
 FAST_FORWARD = 8  # frame step multiple once settled
 SETTLED_HOLD_S = 0.5  # s of real-time frames after the settle time
 PUSH_FRAMES = 3  # at least this many frames while the push acts
-OUTCOME_COLOURS = {"recovered": "#1a9850", "not_settled": "#b8860b", "fell": "#d73027",
-                   "diverged": "#404040"}
+OUTCOME_COLOURS = style.OUTCOME_COLOURS  # the one outcome palette (figures/style.py)
 
 
 class _GifWriter(PillowWriter):
@@ -242,8 +242,11 @@ def animate_timeseries(ts: pd.DataFrame, out: str | Path, body: BodyParams = Bod
 
     fig, (ax, axt) = plt.subplots(1, 2, figsize=FIGSIZE, width_ratios=(1.0, 1.15))
     stick = _stick_axes(ax, fr, body)
+    # the outcome's colour as the title's box (yellow text would not read on white)
     fig.suptitle(f"outcome: {fr.text}", fontsize=11, fontweight="bold",
-                 color=OUTCOME_COLOURS.get(fr.outcome, "black"))
+                 color="white" if fr.outcome == "diverged" else "black",
+                 bbox={"facecolor": OUTCOME_COLOURS.get(fr.outcome, "white"), "edgecolor": "none",
+                       "boxstyle": "round,pad=0.3"})
     # Beside: the joint angles against time, with a cursor.
     artists = (*stick, _angle_axes(axt, ts, fr, fast_forward))
 

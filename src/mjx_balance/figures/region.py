@@ -39,17 +39,13 @@ from matplotlib.ticker import FuncFormatter  # noqa: E402
 from ..measures.outcomes import OUTCOMES, RECOVERED  # noqa: E402
 from ..measures.strategy import HIP_SHARE_THRESHOLD, takeover  # noqa: E402
 from ..model.params import Config, ParameterError  # noqa: E402
-from ..store.files import TABLE, write_figure
+from ..store.files import TABLE
+from . import style
+from .style import OUTCOME_COLOURS, OUTCOME_HATCHES
 
 RECOVERED_TEXT = OUTCOMES[RECOVERED]
 TAKEOVER_COLOUR = "#CC79A7"  # the hip's take-over line (Okabe-Ito reddish purple)
 
-OUTCOME_COLOURS = {
-    "recovered": "#4daf4a",
-    "not_settled": "#ffd92f",
-    "fell": "#e41a1c",
-    "diverged": "#3a3a3a",
-}
 OUTCOME_LABELS = {
     "recovered": "recovered",
     "not_settled": "not settled by t_end",
@@ -82,18 +78,18 @@ def _plain_log_labels(axis) -> None:
 SAMPLE_DOTS = 400  # grids with at most this many cells show a dot on every sample
 
 
-def save_png(fig, path: str | Path, dpi: int) -> None:
-    """Write the figure atomically (the file is whole or absent), then close it."""
-    try:
-        write_figure(fig, path, dpi=dpi)
-    finally:
-        plt.close(fig)
+def save_png(fig, path: str | Path, dpi: int) -> Path:
+    """Write the figure atomically (the file is whole or absent) in the current figure style
+    (``style.save``: its format and size; a .png name takes the format's suffix), then close
+    it; returns the path written."""
+    return style.save(fig, path, dpi=dpi)
 
 
 def new_axes(ax, figsize):
-    """(figure, axes): the given axes and its figure, or a new figure."""
+    """(figure, axes): the given axes and its figure, or a new figure (``figsize`` on a screen,
+    else the current column size: ``style.subplots``)."""
     if ax is None:
-        fig, ax = plt.subplots(figsize=figsize, layout="constrained")
+        _, ax = style.subplots(figsize=figsize)
     return ax.figure, ax
 
 
@@ -290,6 +286,7 @@ def region_map(region: pd.DataFrame, *, config: Config | None = None,
 
     fig, ax = new_axes(ax, (8.5, 7.5))
     ax.pcolormesh(fx, dy, np.ma.masked_invalid(codes), cmap=cmap, norm=norm, shading="flat")
+    _hatch_outcomes(ax, fx, dy, outcome)
     ax.set_xlim(fx[0], fx[-1])
     duration_axis(ax, durations, dy, log)
     handles: list = []
@@ -307,7 +304,8 @@ def region_map(region: pd.DataFrame, *, config: Config | None = None,
         over = takeover_line(ax, region, HIP_SHARE_THRESHOLD, fx, dy, color=TAKEOVER_COLOUR,
                              lw=2.0, ls="--",
                              label=f"hip takes over above (hip's share of the work "
-                                   f"> {HIP_SHARE_THRESHOLD:g}; strategy.png)")
+                                   f"> {HIP_SHARE_THRESHOLD:g}; "
+                                   f"{style.figure_name('strategy.png')})")
         if over is not None:
             handles.append(over)
     if not boundary["monotone"].all():
@@ -331,7 +329,7 @@ def region_map(region: pd.DataFrame, *, config: Config | None = None,
 
     counts = region["outcome"].value_counts()
     outcome_handles = [Patch(facecolor=OUTCOME_COLOURS[n], edgecolor="0.3", lw=0.5,
-                             label=f"{OUTCOME_LABELS[n]} ({counts.get(n, 0)})")
+                             hatch=OUTCOME_HATCHES[n], label=f"{OUTCOME_LABELS[n]} ({counts.get(n, 0)})")
                        for n in OUTCOMES]
     ax.set_xlabel(FORCE_LABEL)
     ax.set_title(map_title("Outcome of a push (F, T) from upright rest", config, region)
@@ -340,6 +338,16 @@ def region_map(region: pd.DataFrame, *, config: Config | None = None,
               bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8, frameon=False,
               title=f"{len(region)} cells by outcome (count)", title_fontsize=8)
     return fig
+
+
+def _hatch_outcomes(ax, fx: np.ndarray, dy: np.ndarray, outcome: np.ndarray) -> None:
+    """Hatch the cells of the outcomes that have a hatch (OUTCOME_HATCHES: fell), so that the
+    map reads in greyscale too (fell and recovered are about as light)."""
+    for name, hatch in OUTCOME_HATCHES.items():
+        cells = outcome == name
+        if hatch and cells.any():
+            ax.pcolor(fx, dy, np.ma.masked_where(~cells, np.ones(cells.shape)), hatch=hatch,
+                      facecolor="none", edgecolor="0.15", linewidth=0.0, shading="flat")
 
 
 def _table_overlay(ax, table: pd.DataFrame, fx: np.ndarray, dy: np.ndarray) -> list:
@@ -379,8 +387,7 @@ def plot_region(region: pd.DataFrame, path: str | Path, *, config: Config | None
     if table is None:
         table = _table_beside(path, region)
     fig = region_map(region, config=config, reference=reference, table=table)
-    save_png(fig, path, dpi=130)
-    return Path(path)
+    return save_png(fig, path, dpi=130)
 
 
 def energy_map(region: pd.DataFrame, *, config: Config | None = None, ax=None):
@@ -423,8 +430,7 @@ def energy_map(region: pd.DataFrame, *, config: Config | None = None, ax=None):
 
 def plot_energy(region: pd.DataFrame, path: str | Path, *, config: Config | None = None) -> Path:
     """Save the energy map (:func:`energy_map`) as ``path``."""
-    save_png(energy_map(region, config=config), path, dpi=130)
-    return Path(path)
+    return save_png(energy_map(region, config=config), path, dpi=130)
 
 
 def _acting_time_axes(ax, table: pd.DataFrame, t_end: float | None) -> None:
@@ -492,13 +498,13 @@ def _energy_axes(ax2, table: pd.DataFrame, convention: str) -> None:
                   {**grey, "mfc": "white"}),
                  ("energy_total_max", "o-", "motors' total ∫|τ·dq/dt|, T = max acting time",
                   grey)]
-    for column, style, label, options in lines:
+    for column, fmt, label, options in lines:
         values = table[column].to_numpy(dtype=float)
         ok = np.isfinite(values) & (values > 0)
         if column.endswith("_01"):
             ok &= recovered_01  # energies of pushes that did not recover are not plotted
         if ok.any():
-            ax2.plot(force[ok], values[ok], style, label=label, **options)
+            ax2.plot(force[ok], values[ok], fmt, label=label, **options)
     failed_01 = ~recovered_01 & (table["outcome_01"].astype(str) != "")
     if failed_01.any():
         ax2.plot(force[failed_01], np.zeros(failed_01.sum()), "x", color="C3", ms=8, mew=2,
@@ -525,7 +531,7 @@ def table_figure(table: pd.DataFrame, *, config: Config | None = None, axes=None
     table = table.sort_values("force")
     t_end = config.scenario.t_end if config else None
     if axes is None:
-        fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.8), layout="constrained")
+        fig, (ax, ax2) = style.subplots(1, 2, figsize=(11, 4.8))
     else:
         ax, ax2 = axes
         fig = ax.figure
@@ -538,5 +544,4 @@ def table_figure(table: pd.DataFrame, *, config: Config | None = None, axes=None
 
 def plot_table(table: pd.DataFrame, path: str | Path, *, config: Config | None = None) -> Path:
     """Save the table's figure (:func:`table_figure`) as ``path``."""
-    save_png(table_figure(table, config=config), path, dpi=130)
-    return Path(path)
+    return save_png(table_figure(table, config=config), path, dpi=130)

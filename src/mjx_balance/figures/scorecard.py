@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..store.files import write_figure
+from . import style
 
 OURS = "#000000"
 SOURCES = ("#E69F00", "#0072B2", "#009E73", "#D55E00", "#CC79A7", "#56B4E9", "#F0E442")
@@ -37,15 +37,12 @@ def _title(measure: str) -> str:
 def scorecard_figure(card: pd.DataFrame, *, table: pd.DataFrame | None = None):
     """The scorecard's figure (see the module); ``table``: our table.csv, for our curve over
     every force we computed. Returns the Figure (None when no measure has a value)."""
-    import matplotlib.pyplot as plt
-
     measures = [m for m in dict.fromkeys(card["measure"]) if m != "recovered"]
     if not measures:
         return None
     ncols = min(3, len(measures))
     nrows = math.ceil(len(measures) / ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(4.6 * ncols, 3.8 * nrows),
-                             layout="constrained", squeeze=False)
+    fig, axes = style.subplots(nrows, ncols, figsize=(4.6 * ncols, 3.8 * nrows), squeeze=False)
     sources = list(dict.fromkeys(card["source"]))
     for ax, measure in zip(axes.ravel(), measures):
         rows = card[card["measure"] == measure]
@@ -56,7 +53,7 @@ def scorecard_figure(card: pd.DataFrame, *, table: pd.DataFrame | None = None):
                 continue
             colour, marker = SOURCES[k % len(SOURCES)], MARKERS[k % len(MARKERS)]
             status = mine["status"]
-            for shown, style, what in (
+            for shown, look, what in (
                     (status == "agrees", {"mfc": "white", "mec": colour, "mew": 1.6}, "within"),
                     (status == "differs", {"color": colour}, "differs"),
                     (~status.isin(["agrees", "differs"]), {"color": colour, "alpha": 0.6},
@@ -64,7 +61,7 @@ def scorecard_figure(card: pd.DataFrame, *, table: pd.DataFrame | None = None):
                 if shown.any():
                     ax.plot(mine["force"][shown], mine["reference"][shown],
                             marker if what != "not compared" else "x", ls="", ms=7,
-                            label=f"{source} ({what})", **style)
+                            label=f"{source} ({what})", **look)
         values = np.concatenate([rows["reference"].to_numpy(float), rows["ours"].to_numpy(float)])
         values = values[np.isfinite(values) & (values > 0)]
         if values.size and values.max() / values.min() > 10:
@@ -98,13 +95,7 @@ def _our_curve(ax, rows: pd.DataFrame, table: pd.DataFrame | None, measure: str)
 def plot_scorecard(card: pd.DataFrame, path: str | Path, *,
                    table: pd.DataFrame | None = None) -> Path | None:
     """Save :func:`scorecard_figure` as ``path`` (nothing when it has no panel)."""
-    import matplotlib.pyplot as plt
-
     fig = scorecard_figure(card, table=table)
     if fig is None:
         return None
-    try:
-        write_figure(fig, path, dpi=120)
-    finally:
-        plt.close(fig)
-    return Path(path)
+    return style.save(fig, path, dpi=120)

@@ -18,10 +18,10 @@ import pandas as pd
 from ..measures.strategy import HIP_SHARE_THRESHOLD, hip_share
 from ..model.params import Config
 from . import region as region_plots
+from . import style
 
 # Colour-blind-safe (Okabe-Ito) colours for the take-over lines of several thresholds.
-OKABE_ITO = ("#E69F00", "#56B4E9", "#009E73", "#F0E442", "#0072B2", "#D55E00", "#CC79A7",
-             "#000000")
+OKABE_ITO = style.SERIES
 THRESHOLDS = (0.15, 0.2, 0.25, 0.3, 0.4, 0.5)
 
 
@@ -70,13 +70,11 @@ def threshold_figure(region: pd.DataFrame, *, config: Config | None = None,
     """How the strategy map moves with its threshold: left, the histogram of the hip's share
     over the recovered cells (the chosen threshold marked); right, the take-over line of each
     threshold on the force x duration plane with the recovery boundary. Returns the Figure."""
-    import matplotlib.pyplot as plt
-
     recovered = region[region["outcome"] == region_plots.RECOVERED_TEXT]
     share = hip_share(recovered)
     share = share[np.isfinite(share)]
-    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 5.2), layout="constrained",
-                                      gridspec_kw={"width_ratios": [1, 1.4]})
+    fig, (left, right) = style.subplots(1, 2, figsize=(12, 5.2),
+                                        gridspec_kw={"width_ratios": [1, 1.4]})
     left.hist(share, bins=np.linspace(0, 1, 41), color="0.45")
     for i, t in enumerate(thresholds):
         share_above = float((share > t).mean()) if share.size else float("nan")
@@ -110,12 +108,10 @@ def threshold_figure(region: pd.DataFrame, *, config: Config | None = None,
 def plot_strategy(region: pd.DataFrame, path: str | Path, *,
                   config: Config | None = None) -> Path:
     """Save :func:`strategy_map` as ``path``."""
-    region_plots.save_png(strategy_map(region, config=config), path, dpi=130)
-    return Path(path)
+    return region_plots.save_png(strategy_map(region, config=config), path, dpi=130)
 
 
 def plot_threshold(region: pd.DataFrame, path: str | Path, *,
                    config: Config | None = None) -> Path:
     """Save :func:`threshold_figure` as ``path``."""
-    region_plots.save_png(threshold_figure(region, config=config), path, dpi=110)
-    return Path(path)
+    return region_plots.save_png(threshold_figure(region, config=config), path, dpi=110)

@@ -2,7 +2,8 @@
 
 Input: the long time series written by ``mjx-balance simulate`` (``reference.TIMESERIES_COLUMNS``:
 one row per physics step and scenario), optionally its summary rows (``summary.csv``: each
-run's outcome) and configuration (the bounds). Output: PNG files, one per quantity.
+run's outcome) and configuration (the bounds). Output: one figure file per quantity (PNG; SVG or PDF and paper
+sizes in a ``style.figure_style``).
 
 Every time axis shades the push window [0, T] and ends where the action ends (the last settle
 time or fall over the runs, plus a margin; ``full_window=True``: at t_end). The MPC's bounds are
@@ -23,12 +24,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib.pyplot as plt
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from ..model.params import Config, load_config  # noqa: E402
-from ..store.files import CONFIG, write_figure
+from ..store.files import CONFIG
+from . import style
 
 # Okabe-Ito colours without the yellow (all with contrast on white), then darker extras.
 PALETTE = ["#0072B2", "#D55E00", "#009E73", "#CC79A7", "#000000", "#E69F00", "#56B4E9",
@@ -134,12 +135,10 @@ class Run:
         return self.outcome in ("fell", "diverged")
 
 
-def _save(fig, path: str | Path, dpi: int) -> None:
-    """Write the figure atomically (the file is whole or absent), then close it."""
-    try:
-        write_figure(fig, path, dpi=dpi)
-    finally:
-        plt.close(fig)
+def _save(fig, path: str | Path, dpi: int) -> Path:
+    """Write the figure atomically (the file is whole or absent) in the current figure style
+    (``style.save``), then close it; returns the path written."""
+    return style.save(fig, path, dpi=dpi)
 
 
 def bounds(config: Config | None, convention: str, column: str) -> tuple[float, float] | None:
@@ -284,7 +283,7 @@ def timeseries_figure(df: pd.DataFrame, quantity: str, *, config: Config | None 
     when a fall goes far beyond them. Returns the Figure."""
     q = QUANTITIES[quantity]
     if ax is None:
-        fig, ax = plt.subplots(figsize=(7.5, 4.6), layout="constrained")
+        fig, ax = style.subplots(figsize=(7.5, 4.6))
     fig = ax.figure
     if df.empty:  # every run ended before its first sample (e.g. diverged at once)
         _no_samples(ax, q, summary)
@@ -418,7 +417,8 @@ def _subtitle(df: pd.DataFrame, config: Config | None) -> str:
 def timeseries_figures(df: pd.DataFrame, out_dir: str | Path, *, config: Config | None = None,
                        summary: pd.DataFrame | None = None,
                        full_window: bool = False) -> list[Path]:
-    """Write the time-series figures of ``df`` into ``out_dir``; return the PNG paths.
+    """Write the time-series figures of ``df`` into ``out_dir`` (in the current figure style:
+    ``style.save``); return their paths.
 
     config: the bounds to draw (None: ``out_dir/config.toml`` if there is one); summary: the
     runs' outcomes (None: ``out_dir/summary.csv`` if there is one, else read from the series);
@@ -441,16 +441,14 @@ def timeseries_figures(df: pd.DataFrame, out_dir: str | Path, *, config: Config 
     for stem in SINGLE:
         fig = timeseries_figure(df, stem, **options)
         fig.suptitle(_subtitle(df, config), fontsize=8)
-        path = out_dir / f"{stem}.png"
-        _save(fig, path, dpi=120)
-        paths.append(path)
+        paths.append(_save(fig, out_dir / f"{stem}.png", dpi=120))
     for stem, quantities in PAIRS.items():
         if not set(quantities) <= set(df.columns):  # a series written before these columns
             continue
         rows = energy_rows(df) if stem == "energy" else [quantities]
         width = max(len(r) for r in rows)
-        fig, axes = plt.subplots(len(rows), width, figsize=(6.5 * width, 4.6 * len(rows)),
-                                 layout="constrained", squeeze=False)
+        fig, axes = style.subplots(len(rows), width, figsize=(6.5 * width, 4.6 * len(rows)),
+                                   squeeze=False)
         for r, row in enumerate(rows):
             for i, (ax, quantity) in enumerate(zip(axes[r], row)):
                 timeseries_figure(df, quantity, ax=ax, legend=i == 0 and r == len(rows) - 1,
@@ -460,7 +458,5 @@ def timeseries_figures(df: pd.DataFrame, out_dir: str | Path, *, config: Config 
                       "balance": "CoM velocity and margin of stability (XcoM, Hof et al. 2005)"
                       }[stem]
                      + f";  {_subtitle(df, config)}", fontsize=9)
-        path = out_dir / f"{stem}.png"
-        _save(fig, path, dpi=120)
-        paths.append(path)
+        paths.append(_save(fig, out_dir / f"{stem}.png", dpi=120))
     return paths
