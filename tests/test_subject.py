@@ -294,3 +294,29 @@ def test_subjects_from_a_csv(tmp_path):
     path.write_text("height,mass\n1.7,abc\n")
     with pytest.raises(ParameterError, match=r"line 2.*mass"):
         subjects_from_csv(path)
+
+
+def test_the_layers_over_a_subject(tmp_path):
+    """--subject under a sweep definition (its explicit values win) and compare's variants
+    (a variant file with a [subject] goes on the base)."""
+    from mjx_balance.cli.common import base_config
+    from mjx_balance.studies.compare import load_one
+
+    subject = Subject(1.6, 55, "female")
+    args = argparse.Namespace(config=None, set=None, subject=subject)
+    definition = load_sweep(SWEEPS / "study_weak_ankle.toml", base_config(args, overrides=False))
+    assert definition.config.body == subject.config().body
+    assert definition.config.controller.input1_bounds == (-12.0, 12.0)  # the file's, unscaled
+    assert definition.config.controller.input2_bounds == subject.config().controller.input2_bounds
+    variant = tmp_path / "variant.toml"
+    variant.write_text('[subject]\nheight = 1.6\nmass = 55\nsex = "female"\n')
+    base = Config().replace(scenario={"t_end": 6.0})
+    assert load_one(variant, base) == subject.config(base)
+
+
+def test_a_command_says_a_never_binding_limit_once(tmp_path, capsys):
+    code = cli.main(["model", "--set", "controller.cop_bounds=[-0.2, 0.2]", "--out",
+                     str(tmp_path / "body.xml")])
+    err = capsys.readouterr().err
+    assert code == 0
+    assert err.count("cop_bounds = [-0.2, 0.2]") == 1, err

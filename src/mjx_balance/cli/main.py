@@ -22,7 +22,7 @@ import sys
 import threading
 import warnings
 
-from ..model.params import ParameterError, ParameterWarning
+from ..model.params import ParameterError, ParameterWarning, forget_warnings
 from ..runtime.version import InstallError
 from ..runtime.xla import deterministic_flags
 from . import (animate, basin, bench, compare, landscape, model, report, sensitivity, simulate,
@@ -168,6 +168,7 @@ def main(argv: list[str] | None = None) -> int:
             # a never-binding limit is logged where it is found (params.warn_parameter): the
             # Python warning's own copy on stderr would say it twice
             warnings.simplefilter("ignore", ParameterWarning)
+            forget_warnings()
             return _run(args)
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM, wherever the work was
         name, code = ("SIGTERM", 143) if isinstance(exc, Terminated) else ("SIGINT", 130)

@@ -535,11 +535,18 @@ _WARNED: set[str] = set()
 
 
 def warn_parameter(message: str) -> None:
-    """A ParameterWarning, and the same sentence in the log once per process."""
+    """A ParameterWarning, and the same sentence in the log once (per process, or per command
+    line: :func:`forget_warnings`)."""
     warnings.warn(message, ParameterWarning, stacklevel=4)
     if message not in _WARNED:
         _WARNED.add(message)
         log.warning("warning: %s", message)
+
+
+def forget_warnings() -> None:
+    """Log each never-binding limit again the next time it is found (the command line calls
+    this as each command starts, so that every command says its own)."""
+    _WARNED.clear()
 
 
 # -- subjects -------------------------------------------------------------------------------
