@@ -19,11 +19,12 @@ import dataclasses
 import logging
 import math
 import numbers
-import tomllib
 import warnings
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
+
+import tomllib
 
 from .subject import SEXES, segments
 
@@ -879,7 +880,7 @@ def apply_overrides(config: Config, overrides: "list[str] | tuple[str, ...] | No
 
 def run_config(path: str | Path | None = None, convention: str | None = None,
                overrides: "list[str] | tuple[str, ...] | None" = None,
-               subject: "Subject | None" = None) -> Config:
+               subject: Subject | None = None) -> Config:
     """A run's configuration: the TOML file at ``path`` (or the defaults) with ``subject``
     (``--subject``) in place of its [subject] table, then ``--set`` ``overrides``, then
     ``convention`` on top (None keeps the configuration's)."""
