@@ -46,7 +46,7 @@ from .runs.grid import check_durations, parse_pairs
 from .runs.progress import wanted
 from .store.provenance import run_context
 from .reference import loop as reference
-from .store.files import TABLE
+from .store.files import TABLE, check_format, export_tables
 from .studies.compare import load_configs, run_compare
 from .runs import DEFAULT_SWEEP
 from .studies.basin import DEFAULT_V, DEFAULT_X, run_basin
@@ -149,7 +149,7 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None,
           out: str | os.PathLike[str] | None = None, *, chunk: int | None = None,
           slots: int | None = None, full_length: bool = False, progress: bool | None = None,
           wait: bool = False, cluster: Any = None, physics: str = "auto",
-          reference: References = None) -> "pd.DataFrame":
+          reference: References = None, format: str | None = None) -> "pd.DataFrame":
     """The recoverable region: one summary row per (force, duration) cell, force-major (all
     durations of the first force, then the next), as region.parquet holds it.
 
@@ -164,7 +164,9 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None,
     ``physics``: "auto", "mjx" or "c" (MuJoCo C physics; docs/engine.md). ``reference``:
     reference CSV file(s) (:func:`scorecard`): their ``recovered`` rows are scored against
     the map's cells (a table's measures need :func:`table`), into ``out``'s scorecard.csv and
-    the returned frame's ``.attrs["scorecard"]``.
+    the returned frame's ``.attrs["scorecard"]``. ``format``: ``"csv"``, ``"parquet"`` or
+    ``"both"``: every table of ``out`` also in that format beside its own file (a CSV with its
+    units in ``NAME.units.csv``; docs/outputs.md, "Units and exports"); None: as today.
 
     Besides the summary columns, each row has ``hip_share`` (the hip's share of the motors'
     work) and ``strategy`` (``ankle`` / ``hip_ankle`` for recovered cells;
@@ -172,6 +174,7 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None,
     import pandas as pd
 
     config = as_config(config)
+    check_format(format)
     refs = read_references(reference)
     with _session("sweep"), _folder(out, "sweep") as folder:
         result = run_region(folder, config, forces, durations, chunk=chunk, slots=slots,
@@ -181,6 +184,7 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None,
         card = write_scorecard(folder, refs, figure=False)
         if card is not None:
             region.attrs["scorecard"] = card
+        export_tables(folder, format)
         return region
 
 
@@ -188,7 +192,7 @@ def table(forces: Values, config: ConfigLike = None,
           out: str | os.PathLike[str] | None = None, *, slots: int | None = None,
           full_length: bool = False, progress: bool | None = None,
           wait: bool = False, cluster: Any = None, physics: str = "auto",
-          reference: References = None) -> "pd.DataFrame":
+          reference: References = None, format: str | None = None) -> "pd.DataFrame":
     """The robustness table: for each force, the max acting time (the largest duration, to
     0.01 s, such that every push up to it recovers) and the energies (``TABLE_COLUMNS``), as
     ``mjx-balance table`` writes table.csv (read back from it). ``out``: the output folder
@@ -199,8 +203,10 @@ def table(forces: Values, config: ConfigLike = None,
     ``physics``: "auto", "mjx" or "c" (as :func:`sweep`). ``reference``: reference CSV
     file(s) (:func:`scorecard`): their table forces join ``forces``, and ``out`` gets
     scorecard.csv and scorecard.png; the returned table carries the scorecard in
-    ``.attrs["scorecard"]``."""
+    ``.attrs["scorecard"]``. ``format``: as :func:`sweep` (every table of ``out`` also as CSV,
+    parquet or both)."""
     config = as_config(config)
+    check_format(format)
     refs = read_references(reference)
     forces = _with_forces(grid_values(forces, "forces"), refs)
     with _session("table"), _folder(out, "table") as folder:
@@ -210,6 +216,7 @@ def table(forces: Values, config: ConfigLike = None,
         card = write_scorecard(folder, refs)
         if card is not None:
             result.attrs["scorecard"] = card
+        export_tables(folder, format)
         return result
 
 
@@ -248,40 +255,48 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
             out: str | os.PathLike[str], *, forces: Values = None, durations: Values = None,
             table_forces: Values = None, slots: int | None = None, full_length: bool = False,
             physics: str = "auto", cluster: Any = None,
-            progress: bool | None = None) -> "pd.DataFrame":
+            progress: bool | None = None, format: str | None = None) -> "pd.DataFrame":
     """Several configurations on one grid (``mjx-balance compare``): each one's region map and
     table in ``out/<name>/``, then ``out/compare.csv`` (returned: area, mean recovery energy,
     sustained-push limit, max acting times, one row per configuration) and ``out/compare.png``
     (every recovery boundary on one plane). ``configs``: name -> configuration (a Config, a
     dict or a TOML path), or a list of TOML paths (named by their stems). Grids default to the
-    default sweep's."""
+    default sweep's. ``format``: as :func:`sweep` (every table in ``out`` and its configuration
+    folders also as CSV, parquet or both)."""
+    check_format(format)
     if isinstance(configs, dict):
         configs = {str(name): as_config(c) for name, c in configs.items()}
     else:
         configs = load_configs([str(p) for p in configs])
     with _session("compare"):
-        return run_compare(out, configs,
-                           DEFAULT_SWEEP["forces"] if forces is None else forces,
-                           DEFAULT_SWEEP["durations"] if durations is None else durations,
-                           DEFAULT_SWEEP["table_forces"] if table_forces is None
-                           else table_forces, progress=wanted(progress), log=log.info, slots=slots,
-                           full_length=full_length, physics=physics, cluster=cluster)
+        frame = run_compare(out, configs,
+                            DEFAULT_SWEEP["forces"] if forces is None else forces,
+                            DEFAULT_SWEEP["durations"] if durations is None else durations,
+                            DEFAULT_SWEEP["table_forces"] if table_forces is None
+                            else table_forces, progress=wanted(progress), log=log.info, slots=slots,
+                            full_length=full_length, physics=physics, cluster=cluster)
+        export_tables(out, format)
+        return frame
 
 
 def basin(out: str | os.PathLike[str], config: ConfigLike = None, *, x_com: Values = None,
           v_com: Values = None, posture: str = "rigid", pushes: Any = None,
           slots: int | None = None, full_length: bool = False,
-          progress: bool | None = None) -> "pd.DataFrame":
+          progress: bool | None = None, format: str | None = None) -> "pd.DataFrame":
     """The recovery basin (``mjx-balance basin``): one unpushed scenario per (x_com, v_com)
     cell from the ``posture`` family's initial state, in ``out`` (basin.parquet, basin.png;
     resumable). Returns basin.parquet's rows. ``pushes``: None or (forces, durations) whose
     end-of-push states are drawn (pushes.csv). Grids default to -0.2:0.2:0.02 m and
-    -0.6:0.6:0.06 m/s."""
+    -0.6:0.6:0.06 m/s. ``format``: as :func:`sweep` (basin.parquet and pushes.csv also as CSV,
+    parquet or both)."""
+    check_format(format)
     with _session("basin"):
-        return run_basin(out, as_config(config), DEFAULT_X if x_com is None else x_com,
-                         DEFAULT_V if v_com is None else v_com, posture, pushes,
-                         progress=wanted(progress), say=log.info, slots=size_value(slots, "slots"),
-                         early_stop=not full_length)
+        frame = run_basin(out, as_config(config), DEFAULT_X if x_com is None else x_com,
+                          DEFAULT_V if v_com is None else v_com, posture, pushes,
+                          progress=wanted(progress), say=log.info, slots=size_value(slots, "slots"),
+                          early_stop=not full_length)
+        export_tables(out, format)
+        return frame
 
 
 def read_table(path: str | os.PathLike[str]) -> "pd.DataFrame":

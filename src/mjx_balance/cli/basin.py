@@ -11,7 +11,7 @@ from typing import Any
 
 from .common import in_folder, load_run_config, progress_enabled
 from ..studies.defaults import DEFAULT_V, DEFAULT_X, POSTURES  # light: no JAX
-from .options import common_options, positive_int, wait_option
+from .options import common_options, format_option, positive_int, wait_option, write_exports
 
 
 
@@ -38,6 +38,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--full-length", action="store_true",
                    help="run every cell to t_end (no early stop of certified recoveries)")
     wait_option(p)
+    format_option(p)
     common_options(p, out_help="output folder: basin.parquet, basin.png, pushes.csv, "
                                 "basin_cells/ (finished cells, for resuming)")
     p.set_defaults(target="mjx_balance.cli.basin:basin_command")
@@ -57,5 +58,6 @@ def basin_command(args: Any) -> int:
     def work() -> None:
         run_basin(out, config, args.x_com, args.v_com, args.posture, pushes,
                   progress=progress_enabled(args), **engine)
+        write_exports(out, args)
 
     return in_folder(out, work, wait=getattr(args, "wait", False))

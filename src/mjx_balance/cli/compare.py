@@ -17,8 +17,8 @@ import sys
 from ..model.params import ParameterError, apply_overrides, run_config, with_convention
 from ..studies.defaults import (DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,  # light
                                 DEFAULT_SWEEP_TABLE_FORCES)
-from .options import (cluster_option, config_options, engine_options, out_folder, sweep_file,
-                      wait_option)
+from .options import (cluster_option, config_options, engine_options, format_option, out_folder,
+                      sweep_file, wait_option, write_exports)
 
 OLD_FORM = ("mjx-balance: compare --config FILE ... (the configurations to compare) is now "
             "compare FILE ... or --variant NAME=FILE; --config names the base configuration "
@@ -50,6 +50,7 @@ def add_parser(sub: Any) -> None:
     engine_options(p)
     cluster_option(p)
     wait_option(p)
+    format_option(p)
     p.add_argument("--out", type=out_folder, required=True,
                    help="output folder: one sweep folder per configuration, compare.csv, "
                         "compare.png")
@@ -105,5 +106,6 @@ def compare_command(args: Any) -> int:
                     args.durations or DEFAULT_SWEEP["durations"],
                     args.table_forces or DEFAULT_SWEEP["table_forces"],
                     progress=progress_enabled(args), **engine)
+        write_exports(out, args)
 
     return in_folder(out, work, wait=getattr(args, "wait", False))

@@ -17,8 +17,8 @@ from ..studies.defaults import (DEFAULT_DELAYS, DEFAULT_SCALES,  # light
                                 DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,
                                 DEFAULT_TABLE_FORCES)
 from .common import base_config, chosen_physics, in_folder, progress_enabled
-from .options import (config_options, engine_options, out_folder, renamed_option, sweep_file,
-                      wait_option)
+from .options import (config_options, engine_options, format_option, out_folder, renamed_option,
+                      sweep_file, wait_option, write_exports)
 
 
 
@@ -58,6 +58,7 @@ def add_parser(sub: Any) -> None:
                         f"--sweep file's, else {DEFAULT_TABLE_FORCES})")
     engine_options(p)
     wait_option(p)
+    format_option(p)
     p.add_argument("--out", type=out_folder, required=True,
                    help="output folder: one sweep folder per setting, landscape.csv, "
                         "landscape.png, landscape.txt")
@@ -97,5 +98,6 @@ def landscape_command(args: Any) -> int:
                       r_scales=args.r_scales, delays=args.delays, table_forces=table_forces,
                       progress=progress_enabled(args),
                       log=logging.getLogger("mjx_balance").info, **engine)
+        write_exports(out, args)
 
     return in_folder(out, work, wait=getattr(args, "wait", False))

@@ -366,3 +366,50 @@ def renamed_option(new: str) -> type[argparse.Action]:
 
     return Renamed
 
+
+# ---------------------------------------------------------------------------------------------
+# Table exports (--format): every table also as CSV and/or parquet (store.files.export_tables)
+TABLE_FORMATS = ("csv", "parquet", "both")  # store.files.FORMATS (the parser stays light)
+
+
+def format_option(p: argparse.ArgumentParser) -> None:
+    """``--format csv|parquet|both``: every table also in that format, beside its own file."""
+    p.add_argument("--format", choices=TABLE_FORMATS, default=None, dest="table_format",
+                   help="also write every table as CSV (full precision, units in a "
+                        "NAME.units.csv beside it), as parquet (units in its schema), or both, "
+                        "under the same name beside the table's own file, which stays "
+                        "(default: each table in its own format only: parquet for the region, "
+                        "scenarios, time series and basin, CSV for table, summary, compare and "
+                        "landscape; docs/outputs.md, 'Units and exports')")
+
+
+def write_exports(out: str | Path, args: argparse.Namespace) -> None:
+    """The --format copies of every table in ``out`` (and its sub-folders); says which."""
+    fmt = getattr(args, "table_format", None)
+    if fmt is None:
+        return
+    import logging
+
+    from ..store.files import export_tables  # lazy: the store floor loads pandas
+
+    written = export_tables(out, fmt)
+    logging.getLogger("mjx_balance").info(
+        f"wrote {len(written)} {fmt} export(s) of the tables in {out}"
+        + (f" ({', '.join(str(Path(p).relative_to(out)) for p in written[:4])}"
+           + (", ..." if len(written) > 4 else "") + ")" if written else ""))
+
+
+# ---------------------------------------------------------------------------------------------
+# Figures (--figure-format, --figure-size): figures.style, applied by main around the command
+
+def figure_options(p: argparse.ArgumentParser) -> None:
+    """``--figure-format png|svg|pdf`` and ``--figure-size screen|one-column|two-column``."""
+    from ..figures.style import FIGURE_FORMATS, FIGURE_SIZES  # lazy: light (no matplotlib)
+
+    p.add_argument("--figure-format", choices=FIGURE_FORMATS, default="png",
+                   help="file format of the figures the command writes: png, or vector svg or "
+                        "pdf (region.png becomes region.svg, ...)")
+    p.add_argument("--figure-size", choices=tuple(FIGURE_SIZES), default="screen",
+                   help="figure size: screen (each figure's own size), one-column (3.5 in, "
+                        "89 mm wide) or two-column (7.2 in, 183 mm) for a paper; fonts 7 to "
+                        "9 pt, every text inside the figure (docs/outputs.md, 'Figures')")

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from ..model.params import ParameterError, dumps_config
 from .common import load_run_config, progress_enabled
-from .options import common_options, renamed_option
+from .options import common_options, format_option, renamed_option, write_exports
 
 log = logging.getLogger("mjx_balance")
 
@@ -43,6 +43,7 @@ def add_parser(sub) -> None:
     p.add_argument("--full-window", action="store_true",
                    help="time axes of the figures up to t_end (default: trimmed to the action, "
                         "the last settle or fall plus a margin)")
+    format_option(p)
     common_options(p)
     p.set_defaults(target="mjx_balance.cli.simulate:simulate_command")
 
@@ -129,7 +130,7 @@ def simulate_command(args: argparse.Namespace) -> int:
     from .. import api
     from ..figures.timeseries import timeseries_figures  # lazy: matplotlib
     from ..runs.folders import check_reference  # lazy: the runs floor loads JAX
-    from ..store.files import (CONFIG, MANIFEST, write_atomic,  # lazy: the store floor: pandas
+    from ..store.files import (CONFIG, MANIFEST, write_csv,  # lazy: the store floor: pandas
                                write_parquet, write_text)
     from ..store.folder import record_simulation  # lazy: as above
     from ..store.provenance import run_context  # lazy: as above
@@ -151,13 +152,14 @@ def simulate_command(args: argparse.Namespace) -> int:
         else:
             summary, series = api.simulate(forces, durations, config,
                                            progress=progress_enabled(args))
-        write_atomic(out / "summary.csv", lambda tmp: summary.to_csv(tmp, index=False))
+        write_csv(summary, out / "summary.csv")
         write_parquet(series, out / "timeseries.parquet")
         write_text(dumps_config(config), out / CONFIG)
         # written atomically (plots._save)
         figures = timeseries_figures(series, out, config=config, summary=summary,
                                      full_window=args.full_window)
         record_simulation(out, config, forces, durations, pairs=pairs)
+        write_exports(out, args)
     with pd.option_context("display.width", 200, "display.max_columns", None,
                            "display.float_format", lambda v: f"{v:.4g}"):
         print(summary[PRINTED_COLUMNS].to_string(index=False))

@@ -21,8 +21,8 @@ from ..model.params import Config, apply_overrides, with_convention
 from ..studies.defaults import (DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,  # light
                                 DEFAULT_SWEEP_TABLE_FORCES)
 from .common import base_config, chosen_physics, in_folder, progress_enabled
-from .options import (cluster_option, common_options, engine_options, input_file,
-                      positive_int, sweep_file, wait_option, yes_option)
+from .options import (cluster_option, common_options, engine_options, format_option, input_file,
+                      positive_int, sweep_file, wait_option, write_exports, yes_option)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -55,6 +55,7 @@ def add_parser(sub: Any) -> None:
     cluster_option(p)
     yes_option(p)
     wait_option(p)
+    format_option(p)
     common_options(p)
     p.set_defaults(target="mjx_balance.cli.sweep:sweep_command")
 
@@ -71,6 +72,7 @@ def add_parser(sub: Any) -> None:
     cluster_option(p)
     yes_option(p)
     wait_option(p)
+    format_option(p)
     common_options(p)
     p.set_defaults(target="mjx_balance.cli.sweep:table_command")
 
@@ -179,6 +181,7 @@ def sweep_command(args: Any) -> int:
             _make_region_figures(out, result, config, reference, only="region.png",
                                  force=table is not None)
         report_scorecard(out, refs)
+        write_exports(out, args)
 
     return in_folder(out, work, wait=getattr(args, "wait", False))
 
@@ -229,6 +232,7 @@ def table_command(args: Any) -> int:
                                          reference=reference_points(refs))
                 log.info(f"wrote {path}")
         report_scorecard(out, refs)
+        write_exports(out, args)
 
     return in_folder(out, work, wait=getattr(args, "wait", False))
 

@@ -2,4 +2,5 @@
 
     outcomes.py  the outcome rules (fall, settle, recovery), outcome codes, the summary columns
     metrics.py   the per-scenario summary (peaks, extremes, energies) from recorded samples
+    units.py     the unit of every column the product writes (parquet metadata, CSV sidecars)
 """

@@ -29,7 +29,7 @@ from .chunks import batch_limit, chunk_slices
 from .cluster import ClusterBatch
 from .grid import GRID_TOL, describe, parse_grid, same_values
 from .progress import NoBar, progress_bar
-from ..store.files import TABLE, TABLE_RUNS, write_atomic, write_parquet
+from ..store.files import TABLE, TABLE_RUNS, write_csv, write_parquet
 from ..store.folder import OutputFolder, TableCells, folder_lock
 
 # Coarse scan of the table: durations [s] tried for every force before bisecting. 0.1 s is
@@ -572,7 +572,7 @@ def _run_table(out: str | Path, config: Config, forces: np.ndarray, run_batch: R
         _add_sustained_limit(result, config, run_batch, cells, options.get("batch"), progress,
                              say)
     write_parquet(result.runs, folder.path / TABLE_RUNS)
-    write_atomic(table_path, lambda tmp: result.table.to_csv(tmp, index=False))
+    write_csv(result.table, table_path)
     manifest = folder.read_manifest() or manifest
     manifest["table"] = {"forces": forces.tolist(), "resolution": options.get("resolution", 0.01)}
     folder.write_manifest(manifest)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from decimal import Decimal
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -69,12 +70,29 @@ def _parse_range(text: str, name: str) -> list[float]:
         raise ParameterError(f"{name} = {text!r}: step must be > 0")
     if stop < start:
         raise ParameterError(f"{name} = {text!r}: empty grid (stop < start)")
-    count = math.floor((stop - start) / step + 1e-9) + 1
+    d_start, d_stop, d_step = (Decimal(p.strip()) for p in parts)
+    count = math.floor((d_stop - d_start) / d_step + Decimal("1e-9")) + 1
     if count > 10_000_000:
         raise ParameterError(f"{name} = {text!r}: {count} values is too many")
-    values = start + step * np.arange(count)
-    # Remove float error (0.1 * 3 = 0.30000000000000004) without moving any real grid value.
-    return [float(v) for v in np.round(values, 12)]
+    return exact_range(d_start, d_step, count)
+
+
+def exact_range(start: Decimal, step: Decimal, count: int) -> list[float]:
+    """``start + k step`` for k = 0..count-1, each the float nearest the decimal value as
+    written (``0.05:1.5:0.05`` gives 0.3, not 0.30000000000000004 nor 0.15000000000000002).
+
+    With d the decimals of start and step, every value is the whole number start 10^d + k
+    step 10^d over 10^d; while both are exact in float64 (the whole numbers below 2^53, d <= 22)
+    one IEEE division rounds the exact quotient to its nearest float, the same number as
+    ``float(Decimal(...))``; otherwise each value goes through Decimal."""
+    decimals = max(0, -start.as_tuple().exponent, -step.as_tuple().exponent)
+    scale = 10 ** decimals
+    first, stride = int(start * scale), int(step * scale)
+    last = abs(first) + stride * max(count - 1, 0)
+    if decimals <= 22 and last < 2 ** 53:
+        whole = first + stride * np.arange(count, dtype=np.int64)
+        return (whole.astype(np.float64) / float(scale)).tolist()
+    return [float(start + k * step) for k in range(count)]
 
 
 STEP_TOL = 1e-6  # how far from a whole number of physics steps a duration may sit (in steps)

@@ -6,6 +6,7 @@ with the mode the umask gives (:func:`write_atomic`; figures through :func:`writ
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 import threading
@@ -13,6 +14,8 @@ from pathlib import Path
 from typing import Any, Callable
 
 import pandas as pd
+
+from ..measures.units import describe
 
 MANIFEST = "manifest.json"
 REGION = "region.parquet"
@@ -97,8 +100,100 @@ def readable_png(path: str | Path) -> bool:
     return True
 
 
+UNITS_KEY = b"mjx_balance.units"  # the parquet schema's metadata: {column: unit} as JSON
+UNITS_SUFFIX = ".units.csv"  # a CSV's sidecar: NAME.csv -> NAME.units.csv
+FORMATS = ("csv", "parquet", "both")
+
+
+def with_units(schema: Any) -> Any:
+    """A pyarrow schema with each known column's unit (``measures.units``) as its field
+    metadata ``{"unit": ...}`` and all of them as JSON under the schema's ``UNITS_KEY``.
+    Metadata only: the columns' names, types and values stay as they are, so a file written
+    without units (an older chunk) casts to it and compares equal in every check."""
+    import pyarrow as pa
+
+    known = {name: describe(name) for name in schema.names}
+    fields = [field.with_metadata({**(field.metadata or {}), b"unit": known[field.name][0]})
+              if known[field.name] is not None else field for field in schema]
+    units = {name: found[0] for name, found in known.items() if found is not None}
+    return pa.schema(fields, metadata={**(schema.metadata or {}),
+                                       UNITS_KEY: json.dumps(units)})
+
+
 def write_parquet(frame: pd.DataFrame, path: Path) -> None:
-    write_atomic(path, lambda tmp: frame.to_parquet(tmp, index=False))
+    """Write a table as parquet atomically, with its columns' units in the schema's metadata
+    (:func:`with_units`) and ``frame.attrs`` where pandas keeps them (read back by
+    ``pd.read_parquet``)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = pa.Table.from_pandas(frame, preserve_index=False)
+    if frame.attrs:
+        table = table.replace_schema_metadata({**table.schema.metadata,
+                                               b"PANDAS_ATTRS": json.dumps(frame.attrs)})
+    table = table.cast(with_units(table.schema))
+    write_atomic(path, lambda tmp: pq.write_table(table, tmp))
+
+
+def units_frame(columns: Any) -> pd.DataFrame:
+    """The sidecar of a CSV table: one row per column, ``column,unit,description`` (unit and
+    description empty for a column ``measures.units`` does not know)."""
+    rows = [(str(c), *(describe(str(c)) or ("", ""))) for c in columns]
+    return pd.DataFrame(rows, columns=["column", "unit", "description"])
+
+
+def units_path(path: str | Path) -> Path:
+    """Where a CSV's sidecar lies: ``NAME.csv`` -> ``NAME.units.csv``."""
+    path = Path(path)
+    return path.with_name(path.stem + UNITS_SUFFIX)
+
+
+def write_csv(frame: pd.DataFrame, path: Path, *, units: bool = True) -> None:
+    """Write a table as CSV atomically, every float in full precision (pandas writes the
+    shortest text that reads back to the same float: no rounding), and its units beside it in
+    ``NAME.units.csv`` (:func:`units_frame`) unless ``units`` is False."""
+    path = Path(path)
+    write_atomic(path, lambda tmp: frame.to_csv(tmp, index=False))
+    if units:
+        sidecar = units_frame(frame.columns)
+        write_atomic(units_path(path), lambda tmp: sidecar.to_csv(tmp, index=False))
+
+
+# The tables the commands write under their own names, in the format the product reads back.
+TABLES = ("region.parquet", "table.csv", "table_runs.parquet", "summary.csv",
+          "timeseries.parquet", "basin.parquet", "pushes.csv", "compare.csv", "landscape.csv",
+          "sensitivity.csv", "scorecard.csv")
+
+
+def check_format(fmt: str | None) -> str | None:
+    """``fmt`` if it is None (each table in its own format only) or one of :data:`FORMATS`;
+    ValueError naming the value otherwise."""
+    if fmt is not None and fmt not in FORMATS:
+        raise ValueError(f"format = {fmt!r}: must be one of {', '.join(FORMATS)} (or None: "
+                         "each table in the format the product writes it)")
+    return fmt
+
+
+def export_tables(folder: str | Path, fmt: str | None) -> list[Path]:
+    """Every table of ``folder`` and its sub-folders (:data:`TABLES`) also in the format(s)
+    ``fmt`` asks for, beside it under the same name: ``csv`` (a parquet table also as CSV, with
+    its sidecar), ``parquet`` (a CSV table also as parquet), ``both``; None writes nothing.
+    The table's own file stays: resume, ``report`` and ``compare`` read it back. Returns the
+    files written."""
+    if check_format(fmt) is None:
+        return []
+    wanted = {"csv": {".csv"}, "parquet": {".parquet"}, "both": {".csv", ".parquet"}}[fmt]
+    written = []
+    for name in TABLES:
+        for path in sorted(Path(folder).rglob(name)):
+            for suffix in sorted(wanted - {path.suffix}):
+                frame = (pd.read_parquet(path) if path.suffix == ".parquet"
+                         else pd.read_csv(path))
+                frame.attrs = {}
+                target = path.with_suffix(suffix)
+                (write_csv if suffix == ".csv" else write_parquet)(frame, target)
+                written.append(target)
+    return written
 
 
 def write_text(text: str, path: Path) -> None:

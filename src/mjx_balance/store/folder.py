@@ -43,7 +43,8 @@ from ..runtime.version import __version__
 from ..measures.outcomes import OUTCOMES, SUMMARY_COLUMNS
 from ..measures.strategy import with_strategy
 from ..model.params import Config, ParameterError, config_warnings, dumps_config, load_config
-from .files import (CONFIG, LOCK, MANIFEST, TABLE, TABLE_CELLS, TABLE_RUNS, write_parquet, write_text)
+from .files import (CONFIG, LOCK, MANIFEST, TABLE, TABLE_CELLS, TABLE_RUNS, with_units,
+                    write_parquet, write_text)
 from .provenance import finish_run, now, with_run
 
 GRID_TOL = 1e-9  # how far a value may sit beyond a limit (float error) and still count
@@ -501,8 +502,8 @@ def merge_chunks(folder: Path, slices: list[slice], cell_f: np.ndarray, cell_d: 
             frame.attrs = {}  # the chunk's own metadata stays with the chunk
             frame = with_strategy(frame)  # derived columns: hip_share, strategy
             table = pa.Table.from_pandas(frame, preserve_index=False)
-            if writer is None:
-                schema = table.schema
+            if writer is None:  # the first chunk's columns, with their units (files.with_units)
+                schema = with_units(table.schema)
                 writer = pq.ParquetWriter(out, schema)
             pending.append(table.cast(schema))
             pending_rows += table.num_rows

@@ -39,7 +39,7 @@ from ..model.mjcf import indices, settled_rest
 from ..measures.outcomes import FALL_CAUSES, OUTCOMES
 from ..model.params import Config, ParameterError
 from ..runs.grid import check_durations, describe, parse_grid, same_values
-from ..store.files import write_parquet
+from ..store.files import write_csv, write_parquet
 from ..store.folder import OutputFolder, folder_lock
 from ..rollout import BatchRunner
 from .defaults import DEFAULT_V, DEFAULT_X, POSTURES
@@ -190,7 +190,7 @@ def run_basin(out: str | Path, config: Config, x_com: Any = DEFAULT_X, v_com: An
     ends = None
     if pushes is not None:
         ends = push_ends(config, plane, *pushes, cached=out / PUSHES, progress=progress)
-        ends.to_csv(out / PUSHES, index=False)
+        write_csv(ends, out / PUSHES)
     plot_basin(frame, plane, out / BASIN_PNG, ends, posture)
     text = reading(frame, ends)
     (out / BASIN_TXT).write_text(text + "\n")

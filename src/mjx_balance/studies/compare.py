@@ -31,7 +31,7 @@ from . import catalog as studies
 from ..model.params import Config, ParameterError, config_from_dict, load_config, read_toml
 from ..runs.definitions import load_sweep
 from ..runs.grid import check_durations, describe, parse_grid, same_values
-from ..store.files import REGION, TABLE
+from ..store.files import REGION, TABLE, write_csv
 from ..store.folder import OutputFolder, config_dict, config_differences
 from ..runs.folders import run_region, run_table_folder
 from ..runs import cluster as cluster_mod
@@ -219,7 +219,7 @@ def run_compare(out: str | Path, configs: dict[str, Config], forces: Any, durati
                      "t_end": config.scenario.t_end, **numbers(regions[name], tables[name])})
     frame = pd.DataFrame(rows)
     out.mkdir(parents=True, exist_ok=True)
-    frame.to_csv(out / COMPARE_CSV, index=False)
+    write_csv(frame, out / COMPARE_CSV)
     plot_compare(regions, out / COMPARE_PNG, frame)
     say(f"wrote {out / COMPARE_CSV} and {out / COMPARE_PNG}")
     return frame

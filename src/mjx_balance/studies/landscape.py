@@ -42,7 +42,7 @@ import pandas as pd
 from . import compare as comparison, catalog as studies
 from ..model.params import Config, ParameterError
 from ..runs.grid import check_durations, parse_grid
-from ..store.files import REGION, TABLE, write_atomic
+from ..store.files import REGION, TABLE, write_atomic, write_csv
 from ..runs.folders import batch_function, run_region, run_table_folder
 from .defaults import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES
 
@@ -249,13 +249,13 @@ def run_landscape(out: str | Path, base: Config, forces: Any, durations: Any, *,
                "nonconverged_solves": int(regions[name]["nonconverged_solves"].sum())}
         rows.append(row)
         frame = _frame(rows, regions, settings)
-        write_atomic(out / LANDSCAPE_CSV, lambda tmp: frame.to_csv(tmp, index=False))
+        write_csv(frame, out / LANDSCAPE_CSV)
         elapsed = time.perf_counter() - start
         say(f"landscape [{k}/{len(settings)}] area {row['area']:.4g} N s, sustained "
             f"{row['sustained_push_limit']:g} N, mean energy {row['mean_recovery_energy']:.3g} J"
             f" ({time.perf_counter() - t0:.1f} s; {elapsed:.0f} s so far)")
     frame = _frame(rows, regions, settings)
-    write_atomic(out / LANDSCAPE_CSV, lambda tmp: frame.to_csv(tmp, index=False))
+    write_csv(frame, out / LANDSCAPE_CSV)
     plot_landscape(frame, out / LANDSCAPE_PNG)
     text = reading(frame)
     write_atomic(out / LANDSCAPE_TXT, lambda tmp: tmp.write_text(text + "\n"))

@@ -40,7 +40,7 @@ import pandas as pd
 from ..figures.scorecard import plot_scorecard
 from ..model.params import ParameterError
 from ..runs.acting_time import MOTOR_ENERGY_COLUMNS, STUDY_ENERGY_COLUMNS
-from ..store.files import REGION, TABLE, TABLE_RUNS, write_atomic
+from ..store.files import REGION, TABLE, TABLE_RUNS, write_csv
 
 RESOLUTION = 0.01  # s: the table's bisection step (runs.acting_time)
 MEASURES = ["max_acting_time", *STUDY_ENERGY_COLUMNS, *MOTOR_ENERGY_COLUMNS]
@@ -376,7 +376,7 @@ def write_scorecard(folder: str | Path, refs: Sequence[Reference], *,
     folder = Path(folder)
     found = folder_results(folder)
     card = scorecard(found["table"], tables, runs=found["runs"], region=found["region"])
-    write_atomic(folder / SCORECARD, lambda tmp: card.to_csv(tmp, index=False))
+    write_csv(card, folder / SCORECARD)
     if figure:
         plot_scorecard(card, folder / SCORECARD_FIGURE, table=found["table"])
     return card

@@ -31,7 +31,7 @@ import pandas as pd
 
 from ..model.params import Config, ParameterError
 from ..runs.grid import parse_grid
-from ..store.files import TABLE, write_atomic, write_text
+from ..store.files import TABLE, write_csv, write_text
 from ..runs.folders import run_table_folder
 from .defaults import DEFAULT_FORCES, READINGS
 
@@ -101,7 +101,7 @@ def write_sensitivity(out: str | Path, tables: dict[str, pd.DataFrame], *,
     frame = spread(tables)
     if frame.empty:
         raise ParameterError("the readings' tables share no force")
-    write_atomic(out / SENSITIVITY_CSV, lambda tmp: frame.to_csv(tmp, index=False))
+    write_csv(frame, out / SENSITIVITY_CSV)
     text = reading_text(frame, tables)
     write_text(text + "\n", out / SENSITIVITY_TXT)
     plot_sensitivity(frame, tables, out / SENSITIVITY_PNG)
