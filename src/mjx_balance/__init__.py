@@ -41,13 +41,14 @@ _LAZY = {
     "weight_figure": "figures.report", "conventions_figure": "figures.report",
     "region_numbers": "studies.catalog", "study": "studies.catalog",
     "study_reading": "studies.catalog:reading",
+    "figure_style": "figures.style", "save_figure": "figures.style:save",
 }
 
 __all__ = ["Config", "ParameterError", "Subject", "__version__", "basin", "compare",
            "conventions_figure", "energy_map", "load_config", "load_report", "region_map", "region_numbers",
            "scorecard", "simulate", "strategy_map", "study", "study_reading", "sweep", "table",
            "table_figure",
-           "timeseries_figure", "weight_figure"]
+           "timeseries_figure", "weight_figure", "figure_style", "save_figure"]
 
 
 def __getattr__(name: str):

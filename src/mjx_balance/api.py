@@ -48,6 +48,7 @@ from .store.provenance import run_context
 from .reference import loop as reference
 from .store.files import TABLE, check_format, export_tables
 from .studies.compare import load_configs, run_compare
+from .figures.style import figure_style
 from .runs import DEFAULT_SWEEP
 from .studies.basin import DEFAULT_V, DEFAULT_X, run_basin
 from .studies.scorecard import (Reference, folder_results, read_references, reference_forces,
@@ -192,7 +193,8 @@ def table(forces: Values, config: ConfigLike = None,
           out: str | os.PathLike[str] | None = None, *, slots: int | None = None,
           full_length: bool = False, progress: bool | None = None,
           wait: bool = False, cluster: Any = None, physics: str = "auto",
-          reference: References = None, format: str | None = None) -> "pd.DataFrame":
+          reference: References = None, format: str | None = None,
+          figure_format: str | None = None, figure_size: str | None = None) -> "pd.DataFrame":
     """The robustness table: for each force, the max acting time (the largest duration, to
     0.01 s, such that every push up to it recovers) and the energies (``TABLE_COLUMNS``), as
     ``mjx-balance table`` writes table.csv (read back from it). ``out``: the output folder
@@ -204,12 +206,15 @@ def table(forces: Values, config: ConfigLike = None,
     file(s) (:func:`scorecard`): their table forces join ``forces``, and ``out`` gets
     scorecard.csv and scorecard.png; the returned table carries the scorecard in
     ``.attrs["scorecard"]``. ``format``: as :func:`sweep` (every table of ``out`` also as CSV,
-    parquet or both)."""
+    parquet or both). ``figure_format``: "png", "svg" or "pdf";
+    ``figure_size``: "screen", "one-column" or "two-column" (docs/outputs.md, "Figures");
+    None: the style in effect (:func:`figure_style`; png at screen size unless set)."""
     config = as_config(config)
     check_format(format)
     refs = read_references(reference)
     forces = _with_forces(grid_values(forces, "forces"), refs)
-    with _session("table"), _folder(out, "table") as folder:
+    with (_session("table"), figure_style(figure_format, figure_size),
+          _folder(out, "table") as folder):
         run_table_folder(folder, config, forces, slots=slots, full_length=full_length,
                          progress=wanted(progress), wait=wait, cluster=cluster, physics=physics)
         result = read_table(folder / TABLE)
@@ -255,20 +260,23 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
             out: str | os.PathLike[str], *, forces: Values = None, durations: Values = None,
             table_forces: Values = None, slots: int | None = None, full_length: bool = False,
             physics: str = "auto", cluster: Any = None,
-            progress: bool | None = None, format: str | None = None) -> "pd.DataFrame":
+            progress: bool | None = None, format: str | None = None,
+            figure_format: str | None = None, figure_size: str | None = None) -> "pd.DataFrame":
     """Several configurations on one grid (``mjx-balance compare``): each one's region map and
     table in ``out/<name>/``, then ``out/compare.csv`` (returned: area, mean recovery energy,
     sustained-push limit, max acting times, one row per configuration) and ``out/compare.png``
     (every recovery boundary on one plane). ``configs``: name -> configuration (a Config, a
     dict or a TOML path), or a list of TOML paths (named by their stems). Grids default to the
     default sweep's. ``format``: as :func:`sweep` (every table in ``out`` and its configuration
-    folders also as CSV, parquet or both)."""
+    folders also as CSV, parquet or both). ``figure_format``: "png", "svg" or "pdf";
+    ``figure_size``: "screen", "one-column" or "two-column" (docs/outputs.md, "Figures");
+    None: the style in effect (:func:`figure_style`; png at screen size unless set)."""
     check_format(format)
     if isinstance(configs, dict):
         configs = {str(name): as_config(c) for name, c in configs.items()}
     else:
         configs = load_configs([str(p) for p in configs])
-    with _session("compare"):
+    with _session("compare"), figure_style(figure_format, figure_size):
         frame = run_compare(out, configs,
                             DEFAULT_SWEEP["forces"] if forces is None else forces,
                             DEFAULT_SWEEP["durations"] if durations is None else durations,
@@ -282,15 +290,18 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
 def basin(out: str | os.PathLike[str], config: ConfigLike = None, *, x_com: Values = None,
           v_com: Values = None, posture: str = "rigid", pushes: Any = None,
           slots: int | None = None, full_length: bool = False,
-          progress: bool | None = None, format: str | None = None) -> "pd.DataFrame":
+          progress: bool | None = None, format: str | None = None,
+          figure_format: str | None = None, figure_size: str | None = None) -> "pd.DataFrame":
     """The recovery basin (``mjx-balance basin``): one unpushed scenario per (x_com, v_com)
     cell from the ``posture`` family's initial state, in ``out`` (basin.parquet, basin.png;
     resumable). Returns basin.parquet's rows. ``pushes``: None or (forces, durations) whose
     end-of-push states are drawn (pushes.csv). Grids default to -0.2:0.2:0.02 m and
     -0.6:0.6:0.06 m/s. ``format``: as :func:`sweep` (basin.parquet and pushes.csv also as CSV,
-    parquet or both)."""
+    parquet or both). ``figure_format``: "png", "svg" or "pdf";
+    ``figure_size``: "screen", "one-column" or "two-column" (docs/outputs.md, "Figures");
+    None: the style in effect (:func:`figure_style`; png at screen size unless set)."""
     check_format(format)
-    with _session("basin"):
+    with _session("basin"), figure_style(figure_format, figure_size):
         frame = run_basin(out, as_config(config), DEFAULT_X if x_com is None else x_com,
                           DEFAULT_V if v_com is None else v_com, posture, pushes,
                           progress=wanted(progress), say=log.info, slots=size_value(slots, "slots"),

@@ -11,7 +11,8 @@ from typing import Any
 
 from .common import in_folder, load_run_config, progress_enabled
 from ..studies.defaults import DEFAULT_V, DEFAULT_X, POSTURES  # light: no JAX
-from .options import common_options, format_option, positive_int, wait_option, write_exports
+from .options import (common_options, figure_options, format_option, positive_int, wait_option,
+                      write_exports)
 
 
 
@@ -39,6 +40,7 @@ def add_parser(sub: Any) -> None:
                    help="run every cell to t_end (no early stop of certified recoveries)")
     wait_option(p)
     format_option(p)
+    figure_options(p)
     common_options(p, out_help="output folder: basin.parquet, basin.png, pushes.csv, "
                                 "basin_cells/ (finished cells, for resuming)")
     p.set_defaults(target="mjx_balance.cli.basin:basin_command")

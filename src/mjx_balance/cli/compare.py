@@ -17,7 +17,8 @@ import sys
 from ..model.params import ParameterError, apply_overrides, run_config, with_convention
 from ..studies.defaults import (DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,  # light
                                 DEFAULT_SWEEP_TABLE_FORCES)
-from .options import (cluster_option, config_options, engine_options, format_option, out_folder,
+from .options import (cluster_option, config_options, engine_options, figure_options,
+                      format_option, out_folder,
                       sweep_file, wait_option, write_exports)
 
 OLD_FORM = ("mjx-balance: compare --config FILE ... (the configurations to compare) is now "
@@ -51,6 +52,7 @@ def add_parser(sub: Any) -> None:
     cluster_option(p)
     wait_option(p)
     format_option(p)
+    figure_options(p)
     p.add_argument("--out", type=out_folder, required=True,
                    help="output folder: one sweep folder per configuration, compare.csv, "
                         "compare.png")

@@ -17,7 +17,8 @@ from ..studies.defaults import (DEFAULT_DELAYS, DEFAULT_SCALES,  # light
                                 DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,
                                 DEFAULT_TABLE_FORCES)
 from .common import base_config, chosen_physics, in_folder, progress_enabled
-from .options import (config_options, engine_options, format_option, out_folder, renamed_option,
+from .options import (config_options, engine_options, figure_options, format_option,
+                      out_folder, renamed_option,
                       sweep_file, wait_option, write_exports)
 
 
@@ -59,6 +60,7 @@ def add_parser(sub: Any) -> None:
     engine_options(p)
     wait_option(p)
     format_option(p)
+    figure_options(p)
     p.add_argument("--out", type=out_folder, required=True,
                    help="output folder: one sweep folder per setting, landscape.csv, "
                         "landscape.png, landscape.txt")

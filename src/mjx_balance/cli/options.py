@@ -367,6 +367,7 @@ def renamed_option(new: str) -> type[argparse.Action]:
     return Renamed
 
 
+
 # ---------------------------------------------------------------------------------------------
 # Table exports (--format): every table also as CSV and/or parquet (store.files.export_tables)
 TABLE_FORMATS = ("csv", "parquet", "both")  # store.files.FORMATS (the parser stays light)

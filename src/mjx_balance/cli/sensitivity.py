@@ -13,7 +13,7 @@ from typing import Any
 
 from .common import in_folder, load_run_config, progress_enabled
 from ..studies.defaults import DEFAULT_FORCES, READINGS  # light: no JAX
-from .options import cluster_option, common_options, engine_options, wait_option
+from .options import cluster_option, common_options, engine_options, figure_options, wait_option
 
 
 
@@ -32,6 +32,7 @@ def add_parser(sub: Any) -> None:
     engine_options(p)
     cluster_option(p)
     wait_option(p)
+    figure_options(p)
     common_options(p, out_help="output folder: one table folder per reading, sensitivity.csv, "
                                "sensitivity.png, sensitivity.txt")
     p.set_defaults(target="mjx_balance.cli.sensitivity:sensitivity_command")

@@ -11,7 +11,8 @@ from pathlib import Path
 
 from ..model.params import ParameterError, dumps_config
 from .common import load_run_config, progress_enabled
-from .options import common_options, format_option, renamed_option, write_exports
+from .options import (common_options, figure_options, format_option, renamed_option,
+                      write_exports)
 
 log = logging.getLogger("mjx_balance")
 
@@ -44,6 +45,7 @@ def add_parser(sub) -> None:
                    help="time axes of the figures up to t_end (default: trimmed to the action, "
                         "the last settle or fall plus a margin)")
     format_option(p)
+    figure_options(p)
     common_options(p)
     p.set_defaults(target="mjx_balance.cli.simulate:simulate_command")
 

@@ -21,8 +21,9 @@ from ..model.params import Config, apply_overrides, with_convention
 from ..studies.defaults import (DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,  # light
                                 DEFAULT_SWEEP_TABLE_FORCES)
 from .common import base_config, chosen_physics, in_folder, progress_enabled
-from .options import (cluster_option, common_options, engine_options, format_option, input_file,
-                      positive_int, sweep_file, wait_option, write_exports, yes_option)
+from .options import (cluster_option, common_options, engine_options, figure_options,
+                      format_option, input_file, positive_int, sweep_file, wait_option,
+                      write_exports, yes_option)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -56,6 +57,7 @@ def add_parser(sub: Any) -> None:
     yes_option(p)
     wait_option(p)
     format_option(p)
+    figure_options(p)
     common_options(p)
     p.set_defaults(target="mjx_balance.cli.sweep:sweep_command")
 
@@ -73,6 +75,7 @@ def add_parser(sub: Any) -> None:
     yes_option(p)
     wait_option(p)
     format_option(p)
+    figure_options(p)
     common_options(p)
     p.set_defaults(target="mjx_balance.cli.sweep:table_command")
 
@@ -108,7 +111,10 @@ def report_scorecard(out: Path, refs: list) -> None:
 
     card = write_scorecard(out, refs)
     if card is not None:
-        log.info(f"wrote {out / 'scorecard.csv'} and scorecard.png\n" + summary_text(card))
+        from ..figures.style import figure_name  # lazy: as above
+
+        log.info(f"wrote {out / 'scorecard.csv'} and {figure_name('scorecard.png')}\n"
+                 + summary_text(card))
 
 
 def sweep_command(args: Any) -> int:
@@ -178,7 +184,7 @@ def sweep_command(args: Any) -> int:
                                          cluster=args.cluster)
             _make_table_figure(out, config, force=table is not None)
             # region.png overlays the table's max-acting-time curve: drawn again with it
-            _make_region_figures(out, result, config, reference, only="region.png",
+            _make_region_figures(out, result, config, reference, only="region",
                                  force=table is not None)
         report_scorecard(out, refs)
         write_exports(out, args)
@@ -194,6 +200,7 @@ def table_command(args: Any) -> int:
     # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
     from .. import api
     from ..figures import region as region_plots  # lazy: matplotlib
+    from ..figures.style import figure_name  # lazy: as above
     from ..runs import (STUDY_TABLE_FORCES, TABLE, load_sweep,  # lazy: the runs floor: JAX
                         parse_grid, table_batch_size)
     from ..runs.folders import check_batched  # lazy: the runs floor: JAX
@@ -226,10 +233,10 @@ def table_command(args: Any) -> int:
                                      cluster=getattr(args, "cluster", None))
         _make_table_figure(out, config, force=table is not None)
         if (out / REGION).exists():  # a sweep's folder: its map overlays the table's curve
-            path = out / "region.png"
+            path = out / figure_name("region.png")  # in --figure-format
             if table is not None or _stale(path, out / TABLE):
-                region_plots.plot_region(pd.read_parquet(out / REGION), path, config=config,
-                                         reference=reference_points(refs))
+                path = region_plots.plot_region(pd.read_parquet(out / REGION), path,
+                                                config=config, reference=reference_points(refs))
                 log.info(f"wrote {path}")
         report_scorecard(out, refs)
         write_exports(out, args)
@@ -277,39 +284,40 @@ def _guard_work(args: Any, config: Config, n_scenarios: int, chunk_size: int, wh
 def _stale(figure: Path, source: Path) -> bool:
     """A figure to draw again: missing, damaged (cut short by a failed write), or older than
     the table it is drawn from (a run that failed after rewriting the table)."""
-    from ..store.files import readable_png  # lazy: the store floor loads pandas
+    from ..store.files import readable_figure  # lazy: the store floor loads pandas
 
-    return (not readable_png(figure)
+    return (not readable_figure(figure)
             or figure.stat().st_mtime_ns < source.stat().st_mtime_ns)
 
 
 def _make_region_figures(out: Path, result: SweepResult, config: Config,
                          reference: pd.DataFrame | None, *, only: str | None = None,
                          force: bool = False) -> None:
-    """region.png and energy.png (or ``only`` one of them): drawn after a sweep that computed
-    or merged anything, with reference points, when ``force``d, or when stale (older than
-    region.parquet, or region.png older than the table.csv whose curve it overlays); read
-    from region.parquet only then."""
+    """region.png and energy.png (or ``only`` one of them, by stem): drawn after a sweep that
+    computed or merged anything, with reference points, when ``force``d, or when stale (older
+    than region.parquet, or region.png older than the table.csv whose curve it overlays); read
+    from region.parquet only then. Each in --figure-format (region.svg, ...: figures.style)."""
     from ..figures import region as region_plots  # lazy: matplotlib
     from ..figures import strategy as strategy_plots  # lazy: matplotlib
+    from ..figures.style import figure_name  # lazy: as above
     from ..runs import TABLE  # lazy: the runs floor loads JAX
-    from ..store.files import readable_png  # lazy: the store floor loads pandas
+    from ..store.files import readable_figure  # lazy: the store floor loads pandas
 
-    targets = {"region.png": region_plots.plot_region, "energy.png": region_plots.plot_energy,
-               "strategy.png": strategy_plots.plot_strategy,
-               "strategy_threshold.png": strategy_plots.plot_threshold}
+    targets = {"region": region_plots.plot_region, "energy": region_plots.plot_energy,
+               "strategy": strategy_plots.plot_strategy,
+               "strategy_threshold": strategy_plots.plot_threshold}
     region = None
-    for name, plot in targets.items():
-        if only is not None and name != only:
+    for stem, plot in targets.items():
+        if only is not None and stem != only:
             continue
-        path = out / name
-        overlay_stale = (name == "region.png" and (out / TABLE).exists()
-                         and readable_png(path) and _stale(path, out / TABLE))
+        path = out / figure_name(f"{stem}.png")
+        overlay_stale = (stem == "region" and (out / TABLE).exists()
+                         and readable_figure(path) and _stale(path, out / TABLE))
         if (force or not result.already_complete or _stale(path, result.region_path)
-                or overlay_stale or (reference is not None and name == "region.png")):
+                or overlay_stale or (reference is not None and stem == "region")):
             region = result.region if region is None else region
-            kwargs = {"reference": reference} if name == "region.png" else {}
-            plot(region, path, config=config, **kwargs)
+            kwargs = {"reference": reference} if stem == "region" else {}
+            path = plot(region, path, config=config, **kwargs)
             log.info(f"wrote {path}")
 
 
@@ -319,7 +327,10 @@ def _make_table_figure(out: Path, config: Config, force: bool) -> None:
     from ..figures import region as region_plots  # lazy: matplotlib
     from ..runs import TABLE  # lazy: the runs floor loads JAX
 
-    path = out / "table.png"
+    from ..figures.style import figure_name  # lazy: as above
+
+    path = out / figure_name("table.png")  # in --figure-format
     if force or _stale(path, out / TABLE):
-        region_plots.plot_table(pd.read_csv(out / TABLE, keep_default_na=True), path, config=config)
+        path = region_plots.plot_table(pd.read_csv(out / TABLE, keep_default_na=True), path,
+                                       config=config)
         log.info(f"wrote {path}")

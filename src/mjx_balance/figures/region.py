@@ -329,7 +329,8 @@ def region_map(region: pd.DataFrame, *, config: Config | None = None,
 
     counts = region["outcome"].value_counts()
     outcome_handles = [Patch(facecolor=OUTCOME_COLOURS[n], edgecolor="0.3", lw=0.5,
-                             hatch=OUTCOME_HATCHES[n], label=f"{OUTCOME_LABELS[n]} ({counts.get(n, 0)})")
+                             hatch=OUTCOME_HATCHES[n],
+                             label=f"{OUTCOME_LABELS[n]} ({counts.get(n, 0)})")
                        for n in OUTCOMES]
     ax.set_xlabel(FORCE_LABEL)
     ax.set_title(map_title("Outcome of a push (F, T) from upright rest", config, region)

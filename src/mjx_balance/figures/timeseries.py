@@ -2,8 +2,8 @@
 
 Input: the long time series written by ``mjx-balance simulate`` (``reference.TIMESERIES_COLUMNS``:
 one row per physics step and scenario), optionally its summary rows (``summary.csv``: each
-run's outcome) and configuration (the bounds). Output: one figure file per quantity (PNG; SVG or PDF and paper
-sizes in a ``style.figure_style``).
+run's outcome) and configuration (the bounds). Output: one figure file per quantity (PNG; SVG
+or PDF and paper sizes in a ``style.figure_style``).
 
 Every time axis shades the push window [0, T] and ends where the action ends (the last settle
 time or fall over the runs, plus a margin; ``full_window=True``: at t_end). The MPC's bounds are

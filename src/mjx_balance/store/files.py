@@ -100,6 +100,30 @@ def readable_png(path: str | Path) -> bool:
     return True
 
 
+def readable_figure(path: str | Path) -> bool:
+    """Whether ``path`` is a whole figure file of the format its suffix names: a PNG as
+    :func:`readable_png` checks it; a PDF that starts with ``%PDF-`` and ends in ``%%EOF``
+    (matplotlib writes it last); an SVG that parses as XML with an ``svg`` root. A file cut
+    short while being written fails (figures are written atomically, so only a copy or an
+    older writer leaves one)."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in (".pdf", ".svg"):
+        return readable_png(path)
+    try:
+        data = Path(path).read_bytes()
+    except OSError:
+        return False
+    if suffix == ".pdf":
+        return data.startswith(b"%PDF-") and data.rstrip().endswith(b"%%EOF")
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.fromstring(data)
+    except ET.ParseError:
+        return False
+    return root.tag.rsplit("}", 1)[-1] == "svg"
+
+
 UNITS_KEY = b"mjx_balance.units"  # the parquet schema's metadata: {column: unit} as JSON
 UNITS_SUFFIX = ".units.csv"  # a CSV's sidecar: NAME.csv -> NAME.units.csv
 FORMATS = ("csv", "parquet", "both")

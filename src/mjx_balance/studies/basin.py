@@ -43,6 +43,7 @@ from ..store.files import write_csv, write_parquet
 from ..store.folder import OutputFolder, folder_lock
 from ..rollout import BatchRunner
 from .defaults import DEFAULT_V, DEFAULT_X, POSTURES
+from ..figures import style as figure_style
 
 BASIN = "basin.parquet"
 BASIN_PNG = "basin.png"
@@ -191,11 +192,11 @@ def run_basin(out: str | Path, config: Config, x_com: Any = DEFAULT_X, v_com: An
     if pushes is not None:
         ends = push_ends(config, plane, *pushes, cached=out / PUSHES, progress=progress)
         write_csv(ends, out / PUSHES)
-    plot_basin(frame, plane, out / BASIN_PNG, ends, posture)
+    figure = plot_basin(frame, plane, out / BASIN_PNG, ends, posture)  # in the figure style
     text = reading(frame, ends)
     (out / BASIN_TXT).write_text(text + "\n")
     say(text)
-    say(f"wrote {out / BASIN}, {out / BASIN_PNG} and {out / BASIN_TXT}")
+    say(f"wrote {out / BASIN}, {figure} and {out / BASIN_TXT}")
     return frame
 
 
@@ -306,10 +307,9 @@ def reading(frame: pd.DataFrame, ends: pd.DataFrame | None = None) -> str:
 
 
 def plot_basin(frame: pd.DataFrame, plane: Plane, path: Path, ends: pd.DataFrame | None,
-               posture: str) -> None:
+               posture: str) -> Path:
     """Outcome and recovery energy over (x_com, v_com), the foot's edges, the capture-point
     bound, and the push cells' end states."""
-    import matplotlib.pyplot as plt
     from matplotlib.colors import ListedColormap
 
     xs, vs = np.sort(frame.x_com.unique()), np.sort(frame.v_com.unique())
@@ -324,10 +324,15 @@ def plot_basin(frame: pd.DataFrame, plane: Plane, path: Path, ends: pd.DataFrame
         last = v[-1] + (v[-1] - mid[-1]) if len(v) > 1 else v[-1] + 0.5
         return np.concatenate([[first], mid, [last]])
 
-    fig, axes = plt.subplots(1, 2, figsize=(13, 5.2), layout="constrained", sharey=True)
+    fig, axes = figure_style.subplots(1, 2, figsize=(13, 5.2), sharey=True)
     ex, ev = edges(xs), edges(vs)
-    axes[0].pcolormesh(ex, ev, recovered, cmap=ListedColormap(["#e8b4a8", "#9fd0a4"]),
+    colours = figure_style.OUTCOME_COLOURS  # not recovered: the fell colour, hatched
+    axes[0].pcolormesh(ex, ev, recovered, cmap=ListedColormap([colours["fell"],
+                                                               colours["recovered"]]),
                        vmin=0, vmax=1)
+    axes[0].pcolor(ex, ev, np.ma.masked_where(recovered > 0, np.ones_like(recovered)),
+                   hatch=figure_style.OUTCOME_HATCHES["fell"], facecolor="none",
+                   edgecolor="0.15", linewidth=0.0)
     mesh = axes[1].pcolormesh(ex, ev, energy, cmap="viridis")
     fig.colorbar(mesh, ax=axes[1], label="recovery energy (energy_total) [J]")
     line = np.linspace(ex[0], ex[-1], 50)
@@ -342,16 +347,15 @@ def plot_basin(frame: pd.DataFrame, plane: Plane, path: Path, ends: pd.DataFrame
             ends = ends[np.isfinite(ends.x_com)]
             ok = ends.outcome == "recovered"
             ax.scatter(ends.x_com[ok], ends.v_com[ok], s=14, marker="o", facecolors="none",
-                       edgecolors="#1b5e20", label="push end, push recovered")
-            ax.scatter(ends.x_com[~ok], ends.v_com[~ok], s=14, marker="x", color="#b71c1c",
+                       edgecolors="black", label="push end, push recovered")
+            ax.scatter(ends.x_com[~ok], ends.v_com[~ok], s=14, marker="x", color="black",
                        label="push end, push not recovered")
         ax.set_xlim(ex[0], ex[-1])
         ax.set_ylim(ev[0], ev[-1])
         ax.set_xlabel("CoM position relative to the ankle x_com [m]")
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("CoM velocity v_com [m/s]")
-    axes[0].set_title(f"Recovery basin ({posture} posture): green recovers, red does not")
+    axes[0].set_title(f"Recovery basin ({posture} posture): green recovers, hatched does not")
     axes[1].set_title("Energy of the recovered initial states")
     axes[0].legend(loc="lower left", fontsize=8, framealpha=0.9)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return figure_style.save(fig, path, dpi=110)

@@ -37,6 +37,7 @@ from ..runs.folders import run_region, run_table_folder
 from ..runs import cluster as cluster_mod
 from ..figures.region import cell_bounds
 from ..figures.region import duration_axis, log_durations
+from ..figures import style as figure_style
 
 COMPARE_CSV = "compare.csv"
 COMPARE_PNG = "compare.png"
@@ -220,8 +221,8 @@ def run_compare(out: str | Path, configs: dict[str, Config], forces: Any, durati
     frame = pd.DataFrame(rows)
     out.mkdir(parents=True, exist_ok=True)
     write_csv(frame, out / COMPARE_CSV)
-    plot_compare(regions, out / COMPARE_PNG, frame)
-    say(f"wrote {out / COMPARE_CSV} and {out / COMPARE_PNG}")
+    figure = plot_compare(regions, out / COMPARE_PNG, frame)  # compare.png in the figure style
+    say(f"wrote {out / COMPARE_CSV} and {figure}")
     return frame
 
 
@@ -249,17 +250,16 @@ def boundary_segments(region: pd.DataFrame, log: bool) -> list[tuple[tuple[float
     return segments
 
 
-def plot_compare(regions: dict[str, pd.DataFrame], path: Path, frame: pd.DataFrame) -> None:
+def plot_compare(regions: dict[str, pd.DataFrame], path: Path, frame: pd.DataFrame) -> Path:
     """One figure: every configuration's recovery boundary (the outline of its recovered
     cells) in its own colour and line style, the legend naming it with its area and
     sustained-push limit."""
-    import matplotlib.pyplot as plt
     from matplotlib.collections import LineCollection
 
     every = pd.concat(regions.values())
     durations = np.sort(every["duration"].unique())
     log = log_durations(durations)
-    fig, ax = plt.subplots(figsize=(8, 5.5), layout="constrained")
+    fig, ax = figure_style.subplots(figsize=(8, 5.5))
     styles = ["-", "--", "-.", ":"]
     numbers_of = frame.set_index("name")
     several_windows = frame["t_end"].nunique() > 1
@@ -270,7 +270,8 @@ def plot_compare(regions: dict[str, pd.DataFrame], path: Path, frame: pd.DataFra
         label = (f"{name}: {row['area']:.3g} N·s"
                  + (f", holds {limit:g} N" if np.isfinite(limit) else "")
                  + (f" ({row['t_end']:g}-s window)" if several_windows else ""))
-        ax.add_collection(LineCollection(segments, colors=f"C{k}", linewidths=2.2,
+        colour = figure_style.SERIES[k % len(figure_style.SERIES)]
+        ax.add_collection(LineCollection(segments, colors=colour, linewidths=2.2,
                                          linestyles=styles[k % len(styles)], label=label))
     forces = np.sort(every["force"].unique())
     fb = cell_bounds(forces)
@@ -280,5 +281,4 @@ def plot_compare(regions: dict[str, pd.DataFrame], path: Path, frame: pd.DataFra
     ax.set_title("Recovery boundaries: recovered cells lie inside each outline")
     ax.legend(loc="upper right", fontsize=9, title="configuration: recoverable area")
     ax.grid(alpha=0.3)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return figure_style.save(fig, path, dpi=120)

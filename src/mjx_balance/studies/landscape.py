@@ -45,6 +45,7 @@ from ..runs.grid import check_durations, parse_grid
 from ..store.files import REGION, TABLE, write_atomic, write_csv
 from ..runs.folders import batch_function, run_region, run_table_folder
 from .defaults import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES
+from ..figures import style as figure_style
 
 LANDSCAPE_CSV = "landscape.csv"
 LANDSCAPE_PNG = "landscape.png"
@@ -256,11 +257,11 @@ def run_landscape(out: str | Path, base: Config, forces: Any, durations: Any, *,
             f" ({time.perf_counter() - t0:.1f} s; {elapsed:.0f} s so far)")
     frame = _frame(rows, regions, settings)
     write_csv(frame, out / LANDSCAPE_CSV)
-    plot_landscape(frame, out / LANDSCAPE_PNG)
+    figure = plot_landscape(frame, out / LANDSCAPE_PNG)  # in the figure style
     text = reading(frame)
     write_atomic(out / LANDSCAPE_TXT, lambda tmp: tmp.write_text(text + "\n"))
     say(text)
-    say(f"wrote {out / LANDSCAPE_CSV}, {out / LANDSCAPE_PNG} and {out / LANDSCAPE_TXT} "
+    say(f"wrote {out / LANDSCAPE_CSV}, {figure} and {out / LANDSCAPE_TXT} "
         f"({time.perf_counter() - start:.0f} s)")
     return frame
 
@@ -316,16 +317,15 @@ def grid_of(frame: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray, n
     return qs, rs, values
 
 
-def plot_landscape(frame: pd.DataFrame, path: Path) -> None:
+def plot_landscape(frame: pd.DataFrame, path: Path) -> Path:
     """Heatmaps: one row per delay setting, one column per number (:data:`PANELS`); rows are Q
     scales, columns R scales (log spaced as given), each cell's value written in it, the base
     weights' cell (1, 1) outlined; a colour scale per column, shared by the rows."""
-    import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 
     delays = list(dict.fromkeys(frame["delay"]))
-    fig, axes = plt.subplots(len(delays), len(PANELS), squeeze=False, layout="constrained",
-                             figsize=(4.3 * len(PANELS), 3.9 * len(delays)))
+    fig, axes = figure_style.subplots(len(delays), len(PANELS), squeeze=False,
+                                      figsize=(4.3 * len(PANELS), 3.9 * len(delays)))
     for j, (column, title, fmt) in enumerate(PANELS):
         finite = frame[column].to_numpy(float)
         finite = finite[np.isfinite(finite)]
@@ -359,8 +359,7 @@ def plot_landscape(frame: pd.DataFrame, path: Path) -> None:
             if i == len(delays) - 1:
                 fig.colorbar(image, ax=axes[:, j], shrink=0.8)
     fig.suptitle("Weight landscape: Q x q_scale, R x r_scale (red: the base weights)")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return figure_style.save(fig, path, dpi=110)
 
 
 def _delay_label(row: pd.Series) -> str:

@@ -34,6 +34,7 @@ from ..runs.grid import parse_grid
 from ..store.files import TABLE, write_csv, write_text
 from ..runs.folders import run_table_folder
 from .defaults import DEFAULT_FORCES, READINGS
+from ..figures import style as figure_style
 
 # sensitivity.csv's energy columns -> table.csv's: of the longest recovered push (energy_<def>_*)
 # and of the 0.1-s push at the same force (energy_<def>_01_*; NaN where that push is not
@@ -104,9 +105,9 @@ def write_sensitivity(out: str | Path, tables: dict[str, pd.DataFrame], *,
     write_csv(frame, out / SENSITIVITY_CSV)
     text = reading_text(frame, tables)
     write_text(text + "\n", out / SENSITIVITY_TXT)
-    plot_sensitivity(frame, tables, out / SENSITIVITY_PNG)
+    figure = plot_sensitivity(frame, tables, out / SENSITIVITY_PNG)  # in the figure style
     say(text)
-    say(f"wrote {out / SENSITIVITY_CSV}, {out / SENSITIVITY_PNG} and {out / SENSITIVITY_TXT}")
+    say(f"wrote {out / SENSITIVITY_CSV}, {figure} and {out / SENSITIVITY_TXT}")
     return frame
 
 
@@ -221,17 +222,16 @@ def reading_text(frame: pd.DataFrame, tables: dict[str, pd.DataFrame]) -> str:
     return " ".join(parts)
 
 
-def plot_sensitivity(frame: pd.DataFrame, tables: dict[str, pd.DataFrame], path: Path) -> None:
+def plot_sensitivity(frame: pd.DataFrame, tables: dict[str, pd.DataFrame], path: Path) -> Path:
     """Max acting time (and the max/min ratio across readings) and the two energies, of the
     longest recovered push and of the 0.1-s push, against force, one line per reading."""
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(2, 3, figsize=(15, 8.4), layout="constrained")
+    fig, axes = figure_style.subplots(2, 3, figsize=(15, 8.4))
     markers = ["o", "s", "^", "D"]
     panels = {(0, 0): "max_acting_time", (0, 1): "energy_study", (0, 2): "energy_motors",
               (1, 1): "energy_study_01", (1, 2): "energy_motors_01"}
     for i, key in enumerate(tables):
-        style = dict(marker=markers[i % 4], color=f"C{i}", label=READINGS[key][0],
+        colour = figure_style.SERIES[i % len(figure_style.SERIES)]
+        style = dict(marker=markers[i % 4], color=colour, label=READINGS[key][0],
                      ls="-" if key.endswith("plain") else "--")
         for (row, col), prefix in panels.items():
             axes[row, col].plot(frame.force, frame[f"{prefix}_{key}"], **style)
@@ -253,5 +253,4 @@ def plot_sensitivity(frame: pd.DataFrame, tables: dict[str, pd.DataFrame], path:
     axes[1, 0].set_ylim(bottom=0)
     axes[0, 0].legend(fontsize=8)
     fig.suptitle("The reproduction table under every reading of the study")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return figure_style.save(fig, path, dpi=110)
