@@ -67,7 +67,7 @@ th { background: #f2f2f2; overflow-wrap: anywhere; max-width: 9em; vertical-alig
 ol.notes { font-size: 0.8em; color: #444; margin-top: 0; }
 .params { background: #f7f7f7; border-left: 4px solid #888;
 padding: 0.4em 0.8em; font-size: 0.9em; } .reading { background: #eef6ee;
-border-left: 4px solid #4daf4a; padding: 0.5em 0.9em; }
+border-left: 4px solid #009E73; padding: 0.5em 0.9em; }
 .banner { background: #fff3cd; border: 2px solid #d39e00; color: #5c4400; padding: 0.7em 1em;
           font-weight: 600; margin: 1em 0; }
 nav ul { columns: 2; font-size: 0.9em; }
