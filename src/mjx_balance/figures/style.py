@@ -131,11 +131,12 @@ def figure_name(name: str) -> str:
 
 
 def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float],
-             **kwargs: Any) -> tuple[Any, Any]:
+             stack: bool = True, **kwargs: Any) -> tuple[Any, Any]:
     """``plt.subplots`` with constrained layout in the current size: ``figsize`` on a screen;
     at a column width the figure is that wide (height scaled with it, at least
     MIN_PANEL_HEIGHT per row), and at one column a row of panels is stacked into one column
-    (the axes keep the shape ``plt.subplots`` gives them)."""
+    (the axes keep the shape ``plt.subplots`` gives them; ``stack=False`` keeps the grid, for
+    panels that share a colour bar per column)."""
     import matplotlib.pyplot as plt
     import numpy as np
 
@@ -145,7 +146,7 @@ def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float],
         return plt.subplots(nrows, ncols, figsize=figsize, **kwargs)
     squeeze = kwargs.pop("squeeze", True)
     rows, cols = nrows, ncols
-    if style.size == "one-column" and ncols > 1:
+    if style.size == "one-column" and ncols > 1 and stack:
         rows, cols = nrows * ncols, 1
         kwargs.pop("width_ratios", None)
         (kwargs.get("gridspec_kw") or {}).pop("width_ratios", None)

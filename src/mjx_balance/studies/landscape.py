@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import re
+import textwrap
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -320,12 +321,17 @@ def grid_of(frame: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray, n
 def plot_landscape(frame: pd.DataFrame, path: Path) -> Path:
     """Heatmaps: one row per delay setting, one column per number (:data:`PANELS`); rows are Q
     scales, columns R scales (log spaced as given), each cell's value written in it, the base
-    weights' cell (1, 1) outlined; a colour scale per column, shared by the rows."""
+    weights' cell (1, 1) outlined; a colour scale per column, shared by the rows. At one
+    column (``figure_style``) the grid is transposed: one row per number, one column per delay
+    setting, each panel titled with both."""
     from matplotlib.patches import Rectangle
 
     delays = list(dict.fromkeys(frame["delay"]))
-    fig, axes = figure_style.subplots(len(delays), len(PANELS), squeeze=False,
+    narrow = figure_style.current().size == "one-column"
+    shape = (len(PANELS), len(delays)) if narrow else (len(delays), len(PANELS))
+    fig, grid = figure_style.subplots(*shape, squeeze=False, stack=False,
                                       figsize=(4.3 * len(PANELS), 3.9 * len(delays)))
+    axes = grid.T if narrow else grid  # axes[i, j]: delay i, number j
     for j, (column, title, fmt) in enumerate(PANELS):
         finite = frame[column].to_numpy(float)
         finite = finite[np.isfinite(finite)]
@@ -351,11 +357,17 @@ def plot_landscape(frame: pd.DataFrame, path: Path) -> Path:
             ax.set_xticks(range(rs.size), [f"{v:g}" for v in rs], fontsize=7, rotation=45)
             ax.set_yticks(range(qs.size), [f"{v:g}" for v in qs], fontsize=7)
             ax.set_xlabel("R scale")
-            if j == 0:
-                label = _delay_label(rows.iloc[0])
-                ax.set_ylabel(f"{label}\nQ scale")
-            if i == 0:
-                ax.set_title(title, fontsize=10)
+            label = _delay_label(rows.iloc[0])
+            if narrow:
+                # two panels side by side in 3.5 in: titles of at most 22 characters a line
+                ax.set_title(textwrap.fill(f"{title}", 22) + f"\n{label}", fontsize=8)
+                if i == 0:
+                    ax.set_ylabel("Q scale")
+            else:
+                if j == 0:
+                    ax.set_ylabel(f"{label}\nQ scale")
+                if i == 0:
+                    ax.set_title(title, fontsize=10)
             if i == len(delays) - 1:
                 fig.colorbar(image, ax=axes[:, j], shrink=0.8)
     fig.suptitle("Weight landscape: Q x q_scale, R x r_scale (red: the base weights)")
