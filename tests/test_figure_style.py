@@ -14,21 +14,20 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-import pytest  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+import pytest
+from test_figures import _series
+from test_store_faults import cli_sweep, fake_rollout  # noqa: F401 (a fixture)
 
-from mjx_balance.cli.main import build_parser  # noqa: E402
-from mjx_balance.figures import animation, region as region_plots, style  # noqa: E402
-from mjx_balance.figures import scorecard as scorecard_plots, strategy  # noqa: E402
-from mjx_balance.figures import timeseries  # noqa: E402
-from mjx_balance.model.params import ParameterError  # noqa: E402
-from mjx_balance.store.files import readable_figure  # noqa: E402
-from mjx_balance.studies import compare  # noqa: E402
-
-from test_figures import _series  # noqa: E402
-from test_store_faults import cli_sweep, fake_rollout  # noqa: E402, F401 (a fixture)
+from mjx_balance.cli.main import build_parser
+from mjx_balance.figures import animation, strategy, style, timeseries
+from mjx_balance.figures import region as region_plots
+from mjx_balance.figures import scorecard as scorecard_plots
+from mjx_balance.model.params import ParameterError
+from mjx_balance.store.files import readable_figure
+from mjx_balance.studies import compare
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "mjx_balance"
 MAIN = ("recovered", "not_settled", "fell")
@@ -69,8 +68,9 @@ def lab(linear: np.ndarray) -> np.ndarray:
     return np.array([116 * f[1] - 16, 500 * (f[0] - f[1]), 200 * (f[1] - f[2])])
 
 
-def delta_e(a: str, b: str, matrix: np.ndarray = np.eye(3)) -> float:
-    """CIE76 colour difference of two colours as seen through ``matrix``."""
+def delta_e(a: str, b: str, matrix: np.ndarray | None = None) -> float:
+    """CIE76 colour difference of two colours as seen through ``matrix`` (None: as they are)."""
+    matrix = np.eye(3) if matrix is None else matrix
     return float(np.linalg.norm(lab(matrix @ linear_rgb(a)) - lab(matrix @ linear_rgb(b))))
 
 
@@ -296,12 +296,10 @@ def test_readable_figure_rejects_cut_vector_files(tmp_path):
 
 
 def test_bad_format_or_size_is_refused_with_its_value():
-    with pytest.raises(ParameterError, match="'tiff'"):
-        with style.figure_style(format="tiff"):
-            pass
-    with pytest.raises(ParameterError, match="'a4'"):
-        with style.figure_style(size="a4"):
-            pass
+    with pytest.raises(ParameterError, match="'tiff'"), style.figure_style(format="tiff"):
+        pass
+    with pytest.raises(ParameterError, match="'a4'"), style.figure_style(size="a4"):
+        pass
     assert style.current() == style.FigureStyle()  # nothing left set
 
 
@@ -323,7 +321,7 @@ def test_every_command_that_writes_figures_takes_the_options(capsys):
     assert exc.value.code == 2 and "invalid choice: 'tiff'" in capsys.readouterr().err
 
 
-def test_sweep_writes_svg_figures_and_resumes_on_them(tmp_path, fake_rollout, capsys):
+def test_sweep_writes_svg_figures_and_resumes_on_them(tmp_path, fake_rollout, capsys):  # noqa: F811
     out = tmp_path / "run"
     assert cli_sweep(out, "--figure-format", "svg", "--figure-size", "two-column") == 0
     for stem in ("region", "energy", "strategy", "strategy_threshold"):
