@@ -34,7 +34,7 @@ from .model.params import Config, ParameterError, Subject, load_config  # noqa: 
 # (or a new figure) and returns the Figure.
 _LAZY = {
     "simulate": "api", "sweep": "api", "table": "api", "compare": "api", "basin": "api",
-    "scorecard": "api", "strategy_map": "figures.strategy",
+    "cohort": "api", "scorecard": "api", "strategy_map": "figures.strategy",
     "load_report": "report.html:load_results",
     "region_map": "figures.region", "energy_map": "figures.region",
     "table_figure": "figures.region", "timeseries_figure": "figures.timeseries",
@@ -44,7 +44,7 @@ _LAZY = {
     "figure_style": "figures.style", "save_figure": "figures.style:save",
 }
 
-__all__ = ["Config", "ParameterError", "Subject", "__version__", "basin", "compare",
+__all__ = ["Config", "ParameterError", "Subject", "__version__", "basin", "cohort", "compare",
            "conventions_figure", "energy_map", "load_config", "load_report", "region_map", "region_numbers",
            "scorecard", "simulate", "strategy_map", "study", "study_reading", "sweep", "table",
            "table_figure",

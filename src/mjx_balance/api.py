@@ -44,6 +44,7 @@ from .runs.folders import (Values, batch_function, duration_values, grid_values,
                            run_table_folder, size_value, check_reference)
 from .runs.grid import check_durations, parse_pairs
 from .runs.progress import wanted
+from .store.folder import folder_lock
 from .store.provenance import run_context
 from .reference import loop as reference
 from .store.files import TABLE, check_format, export_tables
@@ -51,6 +52,7 @@ from .studies.compare import load_configs, run_compare
 from .figures.style import figure_style
 from .runs import DEFAULT_SWEEP
 from .studies.basin import DEFAULT_V, DEFAULT_X, run_basin
+from .studies.cohort import as_members, run_cohort
 from .studies.scorecard import (Reference, folder_results, read_references, reference_forces,
                                 write_scorecard)
 from .studies.scorecard import scorecard as score_results
@@ -59,7 +61,8 @@ if TYPE_CHECKING:
     import pandas as pd
 
 
-__all__ = ["Config", "ParameterError", "basin", "batch_function", "compare", "load_config",
+__all__ = ["Config", "ParameterError", "basin", "batch_function", "cohort", "compare",
+           "load_config",
            "run_region", "run_table_folder", "scorecard", "simulate", "sweep", "table"]
 
 log = logging.getLogger("mjx_balance")
@@ -306,6 +309,43 @@ def basin(out: str | os.PathLike[str], config: ConfigLike = None, *, x_com: Valu
                           DEFAULT_V if v_com is None else v_com, posture, pushes,
                           progress=wanted(progress), say=log.info, slots=size_value(slots, "slots"),
                           early_stop=not full_length)
+        export_tables(out, format)
+        return frame
+
+
+def cohort(out: str | os.PathLike[str],
+           subjects: "Sequence[Subject] | Mapping[str, Subject] | str | os.PathLike[str]", *,
+           forces: Values = None, durations: Values = None, config: ConfigLike = None,
+           table_forces: Values = None, slots: int | None = None, full_length: bool = False,
+           physics: str = "auto", progress: bool | None = None, wait: bool = False,
+           format: str | None = None, figure_format: str | None = None,
+           figure_size: str | None = None) -> "pd.DataFrame":
+    """A cohort (``mjx-balance cohort``): each subject's region map (its body from
+    :class:`Subject` on ``config``, default the study's configuration) in
+    ``out/subjects/<id>/``, then ``out/cohort.csv`` (returned: one row per subject, its body,
+    recoverable area [N s], mean recovery energy, ...), ``out/cohort_summary.csv`` (mean, SD,
+    5/50/95th percentiles) and the figures (docs/outputs.md, "cohort"). Resumable: a rerun
+    skips finished subjects and resumes a partial one.
+
+    ``subjects``: a sequence of Subjects (ids s01, s02, ...), a dict id -> Subject, or a CSV
+    file's path (columns id (optional), height, mass, sex, ankle_strength, hip_strength).
+    Grids default to the default sweep's. ``table_forces``: also each subject's table (max
+    acting time at these forces and the sustained-push limit; default: none, the limit NaN).
+    ``slots``, ``full_length``, ``physics``, ``progress``, ``wait``, ``format``,
+    ``figure_format``, ``figure_size``: as :func:`sweep` and :func:`compare`."""
+    check_format(format)
+    members = as_members(Path(subjects) if isinstance(subjects, os.PathLike)
+                         else dict(subjects) if isinstance(subjects, Mapping) else subjects)
+    base = as_config(config)
+    out = Path(out)
+    with (_session("cohort"), figure_style(figure_format, figure_size),
+          folder_lock(out, wait=wait)):
+        frame = run_cohort(out, members, base,
+                           DEFAULT_SWEEP["forces"] if forces is None else forces,
+                           DEFAULT_SWEEP["durations"] if durations is None else durations,
+                           table_forces=table_forces, progress=wanted(progress), log=log.info,
+                           slots=size_value(slots, "slots"), full_length=full_length,
+                           physics=physics)
         export_tables(out, format)
         return frame
 

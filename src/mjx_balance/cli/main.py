@@ -25,14 +25,14 @@ import warnings
 from ..model.params import ParameterError, ParameterWarning, forget_warnings
 from ..runtime.version import InstallError
 from ..runtime.xla import deterministic_flags
-from . import (animate, basin, bench, compare, landscape, model, report, sensitivity, simulate,
-               sweep)
+from . import (animate, basin, bench, cohort, compare, landscape, model, report, sensitivity,
+               simulate, sweep)
 from .common import verbosity
 from .options import EPILOG, HelpFormatter, conventions, conventions_parent
 
 # In the order of ``mjx-balance --help``: sweep adds sweep and table, model adds model and view.
-COMMANDS = (simulate, bench, sweep, compare, landscape, basin, sensitivity, animate, report,
-            model)
+COMMANDS = (simulate, bench, sweep, compare, cohort, landscape, basin, sensitivity, animate,
+            report, model)
 
 
 class _Version(argparse.Action):

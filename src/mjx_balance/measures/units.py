@@ -1,7 +1,7 @@
 """The unit of every column the product writes, in one place.
 
 ``UNITS`` maps a column name to ``(unit, meaning)``. Units are SI strings: ``s``, ``N``, ``J``,
-``m``, ``m/s``, ``rad``, ``rad/s``, ``N m``, ``N s``, ``ms``; ``1`` for a dimensionless number
+``m``, ``m/s``, ``rad``, ``rad/s``, ``N m``, ``N s``, ``ms``, ``kg``; ``1`` for a dimensionless number
 (a ratio, a fraction, a count, a 1/0 flag stored as a number); ``""`` for a label, a text or a
 True/False flag. Columns whose names carry a value (``max_acting_time_50N``, sensitivity's
 ``energy_study_paper_plain``) match :data:`PATTERNS`.
@@ -117,6 +117,14 @@ UNITS: dict[str, tuple[str, str]] = {
     "study": ("", "True for the base weights (1, 1)"),
     "paired_cells": ("1", "count of cells this setting and the base weights both recover"),
     "energy_vs_study": ("1", "mean energy_total over the paired cells / the base's"),
+    # --- cohort.csv and cohort_summary.csv (studies.cohort): a subject's body, the statistic
+    "id": ("", "the subject's id (its folder in subjects/)"),
+    "height": ("m", "the subject's stature"),
+    "mass": ("kg", "the subject's body mass"),
+    "sex": ("", "male or female (de Leva's table)"),
+    "ankle_strength": ("1", "factor on the mass-scaled ankle torque bound"),
+    "hip_strength": ("1", "factor on the mass-scaled hip torque bound"),
+    "statistic": ("", "mean, sd (n - 1), p5, p50 or p95 over the subjects"),
     # --- basin.parquet and pushes.csv (studies.basin)
     "cell": ("1", "cell index"),
     "x_com": ("m", "CoM x relative to the ankle"),

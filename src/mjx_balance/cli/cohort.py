@@ -1,0 +1,159 @@
+"""``mjx-balance cohort``: a population's region maps, one per subject, with the cohort's
+table and figures (``api.cohort`` does the work; ``studies.cohort`` runs it).
+
+The subjects come from one of three sources: a grid of bodies (``--heights`` and ``--masses``,
+optionally ``--sexes``, ``--ankle-strengths``, ``--hip-strengths``: every combination), a CSV
+file of real participants (``--subjects``) or a seeded sample (``--population N --seed S``)."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+from typing import Any
+
+from ..model.params import ParameterError
+from ..studies.defaults import DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES  # light
+from .common import base_config, in_folder, progress_enabled
+from .options import (
+    config_options,
+    engine_options,
+    figure_options,
+    finite_float,
+    format_option,
+    input_file,
+    nonnegative_float,
+    out_folder,
+    positive_int,
+    wait_option,
+    write_exports,
+)
+
+SEXES = ("male", "female")  # model.subject.SEXES (the parser stays light)
+
+
+def add_parser(sub: Any) -> None:
+    """The ``cohort`` sub-command (``sub.add_parser`` of ``main.build_parser``)."""
+    p = sub.add_parser("cohort", help="a population: every subject's region map, cohort.csv "
+                                      "with each subject's recoverable area and the "
+                                      "population's spread, and the cohort's figures")
+    source = p.add_argument_group("subjects (one source)")
+    source.add_argument("--heights", default=None, metavar="GRID",
+                        help="statures [m]: start:stop:step or a comma list (with --masses; "
+                             "every combination of the lists is a subject)")
+    source.add_argument("--masses", default=None, metavar="GRID", help="body masses [kg]")
+    source.add_argument("--sexes", type=sexes, default=None, metavar="LIST",
+                        help="male, female or male,female (default: male)")
+    source.add_argument("--ankle-strengths", default=None, metavar="GRID",
+                        help="factors on the mass-scaled ankle torque bound (default: 1)")
+    source.add_argument("--hip-strengths", default=None, metavar="GRID",
+                        help="factors on the mass-scaled hip torque bound (default: 1)")
+    source.add_argument("--subjects", type=input_file, default=None, metavar="FILE.csv",
+                        help="participants: a CSV file with columns id (optional), height, "
+                             "mass, sex, ankle_strength, hip_strength")
+    source.add_argument("--population", type=positive_int, default=None, metavar="N",
+                        help="N subjects drawn at random (with --seed): sex, then height and "
+                             "mass from normal distributions truncated to a subject's ranges")
+    source.add_argument("--seed", type=int, default=None, help="the population's seed")
+    source.add_argument("--height-mean", type=finite_float, default=1.70, help="[m] (1.70)")
+    source.add_argument("--height-sd", type=nonnegative_float, default=0.09, help="[m] (0.09)")
+    source.add_argument("--mass-mean", type=finite_float, default=70.0, help="[kg] (70)")
+    source.add_argument("--mass-sd", type=nonnegative_float, default=12.0, help="[kg] (12)")
+    source.add_argument("--female-fraction", type=nonnegative_float, default=0.5,
+                        help="probability that a subject is female (0.5)")
+    config_options(p)
+    p.add_argument("--forces", default=None,
+                   help=f"start:stop:step or a comma list [N] (default: the default sweep's, "
+                        f"{DEFAULT_SWEEP_FORCES})")
+    p.add_argument("--durations", default=None,
+                   help="start:stop:step or a comma list [s] (default: the default sweep's, "
+                        f"{DEFAULT_SWEEP_DURATIONS})")
+    p.add_argument("--table-forces", default=None,
+                   help="also each subject's table at these forces [N]: its max acting times "
+                        "and sustained-push limit in cohort.csv (default: no table)")
+    engine_options(p)
+    wait_option(p)
+    format_option(p)
+    figure_options(p)
+    p.add_argument("--out", type=out_folder, required=True,
+                   help="output folder: subjects/<id>/ (one sweep folder each), cohort.csv, "
+                        "cohort_summary.csv, manifest.json, the figures")
+    p.set_defaults(target="mjx_balance.cli.cohort:cohort_command")
+
+
+def sexes(text: str) -> list[str]:
+    """A comma list of male / female."""
+    items = [item.strip() for item in text.split(",") if item.strip()]
+    bad = [item for item in items if item not in SEXES]
+    if not items or bad:
+        raise argparse.ArgumentTypeError(f"give male, female or male,female; got {text!r}")
+    return items
+
+
+def chosen_source(args: argparse.Namespace) -> str:
+    """Which source the options name ("grid", "csv" or "population"); exactly one, complete
+    (else ParameterError: exit code 2, before any work)."""
+    if getattr(args, "subject", None) is not None:
+        raise ParameterError("--subject is one person; give a cohort's subjects with "
+                             "--heights and --masses, --subjects FILE.csv or --population N")
+    given = {"grid": args.heights is not None or args.masses is not None,
+             "csv": args.subjects is not None, "population": args.population is not None}
+    named = [k for k, v in given.items() if v]
+    if len(named) != 1:
+        raise ParameterError("give one source of subjects: --heights and --masses, "
+                                      "--subjects FILE.csv or --population N --seed S"
+                                      + (f" (got {', '.join(named)})" if named else ""))
+    source = named[0]
+    if source == "grid" and (args.heights is None or args.masses is None):
+        raise ParameterError("--heights and --masses go together")
+    if source == "population" and args.seed is None:
+        raise ParameterError("--population needs --seed (the same seed, the same "
+                                      "subjects)")
+    grid_only = ("sexes", "ankle_strengths", "hip_strengths")
+    stray = [n for n in grid_only if getattr(args, n) is not None and source != "grid"]
+    if stray:
+        raise ParameterError(f"--{stray[0].replace('_', '-')} goes with --heights "
+                                      "and --masses")
+    return source
+
+
+def members_from(args: argparse.Namespace) -> list:
+    """The cohort's subjects from the options (``studies.cohort``)."""
+    from ..runs.grid import parse_grid  # lazy: the runs floor loads JAX
+    from ..studies import cohort  # lazy: as above
+
+    source = chosen_source(args)
+    if source == "csv":
+        return cohort.read_subjects(args.subjects)
+    if source == "population":
+        return cohort.population(args.population, args.seed, height_mean=args.height_mean,
+                                 height_sd=args.height_sd, mass_mean=args.mass_mean,
+                                 mass_sd=args.mass_sd, female_fraction=args.female_fraction)
+    return cohort.subject_grid(
+        parse_grid(args.heights, "--heights"), parse_grid(args.masses, "--masses"),
+        args.sexes or ["male"],
+        parse_grid(args.ankle_strengths, "--ankle-strengths") if args.ankle_strengths else [1.0],
+        parse_grid(args.hip_strengths, "--hip-strengths") if args.hip_strengths else [1.0])
+
+
+def cohort_command(args: Any) -> int:
+    """Every subject's region map in OUT/subjects/<id>/, then cohort.csv, the summary and the
+    figures."""
+    from ..model.params import with_convention  # lazy: not for --help
+    from ..runs import DEFAULT_SWEEP  # lazy: the runs floor loads JAX; not for --help
+    from ..studies.cohort import run_cohort  # lazy: as above
+
+    members = members_from(args)
+    base = with_convention(base_config(args), args.convention)
+    out = Path(args.out)
+
+    def work() -> None:
+        run_cohort(out, members, base, args.forces or DEFAULT_SWEEP["forces"],
+                   args.durations or DEFAULT_SWEEP["durations"],
+                   table_forces=args.table_forces, progress=progress_enabled(args),
+                   log=logging.getLogger("mjx_balance").info,
+                   slots=args.slots, full_length=args.full_length,
+                   physics=args.physics or "auto")
+        write_exports(out, args)
+
+    return in_folder(out, work, wait=getattr(args, "wait", False))

@@ -1,0 +1,127 @@
+"""A cohort's figures (``studies.cohort``), from cohort.csv's frame and the subjects' region
+maps: the recoverable area over height x mass (:func:`plot_area`), the recovery boundaries of
+chosen subjects on one force x duration plane (:func:`plot_boundaries`) and one small outcome
+map per subject (:func:`plot_regions`). Saved through ``figures.style`` (its palette, format and
+sizes)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from . import style
+from .region import cell_bounds, duration_axis, log_durations, pivot
+
+SEX_MARKERS = {"male": "o", "female": "^"}
+
+
+def plot_area(frame: pd.DataFrame, path: str | Path) -> Path:
+    """Each subject at (height, mass), coloured by its recoverable area [N s] (viridis: ordered,
+    colour-blind safe, greyscale monotone); the marker gives the sex; subjects at the same
+    height and mass (other strengths) are drawn side by side, a little apart."""
+    fig, ax = style.subplots(figsize=(7, 5.5))
+    low, high = float(np.nanmin(frame["area"])), float(np.nanmax(frame["area"]))
+    same = frame.groupby(["height", "mass"])
+    rank = same.cumcount().to_numpy(float)
+    dx = 0.004 * (rank - (same["id"].transform("count").to_numpy(float) - 1) / 2)
+    x = frame["height"].to_numpy(float) + dx
+    points = None
+    for sex, marker in SEX_MARKERS.items():
+        rows = (frame["sex"] == sex).to_numpy()
+        if rows.any():
+            points = ax.scatter(x[rows], frame["mass"][rows], c=frame["area"][rows], cmap="viridis",
+                                vmin=low, vmax=high if high > low else low + 1, s=70,
+                                marker=marker, edgecolors="0.2", linewidths=0.6, label=sex)
+    fig.colorbar(points, ax=ax, label="recoverable area [N·s]")
+    ax.set_xlabel("height [m]")
+    ax.set_ylabel("mass [kg]")
+    ax.set_title(f"Recoverable area of {len(frame)} subjects over height x mass")
+    ax.legend(title="sex", fontsize=8, loc="best")
+    ax.grid(alpha=0.3)
+    return style.save(fig, path, dpi=120)
+
+
+def plot_boundaries(segments: dict[str, list], chosen: pd.DataFrame, every: pd.DataFrame,
+                    path: str | Path) -> Path:
+    """The recovery boundary (outline of the recovered cells; ``segments`` per subject id, as
+    ``studies.compare.boundary_segments`` gives them) of each chosen subject on one plane, the
+    legend naming the subject's body and area. ``chosen``: cohort.csv's rows of those subjects
+    (indexed by id); ``every``: every region's rows (for the axes)."""
+    from matplotlib.collections import LineCollection
+
+    durations = np.sort(every["duration"].unique())
+    log = log_durations(durations)
+    fig, ax = style.subplots(figsize=(8, 5.5))
+    lines = ["-", "--", "-.", ":"]
+    for k, (ident, segs) in enumerate(segments.items()):
+        row = chosen.loc[ident]
+        label = (f"{ident}: {row['height']:g} m, {row['mass']:g} kg, {row['sex']}: "
+                 f"{row['area']:.3g} N·s")
+        ax.add_collection(LineCollection(segs, colors=style.SERIES[k % len(style.SERIES)],
+                                         linewidths=2.0, linestyles=lines[k % len(lines)],
+                                         label=label))
+    fb = cell_bounds(np.sort(every["force"].unique()))
+    ax.set_xlim(fb[0], fb[-1])
+    duration_axis(ax, durations, cell_bounds(durations, log=log), log)
+    ax.set_xlabel("push force F [N]")
+    ax.set_title("Recovery boundaries of chosen subjects (smallest to largest area)")
+    ax.legend(loc="upper right", fontsize=8, title="subject: recoverable area")
+    ax.grid(alpha=0.3)
+    return style.save(fig, path, dpi=120)
+
+
+def _outcome_panel(ax: Any, region: pd.DataFrame) -> None:
+    """One subject's outcome map, in the palette (fell hatched), no legend."""
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+
+    forces, durations, outcome = pivot(region, "outcome")
+    names = list(style.OUTCOME_COLOURS)
+    codes = np.full(outcome.shape, np.nan)
+    for code, name in enumerate(names):
+        codes[outcome == name] = code
+    log = log_durations(durations)
+    fx, dy = cell_bounds(forces), cell_bounds(durations, log)
+    cmap = ListedColormap([style.OUTCOME_COLOURS[n] for n in names]).with_extremes(bad="white")
+    ax.pcolormesh(fx, dy, np.ma.masked_invalid(codes), cmap=cmap,
+                  norm=BoundaryNorm(np.arange(len(names) + 1) - 0.5, cmap.N), shading="flat")
+    for name, hatch in style.OUTCOME_HATCHES.items():
+        if hatch and (outcome == name).any():
+            ax.pcolor(fx, dy, np.ma.masked_where(outcome != name, np.ones(outcome.shape)),
+                      facecolor="none", edgecolor="0.2", hatch=hatch, linewidth=0)
+    ax.set_xlim(fx[0], fx[-1])
+    if log:
+        ax.set_yscale("log")
+    ax.set_ylim(dy[0], dy[-1])
+
+
+def plot_regions(regions: dict[str, pd.DataFrame], frame: pd.DataFrame,
+                 path: str | Path) -> Path:
+    """One small outcome map per subject (cohorts of up to 16), titled with its id, body and
+    area; one legend of the outcomes below."""
+    from matplotlib.patches import Patch
+
+    n = len(regions)
+    cols = min(4, n)
+    rows = -(-n // cols)
+    fig, axes = style.subplots(rows, cols, figsize=(2.6 * cols, 2.3 * rows + 0.6),
+                               sharex=True, sharey=True, squeeze=False)
+    numbers = frame.set_index("id")
+    for ax, (ident, region) in zip(axes.flat, regions.items()):
+        _outcome_panel(ax, region)
+        row = numbers.loc[ident]
+        ax.set_title(f"{ident}: {row['height']:g} m, {row['mass']:g} kg\n"
+                     f"{row['area']:.3g} N·s", fontsize=8)
+    for ax in list(axes.flat)[n:]:
+        ax.set_visible(False)
+    for ax in axes[-1, :]:
+        ax.set_xlabel("F [N]")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("T [s]")
+    fig.legend(handles=[Patch(facecolor=style.OUTCOME_COLOURS[o], edgecolor="0.3",
+                              hatch=style.OUTCOME_HATCHES[o], label=o.replace("_", " "))
+                        for o in style.OUTCOME_COLOURS],
+               loc="outside lower center", ncol=4, fontsize=8, frameon=False)
+    return style.save(fig, path, dpi=120)

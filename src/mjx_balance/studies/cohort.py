@@ -1,0 +1,325 @@
+"""Cohorts (``mjx-balance cohort``, :func:`run_cohort`): one region map per subject of a
+population, and the population's numbers.
+
+Each subject is a person (``model.params.Subject``: height, mass, sex, ankle and hip strength)
+whose body goes on the base configuration (``Subject.config(base)``). Each subject's region
+map is a plain sweep folder ``OUT/subjects/<id>/`` run by ``runs.folders.run_region`` (its own
+manifest, chunks and resume: a cohort run again skips finished subjects and resumes a partial
+one), with the subject's table in the same folder when table forces are given. Then:
+
+cohort.csv
+    one row per subject: its id and body values, then the numbers a comparison gives a
+    configuration (``studies.compare.numbers``: recoverable area [N s], fraction, cells,
+    f_max_ref, mean recovery energy [J]; sustained-push limit [N] and max acting time per
+    table force [s] when table forces are given, else the limit is NaN)
+cohort_summary.csv
+    the population's spread: mean, SD (n - 1), 5th, 50th and 95th percentile of every numeric
+    column of cohort.csv (NaNs left out), one row per statistic
+manifest.json
+    the base configuration, the grids, the subjects with their ids, and the runs' provenance
+cohort_area.png, cohort_boundaries.png, cohort_regions.png
+    figures (``figures.cohort``); the small multiples only for cohorts of at most
+    :data:`SMALL_COHORT` subjects
+
+Every subject's body changes the compiled program's constants (MJX keeps the foot's bounding
+radius static, and the torque bounds are static thresholds of the outcome rules), so each
+subject compiles its own program (docs/studies.md, "Cohorts", has the measured cost).
+
+Populations (:func:`population`): ``N`` subjects drawn from a NumPy ``Generator`` seeded
+with ``seed``; subject by subject: sex (female with probability ``female_fraction``), then
+height ~ Normal(height_mean, height_sd) and mass ~ Normal(mass_mean, mass_sd), independent,
+each redrawn until it lies in the range a Subject accepts (``params.HEIGHT_RANGE``,
+``SUBJECT_MASS_RANGE``): a truncated normal. The same seed gives the same subjects.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import json
+import math
+import re
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ..figures import cohort as cohort_figures
+from ..figures.region import log_durations
+from ..model.params import (
+    HEIGHT_RANGE,
+    SUBJECT_MASS_RANGE,
+    Config,
+    ParameterError,
+    Subject,
+    subjects_from_csv,
+)
+from ..runs.folders import duration_values, grid_values, run_region, run_table_folder
+from ..runs.progress import progress_bar
+from ..store.files import MANIFEST, REGION, TABLE, write_csv, write_text
+from ..store.folder import config_dict
+from ..store.provenance import with_run
+from .compare import boundary_segments, numbers
+
+COHORT_CSV = "cohort.csv"
+SUMMARY_CSV = "cohort_summary.csv"
+SUBJECTS = "subjects"
+SMALL_COHORT = 16  # cohort_regions.png: one panel per subject up to this many
+CHOSEN = 8  # cohort_boundaries.png: at most this many subjects' boundaries
+SUBJECT_COLUMNS = ["id", "height", "mass", "sex", "ankle_strength", "hip_strength"]
+STATISTICS = ("mean", "sd", "p5", "p50", "p95")
+ID_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
+
+
+@dataclass(frozen=True)
+class Member:
+    """One subject of a cohort under its id (its folder's name in ``OUT/subjects``)."""
+
+    id: str
+    subject: Subject
+
+    def record(self) -> dict[str, Any]:
+        return {"id": self.id, **self.subject.to_dict()}
+
+
+def numbered(subjects: Sequence[Subject]) -> list[Member]:
+    """Subjects under the ids s01, s02, ... (zero-padded to the cohort's size)."""
+    width = max(2, len(str(len(subjects))))
+    return [Member(f"s{i:0{width}d}", s) for i, s in enumerate(subjects, start=1)]
+
+
+def check_ids(members: Sequence[Member]) -> None:
+    """Ids are folder names (letters, digits, '.', '_', '-'; not starting with '.' or '-')
+    and each is given once (also ignoring case: a case-insensitive disk would merge them)."""
+    if not members:
+        raise ParameterError("a cohort needs at least one subject")
+    seen: dict[str, str] = {}
+    for member in members:
+        if not ID_PATTERN.fullmatch(member.id):
+            raise ParameterError(f"subject id {member.id!r} is not a folder name (letters, "
+                                 "digits, '.', '_', '-', starting with a letter or digit)")
+        if member.id.lower() in seen:
+            raise ParameterError(f"subject id {member.id!r} is given twice")
+        seen[member.id.lower()] = member.id
+
+
+def subject_grid(heights: Sequence[float], masses: Sequence[float],
+                 sexes: Sequence[str] = ("male",), ankle_strengths: Sequence[float] = (1.0,),
+                 hip_strengths: Sequence[float] = (1.0,)) -> list[Member]:
+    """Every combination of the lists (heights vary slowest), numbered s01, s02, ...; a value
+    a Subject refuses raises ParameterError naming it."""
+    subjects = [Subject(float(h), float(m), str(s), float(a), float(p))
+                for h, m, s, a, p in itertools.product(heights, masses, sexes, ankle_strengths,
+                                                       hip_strengths)]
+    return numbered(subjects)
+
+
+def _truncated(rng: np.random.Generator, mean: float, sd: float, low: float, high: float,
+               name: str) -> float:
+    """One draw of Normal(mean, sd) redrawn until it lies in [low, high]."""
+    for _ in range(10_000):
+        value = float(rng.normal(mean, sd))
+        if low <= value <= high:
+            return value
+    raise ParameterError(f"{name}: Normal({mean:g}, {sd:g}) almost never falls in the range "
+                         f"a subject accepts, [{low:g}, {high:g}]; check the mean and SD")
+
+
+def population(n: int, seed: int, *, height_mean: float = 1.70, height_sd: float = 0.09,
+               mass_mean: float = 70.0, mass_sd: float = 12.0,
+               female_fraction: float = 0.5) -> list[Member]:
+    """``n`` subjects drawn with ``np.random.default_rng(seed)`` (module docstring: sex, then
+    truncated-normal height and mass, independent), numbered s01, s02, ..."""
+    checks = {"n": (n, n >= 1 and float(n).is_integer()), "height_sd": (height_sd, height_sd >= 0),
+              "mass_sd": (mass_sd, mass_sd >= 0),
+              "female_fraction": (female_fraction, 0 <= female_fraction <= 1)}
+    for name, (value, ok) in checks.items():
+        if not (math.isfinite(float(value)) and ok):
+            raise ParameterError(f"population {name} = {value!r}: out of range (n >= 1 whole, "
+                                 "SDs >= 0, female_fraction in [0, 1])")
+    rng = np.random.default_rng(int(seed))
+    subjects = []
+    for _ in range(int(n)):
+        sex = "female" if rng.random() < female_fraction else "male"
+        height = _truncated(rng, height_mean, height_sd, *HEIGHT_RANGE, "height")
+        mass = _truncated(rng, mass_mean, mass_sd, *SUBJECT_MASS_RANGE, "mass")
+        subjects.append(Subject(round(height, 4), round(mass, 2), sex))
+    return numbered(subjects)
+
+
+def read_subjects(path: str | Path) -> list[Member]:
+    """The subjects of a CSV file (columns id (optional), height, mass, sex, ankle_strength,
+    hip_strength; ``params.subjects_from_csv`` refuses a bad row naming its line and value);
+    rows without an id are numbered s01, ... by their position."""
+    path = Path(path)
+    subjects = subjects_from_csv(path)
+    with path.open(newline="", encoding="utf-8") as fh:
+        ids = [(row.get("id") or "").strip() for row in csv.DictReader(fh)]
+    defaults = numbered(subjects)
+    members = [Member(given or default.id, subject)
+               for given, default, subject in zip(ids, defaults, subjects)]
+    for line, member in enumerate(members, start=2):
+        if not ID_PATTERN.fullmatch(member.id):
+            raise ParameterError(f"{path}, line {line}: id = {member.id!r} is not a folder name "
+                                 "(letters, digits, '.', '_', '-')")
+    check_ids(members)
+    return members
+
+
+def as_members(subjects: Any) -> list[Member]:
+    """Members from a CSV path, a dict id -> Subject, or a sequence of Subjects / Members."""
+    if isinstance(subjects, (str, Path)):
+        return read_subjects(subjects)
+    if isinstance(subjects, dict):
+        members = [Member(str(k), v) for k, v in subjects.items()]
+    else:
+        items = list(subjects)
+        if all(isinstance(s, Subject) for s in items):
+            members = numbered(items)
+        else:
+            members = items
+    for member in members:
+        if not isinstance(member, Member) or not isinstance(member.subject, Subject):
+            raise ParameterError(f"subjects: expected Subjects (mb.Subject), got {member!r}")
+    check_ids(members)
+    return members
+
+
+def _record(members: Sequence[Member], base: Config, forces: np.ndarray,
+            durations: np.ndarray, table_forces: np.ndarray | None) -> dict[str, Any]:
+    return {"kind": "cohort", "config": config_dict(base),
+            "cohort": {"forces": forces.tolist(), "durations": durations.tolist(),
+                       "table_forces": None if table_forces is None else table_forces.tolist(),
+                       "subjects": [m.record() for m in members]}}
+
+
+def open_manifest(out: Path, record: dict[str, Any]) -> dict[str, Any]:
+    """The cohort's manifest: a new one, or the folder's if it holds this same cohort (base,
+    grids, subjects); another cohort's folder is refused."""
+    path = out / MANIFEST
+    if path.exists():
+        try:
+            old = json.loads(path.read_text())
+        except (OSError, ValueError) as exc:
+            raise ParameterError(f"{path}: cannot be read ({exc}); use another --out") from None
+        if not isinstance(old, dict) or old.get("kind") != "cohort":
+            raise ParameterError(f"{out} holds another kind of output (its {MANIFEST} is not a "
+                                 "cohort's); use another --out folder")
+        for key in ("config", "cohort"):
+            if json.dumps(old.get(key), sort_keys=True) != json.dumps(record[key],
+                                                                      sort_keys=True):
+                what = "configuration" if key == "config" else "subjects or grids"
+                raise ParameterError(f"{out} holds a cohort with other {what}; use another "
+                                     "--out folder or the same cohort")
+        return {**old, **record}
+    return dict(record)
+
+
+def subject_numbers(member: Member, folder: Path) -> dict[str, Any]:
+    """The cohort.csv row of a finished subject's folder."""
+    region = pd.read_parquet(folder / REGION)
+    table = pd.read_csv(folder / TABLE) if (folder / TABLE).exists() else None
+    return {**member.record(), **numbers(region, table)}
+
+
+def summary(frame: pd.DataFrame) -> pd.DataFrame:
+    """Mean, SD (n - 1; NaN for one subject), 5/50/95th percentiles of every numeric column."""
+    numeric = frame.drop(columns=["id", "sex"]).select_dtypes("number")
+    rows = {"mean": numeric.mean(), "sd": numeric.std(ddof=1), "p5": numeric.quantile(0.05),
+            "p50": numeric.quantile(0.5), "p95": numeric.quantile(0.95)}
+    out = pd.DataFrame(rows).T
+    out.insert(0, "statistic", list(rows))
+    return out.reset_index(drop=True)
+
+
+def run_cohort(out: str | Path, members: Sequence[Member], base: Config, forces: Any,
+               durations: Any, *, table_forces: Any = None,
+               run_batches: Callable[[Config], Any] | None = None, progress: bool = False,
+               log: Callable[[str], None] | None = print, **engine: Any) -> pd.DataFrame:
+    """Every subject's region map (and table, with ``table_forces``) in
+    ``out/subjects/<id>/``, then cohort.csv, cohort_summary.csv and the figures in ``out``;
+    returns cohort.csv's frame. ``run_batches``: a batch function per subject's configuration
+    (tests); ``engine``: ``slots``, ``full_length``, ``physics``, ``cluster`` for
+    ``run_region``. Every subject's configuration and the grids are checked before any work."""
+    say = log or (lambda _msg: None)
+    out = Path(out)
+    check_ids(members)
+    forces = grid_values(forces, "forces")
+    tables = None if table_forces is None else grid_values(table_forces, "table forces")
+    configs = {}
+    for member in members:
+        try:
+            configs[member.id] = member.subject.config(base)
+            durations = duration_values(durations, configs[member.id])
+        except ParameterError as exc:
+            raise ParameterError(f"subject {member.id!r}: {exc}") from None
+    out.mkdir(parents=True, exist_ok=True)
+    manifest = open_manifest(out, _record(members, base, forces, durations, tables))
+    write_text(json.dumps(with_run(manifest), indent=2) + "\n", out / MANIFEST)
+    cells = forces.size * durations.size
+    folders = {m.id: out / SUBJECTS / m.id for m in members}
+    done = sum((folders[m.id] / REGION).exists() for m in members)
+    say(f"cohort: {len(members)} subjects x {cells} cells ({done} subjects already done); "
+        f"output {out}")
+    bar = progress_bar(len(members) * cells, done * cells, progress, desc="cohort")
+    try:
+        for member in members:
+            finished = (folders[member.id] / REGION).exists()
+            _run_subject(member, folders[member.id], configs[member.id], forces, durations,
+                         tables, run_batches=run_batches, say=say, engine=engine)
+            if not finished:
+                bar.update(cells)
+    finally:
+        bar.close()
+    return write_outputs(out, members, folders, say)
+
+
+def _run_subject(member: Member, folder: Path, config: Config, forces: np.ndarray,
+                 durations: np.ndarray, tables: np.ndarray | None, *,
+                 run_batches: Callable[[Config], Any] | None, say: Callable[[str], None],
+                 engine: dict[str, Any]) -> None:
+    say(f"cohort: subject {member.id} ({member.subject.describe()}) -> {folder}")
+    batch = run_batches(config) if run_batches is not None else None
+    run_region(folder, config, forces, durations, run_batch=batch, progress=False, **engine)
+    if tables is not None:
+        run_table_folder(folder, config, tables, run_batch=batch, progress=False, **engine)
+
+
+def write_outputs(out: Path, members: Sequence[Member], folders: dict[str, Path],
+                  say: Callable[[str], None]) -> pd.DataFrame:
+    """cohort.csv, cohort_summary.csv and the figures from the subjects' folders."""
+    frame = pd.DataFrame([subject_numbers(m, folders[m.id]) for m in members])
+    write_csv(frame, out / COHORT_CSV)
+    write_csv(summary(frame), out / SUMMARY_CSV)
+    regions = {m.id: pd.read_parquet(folders[m.id] / REGION) for m in members}
+    figures = draw(out, frame, regions)
+    say(f"wrote {out / COHORT_CSV}, {out / SUMMARY_CSV} and "
+        + ", ".join(p.name for p in figures))
+    return frame
+
+
+def chosen(frame: pd.DataFrame, count: int = CHOSEN) -> list[str]:
+    """Up to ``count`` subjects spread over the area's range: the smallest, the largest and
+    those at evenly spaced ranks between (the median among them for an odd count)."""
+    order = frame.sort_values(["area", "id"], kind="stable")["id"].tolist()
+    if len(order) <= count:
+        return order
+    ranks = np.unique(np.round(np.linspace(0, len(order) - 1, count)).astype(int))
+    return [order[r] for r in ranks]
+
+
+def draw(out: Path, frame: pd.DataFrame, regions: dict[str, pd.DataFrame]) -> list[Path]:
+    """The cohort's figures (module docstring)."""
+    paths = [cohort_figures.plot_area(frame, out / "cohort_area.png")]
+    picks = chosen(frame)
+    every = pd.concat(regions.values())
+    log = log_durations(np.sort(every["duration"].unique()))
+    segments = {i: boundary_segments(regions[i], log) for i in picks}
+    paths.append(cohort_figures.plot_boundaries(segments, frame.set_index("id").loc[picks],
+                                                every, out / "cohort_boundaries.png"))
+    if len(frame) <= SMALL_COHORT:
+        paths.append(cohort_figures.plot_regions(regions, frame, out / "cohort_regions.png"))
+    return paths
