@@ -49,7 +49,9 @@ def _tables(fragment: str) -> list[tuple[list[str], list[list[str]]]]:
     """(header, rows of cell texts) of every HTML table in ``fragment``."""
     tables = []
     for table in re.findall(r"<table[^>]*>(.*?)</table>", fragment, re.S):
-        header = [html.unescape(h) for h in re.findall(r"<th>(.*?)</th>", table)]
+        # a heading is the column's name and its unit in brackets, where it has one
+        header = [re.sub(r" \[[^\]]+\]$", "", html.unescape(h))
+                  for h in re.findall(r"<th>(.*?)</th>", table)]
         body = table.split("<tbody>", 1)[1]
         rows = [[html.unescape(c) for c in re.findall(r"<td>(.*?)</td>", row, re.S)]
                 for row in re.findall(r"<tr>(.*?)</tr>", body, re.S)]
@@ -78,6 +80,10 @@ def _assert_shows(table: tuple[list[str], list[list[str]]], frame: pd.DataFrame)
                 assert cell == value, column
             elif pd.isna(value):
                 assert cell == "–", column
+            elif cell == "0" and value != 0:
+                # float noise shows as 0: under a millionth of the column's largest value
+                top = np.nanmax(np.abs(frame[column].to_numpy(dtype=float)))
+                assert abs(value) < top * report.html.NOISE_FRACTION, (column, value)
             else:
                 within(float(cell), float(value), rtol=1e-3, msg=column,
                        why="shown to 4 significant digits: at most 5e-4 relative off")
@@ -438,3 +444,18 @@ def test_scorecard_section_leads_and_carries_the_reasons(out, page):
     for row in card[card["status"] == "differs"].itertuples():
         assert (row.reason or "no reason in the reference file") in html.unescape(text)
     assert page.index('id="scorecard"') < page.index('id="overview"')
+
+
+def test_table_headings_carry_units_and_noise_shows_as_zero():
+    from mjx_balance.report.html import _table
+
+    frame = pd.DataFrame({"force": [0.0, 50.0], "outcome": ["recovered", "recovered"],
+                          "fraction": [0.5, 0.25], "energy_total": [1.6e-11, 0.31],
+                          "max_acting_time": [0.35, 5e-7]})
+    block = _table(frame)
+    assert block["header"] == ["force [N]", "outcome", "fraction", "energy_total [J]",
+                               "max_acting_time [s]"]
+    # 1.6e-11 J beside 0.31 J is under a millionth of the column: float noise, shown as 0;
+    # 5e-7 s beside 0.35 s is above it (3.5e-7) and shown
+    assert [row[3] for row in block["rows"]] == ["0", "0.31"]
+    assert [row[4] for row in block["rows"]] == ["0.35", "5e-07"]

@@ -23,11 +23,12 @@ from markupsafe import Markup
 
 from ..studies import catalog as studies
 from ..measures.outcomes import OUTCOMES, RECOVERED
+from ..measures.units import describe
 from ..model.params import Config, config_from_dict, with_convention
 from ..store.files import write_atomic
 from ..studies.experiments import REPORT_JSON, WEIGHTS_RECOVERING, read_record
 from ..studies.scorecard import read_references
-from .blocks import img
+from .blocks import embed, img
 from .reproduction import (SCORECARD_HEADING, reference_files, scorecard_section,
                            strategy_blocks)
 from .extra import extra_sections
@@ -228,7 +229,15 @@ def _row(*figures: dict) -> dict:
     return {"kind": "row", "figures": list(figures)}
 
 
-def _cell(value: Any) -> str:
+# A table's value smaller than this fraction of its column's largest magnitude is shown as 0:
+# the batched path runs in float32 (eps 1.2e-7), so such a value (e.g. 1.6e-11 J of energy at
+# F = 0 beside energies of 1 J) is below what the column's own numbers resolve. Only the page
+# rounds; the saved tables keep every digit.
+NOISE_FRACTION = 1e-6
+
+
+def _cell(value: Any, noise: float = 0.0) -> str:
+    """A value as table text: 4 significant digits, ``|value| < noise`` as 0, NaN as –."""
     if isinstance(value, str):
         return value
     if value is None or pd.isna(value):
@@ -237,7 +246,21 @@ def _cell(value: Any) -> str:
         return str(bool(value))
     if isinstance(value, (int, np.integer)):
         return str(int(value))
+    if abs(float(value)) < noise:
+        return "0"
     return f"{float(value):.4g}"
+
+
+def _noise(column: pd.Series) -> float:
+    """The magnitude below which a float column's values show as 0 (NOISE_FRACTION): only for
+    a measured quantity (a unit such as J, rad, s in measures/units.py), never for a setting or
+    a ratio (a weight scale column holds 1e-8 beside 1e7 by design)."""
+    found = describe(str(column.name))
+    if (not pd.api.types.is_float_dtype(column) or found is None
+            or found[0] in ("", "1", "mixed") or found[0].startswith("(")):
+        return 0.0
+    top = np.nanmax(np.abs(column.to_numpy(dtype=float)), initial=0.0)
+    return float(top) * NOISE_FRACTION
 
 
 def mark_outcomes(frame: pd.DataFrame, columns: list[str], outcome: str = "outcome",
@@ -249,16 +272,19 @@ def mark_outcomes(frame: pd.DataFrame, columns: list[str], outcome: str = "outco
     # only a known outcome other than recovered is marked (an empty outcome_01: no such run)
     ok = ~frame[outcome].astype(str).isin([o for o in OUTCOMES if o != OUTCOMES[RECOVERED]])
     for column in columns:
-        frame[column] = [(_cell(v) if good else f"– [{o}]")
+        noise = _noise(frame[column][ok])
+        frame[column] = [(_cell(v, noise) if good else f"– [{o}]")
                          for v, good, o in zip(frame[column], ok, frame[outcome].astype(str))]
     return frame
 
 
 def _table(frame: pd.DataFrame, columns: list[str] | None = None,
            note_column: str | None = None) -> dict:
-    """A table block: the frame's cells as text (floats to 4 significant digits, NaN as –);
+    """A table block: the frame's cells as text (floats to 4 significant digits, float noise
+    as 0: NOISE_FRACTION, NaN as –);
     ``note_column``'s texts become footnote markers ([1], [2], ...) with the notes below."""
     frame = frame[columns] if columns else frame
+    noise = {column: _noise(frame[column]) for column in frame.columns}
     notes: list[str] = []
     rows = []
     for _, row in frame.iterrows():
@@ -274,10 +300,20 @@ def _table(frame: pd.DataFrame, columns: list[str] | None = None,
                 else:
                     cells.append("")
             else:
-                cells.append(_cell(value))
+                cells.append(_cell(value, noise[column]))
         rows.append(cells)
-    return {"kind": "table", "header": [str(c) for c in frame.columns], "rows": rows,
+    return {"kind": "table", "header": [_header(c) for c in frame.columns], "rows": rows,
             "notes": notes}
+
+
+def _header(column: Any) -> str:
+    """A table's column heading: its name and, where it has one, its unit (measures/units.py;
+    no unit shown for labels, dimensionless numbers or a row-dependent unit)."""
+    found = describe(str(column))
+    unit = found[0] if found else ""
+    if unit in ("", "1", "mixed") or unit.startswith("("):
+        return str(column)
+    return f"{column} [{unit}]"
 
 
 def _params(text: str | Markup) -> dict:
@@ -619,7 +655,7 @@ def _environment():
 def page_html(sections_: list[dict], banner_text: str | None = None) -> str:
     """The whole self-contained HTML document around the sections (templates/report.html.j2)."""
     return _environment().get_template(TEMPLATE).render(
-        title=TITLE, css=CSS, banner=banner_text, sections=sections_)
+        title=TITLE, css=CSS, banner=banner_text, sections=embed(sections_))
 
 
 def build_report(out: str | Path) -> Path:
