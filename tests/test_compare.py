@@ -66,6 +66,11 @@ def test_compare_writes_its_figure_and_table(tmp_path, stand_in):
         assert row["mean_recovery_energy"] == pytest.approx(recovered.energy_total.mean())
     with Image.open(out / "compare.png") as image:
         assert image.size[0] > 500
+        pixels = np.asarray(image.convert("RGB"), dtype=float)
+    # the first configuration's recovered cells are filled in the palette's recovered colour
+    # (#009E73 at alpha 0.22 over white: (199, 233, 224)), so the map says which side recovers
+    shade = np.abs(pixels - np.array([199.0, 233.0, 224.0])).max(axis=-1) <= 3
+    assert shade.mean() > 0.05
     # a rerun finds everything done: no batch function is even called
     calls = sum(len(f.calls) for f in stand_in)
     assert main(["compare", "--config", str(a), "--config", str(b), "--forces", FORCES,

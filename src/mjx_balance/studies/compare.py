@@ -250,6 +250,27 @@ def boundary_segments(region: pd.DataFrame, log: bool) -> list[tuple[tuple[float
     return segments
 
 
+def _shade_recovered(ax, first: tuple[str, pd.DataFrame], log: bool) -> Any:
+    """The first configuration's recovered cells, filled lightly in the outcome palette's
+    recovered colour, so that the map says which side of the outlines recovers; returns the
+    legend's patch for it."""
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    name, region = first
+    forces = np.sort(region["force"].unique())
+    durations = np.sort(region["duration"].unique())
+    grid = np.full((durations.size, forces.size), np.nan)
+    rec = region[studies.is_recovered(region)]
+    grid[np.searchsorted(durations, rec["duration"].to_numpy()),
+         np.searchsorted(forces, rec["force"].to_numpy())] = 1.0
+    colour = figure_style.OUTCOME_COLOURS["recovered"]
+    ax.pcolormesh(cell_bounds(forces), cell_bounds(durations, log=log),
+                  np.ma.masked_invalid(grid), cmap=ListedColormap([colour]), alpha=0.22,
+                  zorder=0)
+    return Patch(facecolor=colour, alpha=0.22, label=f"{name}: recovered cells")
+
+
 def plot_compare(regions: dict[str, pd.DataFrame], path: Path, frame: pd.DataFrame) -> Path:
     """One figure: every configuration's recovery boundary (the outline of its recovered
     cells) in its own colour and line style, the legend naming it with its area and
@@ -260,6 +281,7 @@ def plot_compare(regions: dict[str, pd.DataFrame], path: Path, frame: pd.DataFra
     durations = np.sort(every["duration"].unique())
     log = log_durations(durations)
     fig, ax = figure_style.subplots(figsize=(8, 5.5))
+    shaded = _shade_recovered(ax, next(iter(regions.items())), log)
     styles = ["-", "--", "-.", ":"]
     numbers_of = frame.set_index("name")
     several_windows = frame["t_end"].nunique() > 1
@@ -279,6 +301,8 @@ def plot_compare(regions: dict[str, pd.DataFrame], path: Path, frame: pd.DataFra
     duration_axis(ax, durations, cell_bounds(durations, log=log), log)
     ax.set_xlabel("push force F [N]")
     ax.set_title("Recovery boundaries: recovered cells lie inside each outline")
-    ax.legend(loc="upper right", fontsize=9, title="configuration: recoverable area")
+    handles = ax.get_legend_handles_labels()[0] + [shaded]
+    ax.legend(handles=handles, loc="upper right", fontsize=9,
+              title="configuration: recoverable area")
     ax.grid(alpha=0.3)
     return figure_style.save(fig, path, dpi=120)
