@@ -7,7 +7,6 @@ fail: the check must run somewhere."""
 import os
 
 import pytest
-
 from browser_audit import audit, chromium
 from tiny_report import tiny_report
 

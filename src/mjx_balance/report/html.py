@@ -21,18 +21,31 @@ import numpy as np
 import pandas as pd
 from markupsafe import Markup
 
-from ..studies import catalog as studies
+from ..figures.report import (
+    conventions_figure,
+    draw_region,
+    draw_study,
+    draw_table,
+    draw_timeseries,
+    draw_weights,
+    region_figure,
+    save_figure,
+)
 from ..measures.outcomes import OUTCOMES, RECOVERED
 from ..measures.units import describe
 from ..model.params import Config, config_from_dict, with_convention
 from ..store.files import write_atomic
+from ..studies import catalog as studies
 from ..studies.experiments import REPORT_JSON, WEIGHTS_RECOVERING, read_record
 from ..studies.scorecard import read_references
 from .blocks import embed, img
-from .reproduction import (SCORECARD_HEADING, reference_files, scorecard_section,
-                           strategy_blocks)
 from .extra import extra_sections
-from ..figures.report import (conventions_figure, save_figure, draw_timeseries, draw_weights, draw_table, region_figure, draw_region, draw_study)
+from .reproduction import (
+    SCORECARD_HEADING,
+    reference_files,
+    scorecard_section,
+    strategy_blocks,
+)
 
 HTML = "report.html"
 TEMPLATE = "report.html.j2"  # in templates/ (package data)

@@ -27,17 +27,22 @@ from typing import Any, Callable, Sequence
 import numpy as np
 import pandas as pd
 
-from . import catalog as studies
-from ..model.params import Config, ParameterError, config_from_dict, load_config, read_toml
+from ..figures import style as figure_style
+from ..figures.region import cell_bounds, duration_axis, log_durations
+from ..model.params import (
+    Config,
+    ParameterError,
+    config_from_dict,
+    load_config,
+    read_toml,
+)
+from ..runs import cluster as cluster_mod
 from ..runs.definitions import load_sweep
+from ..runs.folders import run_region, run_table_folder
 from ..runs.grid import check_durations, describe, parse_grid, same_values
 from ..store.files import REGION, TABLE, write_csv
 from ..store.folder import OutputFolder, config_dict, config_differences
-from ..runs.folders import run_region, run_table_folder
-from ..runs import cluster as cluster_mod
-from ..figures.region import cell_bounds
-from ..figures.region import duration_axis, log_durations
-from ..figures import style as figure_style
+from . import catalog as studies
 
 COMPARE_CSV = "compare.csv"
 COMPARE_PNG = "compare.png"
