@@ -259,3 +259,17 @@ def test_a_cohort_of_one_is_the_plain_sweep_of_that_body(tmp_path):
     assert plain["outcome"].nunique() > 1  # the grid crosses the boundary: not a trivial map
     row = pd.read_csv(tmp_path / "cohort" / "cohort.csv").iloc[0]
     assert row["area"] == pytest.approx(mb.region_numbers(plain)["area"])
+
+
+def test_subjects_share_one_compiled_program():
+    """Everything a compiled program is keyed on (``BatchRunner._shape_key``: tree structure,
+    shapes, static settings) is the same for bodies of other sizes and strengths: the body,
+    the QP and the torque bounds are traced arguments, so a cohort compiles once (measured:
+    docs/studies.md, "Cohorts"). Builds the runners only; nothing is compiled."""
+    from mjx_balance.rollout.runner import BatchRunner
+
+    small = BatchRunner(Subject(1.52, 48, "female", ankle_strength=0.6).config())
+    large = BatchRunner(Subject(1.93, 105, "male", hip_strength=1.4).config())
+    assert small.static.limits == large.static.limits  # the bounds are not in it
+    assert not np.array_equal(small.arrays.bounds, large.arrays.bounds)  # but they differ
+    assert small._shape_key(32) == large._shape_key(32)

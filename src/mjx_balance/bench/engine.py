@@ -83,6 +83,7 @@ from ..rollout import engine as engine_mod
 from ..rollout.kernel import (
     Carry,
     initial_carry,
+    limits_of,
     measure_step,
     period_update,
     remember,
@@ -172,7 +173,7 @@ def conclude(ar, sn, st, pre: Pre, res, k, keep: bool):
     carry = pre.carry
     u = res.u0.astype(dtype)
     torques = ar.torque_map @ u
-    acc = period_update(carry.acc, res, u, torques, st.limits, k)
+    acc = period_update(carry.acc, res, u, torques, limits_of(ar, st), k)
     finite = jnp.isfinite(u).all() & jnp.isfinite(torques).all()
     u = jnp.where(finite, u, jnp.zeros_like(u))
     torques = jnp.where(finite, torques, jnp.zeros_like(torques))
@@ -197,7 +198,8 @@ def physics(ar, sn, st, carry: Carry, k, force, n_push, torques, *, u) -> Carry:
     S = st.substeps
 
     def fold(carry, s, i):
-        acc = sample_update(carry.acc, s, i, torques, u, carry.q_prev, carry.x_prev, st.limits)
+        acc = sample_update(carry.acc, s, i, torques, u, carry.q_prev, carry.x_prev,
+                            limits_of(ar, st))
         return carry._replace(q_prev=s.q, x_prev=s.x, acc=acc)
 
     def lean_step(cs, i):

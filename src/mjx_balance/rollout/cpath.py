@@ -61,8 +61,8 @@ from ..model.params import Config
 from .engine import (Engine, Queue, Slots, broadcast, certify, checker, empty_finished, harvest,
                      refill, vacate)
 from ..runtime.compiled import MATMUL_PRECISION, get_or_compile
-from .kernel import (Carry, Sample, com_velocity, control, initial_carry, pendulum_frequency,
-                     remember, sample_update, select, state)
+from .kernel import (Carry, Sample, com_velocity, control, initial_carry, limits_of,
+                     pendulum_frequency, remember, sample_update, select, state)
 from .physics import Sensors, cell_heights, mj_model, mjx, whole_body_com
 
 PATHS = ("auto", "mjx", "c")
@@ -278,7 +278,7 @@ def fold_period(ar, sn: Sensors, st, carry: Carry, rows: jax.Array, last_qpos: j
                    magnitude=jnp.where(r[OK] > 0, jnp.zeros((), dtype), jnp.inf),
                    qvel=r[QVEL], com_vel=r[VCOM], mos_toe=mos_toe, mos_heel=mos_heel)
         acc = sample_update(carry.acc, s, k * S + j, torques, u, carry.q_prev, carry.x_prev,
-                            st.limits)
+                            limits_of(ar, st))
         return carry._replace(acc=acc, q_prev=s.q, x_prev=s.x,
                               history=remember(carry.history, s)), None
 

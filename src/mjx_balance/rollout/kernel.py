@@ -121,9 +121,26 @@ class Static(NamedTuple):
     push_at_hip: bool
     settings: admm_mod.ADMMSettings
     trajectories: bool
-    limits: Limits  # thresholds of the outcome rules and the state/input bounds
+    limits: Limits  # thresholds of the outcome rules; the bounds are Arrays.bounds (None here)
     compensate: bool = False  # delay compensation (linear.delay_predictor)
     offset_free: bool = False  # the disturbance observer and steady-state target
+
+
+def split_limits(limits: Limits, dtype: Any) -> tuple[Limits, jax.Array]:
+    """(the thresholds, static; the state and input bounds as a traced [4, 2] array: state
+    lower, state upper, input lower, input upper). A subject's body scales its torque bounds;
+    as arguments, not constants, they leave the compiled program the same for every body
+    (``runner.BatchRunner._shape_key``)."""
+    bounds = jnp.asarray(np.array([limits.state_lower, limits.state_upper, limits.input_lower,
+                                   limits.input_upper], np.float64), dtype)
+    return limits._replace(state_lower=None, state_upper=None, input_lower=None,
+                           input_upper=None), bounds
+
+
+def limits_of(ar: "Arrays", st: Static) -> Limits:
+    """The outcome rules' limits: the static thresholds with the traced bounds."""
+    return st.limits._replace(state_lower=ar.bounds[0], state_upper=ar.bounds[1],
+                              input_lower=ar.bounds[2], input_upper=ar.bounds[3])
 
 
 class Arrays(NamedTuple):
@@ -138,6 +155,7 @@ class Arrays(NamedTuple):
     pred_G: jax.Array  # [P, 4, 2] its input matrices (P = 0 without one)
     ofs: offset_free_mod.OffsetFree  # the offset-free controller's matrices (used if enabled)
     settled: jax.Array  # [nq] upright rest with the contact settled (model.settled_rest)
+    bounds: jax.Array  # [4, 2] the outcome rules' state and input bounds (split_limits)
 
 
 class Sample(NamedTuple):
@@ -426,7 +444,7 @@ def control(ar: Arrays, st: Static, carry: Carry, k: jax.Array
         res = admm_mod.admm_solve(ar.qp, x_meas, carry.warm, st.settings)
     u = res.u0.astype(dtype)
     torques = ar.torque_map @ u
-    acc = period_update(carry.acc, res, u, torques, st.limits, k)
+    acc = period_update(carry.acc, res, u, torques, limits_of(ar, st), k)
     finite = jnp.isfinite(u).all() & jnp.isfinite(torques).all()
     u = jnp.where(finite, u, jnp.zeros_like(u))
     torques = jnp.where(finite, torques, jnp.zeros_like(torques))
@@ -448,7 +466,8 @@ def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, forc
 
     def fold(carry: Carry, s: Sample, i: jax.Array, torques: jax.Array, u: jax.Array) -> Carry:
         """Carry after the complete sample ``s`` of physics step ``i``."""
-        acc = sample_update(carry.acc, s, i, torques, u, carry.q_prev, carry.x_prev, st.limits)
+        acc = sample_update(carry.acc, s, i, torques, u, carry.q_prev, carry.x_prev,
+                            limits_of(ar, st))
         return carry._replace(q_prev=s.q, x_prev=s.x, acc=acc)
 
     def push(i: jax.Array) -> jax.Array:

@@ -115,6 +115,19 @@ def mjx_model(model: mujoco.MjModel, dtype=jnp.float32) -> mjx.Model:
     return cast_floats(mjx.put_model(model, impl="jax"), dtype)
 
 
+def canonical_hfield_bounds(mx: mjx.Model, model: mujoco.MjModel) -> mjx.Model:
+    """``mx`` with MJX's static copy of the geoms' bounding radii (``geom_rbound_hfield``, a
+    NumPy array in the model's tree structure, read only for height-field collisions) zeroed
+    when the model has no height field: it is then read nowhere, and bodies of other sizes
+    (subjects) keep one tree structure, so one compiled program serves them all (the traced
+    ``geom_rbound`` that the collisions read is untouched)."""
+    impl = getattr(mx, "_impl", None)
+    if model.nhfield or impl is None or not hasattr(impl, "geom_rbound_hfield"):
+        return mx
+    zero = np.zeros_like(np.asarray(impl.geom_rbound_hfield))
+    return mx.replace(_impl=impl.replace(geom_rbound_hfield=zero))
+
+
 def rest_data(model: mujoco.MjModel, dtype=jnp.float32) -> mjx.Data:
     """Upright rest (qpos = qvel = 0) with positions computed: ``mj_forward`` in C, then
     ``mjx.put_data``.

@@ -34,9 +34,9 @@ from ..control.qp import build_qp
 from ..runtime.compiled import get_or_compile
 from .cpath import CEngine, unsupported
 from .engine import Engine
-from .kernel import Accumulators, Arrays, Static, scenario
+from .kernel import Accumulators, Arrays, Static, scenario, split_limits
 from ..model.mjcf import settled_rest
-from .physics import mj_model, mjx_model, rest_data, sensors
+from .physics import canonical_hfield_bounds, mj_model, mjx_model, rest_data, sensors
 
 
 def push_steps(durations: np.ndarray, physics_dt: float) -> np.ndarray:
@@ -83,18 +83,20 @@ class BatchRunner:
         pred_A, pred_G = (delay_predictor(lm.Ac, lm.Bc, sc.physics_dt, sc.assumed_delay_steps,
                                           sc.substeps) if compensate
                           else (np.eye(4), np.zeros((0, 4, 2))))
+        limits, bounds = split_limits(Limits.from_params(sc, ctrl), self.dtype)
         self.arrays = Arrays(
-            mx=mx, d0=d0, qp=admm_mod.build_admm(qp, settings, dtype=self.dtype),
+            mx=canonical_hfield_bounds(mx, self.model), d0=d0,
+            qp=admm_mod.build_admm(qp, settings, dtype=self.dtype),
             to_state=jnp.asarray(to_state, self.dtype),
             torque_map=jnp.asarray(lm.torque_map, self.dtype),
             pred_A=jnp.asarray(pred_A, self.dtype), pred_G=jnp.asarray(pred_G, self.dtype),
             ofs=offset_free.cast(offset_free.build(qp, ctrl), jnp, self.dtype),
-            settled=jnp.asarray(settled_rest(self.model), self.dtype),
+            settled=jnp.asarray(settled_rest(self.model), self.dtype), bounds=bounds,
         )
         self.static = Static(
             n_control=sc.n_control, substeps=sc.substeps, delay_steps=sc.delay_steps,
             push_at_hip=sc.push_body == "hip", settings=settings, trajectories=trajectories,
-            limits=Limits.from_params(sc, ctrl), compensate=compensate,
+            limits=limits, compensate=compensate,
             offset_free=ctrl.offset_free,
         )
         devices = list(jax.local_devices() if devices is None else devices)

@@ -21,9 +21,10 @@ cohort_area.png, cohort_boundaries.png, cohort_regions.png
     figures (``figures.cohort``); the small multiples only for cohorts of at most
     :data:`SMALL_COHORT` subjects
 
-Every subject's body changes the compiled program's constants (MJX keeps the foot's bounding
-radius static, and the torque bounds are static thresholds of the outcome rules), so each
-subject compiles its own program (docs/studies.md, "Cohorts", has the measured cost).
+Subjects share one compiled program: the body, the QP, the certificate and the torque bounds
+are traced arguments of the batched closed loop (``rollout.kernel.split_limits``,
+``rollout.physics.canonical_hfield_bounds``), so only the first subject compiles (or none, with
+the persistent cache warm; docs/studies.md, "Cohorts", has the measured cost).
 
 Populations (:func:`population`): ``N`` subjects drawn from a NumPy ``Generator`` seeded
 with ``seed``; subject by subject: sex (female with probability ``female_fraction``), then
