@@ -394,10 +394,13 @@ def write_exports(out: str | Path, args: argparse.Namespace) -> None:
     from ..store.files import export_tables  # lazy: the store floor loads pandas
 
     written = export_tables(out, fmt)
+    names = [str(Path(p).relative_to(out)) for p in written]
+    shown = ", ".join(names[:4]) + (f" and {len(names) - 4} more" if len(names) > 4 else "")
+    units = " (units in NAME.units.csv beside each CSV)" if any(
+        n.endswith(".csv") for n in names) else ""
     logging.getLogger("mjx_balance").info(
-        f"wrote {len(written)} {fmt} export(s) of the tables in {out}"
-        + (f" ({', '.join(str(Path(p).relative_to(out)) for p in written[:4])}"
-           + (", ..." if len(written) > 4 else "") + ")" if written else ""))
+        f"wrote {shown} in {out}{units}" if written
+        else f"--format {fmt}: every table in {out} is already in that format")
 
 
 # ---------------------------------------------------------------------------------------------
