@@ -5,6 +5,8 @@
     timeseries.py  a push's time series (angles, torques, CoP, CoM)
     region.py      the region map, the energy map, the robustness table's figure
     animation.py   the stick-figure GIF of one push
+    cohort.py      a cohort's figures: area over height x mass, chosen subjects' boundaries,
+                   one small outcome map per subject
     report.py      the report's figures: the weight study's bars, the conventions side by side,
                    the experiments' and studies' figures drawn into a report folder
 

@@ -114,9 +114,12 @@ def plot_regions(regions: dict[str, pd.DataFrame], frame: pd.DataFrame,
         row = numbers.loc[ident]
         ax.set_title(f"{ident}: {row['height']:g} m, {row['mass']:g} kg\n"
                      f"{row['area']:.3g} N·s", fontsize=8)
-    for ax in list(axes.flat)[n:]:
-        ax.set_visible(False)
-    for ax in axes[-1, :]:
+    for k in range(n, rows * cols):  # empty panels: the force axis on the panel above
+        axes.flat[k].set_visible(False)
+        above = axes.flat[k - cols]
+        above.xaxis.set_tick_params(labelbottom=True)
+        above.set_xlabel("F [N]")
+    for ax in axes[-1, :n - (rows - 1) * cols]:
         ax.set_xlabel("F [N]")
     for ax in axes[:, 0]:
         ax.set_ylabel("T [s]")

@@ -173,9 +173,10 @@ class BatchRunner:
     def compiled(self, batch: int):
         """The compiled batch function for a padded batch size (compiled ahead of time).
 
-        The model, QP and ADMM data are traced arguments, so configurations of equal shapes
-        (another body, convention or weights; the same horizon, delay, t_end, ADMM
-        settings, thresholds and bounds, which are static) share one compiled function (``runtime.compiled``)."""
+        The model, QP and ADMM data and the outcome rules' state and input bounds are traced
+        arguments, so configurations of equal shapes (another body or subject, convention,
+        weights or bounds; the same horizon, delay, t_end, ADMM settings and thresholds, which
+        are static) share one compiled function (``runtime.compiled``)."""
         fn = self._compiled_fns.get(batch)
         if fn is None:
             t0 = _time.perf_counter()

@@ -6,4 +6,5 @@
     landscape.py    the weight landscape (Q x R scales, with and without delay)
     sensitivity.py  the robustness table under every reading of the study
     basin.py        the recovery basin over initial CoM states
+    cohort.py       a population's region maps, one per subject, and its numbers
 """
