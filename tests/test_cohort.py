@@ -72,6 +72,8 @@ def test_a_population_is_seeded_and_truncated():
     assert (heights > 2.3).mean() > 0.3  # still drawn around the mean, not clipped to a value
     with pytest.raises(ParameterError, match="female_fraction"):
         cohort.population(5, 1, female_fraction=1.5)
+    with pytest.raises(ParameterError, match="seed = -1"):
+        cohort.population(5, -1)
     with pytest.raises(ParameterError, match="height"):
         cohort.population(5, 1, height_mean=40.0, height_sd=0.01)
 

@@ -134,13 +134,15 @@ def population(n: int, seed: int, *, height_mean: float = 1.70, height_sd: float
                female_fraction: float = 0.5) -> list[Member]:
     """``n`` subjects drawn with ``np.random.default_rng(seed)`` (module docstring: sex, then
     truncated-normal height and mass, independent), numbered s01, s02, ..."""
-    checks = {"n": (n, n >= 1 and float(n).is_integer()), "height_sd": (height_sd, height_sd >= 0),
+    checks = {"n": (n, n >= 1 and float(n).is_integer()),
+              "seed": (seed, seed >= 0 and float(seed).is_integer()),
+              "height_sd": (height_sd, height_sd >= 0),
               "mass_sd": (mass_sd, mass_sd >= 0),
               "female_fraction": (female_fraction, 0 <= female_fraction <= 1)}
     for name, (value, ok) in checks.items():
         if not (math.isfinite(float(value)) and ok):
-            raise ParameterError(f"population {name} = {value!r}: out of range (n >= 1 whole, "
-                                 "SDs >= 0, female_fraction in [0, 1])")
+            raise ParameterError(f"population {name} = {value!r}: out of range (n >= 1 and "
+                                 "seed >= 0 whole, SDs >= 0, female_fraction in [0, 1])")
     rng = np.random.default_rng(int(seed))
     subjects = []
     for _ in range(int(n)):
