@@ -141,6 +141,7 @@ def test_simulate_refuses_a_sweep_folder(tmp_path, capsys, monkeypatch, holds):
 def test_outputs_are_whole_or_old_after_a_failed_write(tmp_path, capsys, monkeypatch):
     import matplotlib.figure
     import pandas as pd
+    import pyarrow.parquet as pq
     from PIL import Image
 
     from mjx_balance.report import html
@@ -156,7 +157,8 @@ def test_outputs_are_whole_or_old_after_a_failed_write(tmp_path, capsys, monkeyp
     failing = [  # summary.csv, timeseries.parquet, config.toml, the figures
         (pd.DataFrame, "to_csv", lambda self, path, **kw: half_then_fail(
             lambda p: open(p, "w").write("force,dura"))(path)),
-        (pd.DataFrame, "to_parquet", lambda self, path, **kw: half_then_fail(
+        # parquet files are written by pyarrow (store.files.write_parquet: units in the schema)
+        (pq, "write_table", lambda table, path, **kw: half_then_fail(
             lambda p: open(p, "wb").write(b"PAR1\x00"))(path)),
         (Path, "write_text", lambda self, text, **kw: half_then_fail(
             lambda p: open(p, "w").write(text[:10]))(self)),
