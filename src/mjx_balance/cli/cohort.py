@@ -55,12 +55,16 @@ def add_parser(sub: Any) -> None:
                         help="N subjects drawn at random (with --seed): sex, then height and "
                              "mass from normal distributions truncated to a subject's ranges")
     source.add_argument("--seed", type=int, default=None, help="the population's seed")
-    source.add_argument("--height-mean", type=finite_float, default=1.70, help="[m] (1.70)")
-    source.add_argument("--height-sd", type=nonnegative_float, default=0.09, help="[m] (0.09)")
-    source.add_argument("--mass-mean", type=finite_float, default=70.0, help="[kg] (70)")
-    source.add_argument("--mass-sd", type=nonnegative_float, default=12.0, help="[kg] (12)")
+    source.add_argument("--height-mean", type=finite_float, default=1.70,
+                        help="the population's mean stature [m]")
+    source.add_argument("--height-sd", type=nonnegative_float, default=0.09,
+                        help="its standard deviation [m]")
+    source.add_argument("--mass-mean", type=finite_float, default=70.0,
+                        help="the population's mean body mass [kg]")
+    source.add_argument("--mass-sd", type=nonnegative_float, default=12.0,
+                        help="its standard deviation [kg]")
     source.add_argument("--female-fraction", type=nonnegative_float, default=0.5,
-                        help="probability that a subject is female (0.5)")
+                        help="probability that a subject is female")
     config_options(p)
     p.add_argument("--forces", default=None,
                    help=f"start:stop:step or a comma list [N] (default: the default sweep's, "
