@@ -682,17 +682,20 @@ def parse_subject(text: str) -> Subject:
                                  "(e.g. height=1.62,mass=58,sex=female)")
         if key in values:
             raise ParameterError(f"--subject {text!r}: {key} given twice")
-        if key == "sex":
-            values[key] = raw
-            continue
         try:
-            values[key] = float(raw)
+            values[key] = _subject_value(key, raw)
         except ValueError:
             raise ParameterError(f"--subject {text!r}: {key}={raw!r} is not a number") from None
     try:
         return as_subject(values)
     except ParameterError as exc:
         raise ParameterError(f"--subject {text!r}: {exc}") from None
+
+
+def _subject_value(key: str, raw: str) -> str | float:
+    """A subject field's value from its text: ``sex`` as written, any other a number
+    (ValueError where it is not one)."""
+    return raw if key == "sex" else float(raw)
 
 
 def subjects_from_csv(path: str | Path) -> list[Subject]:
@@ -715,11 +718,8 @@ def subjects_from_csv(path: str | Path) -> list[Subject]:
             raw = (row.get(key) or "").strip()
             if not raw:
                 continue
-            if key == "sex":
-                values[key] = raw
-                continue
             try:
-                values[key] = float(raw)
+                values[key] = _subject_value(key, raw)
             except ValueError:
                 raise ParameterError(f"{path}, line {line}: {key} = {raw!r} is not a "
                                      "number") from None
