@@ -268,9 +268,7 @@ def _noise(column: pd.Series) -> float:
     """The magnitude below which a float column's values show as 0 (NOISE_FRACTION): only for
     a measured quantity (a unit such as J, rad, s in measures/units.py), never for a setting or
     a ratio (a weight scale column holds 1e-8 beside 1e7 by design)."""
-    found = describe(str(column.name))
-    if (not pd.api.types.is_float_dtype(column) or found is None
-            or found[0] in ("", "1", "mixed") or found[0].startswith("(")):
+    if not pd.api.types.is_float_dtype(column) or _physical_unit(column.name) is None:
         return 0.0
     top = np.nanmax(np.abs(column.to_numpy(dtype=float)), initial=0.0)
     return float(top) * NOISE_FRACTION
@@ -322,11 +320,17 @@ def _table(frame: pd.DataFrame, columns: list[str] | None = None,
 def _header(column: Any) -> str:
     """A table's column heading: its name and, where it has one, its unit (measures/units.py;
     no unit shown for labels, dimensionless numbers or a row-dependent unit)."""
+    unit = _physical_unit(column)
+    return str(column) if unit is None else f"{column} [{unit}]"
+
+
+def _physical_unit(column: Any) -> str | None:
+    """The column's physical unit (measures/units.py: J, rad, s, ...), or None for a label, a
+    dimensionless number, a row-dependent unit (``mixed``, ``(unit column)``) or an unknown
+    column."""
     found = describe(str(column))
     unit = found[0] if found else ""
-    if unit in ("", "1", "mixed") or unit.startswith("("):
-        return str(column)
-    return f"{column} [{unit}]"
+    return None if unit in ("", "1", "mixed") or unit.startswith("(") else unit
 
 
 def _params(text: str | Markup) -> dict:
