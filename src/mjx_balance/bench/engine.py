@@ -306,7 +306,8 @@ def drive_mjx(engine, forces, n_push, *, record: bool = False, sampled: int = 0)
     state = engine._state if engine._state is not None else engine._initial_state()
     engine._state = None
     clock, out, records, calls = Clock(), {}, [], 0
-    queue = engine_mod.Queue(forces, n_push, engine.n_devices, engine.refill)
+    queue = engine_mod.Queue(forces, n_push, engine.n_devices, engine.refill,
+                             block=engine.block)
     remaining = n
     while remaining:
         with clock("python"):
@@ -327,6 +328,7 @@ def drive_mjx(engine, forces, n_push, *, record: bool = False, sampled: int = 0)
             if keep.any():
                 raw = {name: v[keep] for name, v in zip(engine_mod.Accumulators._fields, acc)}
                 raw["periods"], raw["certified"] = periods[keep], certified[keep]
+                queue.finished(index[keep], raw["periods"])
                 remaining -= int(keep.sum())
                 _collect(out, index[keep], raw, n)
     engine._state = state
@@ -402,6 +404,7 @@ def drive_c(engine, forces, n_push, *, record: bool = False, sampled: int = 10) 
             if keep.any():
                 raw = cpath.unpack_acc(out_f[keep, 2 + S:], out_i[keep, 6:], template)
                 raw["periods"], raw["certified"] = out_i[keep, 3], out_i[keep, 4] > 0
+                queue.finished(index[keep], raw["periods"])
                 remaining -= int(keep.sum())
                 _collect(out, index[keep], raw, n)
         if not remaining:

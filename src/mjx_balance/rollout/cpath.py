@@ -489,6 +489,7 @@ class CEngine(Engine):
                 if keep.any():
                     raw = unpack_acc(out_f[keep, 2 + S:], out_i[keep, 6:], template)
                     raw["periods"], raw["certified"] = out_i[keep, 3], out_i[keep, 4] > 0
+                    queue.finished(index[keep], raw["periods"])
                     remaining -= int(keep.sum())
                     yield index[keep].astype(np.int64), raw
                 if not remaining:
