@@ -118,6 +118,31 @@ def test_vmap_equals_loop(case):
         np.testing.assert_allclose(r.warm_next.y, batched.warm_next.y[i], rtol=1e-6, atol=1e-6)
 
 
+@pytest.mark.parametrize("tile", [None, 8, 16])
+def test_tiles_and_offsets_solve_each_lane_as_alone(case, tile):
+    """Tiled batches (the engine's ADMM on a CPU) with per-lane row offsets (the offset-free
+    QP) == single solves (float64, as above: the same arithmetic up to the products' summation
+    order): a lane's iterations do not depend on its tile's other lanes."""
+    qp, settings, states = case["qp"], case["settings"], case["states"]
+    data = admm.build_admm(qp, settings, jnp.float64)
+    idx = np.concatenate([np.linspace(0, len(states) - 1, 24).astype(int),
+                          np.flatnonzero(case["truth"].infeasible)[:8]])[:32]
+    x0 = jnp.asarray(states[idx], jnp.float64)
+    warm = admm.ADMMWarm(z=jnp.asarray(case["seq32"]["warm_z"][idx], jnp.float64),
+                         y=jnp.asarray(case["seq32"]["warm_y"][idx], jnp.float64))
+    m = data.l0.shape[0]
+    offset = jnp.asarray(np.random.default_rng(5).normal(0, 1e-3, (idx.size, m)), jnp.float64)
+    batched = jax.jit(admm.admm_solve_batch, static_argnums=(3, 4))(data, x0, warm, settings,
+                                                                  tile, offset)
+    single = jax.jit(admm.admm_solve, static_argnums=3)
+    for i in range(idx.size):
+        r = single(data, x0[i], admm.ADMMWarm(warm.z[i], warm.y[i]), settings, offset[i])
+        assert int(r.status) == int(batched.status[i])
+        assert int(r.iters) == int(batched.iters[i])
+        np.testing.assert_allclose(r.z, batched.z[i], rtol=1e-7, atol=1e-7)
+        np.testing.assert_allclose(r.u0, batched.u0[i], rtol=1e-7, atol=1e-7)
+
+
 @pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
 def test_infeasible_states_report_status_and_stay_finite(dtype):
     controller = ControllerParams()

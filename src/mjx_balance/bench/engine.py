@@ -50,9 +50,10 @@ The stages, per control period, over every slot (busy or vacant):
   on the MJX path also the reset of a dead slot before the solve and the selection after it.
   The QP's matrices never change (condensed and factorised once, ``admm.build_admm``): per
   solve only its vectors move, inside ``admm_solve``; they are timed apart as information.
-- ADMM: ``admm_solve`` over the slots: one ``while_loop`` per device, which runs until the
-  device's slowest slot stops. Iterations are counted per busy slot and per device and period
-  (the slowest slot's, what the loop costs).
+- ADMM: ``kernel.solve_batch`` over the slots: one ``while_loop`` per device, or per tile of
+  ``engine.tile`` slots solved one after the other (``engine.default_tile``), which runs until
+  its slowest slot stops. Iterations are counted per busy slot and per loop and period (the
+  slowest slot's, what the loop costs).
 - certificate: ``engine.certify`` (the check runs every ``CHECK_EVERY`` periods).
 - refill, harvest, vacate: the engine's compaction (decided slots out, new cells in).
 
@@ -75,22 +76,19 @@ import numpy as np
 
 from ..control import admm as admm_mod
 from ..control import certificate as cert_mod
-from ..control import offset_free as offset_free_mod
-from ..model import linear as linear_mod
 from ..model.params import Config
 from ..rollout import BatchRunner, cpath
 from ..rollout import engine as engine_mod
+from ..rollout import kernel
 from ..rollout.kernel import (
     Carry,
     initial_carry,
     limits_of,
     measure_step,
-    period_update,
     remember,
     sample_update,
     select,
     start,
-    state,
     with_positions,
 )
 from ..rollout.physics import mjx, step
@@ -124,71 +122,6 @@ INFO = {  # timed, not parts of the sum
 
 # --------------------------------------------------------------------------------------------
 # One lane's stages (mirrors of kernel.period and kernel.control)
-
-
-class Pre(NamedTuple):
-    """A slot's control instant before the solve (:func:`prepare`)."""
-
-    carry: Carry  # after the dead-slot reset (MJX path)
-    x0: jax.Array  # [4] the QP's state
-    offset: Any  # [m] the offset-free QP's row offsets, or None
-    x_meas: jax.Array  # [4]
-    dist: jax.Array  # [2]
-    alive: jax.Array  # bool
-
-
-def prepare(ar, sn, st, carry: Carry, k, reset: bool) -> Pre:
-    """``kernel.control`` up to the solve (with ``reset``: ``kernel.period``'s restart of a
-    dead scenario from rest with a cold controller first)."""
-    dtype = ar.d0.qpos.dtype
-    alive = carry.acc.alive
-    if reset:
-        rest = initial_carry(ar, sn, st)
-        carry = carry._replace(d=select(alive, carry.d, ar.d0),
-                               warm=select(alive, carry.warm, rest.warm))
-    measured = carry.history[st.delay_steps]
-    x_meas = state(ar, measured[:2], measured[2:])
-    if st.compensate:
-        x_meas = linear_mod.predict(jnp, ar.pred_A, ar.pred_G, x_meas, carry.inputs)
-    x_meas = jnp.where(alive, x_meas, jnp.zeros(4, dtype))
-    if st.offset_free:
-        dist = offset_free_mod.observe(jnp, ar.ofs, carry.dist, carry.x_last, carry.u_last,
-                                       x_meas)
-        x_s, _, _, offset = offset_free_mod.steady_state(jnp, ar.ofs, dist)
-        return Pre(carry, x_meas - x_s, offset, x_meas, dist, alive)
-    return Pre(carry, x_meas, None, x_meas, carry.dist, alive)
-
-
-def solve(ar, st, pre: Pre) -> admm_mod.ADMMResult:
-    """The MPC's solve, as ``kernel.control`` calls it."""
-    if pre.offset is None:
-        return admm_mod.admm_solve(ar.qp, pre.x0, pre.carry.warm, st.settings)
-    return admm_mod.admm_solve(ar.qp, pre.x0, pre.carry.warm, st.settings, pre.offset)
-
-
-def conclude(ar, sn, st, pre: Pre, res, k, keep: bool):
-    """``kernel.control`` after the solve: (carry, u, torques); with ``keep``,
-    ``kernel.period``'s selection of a dead scenario's buffers from rest after it."""
-    dtype = ar.d0.qpos.dtype
-    carry = pre.carry
-    u = res.u0.astype(dtype)
-    torques = ar.torque_map @ u
-    acc = period_update(carry.acc, res, u, torques, limits_of(ar, st), k)
-    finite = jnp.isfinite(u).all() & jnp.isfinite(torques).all()
-    u = jnp.where(finite, u, jnp.zeros_like(u))
-    torques = jnp.where(finite, torques, jnp.zeros_like(torques))
-    warm = admm_mod.ADMMWarm(*(w.astype(dtype) for w in res.warm_next))
-    inputs = jnp.concatenate([u[None], carry.inputs[:-1]])[:carry.inputs.shape[0]]
-    carry = carry._replace(warm=warm, acc=acc, inputs=inputs, dist=pre.dist, x_last=pre.x_meas,
-                           u_last=u)
-    if keep:
-        rest = initial_carry(ar, sn, st)
-        kept = select(pre.alive,
-                      (carry.history, carry.inputs, carry.dist, carry.x_last, carry.u_last),
-                      (rest.history, rest.inputs, rest.dist, rest.x_last, rest.u_last))
-        carry = carry._replace(history=kept[0], inputs=kept[1], dist=kept[2], x_last=kept[3],
-                               u_last=kept[4])
-    return carry, u, torques
 
 
 def physics(ar, sn, st, carry: Carry, k, force, n_push, torques, *, u) -> Carry:
@@ -549,12 +482,12 @@ def _median_call(fn, leaves, args, repeats: int) -> tuple[float, Any]:
 
 
 class Iterations:
-    """ADMM iterations of the replayed solves: per busy slot, and per device and call (the
-    slowest slot of the device, which its ``while_loop`` waits for); how often each ran to the
-    iteration cap ``cap``."""
+    """ADMM iterations of the replayed solves: per busy slot, and per loop and call (the
+    slowest slot of a device's slots or of a tile of them, which its ``while_loop`` waits
+    for; ``loops``: loops per call, in slot order); how often each ran to the cap ``cap``."""
 
-    def __init__(self, devices: int, cap: int):
-        self.devices, self.cap = devices, cap
+    def __init__(self, loops: int, cap: int):
+        self.loops, self.cap = loops, cap
         self.lane_sum = self.lanes = self.block_sum = self.blocks = 0
         self.lanes_capped = self.blocks_capped = 0
 
@@ -563,9 +496,9 @@ class Iterations:
         self.lane_sum += int(iters[busy].sum())
         self.lanes += int(busy.sum())
         self.lanes_capped += int((iters[busy] >= self.cap).sum())
-        slowest = iters.reshape(self.devices, -1).max(axis=1)
+        slowest = iters.reshape(self.loops, -1).max(axis=1)
         self.block_sum += int(slowest.sum())
-        self.blocks += self.devices
+        self.blocks += self.loops
         self.blocks_capped += int((slowest >= self.cap).sum())
 
     def figures(self) -> dict[str, float]:
@@ -694,10 +627,11 @@ def mjx_bodies(engine) -> dict[str, Any]:
         unpack=unpack, refill=refill, certify=certify, harvest=harvest,
         pack=lambda ar, cert, slots: slots._replace(carry=packing.pack(slots.carry)),
         prepare=lambda ar, cert, carry, k: jax.vmap(
-            lambda c, k: prepare(ar, sn, st, c, k, reset=True))(carry, k),
-        solve=lambda ar, cert, pre: jax.vmap(lambda p: solve(ar, st, p))(pre),
+            lambda c: kernel.prepare(ar, st, c, initial_carry(ar, sn, st)))(carry),
+        solve=lambda ar, cert, pre: kernel.solve_batch(ar, st, pre, engine.tile),
         conclude=lambda ar, cert, pre, res, k: jax.vmap(
-            lambda p, q, k: conclude(ar, sn, st, p, q, k, keep=True))(pre, res, k),
+            lambda p, q, k: kernel.conclude(ar, st, p, q, k, initial_carry(ar, sn, st)))(
+                pre, res, k),
         physics=lambda ar, cert, carry, slots, torques, u: jax.vmap(
             lambda c, k, f, n, t, u: physics(ar, sn, st, c, k, f, n, t, u=u))(
             carry, slots.k, slots.force, slots.n_push, torques, u),
@@ -749,7 +683,8 @@ def replay_mjx(engine, records: list, stages: Stages, sampled: int) -> dict[str,
     r = engine.runner
     D = engine.n_devices
     periods = min(int(sampled), engine.block)
-    iters = Iterations(D, r.static.settings.iteration_cap)
+    iters = Iterations(D * engine.slots // (engine.tile or engine.slots),
+                       r.static.settings.iteration_cap)
     checked, agreement = 0, Agreement()
     for b, (packed, offer) in enumerate(records[:-1]):
         packed, offer = stages.put(packed), stages.put(offer)
@@ -828,11 +763,10 @@ def c_bodies(engine) -> dict[str, Any]:
 
     return dict(
         fold=fold, certify=certify, refill=refill, finish=finish,
-        prepare=lambda ar, cert, carry, k: jax.vmap(
-            lambda c, k: prepare(ar, sn, st, c, k, reset=False))(carry, k),
-        solve=lambda ar, cert, pre: jax.vmap(lambda p: solve(ar, st, p))(pre),
+        prepare=lambda ar, cert, carry, k: jax.vmap(lambda c: kernel.prepare(ar, st, c))(carry),
+        solve=lambda ar, cert, pre: jax.vmap(lambda p: kernel.solve(ar, st, p))(pre),
         conclude=lambda ar, cert, pre, res, k: jax.vmap(
-            lambda p, q, k: conclude(ar, sn, st, p, q, k, keep=False))(pre, res, k),
+            lambda p, q, k: kernel.conclude(ar, st, p, q, k))(pre, res, k),
         qp_vectors=lambda ar, cert, pre: jax.vmap(
             lambda p: qp_vectors(ar.qp, p.x0, p.carry.warm))(pre),
     )
@@ -948,11 +882,13 @@ def split(path: str, drives: list[Drive], replay: dict, lanes: int) -> dict[str,
 
 def measure_path(config: Config, forces: np.ndarray, durations: np.ndarray, *, physics: str,
                  slots: int | None = None, runs: int = 2, repeats: int = 3,
-                 sampled: int = 10, log=print) -> dict[str, Any]:
+                 sampled: int = 10, admm_tile: int | None = None,
+                 log=print) -> dict[str, Any]:
     """The split of one physics path: build and compile the engine, ``runs`` instrumented runs
     of every cell (the first records the replay's inputs), the replay."""
     t0 = time.perf_counter()
-    runner = BatchRunner(config, slots=slots, early_stop=True, physics=physics)
+    runner = BatchRunner(config, slots=slots, early_stop=True, physics=physics,
+                         admm_tile=admm_tile if physics == "mjx" else None)
     compile_s = runner.prepare()
     engine = runner.engine
     if physics == "mjx":  # the block's first execution, outside the runs
@@ -960,7 +896,8 @@ def measure_path(config: Config, forces: np.ndarray, durations: np.ndarray, *, p
     build_s = time.perf_counter() - t0
     lanes = engine.slots * engine.n_devices
     log(f"  {physics}: engine ready in {build_s:.1f} s ({engine.slots} slots on each of "
-        f"{engine.n_devices} device(s), block {engine.block}, refill {engine.refill})")
+        f"{engine.n_devices} device(s), block {engine.block}, refill {engine.refill}, "
+        f"ADMM tile {engine.tile or engine.slots})")
     n_push = push_steps(durations, config.scenario.physics_dt)
     drive = drive_mjx if physics == "mjx" else drive_c
     drives = []
@@ -980,7 +917,8 @@ def measure_path(config: Config, forces: np.ndarray, durations: np.ndarray, *, p
     raw = drives[0].raw
     figures.update(
         physics=physics, slots=engine.slots, devices=engine.n_devices, lanes=lanes,
-        block=engine.block, refill=engine.refill, compile_s=round(compile_s, 3),
+        block=engine.block, refill=engine.refill, admm_tile=engine.tile or engine.slots,
+        compile_s=round(compile_s, 3),
         runs=[round(d.seconds, 4) for d in drives], scenarios=len(forces),
         scen_per_s=round(len(forces) / figures["seconds"], 3), periods=drives[0].periods,
         calls=drives[0].calls, certified=int(raw["certified"].sum()),
@@ -997,7 +935,7 @@ def measure_path(config: Config, forces: np.ndarray, durations: np.ndarray, *, p
 def measure(config: Config, *, forces: str = DEFAULT_FORCES,
             durations: str = DEFAULT_DURATIONS, paths: tuple[str, ...] = ("mjx", "c"),
             slots: int | None = None, runs: int = 2, repeats: int = 3, sampled: int = 10,
-            log=print) -> dict[str, Any]:
+            admm_tile: int | None = None, log=print) -> dict[str, Any]:
     """:func:`measure_path` of every path on the cells of ``forces`` x ``durations`` (grid
     specifications as ``sweep`` takes them)."""
     f, d = grid_cells(parse_grid(forces, "forces"), parse_grid(durations, "durations"))
@@ -1011,6 +949,7 @@ def measure(config: Config, *, forces: str = DEFAULT_FORCES,
             log(f"  c: skipped ({cpath.unsupported(config)})")
             continue
         out["paths"][path] = measure_path(config, f, d, physics=path, slots=slots, runs=runs,
-                                          repeats=repeats, sampled=sampled, log=log)
+                                          repeats=repeats, sampled=sampled,
+                                          admm_tile=admm_tile, log=log)
     out["load_average_end"] = [round(v, 2) for v in os.getloadavg()]
     return out

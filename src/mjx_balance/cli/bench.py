@@ -107,6 +107,10 @@ def _engine_parser(bench: Any, conventions: argparse.ArgumentParser) -> None:
                    help="slots per device (default: the engine's, as sweep)")
     p.add_argument("--t-end", type=positive_float, default=None,
                    help="scenario length [s] (default: the configuration's, 12)")
+    p.add_argument("--admm-tile", type=positive_int, default=None,
+                   help="MJX path: lanes per ADMM loop, a divisor of the slots per device "
+                        "(default: the engine's, 16 on a CPU, one loop on a GPU; the slots "
+                        "per device: one loop)")
     p.add_argument("--runs", type=positive_int, default=2,
                    help="timed runs of every cell (the figures in run are their mean)")
     p.add_argument("--repeats", type=positive_int, default=3,
@@ -573,6 +577,7 @@ def engine_command(args: argparse.Namespace) -> int:
     figures = engine.measure(config, forces=args.forces, durations=args.durations,
                              paths=args.physics, slots=args.slots, runs=args.runs,
                              repeats=args.repeats, sampled=args.sampled,
+                             admm_tile=args.admm_tile,
                              log=lambda text: print(text, flush=True))
     for path, fig in figures["paths"].items():
         print()
@@ -619,10 +624,10 @@ def engine_table(fig: dict) -> list[str]:
         f"slots busy {100 * fig['occupancy']:.1f} % of slot-periods, {fig['certified']} "
         f"certified; compile {fig['compile_s']:.1f} s",
         f"ADMM iterations per period: {it['per_busy_slot']:.1f} per busy slot, "
-        f"{it['per_block']:.1f} per device and period (its slowest slot: "
-        f"{it['block_over_slot']:.2f}x); at the cap of {it['cap']}: "
-        f"{100 * it['busy_slots_at_cap']:.1f} % of busy slots' solves, "
-        f"{100 * it['blocks_at_cap']:.1f} % of devices' periods",
+        f"{it['per_block']:.1f} per loop and period (its slowest slot; ADMM tile "
+        f"{fig.get('admm_tile', fig['slots'])}: {it['block_over_slot']:.2f}x); at the cap of "
+        f"{it['cap']}: {100 * it['busy_slots_at_cap']:.1f} % of busy slots' solves, "
+        f"{100 * it['blocks_at_cap']:.1f} % of loops' periods",
         f"a compiled call that does nothing: {1e3 * fig['call']['seconds']:.2f} ms "
         f"({fig['call']['arrays_in']} arrays in, {fig['call']['arrays_out']} out); replayed "
         f"{fig['replay']['sampled_periods']} periods stage by stage ({fig['repeats']} calls "

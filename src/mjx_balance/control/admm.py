@@ -463,23 +463,28 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
 
 
 def admm_solve_batch(data: ADMMData, x0: jax.Array, warm: ADMMWarm, settings: ADMMSettings,
-                     tile: int | None = None) -> ADMMResult:
-    """``admm_solve`` vmapped over x0 [B, 4] and warm ([B, n], [B, m]); data shared.
+                     tile: int | None = None, offset: jax.Array | None = None) -> ADMMResult:
+    """``admm_solve`` vmapped over x0 [B, 4], warm ([B, n], [B, m]) and offset ([B, m] or
+    None); data shared.
 
     With ``tile`` (a divisor of B), the batch is solved as B / tile sequential tiles
     (``lax.map`` over a vmapped solve): each tile's iterates stay in cache, and a tile whose
     solves all converge stops early instead of waiting for the slowest solve of the batch.
+    Every lane's iterates are the same whatever its tile: a lane that stopped is held, not
+    iterated, while its tile runs on.
     """
-    solve = jax.vmap(admm_solve, in_axes=(None, 0, 0, None))
+    solve = jax.vmap(lambda x, w, o: admm_solve(data, x, w, settings, o),
+                     in_axes=(0, 0, None if offset is None else 0))
     batch = x0.shape[0]
     if tile is None or tile >= batch:
-        return solve(data, x0, warm, settings)
+        return solve(x0, warm, offset)
     if batch % tile:
         raise ValueError(f"tile {tile} must divide the batch size {batch}")
 
     def split(a):
         return a.reshape((batch // tile, tile) + a.shape[1:])
 
-    out = jax.lax.map(lambda args: solve(data, args[0], args[1], settings),
-                      (split(x0), jax.tree.map(split, warm)))
+    out = jax.lax.map(lambda args: solve(*args),
+                      (split(x0), jax.tree.map(split, warm),
+                       None if offset is None else split(offset)))
     return jax.tree.map(lambda a: a.reshape((batch,) + a.shape[2:]), out)

@@ -34,13 +34,22 @@ import numpy as np
 from ..control import certificate as cert_mod
 from ..runtime.xla import deterministic_flags
 from ..runtime.compiled import get_or_compile
-from .kernel import Accumulators, Arrays, Carry, initial_carry, period, select, start
+from .kernel import Accumulators, Arrays, Carry, initial_carry, period_batch, select, start
 from .physics import whole_body_com
 
 def default_slots(platform: str) -> int:
     """Slots per device: 32 on a CPU (the fastest per scenario measured on 2 cores, batch 16-64:
     BENCHMARKS.md), 4096 on an accelerator."""
     return 32 if platform == "cpu" else 4096
+
+
+def default_tile(platform: str, slots: int) -> int | None:
+    """Lanes per ADMM loop (``kernel.solve_batch``): on a CPU, tiles of 16 solved one after
+    the other, each loop stopping at its own slowest lane instead of the device's (measured on
+    2 cores, 32 slots: 1.03-1.19x end to end, tiles of 8 and 4 slower: BENCHMARKS.md); None
+    (one loop over the device's slots) on an accelerator, where sequential tiles would
+    serialise the card. A lane's iterations are its own in any tile."""
+    return 16 if platform == "cpu" and slots > 16 and slots % 16 == 0 else None
 
 
 class Slots(NamedTuple):
@@ -175,7 +184,7 @@ def checker(cert, periods: int | None = None):
 
 
 def block(ar, sn, st, cert, slots: Slots, *, refill_cell, refill_force, refill_push,
-          refill_init, periods: int, early: bool, packing: Packing):
+          refill_init, periods: int, early: bool, packing: Packing, tile: int | None = None):
     """``periods`` control periods of one device's slots with refill and harvest (pure JAX).
 
     refill_*: [R] the next cells for this device (cell -1: none), refill_init [R, 4] their
@@ -190,7 +199,8 @@ def block(ar, sn, st, cert, slots: Slots, *, refill_cell, refill_force, refill_p
     single = initial_carry(ar, sn, st)
     rest = broadcast(single, S)
     starts = jax.vmap(lambda init: start(ar, sn, single, init))(refill_init)
-    run = jax.vmap(lambda c, k, f, n: period(ar, sn, st, c, k, f, n)[0])
+    def run(c, k, f, n):
+        return period_batch(ar, sn, st, c, k, f, n, tile)[0]
     every = cert_mod.CHECK_EVERY
     check = checker(cert if early else None, periods)
 
@@ -312,11 +322,12 @@ class Engine:
 
     slots: per device (default :func:`default_slots`); block: control periods per call;
     early: stop certified recoveries (``--full-length`` turns it off). Falls and t_end stop a
-    scenario either way.
+    scenario either way. tile: lanes per ADMM loop (default :func:`default_tile`; the slots per
+    device: one loop).
     """
 
     def __init__(self, runner, *, slots: int | None = None, block: int = 100,
-                 early: bool = True, refill: int | None = None):
+                 early: bool = True, refill: int | None = None, tile: int | None = None):
         self.runner = runner
         devices = [None] if runner.mesh is None else list(runner.mesh.devices.flat)
         self.n_devices = len(devices)
@@ -334,6 +345,10 @@ class Engine:
         every = cert_mod.CHECK_EVERY
         self.block = int(min(block, -(-runner.config.scenario.n_control // every) * every))
         self.refill = int(refill or 4 * self.slots)
+        if tile is not None and (tile < 1 or self.slots % tile):
+            raise ValueError(f"ADMM tile {tile} must divide the slots per device, {self.slots}")
+        tile = default_tile(platform, self.slots) if tile is None else int(tile)
+        self.tile = tile if tile and tile < self.slots else None
         config = runner.config
         self.early = bool(early)
         self.cert = None
@@ -357,7 +372,7 @@ class Engine:
 
     def _key(self) -> tuple:
         return ("engine", self.runner._shape_key(self.slots), self.refill, self.block,
-                self.cert is not None, None if self.cert is None else
+                self.tile, self.cert is not None, None if self.cert is None else
                 tuple(np.shape(v) for v in self.cert))
 
     def block_fn(self):
@@ -368,12 +383,12 @@ class Engine:
         t0 = _time.perf_counter()
         r = self.runner
         sn, st, periods, early = r.sensors, r.static, self.block, self.cert is not None
-        packing = self.packing
+        packing, tile = self.packing, self.tile
 
         def call(arrays, cert, slots, cell, force, push, init):
             return block(arrays, sn, st, cert, slots, refill_cell=cell, refill_force=force,
                          refill_push=push, refill_init=init, periods=periods, early=early,
-                         packing=packing)
+                         packing=packing, tile=tile)
 
         def build():
             run = call

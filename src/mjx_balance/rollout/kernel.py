@@ -418,17 +418,28 @@ def start(ar: Arrays, sn: Sensors, rest: Carry, init: jax.Array) -> Carry:
                          x_prev=x, x_last=x)
 
 
-def control(ar: Arrays, st: Static, carry: Carry, k: jax.Array
-            ) -> tuple[Carry, jax.Array, jax.Array]:
-    """The MPC solve of control period k from the carry's (delayed) measurement, predicted to
-    the control instant with delay compensation (``linear.predict``), x = 0 for a dead
-    scenario; offset-free, the observer's update and the QP in deviation from the steady-state
-    target (``offset_free.py``): returns the carry (next warm start, :func:`period_update`
-    folded in, the input buffer, the observer's state), the input u [2] and the motor torques
-    [2] to hold (zero if not finite). Shared by the MJX period (:func:`period`) and the MuJoCo
-    C path (``cpath.py``)."""
+class Pre(NamedTuple):
+    """A scenario's control instant before the solve (:func:`prepare`)."""
+
+    carry: Carry  # after the reset of a dead scenario (``rest`` given)
+    x0: jax.Array  # [4] the QP's state
+    offset: Any  # [m] the offset-free QP's row offsets, or None
+    x_meas: jax.Array  # [4]
+    dist: jax.Array  # [2]
+    alive: jax.Array  # bool
+
+
+def prepare(ar: Arrays, st: Static, carry: Carry, rest: Carry | None = None) -> Pre:
+    """The MPC's state from the carry's (delayed) measurement, predicted to the control
+    instant with delay compensation (``linear.predict``), x = 0 for a dead scenario;
+    offset-free, the observer's update and the QP in deviation from the steady-state target
+    (``offset_free.py``). With ``rest`` (:func:`initial_carry`), a dead scenario first restarts
+    from rest with a cold controller (the MJX period; see the module docstring)."""
     dtype = ar.d0.qpos.dtype
     alive = carry.acc.alive
+    if rest is not None:
+        carry = carry._replace(d=select(alive, carry.d, ar.d0),
+                               warm=select(alive, carry.warm, rest.warm))
     measured = carry.history[st.delay_steps]
     x_meas = state(ar, measured[:2], measured[2:])
     if st.compensate:
@@ -438,10 +449,29 @@ def control(ar: Arrays, st: Static, carry: Carry, k: jax.Array
         dist = offset_free_mod.observe(jnp, ar.ofs, carry.dist, carry.x_last, carry.u_last,
                                        x_meas)
         x_s, _, _, offset = offset_free_mod.steady_state(jnp, ar.ofs, dist)
-        res = admm_mod.admm_solve(ar.qp, x_meas - x_s, carry.warm, st.settings, offset)
-    else:
-        dist = carry.dist
-        res = admm_mod.admm_solve(ar.qp, x_meas, carry.warm, st.settings)
+        return Pre(carry, x_meas - x_s, offset, x_meas, dist, alive)
+    return Pre(carry, x_meas, None, x_meas, carry.dist, alive)
+
+
+def solve(ar: Arrays, st: Static, pre: Pre) -> admm_mod.ADMMResult:
+    """The MPC's QP at :func:`prepare`'s state, warm-started from the carry."""
+    return admm_mod.admm_solve(ar.qp, pre.x0, pre.carry.warm, st.settings, pre.offset)
+
+
+def solve_batch(ar: Arrays, st: Static, pre: Pre, tile: int | None) -> admm_mod.ADMMResult:
+    """:func:`solve` over a batch of :func:`prepare` results (``admm_solve_batch``: with
+    ``tile``, sequential tiles of that many lanes, each stopping at its own slowest)."""
+    return admm_mod.admm_solve_batch(ar.qp, pre.x0, pre.carry.warm, st.settings, tile,
+                                     offset=pre.offset)
+
+
+def conclude(ar: Arrays, st: Static, pre: Pre, res: admm_mod.ADMMResult, k: jax.Array,
+             rest: Carry | None = None) -> tuple[Carry, jax.Array, jax.Array]:
+    """After the solve: the carry (next warm start, :func:`period_update` folded in, the input
+    buffer, the observer's state), the input u [2] and the motor torques [2] to hold (zero if
+    not finite). With ``rest``, a dead scenario's buffers start from rest."""
+    dtype = ar.d0.qpos.dtype
+    carry = pre.carry
     u = res.u0.astype(dtype)
     torques = ar.torque_map @ u
     acc = period_update(carry.acc, res, u, torques, limits_of(ar, st), k)
@@ -450,8 +480,24 @@ def control(ar: Arrays, st: Static, carry: Carry, k: jax.Array
     torques = jnp.where(finite, torques, jnp.zeros_like(torques))
     warm = admm_mod.ADMMWarm(*(w.astype(dtype) for w in res.warm_next))
     inputs = jnp.concatenate([u[None], carry.inputs[:-1]])[:carry.inputs.shape[0]]
-    return (carry._replace(warm=warm, acc=acc, inputs=inputs, dist=dist, x_last=x_meas,
-                           u_last=u), u, torques)
+    carry = carry._replace(warm=warm, acc=acc, inputs=inputs, dist=pre.dist, x_last=pre.x_meas,
+                           u_last=u)
+    if rest is not None:
+        kept = select(pre.alive,
+                      (carry.history, carry.inputs, carry.dist, carry.x_last, carry.u_last),
+                      (rest.history, rest.inputs, rest.dist, rest.x_last, rest.u_last))
+        carry = carry._replace(history=kept[0], inputs=kept[1], dist=kept[2], x_last=kept[3],
+                               u_last=kept[4])
+    return carry, u, torques
+
+
+def control(ar: Arrays, st: Static, carry: Carry, k: jax.Array
+            ) -> tuple[Carry, jax.Array, jax.Array]:
+    """The MPC solve of control period k (:func:`prepare`, :func:`solve`, :func:`conclude`):
+    the carry, the input u [2] and the motor torques [2]. The MuJoCo C path's control step
+    (``cpath.py``); the MJX period (:func:`period`) adds the restart of a dead scenario."""
+    pre = prepare(ar, st, carry)
+    return conclude(ar, st, pre, solve(ar, st, pre), k)
 
 
 def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, force: jax.Array,
@@ -460,6 +506,27 @@ def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, forc
 
     Returns the carry and, with ``st.trajectories``, the period's per-step series [S, ...].
     """
+    rest = initial_carry(ar, sn, st)
+    pre = prepare(ar, st, carry, rest)
+    return advance_period(ar, sn, st, pre, solve(ar, st, pre), k, force, n_push)
+
+
+def period_batch(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array,
+                 force: jax.Array, n_push: jax.Array, tile: int | None = None
+                 ) -> tuple[Carry, dict[str, jax.Array] | None]:
+    """:func:`period` of a batch of scenarios (every argument but ``ar`` with a leading batch
+    axis), the QPs solved by :func:`solve_batch` (``tile``: lanes per ADMM loop)."""
+    rest = initial_carry(ar, sn, st)
+    pre = jax.vmap(lambda c: prepare(ar, st, c, rest))(carry)
+    res = solve_batch(ar, st, pre, tile)
+    return jax.vmap(lambda p, r, k, f, n: advance_period(ar, sn, st, p, r, k, f, n))(
+        pre, res, k, force, n_push)
+
+
+def advance_period(ar: Arrays, sn: Sensors, st: Static, pre: Pre, res: admm_mod.ADMMResult,
+                   k: jax.Array, force: jax.Array, n_push: jax.Array
+                   ) -> tuple[Carry, dict[str, jax.Array] | None]:
+    """:func:`period` after the solve: :func:`conclude`, then ``st.substeps`` physics steps."""
     dtype = ar.d0.qpos.dtype
     S = st.substeps
     rest = initial_carry(ar, sn, st)
@@ -502,15 +569,8 @@ def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, forc
         s = measure_step(ar, sn, d)
         return (record(carry, d, s), s), None
 
-    alive = carry.acc.alive
-    # A dead scenario restarts from rest with a cold controller (see the module docstring).
-    carry = carry._replace(d=select(alive, carry.d, ar.d0),
-                           warm=select(alive, carry.warm, rest.warm))
-    carry, u, torques = control(ar, st, carry, k)
-    kept = select(alive, (carry.history, carry.inputs, carry.dist, carry.x_last, carry.u_last),
-                  (rest.history, rest.inputs, rest.dist, rest.x_last, rest.u_last))
-    carry = carry._replace(history=kept[0], inputs=kept[1], dist=kept[2], x_last=kept[3],
-                           u_last=kept[4])
+    # A dead scenario restarted from rest with a cold controller (see the module docstring).
+    carry, u, torques = conclude(ar, st, pre, res, k, rest)
 
     steps = k * S + jnp.arange(S, dtype=jnp.int32)
     if st.trajectories or st.push_at_hip:

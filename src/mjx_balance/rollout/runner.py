@@ -61,7 +61,7 @@ class BatchRunner:
     def __init__(self, config: Config, *, dtype=jnp.float32, trajectories: bool = False,
                  mjx_options: dict[str, Any] | None = None, devices: list | None = None,
                  slots: int | None = None, early_stop: bool = True, physics: str = "mjx",
-                 threads: int | None = None):
+                 threads: int | None = None, admm_tile: int | None = None):
         if physics not in ("mjx", "c"):
             raise ValueError(f"physics must be 'mjx' or 'c' (resolve 'auto' first), got "
                              f"{physics!r}")
@@ -113,6 +113,8 @@ class BatchRunner:
             if reason:
                 raise ValueError(reason)
             self._engine_options["threads"] = threads
+        elif admm_tile is not None:  # lanes per ADMM loop (engine.default_tile)
+            self._engine_options["tile"] = admm_tile
         self._engine = None
         self.last_periods: np.ndarray | None = None  # control periods simulated per scenario
         self.last_certified: np.ndarray | None = None
