@@ -50,9 +50,9 @@ The stages, per control period, over every slot (busy or vacant):
   on the MJX path also the reset of a dead slot before the solve and the selection after it.
   The QP's matrices never change (condensed and factorised once, ``admm.build_admm``): per
   solve only its vectors move, inside ``admm_solve``; they are timed apart as information.
-- ADMM: ``kernel.solve_batch`` over the slots: one ``while_loop`` per device, or per tile of
-  ``engine.tile`` slots solved one after the other (``engine.default_tile``), which runs until
-  its slowest slot stops. Iterations are counted per busy slot and per loop and period (the
+- ADMM: ``kernel.solve_batch`` over the slots: one ``while_loop`` per device (or per tile of
+  ``engine.tile`` slots solved one after the other, ``--admm-tile``), which runs until its
+  slowest slot stops. Iterations are counted per busy slot and per loop and period (the
   slowest slot's, what the loop costs).
 - certificate: ``engine.certify`` (the check runs every ``CHECK_EVERY`` periods).
 - refill, harvest, vacate: the engine's compaction (decided slots out, new cells in).
@@ -484,10 +484,12 @@ def _median_call(fn, leaves, args, repeats: int) -> tuple[float, Any]:
 class Iterations:
     """ADMM iterations of the replayed solves: per busy slot, and per loop and call (the
     slowest slot of a device's slots or of a tile of them, which its ``while_loop`` waits
-    for; ``loops``: loops per call, in slot order); how often each ran to the cap ``cap``."""
+    for; ``loops``: loops per period over all devices, in slot order, default one per
+    device); how often each ran to the cap ``cap``."""
 
-    def __init__(self, loops: int, cap: int):
-        self.loops, self.cap = loops, cap
+    def __init__(self, devices: int, cap: int, loops: int | None = None):
+        self.devices, self.cap = devices, cap
+        self.loops = devices if loops is None else loops
         self.lane_sum = self.lanes = self.block_sum = self.blocks = 0
         self.lanes_capped = self.blocks_capped = 0
 
@@ -683,8 +685,8 @@ def replay_mjx(engine, records: list, stages: Stages, sampled: int) -> dict[str,
     r = engine.runner
     D = engine.n_devices
     periods = min(int(sampled), engine.block)
-    iters = Iterations(D * engine.slots // (engine.tile or engine.slots),
-                       r.static.settings.iteration_cap)
+    iters = Iterations(D, r.static.settings.iteration_cap,
+                       loops=D * engine.slots // (engine.tile or engine.slots))
     checked, agreement = 0, Agreement()
     for b, (packed, offer) in enumerate(records[:-1]):
         packed, offer = stages.put(packed), stages.put(offer)

@@ -108,9 +108,9 @@ def _engine_parser(bench: Any, conventions: argparse.ArgumentParser) -> None:
     p.add_argument("--t-end", type=positive_float, default=None,
                    help="scenario length [s] (default: the configuration's, 12)")
     p.add_argument("--admm-tile", type=positive_int, default=None,
-                   help="MJX path: lanes per ADMM loop, a divisor of the slots per device "
-                        "(default: the engine's, 16 on a CPU, one loop on a GPU; the slots "
-                        "per device: one loop)")
+                   help="MJX path: slots per ADMM loop, a divisor of the slots per device, "
+                        "the tiles solved one after the other (default: one loop over a "
+                        "device's slots, as sweep runs)")
     p.add_argument("--runs", type=positive_int, default=2,
                    help="timed runs of every cell (the figures in run are their mean)")
     p.add_argument("--repeats", type=positive_int, default=3,

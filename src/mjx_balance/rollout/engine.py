@@ -43,15 +43,6 @@ def default_slots(platform: str) -> int:
     return 32 if platform == "cpu" else 4096
 
 
-def default_tile(platform: str, slots: int) -> int | None:
-    """Lanes per ADMM loop (``kernel.solve_batch``): on a CPU, tiles of 16 solved one after
-    the other, each loop stopping at its own slowest lane instead of the device's (measured on
-    2 cores, 32 slots: 1.03-1.19x end to end, tiles of 8 and 4 slower: BENCHMARKS.md); None
-    (one loop over the device's slots) on an accelerator, where sequential tiles would
-    serialise the card. A lane's iterations are its own in any tile."""
-    return 16 if platform == "cpu" and slots > 16 and slots % 16 == 0 else None
-
-
 class Slots(NamedTuple):
     """The scenarios in flight, one per slot (leading axis: slots of every device)."""
 
@@ -322,8 +313,8 @@ class Engine:
 
     slots: per device (default :func:`default_slots`); block: control periods per call;
     early: stop certified recoveries (``--full-length`` turns it off). Falls and t_end stop a
-    scenario either way. tile: lanes per ADMM loop (default :func:`default_tile`; the slots per
-    device: one loop).
+    scenario either way. tile: slots per ADMM loop, solved one tile after the other (default:
+    one loop over the device's slots; docs/engine.md, "ADMM tiles").
     """
 
     def __init__(self, runner, *, slots: int | None = None, block: int = 100,
@@ -347,8 +338,7 @@ class Engine:
         self.refill = int(refill or 4 * self.slots)
         if tile is not None and (tile < 1 or self.slots % tile):
             raise ValueError(f"ADMM tile {tile} must divide the slots per device, {self.slots}")
-        tile = default_tile(platform, self.slots) if tile is None else int(tile)
-        self.tile = tile if tile and tile < self.slots else None
+        self.tile = int(tile) if tile is not None and tile < self.slots else None
         config = runner.config
         self.early = bool(early)
         self.cert = None

@@ -113,7 +113,7 @@ class BatchRunner:
             if reason:
                 raise ValueError(reason)
             self._engine_options["threads"] = threads
-        elif admm_tile is not None:  # lanes per ADMM loop (engine.default_tile)
+        elif admm_tile is not None:  # slots per ADMM loop (Engine's tile)
             self._engine_options["tile"] = admm_tile
         self._engine = None
         self.last_periods: np.ndarray | None = None  # control periods simulated per scenario
