@@ -131,3 +131,36 @@ def test_two_devices_match_one():
     # the comparison is not vacuous: the scenarios differ, and some inputs sit on a bound
     assert len(set(one["summary"]["outcome"])) >= 2
     assert flags["one"].any()
+
+
+PROBE = """
+import json, sys
+import mjx_balance.cli
+cli = sys.modules["mjx_balance.cli.main"]  # (the package's name ``main`` is the function)
+assert "jax" not in sys.modules, "importing the command line started JAX"
+def probe(args):
+    import jax
+    print(json.dumps({"devices": jax.device_count()}))
+    return 0
+cli._run = probe  # everything main does before the command, then report the devices
+sys.exit(cli.main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("argv", [["sweep", "--forces", "0,50"],
+                                  ["sweep", "--sweep", "region_dense_paper"],
+                                  ["table", "--sweep", "study_table_paper"]])
+def test_the_command_line_uses_every_core_whatever_its_arguments(argv, tmp_path):
+    """The command line gives XLA one host device per core before JAX starts, also when an
+    argument's check imports JAX (a shipped sweep's name is looked up in the runs floor: such
+    a sweep once ran on one core of two)."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("XLA_FLAGS", "MJX_BALANCE_HOST_DEVICES", "JAX_ENABLE_X64")}
+    env["JAX_PLATFORMS"] = "cpu"
+    proc = subprocess.run([sys.executable, "-c", PROBE, *argv, "--out", str(tmp_path / "out")],
+                          env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    cores = min(len(os.sched_getaffinity(0)), 8)
+    expected = 1 << (cores.bit_length() - 1)  # a power of two, as cli.main.use_host_cores
+    got = json.loads(proc.stdout.strip().splitlines()[-1])["devices"]
+    assert got == expected, (got, expected, argv)

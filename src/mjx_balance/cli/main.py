@@ -149,9 +149,11 @@ def main(argv: list[str] | None = None) -> int:
     # Figures are written to files: matplotlib's file-only backend, unless the user chose one
     # (the library itself never switches backends: a notebook keeps its inline figures).
     os.environ.setdefault("MPLBACKEND", "Agg")
-    args = build_parser().parse_args(argv)
+    # before the parser: an argument's check may import JAX (``--sweep NAME`` looks the name up
+    # in the runs floor), and XLA reads its flags when JAX starts
     use_host_cores()
     deterministic_flags()
+    args = build_parser().parse_args(argv)
     if getattr(args, "no_cache", False):
         from ..runtime import cache  # lazy: after use_host_cores, before JAX starts
 
