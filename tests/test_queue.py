@@ -69,6 +69,15 @@ def test_every_cell_is_taken_exactly_once():
         assert queue.pending.size == 0
 
 
+def test_cells_alike_keep_their_order():
+    """Cells with one force, one push and one initial state (repeats of a scenario; a basin's
+    pushes): nothing to rank by, the given order stays."""
+    for inits in (None, np.ones((7, 4))):
+        queue = Queue(np.zeros(7), np.full(7, 3, np.int32), devices=1, refill=2, inits=inits)
+        _, order = simulate(queue, np.arange(7, 0, -1), slots=2, block=1)
+        assert order == list(range(7))
+
+
 def test_before_any_result_smaller_forces_first_ties_in_given_order():
     forces = np.array([30.0, -5.0, 10.0, 5.0, 0.0, 10.0])
     queue = Queue(forces, np.full(6, 10, np.int32), devices=1, refill=6)

@@ -268,12 +268,14 @@ class Queue:
         if not count or self.pending.size < 2 or count < 1.1 * self._sorted_at:
             return
         self._sorted_at = count
+        feats = self._features()
+        if not feats.shape[1]:  # every cell alike: nothing tells them apart
+            return
         from scipy.spatial import cKDTree
 
         flight = (self.taken_at >= 0) & ~done
         known = np.flatnonzero(done | flight)
         ran = np.where(done, self.length, (self.calls - self.taken_at - 1) * self.block)
-        feats = self._features()
         _, near = cKDTree(feats[known]).query(feats[self.pending])
         expected = ran[known][near]
         self.pending = self.pending[np.argsort(-expected, kind="stable")]
