@@ -70,10 +70,11 @@ def test_every_cell_is_taken_exactly_once():
 
 
 def test_cells_alike_keep_their_order():
-    """Cells with one force, one push and one initial state (repeats of a scenario; a basin's
-    pushes): nothing to rank by, the given order stays."""
-    for inits in (None, np.ones((7, 4))):
-        queue = Queue(np.zeros(7), np.full(7, 3, np.int32), devices=1, refill=2, inits=inits)
+    """Cells with one force, one push and one initial state (repeats of a scenario; no push
+    from rest): nothing to rank by, the given order stays."""
+    for n_push, inits in ((0, None), (3, None), (0, np.ones((7, 4)))):
+        queue = Queue(np.zeros(7), np.full(7, n_push, np.int32), devices=1, refill=2,
+                      inits=inits)
         _, order = simulate(queue, np.arange(7, 0, -1), slots=2, block=1)
         assert order == list(range(7))
 
