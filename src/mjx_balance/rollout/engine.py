@@ -1,7 +1,7 @@
 """Continuous batching: a fixed set of slots, each refilled with the next cell when its scenario
 is decided.
 
-Every device runs ``slots`` scenarios side by side (vmapped :func:`kernel.period`). After each
+Every device runs ``slots`` scenarios side by side (:func:`kernel.period_batch`). After each
 control period a slot's scenario is *decided* when it fell or diverged (the fall sample), when it
 reached t_end, or, with early stopping, when its recovery is certified (``certificate.py``).
 A decided slot hands its accumulators to an output buffer, is reset to upright rest with a cold
@@ -300,9 +300,12 @@ class Queue:
 
     def took(self, taken: np.ndarray) -> None:
         """How many of its offered cells each device took [D]."""
-        used = np.concatenate([part[:int(t)] for part, t in zip(self._per, taken)])
-        self.taken_at[used] = self.calls
-        self.pending = self.pending[~np.isin(self.pending, used)]
+        offer = self.pending[:self.D * self.R]  # device d's part is offer[d::D]
+        left = np.ones(offer.size, bool)
+        for d, t in enumerate(taken):
+            left[d::self.D][:int(t)] = False
+        self.taken_at[offer[~left]] = self.calls
+        self.pending = np.concatenate([offer[left], self.pending[offer.size:]])
         self.calls += 1
 
     def finished(self, cells: np.ndarray, periods: np.ndarray) -> None:
