@@ -9,16 +9,25 @@ one test, ``jax.enable_x64(False)`` for a module.
 """
 
 import os
+from pathlib import Path
 
 import jax
 import pytest
 
 jax.config.update("jax_enable_x64", True)
 
-# The persistent compilation cache (mjx_balance.runtime.cache) is off in the test session and in the
-# processes it starts: tests never write into the user's cache folder (tests/test_cache.py
-# gives its processes their own folders).
-os.environ["MJX_BALANCE_CACHE_DIR"] = "off"
+# The persistent compilation cache (mjx_balance.runtime.cache) of the test session and of the
+# processes it starts: the repository's .cache/jax-tests (ignored by git), so that a program
+# compiled once (in this process or a child) is loaded by every later process and run, and
+# tests never write into the user's own cache folder. MJX_BALANCE_CACHE_DIR set by the user
+# wins (``off`` compiles everything anew: the cold run). tests/test_cache.py gives its
+# processes their own folders.
+TEST_CACHE = Path(__file__).resolve().parents[1] / ".cache" / "jax-tests"
+os.environ.setdefault("MJX_BALANCE_CACHE_DIR", str(TEST_CACHE))
+
+from mjx_balance.runtime import cache as _cache  # noqa: E402 - after the folder is chosen
+
+_cache.enable()
 
 # The shared runner's configuration: the defaults with a 2-s run, long enough for the pushes the
 # tests use to recover (settle by ~1.2 s) or fall (by ~1.4 s), short enough to run in a moment.
@@ -100,3 +109,53 @@ if os.environ.get("MJX_BALANCE_MARGIN_AUDIT"):
         return result
 
     ApproxScalar.__eq__ = _recorded_approx_eq
+
+
+# -- the compile budget --------------------------------------------------------------------
+_CURRENT_TEST = {"id": None}
+_BUILT_BY: list = []
+_XLA: list = []
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    from mjx_balance.runtime import compiled
+
+    from mjx_balance.runtime.cache import CompileCounter
+
+    before = len(compiled.built())
+    _CURRENT_TEST["id"] = item.nodeid
+    with CompileCounter() as counter:
+        yield
+    _XLA.append((item.nodeid, counter.compiles, counter.compile_seconds))
+    for c in compiled.built()[before:]:
+        _BUILT_BY.append((item.nodeid, c.kind, c.seconds, _describe(c.key)))
+
+
+def _describe(key):
+    shape = key[1] if key and isinstance(key[0], str) else key
+    try:
+        static = shape[3]
+        text = (f"n_control={static.n_control} traj={static.trajectories} "
+                f"delay={static.delay_steps} comp={static.compensate} of={static.offset_free} "
+                f"hip={static.push_at_hip} batch={shape[4]} dev={shape[5]} x64={shape[6]}")
+    except Exception:  # noqa: BLE001
+        text = "?"
+    if key and isinstance(key[0], str):
+        text += " rest=" + repr(key[2:])[:80]
+    return text
+
+
+def pytest_terminal_summary(terminalreporter):
+    if not _BUILT_BY:
+        return
+    total = sum(b[2] for b in _BUILT_BY)
+    terminalreporter.write_line(f"compiled programs: {len(_BUILT_BY)}, {total:.1f} s")
+    path = os.environ.get("MJX_BALANCE_COMPILE_LOG")
+    if path:
+        with open(path, "w") as fh:
+            for nodeid, kind, s, what in _BUILT_BY:
+                fh.write(f"{s:8.2f} {kind:8s} {nodeid} {what}\n")
+            for nodeid, n, s in sorted(_XLA, key=lambda r: -r[2]):
+                if n:
+                    fh.write(f"XLA {s:8.2f} {n:4d} {nodeid}\n")

@@ -613,10 +613,10 @@ def mjx_bodies(engine) -> dict[str, Any]:
 
     def certify(ar, cert, carry, due):
         k = due.k + 1
-        ended = ~carry.acc.alive | (k >= st.n_control)
+        ended = ~carry.acc.alive | (k >= ar.n_control)
         acc, certified = engine_mod.certify(engine_mod.checker(cert if early else None), st,
                                             carry.x_prev, carry.acc, k, due.n_push, ended,
-                                            due.due[0])
+                                            due.due[0], n_control=ar.n_control)
         return acc, certified, (due.cell >= 0) & (ended | certified)
 
     def harvest(ar, cert, buffer, decided, slots, acc, certified, carry):
@@ -732,12 +732,12 @@ def c_bodies(engine) -> dict[str, Any]:
                                                      cs.torques, cs.u)
         carry = select(cs.ran, folded, slots.carry)
         k = jnp.where(cs.ran, slots.k + 1, slots.k)
-        return carry, k, ~carry.acc.alive | (k >= st.n_control), (cell, force, push), p[None]
+        return carry, k, ~carry.acc.alive | (k >= ar.n_control), (cell, force, push), p[None]
 
     def certify(ar, cert, carry, k, n_push, ended, p):
         return engine_mod.certify(engine_mod.checker(cert if early else None), st,
                                   carry.x_prev, carry.acc, k, n_push, ended,
-                                  (p[0] - 1) % every == every - 1)
+                                  (p[0] - 1) % every == every - 1, n_control=ar.n_control)
 
     def refill(ar, cert, cs, carry, verdict, offer, p):
         acc, k, certified, ended = verdict

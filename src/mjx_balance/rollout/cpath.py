@@ -60,7 +60,8 @@ from ..model.mjcf import indices
 from ..model.params import Config
 from .engine import (Engine, Queue, Slots, broadcast, certify, checker, empty_finished, harvest,
                      refill, vacate)
-from ..runtime.compiled import MATMUL_PRECISION, get_or_compile
+from ..runtime import compiled
+from ..runtime.compiled import MATMUL_PRECISION
 from .kernel import (Carry, Sample, com_velocity, control, initial_carry, limits_of,
                      pendulum_frequency, remember, sample_update, select, state)
 from .physics import Sensors, cell_heights, mj_model, mjx, whole_body_com
@@ -323,9 +324,9 @@ def call(ar, sn, st, cert, cs: CState, floats, ints, *, early: bool):
     folded = jax.vmap(fold)(slots.carry, rows, last_qpos, slots.k, cs.torques, cs.u)
     carry = select(cs.ran, folded, slots.carry)
     k = jnp.where(cs.ran, slots.k + 1, slots.k)
-    ended = ~carry.acc.alive | (k >= st.n_control)
+    ended = ~carry.acc.alive | (k >= ar.n_control)
     acc, certified = certify(check, st, carry.x_prev, carry.acc, k, slots.n_push, ended,
-                             (p - 1) % every == every - 1)
+                             (p - 1) % every == every - 1, n_control=ar.n_control)
     decided = cs.ran & (ended | certified)
     zero = jnp.zeros((), jnp.int32)
     done, _ = harvest(empty_finished(B, dtype), zero, decided, slots.cell, acc, k, certified)
@@ -392,7 +393,7 @@ class CEngine(Engine):
         self._leaves = tuple(leaves if whole is None else jax.device_put(leaves, whole))
 
     def _key(self) -> tuple:
-        return ("cpath", self.runner._shape_key(self.slots), self.cert is not None,
+        return ("cpath", self.runner._shape_key(self.slots, self.static), self.cert is not None,
                 None if self.cert is None else tuple(np.shape(v) for v in self.cert))
 
     def _template(self, arrays) -> CState:
@@ -417,7 +418,7 @@ class CEngine(Engine):
             return self._fn
         t0 = _time.perf_counter()
         r = self.runner
-        sn, st, early = r.sensors, r.static, self.cert is not None
+        sn, st, early = r.sensors, self.static, self.cert is not None
         treedef = self._treedef
 
         def one(leaves, cs, floats, ints):
@@ -434,13 +435,18 @@ class CEngine(Engine):
                                     out_specs=P("batch"), check_vma=False)
             return jax.jit(run, donate_argnums=(1,))
 
-        fn = get_or_compile(self._key(), build)
+        key = self._key()
+        new = not compiled.is_compiled(key)
+        fn = compiled.get_or_compile(key, build)
         state = self._state if self._state is not None else self._initial_state()
         n = self.slots * self.n_devices
         floats, ints = pack(np.zeros((n, r.static.substeps, ROW)), np.zeros((n, self.c.nq)),
                             np.full(n, -1), np.zeros(n), np.zeros(n), 0, r.dtype)
+        t1 = _time.perf_counter()
         state, *_ = fn(self._leaves, state, self._put(floats), self._put(ints))
         self._state = jax.block_until_ready(state)  # all vacant: nothing was run
+        if new:  # the first call compiled it
+            compiled.charge(key, _time.perf_counter() - t1)
         self.compile_seconds = _time.perf_counter() - t0
         self._fn = fn
         return fn

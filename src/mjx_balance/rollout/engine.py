@@ -106,13 +106,13 @@ def refill(slots: Slots, rest: Carry, taken, vacant, refill_cell, refill_force, 
     return slots, taken + take.sum(dtype=jnp.int32)
 
 
-def certify(check, st, x, acc: Accumulators, k, n_push, ended, due):
+def certify(check, st, x, acc: Accumulators, k, n_push, ended, due, *, n_control):
     """The certificate's verdict on every slot after its period ``k`` (1-based count; ``due``:
     whether this period is a check, the same for every slot) and the accumulators with a
-    certified scenario's predicted rest of the window added. x: [S, 4] latest states."""
+    certified scenario's predicted rest of the window added. x: [S, 4] latest states;
+    ``n_control``: the window's control periods (``Arrays.n_control``)."""
     S = k.shape[0]
     dtype = acc.max_residual.dtype
-    n_control = st.n_control
     certified = jnp.zeros_like(ended)
     if check is None:
         return acc, certified
@@ -209,9 +209,9 @@ def block(ar, sn, st, cert, slots: Slots, *, refill_cell, refill_force, refill_p
         active = slots.cell >= 0
         carry = run(slots.carry, slots.k, slots.force, slots.n_push)
         k = slots.k + 1
-        ended = ~carry.acc.alive | (k >= st.n_control)
+        ended = ~carry.acc.alive | (k >= ar.n_control)
         acc, certified = certify(check, st, carry.x_prev, carry.acc, k, slots.n_push, ended,
-                                 s % every == every - 1)
+                                 s % every == every - 1, n_control=ar.n_control)
         decided = active & (ended | certified)
         # 3. decided scenarios go to the buffer; their slots are vacated (reset to rest)
         done, n_done = harvest(done, n_done, decided, slots.cell, acc, k, certified)
@@ -358,6 +358,9 @@ class Engine:
                               stacklevel=3)
             else:
                 self.cert = jax.tree.map(lambda v: jnp.asarray(v, runner.dtype), cert)
+        # what the compiled call bakes in: the runner's static settings without the window's
+        # length, which the call reads from the traced Arrays.n_control
+        self.static = runner.static._replace(n_control=None)
         self.packing = Packing(initial_carry(runner.arrays, runner.sensors, runner.static))
         self.compile_seconds: float | None = None
         self._fn = None
@@ -366,7 +369,8 @@ class Engine:
     # -- compilation ----------------------------------------------------------------------
 
     def _key(self) -> tuple:
-        return ("engine", self.runner._shape_key(self.slots), self.refill, self.block,
+        return ("engine", self.runner._shape_key(self.slots, self.static), self.refill,
+                self.block,
                 self.tile, self.cert is not None, None if self.cert is None else
                 tuple(np.shape(v) for v in self.cert))
 
@@ -377,7 +381,7 @@ class Engine:
             return self._fn
         t0 = _time.perf_counter()
         r = self.runner
-        sn, st, periods, early = r.sensors, r.static, self.block, self.cert is not None
+        sn, st, periods, early = r.sensors, self.static, self.block, self.cert is not None
         packing, tile = self.packing, self.tile
 
         def call(arrays, cert, slots, cell, force, push, init):

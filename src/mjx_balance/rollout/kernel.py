@@ -156,6 +156,10 @@ class Arrays(NamedTuple):
     ofs: offset_free_mod.OffsetFree  # the offset-free controller's matrices (used if enabled)
     settled: jax.Array  # [nq] upright rest with the contact settled (model.settled_rest)
     bounds: jax.Array  # [4, 2] the outcome rules' state and input bounds (split_limits)
+    # int32 []: control periods in the window (t_end / control_dt). The engines read this
+    # traced value, so one compiled engine serves every t_end; the padded batch with
+    # trajectories scans Static.n_control periods (its output's length) and so compiles per t_end.
+    n_control: jax.Array
 
 
 class Sample(NamedTuple):

@@ -92,6 +92,7 @@ class BatchRunner:
             pred_A=jnp.asarray(pred_A, self.dtype), pred_G=jnp.asarray(pred_G, self.dtype),
             ofs=offset_free.cast(offset_free.build(qp, ctrl), jnp, self.dtype),
             settled=jnp.asarray(settled_rest(self.model), self.dtype), bounds=bounds,
+            n_control=jnp.asarray(sc.n_control, jnp.int32),
         )
         self.static = Static(
             n_control=sc.n_control, substeps=sc.substeps, delay_steps=sc.delay_steps,
@@ -163,14 +164,16 @@ class BatchRunner:
                                 out_specs=P("batch"), check_vma=False)
         return jax.jit(sharded)
 
-    def _shape_key(self, batch: int) -> tuple:
+    def _shape_key(self, batch: int, static: Static | None = None) -> tuple:
         """What the compiled function depends on besides the traced arrays' values: their
-        tree structure, shapes and dtypes, the static addresses and settings, the batch."""
+        tree structure, shapes and dtypes, the static addresses and settings (``static``:
+        what the function bakes in, default the runner's), the batch."""
         leaves, treedef = jax.tree.flatten(self.arrays)
         sn = tuple(tuple(np.asarray(v).ravel().tolist()) + (np.shape(v),) for v in self.sensors)
         devices = None if self.mesh is None else tuple(d.id for d in self.mesh.devices.flat)
-        return (treedef, tuple((np.shape(v), str(v.dtype)) for v in leaves), sn, self.static,
-                batch, devices, jax.config.jax_enable_x64)
+        return (treedef, tuple((np.shape(v), str(v.dtype)) for v in leaves), sn,
+                self.static if static is None else static, batch, devices,
+                jax.config.jax_enable_x64)
 
     def compiled(self, batch: int):
         """The compiled batch function for a padded batch size (compiled ahead of time).

@@ -10,7 +10,8 @@ persistent cache (``runtime.cache``) keeps them across processes.
 from __future__ import annotations
 
 import threading
-from typing import Any, Callable
+import time
+from typing import Any, Callable, NamedTuple
 
 # Float32 products in full float32 precision: on NVIDIA GPUs JAX's default is TF32 (a 10-bit
 # mantissa), with which the ADMM stops converging (measured on an H100: 99.3 iterations per
@@ -19,6 +20,19 @@ MATMUL_PRECISION = "highest"
 
 _COMPILED: dict[tuple, Any] = {}
 _LOCK = threading.Lock()
+
+
+class Compiled(NamedTuple):
+    """One program built by :func:`get_or_compile`: its kind (the key's first element when
+    that is a name, else ``"batch"``), the seconds ``build()`` took (a load from JAX's
+    persistent cache included) and the key itself."""
+
+    kind: str
+    seconds: float
+    key: tuple
+
+
+_BUILT: list[Compiled] = []
 
 
 def get_or_compile(key: tuple, build: Callable[[], Any]) -> Any:
@@ -30,11 +44,33 @@ def get_or_compile(key: tuple, build: Callable[[], Any]) -> Any:
     if fn is None:
         import jax  # lazy: this floor loads before the XLA flags are set
 
+        t0 = time.perf_counter()
         with jax.default_matmul_precision(MATMUL_PRECISION):
             fn = build()
+        seconds = time.perf_counter() - t0
         with _LOCK:
+            if key not in _COMPILED:
+                kind = key[0] if key and isinstance(key[0], str) else "batch"
+                _BUILT.append(Compiled(kind, seconds, key))
             fn = _COMPILED.setdefault(key, fn)
     return fn
+
+
+def charge(key: tuple, seconds: float) -> None:
+    """Add ``seconds`` to the program built for ``key``: for a function that ``build()`` only
+    wraps (``jax.jit``) and that compiles at its first call, the caller times that call."""
+    with _LOCK:
+        for i, c in enumerate(_BUILT):
+            if c.key == key:
+                _BUILT[i] = c._replace(seconds=c.seconds + seconds)
+                return
+
+
+def built() -> list[Compiled]:
+    """Every program this process built through :func:`get_or_compile`, in order (kept after
+    :func:`clear`, which only forgets the functions)."""
+    with _LOCK:
+        return list(_BUILT)
 
 
 def is_compiled(key: tuple) -> bool:
