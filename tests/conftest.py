@@ -33,6 +33,11 @@ _cache.enable()
 # tests use to recover (settle by ~1.2 s) or fall (by ~1.4 s), short enough to run in a moment.
 SHARED_T_END = 2.0
 SHARED_BATCH = 8  # the smallest padded batch size: every batch of up to 8 scenarios reuses it
+# The engine's tests (no trajectories): 8 slots on one device under float32, x64 off. The
+# window's length is a traced value (rollout.kernel.Arrays.n_control), so every test of the
+# default body that keeps these (any t_end of 1 s or more: a call's block is then 100 periods)
+# shares one compiled engine with the certificate and one without (runtime.compiled).
+ENGINE_SLOTS = 8
 
 
 @pytest.fixture

@@ -18,6 +18,7 @@ from mjx_balance.model.params import Config
 from mjx_balance.reference import loop as reference
 from mjx_balance.rollout import kernel, physics
 from margins import within
+from conftest import ENGINE_SLOTS
 
 CONFIG = Config().replace(scenario={"t_end": 2.0})
 BODY = CONFIG.body
@@ -153,7 +154,8 @@ def test_batched_lean_sampling_agrees_with_the_reference(runs):
     keys = list(runs)
     forces, durations = np.array(keys).T
     with jax.enable_x64(False):
-        runner = BatchRunner(CONFIG, early_stop=False, devices=jax.local_devices()[:1])
+        runner = BatchRunner(CONFIG, early_stop=False, slots=ENGINE_SLOTS,
+                             devices=jax.local_devices()[:1])
         assert not runner.trajectories
         mine = runner.run(forces, durations)
     rest = BODY.foot_length / 2

@@ -33,6 +33,7 @@ from mjx_balance.runs.grid import check_whole_steps
 
 from test_bad_input import assert_refused, run
 from test_store_faults import HOLD_LOCK, cli_sweep, fake_rollout  # noqa: F401 (a fixture)
+from conftest import ENGINE_SLOTS
 
 PHYSICS_DT = Config().scenario.physics_dt
 
@@ -265,9 +266,12 @@ def test_batched_path_calls_huge_values_diverged():
     from mjx_balance.reference.loop import simulate_scenario
     from mjx_balance.rollout import BatchRunner
 
-    config = Config().replace(scenario={"t_end": 0.1})
+    # a 1-s window: the engine's calls run 100 periods, as for every test of conftest's
+    # ENGINE_SLOTS (one compiled engine); 50 N x 0.1 s has not settled by then (~1.2 s)
+    config = Config().replace(scenario={"t_end": 1.0})
     with jax.enable_x64(False):
-        result = BatchRunner(config, slots=8).run(np.array([1e12, 50.0]), np.array([0.1, 0.1]))
+        result = BatchRunner(config, slots=ENGINE_SLOTS, devices=jax.local_devices()[:1]).run(
+            np.array([1e12, 50.0]), np.array([0.1, 0.1]))
     outcomes = [OUTCOMES[int(code)] for code in result["outcome"]]
     reference, _ = simulate_scenario(config, 1e12, 0.1, record=False)
     assert reference["outcome"] == "diverged"

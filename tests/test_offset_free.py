@@ -19,6 +19,7 @@ from mjx_balance.rollout import BatchRunner
 from test_rollout import AdmmMPC
 import margins
 from margins import within
+from conftest import ENGINE_SLOTS
 
 CONFIG = Config().replace(controller={"offset_free": True})
 
@@ -219,8 +220,10 @@ def test_batched_and_reference_offset_free_alike():
                    why="float32 ADMM rounding x the loop's gain, grown after an infeasible QP "
                        "when it falls (margins.closed_loop_rounding)")
     assert {"recovered", "fell"} <= set(outcomes)
-    mjx = BatchRunner(config, physics="mjx", devices=jax.local_devices()[:1])
-    assert list(mjx.run_frame(forces, durations).outcome) == outcomes
+    with jax.enable_x64(False):  # as sweeps run
+        mjx = BatchRunner(config, physics="mjx", slots=ENGINE_SLOTS,
+                          devices=jax.local_devices()[:1])
+        assert list(mjx.run_frame(forces, durations).outcome) == outcomes
 
 
 def test_a_sustained_push_the_plain_mpc_cannot_hold():
