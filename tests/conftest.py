@@ -37,7 +37,7 @@ SHARED_BATCH = 8  # the smallest padded batch size: every batch of up to 8 scena
 # window's length is a traced value (rollout.kernel.Arrays.n_control), so every test of the
 # default body that keeps these (any t_end of 1 s or more: a call's block is then 100 periods)
 # shares one compiled engine with the certificate and one without (runtime.compiled).
-ENGINE_SLOTS = 8
+ENGINE_SLOTS = 32
 
 
 @pytest.fixture

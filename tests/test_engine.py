@@ -89,7 +89,7 @@ WINDOWS = {"3s": dict(t_end=3.0, min_certified=15, max_share=0.95),
 @pytest.fixture(scope="module", params=["3s", pytest.param("12s", marks=pytest.mark.slow)])
 def runs(request):
     """The grid of ``request.param`` run with early stopping and at full length (the engine's
-    shared 8 slots: conftest.ENGINE_SLOTS)."""
+    shared slots: conftest.ENGINE_SLOTS)."""
     from mjx_balance.rollout import BatchRunner
 
     window = WINDOWS[request.param]
@@ -349,16 +349,20 @@ def test_interrupted_sweep_resumes_to_the_same_bytes(tmp_path):
     with jax.enable_x64(False):
         with pytest.raises(KeyboardInterrupt):
             run_sweep(tmp_path / "a", config, forces, durations, chunk_size=4,
-                      run_batch=Interrupted(config, slots=8), progress=False, log=None)
+                      run_batch=Interrupted(config, slots=ENGINE_SLOTS), progress=False,
+                      log=None)
         assert any((tmp_path / "a" / "chunks").glob("chunk-*.parquet"))
         resumed = run_sweep(tmp_path / "a", config, forces, durations,
-                            run_batch=LazyBatch(config, slots=8), progress=False, log=None)
+                            run_batch=LazyBatch(config, slots=ENGINE_SLOTS), progress=False,
+                          log=None)
         assert resumed.reused_chunks >= 1
         whole = run_sweep(tmp_path / "b", config, forces, durations, chunk_size=16,
-                          run_batch=LazyBatch(config, slots=8), progress=False, log=None)
+                          run_batch=LazyBatch(config, slots=ENGINE_SLOTS), progress=False,
+                          log=None)
     assert resumed.region_path.read_bytes() == whole.region_path.read_bytes()
     manifest = json.loads((tmp_path / "a" / "manifest.json").read_text())
-    assert manifest["region"]["engine"] == {"slots": 8, "early_stop": True, "physics": "mjx"}
+    assert manifest["region"]["engine"] == {"slots": ENGINE_SLOTS, "early_stop": True,
+                                          "physics": "mjx"}
     assert len(pd.read_parquet(whole.region_path)) == forces.size * durations.size
 
 
