@@ -33,11 +33,6 @@ _cache.enable()
 # tests use to recover (settle by ~1.2 s) or fall (by ~1.4 s), short enough to run in a moment.
 SHARED_T_END = 2.0
 SHARED_BATCH = 8  # the smallest padded batch size: every batch of up to 8 scenarios reuses it
-# The engine's tests (no trajectories): 8 slots on one device under float32, x64 off. The
-# window's length is a traced value (rollout.kernel.Arrays.n_control), so every test of the
-# default body that keeps these (any t_end of 1 s or more: a call's block is then 100 periods)
-# shares one compiled engine with the certificate and one without (runtime.compiled).
-ENGINE_SLOTS = 32
 
 
 @pytest.fixture
@@ -116,51 +111,122 @@ if os.environ.get("MJX_BALANCE_MARGIN_AUDIT"):
     ApproxScalar.__eq__ = _recorded_approx_eq
 
 
-# -- the compile budget --------------------------------------------------------------------
-_CURRENT_TEST = {"id": None}
-_BUILT_BY: list = []
-_XLA: list = []
+# -- parallel runs (pytest-xdist) -----------------------------------------------------------------
+# The default run uses one worker per core (``-n auto --dist loadfile`` in pyproject.toml).
+# Each test file runs whole on one worker (its module fixtures are built once), and the files
+# that use the shared compiled programs run on one worker together (support.GROUPS), so that
+# each program is compiled once, then loaded from the session's cache by any process that needs
+# it later. The groups and the files that take longest start first (support.FIRST), so that no
+# worker is left with a long file at the end.
+
+
+def pytest_xdist_make_scheduler(config, log):
+    """--dist loadfile with the files of support.GROUPS as one unit each, the longest first."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    from support import FIRST, GROUPS
+
+    class ByProgram(LoadScopeScheduling):
+        def _split_scope(self, nodeid):
+            file = nodeid.split("::")[0]
+            return GROUPS.get(Path(file).name, file)
+
+        def _assign_work_unit(self, node):
+            rank = {scope: i for i, scope in enumerate(FIRST)}
+            first = min(self.workqueue, key=lambda scope: (
+                rank.get(Path(scope).name, len(rank)), -len(self.workqueue[scope])))
+            self.workqueue.move_to_end(first, last=False)
+            super()._assign_work_unit(node)
+
+    return ByProgram(config, log)
+
+
+# -- the compile budget ------------------------------------------------------------------------
+# Compiling the batched closed loop is what the suite spends most of its time on (tens of
+# seconds a program on 2 cores, a few to load one from the cache), so the number of distinct
+# programs a run builds (runtime.compiled's ledger: padded batches, engines, C-path calls) is
+# kept to a stated budget: a run that builds more fails at its end, naming the programs and the
+# tests that built them. Every program is listed, with the seconds it took, at the end of a
+# session (``MJX_BALANCE_COMPILE_LOG=FILE``: one line per program and per test's XLA compiles).
+# Distinct programs of the default run (``-m "not slow"``), one line each:
+#   the padded batch with trajectories (conftest batch_runner: defaults, t_end 2 s)
+#   the engine with the certificate and without (ENGINE_SLOTS, one device, float32)
+#   the offset-free engine (test_offset_free), the hip servo's padded batch (test_hip_servo)
+#   the C path's calls: plain, offset-free, delay-compensated (test_cpath, test_offset_free,
+#     test_delay_compensation), each compiled at its first call
+BUDGETS = {"not slow": 9}
+_BUILT: list[dict] = []  # the programs this process built, with the test that built them
+_XLA: list[tuple[str, int, int, float]] = []  # per test: XLA compiles, cache loads, seconds
+
+
+def program_id(key: tuple) -> str:
+    """A program's key as text that is the same in every process (addresses left out)."""
+    import hashlib
+    import re
+
+    text = re.sub(r" at 0x[0-9a-f]+", "", repr(key))
+    return hashlib.sha1(text.encode()).hexdigest()[:12]
 
 
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_protocol(item, nextitem):
     from mjx_balance.runtime import compiled
-
     from mjx_balance.runtime.cache import CompileCounter
 
     before = len(compiled.built())
-    _CURRENT_TEST["id"] = item.nodeid
     with CompileCounter() as counter:
         yield
-    _XLA.append((item.nodeid, counter.compiles, counter.compile_seconds))
-    for c in compiled.built()[before:]:
-        _BUILT_BY.append((item.nodeid, c.kind, c.seconds, _describe(c.key)))
+    _XLA.append((item.nodeid, counter.compiles, counter.cache_hits, counter.compile_seconds))
+    _BUILT.extend({"test": item.nodeid, "kind": c.kind, "seconds": c.seconds,
+                   "id": program_id(c.key)} for c in compiled.built()[before:])
 
 
-def _describe(key):
-    shape = key[1] if key and isinstance(key[0], str) else key
-    try:
-        static = shape[3]
-        text = (f"n_control={static.n_control} traj={static.trajectories} "
-                f"delay={static.delay_steps} comp={static.compensate} of={static.offset_free} "
-                f"hip={static.push_at_hip} batch={shape[4]} dev={shape[5]} x64={shape[6]}")
-    except Exception:  # noqa: BLE001
-        text = "?"
-    if key and isinstance(key[0], str):
-        text += " rest=" + repr(key[2:])[:80]
-    return text
+def pytest_testnodedown(node, error):
+    """(pytest-xdist, controller) A worker's ledger joins this process's."""
+    import json
+
+    output = getattr(node, "workeroutput", {})
+    _BUILT.extend(json.loads(output.get("compiled", "[]")))
+    _XLA.extend(tuple(x) for x in json.loads(output.get("xla", "[]")))
 
 
-def pytest_terminal_summary(terminalreporter):
-    if not _BUILT_BY:
+def pytest_sessionfinish(session, exitstatus):
+    import json
+
+    if hasattr(session.config, "workeroutput"):  # an xdist worker: the controller reports
+        session.config.workeroutput["compiled"] = json.dumps(_BUILT)
+        session.config.workeroutput["xla"] = json.dumps(_XLA)
         return
-    total = sum(b[2] for b in _BUILT_BY)
-    terminalreporter.write_line(f"compiled programs: {len(_BUILT_BY)}, {total:.1f} s")
+    budget = BUDGETS.get(session.config.option.markexpr)
+    distinct = {b["id"] for b in _BUILT}
+    if budget is not None and len(distinct) > budget and session.exitstatus == 0:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+        session.config._compile_budget_exceeded = budget  # noqa: SLF001 - read in the summary
+
+
+def pytest_terminal_summary(terminalreporter, config):
+    if not _BUILT and not _XLA:
+        return
+    write = terminalreporter.write_line
+    distinct = {b["id"] for b in _BUILT}
+    seconds = sum(b["seconds"] for b in _BUILT)
+    xla = sum(x[1] for x in _XLA), sum(x[2] for x in _XLA), sum(x[3] for x in _XLA)
+    write(f"compiled programs: {len(distinct)} distinct, {len(_BUILT)} built, {seconds:.1f} s "
+          f"(all XLA executables: {xla[0]} compiled, {xla[1]} loaded from the cache, "
+          f"{xla[2]:.1f} s)")
+    budget = getattr(config, "_compile_budget_exceeded", None)
+    if budget is not None:
+        write(f"FAILED: the compile budget: {len(distinct)} distinct programs, more than the "
+              f"{budget} of conftest.BUDGETS; built:", red=True)
+        for b in _BUILT:
+            write(f"  {b['id']} {b['kind']:6s} {b['seconds']:6.1f} s  {b['test']}", red=True)
     path = os.environ.get("MJX_BALANCE_COMPILE_LOG")
     if path:
         with open(path, "w") as fh:
-            for nodeid, kind, s, what in _BUILT_BY:
-                fh.write(f"{s:8.2f} {kind:8s} {nodeid} {what}\n")
-            for nodeid, n, s in sorted(_XLA, key=lambda r: -r[2]):
-                if n:
-                    fh.write(f"XLA {s:8.2f} {n:4d} {nodeid}\n")
+            for b in _BUILT:
+                fh.write(f"{b['seconds']:8.2f} {b['kind']:6s} {b['id']} {b['test']}\n")
+            for test, compiles, loads, secs in sorted(_XLA, key=lambda r: -r[3]):
+                if compiles or loads:
+                    fh.write(f"XLA {secs:8.2f} {compiles:4d} {loads:4d} {test}\n")

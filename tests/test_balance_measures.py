@@ -18,7 +18,8 @@ from mjx_balance.model.params import Config
 from mjx_balance.reference import loop as reference
 from mjx_balance.rollout import kernel, physics
 from margins import within
-from conftest import ENGINE_SLOTS
+from support import ENGINE_SLOTS
+
 
 CONFIG = Config().replace(scenario={"t_end": 2.0})
 BODY = CONFIG.body

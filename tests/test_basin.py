@@ -14,7 +14,8 @@ from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.rollout import BatchRunner
 from test_rollout import AdmmMPC
 from margins import within
-from conftest import ENGINE_SLOTS
+from support import ENGINE_SLOTS
+
 
 CONFIG = Config().replace(scenario={"t_end": 3.0})
 

@@ -25,6 +25,7 @@ from test_rollout import AdmmMPC
 import margins
 from margins import within
 
+
 CONFIG = Config().replace(scenario={"t_end": 2.0})
 # recovered (0, 20 N), falls by several rules (heel/toe lift, state bound), and not settled (a
 # push that ends at t_end): every outcome but divergence, which test_a_reset_is_divergence covers

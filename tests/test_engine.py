@@ -31,7 +31,7 @@ from mjx_balance.model.params import Config
 from mjx_balance.control.qp import build_qp
 import margins
 from margins import within
-from conftest import ENGINE_SLOTS
+from support import ENGINE_SLOTS
 
 pytestmark = pytest.mark.usefixtures("float32")
 

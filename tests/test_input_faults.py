@@ -33,7 +33,8 @@ from mjx_balance.runs.grid import check_whole_steps
 
 from test_bad_input import assert_refused, run
 from test_store_faults import HOLD_LOCK, cli_sweep, fake_rollout  # noqa: F401 (a fixture)
-from conftest import ENGINE_SLOTS
+from support import ENGINE_SLOTS
+
 
 PHYSICS_DT = Config().scenario.physics_dt
 

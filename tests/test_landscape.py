@@ -21,6 +21,7 @@ from mjx_balance.model.params import Config, ParameterError
 from test_compare import expected_area
 from test_sweep import DEFAULT_BATCH, FakeThresholdBatch, expected_max_time
 
+
 FORCES, DURATIONS, TABLE_FORCES = "0:40:10", "0.5,1,2", "10"
 QS, RS = "1,10", "0.1,1"
 

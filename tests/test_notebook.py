@@ -15,6 +15,7 @@ from mjx_balance.studies import catalog as studies
 
 from tiny_report import tiny_report
 
+
 NOTEBOOK = Path(__file__).resolve().parents[1] / "notebooks" / "reproduce_study.ipynb"
 KERNEL = "mjx_balance_test"
 

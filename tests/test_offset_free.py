@@ -19,7 +19,7 @@ from mjx_balance.rollout import BatchRunner
 from test_rollout import AdmmMPC
 import margins
 from margins import within
-from conftest import ENGINE_SLOTS
+from support import ENGINE_SLOTS
 
 CONFIG = Config().replace(controller={"offset_free": True})
 

@@ -23,15 +23,24 @@ from mjx_balance.measures.outcomes import OUTCOMES
 from mjx_balance.model.params import Config, ParameterError, load_config
 from mjx_balance.runs import load_sweep, parse_grid, run_sweep
 
-from tiny_report import tiny_report
+from tiny_report import ALL, SMALL, selected, tiny_report
 from margins import within
 
 CONVENTIONS = ("paper", "joint")
 
 
-@pytest.fixture(scope="module")
-def out(tmp_path_factory):
-    return tiny_report(tmp_path_factory)
+@pytest.fixture(scope="module", params=[SMALL, pytest.param(ALL, marks=pytest.mark.slow)],
+                ids=["two_studies", "all_studies"])
+def out(request, tmp_path_factory):
+    """A tiny report: with two studies in the default run, with every study in the slow one
+    (the same code; the other studies' sections)."""
+    return tiny_report(tmp_path_factory, request.param)
+
+
+def ran(out) -> list:
+    """The studies the report in ``out`` ran (report.json)."""
+    keys = [e["key"] for e in json.loads((out / "report.json").read_text())["studies"]]
+    return [studies.study(k) for k in keys]
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +104,7 @@ def test_report_has_every_section_and_embedded_figures(out, page):
     for convention in CONVENTIONS:
         expected += [f"timeseries-{convention}", f"weights-{convention}", f"table-{convention}",
                      f"region-{convention}"]
-    expected += [f"study-{s.key}" for s in studies.STUDIES] + ["sensitivity"]
+    expected += [f"study-{s.key}" for s in ran(out)] + ["sensitivity"]
     assert ids[0] == "scorecard"  # the tiny report ran with a reference table: it leads
     assert sorted(ids) == sorted(expected + ["scorecard"])
     for key, heading in report.sections(out):
@@ -104,13 +113,13 @@ def test_report_has_every_section_and_embedded_figures(out, page):
     # 11 time-series (with states and inputs), 2 weights, table, 2 region and 2 strategy
     # figures and the scorecard per convention; 1 + 2 side by side; one region map per study
     # variant; the sensitivity
-    variants = sum(len(s.variants) for s in studies.STUDIES)
+    variants = sum(len(s.variants) for s in ran(out))
     assert len(images) == 2 * 19 + 3 + variants + 1
     assert all(len(b) > 1000 for b in images)
     assert "http://" not in page and "https://" not in page  # self-contained
     # a reading per study, the sensitivity's, the side by side, the scorecard's summary and
     # the strategy reading per convention
-    assert page.count('class="reading"') == len(studies.STUDIES) + 2 + 1 + 2
+    assert page.count('class="reading"') == len(ran(out)) + 2 + 1 + 2
 
 
 def test_experiment_sections_show_the_saved_tables(out, page):
@@ -270,12 +279,14 @@ def test_report_json_records_plan_configuration_and_timings(out):
     seconds = [s["seconds"] for s in stages.values()]
     assert all(s > 0 for s in seconds)
     assert record["seconds"] >= sum(seconds)
-    assert [e["key"] for e in record["studies"]] == [s.key for s in studies.STUDIES]
+    asked = SMALL if len(record["studies"]) < len(studies.STUDIES) else ALL
+    assert [e["key"] for e in record["studies"]] == [s.key for s in selected(asked)]
     # the saved configurations of the variants are the study's
     variants = {e["key"]: e["variants"] for e in record["studies"]}
     assert variants["delay"][4]["config"]["scenario"]["controller_delay"] == 0.1
-    assert variants["push_height"][1]["config"]["scenario"]["push_body"] == "hip"
-    assert variants["ankle_only"][1]["config"]["controller"]["input2_bounds"] == [0.0, 0.0]
+    if asked == ALL:
+        assert variants["push_height"][1]["config"]["scenario"]["push_body"] == "hip"
+        assert variants["ankle_only"][1]["config"]["controller"]["input2_bounds"] == [0.0, 0.0]
 
 
 def test_html_is_rebuilt_from_saved_tables(out, page, tmp_path, capsys):
@@ -436,10 +447,20 @@ def test_scorecard_section_leads_and_carries_the_reasons(out, page):
     assert set(card["convention"]) == set(CONVENTIONS)
     assert (out / "references" / "made_up_reference.csv").exists()
     for convention in CONVENTIONS:
-        mine = card[card["convention"] == convention]
-        agree = int((mine["status"] == "agrees").sum())
-        compared = int(mine["status"].isin(["agrees", "differs"]).sum())
-        assert f"{convention} convention, made_up_reference: {agree} of {compared}" in text
+        for source in ("made_up_reference", "study"):
+            mine = card[(card["convention"] == convention) & (card["source"] == source)]
+            if source == "study" and convention != "paper":
+                assert mine.empty  # the study's table is scored in its own convention only
+                continue
+            assert len(mine)
+            agree = int((mine["status"] == "agrees").sum())
+            compared = int(mine["status"].isin(["agrees", "differs"]).sum())
+            assert f"{convention} convention, {source}: {agree} of {compared}" in text
+    # the study's Table 2 is scored without being asked, and only where our table has the
+    # force (the tiny plan's 20 and 100 N; the others are "not computed")
+    assert not (out / "references" / "study.csv").exists()
+    study = card[card["source"] == "study"]
+    assert set(study.loc[~study["status"].str.startswith("not computed"), "force"]) == {20, 100}
     # a differing row shows the file's reason, or points to the measured causes: never made up
     for row in card[card["status"] == "differs"].itertuples():
         assert (row.reason or "no reason in the reference file") in html.unescape(text)

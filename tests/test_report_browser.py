@@ -8,7 +8,7 @@ import os
 
 import pytest
 from browser_audit import audit, chromium
-from tiny_report import tiny_report
+from tiny_report import ALL, SMALL, tiny_report
 
 WIDTHS = {"laptop": 1366, "phone": 390}
 MIN_FONT_PX = 12.0
@@ -24,9 +24,12 @@ def browser():
         pytest.skip(reason)
 
 
-@pytest.fixture(scope="module")
-def out(tmp_path_factory):
-    return tiny_report(tmp_path_factory)
+@pytest.fixture(scope="module", params=[SMALL, pytest.param(ALL, marks=pytest.mark.slow)],
+                ids=["two_studies", "all_studies"])
+def out(request, tmp_path_factory):
+    """The tiny report with two studies (default run) and with every study (slow run: the
+    page whose size MAX_BYTES bounds)."""
+    return tiny_report(tmp_path_factory, request.param)
 
 
 def test_the_audit_finds_small_text_and_overflow(tmp_path, browser):

@@ -30,6 +30,7 @@ from mjx_balance.measures.outcomes import OUTCOMES, SUMMARY_COLUMNS
 from mjx_balance.model.params import Config, Subject
 from margins import within
 
+
 CONFIG = Config()  # the physics tests' body and time step; t_end comes from the runner
 DT = CONFIG.scenario.physics_dt
 

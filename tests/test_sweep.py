@@ -25,6 +25,7 @@ from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.runs.definitions import sweeps_dir
 from margins import within
 
+
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_BATCH = "mjx_balance.runs.batch.default_batch"  # what LazyBatch calls
 

@@ -1,9 +1,18 @@
-"""One tiny report run shared by the report and notebook tests (a module-level cache, so one
-pytest session builds it once)."""
+"""Tiny reports shared by the report, browser and notebook tests (a module-level cache, so one
+pytest session builds each once).
+
+Two sizes: SMALL, the default run's, with two of the studies (backward and delay: the two the
+overview's key numbers come from), and ALL, every study (the slow run's, the notebook's and
+the page-size check's). The report's code paths are the same; ALL adds the other studies'
+sections.
+"""
 
 import contextlib
 import io
 from pathlib import Path
+
+SMALL = "backward,delay"
+ALL = "all"
 
 _CACHE: dict[str, Path] = {}
 
@@ -13,30 +22,39 @@ REFERENCE = """force,max_acting_time,energy_total_01,source,reason
 """
 
 
-def tiny_report(tmp_path_factory) -> Path:
-    """The output folder of ``mjx-balance report --scale tiny`` (through the command line),
-    after checking what the command printed: the numbered stages and the tables' folder (on
-    stderr), the page it wrote (on stdout)."""
-    if "out" not in _CACHE:
+def selected(which: str) -> list:
+    """The studies a tiny report of ``which`` (SMALL or ALL) runs."""
+    from mjx_balance.studies.catalog import STUDIES
+
+    if which == ALL:
+        return list(STUDIES)
+    keys = which.split(",")
+    return [s for s in STUDIES if s.key in keys]
+
+
+def tiny_report(tmp_path_factory, which: str = ALL) -> Path:
+    """The output folder of ``mjx-balance report --scale tiny --studies WHICH`` (through the
+    command line), after checking what the command printed: the numbered stages and the
+    tables' folder (on stderr), the page it wrote (on stdout)."""
+    if which not in _CACHE:
         from mjx_balance.cli import main
-        from mjx_balance.studies.catalog import STUDIES
 
         out = tmp_path_factory.mktemp("tiny_report")
         # a made-up reference table at the tiny plan's table forces (no extra runs): made up,
         # never a published number; one row carries a reason, one has none
-        reference = out.parent / "made_up_reference.csv"
+        reference = tmp_path_factory.mktemp("reference") / "made_up_reference.csv"
         reference.write_text(REFERENCE)
         stdout, stderr = io.StringIO(), io.StringIO()
         with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
-            assert main(["report", "--scale", "tiny", "--out", str(out),
+            assert main(["report", "--scale", "tiny", "--studies", which, "--out", str(out),
                          "--reference", str(reference)]) == 0
         # both conventions (time series, two weight studies, table, region), every variant,
         # the sensitivity
-        stages = 5 * 2 + sum(len(s.variants) for s in STUDIES) + 1
+        stages = 5 * 2 + sum(len(s.variants) for s in selected(which)) + 1
         printed = stdout.getvalue()
         assert printed.startswith("[report 1/")
         assert f"[report {stages}/{stages}, " in printed
         assert f"tables saved in {out} (" in stderr.getvalue()
         assert printed.endswith(f"wrote {out / 'report.html'}\n")
-        _CACHE["out"] = out
-    return _CACHE["out"]
+        _CACHE[which] = out
+    return _CACHE[which]

@@ -27,6 +27,7 @@ import os
 from pathlib import Path
 
 from ..model.params import CONVENTIONS, ParameterError, Subject, parse_override, parse_subject
+from ..studies import references
 
 EPILOG = """exit codes: 0 success; 1 failure during the work (a refused write, a full disk, a run
 that broke, a run whose scenarios diverged half or more); 2 bad usage (an unknown option, a bad
@@ -100,6 +101,17 @@ def batch_sizes(text: str) -> str:
     """``text`` when it is a comma list of integers >= 1 (the command splits it)."""
     positive_int_list(text)
     return text
+
+
+def reference_file(text: str) -> str:
+    """A reference CSV file, or the name of a shipped one (``study``: studies.references)."""
+    if text in references.SHIPPED:
+        return text
+    try:
+        return input_file(text)
+    except argparse.ArgumentTypeError as exc:
+        raise argparse.ArgumentTypeError(
+            f"{exc}; the shipped references: {', '.join(references.SHIPPED)}") from None
 
 
 def input_file(text: str) -> str:

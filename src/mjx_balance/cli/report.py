@@ -10,8 +10,8 @@ from typing import Any
 
 from ..model.params import CONVENTIONS, ParameterError
 from .common import load_run_config
-from .options import (cluster_option, config_options, convention_list, input_file,
-                      input_folder, out_folder, physics_option)
+from .options import (cluster_option, config_options, convention_list, input_folder,
+                      out_folder, physics_option, reference_file)
 
 
 def add_parser(sub: Any) -> None:
@@ -34,11 +34,13 @@ def add_parser(sub: Any) -> None:
                         "mjx_balance/sweeps/)")
     p.add_argument("--html-only", action="store_true",
                    help="redraw figures and report.html from the tables saved in --out")
-    p.add_argument("--reference", type=input_file, action="append", default=None,
+    p.add_argument("--reference", type=reference_file, action="append", default=None,
                    metavar="FILE",
                    help="reference table CSV (repeatable): scored beside the report's tables "
                         "in its first section and DIR/scorecard.csv; its forces join the "
-                        "table (kept in DIR/references/; docs/outputs.md, 'Reference files')")
+                        "table (kept in DIR/references/; docs/outputs.md, 'Reference files'). "
+                        "The study's Table 2 (shipped: 'study') is scored in the paper "
+                        "convention without being asked")
     cluster_option(p)
     physics_option(p)
     group = p.add_argument_group(

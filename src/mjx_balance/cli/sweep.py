@@ -22,7 +22,7 @@ from ..studies.defaults import (DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,  
                                 DEFAULT_SWEEP_TABLE_FORCES)
 from .common import base_config, chosen_physics, in_folder, progress_enabled
 from .options import (cluster_option, common_options, engine_options, figure_options,
-                      format_option, input_file, positive_int, sweep_file, wait_option,
+                      format_option, positive_int, reference_file, sweep_file, wait_option,
                       write_exports, yes_option)
 
 if TYPE_CHECKING:
@@ -82,12 +82,13 @@ def add_parser(sub: Any) -> None:
 
 def reference_option(p: Any) -> None:
     """``--reference FILE`` (repeatable): a published or a lab's table, or points to draw."""
-    p.add_argument("--reference", type=input_file, action="append", default=None,
+    p.add_argument("--reference", type=reference_file, action="append", default=None,
                    metavar="FILE",
-                   help="reference CSV (repeatable): points (force, duration) drawn over the "
-                        "map, or a table (force and max_acting_time, energies or recovered) "
-                        "scored beside ours in scorecard.csv / scorecard.png; its forces join "
-                        "the table (docs/outputs.md, 'Reference files')")
+                   help="reference CSV (repeatable), or 'study' (the study's Table 2, "
+                        "shipped): points (force, duration) drawn over the map, or a table "
+                        "(force and max_acting_time, energies or recovered) scored beside "
+                        "ours in scorecard.csv / scorecard.png; its forces join the table "
+                        "(docs/outputs.md, 'Reference files')")
 
 
 def with_reference_forces(forces: Any, refs: list, what: str) -> Any:

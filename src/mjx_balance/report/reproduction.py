@@ -24,11 +24,13 @@ from ..figures.strategy import plot_strategy, plot_threshold
 from ..measures.strategy import HIP_SHARE_THRESHOLD, STRATEGIES
 from ..model.params import Config
 from ..store.files import write_atomic
+from ..studies import references
 from ..studies.scorecard import (SCORECARD, folder_results, read_references, scorecard,
                                  summary)
 from .blocks import img
 
 REFERENCES_DIR = "references"
+STUDY = "study"  # the shipped study table, scored in every report's paper convention
 SCORECARD_HEADING = "Scorecard: the reference tables beside ours"
 DIFFERENCES_DOC = "docs/studies.md, 'Differences from the study, and their measured causes'"
 
@@ -43,8 +45,9 @@ def store_references(out: str | Path, paths: Sequence[str | Path] | None) -> lis
     folder.mkdir(parents=True, exist_ok=True)
     stored = []
     for path in paths:
-        target = folder / Path(path).name
-        write_atomic(target, lambda tmp, src=Path(path): shutil.copyfile(src, tmp))
+        source = references.resolve(path)  # a shipped reference's name: its file
+        target = folder / source.name
+        write_atomic(target, lambda tmp, src=source: shutil.copyfile(src, tmp))
         stored.append(target)
     return stored
 
@@ -56,17 +59,24 @@ def reference_files(out: str | Path) -> list[Path]:
 
 def report_scorecard(out: str | Path, conventions: Sequence[str]) -> pd.DataFrame | None:
     """Every stored reference table scored against each convention's table and region map of
-    the report; written to DIR/scorecard.csv. None when no reference file is a table."""
+    the report, and the study's Table 2 (shipped: ``studies.references``) against the paper
+    convention's when it was not given; written to DIR/scorecard.csv. None when no reference
+    is a table (a report without the paper convention and without reference files)."""
     out = Path(out)
     refs = [r for r in read_references(reference_files(out)) if r.kind == "table"]
-    if not refs:
-        return None
+    study = (None if "paper" not in conventions or any(r.label == STUDY for r in refs)
+             else read_references([STUDY])[0])
     parts = []
     for convention in conventions:
+        scored = refs + ([study] if study is not None and convention == "paper" else [])
+        if not scored:
+            continue
         found = folder_results(out / convention / "table")
         region = folder_results(out / convention / "region")["region"]
-        card = scorecard(found["table"], refs, runs=found["runs"], region=region)
+        card = scorecard(found["table"], scored, runs=found["runs"], region=region)
         parts.append(card.assign(convention=convention))
+    if not parts:
+        return None
     card = pd.concat(parts, ignore_index=True)
     write_atomic(out / SCORECARD, lambda tmp: card.to_csv(tmp, index=False))
     return card

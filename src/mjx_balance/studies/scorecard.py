@@ -41,6 +41,7 @@ from ..figures.scorecard import plot_scorecard
 from ..model.params import ParameterError
 from ..runs.acting_time import MOTOR_ENERGY_COLUMNS, STUDY_ENERGY_COLUMNS
 from ..store.files import REGION, TABLE, TABLE_RUNS, write_csv
+from . import references
 
 RESOLUTION = 0.01  # s: the table's bisection step (runs.acting_time)
 MEASURES = ["max_acting_time", *STUDY_ENERGY_COLUMNS, *MOTOR_ENERGY_COLUMNS]
@@ -86,12 +87,14 @@ class Reference:
 
 
 def read_reference(path: str | Path) -> Reference:
-    """Read and check one reference file (ParameterError naming the file, row and column)."""
-    path = Path(path)
+    """Read and check one reference file, or a shipped reference by name (``"study"``:
+    :mod:`studies.references`); ParameterError naming the file, row and column."""
+    path = references.resolve(path)
     try:
         text = pd.read_csv(path, dtype=str, keep_default_na=False, comment="#")
     except FileNotFoundError:
-        raise ParameterError(f"reference file not found: {path}") from None
+        raise ParameterError(f"reference file not found: {path} (the shipped references: "
+                             f"{', '.join(references.SHIPPED)})") from None
     except Exception as exc:  # noqa: BLE001 - any parse failure is the file's
         raise ParameterError(f"{path}: not a readable CSV ({exc})") from None
     text.columns = [str(c).strip().lower() for c in text.columns]
