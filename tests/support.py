@@ -11,15 +11,16 @@ ENGINE_SLOTS = 32
 # Parallel runs (conftest.py, "parallel runs"): the files that use the shared compiled programs
 # run on one worker together, so each program is compiled once: the shared engine (ENGINE_SLOTS,
 # with the certificate and without; the notebook's kernel loads it from the session's cache)
-# and the shared padded batch (conftest's batch_runner).
+# and the shared padded batch (conftest's batch_runner); and the tests of one tiny report.
 GROUPS = {
     **dict.fromkeys(["test_engine.py", "test_basin.py", "test_balance_measures.py",
                      "test_input_faults.py", "test_notebook.py"], "engine"),
     **dict.fromkeys(["test_rollout.py", "test_cpath.py", "test_landscape.py",
                      "test_sweep.py"], "batch"),
+    # the tiny report (tiny_report.py) is built once per process: its readers together
+    **dict.fromkeys(["test_report.py", "test_report_browser.py"], "report"),
 }
-# The units that take longest, started first (measured on 2 cores: the engine's group ~110 s,
-# the report's tiny report and its rebuild ~85 s, the padded batch's group ~60 s; then the
-# files with their own compiled programs or many figures); the rest by their number of tests.
-FIRST = ["engine", "test_report.py", "batch", "test_offset_free.py", "test_bench_engine.py",
+# The units that take longest (pytest --durations), started first: the groups, then the files
+# with compiled programs of their own or many figures; the rest by their number of tests.
+FIRST = ["engine", "report", "batch", "test_offset_free.py", "test_bench_engine.py",
          "test_hip_servo.py", "test_figure_style.py", "test_store_faults.py"]

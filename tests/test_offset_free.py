@@ -191,7 +191,9 @@ CELLS = [(0.0, 0.1), (15.0, 2.0), (25.0, 2.0), (100.0, 0.1), (-40.0, 0.3)]
 def test_batched_and_reference_offset_free_alike():
     """The C path (the reference's physics) and the reference with the same float32 ADMM, both
     offset-free: the same outcomes and fall samples, energies as close as the plain controller's
-    (tests/test_cpath.py); and the MJX path gives the same outcomes."""
+    (tests/test_cpath.py). The C path runs the batched kernel's controller (kernel.control: the
+    observer, the target and the ADMM the MJX engine runs); the slow
+    test_the_mjx_path_runs_offset_free_alike runs it with MJX physics too."""
     config = CONFIG.replace(scenario={"t_end": 2.0})
     runner = BatchRunner(config, physics="c", slots=4, early_stop=False,
                          devices=jax.local_devices()[:1])
@@ -220,10 +222,22 @@ def test_batched_and_reference_offset_free_alike():
                    why="float32 ADMM rounding x the loop's gain, grown after an infeasible QP "
                        "when it falls (margins.closed_loop_rounding)")
     assert {"recovered", "fell"} <= set(outcomes)
+
+
+@pytest.mark.slow  # its own engine compile (the offset-free controller is a static setting)
+def test_the_mjx_path_runs_offset_free_alike():
+    """The MJX path with the offset-free controller gives the reference's outcomes (the same
+    float32 ADMM in the reference's loop)."""
+    config = CONFIG.replace(scenario={"t_end": 2.0})
+    forces, durations = np.array(CELLS).T
     with jax.enable_x64(False):  # as sweeps run
         mjx = BatchRunner(config, physics="mjx", slots=ENGINE_SLOTS,
                           devices=jax.local_devices()[:1])
-        assert list(mjx.run_frame(forces, durations).outcome) == outcomes
+        outcomes = list(mjx.run_frame(forces, durations).outcome)
+        mpc = AdmmMPC(mjx)
+    expected = [reference.simulate_scenario(config, f, d, record=False, mpc=mpc)[0]["outcome"]
+                for f, d in CELLS]
+    assert outcomes == expected
 
 
 def test_a_sustained_push_the_plain_mpc_cannot_hold():

@@ -330,12 +330,12 @@ def run_fake_sweep(out: Path, file_limit: int) -> subprocess.CompletedProcess:
                            str(out), *CLI_GRID], capture_output=True, text=True, timeout=300)
 
 
-def test_file_size_limit_leaves_no_damaged_figure(tmp_path):
-    """The issue's case: a file-size limit that the tables fit under but region.png does not,
-    met while a figure that exists is drawn again."""
+def test_file_size_limit_leaves_no_damaged_figure(tmp_path, fake_rollout, capsys):
+    """A file-size limit that the tables fit under but region.png does not, met while a figure
+    that exists is drawn again. The limited run is a process of its own (RLIMIT_FSIZE); the
+    runs before and after it run here, on the same fake rollout."""
     out = tmp_path / "limited"
-    first = run_fake_sweep(out, file_limit=0)
-    assert first.returncode == 0, first.stderr
+    assert cli_sweep(out) == 0
     (out / "region.parquet").unlink()  # merged again from the chunks, then the figures redrawn
     cut = run_fake_sweep(out, file_limit=30_000)
     assert cut.returncode == 1, cut.stderr
@@ -345,11 +345,12 @@ def test_file_size_limit_leaves_no_damaged_figure(tmp_path):
     assert (out / "region.parquet").exists()
     assert readable_png(out / "region.png")  # the earlier figure, whole, not a truncated one
     assert not list(out.glob(".*.tmp"))
-    again = run_fake_sweep(out, file_limit=0)
-    assert again.returncode == 0, again.stderr
-    assert "nothing to do" in again.stdout
+    capsys.readouterr()
+    assert cli_sweep(out) == 0
+    again = capsys.readouterr().out
+    assert "nothing to do" in again
     for name in ("region.png", "energy.png"):  # older than region.parquet: drawn again
-        assert f"wrote {out / name}" in again.stdout and readable_png(out / name)
+        assert f"wrote {out / name}" in again and readable_png(out / name)
 
 
 # --- item 6: file modes and leftovers ----------------------------------------------------------
