@@ -246,8 +246,9 @@ def scorecard(ours: "str | os.PathLike[str] | pd.DataFrame",
     reference's stated or printed resolution plus our bisection step, never fitted) and whether
     the difference is within it. ``ours``: a sweep or table folder (its table.csv,
     table_runs.parquet and region.parquet are read; nothing is written) or a table DataFrame
-    as :func:`table` returns it. ``reference``: a CSV path or a list of them (docs/outputs.md,
-    "Reference files"); a row's ``reason`` is carried, never inferred."""
+    as :func:`table` returns it. ``reference``: a CSV path, the name of a shipped reference
+    (``"study"``: :func:`references`), or a list of them (docs/outputs.md, "Reference files");
+    a row's ``reason`` is carried, never inferred."""
     import pandas as pd
 
     refs = [r for r in read_references(reference) if r.kind == "table"]
