@@ -36,6 +36,20 @@ SHARED_BATCH = 8  # the smallest padded batch size: every batch of up to 8 scena
 
 
 @pytest.fixture
+def fake_rollout(monkeypatch):
+    """The command line's rollout replaced by support.FakeThresholdBatch; returns a function
+    that swaps in another fake (and returns it)."""
+    from support import DEFAULT_BATCH, FakeThresholdBatch
+
+    def use(fake: FakeThresholdBatch) -> FakeThresholdBatch:
+        monkeypatch.setattr(DEFAULT_BATCH, lambda config, **engine: fake)
+        return fake
+
+    use(FakeThresholdBatch())
+    return use
+
+
+@pytest.fixture
 def float32():
     """Run the test with jax_enable_x64 off (as sweeps run)."""
     with jax.enable_x64(False):
@@ -67,11 +81,10 @@ def batch_runner():
 # numpy.testing.assert_allclose and pytest.approx comparison is recorded as margins.within's
 # are (the ratio of the difference to the tolerance), without editing the tests that use them.
 if os.environ.get("MJX_BALANCE_MARGIN_AUDIT"):
+    import margins
     import numpy as np
     import numpy.testing
     from _pytest.approx import ApproxScalar
-
-    import margins
 
     _assert_allclose = numpy.testing.assert_allclose
 
@@ -124,9 +137,8 @@ def pytest_xdist_make_scheduler(config, log):
     """--dist loadfile with the files of support.GROUPS as one unit each, the longest first."""
     if config.getvalue("dist") != "loadfile":
         return None
-    from xdist.scheduler import LoadScopeScheduling
-
     from support import FIRST, GROUPS
+    from xdist.scheduler import LoadScopeScheduling
 
     class ByProgram(LoadScopeScheduling):
         def _split_scope(self, nodeid):

@@ -1,5 +1,27 @@
 """What the tests share, without side effects on import (a process the tests start may import
-a test module; conftest.py configures JAX and pytest and is imported by pytest alone)."""
+it; conftest.py configures JAX and pytest and is imported by pytest alone): the settings of the
+shared compiled programs, the parallel run's groups, and the fakes and helpers that tests of
+several floors use. Heavy imports (JAX, the package's floors) happen inside the helpers.
+
+    FakeThresholdBatch   an analytic stand-in for the rollout (recovered iff |F| T < c)
+    DEFAULT_BATCH        what to patch to give the command line a stand-in rollout
+    sweep_fake, GRID, tiny_config, expected_max_time, expected_area
+                         a sweep and a table on the stand-in, and what they must give
+    AdmmMPC              the batched path's float32 ADMM in the scalar reference's loop
+    synthetic_series     three made-up runs' time series, for figures
+    run_cli, assert_refused
+                         a command's exit code and stderr, and the one-line refusal rule
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+TESTS = Path(__file__).resolve().parent  # on sys.path for the tests (pyproject.toml)
+REPO = TESTS.parent
 
 # The engine's tests (no trajectories): the CPU's default 32 slots on one device under
 # float32, x64 off. The window's length is a traced value (rollout.kernel.Arrays.n_control), so
@@ -24,3 +46,190 @@ GROUPS = {
 # with compiled programs of their own or many figures; the rest by their number of tests.
 FIRST = ["engine", "report", "batch", "test_offset_free.py", "test_bench_engine.py",
          "test_hip_servo.py", "test_figure_style.py", "test_store_faults.py"]
+
+
+# -- a stand-in rollout ---------------------------------------------------------------------------
+
+DEFAULT_BATCH = "mjx_balance.runs.batch.default_batch"  # what LazyBatch calls
+
+
+class FakeThresholdBatch:
+    """FAKE batch function for bookkeeping tests only: recovered iff |F| * T < c (else fell);
+    optionally also recovered for T in ``window`` (a non-monotone fake). Returns a dict of summary
+    columns with integer outcome codes, like BatchRunner.run. Counts calls; can raise on call k."""
+
+    def __init__(self, c: float = 30.0, window: tuple[float, float] | None = None,
+                 fail_on_call: int | None = None):
+        self.c, self.window, self.fail_on_call = c, window, fail_on_call
+        self.calls: list[int] = []
+
+    def recovered(self, forces, durations):
+        ok = np.abs(forces) * durations < self.c
+        if self.window is not None:
+            ok |= (durations >= self.window[0]) & (durations <= self.window[1])
+        return ok
+
+    def __call__(self, forces, durations):
+        if self.fail_on_call is not None and len(self.calls) + 1 == self.fail_on_call:
+            self.calls.append(-1)
+            raise KeyboardInterrupt("fake interruption")
+        self.calls.append(len(forces))
+        forces = np.asarray(forces, dtype=np.float32)  # like a float32 rollout
+        durations = np.asarray(durations, dtype=np.float32)
+        ok = self.recovered(forces.astype(np.float64), durations.astype(np.float64))
+        out = {c: np.zeros(forces.size) for c in summary_columns() if c != "convention"}
+        out["force"], out["duration"] = forces, durations
+        out["outcome"] = np.where(ok, 0, 2).astype(np.int32)
+        out["settle_time"] = np.where(ok, 1.0 + durations, np.nan)
+        out["fall_time"] = np.where(ok, np.nan, durations)
+        out["energy_ankle"] = np.abs(forces) * durations
+        out["energy_hip"] = 2 * np.abs(forces) * durations
+        out["energy_total"] = 3 * np.abs(forces) * durations
+        return out
+
+
+def summary_columns() -> list[str]:
+    """The summary columns (outcomes.SUMMARY_COLUMNS), imported when a stand-in runs."""
+    from mjx_balance.measures.outcomes import SUMMARY_COLUMNS
+
+    return SUMMARY_COLUMNS
+
+
+def tiny_config(**scenario):
+    """The defaults with a 2-s window (and ``scenario`` overrides)."""
+    from mjx_balance.model.params import Config
+
+    return Config().replace(scenario={"t_end": 2.0, **scenario})
+
+
+GRID = ("-20:100:20", "0.1,0.5,1,1.5,2")  # 7 forces x 5 durations = 35 cells
+
+
+def sweep_fake(out, fake, chunk=8, config=None):
+    from mjx_balance.runs import run_sweep
+
+    return run_sweep(out, config or tiny_config(), *GRID, run_batch=fake, chunk_size=chunk,
+                     progress=False, log=None)
+
+
+def expected_max_time(force, c, t_end, resolution=0.01):
+    """The stand-in's max acting time of ``force``: the longest multiple of ``resolution``
+    below c / |F| (0 if none), within t_end."""
+    steps = np.arange(1, int(round(t_end / resolution)) + 1)
+    ok = abs(force) * np.round(steps * resolution, 12) < c
+    return 0.0 if not ok[0] else float(np.round(steps[np.argmin(ok) - 1 if not ok.all() else -1]
+                                               * resolution, 12))
+
+
+def expected_area(c: float) -> float:
+    """The stand-in's recovered cells' area on the grid forces 0:40:10 x durations 0.5, 1, 2 s (cell bounds half-way, outer bounds on the ends)."""
+    forces, durations = np.arange(0, 41, 10.0), np.array([0.5, 1.0, 2.0])
+    wf = np.diff(np.concatenate([[0], (forces[1:] + forces[:-1]) / 2, [40]]))
+    wd = np.diff(np.concatenate([[0.5], (durations[1:] + durations[:-1]) / 2, [2.0]]))
+    ok = forces[:, None] * durations[None, :] < c
+    return float((wf[:, None] * wd[None, :] * ok).sum())
+
+
+CLI_GRID = ["--forces", "0:40:10", "--durations", "0.1,0.5,1.0", "--chunk", "4"]  # 15 cells
+
+
+def cli_sweep(out: Path, *extra: str) -> int:
+    """``mjx-balance sweep`` of CLI_GRID into ``out`` in this process (its exit code)."""
+    from mjx_balance.cli import main
+
+    return main(["sweep", *CLI_GRID, "--out", str(out), *extra])
+
+
+# -- the batched path's controller in the reference's loop ----------------------------------------
+
+
+class AdmmMPC:
+    """The batched path's controller (the float32 ADMM, warm-started as in kernel.period) in
+    the reference's closed loop: the reference then differs from the batched path only in its
+    physics (MuJoCo C in float64)."""
+
+    def __init__(self, runner):
+        import jax
+
+        from mjx_balance.control import admm as admm_mod
+
+        self.qp, self._data, settings = runner.qp, runner.arrays.qp, runner.static.settings
+        self._solve = jax.jit(lambda x, w, o: admm_mod.admm_solve(self._data, x, w, settings, o))
+        self.reset()
+
+    def reset(self) -> None:
+        from mjx_balance.control import admm as admm_mod
+
+        self._warm = admm_mod.initial_warm(self._data)
+
+    def solve(self, x0, offset=None):
+        import jax.numpy as jnp
+
+        from mjx_balance.control import admm as admm_mod
+
+        offset = np.zeros(self.qp.m) if offset is None else offset  # zero: the plain QP
+        res = self._solve(jnp.asarray(x0, jnp.float32), self._warm,
+                          jnp.asarray(offset, jnp.float32))
+        self._warm = admm_mod.ADMMWarm(*(w.astype(jnp.float32) for w in res.warm_next))
+        return (np.asarray(res.u0, float), np.asarray(res.z, float),
+                bool(res.status == admm_mod.SOLVED), float(res.prim_res))
+
+
+# -- figures' input ---------------------------------------------------------------------------------
+
+
+def synthetic_series(t_end=4.0, dt=0.01, duration=0.1) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Three synthetic runs: 0 N (still), 50 N (recovers, settles by ~1.1 s), 120 N (falls at
+    0.9 s, its angle growing far beyond the others)."""
+    frames, summary = [], []
+    t = np.arange(1, int(round(t_end / dt)) + 1) * dt
+    for i, (force, outcome) in enumerate(((0.0, "recovered"), (50.0, "recovered"),
+                                          (120.0, "fell"))):
+        if outcome == "fell":
+            tt = t[t <= 0.9]
+            q = 0.05 * np.exp(4 * tt)
+        else:
+            tt = t
+            q = force * 1e-3 * tt * np.exp(-6 * tt)
+        frame = pd.DataFrame({"scenario": i, "force": force, "duration": duration,
+                              "convention": "paper", "time": tt, "q_a": q, "q_h": -q,
+                              "dq_a": np.gradient(q, dt), "dq_h": -np.gradient(q, dt),
+                              "x1": q, "x2": 0.5 * q, "x3": 0.0, "x4": 0.0,
+                              "foot_x": 0.0, "foot_z": 0.0, "foot_pitch": 0.0,
+                              "u1": -400 * q, "u2": 50 * q, "tau_ankle": -600 * q,
+                              "tau_hip": 50 * q, "cop": 0.5 * q, "com": 0.3 * q,
+                              "energy_ankle": np.cumsum(np.abs(q)), "energy_hip": 0.0,
+                              "energy_total": np.cumsum(np.abs(q))})
+        frames.append(frame)
+        summary.append({"force": force, "duration": duration, "convention": "paper",
+                        "outcome": outcome})
+    return pd.concat(frames, ignore_index=True), pd.DataFrame(summary)
+
+
+# -- the command line's refusals --------------------------------------------------------------------
+
+
+def run_cli(argv: list[str], capsys) -> tuple[int, str]:
+    """(exit code, stderr) of cli.main(argv); argparse's errors exit through SystemExit."""
+    from mjx_balance import cli
+
+    try:
+        code = cli.main(argv)
+    except SystemExit as exc:
+        code = exc.code
+    return code, capsys.readouterr().err
+
+
+def assert_refused(code: int, err: str, *words: str, exit_code: int = 2) -> None:
+    """Exit 2 (1 for a failure during the work) and a single error line naming ``words``, last
+    on stderr; with no usage before it, stderr is that one line."""
+    assert code == exit_code, err
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    errors = [line for line in lines if "error:" in line]
+    assert len(errors) == 1 and errors[0] == lines[-1], err
+    assert lines[-1].startswith("mjx-balance") and "error: " in lines[-1]
+    if not lines[0].startswith("usage:"):
+        assert len(lines) == 1, err
+    for word in words:
+        assert word in lines[-1], err
