@@ -1,4 +1,4 @@
-"""The public Python API (issue 13, item 2): ``mjx_balance.simulate``, ``sweep``, ``table``,
+"""The public Python API: ``mjx_balance.simulate``, ``sweep``, ``table``,
 ``load_config``, ``Config``, and the command line as a thin layer over it.
 
 The API's frames are compared with the files the command line writes for the same request.
@@ -149,7 +149,7 @@ def test_the_real_rollout_through_the_api_equals_the_cli_file(tmp_path):
     pd.testing.assert_frame_equal(region, pd.read_parquet(out / "region.parquet"))
 
 
-# -- bad arguments (issue 26.10): a ValueError naming the argument, nothing written ------------
+# -- bad arguments: a ValueError naming the argument, nothing written ------------
 
 @pytest.mark.parametrize("forces", [True, [True, 20.0], ["abc"], None, {"a": 1}])
 def test_forces_that_are_not_numbers_are_refused(forces, tmp_path):

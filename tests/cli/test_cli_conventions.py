@@ -1,4 +1,4 @@
-"""Command-line conventions (issue 13, items 3, 5, 6, 7): ``python -m mjx_balance``,
+"""Command-line conventions: ``python -m mjx_balance``,
 ``--version``, ``-q`` / ``-v`` through logging, defaults in ``--help``, exit codes, ``--set``
 overrides validated as a TOML file is, the manifest's provenance, ``model`` and ``view``."""
 

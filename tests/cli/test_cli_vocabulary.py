@@ -1,4 +1,4 @@
-"""One vocabulary for every command (issue 29, item 1): the same flag for the same thing
+"""One vocabulary for every command: the same flag for the same thing
 (plural where a list is accepted), --config / --set / --convention on every command that runs
 the model, the old names kept for a release with a one-line notice, defaults and the default
 grid in --help, an honest planned-work line and progress bars with a fixed total.

@@ -1,4 +1,4 @@
-"""Property-based tests of the contract at the edges (issue 26): whatever configuration, grid or
+"""Property-based tests of the contract at the edges: whatever configuration, grid or
 argument a user gives, the answer is either a run or a clear refusal (a ParameterError, which is
 a ValueError; exit 2 with one line and nothing written), never a traceback or a silently wrong
 result.

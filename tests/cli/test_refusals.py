@@ -292,7 +292,7 @@ def test_the_conditioning_rule_on_known_horizons():
     assert qp_bytes(20) == 2 * 16 * 40 * 40 * 8 and qp_bytes(2 ** 70) > 2 ** 140
 
 
-# -- a run that is not a result (issue 26.3): half or more of its scenarios diverged ---------
+# -- a run that is not a result: half or more of its scenarios diverged ---------
 
 class DivergingBatch:
     """A stand-in rollout whose scenarios diverge where F > ``above`` (else recover), as a
@@ -349,7 +349,7 @@ def test_a_few_diverged_cells_are_results(tmp_path, diverging):
 
 
 def test_an_absurd_push_gives_its_outcome_row_and_figures(tmp_path, capsys):
-    """Issue 26.7: 1e12 N diverges at the first step; the run still writes its summary row and
+    """1e12 N diverges at the first step; the run still writes its summary row and
     figures that say there is nothing to draw, instead of a traceback."""
     out = tmp_path / "out"
     assert main(["-q", "simulate", "--forces", "1e12", "--durations", "0.1", "--set",
@@ -360,7 +360,7 @@ def test_an_absurd_push_gives_its_outcome_row_and_figures(tmp_path, capsys):
     assert "Traceback" not in capsys.readouterr().err
 
 
-# -- numerics on resume (issue 26.4) -------------------------------------------------------------
+# -- numerics on resume -------------------------------------------------------------
 
 def test_the_numerics_fingerprint_is_recorded_and_a_mismatch_refused(tmp_path, caplog):
     from support import FakeThresholdBatch, sweep_fake
@@ -520,7 +520,7 @@ def test_simulate_reads_forces_and_durations_as_sweep_does(tmp_path, capsys, mon
         assert not (tmp_path / "bad").exists()
 
 
-# --- item 2: simulate does not write into a sweep folder --------------------------------------
+# --- simulate does not write into a sweep folder --------------------------------------
 
 
 @pytest.mark.parametrize("holds", [["manifest.json", "config.toml"], ["config.toml", "chunks/"],

@@ -1,4 +1,4 @@
-"""Signals and streams (issue 26.8): each ends with one line and exit 130 (SIGINT), 143
+"""Signals and streams: each ends with one line and exit 130 (SIGINT), 143
 (SIGTERM) or 1, the manifest's run record says ``interrupted`` or ``failed`` with its end time,
 and what finished is kept and resumed. Faults are injected at a named point: the stand-in
 batch function's second call (where a user's Ctrl-C lands during a sweep).

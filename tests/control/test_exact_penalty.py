@@ -1,6 +1,6 @@
 """controller.infeasible = "exact_penalty": the state, CoP and CoM rows get an exact l1 penalty.
 
-What must hold (issue 28, item 2): a solvable QP keeps its hard solution (the weights are above
+What must hold: a solvable QP keeps its hard solution (the weights are above
 its multipliers), an infeasible QP gets a least-violation solution that the ADMM reaches by
 convergence instead of at its cap, the batched ADMM and the OSQP reference (slack variables)
 agree on it, and "capped" (the default) is untouched."""

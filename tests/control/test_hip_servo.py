@@ -92,7 +92,7 @@ def test_batched_matches_reference_on_servo_body(float32):
         diff = np.abs(q - series[["q_a", "q_h"]].to_numpy()).max(axis=0)
         print(f"\nservo body, F = {force} N: {ref['outcome']}, max |q_a, q_h diff| {diff} rad")
         within(q, series[["q_a", "q_h"]].to_numpy(), atol=5e-3, msg=force,
-               why="issue 4's closed-loop agreement with the reference (test_rollout.ANGLE_TOL)")
+               why="the closed loop's agreement with the reference (test_rollout.ANGLE_TOL)")
 
 
 @pytest.mark.parametrize("convention", ["paper", "joint"])

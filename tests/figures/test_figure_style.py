@@ -1,4 +1,4 @@
-"""Publication figures (issue 29, item 3): one colour-blind-safe outcome palette used by every
+"""Publication figures: one colour-blind-safe outcome palette used by every
 figure, the figure formats (png, svg, pdf) and the paper sizes (one and two columns) with
 every text inside the figure. Synthetic frames only (no simulation) except the command-line
 test, which runs the stand-in rollout of test_store_faults."""

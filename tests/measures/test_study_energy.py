@@ -1,4 +1,4 @@
-"""The two energy definitions on a trajectory small enough to compute by hand (issue 15, item 3).
+"""The two energy definitions on a trajectory small enough to compute by hand.
 
 Paper convention: x = [q1, q2, ...] (absolute tilts), u = [tau1, tau2] (generalised forces),
 motor torques tau_ankle = tau1 + tau2, tau_hip = tau2, joint angles q_a = q1, q_h = q2 - q1.

@@ -1,4 +1,4 @@
-"""Physically meaningless settings are refused (issue 11, item 8), each with a message naming
+"""Physically meaningless settings are refused, each with a message naming
 the field and the rule; every shipped sweep definition and every default still loads."""
 
 import math
@@ -57,7 +57,7 @@ def test_the_defaults_lie_inside_every_range():
 
 def test_physics_dt_is_at_most_half_the_contact_time_constant():
     assert ScenarioParams(physics_dt=MAX_PHYSICS_DT, control_dt=0.01).physics_dt == 0.01
-    for dt in (0.02, 1.0):  # the issue's physics_dt = control_dt = 1.0
+    for dt in (0.02, 1.0):  # physics_dt = control_dt = 1.0
         with pytest.raises(ParameterError, match=r"scenario\.physics_dt = .*must be <= 0\.01 s"):
             ScenarioParams(physics_dt=dt, control_dt=dt)
 

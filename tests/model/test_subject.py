@@ -1,4 +1,4 @@
-"""Subjects (issue 30): a person's body from de Leva (1996) Table 4, the segment inertias as
+"""Subjects: a person's body from de Leva (1996) Table 4, the segment inertias as
 parameters, and the linked limits every configuration is checked against.
 
 The hand-worked subject below writes out the arithmetic with the published table's numbers

@@ -1,4 +1,4 @@
-"""docs/outputs.md names every column the writers produce (issue 12, docs test).
+"""docs/outputs.md names every column the writers produce.
 
 The column lists are taken from the code, not from a copy: the summary schema
 (``outcomes.SUMMARY_COLUMNS``, used by summary.csv and region.parquet), the time series of a
@@ -64,7 +64,7 @@ def test_table_columns_are_documented():
     columns = list(result.table.columns)
     assert columns == list(TABLE_COLUMNS)
     assert missing(columns) == []
-    # the suffixed energies the issue names explicitly
+    # the suffixed energies of the table
     assert {"energy_total_01", "energy_total_max", "ending_outcome", "monotone",
             "evaluations"} <= set(columns)
     # the table's kept scenarios are summary rows

@@ -1,4 +1,4 @@
-"""Pushes the physics cannot take (issue 11, item 7): the reference reports `diverged`."""
+"""Pushes the physics cannot take: the reference reports `diverged`."""
 
 import math
 

@@ -12,7 +12,7 @@ from tiny_report import ALL, SMALL, tiny_report
 
 WIDTHS = {"laptop": 1366, "phone": 390}
 MIN_FONT_PX = 12.0
-MAX_BYTES = 2_000_000  # issue 29: the tiny report, self-contained, under 2 MB
+MAX_BYTES = 2_000_000  # the tiny report, self-contained, under 2 MB
 
 
 @pytest.fixture(scope="module")

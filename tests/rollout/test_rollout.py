@@ -47,7 +47,7 @@ DT = CONFIG.scenario.physics_dt
 # No useful bound can be derived: the open loop folds the body (the hip reaches 2.4 rad) and
 # rounding grows in it as fast as exp(8.75/s x 1 s).
 PHYSICS_TOL = 5e-4  # m or rad
-# Issue 4's requirement for the batched closed loop (MJX float32 physics with its capped contact
+# The agreement required of the batched closed loop (MJX float32 physics with its capped contact
 # solver, the float32 ADMM) against the reference (MuJoCo C, OSQP). Most of what it allows is
 # the difference of the two models and solvers, which is the same on every CPU; what a CPU
 # changes is rounding: the float32 ADMM's (margins.admm_rounding, 1.9e-3 of the inputs) through
@@ -243,7 +243,7 @@ def test_closed_loop_matches_reference(closed_loop, runner):
               f"fall {summary['fall_time'][b]:.3f} vs {ref['fall_time']:.3f}")
         assert n_cmp > 0.5 / DT
         within(np.nanmax(diff[:n_cmp]), 0.0, atol=ANGLE_TOL, msg=force,
-               why="issue 4's agreement of the closed loop with the reference (ANGLE_TOL)")
+               why="the closed loop's agreement with the reference (ANGLE_TOL)")
         # the fall sample is the last one (both stop / mask there)
         if ref["outcome"] == "fell":
             assert np.isnan(series["qpos"][b, int(round(summary["fall_time"][b] / DT))]).all()
@@ -362,7 +362,7 @@ def test_joint_convention_closed_loop_matches_reference():
               f"{np.nanmax(diff[:n_cmp]):.2e} rad over {n_cmp * DT:.2f} s")
         assert n_cmp > 0.5 / DT
         within(np.nanmax(diff[:n_cmp]), 0.0, atol=ANGLE_TOL, msg=force,
-               why="issue 4's agreement of the closed loop with the reference (ANGLE_TOL)")
+               why="the closed loop's agreement with the reference (ANGLE_TOL)")
 
 
 @pytest.mark.slow
@@ -392,7 +392,7 @@ def test_a_subjects_closed_loop_matches_its_reference():
               f"{np.nanmax(diff[:n_cmp]):.2e} rad over {n_cmp * DT:.2f} s")
         assert n_cmp > 0.5 / DT
         within(np.nanmax(diff[:n_cmp]), 0.0, atol=ANGLE_TOL, msg=force,
-               why="issue 4's agreement of the closed loop with the reference (ANGLE_TOL)")
+               why="the closed loop's agreement with the reference (ANGLE_TOL)")
 
 
 # Cells of every outcome the 2-s window allows, and falls of each kind of rule.

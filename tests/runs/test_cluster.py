@@ -1,4 +1,4 @@
-"""Region sweeps on a Dask cluster (issue 17, ``sweep/cluster.py``, docs/cluster.md).
+"""Region sweeps on a Dask cluster (runs/cluster.py, docs/cluster.md).
 
 The reference is the plain local sweep (``api.run_region``, as ``mjx-balance sweep`` runs it),
 in a subprocess that fills a compilation cache folder of this module's own: the cluster's

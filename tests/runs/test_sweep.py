@@ -163,7 +163,7 @@ def test_damaged_region_file_is_rebuilt_from_chunks(tmp_path):
 
 
 def test_a_folder_without_results_is_not_locked_to_its_configuration(tmp_path):
-    """Issue 26.6: a run that failed before its first chunk (a bad value found late) leaves a
+    """A run that failed before its first chunk (a bad value found late) leaves a
     manifest but no results; the corrected configuration takes the folder over. Once the
     folder holds results, another configuration is refused again."""
     from mjx_balance.store.folder import OutputFolder

@@ -1,4 +1,4 @@
-"""The table resumes (issue 11, item 1) and a bad manifest is refused in one message (item 2).
+"""The table resumes and a bad manifest is refused in one message.
 
 Every scenario the table evaluates is kept in ``DIR/table_runs/`` as its batch call returns:
 a table interrupted (an exception on the k-th call, a real SIGKILL) runs only the cells it had
@@ -26,7 +26,7 @@ from support import REPO, FakeThresholdBatch, sweep_fake
 from mjx_balance import runs as sweep
 from mjx_balance.model.params import Config, ParameterError
 
-FORCES = "0:120:10"  # 13 forces, as in the issue
+FORCES = "0:120:10"  # 13 forces
 BATCH = 16  # every call has exactly this many scenarios
 
 

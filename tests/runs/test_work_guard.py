@@ -1,4 +1,4 @@
-"""Durations that are not whole physics steps (issue 11, item 9) and enormous work (item 10)
+"""Durations that are not whole physics steps and enormous work
 are refused at once: exit code 2, one line, nothing written; --yes lets big work through."""
 
 from pathlib import Path

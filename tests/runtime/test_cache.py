@@ -1,4 +1,4 @@
-"""JAX's persistent compilation cache, on by default (issue 13, item 1).
+"""JAX's persistent compilation cache, on by default.
 
 Where it lives (XDG_CACHE_HOME, MJX_BALANCE_CACHE_DIR, off), and that a second *process* with
 the same shapes compiles nothing: measured with JAX's own compile events
@@ -111,7 +111,7 @@ def test_no_cache_option_turns_it_off(monkeypatch):
 
 @pytest.mark.slow
 def test_the_rollout_of_another_body_is_loaded_not_compiled(tmp_path):
-    """The issue's case through the command line: a two-cell sweep, then the same shapes with
+    """Through the command line: a two-cell sweep, then the same shapes with
     another body in a second process: its rollout (the engine's ``call``) is loaded from the
     cache. Only the engine's initial slot state (``_vacant``, a fraction of a second), which
     bakes the configuration's arrays in as constants, is compiled again."""
@@ -140,7 +140,7 @@ def test_the_rollout_of_another_body_is_loaded_not_compiled(tmp_path):
     assert sum(seconds for _, seconds in second["compiled"]) < 5.0
 
 
-# A tiny jitted function, for the cache's healing (issue 26.9): compiled, cached, and counted.
+# A tiny jitted function, for the cache's healing: compiled, cached, and counted.
 HEAL = """
 import json, logging, sys
 import mjx_balance

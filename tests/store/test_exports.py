@@ -1,4 +1,4 @@
-"""Exports (issue 29, item 4): every table also as CSV or parquet (``--format``, ``format=``),
+"""Exports: every table also as CSV or parquet (``--format``, ``format=``),
 every column's unit in one registry (``measures/units.py``) written into the parquet schema
 and a CSV's ``NAME.units.csv``, CSVs in full precision, and grid values exact at the parser.
 

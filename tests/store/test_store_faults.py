@@ -54,7 +54,7 @@ def error_lines(stderr: str) -> list[str]:
     return [line for line in stderr.splitlines() if "error" in line]
 
 
-# --- item 2: damaged figures are drawn again ---------------------------------------------------
+# --- damaged figures are drawn again ---------------------------------------------------
 
 
 def test_truncated_or_missing_figures_are_redrawn_on_rerun(tmp_path, fake_rollout, capsys):
@@ -104,7 +104,7 @@ def test_readable_png_rejects_cut_and_corrupt_files(tmp_path, fake_rollout):
     assert readable_png(bad)
 
 
-# --- item 3: a lost manifest is rebuilt ----------------------------------------------------------
+# --- a lost manifest is rebuilt ----------------------------------------------------------
 
 
 def test_lost_manifest_is_rebuilt_from_config_and_chunks(tmp_path):
@@ -171,7 +171,7 @@ def test_lost_manifest_of_a_table_folder_lets_a_sweep_start(tmp_path):
     assert json.loads((tmp_path / "manifest.json").read_text())["region"]["cells"] == 35
 
 
-# --- item 4: one run per folder ----------------------------------------------------------------
+# --- one run per folder ----------------------------------------------------------------
 
 
 HOLD_LOCK = textwrap.dedent("""
@@ -211,7 +211,7 @@ def test_one_process_may_nest_the_folder_lock(tmp_path):
 
 
 def test_another_thread_is_refused_while_one_holds_the_folder(tmp_path):
-    """Issue 26.2: the lock is re-entrant within the thread that holds it, not across threads.
+    """the lock is re-entrant within the thread that holds it, not across threads.
     Two threads of one process sweeping into one folder with different bodies would otherwise
     write one body's manifest beside the other body's rows. The second thread is refused at the
     named point (its folder_lock) while the first is inside its own."""
@@ -270,7 +270,7 @@ def test_a_folder_that_cannot_hold_a_lock_file_is_still_read(tmp_path, monkeypat
     assert sweep_fake(tmp_path, FakeThresholdBatch(fail_on_call=1)).already_complete
 
 
-# --- item 5: write errors ----------------------------------------------------------------------
+# --- write errors ----------------------------------------------------------------------
 
 
 def test_full_disk_mid_sweep_is_one_line_and_the_rerun_resumes(tmp_path, fake_rollout, capsys,
@@ -348,7 +348,7 @@ def test_file_size_limit_leaves_no_damaged_figure(tmp_path, fake_rollout, capsys
         assert f"wrote {out / name}" in again and readable_png(out / name)
 
 
-# --- item 6: file modes and leftovers ----------------------------------------------------------
+# --- file modes and leftovers ----------------------------------------------------------
 
 
 @pytest.mark.parametrize("umask, mode", [(0o022, 0o644), (0o027, 0o640)])
@@ -488,7 +488,7 @@ def test_outputs_are_whole_or_old_after_a_failed_write(tmp_path, capsys, monkeyp
     assert leftovers(tmp_path) == []
 
 
-# --- item 4: --wait --------------------------------------------------------------------------
+# --- --wait --------------------------------------------------------------------------
 
 
 def test_wait_for_the_run_that_holds_the_folder(tmp_path, fake_rollout, capsys):

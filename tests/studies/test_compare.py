@@ -123,7 +123,7 @@ def test_names_and_boundaries():
 
 
 def test_compare_on_a_local_cluster_gives_the_local_numbers(tmp_path, monkeypatch):
-    """``compare --cluster local:1`` (issue 17): one connection for every configuration's map
+    """``compare --cluster local:1``: one connection for every configuration's map
     and table, and the same region maps and compare.csv as the plain run. The stand-ins go to
     the worker by value (it cannot import this test module). Needs Dask (the cluster extra)."""
     distributed = pytest.importorskip("distributed")

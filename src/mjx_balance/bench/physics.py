@@ -26,7 +26,7 @@ cores), side by side on the same slots and push scenarios:
    a MuJoCo C path could reach from above.
 
 ``admm`` = the pipeline's ADMM share: (5) minus (3) per scenario-step (the same solves on the
-same kind of states). The verdict the issue asks for is ``c_bound_vs_pipeline`` =
+same kind of states). The verdict is ``c_bound_vs_pipeline`` =
 (4) / (5): a C path is worth shipping only if even this bound is at least 1.5.
 """
 

@@ -92,7 +92,7 @@ def chunk_slices(n_cells: int, chunk_size: int) -> list[slice]:
     return [slice(i, min(i + chunk_size, n_cells)) for i in range(0, n_cells, chunk_size)]
 
 
-# The guard on enormous work (issue 11). The rate is the engine's throughput measured on the
+# The guard on enormous work. The rate is the engine's throughput measured on the
 # 2-core CPU of this project with two host devices, counted in scenario windows (a scenario
 # stops when decided, so what it simulates depends on the grid): 88-94 scenarios of 12 s per
 # second on the benchmark's mix (`mjx-balance bench`, 1024 scenarios) to 113-130 on the dense
