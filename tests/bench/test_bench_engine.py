@@ -24,8 +24,10 @@ TINY = ["--forces", "20,120", "--durations", "0.1,0.5", "--t-end", "0.3", "--slo
 
 
 def run_command(*argv: str) -> tuple[str, dict]:
-    """``mjx-balance bench engine ARGV`` in a fresh process: (its output, its JSON line)."""
-    env = {**os.environ, "MJX_BALANCE_CACHE_DIR": "off"}
+    """``mjx-balance bench engine ARGV`` in a fresh process: (its output, its JSON line). The
+    process shares the session's compile cache (conftest), so a second run loads its programs;
+    no check reads the compile seconds."""
+    env = dict(os.environ)
     env.pop("XLA_FLAGS", None)  # the command line's own two host devices
     proc = subprocess.run([sys.executable, "-m", "mjx_balance", "bench", "engine", *argv],
                           capture_output=True, text=True, env=env, timeout=900)
