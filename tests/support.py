@@ -15,6 +15,9 @@ several floors use. Heavy imports (JAX, the package's floors) happen inside the 
 
 from __future__ import annotations
 
+import gc
+import os
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -233,3 +236,33 @@ def assert_refused(code: int, err: str, *words: str, exit_code: int = 2) -> None
         assert len(lines) == 1, err
     for word in words:
         assert word in lines[-1], err
+
+
+def signal_where_exceptions_are_dropped(where: str, signum: int) -> None:
+    """Send ``signum`` to this process from inside a GC callback, a ``__del__`` or a weakref
+    callback, and run bytecode there, so that Python runs the handler in that callback."""
+
+    def deliver(*_):
+        os.kill(os.getpid(), signum)
+        for _ in range(1000):  # the handler runs at one of these bytecodes, in the callback
+            pass
+
+    if where == "gc":
+        def once(phase, _info):
+            if phase == "start":
+                gc.callbacks.remove(once)
+                deliver()
+        gc.callbacks.append(once)
+        gc.collect()
+    elif where == "del":
+        class Dying:
+            def __del__(self):
+                deliver()
+        Dying()
+    else:
+        class Target:
+            pass
+        target = Target()
+        ref = weakref.ref(target, deliver)
+        del target
+        assert ref() is None

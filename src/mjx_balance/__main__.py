@@ -1,8 +1,6 @@
 """``python -m mjx_balance``: the ``mjx-balance`` command line."""
 
-import sys
-
 if __name__ == "__main__":  # imported as a module (pkgutil.walk_packages), it imports nothing
-    from .cli import main
+    from .cli import console
 
-    sys.exit(main())
+    console()

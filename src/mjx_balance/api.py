@@ -45,6 +45,7 @@ from .runs.folders import (Values, batch_function, duration_values, grid_values,
 from .runs.grid import check_durations, parse_pairs
 from .runs.progress import wanted
 from .store.folder import folder_lock
+from .runtime import signals
 from .store.provenance import run_context
 from .reference import loop as reference
 from .store.files import TABLE, check_format, export_tables
@@ -91,8 +92,9 @@ def as_config(config: ConfigLike = None) -> Config:
 @contextmanager
 def _session(call: str, physics: str = "mjx") -> Iterator[None]:
     """What the output folder's provenance records: this call (unless a command line made it)
-    and the physics path."""
-    with run_context(command=f"python: mjx_balance.{call}", physics=physics):
+    and the physics path; SIGINT and SIGTERM honoured wherever they land (runtime/signals.py:
+    they raise KeyboardInterrupt subclasses, after the folder's clean-up)."""
+    with signals.honoured(), run_context(command=f"python: mjx_balance.{call}", physics=physics):
         yield
 
 
@@ -131,7 +133,8 @@ def simulate(forces: Values = None, durations: Values = None, config: ConfigLike
     for _, duration in todo:  # every other rule, before any work
         config.replace(scenario={"duration": float(duration)})
     check_reference(config)
-    summary, series = reference.simulate_pairs(config, todo, progress=wanted(progress))
+    with signals.honoured():
+        summary, series = reference.simulate_pairs(config, todo, progress=wanted(progress))
     return with_strategy(summary), series
 
 

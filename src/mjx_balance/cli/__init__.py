@@ -48,6 +48,6 @@ checked by the argparse types of ``options.py`` (argparse prints its usage, then
 that passed the checks but refuses the write, a full disk) is a failure: one line, exit code 1.
 """
 
-from .main import main
+from .main import console, main
 
-__all__ = ["main"]
+__all__ = ["console", "main"]

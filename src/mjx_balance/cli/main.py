@@ -17,12 +17,11 @@ import importlib
 import logging
 import os
 import shlex
-import signal
 import sys
-import threading
 import warnings
 
 from ..model.params import ParameterError, ParameterWarning, forget_warnings
+from ..runtime import signals
 from ..runtime.version import InstallError
 from ..runtime.xla import deterministic_flags
 from . import (animate, basin, bench, cohort, compare, landscape, model, report, sensitivity,
@@ -128,15 +127,6 @@ def _logging(level: int):
     return restore
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised in the main thread as Ctrl-C is: the same clean-up runs (the folder's
-    lock is let go, its manifest records the run as interrupted, finished chunks stay)."""
-
-
-def _on_sigterm(_signum, _frame) -> None:
-    raise Terminated()
-
-
 def say_error(text: str) -> None:
     """One line on stderr, if there is a stderr to write to (a closed one is not an error)."""
     try:
@@ -159,13 +149,14 @@ def main(argv: list[str] | None = None) -> int:
 
         cache.disable()
     restore = _logging({-1: logging.WARNING, 0: logging.INFO, 1: logging.DEBUG}[verbosity(args)])
-    in_main = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGTERM, _on_sigterm) if in_main else None
     try:
         from ..store.provenance import run_context  # lazy: after use_host_cores (pandas, not --help)
 
         words = sys.argv[1:] if argv is None else list(argv)
-        with (run_context(command=" ".join(shlex.quote(w) for w in ["mjx-balance", *words])),
+        # SIGINT and SIGTERM raise Interrupted / Terminated wherever they land, and a signal
+        # whose exception the runtime drops (a GC callback) still ends the work (signals.py)
+        with (signals.honoured(),
+              run_context(command=" ".join(shlex.quote(w) for w in ["mjx-balance", *words])),
               warnings.catch_warnings()):
             # a never-binding limit is logged where it is found (params.warn_parameter): the
             # Python warning's own copy on stderr would say it twice
@@ -173,14 +164,21 @@ def main(argv: list[str] | None = None) -> int:
             forget_warnings()
             return _run(args)
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM, wherever the work was
-        name, code = ("SIGTERM", 143) if isinstance(exc, Terminated) else ("SIGINT", 130)
-        say_error(f"interrupted ({name}); what finished is kept: run the same command to "
+        if not isinstance(exc, signals.Interrupted):  # raised by Python's own SIGINT handler
+            exc = signals.Interrupted()
+        say_error(f"interrupted ({exc.name}); what finished is kept: run the same command to "
                   "resume")
-        return code
+        return exc.code
     finally:
-        if in_main:
-            signal.signal(signal.SIGTERM, previous)
         restore()
+
+
+def console() -> None:
+    """The ``mjx-balance`` script: :func:`main`, then the process's exit, during which a further
+    signal ends it at once with the same status (no traceback from clean-up at exit)."""
+    code = main()
+    signals.exit_quietly(code)
+    sys.exit(code)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -210,4 +208,4 @@ def _run(args: argparse.Namespace) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    console()

@@ -10,7 +10,7 @@ import math
 from pathlib import Path
 
 from ..model.params import ParameterError, dumps_config
-from .common import load_run_config, progress_enabled
+from .common import in_folder, load_run_config, progress_enabled
 from .options import (common_options, figure_options, format_option, renamed_option,
                       write_exports)
 
@@ -129,12 +129,13 @@ def simulate_command(args: argparse.Namespace) -> int:
     import pandas as pd
 
     # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
-    from .. import api
     from ..figures.timeseries import timeseries_figures  # lazy: matplotlib
+    from ..measures.strategy import with_strategy
+    from ..reference.loop import each_pair
     from ..runs.folders import check_reference  # lazy: the runs floor loads JAX
     from ..store.files import (CONFIG, MANIFEST, write_csv,  # lazy: the store floor: pandas
                                write_parquet, write_text)
-    from ..store.folder import record_simulation  # lazy: as above
+    from ..store.folder import clear_pushes, read_pushes, record_simulation, write_push
     from ..store.provenance import run_context  # lazy: as above
 
     config = load_run_config(args)
@@ -146,25 +147,35 @@ def simulate_command(args: argparse.Namespace) -> int:
     if sweep_folder(out):
         raise ParameterError(f"{out} holds a sweep or a report (its {CONFIG} would be "
                              "overwritten); use another --out folder")
-    out.mkdir(parents=True, exist_ok=True)
-    with run_context(physics="mujoco"):  # the scalar reference: MuJoCo C physics
-        if pairs is not None:
-            summary, series = api.simulate(config=config, pairs=pairs,
-                                           progress=progress_enabled(args))
-        else:
-            summary, series = api.simulate(forces, durations, config,
-                                           progress=progress_enabled(args))
+    todo = pairs if pairs is not None else [(f, d) for d in durations for f in forces]
+    result = {}
+
+    def work() -> None:
+        # Each push is kept in DIR/pushes/ as it ends, so that an interrupted run resumes
+        # where it stopped; the tables are read back from there, resumed or not.
+        done = record_simulation(out, config, forces, durations, pairs=pairs)
+        for index, row, frame in each_pair(config, todo, skip=done,
+                                           progress=progress_enabled(args)):
+            write_push(out, index, row, frame)
+        summary, series = read_pushes(out, len(todo))
+        summary = result["summary"] = with_strategy(summary)
         write_csv(summary, out / "summary.csv")
         write_parquet(series, out / "timeseries.parquet")
         write_text(dumps_config(config), out / CONFIG)
         # written atomically (plots._save)
-        figures = timeseries_figures(series, out, config=config, summary=summary,
-                                     full_window=args.full_window)
-        record_simulation(out, config, forces, durations, pairs=pairs)
+        result["figures"] = timeseries_figures(series, out, config=config, summary=summary,
+                                               full_window=args.full_window)
         write_exports(out, args)
+        clear_pushes(out)
+
+    with run_context(physics="mujoco"):  # the scalar reference: MuJoCo C physics
+        code = in_folder(out, work)
+    if code:
+        return code
+    summary = result["summary"]
     with pd.option_context("display.width", 200, "display.max_columns", None,
                            "display.float_format", lambda v: f"{v:.4g}"):
         print(summary[PRINTED_COLUMNS].to_string(index=False))
     log.info(f"wrote {out / 'summary.csv'}, {out / 'timeseries.parquet'}, {out / 'config.toml'}, "
-             f"{out / MANIFEST} and {len(figures)} figures in {out}")
+             f"{out / MANIFEST} and {len(result['figures'])} figures in {out}")
     return 0

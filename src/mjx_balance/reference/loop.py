@@ -26,7 +26,7 @@ from __future__ import annotations
 import functools
 import math
 import sys
-from typing import Any, Protocol
+from typing import Any, Iterator, Protocol
 
 import mujoco
 import numpy as np
@@ -40,6 +40,7 @@ from ..control.osqp_mpc import ReferenceMPC
 from ..measures.outcomes import SUMMARY_COLUMNS, Limits
 from ..model.params import BodyParams, Config, ControllerParams
 from ..control.qp import CondensedQP, build_qp
+from ..runtime import signals
 
 TIMESERIES_COLUMNS = [
     "scenario", "force", "duration", "convention", "time",
@@ -374,16 +375,30 @@ def simulate_pairs(config: Config, pairs: list[tuple[float, float]], *,
                    progress: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The given (force, duration) pairs in their order: (summary table, long time series,
     scenario_id = the pair's index)."""
-    from tqdm import tqdm
-
-    for _, T in pairs:  # validate every duration before running anything
-        config.replace(scenario={"duration": T})
     rows, frames = [], []
-    for scenario_id, (force, duration) in enumerate(
-            tqdm(pairs, desc="scenarios", unit="scenario", disable=not progress,
-                 file=sys.stderr)):
-        summary, frame = simulate_scenario(config, force, duration, scenario_id=scenario_id)
+    for _, summary, frame in each_pair(config, pairs, progress=progress):
         rows.append(summary)
         frames.append(frame)
     summary = pd.DataFrame(rows, columns=SUMMARY_COLUMNS)
     return summary, pd.concat(frames, ignore_index=True)
+
+
+def each_pair(config: Config, pairs: list[tuple[float, float]], *, skip: Any = (),
+              progress: bool = True) -> Iterator[tuple[int, dict[str, Any], pd.DataFrame]]:
+    """Run the pairs in their order, but those whose index is in ``skip`` (finished before):
+    yield (scenario_id = the pair's index, summary row, time series) as each ends. Every
+    duration is checked before anything runs."""
+    from tqdm import tqdm
+
+    for _, T in pairs:  # validate every duration before running anything
+        config.replace(scenario={"duration": T})
+    skip = set(skip)
+    with tqdm(total=len(pairs), initial=len(skip), desc="scenarios", unit="scenario",
+              disable=not progress, file=sys.stderr) as bar:
+        for scenario_id, (force, duration) in enumerate(pairs):
+            if scenario_id in skip:
+                continue
+            signals.check()  # a checkpoint: a signal dropped where it landed ends the run
+            summary, frame = simulate_scenario(config, force, duration, scenario_id=scenario_id)
+            bar.update(1)
+            yield scenario_id, summary, frame

@@ -60,7 +60,7 @@ from ..model.mjcf import indices
 from ..model.params import Config
 from .engine import (Engine, Queue, Slots, broadcast, certify, checker, empty_finished, harvest,
                      refill, vacate)
-from ..runtime import compiled
+from ..runtime import compiled, signals
 from ..runtime.compiled import MATMUL_PRECISION
 from .kernel import (Carry, Sample, com_velocity, control, initial_carry, limits_of,
                      pendulum_frequency, remember, sample_update, select, state)
@@ -482,6 +482,7 @@ class CEngine(Engine):
         remaining, finished, p = n, False, 0
         try:
             while remaining:
+                signals.check()  # a checkpoint: a signal dropped where it landed ends the run
                 cells, f, pp, _ = queue.offer()
                 floats, ints = pack(rows, last_qpos, cells, f, pp, p, r.dtype)
                 cs, out_f, out_i = fn(self._leaves, cs, self._put(floats), self._put(ints))

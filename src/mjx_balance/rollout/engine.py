@@ -32,6 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..control import certificate as cert_mod
+from ..runtime import signals
 from ..runtime.xla import deterministic_flags
 from ..runtime.compiled import get_or_compile
 from .kernel import Accumulators, Arrays, Carry, initial_carry, period_batch, select, start
@@ -449,6 +450,7 @@ class Engine:
         remaining, finished = n, False
         try:
             while remaining:
+                signals.check()  # a checkpoint: a signal dropped where it landed ends the run
                 cells, f, p, init = queue.offer()
                 args = (jnp.asarray(cells), jnp.asarray(f.astype(r.dtype)), jnp.asarray(p),
                         jnp.asarray(init.astype(r.dtype)))

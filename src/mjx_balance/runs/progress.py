@@ -1,17 +1,37 @@
 """The progress bar of long sweeps (tqdm on stderr), or a silent stand-in, and when to draw
-one (:func:`wanted`)."""
+one (:func:`wanted`). Every update is a checkpoint of the work: a pending SIGINT or SIGTERM
+whose exception was dropped where it landed is raised there (runtime/signals.py)."""
 
 from __future__ import annotations
 
 import sys
 
+from ..runtime import signals
+
 
 class NoBar:
-    def update(self, _n: int) -> None:
-        pass
+    n = 0
+
+    def update(self, n: int) -> None:
+        signals.check()
+        self.n += n
 
     def close(self) -> None:
         pass
+
+
+class CheckedBar:
+    """A tqdm bar whose every update is a checkpoint."""
+
+    def __init__(self, bar) -> None:
+        self.bar = bar
+
+    def update(self, n: int) -> None:
+        signals.check()
+        self.bar.update(n)
+
+    def __getattr__(self, name: str):
+        return getattr(self.bar, name)
 
 
 class SafeStream:
@@ -67,8 +87,10 @@ def progress_bar(total: int, done: int, enabled: bool | None, desc: str = "scena
     the rate and the time left), ``done`` of them already, or a silent stand-in; ``enabled``
     as :func:`wanted` reads it."""
     if not wanted(enabled):
-        return NoBar()
+        bar = NoBar()
+        bar.n = done
+        return bar
     from tqdm.auto import tqdm
 
-    return tqdm(total=total, initial=done, unit="scen", desc=desc, dynamic_ncols=True,
-                smoothing=0.1, file=SafeStream(sys.stderr))
+    return CheckedBar(tqdm(total=total, initial=done, unit="scen", desc=desc,
+                           dynamic_ncols=True, smoothing=0.1, file=SafeStream(sys.stderr)))

@@ -29,6 +29,7 @@ import fcntl
 import json
 import logging
 import os
+import shutil
 import threading
 from contextlib import contextmanager
 from datetime import datetime, timezone
@@ -45,7 +46,7 @@ from ..measures.strategy import with_strategy
 from ..model.params import Config, ParameterError, config_warnings, dumps_config, load_config
 from .files import (CONFIG, LOCK, MANIFEST, TABLE, TABLE_CELLS, TABLE_RUNS, with_units,
                     write_parquet, write_text)
-from .provenance import finish_run, now, with_run
+from .provenance import finish_run, with_run
 
 GRID_TOL = 1e-9  # how far a value may sit beyond a limit (float error) and still count
 
@@ -82,17 +83,69 @@ def config_differences(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
     return out
 
 
+PUSHES = "pushes"  # a simulate folder's finished pushes, while its run is under way
+
+
 def record_simulation(folder: str | Path, config: Config, forces: Any, durations: Any,
-                      pairs: Any = None) -> None:
-    """The manifest of a ``simulate`` folder: the configuration, the pushes (the grid's forces
-    and durations, or the given ``pairs``) and this run's provenance (ended now)."""
+                      pairs: Any = None) -> set[int]:
+    """Start (or resume) a ``simulate`` run in ``folder``, under its lock: the manifest records
+    the configuration, the pushes (the grid's forces and durations, or the given ``pairs``) and
+    this run's provenance (running; :func:`folder_lock` records how it ends). Returns the
+    indices of the pushes an earlier run of the same configuration and pushes finished
+    (``DIR/pushes/``, :func:`write_push`); another run's pushes are discarded."""
+    folder = Path(folder)
     pushes = ({"pairs": [[float(f), float(d)] for f, d in pairs]} if pairs is not None else
               {"forces": [float(f) for f in forces], "durations": [float(d) for d in durations]})
     manifest = {"package": "mjx_balance", "version": __version__, "kind": "simulate",
                 "config": config_dict(config), "simulate": pushes}
     with_config_warnings(manifest, config)
-    write_text(json.dumps(with_run(manifest, ended=now(), status="completed"), indent=2)
-               + "\n", Path(folder) / MANIFEST)
+    old = _json_or_none(folder / MANIFEST)
+    kept = folder / PUSHES
+    for stale in kept.glob(".*.tmp"):  # a write cut short: no other run holds the folder
+        stale.unlink(missing_ok=True)
+    if (isinstance(old, dict) and old.get("kind") == "simulate"
+            and old.get("config") == manifest["config"] and old.get("simulate") == pushes):
+        manifest["runs"] = old.get("runs", [])
+        done = {int(p.name.split(".")[0]) for p in kept.glob("*.summary.json")
+                if (kept / p.name.replace(".summary.json", ".series.parquet")).exists()}
+    else:
+        shutil.rmtree(kept, ignore_errors=True)
+        done = set()
+    write_text(json.dumps(with_run(manifest), indent=2) + "\n", folder / MANIFEST)
+    return done
+
+
+def write_push(folder: str | Path, index: int, summary: dict[str, Any],
+               series: pd.DataFrame) -> None:
+    """Keep one finished push of a ``simulate`` run: its time series, then its summary row (a
+    push counts as finished when its summary is there)."""
+    kept = Path(folder) / PUSHES
+    kept.mkdir(exist_ok=True)
+    write_parquet(series, kept / f"{index:06d}.series.parquet")
+    row = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in summary.items()}
+    write_text(json.dumps(row) + "\n", kept / f"{index:06d}.summary.json")
+
+
+def read_pushes(folder: str | Path, count: int) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The ``count`` pushes of a ``simulate`` run, every one read back from ``DIR/pushes/``
+    (a resumed run and one that ran through give the same tables): (summary, series)."""
+    kept = Path(folder) / PUSHES
+    rows = [json.loads((kept / f"{i:06d}.summary.json").read_text()) for i in range(count)]
+    series = [pd.read_parquet(kept / f"{i:06d}.series.parquet") for i in range(count)]
+    return (pd.DataFrame(rows, columns=SUMMARY_COLUMNS),
+            pd.concat(series, ignore_index=True))
+
+
+def clear_pushes(folder: str | Path) -> None:
+    """After ``simulate`` wrote its tables: the kept pushes are in them."""
+    shutil.rmtree(Path(folder) / PUSHES, ignore_errors=True)
+
+
+def _json_or_none(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError):
+        return None
 
 
 class FolderBusy(ParameterError):

@@ -136,6 +136,11 @@ def with_run(manifest: dict[str, Any], **changes: Any) -> dict[str, Any]:
     runs = [r for r in runs if isinstance(r, dict)] if isinstance(runs, list) else []
     mine = next((r for r in runs if r.get("run_id") == _RUN["run_id"]), None)
     if mine is None:
+        # This run writes the manifest under the folder's lock, so no other run is working in
+        # it: a run still recorded as running ended without saying how (kill -9, a power loss).
+        for other in runs:
+            if other.get("status") == "running":
+                other["status"] = "killed"
         mine = provenance()
         runs.append(mine)
     else:

@@ -1,0 +1,161 @@
+"""SIGINT and SIGTERM honoured wherever they land.
+
+Python runs a signal's handler in the main thread between two bytecodes of whatever code runs
+at that instant. The handler raises :class:`Interrupted` (a ``KeyboardInterrupt``, so every
+``finally`` and every clean-up written for Ctrl-C runs: the folder's lock is let go, the
+manifest records the run as interrupted, finished chunks stay). When the instant falls inside
+code whose exceptions the runtime ignores (a garbage-collection callback such as JAX's
+``_xla_gc_callback``, a ``__del__``, a weakref callback), the exception is printed as
+"Exception ignored in ..." and dropped, and the run would go on as if no signal came. So:
+
+- the handler also records the signal as *pending*;
+- :func:`check`, called at the work's own checkpoints (every block of the engine, every
+  scenario of the reference, every unit of a progress bar), raises a pending signal's
+  exception;
+- an :class:`Interrupted` that the runtime drops (``sys.unraisablehook``) is not printed; the
+  signal is sent again a moment later, from a thread, so that it also lands where no
+  checkpoint runs (drawing figures, writing tables).
+
+:func:`honoured` installs this for the span of a command or an API call (in the main thread;
+nested uses share the outer one). While the first signal's exception unwinds the work, further
+signals are recorded only: the clean-up it triggers is not cut short.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+from contextlib import contextmanager
+from typing import Iterator
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+REDELIVER_S = 0.02  # how soon a dropped signal is sent again (the main thread runs meanwhile)
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C (SIGINT), raised where the work is; ``code`` is the command line's exit status."""
+
+    signum = signal.SIGINT
+    code = 128 + signal.SIGINT
+    name = "SIGINT"
+
+
+class Terminated(Interrupted):
+    """SIGTERM, raised in the main thread as Ctrl-C is."""
+
+    signum = signal.SIGTERM
+    code = 128 + signal.SIGTERM
+    name = "SIGTERM"
+
+
+def exception(signum: int) -> Interrupted:
+    return Terminated() if signum == signal.SIGTERM else Interrupted()
+
+
+class _State:
+    def __init__(self) -> None:
+        self.depth = 0  # nested honoured() blocks
+        self.pending: int | None = None  # the first signal not yet seen by the work
+        self.seen = False  # the work caught its exception: it is stopping
+        self.dropped = False  # its exception was dropped where it landed: raise it again
+        self.previous: dict[int, object] = {}
+        self.hook = None
+        self.lock = threading.Lock()
+        self.timers: list[threading.Timer] = []
+
+
+_STATE = _State()
+
+
+def pending() -> int | None:
+    """The signal received in the current :func:`honoured` block and not yet acted on."""
+    return _STATE.pending
+
+
+def check() -> None:
+    """A checkpoint of long work: raise the pending signal's exception, if a signal came and
+    its exception was dropped where it landed (or has not been raised yet)."""
+    st = _STATE
+    if st.pending is not None and not st.seen:
+        st.dropped = False  # raised here: a re-delivered copy need not raise it again
+        raise exception(st.pending)
+
+
+def _handler(signum: int, _frame) -> None:
+    st = _STATE
+    if st.depth == 0 or st.seen:
+        return  # the block has ended, or the work is stopping: its clean-up runs on
+    if st.pending is None:
+        st.pending = signum
+    elif not st.dropped:
+        return  # a repeated signal while the first one's exception unwinds the work
+    st.dropped = False
+    raise exception(st.pending)
+
+
+def _redeliver(signum: int) -> None:
+    with _STATE.lock:
+        if _STATE.depth > 0 and not _STATE.seen:
+            os.kill(os.getpid(), signum)
+
+
+def _unraisable(unraisable) -> None:
+    """The runtime dropped an exception: ours is sent again a moment later, not printed."""
+    st = _STATE
+    if isinstance(unraisable.exc_value, Interrupted) and st.depth > 0:
+        st.dropped = True
+        with st.lock:
+            timer = threading.Timer(REDELIVER_S, _redeliver, (unraisable.exc_value.signum,))
+            timer.daemon = True
+            st.timers.append(timer)
+            timer.start()
+        return
+    (st.hook or sys.__unraisablehook__)(unraisable)
+
+
+def seen(exc: BaseException) -> None:
+    """The work caught ``exc`` (the signal's exception): further signals are only recorded."""
+    if isinstance(exc, Interrupted):
+        _STATE.seen = True
+        if _STATE.pending is None:
+            _STATE.pending = exc.signum
+
+
+@contextmanager
+def honoured() -> Iterator[None]:
+    """SIGINT and SIGTERM raise :class:`Interrupted` / :class:`Terminated` in this block,
+    wherever they land (module docstring). Outside the main thread, a no-op."""
+    st = _STATE
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    st.depth += 1
+    if st.depth == 1:
+        st.pending, st.seen, st.dropped, st.timers = None, False, False, []
+        st.previous = {s: signal.signal(s, _handler) for s in SIGNALS}
+        st.hook, sys.unraisablehook = sys.unraisablehook, _unraisable
+    try:
+        yield
+        check()  # a signal dropped in the last instants of the work still ends it
+    except Interrupted as exc:
+        seen(exc)
+        raise
+    finally:
+        st.depth -= 1
+        if st.depth == 0:
+            with st.lock:  # no re-delivery from here on: handlers are ours until restored
+                for timer in st.timers:
+                    timer.cancel()
+            sys.unraisablehook, st.hook = st.hook or sys.__unraisablehook__, None
+            for s, previous in st.previous.items():
+                signal.signal(s, previous)
+
+
+def exit_quietly(code: int) -> None:
+    """After a command line's work: a signal during the interpreter's exit (JAX's clean-up at
+    exit) ends the process at once with ``code`` instead of printing a traceback."""
+    if threading.current_thread() is threading.main_thread():
+        for s in SIGNALS:
+            signal.signal(s, lambda *_: os._exit(code))

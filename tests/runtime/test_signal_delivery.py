@@ -1,0 +1,64 @@
+"""runtime/signals.py on its own: a signal whose exception the runtime drops is sent again and
+ends the work even where no checkpoint runs; a repeated signal does not cut the clean-up of
+the first one short; the handlers and the unraisable hook are put back."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+
+import pytest
+from support import signal_where_exceptions_are_dropped
+
+from mjx_balance.runtime import signals
+
+
+@pytest.mark.parametrize("where", ["gc", "del", "weakref"])
+def test_a_dropped_signal_is_sent_again_where_no_checkpoint_runs(where):
+    hook = sys.unraisablehook
+    started = time.monotonic()
+    with pytest.raises(signals.Terminated):
+        with signals.honoured():
+            signal_where_exceptions_are_dropped(where, signal.SIGTERM)
+            while time.monotonic() - started < 10:  # plain Python: no checkpoint
+                pass
+    # sent again after REDELIVER_S (0.02 s), not found at the block's end after the 10 s loop
+    assert time.monotonic() - started < 5
+    assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+    assert sys.unraisablehook is hook
+
+
+def test_a_checkpoint_raises_a_signal_whose_exception_was_dropped(monkeypatch):
+    monkeypatch.setattr(signals, "REDELIVER_S", 60.0)  # no re-delivery within the test
+    with pytest.raises(signals.Interrupted) as caught:
+        with signals.honoured():
+            signal_where_exceptions_are_dropped("gc", signal.SIGINT)
+            assert signals.pending() == signal.SIGINT
+            signals.check()
+    assert type(caught.value) is signals.Interrupted and caught.value.code == 130
+
+
+def test_a_repeated_signal_does_not_cut_the_clean_up_short():
+    cleaned = False
+    with pytest.raises(signals.Interrupted):
+        with signals.honoured():
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                for _ in range(1000):
+                    pass
+            finally:  # the clean-up the first Ctrl-C started; a second Ctrl-C comes
+                os.kill(os.getpid(), signal.SIGINT)
+                for _ in range(1000):
+                    pass
+                cleaned = True
+    assert cleaned
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_nothing_pending_nothing_raised():
+    with signals.honoured():
+        with signals.honoured():  # nested: the outer block's handlers
+            signals.check()
+    assert signals.pending() is None
