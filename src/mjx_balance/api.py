@@ -123,7 +123,7 @@ def simulate(forces: Values = None, durations: Values = None, config: ConfigLike
         if forces is not None or durations is not None:
             raise ParameterError("give either forces and durations or pairs, not both")
         forces, durations = parse_pairs(pairs)
-        durations = check_durations(durations, config.scenario.t_end, "pairs",
+        durations = check_durations(durations, config.scenario.t_end, "pairs", unique=False,
                                     physics_dt=config.scenario.physics_dt)
         todo = list(zip(forces.tolist(), durations.tolist()))
     else:

@@ -64,8 +64,9 @@ def test_simulate_writes_every_file(tmp_path, short_config, capsys):
             image.verify()  # a complete, uncorrupted file
 
     lines = capsys.readouterr().out.strip().splitlines()
-    assert lines[0].split() == PRINTED_COLUMNS
-    printed = [line.split() for line in lines[1:-1]]
+    assert lines[0].startswith("planned work: 4 pushes, 2 s of scenario windows")
+    assert lines[1].split() == PRINTED_COLUMNS
+    printed = [line.split() for line in lines[2:-1]]
     assert [(float(r[0]), float(r[1]), r[3]) for r in printed] == EXPECTED_ROWS
     assert all(r[2] == "joint" and len(r) == len(PRINTED_COLUMNS) for r in printed)
     assert lines[-1].startswith(f"wrote {out / 'summary.csv'}") and f"{len(FIGURES)} figures" in lines[-1]
@@ -107,3 +108,31 @@ def test_full_window_reaches_the_figures(tmp_path, short_config, monkeypatch):
         assert code == 0
     assert [kw["full_window"] for kw in seen] == [False, True]
     assert all(kw["config"].scenario.t_end == 0.5 and len(kw["summary"]) == 1 for kw in seen)
+
+
+@pytest.mark.parametrize("pairs, expected", [
+    ("20:0.1,50:0.1", [(20.0, 0.1), (50.0, 0.1)]),  # several forces at one duration
+    ("-20:0.1", [(-20.0, 0.1)]),  # a value that starts with a minus is not an option
+    ("-20:0.1,-40:0.2,-20:0.1", [(-20.0, 0.1), (-40.0, 0.2), (-20.0, 0.1)]),
+])
+def test_pairs_may_share_a_duration_and_start_with_a_minus(pairs, expected):
+    from mjx_balance.cli.main import build_parser
+    from mjx_balance.cli.simulate import _pushes
+    from mjx_balance.model.params import Config
+
+    args = build_parser().parse_args(["simulate", "--pairs", pairs, "--out", "unused"])
+    forces, durations, given = _pushes(args, Config())
+    assert given == expected and list(zip(forces, durations)) == expected
+
+
+def test_pairs_from_a_data_frame_and_a_file_alike(tmp_path):
+    from mjx_balance.runs.grid import parse_pairs
+
+    frame = pd.DataFrame({"Force": [20.0, 50.0], "duration": [0.1, 0.1]})
+    (tmp_path / "pairs.csv").write_text("force,duration\n20,0.1\n50,0.1\n")
+    for spec in (frame, tmp_path / "pairs.csv"):
+        forces, durations = parse_pairs(spec)
+        assert forces.tolist() == [20.0, 50.0] and durations.tolist() == [0.1, 0.1]
+    with pytest.raises(ParameterError, match="pairs: needs columns force and duration.*got "
+                                             "columns f, d"):
+        parse_pairs(pd.DataFrame({"f": [1.0], "d": [0.1]}))

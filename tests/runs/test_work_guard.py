@@ -96,3 +96,34 @@ def test_table_is_guarded_too(tmp_path, capsys, ran):
     assert ran == []
     assert main(["table", "--forces", "0:150:0.001", "--out", str(out), "--yes"]) == 0
     assert ran == [out]
+
+
+# Every command that runs work plans it first: absurd work refused, --yes lets it through.
+HUGE = {
+    "simulate": ["simulate", "--forces", "0:200:0.01", "--durations", "0.1:1:0.1"],
+    "basin": ["basin", "--x-com", "0:0.05:0.00001", "--v-com", "-0.3:0.3:0.0005",
+              "--push-forces", "none"],
+}
+
+
+class Reached(Exception):
+    """The command went past its checks to the work in its folder."""
+
+
+@pytest.mark.parametrize("command", sorted(HUGE))
+def test_every_command_refuses_absurd_work_unless_yes(tmp_path, capsys, monkeypatch, command):
+    from importlib import import_module
+
+    def work(out, _work, **_):
+        raise Reached(out)
+
+    monkeypatch.setattr(import_module(f"mjx_balance.cli.{command}"), "in_folder", work)
+    out = tmp_path / "run"
+    assert main([*HUGE[command], "--out", str(out)]) == 2
+    said = capsys.readouterr()
+    assert said.out.startswith("planned work: ")  # said first, then refused in one line
+    assert len(said.err.strip().splitlines()) == 1 and "Traceback" not in said.err
+    assert "beyond the limit" in said.err and "--yes" in said.err
+    assert not out.exists()
+    with pytest.raises(Reached):
+        main([*HUGE[command], "--yes", "--out", str(out)])

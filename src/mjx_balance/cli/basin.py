@@ -9,10 +9,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from .common import in_folder, load_run_config, progress_enabled
+from .common import guard_work, in_folder, load_run_config, progress_enabled
 from ..studies.defaults import DEFAULT_V, DEFAULT_X, POSTURES  # light: no JAX
 from .options import (common_options, figure_options, format_option, positive_int, wait_option,
-                      write_exports)
+                      write_exports, yes_option)
 
 
 
@@ -39,6 +39,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--full-length", action="store_true",
                    help="run every cell to t_end (no early stop of certified recoveries)")
     wait_option(p)
+    yes_option(p)
     format_option(p)
     figure_options(p)
     common_options(p, out_help="output folder: basin.parquet, basin.png, pushes.csv, "
@@ -54,7 +55,8 @@ def basin_command(args: Any) -> int:
     pushes = (None if str(args.push_forces).strip().lower() == "none"
               else (args.push_forces, args.push_durations))
     out = Path(args.out)
-    check_basin(config, args.x_com, args.v_com, args.posture, pushes)
+    xs, vs, _ = check_basin(config, args.x_com, args.v_com, args.posture, pushes)
+    guard_work(args, config, xs.size * vs.size, "cells")
     engine = {"slots": args.slots, "early_stop": not args.full_length}
 
     def work() -> None:

@@ -51,6 +51,36 @@ def one_push(args: argparse.Namespace) -> tuple[Config, float]:
     return config, duration
 
 
+def guard_work(args: argparse.Namespace, config: Config, n_scenarios: int, what: str, *,
+               chunk_size: int | None = None, extra: int = 0, reference: bool = False) -> None:
+    """Say the planned work (one line: scenarios, estimated time and disk) and refuse it above
+    the limit unless --yes, before anything is compiled or written. ``extra``: scenarios
+    beyond ``n_scenarios`` (a table's); ``reference``: run one at a time by the scalar
+    reference (its rate), not by the batched engine."""
+    import logging
+
+    from ..runs import chunks  # lazy: the runs floor loads JAX
+
+    t_end = config.scenario.t_end
+    rate = (chunks.REFERENCE_SECONDS_PER_SECOND if reference
+            else chunks.SIMULATED_SECONDS_PER_SECOND)
+    disk = {} if not reference else {"bytes_per_scenario": reference_bytes(config)}
+    logging.getLogger("mjx_balance").info(
+        chunks.planned_work(n_scenarios, t_end, chunk_size, what, rate=rate, **disk)
+        + (f" (+ about {extra:,} table scenarios)" if extra else ""))
+    if not getattr(args, "yes", False):
+        chunks.check_planned_work(n_scenarios + extra, t_end, what, rate=rate)
+
+
+def reference_bytes(config: Config) -> int:
+    """Disk for one push of the scalar reference: its time series, a float per column and
+    physics step (parquet compresses it; an upper bound)."""
+    from ..reference.loop import TIMESERIES_COLUMNS  # lazy: MuJoCo
+
+    steps = config.scenario.n_control * config.scenario.substeps
+    return 8 * steps * len(TIMESERIES_COLUMNS)
+
+
 def verbosity(args: argparse.Namespace) -> int:
     """-1 with -q, 1 with -v, else 0 (-q wins)."""
     return -1 if getattr(args, "quiet", 0) else (1 if getattr(args, "verbose", 0) else 0)

@@ -16,6 +16,7 @@ import argparse
 import importlib
 import logging
 import os
+import re
 import shlex
 import sys
 import warnings
@@ -55,6 +56,12 @@ def version_text() -> str:
             f"mujoco {v['mujoco']}, mujoco-mjx {v['mujoco_mjx']}, python {v['python']})")
 
 
+# An argument that starts with a minus and a digit is a value, not an option: argparse's own
+# rule takes only plain numbers ("-20", "-0.5"), so "--pairs -20:0.1", "--v-com -0.3:0.3:0.05"
+# or "--forces -1e3" would end in "expected one argument" (no option of ours starts so).
+NEGATIVE_VALUE = re.compile(r"^-\.?\d")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mjx-balance", formatter_class=HelpFormatter, epilog=EPILOG,
@@ -66,8 +73,10 @@ def build_parser() -> argparse.ArgumentParser:
     add_parser = sub.add_parser
 
     def command(name: str, **kwargs) -> argparse.ArgumentParser:
-        return add_parser(name, formatter_class=HelpFormatter, epilog=EPILOG,
-                          parents=[parent], description=kwargs.get("help"), **kwargs)
+        p = add_parser(name, formatter_class=HelpFormatter, epilog=EPILOG,
+                       parents=[parent], description=kwargs.get("help"), **kwargs)
+        p._negative_number_matcher = NEGATIVE_VALUE
+        return p
 
     sub.add_parser = command  # every command: the conventions' options, defaults, epilog
     for module in COMMANDS:

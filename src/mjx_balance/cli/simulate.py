@@ -10,9 +10,9 @@ import math
 from pathlib import Path
 
 from ..model.params import ParameterError, dumps_config
-from .common import in_folder, load_run_config, progress_enabled
+from .common import guard_work, in_folder, load_run_config, progress_enabled
 from .options import (common_options, figure_options, format_option, renamed_option,
-                      write_exports)
+                      write_exports, yes_option)
 
 log = logging.getLogger("mjx_balance")
 
@@ -45,6 +45,7 @@ def add_parser(sub) -> None:
                    help="time axes of the figures up to t_end (default: trimmed to the action, "
                         "the last settle or fall plus a margin)")
     format_option(p)
+    yes_option(p)
     figure_options(p)
     common_options(p)
     p.set_defaults(target="mjx_balance.cli.simulate:simulate_command")
@@ -108,7 +109,7 @@ def _pushes(args: argparse.Namespace, config) -> tuple[list, list, list | None]:
 
     if args.pairs is not None:
         forces, durations = parse_pairs(args.pairs, "--pairs")
-        durations = check_durations(durations, config.scenario.t_end, "--pairs",
+        durations = check_durations(durations, config.scenario.t_end, "--pairs", unique=False,
                                     physics_dt=config.scenario.physics_dt)
         if args.forces is not None or args.durations is not None:
             raise ParameterError("--pairs gives the pushes: leave out --forces and --durations")
@@ -143,11 +144,12 @@ def simulate_command(args: argparse.Namespace) -> int:
     for duration in durations:  # fail before creating anything
         config.replace(scenario={"duration": duration})
     check_reference(config)  # memory, the MPC and the model build: before creating anything
+    todo = pairs if pairs is not None else [(f, d) for d in durations for f in forces]
+    guard_work(args, config, len(todo), "pushes", reference=True)
     out = Path(args.out)
     if sweep_folder(out):
         raise ParameterError(f"{out} holds a sweep or a report (its {CONFIG} would be "
                              "overwritten); use another --out folder")
-    todo = pairs if pairs is not None else [(f, d) for d in durations for f in forces]
     result = {}
 
     def work() -> None:

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 from ..model.params import Config, apply_overrides, with_convention
 from ..studies.defaults import (DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,  # light
                                 DEFAULT_SWEEP_TABLE_FORCES)
-from .common import base_config, chosen_physics, in_folder, progress_enabled
+from .common import base_config, chosen_physics, guard_work, in_folder, progress_enabled
 from .options import (cluster_option, common_options, engine_options, figure_options,
                       format_option, positive_int, reference_file, sweep_file, wait_option,
                       write_exports, yes_option)
@@ -156,9 +156,10 @@ def sweep_command(args: Any) -> int:
     refs = read_references(args.reference)
     table_forces = with_reference_forces(table_forces, refs, "table")
     n_cells = check_cell_count(forces.size, durations.size)
-    _guard_work(args, config, n_cells, chunk or default_chunk_size(config, n_cells), "cells",
-                extra=(table_scenarios(config, table_forces.size)
-                       if table_forces is not None else 0))
+    guard_work(args, config, n_cells, "cells",
+               chunk_size=chunk or default_chunk_size(config, n_cells),
+               extra=(table_scenarios(config, table_forces.size)
+                      if table_forces is not None else 0))
     check_batched(config, (forces, "forces"), (durations, "durations"),  # derived rules
                   *([(table_forces, "table_forces")] if table_forces is not None else []))
     reference = reference_points(refs)
@@ -221,8 +222,8 @@ def table_command(args: Any) -> int:
     refs = read_references(args.reference)
     forces = with_reference_forces(parse_grid(forces, "forces"), refs, "table")
     batch = table_batch_size(config, forces.size)
-    _guard_work(args, config, table_scenarios(config, forces.size), batch,
-                "scenarios (estimated)")
+    guard_work(args, config, table_scenarios(config, forces.size), "scenarios (estimated)",
+               chunk_size=batch)
     check_batched(config, (forces, "forces"))  # derived rules, before the folder is made
     out = Path(args.out)
 
@@ -268,18 +269,6 @@ def table_scenarios_per_force(config: Config, resolution: float = 0.01) -> int:
     steps = coarse_steps(config.scenario.t_end, resolution)
     widest = int(max(np.diff(np.concatenate([[0], steps])).max(), 1))
     return int(steps.size + math.ceil(math.log2(widest)) + 1)
-
-
-def _guard_work(args: Any, config: Config, n_scenarios: int, chunk_size: int, what: str,
-                extra: int = 0) -> None:
-    """Say the planned work; refuse it above the limit unless --yes (before any compile)."""
-    from ..runs.chunks import check_planned_work, planned_work  # lazy: the runs floor loads JAX
-
-    t_end = config.scenario.t_end
-    log.info(planned_work(n_scenarios, t_end, chunk_size, what)
-             + (f" (+ about {extra:,} table scenarios)" if extra else ""))
-    if not getattr(args, "yes", False):
-        check_planned_work(n_scenarios + extra, t_end, what)
 
 
 def _stale(figure: Path, source: Path) -> bool:

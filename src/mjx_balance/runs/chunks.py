@@ -102,6 +102,10 @@ SIMULATED_SECONDS_PER_SECOND = (88 * 12.0, 130 * 12.0)
 # Disk per scenario in a chunk file: a 64-row chunk parquet of the default sweep is 23 kB
 # (365 bytes a row; the merged region.parquet holds the same rows again).
 CHUNK_BYTES_PER_SCENARIO = 400
+# The scalar reference (MuJoCo C + OSQP, one scenario at a time: simulate): 1.1 window-s/s on
+# hard pushes (bounds active: OSQP iterates long) to 14.5 on light ones, on the same CPU
+# (docs/scripts/reference_rate.py; BENCHMARKS.md, "The scalar reference's rate").
+REFERENCE_SECONDS_PER_SECOND = (1.0, 15.0)
 MAX_PLANNED_SCENARIOS = 2_000_000  # more than this needs --yes
 MAX_PLANNED_HOURS = 24.0  # an estimate (at the slower rate) beyond this needs --yes
 
@@ -128,25 +132,36 @@ def wall_span(shortest: float, longest: float) -> str:
     return f"about {low} to {high}"
 
 
-def planned_work(n_scenarios: int, t_end: float, chunk_size: int, what: str = "cells") -> str:
-    """One line: scenarios, chunks, simulated time, estimated wall time and disk."""
+def planned_work(n_scenarios: int, t_end: float, chunk_size: int | None, what: str = "cells",
+                 *, rate: tuple[float, float] = SIMULATED_SECONDS_PER_SECOND,
+                 bytes_per_scenario: int = 2 * CHUNK_BYTES_PER_SCENARIO) -> str:
+    """One line: scenarios, chunks (unless ``chunk_size`` is None), simulated time, estimated
+    wall time at ``rate`` (window-s/s: slower, faster) and disk."""
     simulated = n_scenarios * t_end
-    longest, shortest = (simulated / rate for rate in SIMULATED_SECONDS_PER_SECOND)
-    disk = 2 * n_scenarios * CHUNK_BYTES_PER_SCENARIO  # chunks + the merged table
-    low, high = SIMULATED_SECONDS_PER_SECOND
-    chunks = math.ceil(n_scenarios / chunk_size)
-    return (f"planned work: {n_scenarios:,} {what} in {chunks:,} "
-            f"chunk{'' if chunks == 1 else 's'} of {chunk_size}, {simulated:,.0f} s of scenario windows, "
-            f"{wall_span(shortest, longest)} at {low:g}-{high:g} window-s/s "
-            f"(2-core CPU, BENCHMARKS.md; compile not included), about {disk / 1e6:.3g} MB on disk")
+    longest, shortest = (simulated / r for r in rate)
+    disk = n_scenarios * bytes_per_scenario  # (chunks + the merged table, by default)
+    low, high = rate
+    chunks = "" if chunk_size is None else math.ceil(n_scenarios / chunk_size)
+    chunks = "" if chunk_size is None else (
+        f" in {chunks:,} chunk{'' if chunks == 1 else 's'} of {chunk_size}")
+    return (f"planned work: {n_scenarios:,} {what}{chunks}, {simulated:,.0f} s of scenario "
+            f"windows, {wall_span(shortest, longest)} at {low:g}-{high:g} window-s/s "
+            f"(2-core CPU, BENCHMARKS.md; compile not included), about {_size(disk)} on disk")
 
 
-def check_planned_work(n_scenarios: int, t_end: float, what: str = "cells") -> None:
-    """Refuse work above MAX_PLANNED_SCENARIOS or MAX_PLANNED_HOURS (ParameterError, one line
-    saying how to go ahead anyway: --yes)."""
-    hours = n_scenarios * t_end / SIMULATED_SECONDS_PER_SECOND[0] / 3600
-    if n_scenarios > MAX_PLANNED_SCENARIOS or hours > MAX_PLANNED_HOURS:
+def _size(n: float) -> str:
+    """Bytes as they read: 0.5 MB, 12 MB, 3.4 GB."""
+    return f"{n / 1e9:.3g} GB" if n >= 1e9 else f"{n / 1e6:.3g} MB"
+
+
+def check_planned_work(n_scenarios: int, t_end: float, what: str = "cells", *,
+                       rate: tuple[float, float] = SIMULATED_SECONDS_PER_SECOND,
+                       scenarios_limit: int = MAX_PLANNED_SCENARIOS) -> None:
+    """Refuse work above ``scenarios_limit`` or MAX_PLANNED_HOURS at the slower ``rate``
+    (ParameterError, one line saying how to go ahead anyway: --yes)."""
+    hours = n_scenarios * t_end / rate[0] / 3600
+    if n_scenarios > scenarios_limit or hours > MAX_PLANNED_HOURS:
         raise ParameterError(
             f"{n_scenarios:,} {what} of {t_end:g} s (up to {hours:,.1f} h on a 2-core CPU) is "
-            f"beyond the limit of {MAX_PLANNED_SCENARIOS:,} {what} or {MAX_PLANNED_HOURS:g} h; "
+            f"beyond the limit of {scenarios_limit:,} {what} or {MAX_PLANNED_HOURS:g} h; "
             "use a coarser grid, or pass --yes to run it anyway")

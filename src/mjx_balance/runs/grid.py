@@ -99,13 +99,13 @@ STEP_TOL = 1e-6  # how far from a whole number of physics steps a duration may s
 
 
 def check_whole_steps(durations: Sequence[float], physics_dt: float,
-                      name: str = "durations") -> np.ndarray:
+                      name: str = "durations", *, unique: bool = True) -> np.ndarray:
     """Durations must be whole numbers of physics steps (the push acts for whole steps, so any
     other value would be rounded silently), up to float error (STEP_TOL steps); returns them
     snapped to the whole steps (0.10000000001 -> 0.1 at 0.002 s), sorted as given.
 
     Raises ParameterError naming the first offending value and its two nearest valid values, or
-    a value that appears twice once snapped.
+    (``unique``: a grid's durations) a value that appears twice once snapped.
     """
     durations = np.asarray(durations, dtype=np.float64)
     steps = durations / physics_dt
@@ -119,18 +119,20 @@ def check_whole_steps(durations: Sequence[float], physics_dt: float,
             f"{round(below, 12):g} or {round(below + physics_dt, 12):g} s")
     snapped = np.round(np.round(steps) * physics_dt, 12)
     values, counts = np.unique(snapped, return_counts=True)
-    if np.any(counts > 1):
+    if unique and np.any(counts > 1):
         raise ParameterError(f"{name}: push duration {values[counts > 1][0]:g} s appears more "
                              "than once (up to float error)")
     return snapped
 
 
 def check_durations(durations: np.ndarray, t_end: float, name: str = "durations",
-                    physics_dt: float | None = None) -> np.ndarray:
+                    physics_dt: float | None = None, *, unique: bool = True) -> np.ndarray:
     """Durations must lie in [0, t_end] (t_end = scenario.t_end) and, given physics_dt, be whole
-    physics steps (check_whole_steps: then returned snapped to them); returns them."""
+    physics steps (check_whole_steps: then returned snapped to them; ``unique``: each once, as
+    a grid's; given pairs may share a duration); returns them."""
+    durations = np.asarray(durations, dtype=np.float64)
     if physics_dt is not None:
-        durations = check_whole_steps(durations, physics_dt, name)
+        durations = check_whole_steps(durations, physics_dt, name, unique=unique)
     if np.any(durations < 0):
         raise ParameterError(f"{name}: push durations must be >= 0, got {durations.min():g}")
     if np.any(durations > t_end + GRID_TOL):
@@ -175,6 +177,8 @@ def parse_pairs(spec: Any, name: str = "pairs") -> tuple[np.ndarray, np.ndarray]
     naming ``name`` and the bad item."""
     if isinstance(spec, (str, Path)) and Path(spec).is_file():
         return _pairs_file(Path(spec), name)
+    if isinstance(spec, pd.DataFrame):  # columns force and duration, as a pairs file's
+        return _pairs_frame(spec, name)
     if isinstance(spec, str):
         items = [item.strip() for item in spec.split(",") if item.strip()]
         pairs = []
@@ -205,7 +209,12 @@ def _pairs_file(path: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
         frame = pd.read_csv(path, comment="#")
     except Exception as exc:  # noqa: BLE001 - any parse failure is the file's
         raise ParameterError(f"{name}: {path} is not a readable CSV ({exc})") from None
-    frame.columns = [str(c).strip().lower() for c in frame.columns]
+    return _pairs_frame(frame, f"{name} ({path})")
+
+
+def _pairs_frame(frame: pd.DataFrame, name: str) -> tuple[np.ndarray, np.ndarray]:
+    frame = frame.rename(columns=lambda c: str(c).strip().lower())
     if "force" not in frame or "duration" not in frame or not len(frame):
-        raise ParameterError(f"{name}: {path} needs columns force and duration and a row")
-    return parse_pairs(list(zip(frame["force"], frame["duration"])), f"{name} ({path})")
+        raise ParameterError(f"{name}: needs columns force and duration and a row; got "
+                             f"columns {', '.join(map(str, frame.columns)) or 'none'}")
+    return parse_pairs(list(zip(frame["force"], frame["duration"])), name)

@@ -254,6 +254,9 @@ class OutputFolder:
         if problem:
             raise ParameterError(f"{self.manifest_path}: not a manifest of this package "
                                  f"({problem}); use another --out folder")
+        if manifest.get("kind") is not None:  # simulate's or a cohort's: not a sweep's
+            raise ParameterError(f"{self.path} holds another kind of output (a "
+                                 f"{manifest['kind']} run's); use another --out folder")
         return manifest
 
     def open(self) -> dict[str, Any]:
