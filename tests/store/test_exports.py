@@ -288,3 +288,16 @@ def test_the_docs_pandas_lines_run(written):
     scope: dict = {}
     exec(code.replace('"out/', f'"{written / "sweep"}/'), scope)  # noqa: S102 - our own docs
     assert scope["units"]["force"] == "N" and len(scope["region"]) == 15
+
+
+def test_a_copy_never_disagrees_with_its_table(tmp_path, stand_in):
+    """A --format copy left by an earlier run is written again when a later run (any format)
+    rewrites its table: the parquet copy holds the new forces, as the CSV does."""
+    out = tmp_path / "t"
+    assert main(["-q", "table", "--forces", "20", "--format", "parquet", "--out", str(out)]) == 0
+    assert pd.read_parquet(out / "table.parquet")["force"].tolist() == [20]
+    assert main(["-q", "table", "--forces", "20,50", "--out", str(out)]) == 0
+    assert pd.read_csv(out / "table.csv")["force"].tolist() == [20, 50]
+    assert pd.read_parquet(out / "table.parquet")["force"].tolist() == [20, 50]
+    mb.table("20,50,80", out=out)  # the API alike
+    assert pd.read_parquet(out / "table.parquet")["force"].tolist() == [20, 50, 80]

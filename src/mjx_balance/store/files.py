@@ -201,20 +201,25 @@ def check_format(fmt: str | None) -> str | None:
 def export_tables(folder: str | Path, fmt: str | None) -> list[Path]:
     """Every table of ``folder`` and its sub-folders (:data:`TABLES`) also in the format(s)
     ``fmt`` asks for, beside it under the same name: ``csv`` (a parquet table also as CSV, with
-    its sidecar), ``parquet`` (a CSV table also as parquet), ``both``; None writes nothing.
-    The table's own file stays: resume, ``report`` and ``compare`` read it back. Returns the
-    files written."""
-    if check_format(fmt) is None:
-        return []
-    wanted = {"csv": {".csv"}, "parquet": {".parquet"}, "both": {".csv", ".parquet"}}[fmt]
+    its sidecar), ``parquet`` (a CSV table also as parquet), ``both``; None asks for none. A
+    copy made earlier that is older than its table (a later run rewrote the table) is written
+    again whatever ``fmt`` says, so that no copy disagrees with its table. The table's own file
+    stays: resume, ``report`` and ``compare`` read it back. Returns the files written."""
+    fmt = check_format(fmt)
+    wanted = {None: set(), "csv": {".csv"}, "parquet": {".parquet"},
+              "both": {".csv", ".parquet"}}[fmt]
     written = []
     for name in TABLES:
         for path in sorted(Path(folder).rglob(name)):
-            for suffix in sorted(wanted - {path.suffix}):
+            for suffix in sorted({".csv", ".parquet"} - {path.suffix}):
+                target = path.with_suffix(suffix)
+                stale = (target.exists()
+                         and target.stat().st_mtime_ns < path.stat().st_mtime_ns)
+                if suffix not in wanted and not stale:
+                    continue
                 frame = (pd.read_parquet(path) if path.suffix == ".parquet"
                          else pd.read_csv(path))
                 frame.attrs = {}
-                target = path.with_suffix(suffix)
                 (write_csv if suffix == ".csv" else write_parquet)(frame, target)
                 written.append(target)
     return written
