@@ -53,7 +53,7 @@ from .studies.compare import load_configs, run_compare
 from .figures.style import figure_style
 from .runs import DEFAULT_SWEEP
 from .studies.basin import DEFAULT_V, DEFAULT_X, run_basin
-from .studies.cohort import as_members, run_cohort
+from .studies.cohort import as_members, plan_cohort, run_plan
 from .studies.scorecard import (Reference, folder_results, read_references, reference_forces,
                                 write_scorecard)
 from .studies.scorecard import scorecard as score_results
@@ -331,27 +331,35 @@ def cohort(out: str | os.PathLike[str],
     5/50/95th percentiles) and the figures (docs/outputs.md, "cohort"). Resumable: a rerun
     skips finished subjects and resumes a partial one.
 
-    ``subjects``: a sequence of Subjects (ids s01, s02, ...), a dict id -> Subject, or a CSV
-    file's path (columns id (optional), height, mass, sex, ankle_strength, hip_strength).
+    ``subjects``: one Subject (id s01), a sequence of Subjects (ids s01, s02, ...), a dict
+    id -> Subject, or a CSV file's path (columns height, mass and optionally id, sex,
+    ankle_strength, hip_strength, notes; docs/outputs.md, "mjx-balance cohort").
     Grids default to the default sweep's. ``table_forces``: also each subject's table (max
     acting time at these forces and the sustained-push limit; default: none, the limit NaN).
     ``slots``, ``full_length``, ``physics``, ``progress``, ``wait``, ``format``,
-    ``figure_format``, ``figure_size``: as :func:`sweep` and :func:`compare`."""
+    ``figure_format``, ``figure_size``: as :func:`sweep` and :func:`compare`. Every argument
+    and every subject's configuration is checked before anything is written (a ValueError or
+    TypeError naming the argument)."""
     check_format(format)
+    if progress is not None and not isinstance(progress, bool):
+        raise TypeError(f"progress = {progress!r}: must be True, False or None")
+    if not isinstance(wait, bool):
+        raise TypeError(f"wait = {wait!r}: must be True or False")
+    if not isinstance(out, (str, os.PathLike)):
+        raise TypeError(f"out = {out!r}: must be a folder's path (str or os.PathLike)")
     members = as_members(Path(subjects) if isinstance(subjects, os.PathLike)
                          else dict(subjects) if isinstance(subjects, Mapping) else subjects)
     base = as_config(config)
-    out = Path(out)
-    with (_session("cohort"), figure_style(figure_format, figure_size),
-          folder_lock(out, wait=wait)):
-        frame = run_cohort(out, members, base,
+    with figure_style(figure_format, figure_size):  # checks both, first
+        plan = plan_cohort(out, members, base,
                            DEFAULT_SWEEP["forces"] if forces is None else forces,
                            DEFAULT_SWEEP["durations"] if durations is None else durations,
-                           table_forces=table_forces, progress=wanted(progress), log=log.info,
-                           slots=size_value(slots, "slots"), full_length=full_length,
-                           physics=physics)
-        export_tables(out, format)
-        return frame
+                           table_forces=table_forces, log=log.info, slots=slots,
+                           full_length=full_length, physics=physics)
+        with _session("cohort"), folder_lock(plan.out, wait=wait):
+            frame = run_plan(plan, progress=wanted(progress), log=log.info)
+            export_tables(plan.out, format)
+            return frame
 
 
 def read_table(path: str | os.PathLike[str]) -> "pd.DataFrame":

@@ -320,3 +320,128 @@ def test_a_command_says_a_never_binding_limit_once(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 0
     assert err.count("cop_bounds = [-0.2, 0.2]") == 1, err
+
+
+# --- a subjects CSV file: its columns, its rows, and the bounds every path shares -----------
+
+
+def _csv(tmp_path, text: str, encoding: str = "utf-8"):
+    path = tmp_path / "people.csv"
+    path.write_text(text, encoding=encoding)
+    return path
+
+
+def test_csv_headers_match_ignoring_case_spaces_and_an_excel_bom(tmp_path):
+    """`Sex` (a female participant read as male), `ID` or a byte-order mark before `id` (the
+    ids lost) and a BOM before `height` ("give height") are read as their columns."""
+    from mjx_balance.model.params import subject_rows
+
+    rows = subject_rows(_csv(tmp_path, "ID, Height ,MASS,Sex,Ankle_Strength\n"
+                                       "P1,1.6,55,Female,0.8\n"))
+    assert [(r.line, r.id) for r in rows] == [(2, "P1")]
+    assert rows[0].subject == Subject(1.6, 55, "female", 0.8)
+    for header in ("id,height,mass,sex", "height,mass,sex"):  # the BOM before either column
+        rows = subject_rows(_csv(tmp_path, f"{header}\n" + ("P1," if "id" in header else "")
+                                 + "1.6,55,female\n", encoding="utf-8-sig"))
+        assert rows[0].subject == Subject(1.6, 55, "female")
+        assert rows[0].id == ("P1" if "id" in header else "")
+
+
+def test_csv_comment_and_blank_lines_are_skipped_and_lines_keep_their_numbers(tmp_path):
+    """A `#` line before the header (it was read as the header: "give height") or between
+    rows is a comment; errors still name the file's own line number."""
+    from mjx_balance.model.params import subject_rows
+
+    path = _csv(tmp_path, "# participants of the pilot, 2024\nid,height,mass\n\n"
+                          "a,1.6,55\n  # b withdrew\nc,1.8,abc\n")
+    with pytest.raises(ParameterError, match=r"line 6: mass = 'abc'"):
+        subject_rows(path)
+    path.write_text("# pilot\nid,height,mass\na,1.6,55\n# b withdrew\nc,1.8,80\n")
+    assert [(r.line, r.id) for r in subject_rows(path)] == [(3, "a"), (5, "c")]
+
+
+@pytest.mark.parametrize("header, words", [
+    ("id,height,mass,ankle_strenght", ["unknown column(s) 'ankle_strenght'",
+                                       "known columns: id, height, mass, sex, ankle_strength"]),
+    ("id,height,mass,weight", ["'weight'"]),
+    ("id;height;mass", ["'id;height;mass'", "separated by commas"]),
+    ("id,height,Height,mass", ["column 'height' is given twice"]),
+    ("id,mass", ["line 1: the header has no column height"]),
+])
+def test_csv_an_unknown_repeated_or_missing_column_is_refused_by_name(tmp_path, header, words):
+    """A misspelt column was ignored (every strength stayed 1): any column that is not a
+    subject's field, the id or a free-text note is refused, naming it and the known ones."""
+    from mjx_balance.model.params import subjects_from_csv
+
+    path = _csv(tmp_path, f"{header}\n" + ",".join(["x"] * len(header.split(","))) + "\n")
+    with pytest.raises(ParameterError) as err:
+        subjects_from_csv(path)
+    message = str(err.value)
+    assert message.startswith(str(path)) and "\n" not in message
+    for word in words:
+        assert word in message
+
+
+def test_csv_notes_columns_are_read_and_ignored(tmp_path):
+    from mjx_balance.model.params import subjects_from_csv
+
+    path = _csv(tmp_path, "id,height,mass,Notes\na,1.6,55,\"tall, left-handed\"\n")
+    assert subjects_from_csv(path) == [Subject(1.6, 55)]
+
+
+@pytest.mark.parametrize("text, words", [
+    ("id,height,mass\nP1,1,6,55\n", ["line 2: 4 values for the header's 3 columns",
+                                     "decimal comma"]),
+    ("id,height,mass\nP1,\"1,6\",55\n", ["line 2: height = '1,6' is not a number",
+                                         "decimal comma"]),
+    ("id,height,mass,sex\nP1,1,6,55\n", ["line 2", "subject.sex = '55'"]),
+    ("id,height,mass,,\nP1,1.6,55,,x\n", ["line 2: 'x' is in a column without a name"]),
+    ("id,height,mass\n", ["holds a header and no subject"]),
+    ("", ["empty"]),
+])
+def test_csv_a_decimal_comma_or_a_ragged_row_is_refused(tmp_path, text, words):
+    """`P1,1,6,55` (height 1,6 m with a decimal comma) was read as a 1-m, 6-kg subject (the
+    55 dropped): a row with more values than columns is refused naming its line."""
+    from mjx_balance.model.params import subjects_from_csv
+
+    with pytest.raises(ParameterError) as err:
+        subjects_from_csv(_csv(tmp_path, text))
+    for word in words:
+        assert word in str(err.value)
+
+
+@pytest.mark.parametrize("height, mass", [(1.0, 6.0), (1.0, 75.0), (2.4, 50.0), (1.5, 140.0)])
+def test_a_body_no_one_has_is_refused_on_every_path(tmp_path, height, mass):
+    """Height and mass each in range can still make no body (1 m and 6 kg: the decimal
+    comma's `1,6`): the body mass index is bounded (params.BMI_RANGE), in the Subject's own
+    check, so --subject, a [subject] table, a CSV row and mb.Subject refuse it alike."""
+    from mjx_balance.model.params import BMI_RANGE, subjects_from_csv
+
+    bmi = mass / height ** 2
+    assert not BMI_RANGE[0] <= bmi <= BMI_RANGE[1]
+    for make in (lambda: Subject(height, mass),
+                 lambda: parse_subject(f"height={height},mass={mass}"),
+                 lambda: Config().replace(subject={"height": height, "mass": mass}),
+                 lambda: subjects_from_csv(_csv(tmp_path, f"height,mass\n{height},{mass}\n"))):
+        with pytest.raises(ParameterError, match=r"body mass index .* outside the plausible"):
+            make()
+    # the bounds' own edges are bodies
+    for bmi in BMI_RANGE:
+        assert Subject(1.7, bmi * 1.7 ** 2).mass == pytest.approx(bmi * 2.89)
+
+
+def test_a_populations_bodies_lie_within_the_bounds():
+    """A population draws height and mass independently: the mass is redrawn into the body
+    mass indices a subject accepts at that height (no subject refused mid-draw)."""
+    from mjx_balance.model.params import BMI_RANGE
+    from mjx_balance.studies import cohort
+
+    tall_light = cohort.population(40, seed=2, height_mean=2.3, height_sd=0.1,
+                                   mass_mean=45, mass_sd=10)
+    bmi = np.array([m.subject.mass / m.subject.height ** 2 for m in tall_light])
+    assert bmi.min() >= BMI_RANGE[0] and bmi.max() <= BMI_RANGE[1]
+    # a seed's subjects are those it drew before the bound (none of them was outside it):
+    # the first three of population(30, seed=7), as the code before the bound drew them
+    assert [m.subject for m in cohort.population(30, seed=7)[:3]] == [
+        Subject(1.7269, 66.71, "male"), Subject(1.6591, 58.1, "female"),
+        Subject(1.8206, 64.09, "female")]

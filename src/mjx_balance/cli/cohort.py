@@ -49,8 +49,9 @@ def add_parser(sub: Any) -> None:
     source.add_argument("--hip-strengths", default=None, metavar="GRID",
                         help="factors on the mass-scaled hip torque bound (default: 1)")
     source.add_argument("--subjects", type=input_file, default=None, metavar="FILE.csv",
-                        help="participants: a CSV file with columns id (optional), height, "
-                             "mass, sex, ankle_strength, hip_strength")
+                        help="participants: a CSV file with columns height, mass and "
+                             "optionally id, sex, ankle_strength, hip_strength, notes (names "
+                             "in any case; lines starting with # are comments)")
     source.add_argument("--population", type=positive_int, default=None, metavar="N",
                         help="N subjects drawn at random (with --seed): sex, then height and "
                              "mass from normal distributions truncated to a subject's ranges")
@@ -142,22 +143,23 @@ def members_from(args: argparse.Namespace) -> list:
 
 def cohort_command(args: Any) -> int:
     """Every subject's region map in OUT/subjects/<id>/, then cohort.csv, the summary and the
-    figures."""
+    figures. Everything is checked (the subjects, the grids, every subject's configuration, a
+    folder holding another cohort's results) before the folder is made or locked."""
     from ..model.params import with_convention  # lazy: not for --help
     from ..runs import DEFAULT_SWEEP  # lazy: the runs floor loads JAX; not for --help
-    from ..studies.cohort import run_cohort  # lazy: as above
+    from ..studies.cohort import plan_cohort, run_plan  # lazy: as above
 
     members = members_from(args)
     base = with_convention(base_config(args), args.convention)
     out = Path(args.out)
+    say = logging.getLogger("mjx_balance").info
+    plan = plan_cohort(out, members, base, args.forces or DEFAULT_SWEEP["forces"],
+                       args.durations or DEFAULT_SWEEP["durations"],
+                       table_forces=args.table_forces, log=say, slots=args.slots,
+                       full_length=args.full_length, physics=args.physics or "auto")
 
     def work() -> None:
-        run_cohort(out, members, base, args.forces or DEFAULT_SWEEP["forces"],
-                   args.durations or DEFAULT_SWEEP["durations"],
-                   table_forces=args.table_forces, progress=progress_enabled(args),
-                   log=logging.getLogger("mjx_balance").info,
-                   slots=args.slots, full_length=args.full_length,
-                   physics=args.physics or "auto")
+        run_plan(plan, progress=progress_enabled(args), log=say)
         write_exports(out, args)
 
     return in_folder(out, work, wait=getattr(args, "wait", False))

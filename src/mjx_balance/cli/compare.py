@@ -7,19 +7,29 @@ for a release (a notice on stderr)."""
 
 from __future__ import annotations
 
+import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
+from ..model.params import ParameterError, apply_overrides, with_convention
+from ..studies.defaults import (  # light
+    DEFAULT_SWEEP_DURATIONS,
+    DEFAULT_SWEEP_FORCES,
+    DEFAULT_SWEEP_TABLE_FORCES,
+)
 from .common import in_folder, progress_enabled
-import argparse
-import sys
-
-from ..model.params import ParameterError, apply_overrides, run_config, with_convention
-from ..studies.defaults import (DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,  # light
-                                DEFAULT_SWEEP_TABLE_FORCES)
-from .options import (cluster_option, config_options, engine_options, figure_options,
-                      format_option, out_folder,
-                      sweep_file, wait_option, write_exports)
+from .options import (
+    cluster_option,
+    config_options,
+    engine_options,
+    figure_options,
+    format_option,
+    out_folder,
+    sweep_file,
+    wait_option,
+    write_exports,
+)
 
 OLD_FORM = ("mjx-balance: compare --config FILE ... (the configurations to compare) is now "
             "compare FILE ... or --variant NAME=FILE; --config names the base configuration "
@@ -90,12 +100,11 @@ def variants_and_base(args: Any) -> tuple[list[tuple[str | None, str]], str | No
 def compare_command(args: Any) -> int:
     """Each variant's region map and table in OUT/<name>/, then compare.csv and compare.png."""
     from ..runs import DEFAULT_SWEEP  # lazy: the runs floor loads JAX; not for --help
-    from ..studies.compare import load_configs, load_one, run_compare  # lazy: as above
+    from ..studies.compare import load_base, load_configs, run_compare  # lazy: as above
 
     variants, base = variants_and_base(args)
     configs = load_configs([path for _, path in variants],
-                           base=(run_config(base, subject=args.subject) if args.subject
-                                 else load_one(base) if base else None),
+                           base=load_base(base, getattr(args, "subject", None)),
                            names=[name for name, _ in variants])
     configs = {name: with_convention(apply_overrides(config, args.set), args.convention)
                for name, config in configs.items()}

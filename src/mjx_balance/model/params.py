@@ -556,6 +556,13 @@ def forget_warnings() -> None:
 STUDY_BODY_MASS = 66.3  # kg, BodyParams().total_mass
 HEIGHT_RANGE = (0.5, 2.5)  # m: small children to the tallest adults
 SUBJECT_MASS_RANGE = (5.0, 300.0)  # kg
+# Body mass index mass / height^2 [kg/m^2]: height and mass each in range can still make no
+# body. Below 10 no adult has survived and no child lies (the WHO growth charts' lowest
+# centiles are near 12); above 60 lies beyond the severely obese participants of balance
+# studies, where a segment table fitted to lean young adults (de Leva 1996: BMI 20-24) no
+# longer describes the body. The bound refuses a height or a mass mistyped or misread, e.g. a
+# decimal comma's "1,6" read as 1 m and 6 kg (BMI 6) or "1,75" as 1 m and 75 kg (BMI 75).
+BMI_RANGE = (10.0, 60.0)  # kg/m^2
 STRENGTH_RANGE = (0.0, 10.0)  # factor, > 0
 # What a subject derives (a configuration's values that [subject] replaces).
 SUBJECT_BODY_KEYS = ("foot_mass", "foot_length", "foot_inertia", "lower_mass", "lower_length",
@@ -592,6 +599,12 @@ class Subject:
             _fail("subject", "sex", f"must be one of {SEXES}", self.sex)
         _check_range("subject", self, ("height",), *HEIGHT_RANGE, "m")
         _check_range("subject", self, ("mass",), *SUBJECT_MASS_RANGE, "kg")
+        bmi = self.mass / self.height ** 2
+        if not BMI_RANGE[0] <= bmi <= BMI_RANGE[1]:
+            raise ParameterError(
+                f"subject.mass = {self.mass:g} kg at subject.height = {self.height:g} m: body "
+                f"mass index {bmi:.3g} kg/m^2, outside the plausible [{BMI_RANGE[0]:g}, "
+                f"{BMI_RANGE[1]:g}]; check the height [m] and the mass [kg] (a decimal comma?)")
         for name in ("ankle_strength", "hip_strength"):
             value = getattr(self, name)
             if not STRENGTH_RANGE[0] < value <= STRENGTH_RANGE[1]:
@@ -693,41 +706,129 @@ def parse_subject(text: str) -> Subject:
 
 
 def _subject_value(key: str, raw: str) -> str | float:
-    """A subject field's value from its text: ``sex`` as written, any other a number
-    (ValueError where it is not one)."""
-    return raw if key == "sex" else float(raw)
+    """A subject field's value from its text: ``sex`` in lower case (``Female`` is female), any
+    other a number (ValueError where it is not one)."""
+    return raw.lower() if key == "sex" else float(raw)
+
+
+# A subjects CSV file's columns besides Subject's fields: the subject's id (cohorts name its
+# folder after it) and free-text columns, read and ignored. Any other column is refused: a
+# misspelt ``ankle_strenght`` would otherwise leave every strength at 1 without a word.
+CSV_ID_COLUMN = "id"
+CSV_TEXT_COLUMNS = ("note", "notes", "comment", "comments")
+
+
+@dataclass(frozen=True)
+class SubjectRow:
+    """One subject of a CSV file: its line in the file, its id as written ("" when the row or
+    the file gives none) and the Subject."""
+
+    line: int
+    id: str
+    subject: Subject
 
 
 def subjects_from_csv(path: str | Path) -> list[Subject]:
+    """The subjects of a CSV file (:func:`subject_rows`), without their ids."""
+    return [row.subject for row in subject_rows(path)]
+
+
+def subject_rows(path: str | Path) -> list[SubjectRow]:
     """The subjects of a CSV file with a header: columns ``height`` and ``mass`` (required),
-    ``sex``, ``ankle_strength``, ``hip_strength`` (optional; empty cells take the defaults);
-    other columns (an id, notes) are ignored. ParameterError naming the file and line."""
+    ``sex``, ``ankle_strength``, ``hip_strength`` (optional; empty cells take the defaults),
+    ``id`` (optional) and free text in ``note``/``notes``/``comment``/``comments`` (ignored).
+    Column names are matched ignoring case and surrounding spaces; an Excel byte-order mark is
+    skipped; lines starting with ``#`` are comments, skipped, and blank lines too. Refused,
+    with a ParameterError naming the file, the line and the value: an unknown or repeated
+    column, a row with more values than the header has columns (a decimal comma: ``1,62``),
+    a value that is not a number, a subject out of its plausible ranges."""
     import csv
 
     path = Path(path)
     try:
-        with path.open(newline="", encoding="utf-8") as fh:
-            rows = list(csv.DictReader(fh))
+        with path.open(newline="", encoding="utf-8-sig") as fh:
+            rows = list(_csv_rows(fh))
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise ParameterError(f"{path}: cannot be read as a CSV file ({exc})") from None
-    known = [f.name for f in fields(Subject)]
-    subjects = []
-    for line, row in enumerate(rows, start=2):
-        values: dict[str, Any] = {}
-        for key in known:
-            raw = (row.get(key) or "").strip()
-            if not raw:
+    if not rows:
+        raise ParameterError(f"{path}: empty; give a header (such as id,height,mass,sex) and "
+                             "a row per subject")
+    columns = _subject_columns(path, *rows[0])
+    if len(rows) == 1:
+        raise ParameterError(f"{path}: holds a header and no subject")
+    return [_subject_row(path, line, columns, cells) for line, cells in rows[1:]]
+
+
+def _csv_rows(fh: Any) -> list[tuple[int, list[str]]]:
+    """(line number, cells) of each row of a CSV file that holds something: lines starting
+    with ``#`` (after spaces) are comments, left out before the CSV reader sees them."""
+    import csv
+
+    where = [0]
+
+    def lines() -> Any:
+        for number, text in enumerate(fh, start=1):
+            if text.lstrip().startswith("#"):
                 continue
-            try:
-                values[key] = _subject_value(key, raw)
-            except ValueError:
-                raise ParameterError(f"{path}, line {line}: {key} = {raw!r} is not a "
-                                     "number") from None
+            where[0] = number
+            yield text
+
+    return [(where[0], cells) for cells in csv.reader(lines())
+            if any(cell.strip() for cell in cells)]
+
+
+def _subject_columns(path: Path, line: int, header: list[str]) -> list[str]:
+    """The header's column names, stripped and in lower case, checked: each known, once, and
+    height and mass among them."""
+    known = [CSV_ID_COLUMN, *(f.name for f in fields(Subject))]
+    names = [h.strip().lower() for h in header]
+    listed = f"known columns: {', '.join(known)} (and {', '.join(CSV_TEXT_COLUMNS)}: ignored)"
+    unknown = [h.strip() for h, n in zip(header, names) if n and n not in known
+               and n not in CSV_TEXT_COLUMNS]
+    if unknown:
+        hint = ("; columns are separated by commas" if any(";" in u or "\t" in u
+                                                          for u in unknown) else "")
+        raise ParameterError(f"{path}, line {line}: unknown column(s) "
+                             f"{', '.join(repr(u) for u in unknown)}; {listed}{hint}")
+    twice = sorted({n for n in names if n and names.count(n) > 1})
+    if twice:
+        raise ParameterError(f"{path}, line {line}: column {twice[0]!r} is given twice "
+                             "(column names ignore case)")
+    missing = [n for n in ("height", "mass") if n not in names]
+    if missing:
+        raise ParameterError(f"{path}, line {line}: the header has no column "
+                             f"{' and no column '.join(missing)}; {listed}")
+    return names
+
+
+def _subject_row(path: Path, line: int, columns: list[str], cells: list[str]) -> SubjectRow:
+    """One data row as a SubjectRow (ParameterError naming the file, the line and the value)."""
+    where = f"{path}, line {line}"
+    if len(cells) > len(columns):
+        raise ParameterError(
+            f"{where}: {len(cells)} values for the header's {len(columns)} columns "
+            f"({','.join(cells)}); a decimal comma? Write decimals with a point (1.62)")
+    values: dict[str, Any] = {}
+    ident = ""
+    for name, raw in zip(columns, cells):
+        raw = raw.strip()
+        if not raw or name in CSV_TEXT_COLUMNS:
+            continue
+        if not name:
+            raise ParameterError(f"{where}: {raw!r} is in a column without a name; name it "
+                                 "in the header or remove it")
+        if name == CSV_ID_COLUMN:
+            ident = raw
+            continue
         try:
-            subjects.append(as_subject(values))
-        except ParameterError as exc:
-            raise ParameterError(f"{path}, line {line}: {exc}") from None
-    return subjects
+            values[name] = _subject_value(name, raw)
+        except ValueError:
+            hint = " (a decimal comma? write a point)" if "," in raw else ""
+            raise ParameterError(f"{where}: {name} = {raw!r} is not a number{hint}") from None
+    try:
+        return SubjectRow(line, ident, as_subject(values))
+    except ParameterError as exc:
+        raise ParameterError(f"{where}: {exc}") from None
 
 
 _SECTIONS = {"body": BodyParams, "controller": ControllerParams, "scenario": ScenarioParams}

@@ -29,13 +29,19 @@ the persistent cache warm; docs/studies.md, "Cohorts", has the measured cost).
 Populations (:func:`population`): ``N`` subjects drawn from a NumPy ``Generator`` seeded
 with ``seed``; subject by subject: sex (female with probability ``female_fraction``), then
 height ~ Normal(height_mean, height_sd) and mass ~ Normal(mass_mean, mass_sd), independent,
-each redrawn until it lies in the range a Subject accepts (``params.HEIGHT_RANGE``,
-``SUBJECT_MASS_RANGE``): a truncated normal. The same seed gives the same subjects.
+each redrawn until it lies in the range a Subject accepts (``params.HEIGHT_RANGE``, then
+``SUBJECT_MASS_RANGE`` narrowed to the body mass indices of ``BMI_RANGE`` at that height): a
+truncated normal. The same seed gives the same subjects.
+
+Everything is checked before the folder is made or locked (:func:`plan_cohort`: the ids, the
+grids, the engine's options and every subject's configuration as the batched closed loop will
+run it), so a refused cohort writes nothing. A cohort folder none of whose subjects holds a
+result (a run refused or stopped before its first result) is taken over by a run with another
+configuration or other subjects, as a sweep folder is (``store.folder``).
 """
 
 from __future__ import annotations
 
-import csv
 import itertools
 import json
 import math
@@ -51,17 +57,27 @@ import pandas as pd
 from ..figures import cohort as cohort_figures
 from ..figures.region import log_durations
 from ..model.params import (
+    BMI_RANGE,
     HEIGHT_RANGE,
     SUBJECT_MASS_RANGE,
     Config,
     ParameterError,
     Subject,
-    subjects_from_csv,
+    subject_rows,
 )
-from ..runs.folders import duration_values, grid_values, run_region, run_table_folder
+from ..rollout.cpath import PATHS
+from ..runs.folders import (
+    check_batched,
+    check_float32_grid,
+    duration_values,
+    grid_values,
+    run_region,
+    run_table_folder,
+    size_value,
+)
 from ..runs.progress import progress_bar
 from ..store.files import MANIFEST, REGION, TABLE, write_csv, write_text
-from ..store.folder import config_dict
+from ..store.folder import OutputFolder, config_dict
 from ..store.provenance import with_run
 from .compare import boundary_segments, numbers
 
@@ -73,6 +89,7 @@ CHOSEN = 8  # cohort_boundaries.png: at most this many subjects' boundaries
 SUBJECT_COLUMNS = ["id", "height", "mass", "sex", "ankle_strength", "hip_strength"]
 STATISTICS = ("mean", "sd", "p5", "p50", "p95")
 ID_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
+ID_LENGTH = 64  # characters: a folder name far below every file system's limit (255 bytes)
 
 
 @dataclass(frozen=True)
@@ -92,19 +109,36 @@ def numbered(subjects: Sequence[Subject]) -> list[Member]:
     return [Member(f"s{i:0{width}d}", s) for i, s in enumerate(subjects, start=1)]
 
 
+def id_problem(ident: Any) -> str | None:
+    """Why ``ident`` cannot be a subject's id (None if it can): ids are folder names, of
+    letters, digits, '.', '_', '-', starting with a letter or digit, at most ID_LENGTH long."""
+    if not isinstance(ident, str) or not ID_PATTERN.fullmatch(ident):
+        return ("is not a folder name (letters, digits, '.', '_', '-', starting with a letter "
+                "or digit)")
+    if len(ident) > ID_LENGTH:
+        return f"is {len(ident)} characters long; an id has at most {ID_LENGTH}"
+    return None
+
+
 def check_ids(members: Sequence[Member]) -> None:
-    """Ids are folder names (letters, digits, '.', '_', '-'; not starting with '.' or '-')
-    and each is given once (also ignoring case: a case-insensitive disk would merge them)."""
+    """Ids are folder names (:func:`id_problem`) and each is given once (also ignoring case: a
+    case-insensitive disk would merge them)."""
     if not members:
         raise ParameterError("a cohort needs at least one subject")
     seen: dict[str, str] = {}
     for member in members:
-        if not ID_PATTERN.fullmatch(member.id):
-            raise ParameterError(f"subject id {member.id!r} is not a folder name (letters, "
-                                 "digits, '.', '_', '-', starting with a letter or digit)")
+        problem = id_problem(member.id)
+        if problem:
+            raise ParameterError(f"subject id {_shown(member.id)} {problem}")
         if member.id.lower() in seen:
             raise ParameterError(f"subject id {member.id!r} is given twice")
         seen[member.id.lower()] = member.id
+
+
+def _shown(ident: Any) -> str:
+    """An id as an error message shows it: repr, a long one cut in the middle."""
+    text = repr(ident)
+    return text if len(text) <= 40 else f"{text[:20]}...{text[-12:]}"
 
 
 def subject_grid(heights: Sequence[float], masses: Sequence[float],
@@ -129,6 +163,12 @@ def _truncated(rng: np.random.Generator, mean: float, sd: float, low: float, hig
                          f"a subject accepts, [{low:g}, {high:g}]; check the mean and SD")
 
 
+def _rounded_within(mass: float, low: float, high: float) -> float:
+    """``mass`` to 0.01 kg, kept inside [low, high] (rounding must not leave the range)."""
+    rounded = round(mass, 2)
+    return rounded if low <= rounded <= high else mass
+
+
 def population(n: int, seed: int, *, height_mean: float = 1.70, height_sd: float = 0.09,
                mass_mean: float = 70.0, mass_sd: float = 12.0,
                female_fraction: float = 0.5) -> list[Member]:
@@ -147,46 +187,69 @@ def population(n: int, seed: int, *, height_mean: float = 1.70, height_sd: float
     subjects = []
     for _ in range(int(n)):
         sex = "female" if rng.random() < female_fraction else "male"
-        height = _truncated(rng, height_mean, height_sd, *HEIGHT_RANGE, "height")
-        mass = _truncated(rng, mass_mean, mass_sd, *SUBJECT_MASS_RANGE, "mass")
-        subjects.append(Subject(round(height, 4), round(mass, 2), sex))
+        height = round(_truncated(rng, height_mean, height_sd, *HEIGHT_RANGE, "height"), 4)
+        low = max(SUBJECT_MASS_RANGE[0], BMI_RANGE[0] * height ** 2)  # a body that can be
+        high = min(SUBJECT_MASS_RANGE[1], BMI_RANGE[1] * height ** 2)  # (params.BMI_RANGE)
+        mass = _truncated(rng, mass_mean, mass_sd, low, high, "mass")
+        subjects.append(Subject(height, _rounded_within(mass, low, high), sex))
     return numbered(subjects)
 
 
 def read_subjects(path: str | Path) -> list[Member]:
-    """The subjects of a CSV file (columns id (optional), height, mass, sex, ankle_strength,
-    hip_strength; ``params.subjects_from_csv`` refuses a bad row naming its line and value);
-    rows without an id are numbered s01, ... by their position."""
+    """The subjects of a CSV file (``params.subject_rows``: columns id (optional), height,
+    mass, sex, ankle_strength, hip_strength, notes; a bad column or row refused naming its
+    line and value); rows without an id are numbered s01, ... by their position. Ids are
+    checked here, as the file is read (:func:`id_problem`, each once)."""
     path = Path(path)
-    subjects = subjects_from_csv(path)
-    with path.open(newline="", encoding="utf-8") as fh:
-        ids = [(row.get("id") or "").strip() for row in csv.DictReader(fh)]
-    defaults = numbered(subjects)
-    members = [Member(given or default.id, subject)
-               for given, default, subject in zip(ids, defaults, subjects)]
-    for line, member in enumerate(members, start=2):
-        if not ID_PATTERN.fullmatch(member.id):
-            raise ParameterError(f"{path}, line {line}: id = {member.id!r} is not a folder name "
-                                 "(letters, digits, '.', '_', '-')")
-    check_ids(members)
+    rows = subject_rows(path)
+    defaults = numbered([row.subject for row in rows])
+    members = []
+    for row, default in zip(rows, defaults):
+        problem = id_problem(row.id) if row.id else None
+        if problem:
+            raise ParameterError(f"{path}, line {row.line}: id = {_shown(row.id)} {problem}")
+        members.append(Member(row.id or default.id, row.subject))
+    try:
+        check_ids(members)
+    except ParameterError as exc:
+        raise ParameterError(f"{path}: {exc}") from None
     return members
 
 
 def as_members(subjects: Any) -> list[Member]:
-    """Members from a CSV path, a dict id -> Subject, or a sequence of Subjects / Members."""
+    """Members from a CSV path, a dict id -> Subject, one Subject (id s01) or Member, or a
+    sequence of Subjects (ids s01, s02, ...) or of Members; anything else is refused naming
+    ``subjects`` and the item that is wrong."""
     if isinstance(subjects, (str, Path)):
         return read_subjects(subjects)
+    if isinstance(subjects, (Subject, Member)):
+        subjects = [subjects]
     if isinstance(subjects, dict):
+        for key, value in subjects.items():
+            if not isinstance(value, Subject):
+                raise ParameterError(f"subjects[{_shown(key)}] = {value!r}: expected a Subject "
+                                     "(mb.Subject)")
         members = [Member(str(k), v) for k, v in subjects.items()]
     else:
-        items = list(subjects)
-        if all(isinstance(s, Subject) for s in items):
+        try:
+            items = list(subjects)
+        except TypeError:
+            raise ParameterError(
+                f"subjects: expected a Subject (mb.Subject), a sequence of them, a dict id -> "
+                f"Subject or a CSV file's path; got {type(subjects).__name__} "
+                f"({subjects!r})") from None
+        kinds = {type(s) for s in items}
+        if kinds <= {Subject}:
             members = numbered(items)
-        else:
+        elif kinds <= {Member} and all(isinstance(m.subject, Subject) for m in items):
             members = items
-    for member in members:
-        if not isinstance(member, Member) or not isinstance(member.subject, Subject):
-            raise ParameterError(f"subjects: expected Subjects (mb.Subject), got {member!r}")
+        else:
+            bad = next((s for s in items if not (isinstance(s, Subject) or isinstance(
+                s, Member) and isinstance(s.subject, Subject))), None)
+            raise ParameterError(
+                f"subjects: expected Subjects (mb.Subject), got {bad!r} ({type(bad).__name__})"
+                if bad is not None else "subjects: give Subjects (numbered s01, s02, ...) or "
+                "Members (each with its id), not both")
     check_ids(members)
     return members
 
@@ -199,26 +262,114 @@ def _record(members: Sequence[Member], base: Config, forces: np.ndarray,
                        "subjects": [m.record() for m in members]}}
 
 
-def open_manifest(out: Path, record: dict[str, Any]) -> dict[str, Any]:
+def holds_results(out: Path, base: Config) -> bool:
+    """Whether a cohort folder holds anything computed: cohort.csv, or a subject's folder with
+    a result (``OutputFolder.holds_results``: a map, a chunk, a table's kept scenario)."""
+    if (out / COHORT_CSV).exists():
+        return True
+    folders = (out / SUBJECTS).glob("*/") if (out / SUBJECTS).is_dir() else []
+    return any(OutputFolder(folder, base).holds_results() for folder in folders)
+
+
+def open_manifest(out: Path, record: dict[str, Any], base: Config | None = None,
+                  say: Callable[[str], None] | None = None) -> dict[str, Any]:
     """The cohort's manifest: a new one, or the folder's if it holds this same cohort (base,
-    grids, subjects); another cohort's folder is refused."""
+    grids, subjects); another cohort's folder is refused, unless it holds no result yet (a
+    run refused or stopped before its first result): then this cohort takes it over, keeping
+    its runs' records (``say`` tells). Reads only: the caller writes what it returns."""
     path = out / MANIFEST
-    if path.exists():
-        try:
-            old = json.loads(path.read_text())
-        except (OSError, ValueError) as exc:
-            raise ParameterError(f"{path}: cannot be read ({exc}); use another --out") from None
-        if not isinstance(old, dict) or old.get("kind") != "cohort":
-            raise ParameterError(f"{out} holds another kind of output (its {MANIFEST} is not a "
-                                 "cohort's); use another --out folder")
-        for key in ("config", "cohort"):
-            if json.dumps(old.get(key), sort_keys=True) != json.dumps(record[key],
-                                                                      sort_keys=True):
-                what = "configuration" if key == "config" else "subjects or grids"
-                raise ParameterError(f"{out} holds a cohort with other {what}; use another "
-                                     "--out folder or the same cohort")
+    if not path.exists():
+        return dict(record)
+    try:
+        old = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise ParameterError(f"{path}: cannot be read ({exc}); use another --out") from None
+    if not isinstance(old, dict) or old.get("kind") != "cohort":
+        raise ParameterError(f"{out} holds another kind of output (its {MANIFEST} is not a "
+                             "cohort's); use another --out folder")
+    differ = [key for key in ("config", "cohort") if json.dumps(old.get(key), sort_keys=True)
+              != json.dumps(record[key], sort_keys=True)]
+    if not differ:
         return {**old, **record}
-    return dict(record)
+    if not holds_results(out, base if base is not None else Config()):
+        if say is not None:
+            say(f"note: {out} holds no results of the cohort it was made for; starting it "
+                "anew with this run's configuration and subjects")
+        runs = old.get("runs")
+        return {**record, **({"runs": runs} if isinstance(runs, list) else {})}
+    what = "configuration" if differ[0] == "config" else "subjects or grids"
+    raise ParameterError(f"{out} holds a cohort with other {what}; use another --out folder "
+                         "or the same cohort")
+
+
+@dataclass(frozen=True)
+class CohortPlan:
+    """A cohort checked before anything is written (:func:`plan_cohort`): its folder, its
+    subjects and each one's configuration, the grids, and the engine's options."""
+
+    out: Path
+    members: tuple[Member, ...]
+    base: Config
+    configs: dict[str, Config]
+    forces: np.ndarray
+    durations: np.ndarray
+    tables: np.ndarray | None
+    engine: dict[str, Any]
+
+    def record(self) -> dict[str, Any]:
+        return _record(self.members, self.base, self.forces, self.durations, self.tables)
+
+
+def check_engine(slots: Any = None, full_length: Any = False, physics: Any = "auto",
+                 cluster: Any = None) -> dict[str, Any]:
+    """The engine's options as ``run_region`` takes them, each checked (ParameterError, a
+    ValueError, naming the argument and what it accepts)."""
+    if not isinstance(physics, str) or physics not in PATHS:
+        raise ParameterError(f"physics = {physics!r}: must be one of "
+                             f"{', '.join(repr(p) for p in PATHS)}")
+    if not isinstance(full_length, bool) and type(full_length).__name__ != "bool_":
+        raise ParameterError(f"full_length = {full_length!r}: must be True or False")
+    engine = {"slots": size_value(slots, "slots"), "full_length": bool(full_length),
+              "physics": physics}
+    if cluster is not None:
+        engine["cluster"] = cluster
+    return engine
+
+
+def plan_cohort(out: str | Path, members: Sequence[Member], base: Config, forces: Any,
+                durations: Any, *, table_forces: Any = None, batched: bool = True,
+                log: Callable[[str], None] | None = None, **engine: Any) -> CohortPlan:
+    """Check a cohort before anything is written or locked: the ids, the grids, the engine's
+    options (:func:`check_engine`), every subject's configuration (``Subject.config(base)``,
+    the durations on its physics steps, and with ``batched`` everything the batched closed
+    loop refuses: ``runs.folders.check_batched``, about 0.5 s a subject on a CPU) and a folder
+    ``out`` that holds another cohort's results. ParameterError (exit code 2) for the first
+    problem, naming it."""
+    members = tuple(members)
+    check_ids(members)
+    engine = check_engine(**engine)
+    forces = grid_values(forces, "forces")
+    tables = None if table_forces is None else grid_values(table_forces, "table forces")
+    grids = [(forces, "forces")] + ([] if tables is None else [(tables, "table forces")])
+    for values, name in grids:
+        check_float32_grid(values, name)
+    if batched and len(members) > SMALL_COHORT and log is not None:
+        log(f"cohort: checking the {len(members)} subjects' configurations")
+    durations = duration_values(durations, base)  # a subject changes no scenario value
+    configs = {}
+    for member in members:
+        try:
+            config = member.subject.config(base)
+            if batched:
+                check_batched(config, *grids, (durations, "durations"))
+        except ParameterError as exc:
+            raise ParameterError(f"subject {member.id!r}: {exc}") from None
+        configs[member.id] = config
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ParameterError(f"--out {out}: is a file, not a folder")
+    open_manifest(out, _record(members, base, forces, durations, tables), base)
+    return CohortPlan(out, members, base, configs, forces, durations, tables, engine)
 
 
 def subject_numbers(member: Member, folder: Path) -> dict[str, Any]:
@@ -246,21 +397,20 @@ def run_cohort(out: str | Path, members: Sequence[Member], base: Config, forces:
     ``out/subjects/<id>/``, then cohort.csv, cohort_summary.csv and the figures in ``out``;
     returns cohort.csv's frame. ``run_batches``: a batch function per subject's configuration
     (tests); ``engine``: ``slots``, ``full_length``, ``physics``, ``cluster`` for
-    ``run_region``. Every subject's configuration and the grids are checked before any work."""
+    ``run_region``. Everything is checked before anything is written (:func:`plan_cohort`)."""
+    plan = plan_cohort(out, members, base, forces, durations, table_forces=table_forces,
+                       batched=run_batches is None, log=log, **engine)
+    return run_plan(plan, run_batches=run_batches, progress=progress, log=log)
+
+
+def run_plan(plan: CohortPlan, *, run_batches: Callable[[Config], Any] | None = None,
+             progress: bool = False,
+             log: Callable[[str], None] | None = print) -> pd.DataFrame:
+    """Run a checked cohort (:func:`plan_cohort`; :func:`run_cohort` says what it writes)."""
     say = log or (lambda _msg: None)
-    out = Path(out)
-    check_ids(members)
-    forces = grid_values(forces, "forces")
-    tables = None if table_forces is None else grid_values(table_forces, "table forces")
-    configs = {}
-    for member in members:
-        try:
-            configs[member.id] = member.subject.config(base)
-            durations = duration_values(durations, configs[member.id])
-        except ParameterError as exc:
-            raise ParameterError(f"subject {member.id!r}: {exc}") from None
+    out, members, forces, durations = plan.out, plan.members, plan.forces, plan.durations
     out.mkdir(parents=True, exist_ok=True)
-    manifest = open_manifest(out, _record(members, base, forces, durations, tables))
+    manifest = open_manifest(out, plan.record(), plan.base, say)
     write_text(json.dumps(with_run(manifest), indent=2) + "\n", out / MANIFEST)
     cells = forces.size * durations.size
     folders = {m.id: out / SUBJECTS / m.id for m in members}
@@ -271,8 +421,9 @@ def run_cohort(out: str | Path, members: Sequence[Member], base: Config, forces:
     try:
         for member in members:
             finished = (folders[member.id] / REGION).exists()
-            _run_subject(member, folders[member.id], configs[member.id], forces, durations,
-                         tables, run_batches=run_batches, say=say, engine=engine)
+            _run_subject(member, folders[member.id], plan.configs[member.id], forces,
+                         durations, plan.tables, run_batches=run_batches, say=say,
+                         engine=plan.engine)
             if not finished:
                 bar.update(cells)
     finally:

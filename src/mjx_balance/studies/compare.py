@@ -21,8 +21,9 @@ max_acting_time_<F>N
 from __future__ import annotations
 
 import re
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -32,9 +33,11 @@ from ..figures.region import cell_bounds, duration_axis, log_durations
 from ..model.params import (
     Config,
     ParameterError,
+    Subject,
     config_from_dict,
     load_config,
     read_toml,
+    run_config,
 )
 from ..runs import cluster as cluster_mod
 from ..runs.definitions import load_sweep
@@ -127,6 +130,20 @@ def load_one(path: str | Path, base: Config | None = None) -> Config:
         merged[section] = ({**known, **values} if isinstance(known, dict)
                            and isinstance(values, dict) else values)
     return config_from_dict(merged)
+
+
+def load_base(path: str | Path | None, subject: Subject | None = None) -> Config | None:
+    """The base configuration of a comparison (``compare --config FILE --subject ...``): the
+    file read as each compared FILE is (:func:`load_one`: a configuration file, or a sweep
+    definition whose grid is left out), with ``subject``'s body. On a configuration file the
+    subject takes the place of its [subject] table (``params.run_config``, whose checks refuse
+    a value both set); on a sweep definition the file's values go over the subject's body, as
+    ``sweep --sweep FILE --subject ...`` layers them. None: no file and no subject."""
+    if subject is None:
+        return load_one(path) if path else None
+    if path and "sweep" in read_toml(Path(path)):
+        return load_one(path, run_config(None, subject=subject))
+    return run_config(path, subject=subject)
 
 
 def check_folder(folder: Path, name: str, config: Config, forces: np.ndarray,
