@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 from support import REPO, FakeThresholdBatch, assert_refused, run_cli
 
@@ -98,10 +99,10 @@ def test_every_id_is_bounded_however_the_subjects_come():
 def _leftover(out, base: Config) -> None:
     """The manifest a cohort run left when it was refused or stopped before its first result
     (as the refusals above did before they moved ahead of the folder)."""
-    members = cohort.subject_grid([1.7], [70])
-    plan = cohort.plan_cohort(out, members, base, FORCES, DURATIONS, batched=False)
+    record = cohort._record(cohort.subject_grid([1.7], [70]), base, np.array([0.0, 20, 40]),
+                            np.array([0.5, 1.0]), None)
     out.mkdir(parents=True)
-    (out / "manifest.json").write_text(json.dumps({**plan.record(), "runs": [
+    (out / "manifest.json").write_text(json.dumps({**record, "runs": [
         {"command": "mjx-balance cohort ...", "status": "failed"}]}))
 
 
@@ -124,6 +125,19 @@ def test_a_folder_without_results_is_taken_over_by_a_corrected_cohort(tmp_path):
     with pytest.raises(ParameterError, match="holds a cohort with other configuration"):
         cohort.run_cohort(out, members, BASE.replace(controller={"horizon": 15}), FORCES,
                           DURATIONS, run_batches=stand_ins, log=None)
+
+
+def test_the_corrected_command_takes_over_a_refused_runs_folder(tmp_path, capsys,
+                                                                 fake_rollout):
+    """The issue's sequence on the command line: the manifest a refused `--set
+    controller.horizon=200` left, then the command without it: exit 0, the cohort written."""
+    out = tmp_path / "out"
+    _leftover(out, BASE.replace(controller={"horizon": 200}))
+    code, err = run_cli(["cohort", "--heights", "1.7", "--masses", "70", "--forces", FORCES,
+                         "--durations", DURATIONS, "--set", "scenario.t_end=2", "-q",
+                         "--out", str(out)], capsys)
+    assert code == 0, err
+    assert (out / "cohort.csv").exists()
 
 
 def test_a_folder_with_one_subjects_chunk_is_not_taken_over(tmp_path):
