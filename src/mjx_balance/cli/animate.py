@@ -11,13 +11,27 @@ from .options import (common_options, finite_float, nonnegative_float, out_gif,
 
 log = logging.getLogger("mjx_balance")
 
+MAX_FPS = 100.0  # a GIF's frame delay is counted in hundredths of a second
+
+
+def gif_fps(text: str) -> float:
+    """Frames per second a GIF can show: > 0 and at most MAX_FPS."""
+    import argparse
+
+    value = positive_float(text)
+    if value > MAX_FPS:
+        raise argparse.ArgumentTypeError(f"must be at most {MAX_FPS:g} (a GIF's frame delay is "
+                                         f"counted in 0.01 s), got {text!r}")
+    return value
+
 
 def add_parser(sub: Any) -> None:
     """The ``animate`` sub-command (``sub.add_parser`` of ``main.build_parser``)."""
     p = sub.add_parser("animate", help="stick-figure GIF of one push (matplotlib, no OpenGL)")
     p.add_argument("--force", type=finite_float, required=True, help="push force [N]")
     p.add_argument("--duration", type=nonnegative_float, default=0.1, help="push duration [s]")
-    p.add_argument("--fps", type=positive_float, default=25.0, help="frames per second")
+    p.add_argument("--fps", type=gif_fps, default=25.0,
+                   help=f"frames per second (at most {MAX_FPS:g})")
     p.add_argument("--t-end", type=positive_float, default=None,
                    help="simulate only this long [s]")
     p.add_argument("--no-fast-forward", action="store_true",

@@ -54,6 +54,10 @@ def basin_command(args: Any) -> int:
     config = load_run_config(args)
     pushes = (None if str(args.push_forces).strip().lower() == "none"
               else (args.push_forces, args.push_durations))
+    if pushes is None:  # no push cells: the durations are still checked, as every option is
+        from ..runs.grid import parse_grid
+
+        parse_grid(args.push_durations, "push durations")
     out = Path(args.out)
     xs, vs, _ = check_basin(config, args.x_com, args.v_com, args.posture, pushes)
     guard_work(args, config, xs.size * vs.size, "cells")

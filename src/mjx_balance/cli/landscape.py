@@ -16,10 +16,10 @@ from ..model.params import apply_overrides, with_convention
 from ..studies.defaults import (DEFAULT_DELAYS, DEFAULT_SCALES,  # light
                                 DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,
                                 DEFAULT_TABLE_FORCES)
-from .common import base_config, chosen_physics, in_folder, progress_enabled
+from .common import base_config, chosen_physics, guard_work, in_folder, progress_enabled
 from .options import (config_options, engine_options, figure_options, format_option,
                       out_folder, renamed_option,
-                      sweep_file, wait_option, write_exports)
+                      sweep_file, wait_option, write_exports, yes_option)
 
 
 
@@ -59,6 +59,7 @@ def add_parser(sub: Any) -> None:
                         f"--sweep file's, else {DEFAULT_TABLE_FORCES})")
     engine_options(p)
     wait_option(p)
+    yes_option(p)
     format_option(p)
     figure_options(p)
     p.add_argument("--out", type=out_folder, required=True,
@@ -74,6 +75,7 @@ def landscape_command(args: Any) -> int:
     from ..runs import DEFAULT_SWEEP, load_sweep
     from ..studies.landscape import (check_landscape,  # lazy: as above
                                      run_landscape)
+    from .sweep import table_scenarios
 
     definition = load_sweep(args.sweep, base_config(args, overrides=False))
     # the command line wins: --set over the --config file and the sweep definition,
@@ -90,8 +92,11 @@ def landscape_command(args: Any) -> int:
     table_forces = pick(args.table_forces, definition.table_forces if args.sweep else None,
                         DEFAULT_TABLE_FORCES)
     out = Path(args.out)
-    check_landscape(out, config, forces, durations, args.q_scales, args.r_scales, args.delays,
-                    table_forces)
+    checked = check_landscape(out, config, forces, durations, args.q_scales, args.r_scales,
+                              args.delays, table_forces)
+    settings = len(checked["settings"])
+    guard_work(args, config, settings * checked["forces"].size * checked["durations"].size,
+               "cells", extra=settings * table_scenarios(config, checked["table_forces"].size))
     engine = {"slots": args.slots, "full_length": args.full_length,
               "physics": chosen_physics(args, definition)}
 

@@ -69,13 +69,17 @@ def positive_float(text: str) -> float:
     return value
 
 
+MAX_INTEGER = 2**31 - 1  # every count of ours (slots, chunks, scenarios) is an int32 on device
+
+
 def _integer(text: str, minimum: int) -> int:
     try:
         value = float(text.strip())  # "1e4" is a whole number too
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if not (math.isfinite(value) and value.is_integer() and value >= minimum):
-        raise argparse.ArgumentTypeError(f"must be an integer >= {minimum}, got {text!r}")
+    if not (math.isfinite(value) and value.is_integer() and minimum <= value <= MAX_INTEGER):
+        raise argparse.ArgumentTypeError(
+            f"must be an integer from {minimum} to {MAX_INTEGER:,}, got {text!r}")
     return int(value)
 
 

@@ -11,9 +11,10 @@ import logging
 from pathlib import Path
 from typing import Any
 
-from .common import in_folder, load_run_config, progress_enabled
+from .common import guard_work, in_folder, load_run_config, progress_enabled
 from ..studies.defaults import DEFAULT_FORCES, READINGS  # light: no JAX
-from .options import cluster_option, common_options, engine_options, figure_options, wait_option
+from .options import (cluster_option, common_options, engine_options, figure_options,
+                      wait_option, yes_option)
 
 
 
@@ -32,6 +33,7 @@ def add_parser(sub: Any) -> None:
     engine_options(p)
     cluster_option(p)
     wait_option(p)
+    yes_option(p)
     figure_options(p)
     common_options(p, out_help="output folder: one table folder per reading, sensitivity.csv, "
                                "sensitivity.png, sensitivity.txt")
@@ -40,13 +42,18 @@ def add_parser(sub: Any) -> None:
 
 def sensitivity_command(args: Any) -> int:
     """Every reading's table, then the spread (every input checked first)."""
-    from ..runs.grid import parse_grid  # lazy: JAX, MuJoCo; not for --help
+    from ..runs.folders import check_float32_grid  # lazy: JAX, MuJoCo; not for --help
+    from ..runs.grid import parse_grid  # lazy: as above
+    from .sweep import table_scenarios
     from ..studies.sensitivity import reading_configs, run_sensitivity  # lazy: as above
 
     base = load_run_config(args)
     readings = [r.strip() for r in args.readings.split(",") if r.strip()]
     reading_configs(base, readings)
-    parse_grid(args.forces, "forces")
+    forces = parse_grid(args.forces, "forces")
+    check_float32_grid(forces, "forces")
+    guard_work(args, base, len(readings) * table_scenarios(base, forces.size),
+               "scenarios (estimated)")
     out = Path(args.out)
     engine = {"slots": args.slots, "full_length": args.full_length,
               "physics": args.physics or "auto", "cluster": args.cluster}

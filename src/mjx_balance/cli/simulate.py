@@ -131,8 +131,8 @@ def simulate_command(args: argparse.Namespace) -> int:
 
     # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
     from ..figures.timeseries import timeseries_figures  # lazy: matplotlib
-    from ..measures.strategy import with_strategy
-    from ..reference.loop import each_pair
+    from ..measures.strategy import with_strategy  # lazy: pandas
+    from ..reference.loop import each_pair  # lazy: MuJoCo, OSQP
     from ..runs.folders import check_reference  # lazy: the runs floor loads JAX
     from ..store.files import (CONFIG, MANIFEST, write_csv,  # lazy: the store floor: pandas
                                write_parquet, write_text)

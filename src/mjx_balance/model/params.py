@@ -50,6 +50,7 @@ CONVENTIONS = ("paper", "joint")
 #   fails; at 1e-300 the body has no unstable mode left to control, the reference's OSQP fails
 #   mid-run and the offset-free target has no posture-dependent constraint.
 MAX_PHYSICS_DT = 0.01  # s
+MAX_STEPS = 2**31 - 1  # physics steps of one window: an int32 count on the device
 MASS_RANGE = (1e-3, 1e4)  # kg
 LENGTH_RANGE = (1e-3, 10.0)  # m
 MAX_GRAVITY = 100.0  # m/s^2
@@ -398,6 +399,15 @@ class ScenarioParams:
             _fail("scenario", "duration", "must be >= 0", self.duration)
         if self.duration > self.t_end:
             _fail("scenario", "duration", f"must not exceed t_end = {self.t_end}", self.duration)
+        # Step counts are int32 on the device: a window of more steps cannot be indexed (and
+        # 1e308 s would overflow Python's round() below).
+        for name in ("t_end", "controller_delay"):
+            if getattr(self, name) / self.physics_dt > MAX_STEPS:
+                _fail("scenario", name, f"must be at most {MAX_STEPS:,} physics steps "
+                      f"(physics_dt = {self.physics_dt:g} s)", getattr(self, name))
+        if self.controller_delay >= self.t_end:
+            _fail("scenario", "controller_delay", f"must be shorter than t_end = {self.t_end:g} "
+                  "s (the controller would never see a measurement)", self.controller_delay)
         ratio = self.control_dt / self.physics_dt
         if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
             _fail("scenario", "control_dt",

@@ -47,6 +47,7 @@ import json
 import logging
 import os
 import platform
+import re
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator
 
@@ -254,7 +255,19 @@ def parse_cluster(spec: str) -> tuple[str, Any]:
     if not text:
         raise ClusterError("--cluster: empty; give local:N or a scheduler address "
                            "(tcp://host:8786)")
+    if text.endswith(".json"):
+        if not os.path.isfile(text):
+            raise ClusterError(f"--cluster {text}: no such scheduler file")
+        return "address", text
+    port = ADDRESS.match(text)
+    if port is None or not 0 < int(port.group(1)) < 65536:
+        raise ClusterError(f"--cluster {text}: not local:N, a scheduler address with its port "
+                           "(tcp://host:8786) or a scheduler file (.json)")
     return "address", text
+
+
+# A scheduler's address: [protocol://]host:port (host a name, an IPv4 or a bracketed IPv6).
+ADDRESS = re.compile(r"^(?:[a-z]+://)?(?:\[[0-9a-fA-F:.]+\]|[^\s:/\[\]]+):(\d{1,5})/?$")
 
 
 def _distributed() -> Any:
@@ -288,7 +301,7 @@ def connect(spec: Any, say: Callable[[str], None]) -> tuple[Any, Any]:
                      else {"address": value})
             try:
                 client = distributed.Client(**where, timeout="30s")
-            except (OSError, TimeoutError) as exc:
+            except (OSError, TimeoutError, ValueError) as exc:
                 raise ClusterError(f"--cluster {value}: cannot reach the scheduler ({exc})"
                                    ) from None
     try:

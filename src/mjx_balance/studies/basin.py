@@ -39,6 +39,7 @@ from ..model.mjcf import indices, settled_rest
 from ..measures.outcomes import FALL_CAUSES, OUTCOMES
 from ..model.params import Config, ParameterError
 from ..runs.grid import check_durations, describe, parse_grid, same_values
+from ..runs.folders import check_float32_grid
 from ..store.files import write_csv, write_parquet
 from ..store.folder import OutputFolder, folder_lock
 from ..rollout import BatchRunner
@@ -143,6 +144,8 @@ def check_basin(config: Config, x_com: Any, v_com: Any, posture: str,
     if posture not in POSTURES:
         raise ParameterError(f"posture must be one of {', '.join(POSTURES)}, got {posture!r}")
     xs, vs = parse_grid(x_com, "x_com"), parse_grid(v_com, "v_com")
+    check_float32_grid(xs, "x_com")  # the batched path's initial states are float32
+    check_float32_grid(vs, "v_com")
     plane = Plane(config)
     for x in xs:
         plane.initial_state(posture, x, 0.0)

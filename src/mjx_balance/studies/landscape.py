@@ -44,7 +44,8 @@ from . import compare as comparison, catalog as studies
 from ..model.params import Config, ParameterError
 from ..runs.grid import check_durations, parse_grid
 from ..store.files import REGION, TABLE, write_atomic, write_csv
-from ..runs.folders import batch_function, run_region, run_table_folder
+from ..runs.folders import (batch_function, check_batched, check_float32_grid, run_region,
+                            run_table_folder)
 from .defaults import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES
 from ..figures import style as figure_style
 
@@ -185,11 +186,14 @@ def check_landscape(out: str | Path, base: Config, forces: Any, durations: Any,
     forces = parse_grid(forces, "forces")
     durations = parse_grid(durations, "durations")
     table_forces = parse_grid(table_forces, "table forces")
+    check_float32_grid(forces, "forces")
+    check_float32_grid(table_forces, "table forces")
     settings = plan(base, delays, q_scales, r_scales)
     for delay, q, r, name, config in settings:
         try:
             durations = check_durations(durations, config.scenario.t_end,
                                         physics_dt=config.scenario.physics_dt)
+            check_batched(config)  # the scaled weights' QP builds and float32 resolves it
         except ParameterError as exc:
             raise ParameterError(f"{name}: {exc}") from None
         comparison.check_folder(out / name, name, config, forces, durations)
