@@ -235,7 +235,7 @@ def _with_forces(forces: "Any", refs: "list[Reference]") -> "Any":
     """``forces`` with the reference tables' forces added (sorted, each once)."""
     import numpy as np
 
-    extra = reference_forces(refs)
+    extra = reference_forces(refs, forces)  # those not in forces (the scorecard's tolerance)
     if not extra:
         return forces
     merged = np.unique(np.concatenate([np.asarray(forces, float), extra]))
@@ -251,15 +251,25 @@ def scorecard(ours: "str | os.PathLike[str] | pd.DataFrame",
     table_runs.parquet and region.parquet are read; nothing is written) or a table DataFrame
     as :func:`table` returns it. ``reference``: a CSV path, the name of a shipped reference
     (``"study"``: :func:`references`), or a list of them (docs/outputs.md, "Reference files");
-    a row's ``reason`` is carried, never inferred."""
+    a row's ``reason`` is carried, never inferred. TypeError for an ``ours`` or
+    ``reference`` of another type, ValueError for a table without a numeric ``force``
+    column."""
     import pandas as pd
 
+    from .studies.scorecard import check_ours
+
+    if isinstance(ours, pd.DataFrame):
+        check_ours(ours, "ours")
+    elif not isinstance(ours, (str, os.PathLike)):
+        raise TypeError(f"ours: expected a sweep or table folder (a path) or a table DataFrame "
+                        f"(as mjx_balance.table returns it); got {type(ours).__name__}")
     refs = [r for r in read_references(reference) if r.kind == "table"]
     if isinstance(ours, pd.DataFrame):
         return score_results(ours, refs)
     found = folder_results(ours)
     if found["table"] is None and found["region"] is None:
         raise ParameterError(f"{ours}: holds neither table.csv nor region.parquet")
+    check_ours(found["table"], str(Path(ours) / TABLE))
     return score_results(found["table"], refs, runs=found["runs"], region=found["region"])
 
 

@@ -55,7 +55,7 @@ def test_kind_is_told_by_the_columns(tmp_path):
 @pytest.mark.parametrize("text,words", [
     ("duration\n0.5\n", "needs a column force"),
     ("force,max_time\n20,0.6\n", "unknown column(s) max_time"),
-    ("force,max_acting_time\n20,abc\n", "row 2: max_acting_time must be a number"),
+    ("force,max_acting_time\n20,abc\n", "line 2: max_acting_time must be a finite number"),
     ("force,max_acting_time\n20,-1\n", "must not be negative"),
     ("force,duration,recovered\n20,0.5,maybe\n", "recovered must be"),
     ("force,recovered\n20,1\n", "needs the push's duration"),

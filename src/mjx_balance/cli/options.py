@@ -112,7 +112,10 @@ def reference_file(text: str) -> str:
     if text in references.SHIPPED:
         return text
     try:
+        references.check_size(Path(text))  # before input_file reads it whole
         return input_file(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
     except argparse.ArgumentTypeError as exc:
         raise argparse.ArgumentTypeError(
             f"{exc}; the shipped references: {', '.join(references.SHIPPED)}") from None

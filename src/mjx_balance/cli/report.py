@@ -72,7 +72,7 @@ def report_command(args: Any) -> int:
     out = Path(args.out)
     refs = read_references(args.reference)  # a bad file is refused before any work
     plan = PLANS[args.scale]
-    extra = [f for f in reference_forces(refs) if f not in plan.table_forces]
+    extra = reference_forces(refs, plan.table_forces)  # the scorecard's force tolerance
     if extra:
         plan = dataclasses.replace(plan, table_forces=tuple(sorted({*plan.table_forces,
                                                                       *extra})))

@@ -97,8 +97,7 @@ def with_reference_forces(forces: Any, refs: list, what: str) -> Any:
 
     from ..studies.scorecard import reference_forces  # lazy: pandas, JAX
 
-    extra = [f for f in reference_forces(refs)
-             if forces is None or not np.isclose(np.asarray(forces, float), f).any()]
+    extra = reference_forces(refs, forces)  # not already there (the scorecard's tolerance)
     if not extra:
         return forces
     log.info(f"{what}: adding the reference's forces {', '.join(f'{f:g}' for f in extra)} N")
@@ -108,14 +107,11 @@ def with_reference_forces(forces: Any, refs: list, what: str) -> Any:
 
 def report_scorecard(out: Path, refs: list) -> None:
     """scorecard.csv and scorecard.png in ``out`` from its results; its summary in the log."""
-    from ..studies.scorecard import summary_text, write_scorecard  # lazy: pandas, matplotlib
+    from ..studies.scorecard import scorecard_files, summary_text  # lazy: pandas, matplotlib
 
-    card = write_scorecard(out, refs)
-    if card is not None:
-        from ..figures.style import figure_name  # lazy: as above
-
-        log.info(f"wrote {out / 'scorecard.csv'} and {figure_name('scorecard.png')}\n"
-                 + summary_text(card))
+    card, written = scorecard_files(out, refs)
+    if card is not None:  # what was written: no figure when no measure has a panel
+        log.info(f"wrote {' and '.join(str(p) for p in written)}\n" + summary_text(card))
 
 
 def sweep_command(args: Any) -> int:

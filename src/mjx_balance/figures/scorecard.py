@@ -12,6 +12,7 @@ log axis. Colours are Okabe-Ito (colour-blind safe). Drawn from the scorecard's 
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,12 @@ OURS = "#000000"
 SOURCES = ("#E69F00", "#0072B2", "#009E73", "#D55E00", "#CC79A7", "#56B4E9", "#F0E442")
 MARKERS = ("o", "s", "D", "^", "v", "P", "X")
 TITLES = {"max_acting_time": "max acting time [s]"}
+
+
+def plain(text: object) -> str:
+    """``text`` drawn as written: a ``$`` in a reference's label is a dollar sign, not the start
+    of mathematics (matplotlib's mathtext)."""
+    return str(text).replace("$", r"\$")
 
 
 def _title(measure: str) -> str:
@@ -61,7 +68,7 @@ def scorecard_figure(card: pd.DataFrame, *, table: pd.DataFrame | None = None):
                 if shown.any():
                     ax.plot(mine["force"][shown], mine["reference"][shown],
                             marker if what != "not compared" else "x", ls="", ms=7,
-                            label=f"{source} ({what})", **look)
+                            label=f"{plain(source)} ({what})", **look)
         values = np.concatenate([rows["reference"].to_numpy(float), rows["ours"].to_numpy(float)])
         values = values[np.isfinite(values) & (values > 0)]
         if values.size and values.max() / values.min() > 10:
@@ -74,8 +81,12 @@ def scorecard_figure(card: pd.DataFrame, *, table: pd.DataFrame | None = None):
         ax.set_visible(False)
     agree = int((card["status"] == "agrees").sum())
     compared = int(card["status"].isin(["agrees", "differs"]).sum())
-    fig.suptitle(f"Scorecard: ours (black, with our uncertainty) beside each reference; "
-                 f"{agree} of {compared} compared rows within tolerance", fontsize=10)
+    title = (f"Scorecard: ours (black, with our uncertainty) beside each reference; "
+             f"{agree} of {compared} compared rows within tolerance")
+    # wrapped to the figure's width (a one-panel figure is 4.6 in wide): about 0.55 em a
+    # character at 10 pt, 72 pt an inch
+    width = max(30, int(fig.get_figwidth() * 72 / (0.55 * 10)) - 4)
+    fig.suptitle(textwrap.fill(title, width), fontsize=10)
     return fig
 
 

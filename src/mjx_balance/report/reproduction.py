@@ -13,8 +13,8 @@ column, and the measured causes of the known differences are in docs/studies.md.
 from __future__ import annotations
 
 import shutil
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 import pandas as pd
@@ -25,8 +25,13 @@ from ..measures.strategy import HIP_SHARE_THRESHOLD, STRATEGIES
 from ..model.params import Config
 from ..store.files import write_atomic
 from ..studies import references
-from ..studies.scorecard import (SCORECARD, folder_results, read_references, scorecard,
-                                 summary)
+from ..studies.scorecard import (
+    SCORECARD,
+    folder_results,
+    read_references,
+    scorecard,
+    summary,
+)
 from .blocks import img
 
 REFERENCES_DIR = "references"
@@ -36,25 +41,38 @@ DIFFERENCES_DOC = "docs/studies.md, 'Differences from the study, and their measu
 
 
 def store_references(out: str | Path, paths: Sequence[str | Path] | None) -> list[Path]:
-    """Copy the reference files into DIR/references/ (a file of the same name is replaced);
-    returns the stored paths. Each is read first, so a bad file is refused before any copy."""
+    """Copy the reference files into DIR/references/, each under its own name: the file's stem
+    with ``.csv`` (the folder is read as ``*.csv``: a ``lab.txt`` is kept as ``lab.csv``), a
+    suffix where two given files share a stem (``a/study.csv`` and ``b/study.csv``:
+    ``study.csv`` and ``study_2.csv``, labelled ``study`` and ``study_2`` as when they were
+    read); a file stored under the same name by an earlier run is replaced. Returns the stored
+    paths. Each is read first, so a bad file is refused before any copy."""
     if not paths:
         return []
     read_references(paths)
     folder = Path(out) / REFERENCES_DIR
     folder.mkdir(parents=True, exist_ok=True)
-    stored = []
+    stored: list[Path] = []
     for path in paths:
         source = references.resolve(path)  # a shipped reference's name: its file
-        target = folder / source.name
+        stem, count = source.stem or "reference", 1
+        target = folder / f"{stem}.csv"
+        while target in stored:
+            count += 1
+            target = folder / f"{stem}_{count}.csv"
         write_atomic(target, lambda tmp, src=source: shutil.copyfile(src, tmp))
         stored.append(target)
     return stored
 
 
 def reference_files(out: str | Path) -> list[Path]:
-    """The reference files stored in DIR/references/, by name."""
-    return sorted((Path(out) / REFERENCES_DIR).glob("*.csv"))
+    """The reference files stored in DIR/references/, by name (``study`` before ``study_2``
+    before ``study_10``: the order they were given in)."""
+    def order(path: Path) -> tuple:
+        stem, _, count = path.stem.rpartition("_")
+        return (stem, int(count)) if stem and count.isdigit() else (path.stem, 1)
+
+    return sorted((Path(out) / REFERENCES_DIR).glob("*.csv"), key=order)
 
 
 def report_scorecard(out: str | Path, conventions: Sequence[str]) -> pd.DataFrame | None:
@@ -88,6 +106,20 @@ def _fmt(value: float, unit: str = "") -> str:
     return f"{value:.3g}" + (f" {unit}" if unit else "")
 
 
+def _text(value: object) -> str:
+    return value if isinstance(value, str) else ""
+
+
+def _citations(card: pd.DataFrame) -> dict[str, list[str]]:
+    """Each source's citations (its file's ``source`` column), in order, each once."""
+    cited: dict[str, list[str]] = {}
+    for source, citation in card[["source", "citation"]].drop_duplicates().itertuples(
+            index=False):
+        if _text(citation):
+            cited.setdefault(source, []).append(citation)
+    return cited
+
+
 def scorecard_section(out: str | Path, conventions: Sequence[str],
                       figures: Path) -> dict | None:
     """The scorecard section (None without a reference table): how many rows agree per source
@@ -104,6 +136,9 @@ def scorecard_section(out: str | Path, conventions: Sequence[str],
                          f"compared rows agree within tolerance, {row.differ} differ "
                          f"({row.differ_with_reason} with a reason), {row.not_compared} not "
                          "compared (our push fell, or the value is not in our results).")
+    cited = [f"{source}: {', '.join(texts)}" for source, texts in _citations(card).items()]
+    if cited:
+        lines.append("Sources: " + "; ".join(cited) + ".")
     blocks.append({"kind": "paragraph", "cls": "reading", "text": "\n".join(lines)})
     differs = card[card["status"] == "differs"]
     if len(differs):
@@ -125,12 +160,14 @@ def scorecard_section(out: str | Path, conventions: Sequence[str],
                                     "uncertainty) and each reference (open: within "
                                     "tolerance, filled: differs, cross: not compared)"))
     header = ["convention", "source", "force [N]", "duration [s]", "measure", "reference",
-              "ours", "our ±", "difference", "tolerance", "status", "reason"]
+              "ours", "our ±", "difference", "tolerance", "status", "reason", "citation"]
+    notes = list(dict.fromkeys(c for c in map(_text, card["citation"]) if c))  # [1], [2], ...
     rows = [[r.convention, r.source, f"{r.force:g}", _fmt(r.duration), r.measure,
              _fmt(r.reference, r.unit), _fmt(r.ours, r.unit), _fmt(r.our_uncertainty),
-             _fmt(r.abs_diff), _fmt(r.tolerance), r.status,
-             r.reason if isinstance(r.reason, str) else ""] for r in card.itertuples()]
-    blocks.append({"kind": "table", "header": header, "rows": rows, "notes": []})
+             _fmt(r.abs_diff), _fmt(r.tolerance), r.status, _text(r.reason),
+             f"[{notes.index(r.citation) + 1}]" if _text(r.citation) else ""]
+            for r in card.itertuples()]
+    blocks.append({"kind": "table", "header": header, "rows": rows, "notes": notes})
     blocks.append({"kind": "paragraph", "cls": "", "text": (
         "Tolerance: half the reference's stated (or printed) resolution plus our uncertainty "
         "(the bisection step of 0.01 s for a max acting time; an energy's change over one "

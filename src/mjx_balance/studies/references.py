@@ -15,6 +15,10 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
+# The largest reference file read (bytes): a published table is a few kB, a lab's trials or
+# another model's map a few MB; a file beyond this is refused before it is read.
+MAX_BYTES = 256 * 2**20
+
 # name -> (file in data/references/, what it holds)
 SHIPPED: dict[str, tuple[str, str]] = {
     "study": ("study.csv", "K. Shen, A. Chemori, M. Hayashibe, IEEE Access 2020, Table 2: "
@@ -33,6 +37,17 @@ def resolve(value: str | Path) -> Path:
     if isinstance(value, str) and value in SHIPPED:
         return shipped_path(value)
     return Path(value)
+
+
+def check_size(path: Path) -> None:
+    """ValueError naming ``path`` when it is larger than :data:`MAX_BYTES` (nothing read)."""
+    try:
+        size = path.stat().st_size
+    except OSError:
+        return  # not there: the reader says so
+    if size > MAX_BYTES:
+        raise ValueError(f"{path}: {size / 2**20:.0f} MiB; a reference file holds at most "
+                         f"{MAX_BYTES // 2**20} MiB (a published table is a few kB)")
 
 
 def references() -> dict[str, Path]:

@@ -30,9 +30,11 @@ recovery cost (our table leaves it empty; the row says "not comparable").
 from __future__ import annotations
 
 import math
+import os
+import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 import pandas as pd
@@ -54,6 +56,13 @@ SCORECARD_COLUMNS = [
 ]
 TRUE = {"1", "true", "yes", "y", "recovered"}
 FALSE = {"0", "false", "no", "n", "fell", "not_recovered"}
+# Two forces are one force within this tolerance (numpy.isclose's, relative to our table's
+# force): 20.0001 N is our 20 N row. The same rule adds a reference's forces to the table run
+# (reference_forces) and matches its rows to our table's, region map's and runs' rows.
+FORCE_RTOL = 1e-5
+FORCE_ATOL = 1e-8  # N
+DURATION_ATOL = 1e-9  # s: a reference push's duration is a cell's of our map within this
+MAX_ROWS = 1_000_000  # rows of one reference file (read and scored in seconds)
 
 
 @dataclass
@@ -88,20 +97,36 @@ class Reference:
 
 def read_reference(path: str | Path) -> Reference:
     """Read and check one reference file, or a shipped reference by name (``"study"``:
-    :mod:`studies.references`); ParameterError naming the file, row and column."""
+    :mod:`studies.references`); ParameterError naming the file, its line and column, and the
+    value. Refused: a row with more fields than the header (a trailing comma would shift every
+    column), a value that is not a finite number, two different values of one measure for one
+    force (or two outcomes of one push), a header without ``force`` (with the columns found and,
+    for a file separated by ``;`` or tabs, that the separator must be a comma), more than
+    :data:`MAX_ROWS` rows. An identical repeated row is scored once."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"reference: expected a CSV path or the name of a shipped reference "
+                        f"({', '.join(references.SHIPPED)}); got {type(path).__name__} "
+                        f"{path!r}")
     path = references.resolve(path)
+    if path.is_dir():
+        raise ParameterError(f"{path}: is a folder, not a reference file (a CSV)")
     try:
-        text = pd.read_csv(path, dtype=str, keep_default_na=False, comment="#")
-    except FileNotFoundError:
-        raise ParameterError(f"reference file not found: {path} (the shipped references: "
-                             f"{', '.join(references.SHIPPED)})") from None
-    except Exception as exc:  # noqa: BLE001 - any parse failure is the file's
-        raise ParameterError(f"{path}: not a readable CSV ({exc})") from None
-    text.columns = [str(c).strip().lower() for c in text.columns]
-    text = text.apply(lambda column: column.str.strip())
-    if "force" not in text or len(text) == 0:
+        references.check_size(path)
+    except ValueError as exc:
+        raise ParameterError(str(exc)) from None
+    raw = _read_fields(path)
+    header = [str(c).strip().lower() for c in raw.iloc[0]] if len(raw) else []
+    text = raw.iloc[1:].apply(lambda column: column.str.strip())
+    text = text[(text != "").any(axis=1)].reset_index(drop=True)  # empty fields: no row
+    lines = _Lines(path)
+    header, text = _checked_header(path, header, text, lines)
+    if "force" not in text.columns or len(text) == 0:
         raise ParameterError(f"{path}: a reference file needs a column force and at least one "
-                             "row (docs/outputs.md, 'Reference files')")
+                             f"row{_found(header)} (docs/outputs.md, 'Reference files')")
+    if len(text) > MAX_ROWS:
+        raise ParameterError(f"{path}: {len(text)} rows; a reference file holds at most "
+                             f"{MAX_ROWS:,} (a published table has tens, a lab's trials "
+                             "thousands): split it, or give the pushes as a region map")
     unknown = [c for c in text.columns if c not in {"force", "recovered", *MEASURES, *OPTIONAL}]
     if unknown:
         raise ParameterError(f"{path}: unknown column(s) {', '.join(unknown)}; known: force, "
@@ -111,59 +136,263 @@ def read_reference(path: str | Path) -> Reference:
     numeric = [c for c in ("force", "duration", "resolution", "tolerance", *MEASURES)
                if c in text]
     for column in numeric:
-        values = pd.to_numeric(text[column].replace("", np.nan), errors="coerce")
-        bad = values.isna() & (text[column] != "")
-        if bad.any() or (column in ("force",) and values.isna().any()):
-            row = int(np.flatnonzero(bad | (values.isna() if column == "force" else bad))[0])
-            raise ParameterError(f"{path}, row {row + 2}: {column} must be a number, got "
-                                 f"{text[column].iloc[row]!r}")
-        if column != "force" and (values < 0).any():
-            raise ParameterError(f"{path}: {column} must not be negative")
-        frame[column] = values
+        frame[column] = _numbers(path, text, column, lines)
     if "recovered" in text:
-        _read_recovered(path, text, frame)
+        _read_recovered(path, text, frame, lines)
     kind = "table" if ("recovered" in frame or any(m in frame for m in MEASURES)) else "points"
     if kind == "points" and "duration" not in frame:
         raise ParameterError(f"{path}: needs either duration (points to draw) or a measure "
                              f"column ({', '.join(MEASURES[:3])}, ...) or recovered")
+    if kind == "table":
+        _one_value_each(path, frame, lines)
     label = (str(frame["label"].iloc[0]) if "label" in frame and frame["label"].iloc[0]
              else path.stem)
     return Reference(path, label, kind, frame, text)
 
 
-def _read_recovered(path: Path, text: pd.DataFrame, frame: pd.DataFrame) -> None:
+class _Lines:
+    """A data row's line in its file (only worked out for a message: comments, blank lines and
+    the header are not rows)."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self._lines: list[int] | None = None
+
+    def __call__(self, row: int) -> str:
+        if self._lines is None:
+            text = self.path.read_text(encoding="utf-8-sig", errors="replace")
+            self._lines = [i + 1 for i, line in enumerate(text.splitlines())
+                           if line.strip() and not line.lstrip().startswith("#")
+                           and line.replace(",", "").strip()][1:]
+        if row < len(self._lines):
+            return f"line {self._lines[row]}"
+        return f"data row {row + 1}"  # a quoted text over several lines: count rows instead
+
+    def both(self, a: int, b: int) -> str:
+        first, second = self(a), self(b)
+        if first.startswith("line ") and second.startswith("line "):
+            return f"lines {first[5:]} and {second[5:]}"
+        return f"{first} and {second}"
+
+
+def _read_fields(path: Path) -> pd.DataFrame:
+    """Every field as text, the header as the first row; ParameterError for a row with more
+    fields than the header, an empty file or one that is no CSV."""
+    try:
+        return pd.read_csv(path, header=None, dtype=str, keep_default_na=False, comment="#",
+                           encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise ParameterError(f"reference file not found: {path} (the shipped references: "
+                             f"{', '.join(references.SHIPPED)})") from None
+    except pd.errors.EmptyDataError:
+        raise ParameterError(f"{path}: empty; a reference file needs a header line (force, "
+                             "...) and at least one row (docs/outputs.md, 'Reference files')"
+                             ) from None
+    except UnicodeDecodeError:
+        raise ParameterError(f"{path}: not UTF-8 text") from None
+    except pd.errors.ParserError as exc:
+        extra = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", str(exc))
+        first = _first_line(path)
+        if extra and _separated_otherwise(first):
+            raise ParameterError(f"{path}: the header {first!r} is one column: the separator "
+                                 "must be a comma") from None
+        if extra:
+            raise ParameterError(
+                f"{path}, line {extra[2]}: {extra[3]} fields where the header has {extra[1]} "
+                "(a trailing comma, or a comma in an unquoted text: quote it)") from None
+        raise ParameterError(f"{path}: not a readable CSV ({exc})") from None
+    except Exception as exc:  # noqa: BLE001 - any parse failure is the file's
+        raise ParameterError(f"{path}: not a readable CSV ({exc})") from None
+
+
+def _first_line(path: Path) -> str:
+    """The file's first line that is neither blank nor a comment (its header)."""
+    with open(path, encoding="utf-8-sig", errors="replace") as file:
+        for line in file:
+            if line.strip() and not line.lstrip().startswith("#"):
+                return line.strip()
+    return ""
+
+
+def _separated_otherwise(header: str) -> bool:
+    return "," not in header and any(sep in header for sep in (";", "\t", "|"))
+
+
+def _found(header: list[str]) -> str:
+    """``; found column(s) ...`` and, for a header separated otherwise, the separator rule."""
+    if not header:
+        return ""
+    found = f"; found column(s) {', '.join(repr(c) for c in header)}"
+    if len(header) == 1 and _separated_otherwise(header[0]):
+        found += ": the separator must be a comma"
+    return found
+
+
+def _checked_header(path: Path, header: list[str], text: pd.DataFrame,
+                    lines: _Lines) -> tuple[list[str], pd.DataFrame]:
+    """The data under their column names; a column without a name is dropped when it is
+    empty (a trailing comma on every line), refused when it holds values; a name given twice
+    is refused."""
+    keep = []
+    for i, name in enumerate(header):
+        if name:
+            keep.append(i)
+            continue
+        values = text.iloc[:, i]
+        if (values != "").any():
+            row = int(np.flatnonzero((values != "").to_numpy())[0])
+            raise ParameterError(f"{path}: column {i + 1} has no name in the header but "
+                                 f"holds {values.iloc[row]!r} ({lines(row)})")
+    text = text.iloc[:, keep]
+    names = [header[i] for i in keep]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ParameterError(f"{path}: column(s) {', '.join(twice)} given more than once in "
+                             "the header")
+    text.columns = names
+    return names, text
+
+
+def _numbers(path: Path, text: pd.DataFrame, column: str, lines: _Lines) -> pd.Series:
+    """A numeric column as floats (NaN where empty; force is never empty), checked: every
+    given value a finite number, none but force negative."""
+    given = text[column] != ""
+    values = pd.to_numeric(text[column].where(given, "nan"), errors="coerce")
+    number = values.to_numpy(float)
+    bad = given.to_numpy() & ~np.isfinite(number)
+    if column == "force":
+        bad |= ~given.to_numpy()
+    if bad.any():
+        row = int(np.flatnonzero(bad)[0])
+        raise ParameterError(f"{path}, {lines(row)}: {column} must be a finite number, got "
+                             f"{text[column].iloc[row]!r}")
+    if column != "force" and (number < 0).any():
+        row = int(np.flatnonzero(number < 0)[0])
+        raise ParameterError(f"{path}, {lines(row)}: {column} must not be negative, got "
+                             f"{text[column].iloc[row]!r}")
+    return pd.Series(number, index=text.index)
+
+
+def _read_recovered(path: Path, text: pd.DataFrame, frame: pd.DataFrame,
+                    lines: _Lines) -> None:
     """The ``recovered`` column as 1.0 / 0.0 / NaN (empty), checked; it needs durations."""
     words = text["recovered"].str.lower()
     bad = ~words.isin(TRUE | FALSE | {""})
     if bad.any():
         row = int(np.flatnonzero(bad)[0])
-        raise ParameterError(f"{path}, row {row + 2}: recovered must be 1/0, true/false or "
+        raise ParameterError(f"{path}, {lines(row)}: recovered must be 1/0, true/false or "
                              f"yes/no, got {text['recovered'].iloc[row]!r}")
     frame["recovered"] = np.where(words.isin(TRUE), 1.0, np.where(words.isin(FALSE), 0.0,
                                                                   np.nan))
-    if "duration" not in frame or frame.loc[frame["recovered"].notna(), "duration"].isna().any():
-        raise ParameterError(f"{path}: a recovered value needs the push's duration")
+    if "duration" not in frame:
+        raise ParameterError(f"{path}: a recovered value needs the push's duration (a column "
+                             "duration)")
+    missing = frame["recovered"].notna() & frame["duration"].isna()
+    if missing.any():
+        row = int(np.flatnonzero(missing)[0])
+        raise ParameterError(f"{path}, {lines(row)}: a recovered value needs the push's "
+                             "duration")
+
+
+def _one_value_each(path: Path, frame: pd.DataFrame, lines: _Lines) -> None:
+    """Refuse two different values of one measure for one force, or two outcomes of one push
+    (force, duration); a repeated equal value is kept once (the later one emptied, so that it
+    is scored once). The same force: the same number (20 and 20.0 are one; 20 and 20.0001 are
+    two rows, each scored against our table's nearest same force)."""
+    force = pd.factorize(frame["force"])[0]
+    keys: list[tuple[str, np.ndarray]] = [(m, force) for m in MEASURES if m in frame]
+    if "recovered" in frame:
+        keys.append(("recovered", pd.MultiIndex.from_arrays(
+            [frame["force"], frame["duration"].fillna(-1.0)]).factorize()[0]))
+    for column, key in keys:
+        values = frame[column].to_numpy(float)
+        given = np.flatnonzero(np.isfinite(values))
+        if given.size < 2:
+            continue
+        groups = pd.DataFrame({"key": key[given], "value": values[given], "row": given})
+        first = groups.groupby("key", sort=False)[["value", "row"]].transform("first")
+        repeated = groups["row"].to_numpy() != first["row"].to_numpy()
+        differs = repeated & (groups["value"].to_numpy() != first["value"].to_numpy())
+        if differs.any():
+            i = int(np.flatnonzero(differs)[0])
+            a, b = int(first["row"].iloc[i]), int(groups["row"].iloc[i])
+            what = (f"push {frame['force'].iloc[a]:g} N x {frame['duration'].iloc[a]:g} s"
+                    if column == "recovered" else f"force {frame['force'].iloc[a]:g} N")
+            raise ParameterError(
+                f"{path}, {lines.both(a, b)}: two different {column} for the {what} "
+                f"({frame[column].iloc[a]:.12g} and {frame[column].iloc[b]:.12g}); keep the one "
+                "you mean")
+        if repeated.any():  # the same value again: scored once
+            frame.loc[groups["row"].to_numpy()[repeated], column] = np.nan
 
 
 def read_references(paths: Sequence[str | Path] | str | Path | None) -> list[Reference]:
-    """Every reference file (labels made unique by a suffix)."""
+    """Every reference file (labels made unique by a suffix: ``study``, ``study_2``).
+    ``paths``: a path, a shipped reference's name or a sequence of them (TypeError for
+    anything else, naming what is accepted)."""
     if paths is None:
         return []
-    if isinstance(paths, (str, Path)):
+    if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
+    elif (not isinstance(paths, Sequence) or isinstance(paths, bytes)
+          or not all(isinstance(p, (str, os.PathLike)) for p in paths)):
+        bad = paths if not isinstance(paths, Sequence) or isinstance(paths, bytes) else next(
+            p for p in paths if not isinstance(p, (str, os.PathLike)))
+        raise TypeError(f"reference: expected a CSV path, the name of a shipped reference "
+                        f"({', '.join(references.SHIPPED)}) or a list of them; got "
+                        f"{type(bad).__name__} {bad!r}")
     refs = [read_reference(p) for p in paths]
-    seen: dict[str, int] = {}
+    seen: set[str] = set()
     for ref in refs:
-        count = seen.get(ref.label, 0)
-        seen[ref.label] = count + 1
-        if count:
-            ref.label = f"{ref.label}_{count + 1}"
+        label, count = ref.label, 1
+        while label in seen:
+            count += 1
+            label = f"{ref.label}_{count}"
+        ref.label = label
+        seen.add(label)
     return refs
 
 
-def reference_forces(refs: Sequence[Reference]) -> list[float]:
-    """The forces the references' tables score (for a table run that covers them)."""
-    return sorted({f for ref in refs for f in ref.forces})
+def reference_forces(refs: Sequence[Reference],
+                     forces: Sequence[float] | np.ndarray | None = None) -> list[float]:
+    """The forces the references' tables score (for a table run that covers them), each once
+    (forces within :data:`FORCE_RTOL` of each other are one force); with ``forces`` (our
+    table's), only those it does not already hold within that tolerance: the same rule
+    matches a reference row to our table's row."""
+    kept: list[float] = []
+    for force in sorted({f for ref in refs for f in ref.forces}):
+        if not kept or abs(force - kept[-1]) > FORCE_ATOL + FORCE_RTOL * abs(kept[-1]):
+            kept.append(force)  # one force per cluster: the smallest (the rest match it)
+    wanted = np.asarray(kept, float)
+    if forces is not None and wanted.size:
+        wanted = wanted[nearest_force(np.asarray(forces, float).ravel(), wanted) < 0]
+    return [float(f) for f in wanted]
+
+
+def same_force(a: float | np.ndarray, b: float | np.ndarray) -> np.ndarray:
+    """Whether forces ``a`` and ``b`` are one force: within :data:`FORCE_RTOL` of ``b`` (plus
+    :data:`FORCE_ATOL`), the one tolerance of adding reference forces to a table and of
+    matching them in it."""
+    return np.isclose(a, b, rtol=FORCE_RTOL, atol=FORCE_ATOL)
+
+
+def nearest_force(known: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+    """For each of ``wanted``, the index in ``known`` of the nearest force that is the same
+    force (:func:`same_force`), -1 where none is."""
+    known = np.asarray(known, float)
+    wanted = np.asarray(wanted, float)
+    result = np.full(wanted.shape, -1, int)
+    if not known.size or not wanted.size:
+        return result
+    order = np.argsort(known, kind="stable")
+    ordered = known[order]
+    right = np.clip(np.searchsorted(ordered, wanted), 0, len(ordered) - 1)
+    left = np.clip(right - 1, 0, len(ordered) - 1)
+    with np.errstate(invalid="ignore"):
+        pick = np.where(np.abs(ordered[left] - wanted) <= np.abs(ordered[right] - wanted),
+                        left, right)
+    near = ordered[pick]
+    return np.where(same_force(wanted, near) & np.isfinite(near), order[pick], -1)
 
 
 def reference_points(refs: Sequence[Reference]) -> pd.DataFrame | None:
@@ -185,7 +414,12 @@ def stated_resolution(text: str) -> float:
 
 
 def _match(frame: pd.DataFrame, force: float) -> pd.DataFrame:
-    return frame[np.isclose(frame["force"].to_numpy(float), force, rtol=0, atol=1e-9)]
+    """``frame``'s rows of the force nearest ``force`` that is the same force (same_force)."""
+    forces = frame["force"].to_numpy(float)
+    index = nearest_force(forces, np.asarray([force], float))[0]
+    if index < 0:
+        return frame.iloc[0:0]
+    return frame[forces == forces[index]]
 
 
 def energy_step(runs: pd.DataFrame | None, force: float, measure: str,
@@ -210,7 +444,8 @@ def energy_step(runs: pd.DataFrame | None, force: float, measure: str,
 def our_value(measure: str, force: float, table: pd.DataFrame | None,
               runs: pd.DataFrame | None) -> tuple[float, float, str, str]:
     """(ours, our uncertainty, its basis, status) of a table measure at ``force``; status is
-    '' when there is a value to compare, else why not."""
+    '' when there is a value to compare, else why not. The rule for one row; :func:`score`
+    applies it to whole columns."""
     row = None if table is None else _match(table, force)
     if row is None or not len(row):
         return math.nan, math.nan, "", "not computed: force not in our table"
@@ -221,30 +456,44 @@ def our_value(measure: str, force: float, table: pd.DataFrame | None,
     if measure == "max_acting_time":
         return value, RESOLUTION, f"our bisection step {RESOLUTION:g} s", ""
     if not np.isfinite(value):
-        what = "0.1-s push" if measure.endswith("_01") else "push"
-        return math.nan, math.nan, "", (f"not comparable: our {what} at this force did not "
-                                        "recover (the energy of a fall is not a recovery cost)")
+        return math.nan, math.nan, "", _fell(measure)
     if measure.endswith("_01"):
         return value, 0.0, "the same push (T = 0.1 s)", ""
-    step = energy_step(runs, force, measure, float(row["max_acting_time"]))
-    basis = (f"its change over one bisection step ({step:.3g} J)" if np.isfinite(step)
-             else "our uncertainty unknown (no neighbouring recovered run)")
-    return value, step, basis, ""
+    step = energy_step(runs, float(row["force"]), measure,
+                       float(row.get("max_acting_time", math.nan)))
+    return value, step, _step_basis(step), ""
+
+
+def _fell(measure: str) -> str:
+    what = "0.1-s push" if measure.endswith("_01") else "push"
+    return (f"not comparable: our {what} at this force did not recover (the energy of a fall "
+            "is not a recovery cost)")
+
+
+def _step_basis(step: float) -> str:
+    return (f"its change over one bisection step ({step:.3g} J)" if np.isfinite(step)
+            else "our uncertainty unknown (no neighbouring recovered run)")
 
 
 def our_recovered(force: float, duration: float, table: pd.DataFrame | None,
                   region: pd.DataFrame | None) -> tuple[float, str, str]:
-    """(1.0 / 0.0 / NaN, how we know it, status) of the push (force, duration)."""
+    """(1.0 / 0.0 / NaN, how we know it, status) of the push (force, duration). The rule for
+    one row; :func:`score` applies it to whole columns."""
     if region is not None and len(region):
         cell = _match(region, force)
-        cell = cell[np.isclose(cell["duration"].to_numpy(float), duration, rtol=0, atol=1e-9)]
+        cell = cell[np.isclose(cell["duration"].to_numpy(float), duration, rtol=0,
+                               atol=DURATION_ATOL)]
         if len(cell):
             return float(cell["outcome"].iloc[0] == "recovered"), "our region map's cell", ""
     row = None if table is None else _match(table, force)
     if row is None or not len(row):
         return math.nan, "", "not computed: (force, duration) in neither our map nor our table"
     row = row.iloc[0]
+    if "max_acting_time" not in row.index:
+        return math.nan, "", "not computed: our table has no max_acting_time"
     limit = float(row["max_acting_time"])
+    if not np.isfinite(limit):
+        return math.nan, "", "not computed: our table has no max acting time at this force"
     if not bool(row.get("monotone", True)):
         return math.nan, "", "not computed: recovery is not monotone in duration at this force"
     if limit < duration < limit + RESOLUTION:
@@ -253,69 +502,250 @@ def our_recovered(force: float, duration: float, table: pd.DataFrame | None,
     return float(duration <= limit), f"our max acting time {limit:g} s", ""
 
 
+def check_ours(table: pd.DataFrame | None, name: str = "table") -> None:
+    """Our table as the scorecard reads it: a DataFrame with a numeric ``force`` column
+    (ValueError naming ``name`` and what is missing; TypeError for another type)."""
+    if table is None:
+        return
+    if not isinstance(table, pd.DataFrame):
+        raise TypeError(f"{name}: expected a table DataFrame (as mjx_balance.table returns "
+                        f"it); got {type(table).__name__}")
+    if "force" not in table:
+        found = ", ".join(map(str, table.columns)) or "none"
+        raise ValueError(f"{name}: our table needs the column force (and the measures to "
+                         f"compare: max_acting_time, ...; as mjx_balance.table returns it); "
+                         f"its columns: {found}")
+    try:
+        table["force"].to_numpy(float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: column force must hold numbers (newtons), got "
+                         f"{table['force'].iloc[:3].tolist()}") from None
+
+
 # -- the scorecard ---------------------------------------------------------------------------------
 
 
-def _tolerance(ref: Reference, i: int, column: str, ours_unc: float,
-               ours_basis: str) -> tuple[float, str]:
+def _printed_resolutions(text: pd.Series) -> np.ndarray:
+    """:func:`stated_resolution` of every text of a column at once (each distinct text once)."""
+    codes, uniques = pd.factorize(text.to_numpy(object))
+    if len(uniques) <= 4096:
+        return np.asarray([stated_resolution(str(u)) for u in uniques], float)[codes]
+    words = pd.Series(uniques, dtype=str).str.strip().str.lower()
+    length = words.str.len().to_numpy(float)
+    e = words.str.find("e").to_numpy(float)
+    end = np.where(e >= 0, e, length)
+    dot = words.str.find(".").to_numpy(float)
+    decimals = np.where((dot >= 0) & (dot < end), end - dot - 1, 0.0)
+    power = np.zeros(len(words))
+    has_e = e >= 0
+    if has_e.any():
+        tail = [w[int(i) + 1:] for w, i in zip(words[has_e], e[has_e])]
+        power[has_e] = [int(t) if t else 0 for t in tail]
+    return (10.0 ** (-decimals + power))[codes]
+
+
+def _tolerances(ref: Reference, rows: np.ndarray, column: str, ours_unc: np.ndarray,
+                ours_basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's tolerance and its basis: the file's tolerance, else half its stated (or
+    printed) resolution plus our uncertainty."""
     unit = UNITS.get(column, "")
-    if "tolerance" in ref.frame and np.isfinite(ref.frame["tolerance"].iloc[i]):
-        return float(ref.frame["tolerance"].iloc[i]), "the reference file's tolerance"
-    if "resolution" in ref.frame and np.isfinite(ref.frame["resolution"].iloc[i]):
-        res, said = float(ref.frame["resolution"].iloc[i]), "stated"
-    else:
-        res, said = stated_resolution(ref.text[column].iloc[i]), "printed"
-    unc = ours_unc if np.isfinite(ours_unc) else 0.0
-    basis = f"half the reference's {said} resolution {res:g} {unit}".rstrip()
-    return res / 2 + unc, f"{basis} + {ours_basis}" if ours_basis else basis
+    n = len(rows)
+    stated = (ref.frame["resolution"].to_numpy(float)[rows] if "resolution" in ref.frame
+              else np.full(n, np.nan))
+    has_stated = np.isfinite(stated)
+    res = stated.copy()
+    if not has_stated.all():
+        printed = ref.text[column].iloc[rows[~has_stated]]
+        res[~has_stated] = _printed_resolutions(printed)
+    unc = np.where(np.isfinite(ours_unc), ours_unc, 0.0)
+    tol = res / 2 + unc
+    combos = pd.DataFrame({"stated": has_stated, "res": res,
+                           "ours": pd.Series(ours_basis, dtype=object).fillna("").to_numpy()})
+    codes = combos.groupby(["stated", "res", "ours"], sort=False).ngroup().to_numpy()
+    first = combos.drop_duplicates(["stated", "res", "ours"])
+    words = []
+    for said, value, ours in zip(first["stated"], first["res"], first["ours"]):
+        basis = (f"half the reference's {'stated' if said else 'printed'} resolution "
+                 f"{value:g} {unit}").rstrip()
+        words.append(f"{basis} + {ours}" if ours else basis)
+    basis = np.asarray(words, object)[codes] if n else np.asarray([], object)
+    if "tolerance" in ref.frame:
+        given = ref.frame["tolerance"].to_numpy(float)[rows]
+        own = np.isfinite(given)
+        tol = np.where(own, given, tol)
+        basis = np.where(own, "the reference file's tolerance", basis)
+    return tol, basis
+
+
+def _table_values(table: pd.DataFrame | None, column: str, index: np.ndarray) -> np.ndarray:
+    """``table[column]`` at ``index`` (NaN where the index is -1 or the column absent)."""
+    out = np.full(len(index), np.nan)
+    if table is None or column not in table:
+        return out
+    have = index >= 0
+    out[have] = pd.to_numeric(table[column], errors="coerce").to_numpy(float)[index[have]]
+    return out
+
+
+def _our_values(measure: str, index: np.ndarray, table: pd.DataFrame | None,
+                runs: pd.DataFrame | None) -> tuple[np.ndarray, ...]:
+    """:func:`our_value` for the table rows ``index`` (-1: the force is not in our table)."""
+    n = len(index)
+    ours, unc = np.full(n, np.nan), np.full(n, np.nan)
+    basis, status = np.full(n, "", object), np.full(n, "", object)
+    found = index >= 0
+    status[~found] = "not computed: force not in our table"
+    if table is None or measure not in table:
+        status[found] = f"not computed: our table has no {measure}"
+        return ours, unc, basis, status
+    value = _table_values(table, measure, index)
+    if measure == "max_acting_time":
+        ours[found], unc[found] = value[found], RESOLUTION
+        basis[found] = f"our bisection step {RESOLUTION:g} s"
+        return ours, unc, basis, status
+    status[found & ~np.isfinite(value)] = _fell(measure)
+    have = found & np.isfinite(value)
+    ours[have] = value[have]
+    if measure.endswith("_01"):
+        unc[have], basis[have] = 0.0, "the same push (T = 0.1 s)"
+        return ours, unc, basis, status
+    limits = _table_values(table, "max_acting_time", index)
+    forces = table["force"].to_numpy(float)
+    for row in np.unique(index[have]):  # one step per force of our table
+        mine = have & (index == row)
+        step = energy_step(runs, float(forces[row]), measure, float(limits[mine][0]))
+        unc[mine], basis[mine] = step, _step_basis(step)
+    return ours, unc, basis, status
+
+
+def _our_recovereds(forces: np.ndarray, durations: np.ndarray, index: np.ndarray,
+                    table: pd.DataFrame | None,
+                    region: pd.DataFrame | None) -> tuple[np.ndarray, ...]:
+    """:func:`our_recovered` for whole columns: (1/0/NaN, how we know it, status)."""
+    n = len(forces)
+    ours = np.full(n, np.nan)
+    how, status = np.full(n, "", object), np.full(n, "", object)
+    todo = np.ones(n, bool)
+    if region is not None and len(region):
+        cells = region["force"].to_numpy(float)
+        known = np.unique(cells)
+        wanted = nearest_force(known, forces)
+        left = pd.DataFrame({"key": wanted, "duration": durations, "at": np.arange(n)})
+        left = left[left["key"] >= 0].sort_values("duration", kind="stable")
+        right = pd.DataFrame({"key": np.searchsorted(known, cells),
+                              "duration": region["duration"].to_numpy(float),
+                              "recovered": (region["outcome"] == "recovered").to_numpy(float)})
+        right = (right.dropna(subset=["duration"]).drop_duplicates(["key", "duration"])
+                 .sort_values("duration", kind="stable"))
+        if len(left) and len(right):
+            hit = pd.merge_asof(left, right, on="duration", by="key", direction="nearest",
+                                tolerance=DURATION_ATOL).dropna(subset=["recovered"])
+            at = hit["at"].to_numpy(int)
+            ours[at], how[at] = hit["recovered"].to_numpy(float), "our region map's cell"
+            todo[at] = False
+    status[todo & (index < 0)] = ("not computed: (force, duration) in neither our map nor "
+                                  "our table")
+    rest = todo & (index >= 0)
+    if not rest.any():
+        return ours, how, status
+    if "max_acting_time" not in table:
+        status[rest] = "not computed: our table has no max_acting_time"
+        return ours, how, status
+    limit = _table_values(table, "max_acting_time", index)
+    monotone = (np.asarray([bool(v) for v in table["monotone"]]) if "monotone" in table
+                else np.ones(len(table), bool))[np.maximum(index, 0)]
+    unknown = rest & ~np.isfinite(limit)
+    status[unknown] = "not computed: our table has no max acting time at this force"
+    rest &= ~unknown
+    bent = rest & ~monotone
+    status[bent] = "not computed: recovery is not monotone in duration at this force"
+    rest &= monotone
+    near = rest & (limit < durations) & (durations < limit + RESOLUTION)
+    said = {v: f"{v:g}" for v in np.unique(limit[rest])}
+    for value, text in said.items():
+        status[near & (limit == value)] = (f"uncertain: within one bisection step of our max "
+                                           f"acting time {text} s")
+        mine = rest & ~near & (limit == value)
+        how[mine] = f"our max acting time {text} s"
+    decided = rest & ~near
+    ours[decided] = (durations[decided] <= limit[decided]).astype(float)
+    return ours, how, status
 
 
 def score(ref: Reference, table: pd.DataFrame | None, *, runs: pd.DataFrame | None = None,
           region: pd.DataFrame | None = None) -> pd.DataFrame:
-    """The scorecard rows of one reference (empty for a points file)."""
-    rows = []
+    """The scorecard rows of one reference (empty for a points file): for each of its rows, one
+    per measure it gives (in :data:`MEASURES` order), then its ``recovered``."""
     if ref.kind != "table":
         return pd.DataFrame(columns=SCORECARD_COLUMNS)
+    check_ours(table)
     f = ref.frame
-    for i in range(len(f)):
-        force = float(f["force"].iloc[i])
-        common = {"source": ref.label, "force": force,
-                  "reason": f["reason"].iloc[i] if "reason" in f else "",
-                  "citation": f["source"].iloc[i] if "source" in f else ""}
-        for measure in ref.measures:
-            reference = float(f[measure].iloc[i])
-            if not np.isfinite(reference):
-                continue
-            ours, unc, basis, status = our_value(measure, force, table, runs)
-            tol, tol_basis = _tolerance(ref, i, measure, unc, basis)
-            rows.append(_row(common, measure, np.nan, reference, ours, unc, tol=tol,
-                             tol_basis=tol_basis, status=status))
-        if "recovered" in f and np.isfinite(f["recovered"].iloc[i]):
-            duration = float(f["duration"].iloc[i])
-            ours, how, status = our_recovered(force, duration, table, region)
-            rows.append(_row(common, "recovered", duration, float(f["recovered"].iloc[i]),
-                             ours, 0.0, tol=0.0, tol_basis=f"exact: {how}" if how else "",
-                             status=status))
-    return pd.DataFrame(rows, columns=SCORECARD_COLUMNS)
+    forces = f["force"].to_numpy(float)
+    index = (nearest_force(table["force"].to_numpy(float), forces)
+             if table is not None and len(table) else np.full(len(f), -1))
+    reason = (f["reason"].to_numpy(object) if "reason" in f else np.full(len(f), "", object))
+    citation = (f["source"].to_numpy(object) if "source" in f
+                else np.full(len(f), "", object))
+    parts = []
+    for k, measure in enumerate(ref.measures):
+        reference = f[measure].to_numpy(float)
+        rows = np.flatnonzero(np.isfinite(reference))
+        if not rows.size:
+            continue
+        ours, unc, basis, status = _our_values(measure, index[rows], table, runs)
+        tol, tol_basis = _tolerances(ref, rows, measure, unc, basis)
+        parts.append(_rows(rows, k, measure, np.full(rows.size, np.nan), reference[rows],
+                           ours, unc, tol, tol_basis, status))
+    if "recovered" in f:
+        reference = f["recovered"].to_numpy(float)
+        rows = np.flatnonzero(np.isfinite(reference))
+        if rows.size:
+            durations = f["duration"].to_numpy(float)[rows]
+            ours, how, status = _our_recovereds(forces[rows], durations, index[rows], table,
+                                                region)
+            tol_basis = np.where(how != "", "exact: " + how.astype(str), "").astype(object)
+            parts.append(_rows(rows, len(MEASURES), "recovered", durations, reference[rows],
+                               ours, np.zeros(rows.size), np.zeros(rows.size), tol_basis,
+                               status))
+    if not parts:
+        return pd.DataFrame(columns=SCORECARD_COLUMNS)
+    columns = {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
+    order = np.lexsort((columns.pop("_k"), columns["_row"]))  # file order, then measure order
+    rows = columns.pop("_row")[order]
+    columns = {name: values[order] for name, values in columns.items()}
+    columns.update(source=np.full(len(rows), ref.label, object), force=forces[rows],
+                   reason=reason[rows], citation=citation[rows])
+    return pd.DataFrame({name: columns[name] for name in SCORECARD_COLUMNS})
 
 
-def _row(common: dict, measure: str, duration: float, reference: float, ours: float,
-         unc: float, *, tol: float, tol_basis: str, status: str) -> dict:
+def _rows(rows: np.ndarray, k: int, measure: str, duration: np.ndarray, reference: np.ndarray,
+          ours: np.ndarray, unc: np.ndarray, tol: np.ndarray, tol_basis: np.ndarray,
+          status: np.ndarray) -> dict[str, np.ndarray]:
+    """Scorecard rows of one measure, as columns: the differences, whether within the tolerance, the
+    status (``agrees`` / ``differs`` where there is no other)."""
     diff = ours - reference
-    rel = diff / abs(reference) if reference else (0.0 if diff == 0 else math.inf)
-    ok = bool(np.isfinite(diff) and abs(diff) <= tol + 1e-12)
-    if not status:
-        status = "agrees" if ok else "differs"
-    return {**common, "duration": duration, "measure": measure, "unit": UNITS.get(measure, ""),
-            "reference": reference, "ours": ours, "our_uncertainty": unc,
-            "abs_diff": diff, "rel_diff": rel if np.isfinite(diff) else math.nan,
-            "tolerance": tol, "tolerance_basis": tol_basis, "within": ok, "status": status}
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.where(reference != 0, diff / np.abs(reference),
+                       np.where(diff == 0, 0.0, math.inf))
+    finite = np.isfinite(diff)
+    with np.errstate(invalid="ignore"):
+        ok = finite & (np.abs(diff) <= tol + 1e-12)
+    status = np.where(status == "", np.where(ok, "agrees", "differs"), status).astype(object)
+    n = len(rows)
+    return {
+        "_row": rows, "_k": np.full(n, k), "duration": np.asarray(duration, float),
+        "measure": np.full(n, measure, object), "unit": np.full(n, UNITS.get(measure, ""), object),
+        "reference": reference, "ours": ours, "our_uncertainty": np.asarray(unc, float),
+        "abs_diff": diff, "rel_diff": np.where(finite, rel, np.nan),
+        "tolerance": np.asarray(tol, float), "tolerance_basis": np.asarray(tol_basis, object),
+        "within": ok, "status": status}
 
 
 def scorecard(table: pd.DataFrame | None, refs: Sequence[Reference], *,
               runs: pd.DataFrame | None = None,
               region: pd.DataFrame | None = None) -> pd.DataFrame:
     """Every reference's scorecard rows, one after another (:data:`SCORECARD_COLUMNS`)."""
+    check_ours(table)
     parts = [score(ref, table, runs=runs, region=region) for ref in refs]
     parts = [p for p in parts if len(p)]
     if not parts:
@@ -372,14 +802,30 @@ def folder_results(folder: str | Path) -> dict[str, pd.DataFrame | None]:
 def write_scorecard(folder: str | Path, refs: Sequence[Reference], *,
                     figure: bool = True) -> pd.DataFrame | None:
     """scorecard.csv (and scorecard.png) in ``folder`` from its saved results and ``refs``;
-    None when no reference is a table. Written atomically."""
+    None when no reference is a table. Written atomically (:func:`scorecard_files`)."""
+    return scorecard_files(folder, refs, figure=figure)[0]
+
+
+def scorecard_files(folder: str | Path, refs: Sequence[Reference], *,
+                    figure: bool = True) -> tuple[pd.DataFrame | None, list[Path]]:
+    """(the scorecard, the files written): scorecard.csv, and scorecard.png when ``figure``
+    and a measure has a panel (a ``recovered``-only scorecard has none: a figure left by an
+    earlier run is removed, so that it never disagrees with the csv)."""
     tables = [r for r in refs if r.kind == "table"]
     if not tables:
-        return None
+        return None, []
     folder = Path(folder)
     found = folder_results(folder)
+    check_ours(found["table"], str(folder / TABLE))
     card = scorecard(found["table"], tables, runs=found["runs"], region=found["region"])
     write_csv(card, folder / SCORECARD)
+    written = [folder / SCORECARD]
     if figure:
-        plot_scorecard(card, folder / SCORECARD_FIGURE, table=found["table"])
-    return card
+        path = plot_scorecard(card, folder / SCORECARD_FIGURE, table=found["table"])
+        if path is not None:
+            written.append(path)
+        else:
+            from ..figures.style import figure_path  # lazy: matplotlib
+
+            figure_path(folder / SCORECARD_FIGURE).unlink(missing_ok=True)
+    return card, written
