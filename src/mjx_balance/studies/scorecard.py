@@ -504,7 +504,8 @@ def our_recovered(force: float, duration: float, table: pd.DataFrame | None,
 
 def check_ours(table: pd.DataFrame | None, name: str = "table") -> None:
     """Our table as the scorecard reads it: a DataFrame with a numeric ``force`` column
-    (ValueError naming ``name`` and what is missing; TypeError for another type)."""
+    (ParameterError, a ValueError, naming ``name`` and what is missing: exit 2 on the command
+    line; TypeError for another type)."""
     if table is None:
         return
     if not isinstance(table, pd.DataFrame):
@@ -512,13 +513,13 @@ def check_ours(table: pd.DataFrame | None, name: str = "table") -> None:
                         f"it); got {type(table).__name__}")
     if "force" not in table:
         found = ", ".join(map(str, table.columns)) or "none"
-        raise ValueError(f"{name}: our table needs the column force (and the measures to "
+        raise ParameterError(f"{name}: our table needs the column force (and the measures to "
                          f"compare: max_acting_time, ...; as mjx_balance.table returns it); "
                          f"its columns: {found}")
     try:
         table["force"].to_numpy(float)
     except (TypeError, ValueError):
-        raise ValueError(f"{name}: column force must hold numbers (newtons), got "
+        raise ParameterError(f"{name}: column force must hold numbers (newtons), got "
                          f"{table['force'].iloc[:3].tolist()}") from None
 
 
