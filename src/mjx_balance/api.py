@@ -256,7 +256,7 @@ def scorecard(ours: "str | os.PathLike[str] | pd.DataFrame",
     column."""
     import pandas as pd
 
-    from .studies.scorecard import check_ours
+    from .studies.scorecard import check_ours  # lazy: a name of the scorecard's, for one check
 
     if isinstance(ours, pd.DataFrame):
         check_ours(ours, "ours")

@@ -55,7 +55,7 @@ def basin_command(args: Any) -> int:
     pushes = (None if str(args.push_forces).strip().lower() == "none"
               else (args.push_forces, args.push_durations))
     if pushes is None:  # no push cells: the durations are still checked, as every option is
-        from ..runs.grid import parse_grid
+        from ..runs.grid import parse_grid  # lazy: the runs floor loads JAX
 
         parse_grid(args.push_durations, "push durations")
     out = Path(args.out)

@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 from pathlib import Path
 from typing import Any
 
 from ..model.params import ParameterError
 from ..studies.defaults import DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES  # light
-from .common import base_config, in_folder, progress_enabled
+from .common import base_config, guard_work, in_folder, progress_enabled, table_scenarios
 from .options import (
     config_options,
     engine_options,
@@ -27,6 +28,7 @@ from .options import (
     positive_int,
     wait_option,
     write_exports,
+    yes_option,
 )
 
 SEXES = ("male", "female")  # model.subject.SEXES (the parser stays light)
@@ -78,6 +80,7 @@ def add_parser(sub: Any) -> None:
                         "and sustained-push limit in cohort.csv (default: no table)")
     engine_options(p)
     wait_option(p)
+    yes_option(p)
     format_option(p)
     figure_options(p)
     p.add_argument("--out", type=out_folder, required=True,
@@ -122,6 +125,27 @@ def chosen_source(args: argparse.Namespace) -> str:
     return source
 
 
+MAX_SUBJECTS = 1_000_000  # even with --yes: one folder per subject
+
+
+def subject_count(args: argparse.Namespace) -> int | None:
+    """How many subjects the options give, without drawing or checking them: --population's
+    N, the product of the grid's lists; None for a CSV file (read to count)."""
+    from ..runs.grid import parse_grid  # lazy: the runs floor loads JAX
+
+    source = chosen_source(args)
+    if source == "population":
+        return args.population
+    if source == "csv":
+        return None
+    sizes = [parse_grid(args.heights, "--heights").size, parse_grid(args.masses, "--masses").size,
+             len(args.sexes or ["male"])]
+    for name in ("ankle_strengths", "hip_strengths"):
+        option = getattr(args, name)
+        sizes.append(parse_grid(option, f"--{name.replace('_', '-')}").size if option else 1)
+    return math.prod(sizes)
+
+
 def members_from(args: argparse.Namespace) -> list:
     """The cohort's subjects from the options (``studies.cohort``)."""
     from ..runs.grid import parse_grid  # lazy: the runs floor loads JAX
@@ -149,14 +173,29 @@ def cohort_command(args: Any) -> int:
     from ..runs import DEFAULT_SWEEP  # lazy: the runs floor loads JAX; not for --help
     from ..studies.cohort import plan_cohort, run_plan  # lazy: as above
 
-    members = members_from(args)
+    from ..runs.folders import grid_values  # lazy: as above
+
     base = with_convention(base_config(args), args.convention)
+    forces = grid_values(args.forces or DEFAULT_SWEEP["forces"], "forces")
+    durations = grid_values(args.durations or DEFAULT_SWEEP["durations"], "durations")
+    tables = None if args.table_forces is None else grid_values(args.table_forces,
+                                                                "table forces")
+    # The work is planned (and absurd work refused) before the subjects are drawn or checked:
+    # a population's count is known from the options, a grid's from its values.
+    count = subject_count(args)
+    members = members_from(args) if count is None else None
+    count = len(members) if members is not None else count
+    guard_work(args, base, count * forces.size * durations.size, "cells",
+               extra=0 if tables is None else count * table_scenarios(base, tables.size))
+    if count > MAX_SUBJECTS:
+        raise ParameterError(f"{count:,} subjects is more than a cohort may hold "
+                             f"({MAX_SUBJECTS:,}: a folder each); run it in parts")
+    members = members if members is not None else members_from(args)
     out = Path(args.out)
     say = logging.getLogger("mjx_balance").info
-    plan = plan_cohort(out, members, base, args.forces or DEFAULT_SWEEP["forces"],
-                       args.durations or DEFAULT_SWEEP["durations"],
-                       table_forces=args.table_forces, log=say, slots=args.slots,
-                       full_length=args.full_length, physics=args.physics or "auto")
+    plan = plan_cohort(out, members, base, forces, durations, table_forces=tables, log=say,
+                       slots=args.slots, full_length=args.full_length,
+                       physics=args.physics or "auto")
 
     def work() -> None:
         run_plan(plan, progress=progress_enabled(args), log=say)

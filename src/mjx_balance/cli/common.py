@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import math
 import sys
 from pathlib import Path
 from typing import Any, Callable
@@ -70,6 +71,31 @@ def guard_work(args: argparse.Namespace, config: Config, n_scenarios: int, what:
         + (f" (+ about {extra:,} table scenarios)" if extra else ""))
     if not getattr(args, "yes", False):
         chunks.check_planned_work(n_scenarios + extra, t_end, what, rate=rate)
+
+
+def table_scenarios(config: Config, n_forces: int) -> int:
+    """Scenarios a table evaluates, at most: every force's (:func:`table_scenarios_per_force`)
+    and the sustained-push limit's (its coarse scan and rounds to 0.1 N from its widest
+    bracket)."""
+    import numpy as np
+
+    from ..runs.acting_time import SUSTAINED_COARSE  # lazy: the runs floor loads JAX
+
+    coarse = np.asarray(SUSTAINED_COARSE)
+    rounds = math.ceil(math.log(np.diff(coarse).max() / 0.1) / math.log(8))
+    return n_forces * table_scenarios_per_force(config) + coarse.size + 7 * rounds
+
+
+def table_scenarios_per_force(config: Config, resolution: float = 0.01) -> int:
+    """Scenarios the table evaluates per force, at most: its coarse scan, then one bisection of
+    the widest bracket (a planning estimate; resumed or monotone forces need fewer)."""
+    import numpy as np
+
+    from ..runs.acting_time import coarse_steps  # lazy: the runs floor loads JAX
+
+    steps = coarse_steps(config.scenario.t_end, resolution)
+    widest = int(max(np.diff(np.concatenate([[0], steps])).max(), 1))
+    return int(steps.size + math.ceil(math.log2(widest)) + 1)
 
 
 def reference_bytes(config: Config) -> int:

@@ -18,7 +18,7 @@ from ..studies.defaults import (  # light
     DEFAULT_SWEEP_FORCES,
     DEFAULT_SWEEP_TABLE_FORCES,
 )
-from .common import in_folder, progress_enabled
+from .common import guard_work, in_folder, progress_enabled, table_scenarios
 from .options import (
     cluster_option,
     config_options,
@@ -29,6 +29,7 @@ from .options import (
     sweep_file,
     wait_option,
     write_exports,
+    yes_option,
 )
 
 OLD_FORM = ("mjx-balance: compare --config FILE ... (the configurations to compare) is now "
@@ -61,6 +62,7 @@ def add_parser(sub: Any) -> None:
     engine_options(p)
     cluster_option(p)
     wait_option(p)
+    yes_option(p)
     format_option(p)
     figure_options(p)
     p.add_argument("--out", type=out_folder, required=True,
@@ -100,7 +102,8 @@ def variants_and_base(args: Any) -> tuple[list[tuple[str | None, str]], str | No
 def compare_command(args: Any) -> int:
     """Each variant's region map and table in OUT/<name>/, then compare.csv and compare.png."""
     from ..runs import DEFAULT_SWEEP  # lazy: the runs floor loads JAX; not for --help
-    from ..studies.compare import load_base, load_configs, run_compare  # lazy: as above
+    from ..studies.compare import (check_compare, load_base,  # lazy: as above
+                                   load_configs, run_compare)
 
     variants, base = variants_and_base(args)
     configs = load_configs([path for _, path in variants],
@@ -111,12 +114,15 @@ def compare_command(args: Any) -> int:
     out = Path(args.out)
     engine = {"slots": args.slots, "full_length": args.full_length,
               "physics": args.physics or "auto", "cluster": args.cluster}
+    grids = check_compare(out, configs, args.forces or DEFAULT_SWEEP["forces"],
+                          args.durations or DEFAULT_SWEEP["durations"],
+                          args.table_forces or DEFAULT_SWEEP["table_forces"])
+    first = next(iter(configs.values()))
+    guard_work(args, first, len(configs) * grids[0].size * grids[1].size, "cells",
+               extra=len(configs) * table_scenarios(first, grids[2].size))
 
     def work() -> None:
-        run_compare(out, configs, args.forces or DEFAULT_SWEEP["forces"],
-                    args.durations or DEFAULT_SWEEP["durations"],
-                    args.table_forces or DEFAULT_SWEEP["table_forces"],
-                    progress=progress_enabled(args), **engine)
+        run_compare(out, configs, *grids, progress=progress_enabled(args), **engine)
         write_exports(out, args)
 
     return in_folder(out, work, wait=getattr(args, "wait", False))

@@ -16,7 +16,8 @@ from ..model.params import apply_overrides, with_convention
 from ..studies.defaults import (DEFAULT_DELAYS, DEFAULT_SCALES,  # light
                                 DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,
                                 DEFAULT_TABLE_FORCES)
-from .common import base_config, chosen_physics, guard_work, in_folder, progress_enabled
+from .common import (base_config, chosen_physics, guard_work, in_folder, progress_enabled,
+                     table_scenarios)
 from .options import (config_options, engine_options, figure_options, format_option,
                       out_folder, renamed_option,
                       sweep_file, wait_option, write_exports, yes_option)
@@ -75,7 +76,6 @@ def landscape_command(args: Any) -> int:
     from ..runs import DEFAULT_SWEEP, load_sweep
     from ..studies.landscape import (check_landscape,  # lazy: as above
                                      run_landscape)
-    from .sweep import table_scenarios
 
     definition = load_sweep(args.sweep, base_config(args, overrides=False))
     # the command line wins: --set over the --config file and the sweep definition,

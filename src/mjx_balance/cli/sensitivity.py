@@ -11,7 +11,7 @@ import logging
 from pathlib import Path
 from typing import Any
 
-from .common import guard_work, in_folder, load_run_config, progress_enabled
+from .common import guard_work, in_folder, load_run_config, progress_enabled, table_scenarios
 from ..studies.defaults import DEFAULT_FORCES, READINGS  # light: no JAX
 from .options import (cluster_option, common_options, engine_options, figure_options,
                       wait_option, yes_option)
@@ -44,7 +44,6 @@ def sensitivity_command(args: Any) -> int:
     """Every reading's table, then the spread (every input checked first)."""
     from ..runs.folders import check_float32_grid  # lazy: JAX, MuJoCo; not for --help
     from ..runs.grid import parse_grid  # lazy: as above
-    from .sweep import table_scenarios
     from ..studies.sensitivity import reading_configs, run_sensitivity  # lazy: as above
 
     base = load_run_config(args)

@@ -136,7 +136,8 @@ def simulate_command(args: argparse.Namespace) -> int:
     from ..runs.folders import check_reference  # lazy: the runs floor loads JAX
     from ..store.files import (CONFIG, MANIFEST, write_csv,  # lazy: the store floor: pandas
                                write_parquet, write_text)
-    from ..store.folder import clear_pushes, read_pushes, record_simulation, write_push
+    from ..store.folder import (clear_pushes, read_pushes,  # lazy: pandas
+                                record_simulation, write_push)
     from ..store.provenance import run_context  # lazy: as above
 
     config = load_run_config(args)

@@ -13,14 +13,14 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..model.params import Config, apply_overrides, with_convention
 from ..studies.defaults import (DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,  # light
                                 DEFAULT_SWEEP_TABLE_FORCES)
-from .common import base_config, chosen_physics, guard_work, in_folder, progress_enabled
+from .common import (base_config, chosen_physics, guard_work, in_folder, progress_enabled,
+                     table_scenarios)
 from .options import (cluster_option, common_options, engine_options, figure_options,
                       format_option, positive_int, reference_file, sweep_file, wait_option,
                       write_exports, yes_option)
@@ -240,31 +240,6 @@ def table_command(args: Any) -> int:
         write_exports(out, args)
 
     return in_folder(out, work, wait=getattr(args, "wait", False))
-
-
-def table_scenarios(config: Config, n_forces: int) -> int:
-    """Scenarios a table evaluates, at most: every force's (:func:`table_scenarios_per_force`)
-    and the sustained-push limit's (its coarse scan and rounds to 0.1 N from its widest
-    bracket)."""
-    import numpy as np
-
-    from ..runs.acting_time import SUSTAINED_COARSE  # lazy: the runs floor loads JAX
-
-    coarse = np.asarray(SUSTAINED_COARSE)
-    rounds = math.ceil(math.log(np.diff(coarse).max() / 0.1) / math.log(8))
-    return n_forces * table_scenarios_per_force(config) + coarse.size + 7 * rounds
-
-
-def table_scenarios_per_force(config: Config, resolution: float = 0.01) -> int:
-    """Scenarios the table evaluates per force, at most: its coarse scan, then one bisection of
-    the widest bracket (a planning estimate; resumed or monotone forces need fewer)."""
-    import numpy as np
-
-    from ..runs.acting_time import coarse_steps  # lazy: the runs floor loads JAX
-
-    steps = coarse_steps(config.scenario.t_end, resolution)
-    widest = int(max(np.diff(np.concatenate([[0], steps])).max(), 1))
-    return int(steps.size + math.ceil(math.log2(widest)) + 1)
 
 
 def _stale(figure: Path, source: Path) -> bool:

@@ -41,7 +41,7 @@ from ..model.params import (
 )
 from ..runs import cluster as cluster_mod
 from ..runs.definitions import load_sweep
-from ..runs.folders import run_region, run_table_folder
+from ..runs.folders import check_batched, run_region, run_table_folder
 from ..runs.grid import check_durations, describe, parse_grid, same_values
 from ..store.files import REGION, TABLE, write_csv
 from ..store.folder import OutputFolder, config_dict, config_differences
@@ -188,6 +188,29 @@ def numbers(region: pd.DataFrame, table: pd.DataFrame | None) -> dict[str, float
     return row
 
 
+def check_compare(out: str | Path, configs: dict[str, Config], forces: Any, durations: Any,
+                  table_forces: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every input of :func:`run_compare` checked, nothing written: the names, the grids
+    (within float32; every duration on every configuration's window and physics step), each
+    configuration as the batched path runs it (``runs.folders.check_batched``) and each
+    configuration's folder in ``out``. Returns the parsed grids; ParameterError naming the
+    configuration otherwise."""
+    out = Path(out)
+    forces = parse_grid(forces, "forces")
+    durations = parse_grid(durations, "durations")
+    table_forces = parse_grid(table_forces, "table forces")
+    check_names(list(configs))
+    for name, config in configs.items():  # every grid check before any work
+        try:
+            check_durations(durations, config.scenario.t_end,
+                            physics_dt=config.scenario.physics_dt)
+            check_batched(config, (forces, "forces"), (table_forces, "table forces"))
+        except ParameterError as exc:
+            raise ParameterError(f"configuration {name!r}: {exc}") from None
+        check_folder(out / name, name, config, forces, durations)
+    return forces, durations, table_forces
+
+
 def run_compare(out: str | Path, configs: dict[str, Config], forces: Any, durations: Any,
                 table_forces: Any, *, run_batches: dict[str, Any] | None = None,
                 progress: bool = False, log: Callable[[str], None] | None = print,
@@ -201,17 +224,8 @@ def run_compare(out: str | Path, configs: dict[str, Config], forces: Any, durati
     for ``runs.folders.run_region`` / ``run_table_folder``."""
     say = log or (lambda _msg: None)
     out = Path(out)
-    forces = parse_grid(forces, "forces")
-    durations = parse_grid(durations, "durations")
-    table_forces = parse_grid(table_forces, "table forces")
-    check_names(list(configs))
-    for name, config in configs.items():  # every grid check before any work
-        try:
-            check_durations(durations, config.scenario.t_end,
-                            physics_dt=config.scenario.physics_dt)
-        except ParameterError as exc:
-            raise ParameterError(f"configuration {name!r}: {exc}") from None
-        check_folder(out / name, name, config, forces, durations)
+    forces, durations, table_forces = check_compare(out, configs, forces, durations,
+                                                    table_forces)
     cluster = engine.get("cluster")
     if isinstance(cluster, str):  # one connection for every configuration's work
 

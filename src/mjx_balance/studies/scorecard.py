@@ -695,8 +695,9 @@ def score(ref: Reference, table: pd.DataFrame | None, *, runs: pd.DataFrame | No
             continue
         ours, unc, basis, status = _our_values(measure, index[rows], table, runs)
         tol, tol_basis = _tolerances(ref, rows, measure, unc, basis)
-        parts.append(_rows(rows, k, measure, np.full(rows.size, np.nan), reference[rows],
-                           ours, unc, tol, tol_basis, status))
+        parts.append(_rows(rows, k, measure, duration=np.full(rows.size, np.nan),
+                           reference=reference[rows], ours=ours, unc=unc, tol=tol,
+                           tol_basis=tol_basis, status=status))
     if "recovered" in f:
         reference = f["recovered"].to_numpy(float)
         rows = np.flatnonzero(np.isfinite(reference))
@@ -705,9 +706,10 @@ def score(ref: Reference, table: pd.DataFrame | None, *, runs: pd.DataFrame | No
             ours, how, status = _our_recovereds(forces[rows], durations, index[rows], table,
                                                 region)
             tol_basis = np.where(how != "", "exact: " + how.astype(str), "").astype(object)
-            parts.append(_rows(rows, len(MEASURES), "recovered", durations, reference[rows],
-                               ours, np.zeros(rows.size), np.zeros(rows.size), tol_basis,
-                               status))
+            parts.append(_rows(rows, len(MEASURES), "recovered", duration=durations,
+                               reference=reference[rows], ours=ours,
+                               unc=np.zeros(rows.size), tol=np.zeros(rows.size),
+                               tol_basis=tol_basis, status=status))
     if not parts:
         return pd.DataFrame(columns=SCORECARD_COLUMNS)
     columns = {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
@@ -719,9 +721,9 @@ def score(ref: Reference, table: pd.DataFrame | None, *, runs: pd.DataFrame | No
     return pd.DataFrame({name: columns[name] for name in SCORECARD_COLUMNS})
 
 
-def _rows(rows: np.ndarray, k: int, measure: str, duration: np.ndarray, reference: np.ndarray,
-          ours: np.ndarray, unc: np.ndarray, tol: np.ndarray, tol_basis: np.ndarray,
-          status: np.ndarray) -> dict[str, np.ndarray]:
+def _rows(rows: np.ndarray, k: int, measure: str, *, duration: np.ndarray,
+          reference: np.ndarray, ours: np.ndarray, unc: np.ndarray, tol: np.ndarray,
+          tol_basis: np.ndarray, status: np.ndarray) -> dict[str, np.ndarray]:
     """Scorecard rows of one measure, as columns: the differences, whether within the tolerance, the
     status (``agrees`` / ``differs`` where there is no other)."""
     diff = ours - reference
