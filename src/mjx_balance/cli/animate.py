@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 from typing import Any
 
 from .common import one_push
@@ -48,6 +49,7 @@ def animate_command(args) -> int:
 
     config, duration = one_push(args)
     summary, ts = simulate_scenario(config, args.force, duration, record=True)
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)  # as --out folders are made
     frames = animate_timeseries(ts, args.out, config.body, fps=args.fps, summary=summary,
                                 scenario=config.scenario,
                                 fast_forward=1 if args.no_fast_forward else FAST_FORWARD)

@@ -55,9 +55,11 @@ def basin_command(args: Any) -> int:
     pushes = (None if str(args.push_forces).strip().lower() == "none"
               else (args.push_forces, args.push_durations))
     if pushes is None:  # no push cells: the durations are still checked, as every option is
-        from ..runs.grid import parse_grid  # lazy: the runs floor loads JAX
+        from ..runs.grid import check_durations, parse_grid  # lazy: the runs floor loads JAX
 
-        parse_grid(args.push_durations, "push durations")
+        check_durations(parse_grid(args.push_durations, "push durations"),
+                        config.scenario.t_end, "push durations",
+                        physics_dt=config.scenario.physics_dt)
     out = Path(args.out)
     xs, vs, _ = check_basin(config, args.x_com, args.v_com, args.posture, pushes)
     guard_work(args, config, xs.size * vs.size, "cells")

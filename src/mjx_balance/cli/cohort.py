@@ -24,6 +24,7 @@ from .options import (
     format_option,
     input_file,
     nonnegative_float,
+    nonnegative_int,
     out_folder,
     positive_int,
     wait_option,
@@ -57,17 +58,18 @@ def add_parser(sub: Any) -> None:
     source.add_argument("--population", type=positive_int, default=None, metavar="N",
                         help="N subjects drawn at random (with --seed): sex, then height and "
                              "mass from normal distributions truncated to a subject's ranges")
-    source.add_argument("--seed", type=int, default=None, help="the population's seed")
-    source.add_argument("--height-mean", type=finite_float, default=1.70,
-                        help="the population's mean stature [m]")
-    source.add_argument("--height-sd", type=nonnegative_float, default=0.09,
-                        help="its standard deviation [m]")
-    source.add_argument("--mass-mean", type=finite_float, default=70.0,
-                        help="the population's mean body mass [kg]")
-    source.add_argument("--mass-sd", type=nonnegative_float, default=12.0,
-                        help="its standard deviation [kg]")
-    source.add_argument("--female-fraction", type=nonnegative_float, default=0.5,
-                        help="probability that a subject is female")
+    source.add_argument("--seed", type=nonnegative_int, default=None,
+                        help="the population's seed")
+    source.add_argument("--height-mean", type=finite_float, default=None,
+                        help="the population's mean stature [m] (default: 1.70)")
+    source.add_argument("--height-sd", type=nonnegative_float, default=None,
+                        help="its standard deviation [m] (default: 0.09)")
+    source.add_argument("--mass-mean", type=finite_float, default=None,
+                        help="the population's mean body mass [kg] (default: 70)")
+    source.add_argument("--mass-sd", type=nonnegative_float, default=None,
+                        help="its standard deviation [kg] (default: 12)")
+    source.add_argument("--female-fraction", type=nonnegative_float, default=None,
+                        help="probability that a subject is female (default: 0.5)")
     config_options(p)
     p.add_argument("--forces", default=None,
                    help=f"start:stop:step or a comma list [N] (default: the default sweep's, "
@@ -122,7 +124,16 @@ def chosen_source(args: argparse.Namespace) -> str:
     if stray:
         raise ParameterError(f"--{stray[0].replace('_', '-')} goes with --heights "
                                       "and --masses")
+    stray = [n for n in ("seed", *POPULATION_DEFAULTS)
+             if getattr(args, n) is not None and source != "population"]
+    if stray:  # an option that would be ignored: the user meant something else
+        raise ParameterError(f"--{stray[0].replace('_', '-')} goes with --population")
     return source
+
+
+# --population's distributions when not given (studies.cohort.population's defaults)
+POPULATION_DEFAULTS = {"height_mean": 1.70, "height_sd": 0.09, "mass_mean": 70.0,
+                       "mass_sd": 12.0, "female_fraction": 0.5}
 
 
 MAX_SUBJECTS = 1_000_000  # even with --yes: one folder per subject
@@ -155,9 +166,9 @@ def members_from(args: argparse.Namespace) -> list:
     if source == "csv":
         return cohort.read_subjects(args.subjects)
     if source == "population":
-        return cohort.population(args.population, args.seed, height_mean=args.height_mean,
-                                 height_sd=args.height_sd, mass_mean=args.mass_mean,
-                                 mass_sd=args.mass_sd, female_fraction=args.female_fraction)
+        given = {k: v if getattr(args, k) is None else getattr(args, k)
+                 for k, v in POPULATION_DEFAULTS.items()}
+        return cohort.population(args.population, args.seed, **given)
     return cohort.subject_grid(
         parse_grid(args.heights, "--heights"), parse_grid(args.masses, "--masses"),
         args.sexes or ["male"],
@@ -176,8 +187,10 @@ def cohort_command(args: Any) -> int:
     from ..runs.folders import grid_values  # lazy: as above
 
     base = with_convention(base_config(args), args.convention)
-    forces = grid_values(args.forces or DEFAULT_SWEEP["forces"], "forces")
-    durations = grid_values(args.durations or DEFAULT_SWEEP["durations"], "durations")
+    given = {k: DEFAULT_SWEEP[k] if getattr(args, k) is None else getattr(args, k)
+             for k in ("forces", "durations")}  # an empty value is refused, not the default
+    forces = grid_values(given["forces"], "forces")
+    durations = grid_values(given["durations"], "durations")
     tables = None if args.table_forces is None else grid_values(args.table_forces,
                                                                 "table forces")
     # The work is planned (and absurd work refused) before the subjects are drawn or checked:

@@ -114,9 +114,9 @@ def compare_command(args: Any) -> int:
     out = Path(args.out)
     engine = {"slots": args.slots, "full_length": args.full_length,
               "physics": args.physics or "auto", "cluster": args.cluster}
-    grids = check_compare(out, configs, args.forces or DEFAULT_SWEEP["forces"],
-                          args.durations or DEFAULT_SWEEP["durations"],
-                          args.table_forces or DEFAULT_SWEEP["table_forces"])
+    given = [DEFAULT_SWEEP[k] if getattr(args, k) is None else getattr(args, k)
+             for k in ("forces", "durations", "table_forces")]  # empty: refused, not default
+    grids = check_compare(out, configs, *given)
     first = next(iter(configs.values()))
     guard_work(args, first, len(configs) * grids[0].size * grids[1].size, "cells",
                extra=len(configs) * table_scenarios(first, grids[2].size))

@@ -62,6 +62,7 @@ def model_command(args) -> int:
     text = mjcf(config.body, config.scenario.physics_dt)
     model = mujoco.MjModel.from_xml_string(text)  # what we write must load
     out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)  # as --out folders are made
     write_text(text, out)
     log.info(f"wrote {out} (total mass {float(model.body_mass.sum()):.4g} kg, time step "
              f"{model.opt.timestep:g} s)")

@@ -182,8 +182,8 @@ def convention_list(text: str) -> str:
 
 
 def input_folder(text: str) -> str:
-    """An existing folder."""
-    if not Path(text).is_dir():
+    """An existing folder (not the empty text, which names the working folder)."""
+    if not text.strip() or not Path(text).is_dir():
         raise argparse.ArgumentTypeError(f"{text!r} is not a folder")
     return text
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from ..model.params import CONVENTIONS, ParameterError
-from .common import load_run_config
+from .common import in_folder, load_run_config
 from .options import (cluster_option, config_options, convention_list, input_folder,
                       out_folder, physics_option, reference_file)
 
@@ -78,25 +78,34 @@ def report_command(args: Any) -> int:
                                                                       *extra})))
         print(f"table: adding the reference's forces {', '.join(f'{f:g}' for f in extra)} N",
               file=sys.stderr)
-    if not getattr(args, "html_only", False):
+    html_only = getattr(args, "html_only", False)
+    if not html_only:  # every input checked before the folder is made or locked
         conventions = _conventions(args.conventions)
+        config, study_list = load_run_config(args), selected_studies(args.studies)
         backend = args.backend or plan.backend
         if backend == "mjx":
             cache.enable()  # the batched rollout compiles: keep its executables
-        # what the sweep folders' manifests record as the physics path
-        with run_context(physics="mjx" if backend == "mjx" else "mujoco"):
-            record = run_report(out, load_run_config(args), plan,
-                                backend=args.backend, study_list=selected_studies(args.studies),
-                                conventions=conventions,
-                                sweeps=Path(args.sweeps) if args.sweeps else None,
-                                cluster=getattr(args, "cluster", None),
-                                physics=getattr(args, "physics", None) or "auto")
-        print(f"tables saved in {out} ({record['seconds']:.0f} s)", file=sys.stderr)
     else:  # check the record before build_report creates anything
         read_record(out / REPORT_JSON)
-    store_references(out, args.reference)
-    path = build_report(out)
-    print(f"wrote {path}")
+    result = {}
+
+    def work() -> None:  # under the folder's lock: one report at a time in a folder
+        if not html_only:
+            # what the sweep folders' manifests record as the physics path
+            with run_context(physics="mjx" if backend == "mjx" else "mujoco"):
+                record = run_report(out, config, plan, backend=args.backend,
+                                    study_list=study_list, conventions=conventions,
+                                    sweeps=Path(args.sweeps) if args.sweeps else None,
+                                    cluster=getattr(args, "cluster", None),
+                                    physics=getattr(args, "physics", None) or "auto")
+            print(f"tables saved in {out} ({record['seconds']:.0f} s)", file=sys.stderr)
+        store_references(out, args.reference)
+        result["path"] = build_report(out)
+
+    code = in_folder(out, work, wait=getattr(args, "wait", False))
+    if code:
+        return code
+    print(f"wrote {result['path']}")
     return 0
 
 
