@@ -53,7 +53,7 @@ def test_help_shows_defaults_and_exit_codes():
 
     simulate = words("simulate")
     assert "(default: 0,20,50,80,100,120)" in simulate and "exit codes" in simulate
-    assert "frames per second (default: 25.0)" in words("animate")
+    assert "frames per second, at most 100 (default: 25.0)" in words("animate")
     sweep = words("sweep")
     assert "(default: None)" not in sweep and "(default: False)" not in sweep
     assert "--set SECTION.KEY=VALUE" in sweep and "--no-cache" in sweep

@@ -503,7 +503,7 @@ def test_simulate_reads_forces_and_durations_as_sweep_does(tmp_path, capsys, mon
         asked.update(forces=list(dict.fromkeys(f for f, _ in pairs)),
                      durations=list(dict.fromkeys(d for _, d in pairs)))
         raise Called
-    monkeypatch.setattr("mjx_balance.reference.loop.simulate_pairs", record)
+    monkeypatch.setattr("mjx_balance.reference.loop.each_pair", record)
     with pytest.raises(Called):
         cli.main(["simulate", "--forces", "0:40:20", "--durations", "0.05:0.1:0.05",
                   "--out", str(tmp_path / "out")])

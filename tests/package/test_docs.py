@@ -130,3 +130,24 @@ def test_readme_points_inside_the_repository():
     text = (REPO / "README.md").read_text(encoding="utf-8")
     assert "../shared" not in text
     assert "docs/model.md" in text and "docs/outputs.md" in text
+
+
+def test_every_test_docs_reliability_names_exists():
+    """Each ``tests/PATH.py::test_name`` in docs/reliability.md (and each ``::test_name`` after
+    it in the same cell, which names a test of the same file) is a test of that file."""
+    named, missing = 0, []
+    for line in (REPO / "docs" / "reliability.md").read_text().splitlines():
+        for cell in line.split("|"):
+            path = None
+            for match in re.finditer(r"`(tests/[\w/]+\.py)?(?:::(\w+))?`", cell):
+                path = match.group(1) or path
+                if path is None:
+                    continue
+                source = REPO / path
+                if not source.exists():
+                    missing.append(path)
+                elif match.group(2):
+                    named += 1
+                    if not re.search(rf"^def {match.group(2)}\(", source.read_text(), re.M):
+                        missing.append(f"{path}::{match.group(2)}")
+    assert named > 40 and not missing, missing

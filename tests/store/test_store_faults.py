@@ -433,7 +433,16 @@ def test_outputs_are_whole_or_old_after_a_failed_write(tmp_path, capsys, monkeyp
             m.setattr(owner, name, fail)
             code, err = run_cli(argv, capsys)
         assert code == 1 and "No space left" in err and "Traceback" not in err, name
-        assert {p.name: p.read_bytes() for p in out.iterdir()} == before, name
+        # the tables and figures as they were; the manifest records the failed run beside
+        # the tables it describes, and the finished push is kept for the next run (pushes/)
+        after = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+        records = ("manifest.json", ".lock")  # the runs' records (the lock names its holder)
+        assert {k: v for k, v in after.items() if k not in records} == {
+            k: v for k, v in before.items() if k not in records}, name
+        manifest = json.loads(after["manifest.json"])
+        old = json.loads(before["manifest.json"])
+        assert (manifest["config"], manifest["simulate"]) == (old["config"], old["simulate"])
+        assert manifest["runs"][-1]["status"] == "failed", name
         assert leftovers(tmp_path) == [], name
 
     # animate: the GIF is written whole or the old one stays.
@@ -518,3 +527,18 @@ def test_wait_for_the_run_that_holds_the_folder(tmp_path, fake_rollout, capsys):
     assert waiting[0].startswith(
         f"waiting for {out}: in use by another run (PID {holder.pid}, started "), waiting
     assert (out / "region.parquet").exists()
+
+
+@pytest.mark.parametrize("kind", ["simulate", "cohort"])
+def test_a_sweep_refuses_a_folder_of_another_kind(tmp_path, capsys, fake_rollout, kind):
+    """A folder holding a simulate or a cohort run is not a sweep's to take over."""
+    out = tmp_path / "other"
+    out.mkdir()
+    manifest = {"package": "mjx_balance", "version": "0", "kind": kind, "config": {}}
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    assert main(["-q", "sweep", "--forces", "10", "--durations", "0.1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"mjx-balance: error: {out} holds another kind of output (a {kind} run's); "
+                   "use another --out folder"]
+    assert sorted(p.name for p in out.iterdir()) == [".lock", "manifest.json"]
+    assert json.loads((out / "manifest.json").read_text()) == manifest

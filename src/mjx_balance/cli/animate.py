@@ -32,7 +32,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--force", type=finite_float, required=True, help="push force [N]")
     p.add_argument("--duration", type=nonnegative_float, default=0.1, help="push duration [s]")
     p.add_argument("--fps", type=gif_fps, default=25.0,
-                   help=f"frames per second (at most {MAX_FPS:g})")
+                   help=f"frames per second, at most {MAX_FPS:g}")
     p.add_argument("--t-end", type=positive_float, default=None,
                    help="simulate only this long [s]")
     p.add_argument("--no-fast-forward", action="store_true",

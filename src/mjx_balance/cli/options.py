@@ -79,7 +79,7 @@ def _integer(text: str, minimum: int) -> int:
         raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
     if not (math.isfinite(value) and value.is_integer() and minimum <= value <= MAX_INTEGER):
         raise argparse.ArgumentTypeError(
-            f"must be an integer from {minimum} to {MAX_INTEGER:,}, got {text!r}")
+            f"must be an integer >= {minimum} (at most {MAX_INTEGER:,}), got {text!r}")
     return int(value)
 
 

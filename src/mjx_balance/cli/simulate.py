@@ -136,7 +136,7 @@ def simulate_command(args: argparse.Namespace) -> int:
     from ..runs.folders import check_reference  # lazy: the runs floor loads JAX
     from ..store.files import (CONFIG, MANIFEST, write_csv,  # lazy: the store floor: pandas
                                write_parquet, write_text)
-    from ..store.folder import (clear_pushes, read_pushes,  # lazy: pandas
+    from ..store.folder import (finish_simulation, read_pushes,  # lazy: pandas
                                 record_simulation, write_push)
     from ..store.provenance import run_context  # lazy: as above
 
@@ -169,7 +169,7 @@ def simulate_command(args: argparse.Namespace) -> int:
         result["figures"] = timeseries_figures(series, out, config=config, summary=summary,
                                                full_window=args.full_window)
         write_exports(out, args)
-        clear_pushes(out)
+        finish_simulation(out, config, forces, durations, pairs=pairs)
 
     with run_context(physics="mujoco"):  # the scalar reference: MuJoCo C physics
         code = in_folder(out, work)

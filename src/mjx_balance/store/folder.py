@@ -88,31 +88,55 @@ PUSHES = "pushes"  # a simulate folder's finished pushes, while its run is under
 
 def record_simulation(folder: str | Path, config: Config, forces: Any, durations: Any,
                       pairs: Any = None) -> set[int]:
-    """Start (or resume) a ``simulate`` run in ``folder``, under its lock: the manifest records
-    the configuration, the pushes (the grid's forces and durations, or the given ``pairs``) and
-    this run's provenance (running; :func:`folder_lock` records how it ends). Returns the
-    indices of the pushes an earlier run of the same configuration and pushes finished
-    (``DIR/pushes/``, :func:`write_push`); another run's pushes are discarded."""
+    """Start (or resume) a ``simulate`` run in ``folder``, under its lock: this run's
+    provenance in the manifest's ``runs`` (running; :func:`folder_lock` records how it ends),
+    and its request (the configuration and the pushes: the grid's forces and durations, or the
+    given ``pairs``) in ``DIR/pushes/request.json``. The manifest's own ``config`` and
+    ``simulate`` describe the tables in the folder: set now for a folder without tables, else
+    when this run's tables replace them (:func:`finish_simulation`). Returns the indices of the
+    pushes an earlier run of the same request finished (:func:`write_push`); another
+    request's pushes are discarded."""
     folder = Path(folder)
-    pushes = ({"pairs": [[float(f), float(d)] for f, d in pairs]} if pairs is not None else
-              {"forces": [float(f) for f in forces], "durations": [float(d) for d in durations]})
-    manifest = {"package": "mjx_balance", "version": __version__, "kind": "simulate",
-                "config": config_dict(config), "simulate": pushes}
-    with_config_warnings(manifest, config)
-    old = _json_or_none(folder / MANIFEST)
+    request = _simulation_request(config, forces, durations, pairs)
     kept = folder / PUSHES
     for stale in kept.glob(".*.tmp"):  # a write cut short: no other run holds the folder
         stale.unlink(missing_ok=True)
-    if (isinstance(old, dict) and old.get("kind") == "simulate"
-            and old.get("config") == manifest["config"] and old.get("simulate") == pushes):
-        manifest["runs"] = old.get("runs", [])
+    if _json_or_none(kept / "request.json") == request:
         done = {int(p.name.split(".")[0]) for p in kept.glob("*.summary.json")
                 if (kept / p.name.replace(".summary.json", ".series.parquet")).exists()}
     else:
         shutil.rmtree(kept, ignore_errors=True)
+        kept.mkdir(parents=True)
+        write_text(json.dumps(request) + "\n", kept / "request.json")
         done = set()
+    old = _json_or_none(folder / MANIFEST)
+    manifest = (old if isinstance(old, dict) and old.get("kind") == "simulate" else
+                {"package": "mjx_balance", "version": __version__, "kind": "simulate"})
+    if "simulate" not in manifest:  # no tables yet: the manifest describes this request
+        manifest.update(request)
+        with_config_warnings(manifest, config)
     write_text(json.dumps(with_run(manifest), indent=2) + "\n", folder / MANIFEST)
     return done
+
+
+def finish_simulation(folder: str | Path, config: Config, forces: Any, durations: Any,
+                      pairs: Any = None) -> None:
+    """After a ``simulate`` run wrote its tables: the manifest describes them (this run's
+    configuration and pushes), and the kept pushes, now in the tables, are removed."""
+    folder = Path(folder)
+    manifest = _json_or_none(folder / MANIFEST)
+    manifest.pop("config_warnings", None)
+    manifest.update(_simulation_request(config, forces, durations, pairs))
+    with_config_warnings(manifest, config)
+    write_text(json.dumps(with_run(manifest), indent=2) + "\n", folder / MANIFEST)
+    shutil.rmtree(folder / PUSHES, ignore_errors=True)
+
+
+def _simulation_request(config: Config, forces: Any, durations: Any,
+                        pairs: Any) -> dict[str, Any]:
+    pushes = ({"pairs": [[float(f), float(d)] for f, d in pairs]} if pairs is not None else
+              {"forces": [float(f) for f in forces], "durations": [float(d) for d in durations]})
+    return {"config": config_dict(config), "simulate": pushes}
 
 
 def write_push(folder: str | Path, index: int, summary: dict[str, Any],
@@ -134,11 +158,6 @@ def read_pushes(folder: str | Path, count: int) -> tuple[pd.DataFrame, pd.DataFr
     series = [pd.read_parquet(kept / f"{i:06d}.series.parquet") for i in range(count)]
     return (pd.DataFrame(rows, columns=SUMMARY_COLUMNS),
             pd.concat(series, ignore_index=True))
-
-
-def clear_pushes(folder: str | Path) -> None:
-    """After ``simulate`` wrote its tables: the kept pushes are in them."""
-    shutil.rmtree(Path(folder) / PUSHES, ignore_errors=True)
 
 
 def _json_or_none(path: Path) -> Any:
