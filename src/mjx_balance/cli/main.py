@@ -25,14 +25,14 @@ from ..model.params import ParameterError, ParameterWarning, forget_warnings
 from ..runtime import signals
 from ..runtime.version import InstallError
 from ..runtime.xla import deterministic_flags
-from . import (animate, basin, bench, cohort, compare, landscape, model, report, sensitivity,
-               simulate, sweep)
+from . import (animate, basin, bench, cohort, compare, explore, landscape, model, report,
+               sensitivity, simulate, sweep)
 from .common import verbosity
 from .options import EPILOG, HelpFormatter, conventions, conventions_parent
 
 # In the order of ``mjx-balance --help``: sweep adds sweep and table, model adds model and view.
 COMMANDS = (simulate, bench, sweep, compare, cohort, landscape, basin, sensitivity, animate,
-            report, model)
+            report, explore, model)
 
 
 class _Version(argparse.Action):
@@ -144,7 +144,10 @@ def say_error(text: str) -> None:
         pass
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, *, hold_signals_after: bool = False) -> int:
+    """Run one command; its exit code. ``hold_signals_after``: the process ends after this
+    call (the console script), so SIGINT and SIGTERM are held from the end of the work on
+    (runtime/signals.honoured)."""
     # Figures are written to files: matplotlib's file-only backend, unless the user chose one
     # (the library itself never switches backends: a notebook keeps its inline figures).
     os.environ.setdefault("MPLBACKEND", "Agg")
@@ -164,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
         words = sys.argv[1:] if argv is None else list(argv)
         # SIGINT and SIGTERM raise Interrupted / Terminated wherever they land, and a signal
         # whose exception the runtime drops (a GC callback) still ends the work (signals.py)
-        with (signals.honoured(),
+        with (signals.honoured(hold_after=hold_signals_after),
               run_context(command=" ".join(shlex.quote(w) for w in ["mjx-balance", *words])),
               warnings.catch_warnings()):
             # a never-binding limit is logged where it is found (params.warn_parameter): the
@@ -183,11 +186,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def console() -> None:
-    """The ``mjx-balance`` script: :func:`main`, then the process's exit, during which a further
-    signal ends it at once with the same status (no traceback from clean-up at exit)."""
-    code = main()
-    signals.exit_quietly(code)
-    sys.exit(code)
+    """The ``mjx-balance`` script: :func:`main`, then the process's exit with its status; a
+    signal during the interpreter's clean-up at exit (JAX's) is held, not printed."""
+    sys.exit(main(hold_signals_after=True))
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -124,9 +124,14 @@ def seen(exc: BaseException) -> None:
 
 
 @contextmanager
-def honoured() -> Iterator[None]:
+def honoured(*, hold_after: bool = False) -> Iterator[None]:
     """SIGINT and SIGTERM raise :class:`Interrupted` / :class:`Terminated` in this block,
-    wherever they land (module docstring). Outside the main thread, a no-op."""
+    wherever they land (module docstring). Outside the main thread, a no-op.
+
+    ``hold_after`` (a process that ends after the block: the console script): from the
+    block's end on, the two signals are held (blocked, so discarded at the process's exit),
+    so that one arriving after the work, during the interpreter's clean-up at exit, neither
+    prints a traceback nor changes the exit status the work ended with."""
     st = _STATE
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -149,13 +154,7 @@ def honoured() -> Iterator[None]:
                 for timer in st.timers:
                     timer.cancel()
             sys.unraisablehook, st.hook = st.hook or sys.__unraisablehook__, None
+            if hold_after:
+                signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
             for s, previous in st.previous.items():
                 signal.signal(s, previous)
-
-
-def exit_quietly(code: int) -> None:
-    """After a command line's work: a signal during the interpreter's exit (JAX's clean-up at
-    exit) ends the process at once with ``code`` instead of printing a traceback."""
-    if threading.current_thread() is threading.main_thread():
-        for s in SIGNALS:
-            signal.signal(s, lambda *_: os._exit(code))
