@@ -129,8 +129,9 @@ def test_a_folder_without_results_is_taken_over_by_a_corrected_cohort(tmp_path):
 
 def test_the_corrected_command_takes_over_a_refused_runs_folder(tmp_path, capsys,
                                                                  fake_rollout):
-    """The issue's sequence on the command line: the manifest a refused `--set
-    controller.horizon=200` left, then the command without it: exit 0, the cohort written."""
+    """A refused run, then its corrected command, on the command line: the manifest a refused
+    `--set controller.horizon=200` left, then the command without it: exit 0, the cohort
+    written."""
     out = tmp_path / "out"
     _leftover(out, BASE.replace(controller={"horizon": 200}))
     code, err = run_cli(["cohort", "--heights", "1.7", "--masses", "70", "--forces", FORCES,

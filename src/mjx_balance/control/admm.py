@@ -17,8 +17,7 @@ by :func:`build_admm`, then cast to the working dtype:
   equilibration (§5.1) of [[T0ᵀ H T0, (C T0)ᵀ], [C T0, 0]] gives D, Ē and the cost scale c:
   T = T0 D, P̄ = c Tᵀ H T, Ā = Ē C T, q̄ = c Tᵀ q, l̄ = Ē l, ū = Ē u. OSQP's cost scaling also
   looks at q; ours changes every solve, so c uses P only. Whitening is possible because H never
-  changes; it cuts the iterations for the default accuracy about threefold against Ruiz alone
-  (measured on closed-loop states by ``mjx-balance bench solver``).
+  changes; it cuts the iterations for the default accuracy against Ruiz alone.
 - ρ is a vector over the constraint rows (as OSQP's per-row ρ): settings.rho times a factor per
   row group (inputs, states, CoP, CoM; ``rho_scale``), measured to favour the CoP rows.
 - The reduced KKT system (P̄ + σI + Āᵀ diag(ρ) Ā) x̃ = σx - q̄ + Āᵀ(ρz - y) (OSQP eq. 23) has a
@@ -81,9 +80,9 @@ class ADMMSettings(NamedTuple):
     """
 
     rho: float = _DEFAULTS.admm_rho
-    # ρ of each row group (RHO_GROUPS) = rho x factor, as OSQP's per-row ρ. Measured: a larger ρ
-    # on the CoP rows (often active during a push) and the input rows removes the slow tail of
-    # warm-started solves after large pushes (misses 3.1% -> 0% on the bench states).
+    # ρ of each row group (RHO_GROUPS) = rho x factor, as OSQP's per-row ρ. A larger ρ on the
+    # CoP rows (often active during a push) and the input rows removes the slow tail of
+    # warm-started solves after large pushes (the bench states of ``mjx-balance bench solver``).
     rho_scale: tuple[float, float, float, float] = (3.0, 1.0, 30.0, 1.0)
     sigma: float = _DEFAULTS.admm_sigma  # proximal term; H ≻ 0, so 0 is allowed
     alpha: float = _DEFAULTS.admm_alpha  # over-relaxation

@@ -141,7 +141,7 @@ class ReferenceMPC:
         Why not the slack QP for every state: a solvable QP's penalised solution is its hard
         one (the weights exceed its multipliers), which OSQP reaches reliably on the hard QP,
         while on the slack QP, an LP-like problem, OSQP at eps 1e-8 misses 6 of 64 solvable
-        bench states even with 200,000 iterations (measured 2026-11-25)."""
+        bench states even with 200,000 iterations."""
         self.hard_infeasible = not self.qp.feasible(x0, offset)
         if not self.hard_infeasible:
             return hard

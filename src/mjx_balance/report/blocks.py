@@ -14,8 +14,8 @@ FULL_WIDTH_PX = 1200
 ROW_WIDTH_PX = 600
 # Matplotlib's figures are flat colours and their anti-aliased edges: an adaptive palette of 64
 # colours chosen for coverage (Pillow's MAXCOVERAGE; median cut turned thin coloured lines
-# grey at the same count), without dithering, keeps lines, faint grid lines and text. Measured
-# on the tiny report (62 figures): 7.7 MB of full-colour PNGs before; see test_report_browser.
+# grey at the same count), without dithering, keeps lines, faint grid lines and text
+# (tests/report/test_report_browser.py; the report's size: docs/outputs.md).
 PALETTE_COLOURS = 64
 
 

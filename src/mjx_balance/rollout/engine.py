@@ -234,8 +234,8 @@ class Queue:
     Order (list scheduling's longest-first rule): a long scenario that starts late holds the
     run's end while the other slots idle, so the queue starts the cells expected to run longest
     first. Before any cell has finished, smaller |force| first: small pushes recover, and a
-    recovery runs until it is certified or to t_end, a fall only until it falls (measured on
-    the bench's scenarios: 333 control periods per recovery, 62 per fall). Once cells finish
+    recovery runs until it is certified or to t_end, a fall only until it falls (docs/engine.md,
+    "Longest first"). Once cells finish
     (:meth:`finished`), a cell's expected length is that of its nearest neighbour in (force,
     push steps, initial state) among the cells that finished, or that have run so long in a
     slot (a lower bound), re-estimated each time the count of finished cells has grown by a

@@ -92,19 +92,17 @@ def chunk_slices(n_cells: int, chunk_size: int) -> list[slice]:
     return [slice(i, min(i + chunk_size, n_cells)) for i in range(0, n_cells, chunk_size)]
 
 
-# The guard on enormous work. The rate is the engine's throughput measured on the
-# 2-core CPU of this project with two host devices, counted in scenario windows (a scenario
-# stops when decided, so what it simulates depends on the grid): 88-94 scenarios of 12 s per
-# second on the benchmark's mix (`mjx-balance bench`, 1024 scenarios) to 113-130 on the dense
-# study map (`mjx-balance sweep --sweep region_dense_paper`: 15,200 cells in
-# 117-135 s), BENCHMARKS.md. A GPU is far faster (the estimate is then pessimistic: --yes).
+# The guard on enormous work. The rate is the engine's throughput on the 2-core CPU of this
+# project with two host devices, counted in scenario windows (a scenario stops when decided, so
+# what it simulates depends on the grid), slowest and fastest: the benchmark's mix (BENCHMARKS.md,
+# "The pipeline benchmark") and the dense study map ("The dense study map"). A GPU is far
+# faster (the estimate is then pessimistic: --yes).
 SIMULATED_SECONDS_PER_SECOND = (88 * 12.0, 130 * 12.0)
-# Disk per scenario in a chunk file: a 64-row chunk parquet of the default sweep is 23 kB
-# (365 bytes a row; the merged region.parquet holds the same rows again).
+# Disk per scenario in a chunk file, rounded up from a default sweep's 64-row chunks
+# (BENCHMARKS.md, "Disk"); the merged region.parquet holds the same rows again.
 CHUNK_BYTES_PER_SCENARIO = 400
-# The scalar reference (MuJoCo C + OSQP, one scenario at a time: simulate): 1.1 window-s/s on
-# hard pushes (bounds active: OSQP iterates long) to 14.5 on light ones, on the same CPU
-# (docs/scripts/reference_rate.py; BENCHMARKS.md, "The scalar reference's rate").
+# The scalar reference (MuJoCo C + OSQP, one scenario at a time: simulate), hard pushes (bounds
+# active: OSQP iterates long) to light ones (BENCHMARKS.md, "The scalar reference's rate").
 REFERENCE_SECONDS_PER_SECOND = (1.0, 15.0)
 MAX_PLANNED_SCENARIOS = 2_000_000  # more than this needs --yes
 MAX_PLANNED_HOURS = 24.0  # an estimate (at the slower rate) beyond this needs --yes

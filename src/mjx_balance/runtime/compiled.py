@@ -14,8 +14,8 @@ import time
 from typing import Any, Callable, NamedTuple
 
 # Float32 products in full float32 precision: on NVIDIA GPUs JAX's default is TF32 (a 10-bit
-# mantissa), with which the ADMM stops converging (measured on an H100: 99.3 iterations per
-# control period at the 100 cap, against 34.5 on the CPU) and the physics drifts.
+# mantissa), with which the ADMM runs to its iteration cap in every control period and the
+# physics drifts (BENCHMARKS.md, "On a GPU"; docs/engine.md).
 MATMUL_PRECISION = "highest"
 
 _COMPILED: dict[tuple, Any] = {}

@@ -342,7 +342,7 @@ def plan_cohort(out: str | Path, members: Sequence[Member], base: Config, forces
     """Check a cohort before anything is written or locked: the ids, the grids, the engine's
     options (:func:`check_engine`), every subject's configuration (``Subject.config(base)``,
     the durations on its physics steps, and with ``batched`` everything the batched closed
-    loop refuses: ``runs.folders.check_batched``, about 0.5 s a subject on a CPU) and a folder
+    loop refuses: ``runs.folders.check_batched``) and a folder
     ``out`` that holds another cohort's results. ParameterError (exit code 2) for the first
     problem, naming it."""
     members = tuple(members)
