@@ -62,3 +62,24 @@ def test_nothing_pending_nothing_raised():
         with signals.honoured():  # nested: the outer block's handlers
             signals.check()
     assert signals.pending() is None
+
+
+def test_a_signal_after_the_console_scripts_work_changes_nothing(tmp_path):
+    """The console script's process, its work done: SIGINT and SIGTERM during the rest of its
+    life (the interpreter's clean-up at exit) neither print nor change the exit status."""
+    import subprocess
+    import textwrap
+
+    script = textwrap.dedent("""
+        import os, signal, sys, time
+        from mjx_balance.cli.main import main
+        code = main(["-q", "model", "--out", sys.argv[1]], hold_signals_after=True)
+        os.kill(os.getpid(), signal.SIGINT)
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.2)
+        sys.exit(code)
+    """)
+    done = subprocess.run([sys.executable, "-c", script, str(tmp_path / "body.xml")],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stderr == "", done.stderr
+    assert (tmp_path / "body.xml").exists()

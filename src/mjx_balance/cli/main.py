@@ -146,7 +146,7 @@ def say_error(text: str) -> None:
 
 def main(argv: list[str] | None = None, *, hold_signals_after: bool = False) -> int:
     """Run one command; its exit code. ``hold_signals_after``: the process ends after this
-    call (the console script), so SIGINT and SIGTERM are held from the end of the work on
+    call (the console script), so SIGINT and SIGTERM are ignored from the end of the work on
     (runtime/signals.honoured)."""
     # Figures are written to files: matplotlib's file-only backend, unless the user chose one
     # (the library itself never switches backends: a notebook keeps its inline figures).
@@ -187,7 +187,7 @@ def main(argv: list[str] | None = None, *, hold_signals_after: bool = False) -> 
 
 def console() -> None:
     """The ``mjx-balance`` script: :func:`main`, then the process's exit with its status; a
-    signal during the interpreter's clean-up at exit (JAX's) is held, not printed."""
+    signal during the interpreter's clean-up at exit (JAX's) is ignored, not printed."""
     sys.exit(main(hold_signals_after=True))
 
 

@@ -129,9 +129,9 @@ def honoured(*, hold_after: bool = False) -> Iterator[None]:
     wherever they land (module docstring). Outside the main thread, a no-op.
 
     ``hold_after`` (a process that ends after the block: the console script): from the
-    block's end on, the two signals are held (blocked, so discarded at the process's exit),
-    so that one arriving after the work, during the interpreter's clean-up at exit, neither
-    prints a traceback nor changes the exit status the work ended with."""
+    block's end on, the two signals are ignored, so that one arriving after the work, during
+    the interpreter's clean-up at exit, neither prints a traceback nor changes the exit status
+    the work ended with."""
     st = _STATE
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -154,7 +154,7 @@ def honoured(*, hold_after: bool = False) -> Iterator[None]:
                 for timer in st.timers:
                     timer.cancel()
             sys.unraisablehook, st.hook = st.hook or sys.__unraisablehook__, None
-            if hold_after:
-                signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
             for s, previous in st.previous.items():
-                signal.signal(s, previous)
+                # ignored, not blocked: a signal goes to any thread that does not block it,
+                # and Python resets its own handlers (not SIG_IGN) to the default at exit
+                signal.signal(s, signal.SIG_IGN if hold_after else previous)
