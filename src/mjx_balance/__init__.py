@@ -34,7 +34,7 @@ from .model.params import Config, ParameterError, Subject, load_config  # noqa: 
 # (or a new figure) and returns the Figure.
 _LAZY = {
     "simulate": "api", "sweep": "api", "table": "api", "compare": "api", "basin": "api",
-    "cohort": "api", "scorecard": "api", "references": "studies.references",
+    "cohort": "api", "scorecard": "api", "explore": "api", "references": "studies.references",
     "strategy_map": "figures.strategy",
     "load_report": "report.html:load_results",
     "region_map": "figures.region", "energy_map": "figures.region",
@@ -46,7 +46,7 @@ _LAZY = {
 }
 
 __all__ = ["Config", "ParameterError", "Subject", "__version__", "basin", "cohort", "compare",
-           "conventions_figure", "energy_map", "load_config", "load_report", "region_map", "region_numbers",
+           "conventions_figure", "explore", "energy_map", "load_config", "load_report", "region_map", "region_numbers",
            "references", "scorecard", "simulate", "strategy_map", "study", "study_reading", "sweep", "table",
            "table_figure",
            "timeseries_figure", "weight_figure", "figure_style", "save_figure"]

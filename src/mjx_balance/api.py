@@ -57,13 +57,14 @@ from .studies.cohort import as_members, plan_cohort, run_plan
 from .studies.scorecard import (Reference, folder_results, read_references, reference_forces,
                                 write_scorecard)
 from .studies.scorecard import scorecard as score_results
+from .report.explore import Explorer
 
 if TYPE_CHECKING:
     import pandas as pd
 
 
 __all__ = ["Config", "ParameterError", "basin", "batch_function", "cohort", "compare",
-           "load_config",
+           "explore", "load_config",
            "run_region", "run_table_folder", "scorecard", "simulate", "sweep", "table"]
 
 log = logging.getLogger("mjx_balance")
@@ -370,6 +371,33 @@ def cohort(out: str | os.PathLike[str],
             frame = run_plan(plan, progress=wanted(progress), log=log.info)
             export_tables(plan.out, format)
             return frame
+
+
+def explore(folder: str | os.PathLike[str], *, port: int = 0, browser: bool = False,
+            wait: bool = False) -> Explorer:
+    """A page on this machine (``http://127.0.0.1:PORT/``, port 0: a free one) that draws the
+    maps of a sweep, compare or cohort folder and opens any cell's run: computed on demand by
+    the scalar reference in the map's own configuration and kept in the folder
+    (``explore/<force>_<duration>.parquet``), so a second click is served from there
+    (docs/outputs.md, "mjx-balance explore").
+
+    Returns the running :class:`~mjx_balance.report.explore.Explorer` (its ``url``; a notebook
+    shows it as a link; ``.stop()`` ends it). ``browser``: open the page in the default web
+    browser; ``wait``: serve in this thread until Ctrl-C (KeyboardInterrupt), as
+    ``mjx-balance explore`` does, instead of in a background thread. Raises ParameterError for
+    a folder without a region map or a port that cannot be bound."""
+    explorer = Explorer(folder, port=port)
+    log.info(f"explore: {explorer.folder.shown} at {explorer.url}"
+             + (" (Ctrl-C stops it)" if wait else " (.stop() ends it)"))
+    if browser:
+        import webbrowser
+
+        webbrowser.open(explorer.url)
+    if not wait:
+        return explorer.start()
+    with signals.honoured():
+        explorer.serve_forever()
+    return explorer
 
 
 def read_table(path: str | os.PathLike[str]) -> "pd.DataFrame":

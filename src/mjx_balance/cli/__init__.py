@@ -22,6 +22,7 @@ One module per command, each with ``add_parser(sub)`` and its command function(s
     sensitivity.py  sensitivity    the table under every reading of the study
     animate.py      animate        stick-figure GIF of one push (reference)
     report.py       report         HTML report: the study's experiments and studies
+    explore.py      explore        a local page: every cell of a folder's map opens its run
     model.py        model          the MJCF of the configured body
                     view           one push replayed in MuJoCo's passive viewer
 

@@ -1,0 +1,274 @@
+"""The explore page's server without a browser: what a folder holds (sweep, compare, cohort,
+one being written), every endpoint's answers, the path rules (nothing served from outside
+the folder), the checks of a cell's request, and a cell's run computed by the scalar
+reference, kept in the folder and served from there the second time.
+
+The folders are made on the stand-in rollout (tests/explore_folders.py: no engine is
+compiled); one real run of the scalar reference (20 N for 0.1 s in a 1-s window, about a
+second) is computed."""
+
+from __future__ import annotations
+
+import http.client
+import json
+import os
+import shutil
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from explore_folders import shaped_like, sweep_folder
+
+import mjx_balance as mb
+from mjx_balance.model.params import ParameterError
+from mjx_balance.report.explore import Explorer, folder as explore_folder, open_folder, runs
+from mjx_balance.report.explore.server import HttpError, folder_file
+
+
+@pytest.fixture(scope="module")
+def sweep(tmp_path_factory):
+    return sweep_folder(tmp_path_factory.mktemp("explore") / "sweep")
+
+
+@pytest.fixture(scope="module")
+def secret(tmp_path_factory):
+    """A file outside every explored folder."""
+    path = tmp_path_factory.mktemp("outside") / "secret.txt"
+    path.write_text("not to be served\n")
+    return path
+
+
+@pytest.fixture
+def server(sweep, secret):
+    (sweep / "escape.txt").unlink(missing_ok=True)
+    (sweep / "escape.txt").symlink_to(secret)
+    with Explorer(sweep) as running:
+        yield running
+    (sweep / "escape.txt").unlink()
+
+
+def get(server: Explorer, path: str, *, method: str = "GET", host: str | None = None):
+    """(status, JSON or bytes) of one request, the path sent exactly as written."""
+    conn = http.client.HTTPConnection("127.0.0.1", server.port, timeout=120)
+    conn.putrequest(method, path, skip_host=True)
+    conn.putheader("Host", host or f"127.0.0.1:{server.port}")
+    conn.endheaders()
+    response = conn.getresponse()
+    body = response.read()
+    conn.close()
+    if body and response.getheader("Content-Type", "").startswith("application/json"):
+        return response.status, json.loads(body)
+    return response.status, body
+
+
+# -- what a folder holds -------------------------------------------------------------------------
+
+def test_a_sweep_folder_is_one_map_with_its_table_and_boundary(sweep):
+    folder = open_folder(sweep)
+    assert folder.kind == "sweep" and [m.key for m in folder.maps] == [""]
+    data = explore_folder.map_json(folder, folder.maps[0])
+    assert (data["done"], data["total"], data["complete"]) == (15, 15, True)
+    assert data["forces"] == [0.0, 10.0, 20.0, 30.0, 40.0]
+    assert data["durations"] == [0.1, 0.5, 1.0] and data["t_end"] == 1.0
+    # force-major: cell 3 * 3 + 1 is 30 N for 0.5 s; the stand-in recovers iff F T < 30 N s
+    assert data["cells"]["outcome"][3 * 3 + 1] == "recovered"
+    assert data["cells"]["outcome"][3 * 3 + 2] == "fell"
+    assert data["counts"]["recovered"] + data["counts"]["fell"] == 15
+    assert [p["force"] for p in data["table"]] == [20.0, 40.0]
+    # the boundary's top at 40 N is the edge between 0.5 s (recovered) and 1 s (fell)
+    assert data["boundary"] and data["boundary"][0][-1][1] == pytest.approx(0.75)
+    assert "region.png" in data["files"]
+
+
+def test_compare_and_cohort_folders_are_one_map_per_variant_or_subject(sweep, tmp_path):
+    compare = open_folder(shaped_like("compare", sweep, tmp_path / "cmp", ["b", "a"]))
+    assert compare.kind == "compare" and [m.key for m in compare.maps] == ["b", "a"]
+    cohort = open_folder(shaped_like("cohort", sweep, tmp_path / "coh", ["s02", "s01"]))
+    assert cohort.kind == "cohort"
+    assert [m.key for m in cohort.maps] == ["subjects/s02", "subjects/s01"]
+    answer = explore_folder.folder_json(cohort, explore_folder.MapCache())
+    share = answer["probability"]
+    assert share["subjects"] == 2 and set(share["share"]) == {0.0, 1.0}  # two equal maps
+    assert all(m["boundary"] for m in answer["maps"])
+
+
+def test_a_folder_without_a_map_is_refused(tmp_path):
+    with pytest.raises(ParameterError, match="holds no region map"):
+        open_folder(tmp_path)
+    with pytest.raises(ParameterError, match="is not a folder"):
+        open_folder(tmp_path / "missing")
+
+
+def test_a_folder_being_written_shows_what_is_there_and_refreshes(sweep, tmp_path):
+    """A sweep under way has no region.parquet yet: its cells come from the chunks written so
+    far, on the manifest's grid; the stamp changes when a chunk arrives."""
+    live = tmp_path / "live"
+    shutil.copytree(sweep, live, ignore=shutil.ignore_patterns(".lock"))
+    (live / "region.parquet").unlink()
+    last = sorted((live / "chunks").glob("chunk-*.parquet"))[-1]
+    kept = last.read_bytes()
+    last.unlink()
+    folder = open_folder(live)
+    cache = explore_folder.MapCache()
+    first = explore_folder.folder_json(folder, cache)
+    data = cache.get(folder, folder.maps[0])
+    assert data["total"] == 15 and data["done"] == 12 and not data["complete"]
+    assert data["cells"]["outcome"][-1] is None  # 40 N for 1 s: not computed yet
+    assert len(data["boundary"][0]) == 8  # the forces whose every cell is there: 0-30 N
+    time.sleep(0.01)
+    last.write_bytes(kept)
+    again = explore_folder.folder_json(folder, cache)
+    assert again["stamp"] != first["stamp"] and again["maps"][0]["done"] == 15
+
+
+# -- the server: endpoints, methods, hosts -------------------------------------------------------
+
+def test_the_endpoints_answer_and_anything_else_is_refused(server):
+    status, page = get(server, "/")
+    assert status == 200 and b"/static/explore.js" in page
+    assert get(server, "/static/explore.js")[0] == 200
+    status, folder = get(server, "/api/folder")
+    assert status == 200 and folder["kind"] == "sweep"
+    assert get(server, f"/api/folder?stamp={folder['stamp']}")[1] == {
+        "stamp": folder["stamp"], "unchanged": True}
+    assert get(server, "/api/map?map=")[1]["total"] == 15
+    assert get(server, "/files/region.png")[0] == 200
+    for path, status in (("/api/nothing", 404), ("/static/server.py", 404),
+                         ("/static/..%2Fserver.py", 404), ("/files/chunks", 404)):
+        assert get(server, path)[0] == status, path
+    for method in ("POST", "PUT", "DELETE", "HEAD", "OPTIONS"):
+        status, _ = get(server, "/api/folder", method=method)
+        assert status == 405, method
+    status, body = get(server, "/api/folder", host="evil.example:80")
+    assert status == 403 and "served as http://127.0.0.1" in body["error"]
+    assert get(server, "/api/folder", host=f"localhost:{server.port}")[0] == 200
+
+
+@pytest.mark.parametrize("path", [
+    "../secret.txt", "..%2F..%2Fsecret.txt", "%2e%2e/%2e%2e/secret.txt", "chunks/../../x",
+    ".lock", "chunks/%2E%2E/.lock", "a%00b", "..%5Csecret.txt", "%ff%fe", ""])
+def test_no_path_leads_outside_the_folder_or_to_a_hidden_file(server, path):
+    status, body = get(server, "/files/" + path)
+    assert status in (400, 403) and "error" in body
+
+
+def test_a_symbolic_link_out_of_the_folder_is_refused(server, sweep, secret, tmp_path):
+    status, body = get(server, "/files/escape.txt")
+    assert status == 403 and "leads outside the folder" in body["error"]
+    assert b"not to be served" not in json.dumps(body).encode()
+    with pytest.raises(HttpError, match="outside"):
+        folder_file(sweep.resolve(), "escape.txt")
+    outside_dir = tmp_path / "dir"
+    outside_dir.mkdir()
+    (outside_dir / "x.png").write_bytes(b"png")
+    (sweep / "linked").symlink_to(outside_dir)
+    try:
+        assert get(server, "/files/linked/x.png")[0] == 403
+    finally:
+        (sweep / "linked").unlink()
+
+
+# -- a cell's request ----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("query, words", [
+    ("force=abc&duration=0.1", "force: 'abc' is not a number"),
+    ("force=nan&duration=0.1", "force: must be a finite number"),
+    ("force=inf&duration=0.1", "force: must be a finite number"),
+    ("force=20&force=30&duration=0.1", "force: give one value (got 2)"),
+    ("duration=0.1", "force: give one value (got 0)"),
+    ("force=20&duration=-0.1", "push durations must be >= 0"),
+    ("force=20&duration=5", "must not exceed scenario.t_end = 1 s"),
+    ("force=20&duration=0.101", "not a whole number of physics steps"),
+    ("force=25&duration=0.1", "not a cell of this map"),
+    ("force=40&duration=0.75", "not a cell of this map"),
+])
+def test_a_bad_cell_is_answered_with_its_message(server, query, words):
+    status, body = get(server, "/api/run?map=&" + query)
+    assert status == 400 and words in body["error"], body
+
+
+def test_an_unknown_map_is_named(server):
+    status, body = get(server, "/api/run?map=nope&force=20&duration=0.1")
+    assert status == 400 and "no map 'nope'" in body["error"]
+
+
+def test_a_cell_is_computed_once_kept_in_the_folder_and_served_from_it(server, sweep):
+    path = sweep / "explore" / "20.0_0.1.parquet"
+    path.unlink(missing_ok=True)
+    started = time.perf_counter()
+    status, run = get(server, "/api/run?map=&force=20&duration=0.1")
+    first = time.perf_counter() - started
+    assert status == 200 and not run["cached"] and run["note"] is None
+    assert path.is_file() and run["file"].endswith(os.path.join("explore", "20.0_0.1.parquet"))
+    kept = pd.read_parquet(path)
+    assert kept.attrs["summary"]["outcome"] == run["summary"]["outcome"]
+    assert kept.attrs["summary"]["force"] == 20.0 and kept["time"].iloc[-1] <= 1.0 + 1e-9
+    assert {p["title"] for p in run["panels"]} >= {"Joint angles", "Margin of stability"}
+    assert len(run["series"]["time"]) == len(run["series"]["mos"]) > 100
+    assert "--pairs 20.0:0.1" in run["commands"]["simulate"]
+    assert run["commands"]["view"].startswith("mjx-balance view --config ")
+    started = time.perf_counter()
+    status, again = get(server, "/api/run?map=&force=20.0&duration=0.10000000001")
+    assert status == 200 and again["cached"] and again["summary"] == run["summary"]
+    assert time.perf_counter() - started < first
+    assert [20.0, 0.1] in get(server, "/api/map?map=")[1]["explored"]
+
+
+def test_a_table_point_opens_its_run_and_a_stale_run_is_computed_again(server, sweep):
+    """The max acting time at 40 N (the stand-in: 0.74 s) is not a grid cell but a point the
+    page shows; a kept run of another configuration is not served."""
+    calls = []
+
+    def stand_in(config, force, duration, record=True):
+        calls.append((force, duration))
+        frame = pd.read_parquet(sweep / "explore" / "20.0_0.1.parquet")
+        summary = {**frame.attrs["summary"], "force": force, "duration": duration}
+        frame.attrs = {}
+        return summary, frame.assign(force=force, duration=duration)
+
+    get(server, "/api/run?map=&force=20&duration=0.1")  # the real run is kept
+    server.runs.simulate = stand_in
+    status, run = get(server, "/api/run?map=&force=40&duration=0.74")
+    assert status == 200 and calls == [(40.0, 0.74)] and not run["cached"]
+    kept = sweep / "explore" / "40.0_0.74.parquet"
+    frame = pd.read_parquet(kept)
+    frame.attrs["config"]["scenario"]["t_end"] = 2.0  # as if the folder's configuration changed
+    from mjx_balance.store.files import write_parquet
+
+    write_parquet(frame, kept)
+    get(server, "/api/run?map=&force=40&duration=0.74")
+    assert calls == [(40.0, 0.74)] * 2
+
+
+def test_a_refused_write_still_answers_and_a_stopped_server_writes_nothing(sweep, monkeypatch):
+    def refused(frame, path):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(runs, "write_parquet", refused)
+    explorer = Explorer(sweep)
+    explorer.runs.simulate = lambda config, f, d, record=True: (
+        {"force": f, "duration": d, "outcome": "recovered"},
+        pd.read_parquet(sweep / "explore" / "20.0_0.1.parquet").assign(force=f, duration=d))
+    found = explorer.folder.maps[0]
+    config = explore_folder.map_config(found)
+    frame, note = explorer.runs._compute(found, config, 30.0, 0.5)
+    assert note == "not kept in the folder: Permission denied" and len(frame)
+    explorer.stop()
+    monkeypatch.undo()
+    frame, note = explorer.runs._compute(found, config, 30.0, 0.5)
+    assert "not kept" in note and not (sweep / "explore" / "30.0_0.5.parquet").exists()
+    assert not list((sweep / "explore").glob(".*.tmp"))
+
+
+def test_the_api_serves_in_the_background_until_stopped(sweep):
+    explorer = mb.explore(sweep)
+    try:
+        assert explorer.url.startswith("http://127.0.0.1:") and explorer.thread.is_alive()
+        assert get(explorer, "/api/folder")[0] == 200
+        assert str(sweep) in explorer._repr_html_()
+    finally:
+        explorer.stop()
+    assert explorer.thread is None
+    with pytest.raises(ParameterError, match="port"):
+        mb.explore(sweep, port=70000)
