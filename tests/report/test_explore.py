@@ -18,7 +18,9 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+import tomllib
 from explore_folders import shaped_like, sweep_folder
+from support import REPO
 
 import mjx_balance as mb
 from mjx_balance.model.params import ParameterError
@@ -272,3 +274,17 @@ def test_the_api_serves_in_the_background_until_stopped(sweep):
     assert explorer.thread is None
     with pytest.raises(ParameterError, match="port"):
         mb.explore(sweep, port=70000)
+
+
+def test_the_page_ships_as_package_data():
+    """Every file of the page matches a package-data glob of pyproject.toml (so the wheel and
+    `pip install .` carry it; tests/package/test_packaging.py builds them)."""
+    import fnmatch
+
+    globs = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"][
+        "package-data"]["mjx_balance"]
+    static = REPO / "src" / "mjx_balance" / "report" / "explore" / "static"
+    names = sorted(p.relative_to(static.parents[2]).as_posix() for p in static.iterdir())
+    assert names == ["report/explore/static/explore.css", "report/explore/static/explore.js",
+                     "report/explore/static/index.html"]
+    assert all(any(fnmatch.fnmatch(n, g) for g in globs) for n in names), (names, globs)

@@ -341,12 +341,19 @@ def explored(found: MapFolder) -> list[list[float]]:
     return pairs
 
 
-def physics_of(found: MapFolder) -> str | None:
+def provenance_of(found: MapFolder) -> dict[str, Any]:
+    """The physics path and the command of the last run that worked on the map (its
+    manifest's ``runs``), where recorded."""
     manifest = read_json(found.path / MANIFEST)
     runs = manifest.get("runs") if isinstance(manifest, dict) else None
-    if isinstance(runs, list) and runs and isinstance(runs[-1], dict):
-        return runs[-1].get("physics")
-    return None
+    last = runs[-1] if isinstance(runs, list) and runs and isinstance(runs[-1], dict) else {}
+    return {"physics": last.get("physics"), "command": last.get("command")}
+
+
+def figures(path: Path) -> list[str]:
+    """The figure files of a folder (not hidden), by name."""
+    return sorted(p.name for p in path.iterdir()
+                  if p.suffix in FIGURE_SUFFIXES and p.is_file() and not p.name.startswith("."))
 
 
 def map_json(folder: Folder, found: MapFolder) -> dict[str, Any]:
@@ -366,10 +373,7 @@ def map_json(folder: Folder, found: MapFolder) -> dict[str, Any]:
            "complete": done == len(outcome) and done > 0, "counts": counts,
            "boundary": boundary_lines(outcome, forces, durations, edges),
            "table": table_points(found), "explored": explored(found),
-           "physics": physics_of(found),
-           "files": sorted(p.name for p in found.path.iterdir()
-                           if p.suffix in FIGURE_SUFFIXES and p.is_file()
-                           and not p.name.startswith("."))}
+           **provenance_of(found), "files": figures(found.path)}
     try:
         config = map_config(found)
         out.update(convention=config.controller.convention, t_end=config.scenario.t_end,
@@ -428,6 +432,7 @@ def folder_json(folder: Folder, cache: MapCache) -> dict[str, Any]:
         "kind": folder.kind, "name": folder.root.name, "path": folder.shown,
         "stamp": stamp[:16], "version": __version__,
         "maps": [{k: m.get(k) for k in brief} for m in maps],
+        "files": figures(folder.root) if folder.kind != "sweep" else [],
         "probability": probability(maps) if folder.kind == "cohort" else None,
         "hover": [column_info(c) for c in HOVER],
         "layers": [{**column_info(c), "label": label, "scale": scale, "recovered_only": only}

@@ -83,8 +83,8 @@
     }
     const raw = (hi - lo) / 5, mag = 10 ** Math.floor(Math.log10(raw));
     const step = [1, 2, 5, 10].map((m) => m * mag).find((s) => s >= raw);
-    for (let v = Math.ceil(lo / step) * step; v <= hi + step * 1e-9; v += step) {
-      out.push(Number(v.toPrecision(10)));
+    for (let k = Math.ceil(lo / step - 1e-9); k * step <= hi + step * 1e-9; k++) {
+      out.push(k === 0 ? 0 : Number((k * step).toPrecision(10)));
     }
     return out;
   }
@@ -229,8 +229,9 @@
       }
     }
     if (S.cell) {
-      const fi = g.forces.findIndex((f) => String(f) === String(S.cell.force));
-      const di = g.durations.findIndex((d) => String(d) === String(S.cell.duration));
+      const [cf, cd] = [Number(S.cell.force), Number(S.cell.duration)];
+      const fi = g.forces.findIndex((f) => Math.abs(f - cf) <= 1e-9 * Math.max(1, Math.abs(f)));
+      const di = g.durations.findIndex((d) => Math.abs(d - cd) <= 1e-9);
       if (fi >= 0 && di >= 0) {
         const fe = g.force_edges, de = g.duration_edges;
         svg("rect", {x: x(fe[fi]), y: y(de[di + 1]), width: x(fe[fi + 1]) - x(fe[fi]),
@@ -264,8 +265,10 @@
       s.insertBefore(document.createTextNode(fmt(c.range[0], c.unit) + " "), bar);
       s.appendChild(document.createTextNode(" " + fmt(c.range[1], c.unit) +
                                             (c.log ? " (log scale)" : "")));
-      const [n] = item();
-      n.textContent = c.recoveredOnly ? "grey: did not recover" : "grey: no value";
+      if (S.key !== PROBABILITY) {
+        const [n] = item();
+        n.textContent = c.recoveredOnly ? "grey: did not recover" : "grey: no value";
+      }
     }
     const [w] = item();
     w.textContent = "white: not computed (yet)";
@@ -624,21 +627,27 @@
     const parts = [`${g.done} of ${g.total} cells computed`];
     if (!g.complete) parts.push("a run is writing this map: the page refreshes as it goes");
     if (g.physics) parts.push(`the map by the batched engine (physics ${g.physics})`);
+    if (g.command) parts.push(`last written by: ${g.command}`);
     if (g.error) parts.push(g.error);
     $("status").textContent = parts.join("; ");
+    const links = [...S.folder.files.map((n) => [n, n]),
+                   ...g.files.map((n) => [(g.key ? g.key + "/" : "") + n, n])];
     const files = $("files");
     files.textContent = "";
-    if (g.files.length) files.appendChild(document.createTextNode("The folder's figures: "));
-    g.files.forEach((name, k) => {
+    if (links.length) files.appendChild(document.createTextNode("The folder's figures: "));
+    links.forEach(([path, name], k) => {
       const a = html("a", files, name);
-      a.href = "/files/" + (g.key ? g.key + "/" : "") + encodeURIComponent(name);
+      a.href = "/files/" + path.split("/").map(encodeURIComponent).join("/");
       a.target = "_blank";
       a.rel = "noopener";
-      if (k < g.files.length - 1) files.appendChild(document.createTextNode(", "));
+      if (k < links.length - 1) files.appendChild(document.createTextNode(", "));
     });
   }
 
-  function redraw() { drawMap(); drawLegend(); status(); header(); }
+  function redraw() {
+    $("layer-choice").hidden = S.key === PROBABILITY;
+    drawMap(); drawLegend(); status(); header();
+  }
 
   async function loadMap(key) {
     if (key !== PROBABILITY) S.map = await getJSON(`/api/map?${new URLSearchParams({map: key})}`);
@@ -703,6 +712,7 @@
       header();
     } else {
       try {
+        if (S.folder.probability) keys.push(PROBABILITY);
         await loadMap(w.map !== null && keys.includes(w.map) ? w.map : keys[0]);
       } catch (e) {
         showError(e.message);
