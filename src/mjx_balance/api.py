@@ -389,7 +389,11 @@ def explore(folder: str | os.PathLike[str], *, port: int = 0, browser: bool = Fa
     explorer = Explorer(folder, port=port)
     log.info(f"explore: {explorer.folder.shown} at {explorer.url}"
              + (" (Ctrl-C stops it)" if wait else " (.stop() ends it)"))
-    if browser:
+    import sys
+
+    # on Linux without a display, webbrowser would start a text browser in this terminal
+    if browser and (not sys.platform.startswith("linux") or os.environ.get("DISPLAY")
+                    or os.environ.get("WAYLAND_DISPLAY")):
         import webbrowser
 
         webbrowser.open(explorer.url)

@@ -288,3 +288,22 @@ def test_the_page_ships_as_package_data():
     assert names == ["report/explore/static/explore.css", "report/explore/static/explore.js",
                      "report/explore/static/index.html"]
     assert all(any(fnmatch.fnmatch(n, g) for g in globs) for n in names), (names, globs)
+
+
+def test_the_browser_is_opened_only_where_a_window_can_open(sweep, monkeypatch):
+    """On Linux without DISPLAY or WAYLAND_DISPLAY, webbrowser would start a text browser in
+    the terminal the server prints to: the address is printed instead."""
+    import sys
+    import webbrowser
+
+    opened = []
+    monkeypatch.setattr(webbrowser, "open", lambda url: opened.append(url))
+    monkeypatch.setattr(sys, "platform", "linux")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    mb.explore(sweep, browser=True).stop()
+    assert opened == []
+    monkeypatch.setenv("DISPLAY", ":0")
+    explorer = mb.explore(sweep, browser=True)
+    explorer.stop()
+    assert opened == [explorer.url]
