@@ -27,7 +27,9 @@ from .runtime.xla import deterministic_flags
 deterministic_flags()
 
 from .runtime.version import __version__  # noqa: E402 - after the flags
-from .model.params import Config, ParameterError, Subject, load_config  # noqa: E402
+from .model.params import Config, ParameterError  # noqa: E402
+from .model.config_files import load_config  # noqa: E402
+from .model.subject import Subject  # noqa: E402
 
 # The public functions, imported on first use (JAX, MuJoCo and pandas with them). Figures and
 # saved reports, for notebooks: each figure function draws on the matplotlib Axes it is given

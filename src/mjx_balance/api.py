@@ -39,7 +39,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterator, Union
 
 from .measures.strategy import with_strategy
-from .model.params import Config, ParameterError, Subject, config_from_dict, load_config
+from .model.params import Config, ParameterError
+from .model.config_files import config_from_dict, load_config
+from .model.subject import Subject
 from .runs.folders import (Values, batch_function, duration_values, grid_values, run_region,
                            run_table_folder, size_value, check_reference)
 from .runs.grid import check_durations, parse_pairs

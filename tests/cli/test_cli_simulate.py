@@ -10,7 +10,8 @@ from mjx_balance import cli
 from mjx_balance.cli.simulate import PRINTED_COLUMNS, parse_values
 from mjx_balance.measures.outcomes import SUMMARY_COLUMNS
 from mjx_balance.measures.strategy import STRATEGY_COLUMNS
-from mjx_balance.model.params import ParameterError, load_config
+from mjx_balance.model.params import ParameterError
+from mjx_balance.model.config_files import load_config
 from mjx_balance.reference.loop import TIMESERIES_COLUMNS
 
 FIGURES = ["ankle_angle", "hip_angle", "phase_ankle", "phase_hip", "cop", "com", "ankle_torque",

@@ -6,20 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from mjx_balance.model.params import (
-    LENGTH_RANGE,
-    MASS_RANGE,
-    MAX_FRICTION,
-    MAX_GRAVITY,
-    MAX_PHYSICS_DT,
-    MIN_GRAVITY,
-    BodyParams,
-    Config,
-    ControllerParams,
-    ParameterError,
-    ScenarioParams,
-    load_config,
-)
+from mjx_balance.model.params import (LENGTH_RANGE, MASS_RANGE, MAX_FRICTION, MAX_GRAVITY,
+                                      MAX_PHYSICS_DT, MIN_GRAVITY, BodyParams, Config,
+                                      ControllerParams, ParameterError, ScenarioParams)
+from mjx_balance.model.config_files import load_config
 from mjx_balance.reference.loop import simulate_scenario
 from mjx_balance.runs import load_sweep
 from mjx_balance.runs.definitions import sweeps_dir

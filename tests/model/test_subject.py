@@ -22,17 +22,10 @@ from mjx_balance import cli
 from mjx_balance.cli.main import build_parser
 from mjx_balance.model.linear import linear_model
 from mjx_balance.model.mjcf import mjcf
-from mjx_balance.model.params import (
-    BodyParams,
-    Config,
-    ParameterError,
-    ParameterWarning,
-    Subject,
-    config_warnings,
-    load_config,
-    parse_subject,
-    run_config,
-)
+from mjx_balance.model.params import (BodyParams, Config, ParameterError, ParameterWarning,
+                                      config_warnings)
+from mjx_balance.model.config_files import load_config, run_config
+from mjx_balance.model.subject import Subject, parse_subject
 from mjx_balance.runs.definitions import load_sweep
 from mjx_balance.store.folder import OutputFolder, record_simulation
 
@@ -286,7 +279,7 @@ def test_the_subject_flag_on_every_command_with_set(capsys, tmp_path):
 
 
 def test_subjects_from_a_csv(tmp_path):
-    from mjx_balance.model.params import subjects_from_csv
+    from mjx_balance.model.subject import subjects_from_csv
 
     path = tmp_path / "cohort.csv"
     path.write_text("id,height,mass,sex\np1,1.62,58,female\np2,1.80,82,male\n")
@@ -334,7 +327,7 @@ def _csv(tmp_path, text: str, encoding: str = "utf-8"):
 def test_csv_headers_match_ignoring_case_spaces_and_an_excel_bom(tmp_path):
     """`Sex` (a female participant read as male), `ID` or a byte-order mark before `id` (the
     ids lost) and a BOM before `height` ("give height") are read as their columns."""
-    from mjx_balance.model.params import subject_rows
+    from mjx_balance.model.subject import subject_rows
 
     rows = subject_rows(_csv(tmp_path, "ID, Height ,MASS,Sex,Ankle_Strength\n"
                                        "P1,1.6,55,Female,0.8\n"))
@@ -350,7 +343,7 @@ def test_csv_headers_match_ignoring_case_spaces_and_an_excel_bom(tmp_path):
 def test_csv_comment_and_blank_lines_are_skipped_and_lines_keep_their_numbers(tmp_path):
     """A `#` line before the header (it was read as the header: "give height") or between
     rows is a comment; errors still name the file's own line number."""
-    from mjx_balance.model.params import subject_rows
+    from mjx_balance.model.subject import subject_rows
 
     path = _csv(tmp_path, "# participants of the pilot, 2024\nid,height,mass\n\n"
                           "a,1.6,55\n  # b withdrew\nc,1.8,abc\n")
@@ -371,7 +364,7 @@ def test_csv_comment_and_blank_lines_are_skipped_and_lines_keep_their_numbers(tm
 def test_csv_an_unknown_repeated_or_missing_column_is_refused_by_name(tmp_path, header, words):
     """A misspelt column was ignored (every strength stayed 1): any column that is not a
     subject's field, the id or a free-text note is refused, naming it and the known ones."""
-    from mjx_balance.model.params import subjects_from_csv
+    from mjx_balance.model.subject import subjects_from_csv
 
     path = _csv(tmp_path, f"{header}\n" + ",".join(["x"] * len(header.split(","))) + "\n")
     with pytest.raises(ParameterError) as err:
@@ -383,7 +376,7 @@ def test_csv_an_unknown_repeated_or_missing_column_is_refused_by_name(tmp_path, 
 
 
 def test_csv_notes_columns_are_read_and_ignored(tmp_path):
-    from mjx_balance.model.params import subjects_from_csv
+    from mjx_balance.model.subject import subjects_from_csv
 
     path = _csv(tmp_path, "id,height,mass,Notes\na,1.6,55,\"tall, left-handed\"\n")
     assert subjects_from_csv(path) == [Subject(1.6, 55)]
@@ -402,7 +395,7 @@ def test_csv_notes_columns_are_read_and_ignored(tmp_path):
 def test_csv_a_decimal_comma_or_a_ragged_row_is_refused(tmp_path, text, words):
     """`P1,1,6,55` (height 1,6 m with a decimal comma) was read as a 1-m, 6-kg subject (the
     55 dropped): a row with more values than columns is refused naming its line."""
-    from mjx_balance.model.params import subjects_from_csv
+    from mjx_balance.model.subject import subjects_from_csv
 
     with pytest.raises(ParameterError) as err:
         subjects_from_csv(_csv(tmp_path, text))
@@ -413,9 +406,9 @@ def test_csv_a_decimal_comma_or_a_ragged_row_is_refused(tmp_path, text, words):
 @pytest.mark.parametrize("height, mass", [(1.0, 6.0), (1.0, 75.0), (2.4, 50.0), (1.5, 140.0)])
 def test_a_body_no_one_has_is_refused_on_every_path(tmp_path, height, mass):
     """Height and mass each in range can still make no body (1 m and 6 kg: the decimal
-    comma's `1,6`): the body mass index is bounded (params.BMI_RANGE), in the Subject's own
+    comma's `1,6`): the body mass index is bounded (subject.BMI_RANGE), in the Subject's own
     check, so --subject, a [subject] table, a CSV row and mb.Subject refuse it alike."""
-    from mjx_balance.model.params import BMI_RANGE, subjects_from_csv
+    from mjx_balance.model.subject import BMI_RANGE, subjects_from_csv
 
     bmi = mass / height ** 2
     assert not BMI_RANGE[0] <= bmi <= BMI_RANGE[1]
@@ -433,7 +426,7 @@ def test_a_body_no_one_has_is_refused_on_every_path(tmp_path, height, mass):
 def test_a_populations_bodies_lie_within_the_bounds():
     """A population draws height and mass independently: the mass is redrawn into the body
     mass indices a subject accepts at that height (no subject refused mid-draw)."""
-    from mjx_balance.model.params import BMI_RANGE
+    from mjx_balance.model.subject import BMI_RANGE
     from mjx_balance.studies import cohort
 
     tall_light = cohort.population(40, seed=2, height_mean=2.3, height_sd=0.1,

@@ -21,7 +21,8 @@ import mjx_balance
 from mjx_balance import report
 from mjx_balance.cli import main
 from mjx_balance.measures.outcomes import OUTCOMES
-from mjx_balance.model.params import Config, ParameterError, load_config
+from mjx_balance.model.params import Config, ParameterError
+from mjx_balance.model.config_files import load_config
 from mjx_balance.runs import load_sweep, parse_grid, run_sweep
 from mjx_balance.studies import catalog as studies
 

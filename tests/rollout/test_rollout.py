@@ -27,7 +27,8 @@ from mjx_balance import rollout
 from mjx_balance.measures import metrics
 from mjx_balance.measures.outcomes import OUTCOMES, SUMMARY_COLUMNS
 from mjx_balance.model.mjcf import build_model, indices
-from mjx_balance.model.params import Config, Subject
+from mjx_balance.model.params import Config
+from mjx_balance.model.subject import Subject
 from mjx_balance.reference import loop as reference
 
 CONFIG = Config()  # the physics tests' body and time step; t_end comes from the runner

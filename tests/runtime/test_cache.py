@@ -30,7 +30,8 @@ from mjx_balance.runtime import cache
 print(json.dumps({"cache_dir": cache.enable()}))
 import jax, jax.numpy as jnp
 from mjx_balance.control import admm
-from mjx_balance.model.params import Config, apply_overrides
+from mjx_balance.model.params import Config
+from mjx_balance.model.config_files import apply_overrides
 from mjx_balance.control.qp import build_qp
 config = apply_overrides(Config(), sys.argv[1:])
 with cache.CompileCounter() as counter:

@@ -19,7 +19,8 @@ from support import DEFAULT_BATCH, FakeThresholdBatch
 import mjx_balance as mb
 from mjx_balance.cli import main
 from mjx_balance.measures import units
-from mjx_balance.model.params import HEIGHT_RANGE, Config, ParameterError, Subject
+from mjx_balance.model.params import Config, ParameterError
+from mjx_balance.model.subject import HEIGHT_RANGE, Subject
 from mjx_balance.studies import cohort
 
 FORCES, DURATIONS = "0:40:10", "0.5,1,2"

@@ -14,7 +14,8 @@ import pytest
 from support import REPO, FakeThresholdBatch, assert_refused, run_cli
 
 import mjx_balance as mb
-from mjx_balance.model.params import Config, ParameterError, Subject
+from mjx_balance.model.params import Config, ParameterError
+from mjx_balance.model.subject import Subject
 from mjx_balance.studies import cohort
 
 BASE = Config().replace(scenario={"t_end": 2.0})

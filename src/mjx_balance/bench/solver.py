@@ -1,7 +1,8 @@
 """The solver benchmark (``mjx-balance bench solver``): the batched ADMM against OSQP and the
 study's CasADi/IPOPT MPC, all on the same states in one run, so that the figures are ratios.
 
-Steps, each a function returning its figures (``cli.bench.solver_command`` runs and prints them):
+Steps, each a function returning its figures, run in turn by :func:`measure` (which
+``cli.bench.solver_command`` calls and prints):
 
 1. :func:`benchmark_states`: whole closed-loop trajectories (``states.closed_loop_states``) in a
    fixed random order over all pushes, until the requested number of states; then the OSQP truth
@@ -25,14 +26,14 @@ from __future__ import annotations
 
 import os
 import time
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterator, NamedTuple
 
 import numpy as np
 
-from ..model.params import BodyParams, ControllerParams
-from ..control.qp import CondensedQP
-from .states import (TILE, Truth, admm_along_trajectories, closed_loop_states, first_control_error,
-                     misses, osqp_loop, truth_solutions)
+from ..model.params import BodyParams, Config, ControllerParams
+from ..control.qp import CondensedQP, build_qp
+from .states import (PUSH_DURATIONS, TILE, Truth, admm_along_trajectories, closed_loop_states,
+                     first_control_error, misses, osqp_loop, truth_solutions)
 from ..control import admm
 from .ipopt import ipopt_mpc
 
@@ -230,3 +231,89 @@ def solver_figures(*, states: np.ndarray, controller: ControllerParams, dtype: s
         admm=admm_rows, osqp=osqp_rows, osqp_chosen_eps=osqp_rows[-1]["eps"],
         ipopt_seconds_per_solve=ipopt_seconds_per_solve, peak_gflops=peak_gflops,
         settings=settings._asdict())
+
+
+class SolverRun(NamedTuple):
+    """One run of the solver benchmark: its figures (:func:`solver_figures`), how the CPU's
+    peak was counted, the flops of one ADMM iteration and of one check, the run's seconds."""
+
+    figures: dict[str, Any]
+    peak_note: str
+    flops: tuple[int, int]
+    seconds: float
+
+
+def measure(config: Config, *, batches: list[int], n_states: int, dtype: str = "float32",
+            log: Callable[[str], None] = print) -> SolverRun:
+    """The benchmark's steps in turn on ``n_states`` states of ``config``'s controller, each
+    step's figures said through ``log`` as they come (the ADMM timed at each batch size of
+    ``batches``, in ``dtype``)."""
+    working = admm_dtype(dtype)
+    controller, body = config.controller, config.body
+    qp = build_qp(controller, body, config.scenario.control_dt)
+    settings = admm.settings_from_controller(controller)
+    t_start = time.perf_counter()
+
+    trajectories, states, truth = benchmark_states(qp, body, n_states)
+    log(f"states: {len(states)} from {len(trajectories)} closed-loop pushes (F 20..120 N, T "
+        f"{'/'.join(str(d) for d in PUSH_DURATIONS)} s), convention {controller.convention}: "
+        f"{truth.solved.sum()} solved by OSQP at 1e-9, {truth.infeasible.sum()} infeasible, "
+        f"{(~truth.solved & ~truth.infeasible).sum()} not solved in 4000 iterations, "
+        f"{truth.saturated.sum()} with a saturated first input")
+
+    acc = admm_accuracy(qp, trajectories, truth, settings, working)
+    admm_miss = acc["misses"]
+    log(f"ADMM ({dtype}, rho {settings.rho}, alpha {settings.alpha}, sigma "
+        f"{settings.sigma}, cap {settings.iteration_cap} iterations, check every "
+        f"{settings.check_every}, eps_abs {settings.eps_abs:g}, eps_rel {settings.eps_rel:g}): "
+        f"misses {admm_miss}/"
+        f"{truth.solved.sum()} ({100 * admm_miss / max(1, truth.solved.sum()):.2f}%), max "
+        f"first-control error {acc['max_err']:.2e} of range (both solved: "
+        f"{acc['max_err_both']:.2e}), mean iterations {acc['mean_iters']:.1f}, status "
+        f"solved/max_iter/infeasible {acc['status_counts']} [{acc['seconds']:.1f} s]")
+
+    flops = flops_per_solve_step(qp, settings)
+    peak, peak_note = cpu_peak_gflops(dtype)
+    rows = []
+    for B in batches:
+        r = time_admm_batch(qp, settings, working, states, acc["seq"], B)
+        rows.append(r)
+        log(f"  ADMM batch {B:6d} (tile {r['tile']:5d}): compile {r['compile_s']:5.2f} s, "
+            f"{r['seconds'] * 1e3:9.3f} ms/batch, {r['solves_per_s']:11.0f} solves/s, mean "
+            f"iterations {r['mean_iters']:5.1f}, {r['gflops']:6.2f} GFLOP/s")
+
+    osqp_rows = []
+    for r in osqp_search(qp, trajectories, truth, admm_miss):
+        osqp_rows.append(r)
+        per_solve, per_solved = r["seconds_per_solve"], r["seconds_per_solved"]
+        log(f"  OSQP eps {r['eps']:g}: misses {r['misses']}/{truth.solved.sum()}, max error "
+            f"{r['max_err']:.2e}, {per_solve * 1e6:8.1f} us/solve over all "
+            f"states ({1 / per_solve:6.0f} solves/s; iterations mean {r['mean_iters']:.1f}, "
+            f"median {r['median_iters']:.0f}: infeasible states run to 4000), "
+            f"{per_solved * 1e6:8.1f} us/solve over the OSQP-solved states "
+            f"({1 / per_solved:6.0f} solves/s)")
+
+    ipopt_per_solve = ipopt_seconds_per_solve(qp, controller, trajectories, truth, log)
+    figures = solver_figures(
+        states=states, controller=controller, dtype=dtype, accuracy=acc, truth=truth,
+        admm_rows=rows, osqp_rows=osqp_rows, ipopt_seconds_per_solve=ipopt_per_solve,
+        peak_gflops=peak, settings=settings)
+    return SolverRun(figures, peak_note, flops, time.perf_counter() - t_start)
+
+
+def ipopt_seconds_per_solve(qp: CondensedQP, controller: ControllerParams,
+                            trajectories: list[np.ndarray], truth: Truth,
+                            log: Callable[[str], None] = print) -> float:
+    """CasADi/IPOPT's seconds per solve on the benchmark's states (:func:`time_ipopt`), said
+    through ``log``; NaN, and said, without casadi."""
+    try:
+        ip = time_ipopt(qp, controller, trajectories, truth)
+    except ImportError:
+        log("  CasADi/IPOPT: casadi not installed, skipped")
+        return float("nan")
+    per_solve, errs = ip["seconds_per_solve"], ip["errors"]
+    log(f"  CasADi/IPOPT (multiple shooting, RK4 on Ac, Bc): {ip['solves']} solves, "
+        f"{per_solve * 1e3:.2f} ms/solve ({1 / per_solve:.0f} solves/s); "
+        f"first control vs the ZOH QP: median {np.median(errs):.1e}, max {max(errs):.1e} "
+        f"of range (RK4 on Ac differs from exact ZOH)")
+    return per_solve

@@ -10,11 +10,11 @@ import resource
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 from typing import Any
 
-from ..model.params import Config, save_config
+from ..model.params import Config
+from ..model.config_files import save_config
 from .common import load_run_config
 from .options import (
     EPILOG,
@@ -38,7 +38,7 @@ from mjx_balance.cli.main import use_host_cores
 use_host_cores()
 from mjx_balance.runtime import cache
 from mjx_balance.bench import pipeline
-from mjx_balance.model.params import load_config
+from mjx_balance.model.config_files import load_config
 cache.enable()
 config = load_config(sys.argv[1])
 slots = None if sys.argv[2] == "none" else int(sys.argv[2])
@@ -415,68 +415,15 @@ def _memory_scaling(args: argparse.Namespace) -> list[dict]:
 
 def solver_command(args: argparse.Namespace) -> int:
     """``mjx-balance bench solver``: batched ADMM vs OSQP vs CasADi/IPOPT on the same states."""
-    # lazy: JAX: imported when this command runs
-    from ..bench import solver
-    from ..bench.states import PUSH_DURATIONS  # lazy: as above
-    from ..control import admm  # lazy: as above
-    from ..control.qp import build_qp  # lazy: as above
+    from ..bench import solver  # lazy: JAX: imported when this command runs
 
-    dtype = solver.admm_dtype(args.dtype)
     config = load_run_config(args)
-    controller, body = config.controller, config.body
-    qp = build_qp(controller, body, config.scenario.control_dt)
-    settings = admm.settings_from_controller(controller)
     batches = [int(b) for b in args.batch.split(",") if b.strip()]
-    t_start = time.perf_counter()
-
-    trajectories, states, truth = solver.benchmark_states(qp, body, args.states)
-    S = len(states)
-    print(f"states: {S} from {len(trajectories)} closed-loop pushes (F 20..120 N, T "
-          f"{'/'.join(str(d) for d in PUSH_DURATIONS)} s), convention {controller.convention}: "
-          f"{truth.solved.sum()} solved by OSQP at 1e-9, {truth.infeasible.sum()} infeasible, "
-          f"{(~truth.solved & ~truth.infeasible).sum()} not solved in 4000 iterations, "
-          f"{truth.saturated.sum()} with a saturated first input")
-
-    acc = solver.admm_accuracy(qp, trajectories, truth, settings, dtype)
-    admm_miss = acc["misses"]
-    print(f"ADMM ({args.dtype}, rho {settings.rho}, alpha {settings.alpha}, sigma "
-          f"{settings.sigma}, cap {settings.iteration_cap} iterations, check every "
-          f"{settings.check_every}, eps_abs {settings.eps_abs:g}, eps_rel {settings.eps_rel:g}): "
-          f"misses {admm_miss}/"
-          f"{truth.solved.sum()} ({100 * admm_miss / max(1, truth.solved.sum()):.2f}%), max "
-          f"first-control error {acc['max_err']:.2e} of range (both solved: "
-          f"{acc['max_err_both']:.2e}), mean iterations {acc['mean_iters']:.1f}, status "
-          f"solved/max_iter/infeasible {acc['status_counts']} [{acc['seconds']:.1f} s]")
-
-    it_flops, chk_flops = solver.flops_per_solve_step(qp, settings)
-    peak, peak_note = solver.cpu_peak_gflops(args.dtype)
-    rows = []
-    for B in batches:
-        r = solver.time_admm_batch(qp, settings, dtype, states, acc["seq"], B)
-        rows.append(r)
-        print(f"  ADMM batch {B:6d} (tile {r['tile']:5d}): compile {r['compile_s']:5.2f} s, "
-              f"{r['seconds'] * 1e3:9.3f} ms/batch, {r['solves_per_s']:11.0f} solves/s, mean "
-              f"iterations {r['mean_iters']:5.1f}, {r['gflops']:6.2f} GFLOP/s", flush=True)
-
-    osqp_rows = []
-    for r in solver.osqp_search(qp, trajectories, truth, admm_miss):
-        osqp_rows.append(r)
-        per_solve, per_solved = r["seconds_per_solve"], r["seconds_per_solved"]
-        print(f"  OSQP eps {r['eps']:g}: misses {r['misses']}/{truth.solved.sum()}, max error "
-              f"{r['max_err']:.2e}, {per_solve * 1e6:8.1f} us/solve over all "
-              f"states ({1 / per_solve:6.0f} solves/s; iterations mean {r['mean_iters']:.1f}, "
-              f"median {r['median_iters']:.0f}: infeasible states run to 4000), "
-              f"{per_solved * 1e6:8.1f} us/solve over the OSQP-solved states "
-              f"({1 / per_solved:6.0f} solves/s)", flush=True)
-
-    ipopt_per_solve = _time_ipopt(qp, controller, trajectories, truth)
-
-    _print_solver_table(rows, osqp_rows[-1], ipopt_per_solve, peak, peak_note,
-                        (it_flops, chk_flops), time.perf_counter() - t_start)
-    figures = solver.solver_figures(
-        states=states, controller=controller, dtype=args.dtype, accuracy=acc, truth=truth,
-        admm_rows=rows, osqp_rows=osqp_rows, ipopt_seconds_per_solve=ipopt_per_solve,
-        peak_gflops=peak, settings=settings)
+    run = solver.measure(config, batches=batches, n_states=args.states, dtype=args.dtype,
+                         log=lambda text: print(text, flush=True))
+    figures = run.figures
+    _print_solver_table(figures["admm"], figures["osqp"][-1], figures["ipopt_seconds_per_solve"],
+                        figures["peak_gflops"], run.peak_note, run.flops, run.seconds)
     if args.out:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
@@ -485,27 +432,6 @@ def solver_command(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(figures))
     return 0
-
-
-def _time_ipopt(qp: Any, controller: Any, trajectories: Any, truth: Any) -> float:
-    """CasADi/IPOPT's seconds per solve on the benchmark's states, printed (NaN, and said,
-    without casadi)."""
-    import numpy as np
-
-    from ..bench import solver  # lazy: JAX: imported when this command runs
-
-    ipopt_per_solve = float("nan")
-    try:
-        ip = solver.time_ipopt(qp, controller, trajectories, truth)
-    except ImportError:
-        print("  CasADi/IPOPT: casadi not installed, skipped")
-    else:
-        ipopt_per_solve, errs = ip["seconds_per_solve"], ip["errors"]
-        print(f"  CasADi/IPOPT (multiple shooting, RK4 on Ac, Bc): {ip['solves']} solves, "
-              f"{ipopt_per_solve * 1e3:.2f} ms/solve ({1 / ipopt_per_solve:.0f} solves/s); "
-              f"first control vs the ZOH QP: median {np.median(errs):.1e}, max {max(errs):.1e} "
-              f"of range (RK4 on Ac differs from exact ZOH)")
-    return ipopt_per_solve
 
 
 def _print_solver_table(rows: list[dict], chosen: dict, ipopt_per_solve: float, peak: float,

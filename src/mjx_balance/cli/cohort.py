@@ -180,7 +180,7 @@ def cohort_command(args: Any) -> int:
     """Every subject's region map in OUT/subjects/<id>/, then cohort.csv, the summary and the
     figures. Everything is checked (the subjects, the grids, every subject's configuration, a
     folder holding another cohort's results) before the folder is made or locked."""
-    from ..model.params import with_convention  # lazy: not for --help
+    from ..model.config_files import with_convention  # lazy: not for --help
     from ..runs import DEFAULT_SWEEP  # lazy: the runs floor loads JAX; not for --help
     from ..studies.cohort import plan_cohort, run_plan  # lazy: as above
 

@@ -15,7 +15,8 @@ import sys
 from pathlib import Path
 from typing import Any, Callable
 
-from ..model.params import Config, run_config
+from ..model.params import Config
+from ..model.config_files import run_config
 
 WRITE_FAILED = 1  # exit code of a run whose writing failed (2: bad arguments, before any work)
 

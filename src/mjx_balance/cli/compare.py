@@ -12,7 +12,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ..model.params import ParameterError, apply_overrides, with_convention
+from ..model.params import ParameterError
+from ..model.config_files import apply_overrides, with_convention
 from ..studies.defaults import (  # light
     DEFAULT_SWEEP_DURATIONS,
     DEFAULT_SWEEP_FORCES,

@@ -12,7 +12,7 @@ import logging
 from pathlib import Path
 from typing import Any
 
-from ..model.params import apply_overrides, with_convention
+from ..model.config_files import apply_overrides, with_convention
 from ..studies.defaults import (DEFAULT_DELAYS, DEFAULT_SCALES,  # light
                                 DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,
                                 DEFAULT_TABLE_FORCES)

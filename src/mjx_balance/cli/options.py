@@ -26,7 +26,9 @@ import math
 import os
 from pathlib import Path
 
-from ..model.params import CONVENTIONS, ParameterError, Subject, parse_override, parse_subject
+from ..model.params import CONVENTIONS, ParameterError
+from ..model.config_files import parse_override
+from ..model.subject import Subject, parse_subject
 from ..studies import references
 
 EPILOG = """exit codes: 0 success; 1 failure during the work (a refused write, a full disk, a run

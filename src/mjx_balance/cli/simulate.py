@@ -9,7 +9,8 @@ import logging
 import math
 from pathlib import Path
 
-from ..model.params import ParameterError, dumps_config
+from ..model.params import ParameterError
+from ..model.config_files import dumps_config
 from .common import guard_work, in_folder, load_run_config, progress_enabled
 from .options import (common_options, figure_options, format_option, renamed_option,
                       write_exports, yes_option)

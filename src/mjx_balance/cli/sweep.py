@@ -16,7 +16,8 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..model.params import Config, apply_overrides, with_convention
+from ..model.params import Config
+from ..model.config_files import apply_overrides, with_convention
 from ..studies.defaults import (DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,  # light
                                 DEFAULT_SWEEP_TABLE_FORCES)
 from .common import (base_config, chosen_physics, guard_work, in_folder, progress_enabled,

@@ -11,7 +11,8 @@ import numpy as np
 import pandas as pd
 
 from ..measures.outcomes import OUTCOMES, RECOVERED
-from ..model.params import Config, config_from_dict
+from ..model.params import Config
+from ..model.config_files import config_from_dict
 from ..store.files import write_figure
 from . import region as region_plots
 from . import timeseries as plots

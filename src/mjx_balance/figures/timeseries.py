@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from ..model.params import Config, load_config  # noqa: E402
+from ..model.params import Config  # noqa: E402
+from ..model.config_files import load_config  # noqa: E402
 from ..store.files import CONFIG
 from . import style
 

@@ -2,7 +2,8 @@
 
 Every number the package computes with comes from one of these three records. They are plain
 frozen dataclasses (hashable, so they can be static arguments under ``jax.jit``), validated on
-construction, and loaded from / saved to TOML with the layout::
+construction (each value's range, and the limits that link the records), and read from / written
+to TOML (``config_files.py``) with the layout::
 
     [body]        # BodyParams
     [controller]  # ControllerParams
@@ -21,12 +22,9 @@ import math
 import numbers
 import warnings
 from dataclasses import dataclass, field, fields
-from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
-import tomllib
 
-from .subject import SEXES, segments
 
 log = logging.getLogger(__name__)
 
@@ -75,11 +73,11 @@ class ParameterWarning(UserWarning):
     """A configuration that runs but holds a limit that can never bind (``config_warnings``)."""
 
 
-def _fail(record: str, name: str, rule: str, value: Any) -> None:
+def fail(record: str, name: str, rule: str, value: Any) -> None:
     raise ParameterError(f"{record}.{name} = {value!r}: {rule}")
 
 
-def _is_number(value: Any) -> bool:
+def is_number(value: Any) -> bool:
     """A real number; a bool is not one (TOML's ``true`` must not pass as 1)."""
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
@@ -91,49 +89,49 @@ def _check_types(record: str, obj: Any) -> None:
         value, default = getattr(obj, f.name), f.default
         if isinstance(default, bool):
             if not isinstance(value, bool):
-                _fail(record, f.name, "must be true or false", value)
+                fail(record, f.name, "must be true or false", value)
         elif isinstance(default, str):
             if not isinstance(value, str):
-                _fail(record, f.name, "must be a string", value)
+                fail(record, f.name, "must be a string", value)
         elif isinstance(default, tuple):
-            if not isinstance(value, (list, tuple)) or not all(_is_number(v) for v in value):
-                _fail(record, f.name, "must be a list of numbers", value)
-        elif isinstance(default, (int, float)) and not _is_number(value):
-            _fail(record, f.name, "must be a number", value)
-        elif default is None and value is not None and not _is_number(value):
-            _fail(record, f.name, "must be a number (or left out)", value)
+            if not isinstance(value, (list, tuple)) or not all(is_number(v) for v in value):
+                fail(record, f.name, "must be a list of numbers", value)
+        elif isinstance(default, (int, float)) and not is_number(value):
+            fail(record, f.name, "must be a number", value)
+        elif default is None and value is not None and not is_number(value):
+            fail(record, f.name, "must be a number (or left out)", value)
 
 
-def _check_range(record: str, obj: Any, names: tuple[str, ...], low: float, high: float,
+def check_range(record: str, obj: Any, names: tuple[str, ...], low: float, high: float,
                  unit: str) -> None:
     for name in names:
         value = getattr(obj, name)
         if not low <= value <= high:
-            _fail(record, name, f"must lie in [{low:g}, {high:g}] {unit} (plausible range)",
+            fail(record, name, f"must lie in [{low:g}, {high:g}] {unit} (plausible range)",
                   value)
 
 
-def _check_finite(record: str, obj: Any) -> None:
+def check_finite(record: str, obj: Any) -> None:
     for f in fields(obj):
         value = getattr(obj, f.name)
         items = value if isinstance(value, tuple) else (value,)
         for v in items:
-            if _is_number(v) and not math.isfinite(v):
-                _fail(record, f.name, "must be a finite number", value)
+            if is_number(v) and not math.isfinite(v):
+                fail(record, f.name, "must be a finite number", value)
 
 
 def _check_positive(record: str, obj: Any, names: tuple[str, ...]) -> None:
     for name in names:
         value = getattr(obj, name)
         if not value > 0:
-            _fail(record, name, "must be > 0", value)
+            fail(record, name, "must be > 0", value)
 
 
 def _check_bounds(record: str, name: str, bounds: tuple[float, float]) -> None:
     if len(bounds) != 2:
-        _fail(record, name, "must be a pair [lower, upper]", bounds)
+        fail(record, name, "must be a pair [lower, upper]", bounds)
     if bounds[0] > bounds[1]:
-        _fail(record, name, "lower bound must not exceed upper bound", bounds)
+        fail(record, name, "lower bound must not exceed upper bound", bounds)
 
 
 @dataclass(frozen=True)
@@ -170,7 +168,7 @@ class BodyParams:
 
     def __post_init__(self) -> None:
         _check_types("body", self)
-        _check_finite("body", self)
+        check_finite("body", self)
         _check_positive(
             "body",
             self,
@@ -180,30 +178,30 @@ class BodyParams:
                 "contact_radius",
             ),
         )
-        _check_range("body", self, ("foot_mass", "lower_mass", "upper_mass"), *MASS_RANGE, "kg")
-        _check_range("body", self, ("foot_length", "foot_width", "foot_thickness", "lower_length",
+        check_range("body", self, ("foot_mass", "lower_mass", "upper_mass"), *MASS_RANGE, "kg")
+        check_range("body", self, ("foot_length", "foot_width", "foot_thickness", "lower_length",
                                     "upper_length", "contact_radius"), *LENGTH_RANGE, "m")
         if self.friction > MAX_FRICTION:
-            _fail("body", "friction",
+            fail("body", "friction",
                   f"must be <= {MAX_FRICTION:g} (above it the pyramidal contact softens the "
                   "floor until the body cannot stand at rest)", self.friction)
         if not MIN_GRAVITY <= self.gravity <= MAX_GRAVITY:
-            _fail("body", "gravity", f"must lie in [{MIN_GRAVITY:g}, {MAX_GRAVITY:g}] m/s^2 "
+            fail("body", "gravity", f"must lie in [{MIN_GRAVITY:g}, {MAX_GRAVITY:g}] m/s^2 "
                   "(plausible range)", self.gravity)
         for name, length in (("lower_com", self.lower_length), ("upper_com", self.upper_length)):
             value = getattr(self, name)
             if not 0 <= value <= length:
-                _fail("body", name, f"must lie on the segment, in [0, {length}]", value)
+                fail("body", name, f"must lie on the segment, in [0, {length}]", value)
         if not 0 <= self.ankle_height <= LENGTH_RANGE[1]:
-            _fail("body", "ankle_height", f"must lie in [0, {LENGTH_RANGE[1]:g}] m",
+            fail("body", "ankle_height", f"must lie in [0, {LENGTH_RANGE[1]:g}] m",
                   self.ankle_height)
         for name in ("hip_servo_stiffness", "hip_servo_damping"):
             if not getattr(self, name) >= 0:
-                _fail("body", name, "must be >= 0", getattr(self, name))
+                fail("body", name, "must be >= 0", getattr(self, name))
         for name in INERTIA_FIELDS:
             value = getattr(self, name)
             if value is not None and not INERTIA_RANGE[0] <= value <= INERTIA_RANGE[1]:
-                _fail("body", name, f"must lie in [{INERTIA_RANGE[0]:g}, {INERTIA_RANGE[1]:g}] "
+                fail("body", name, f"must lie in [{INERTIA_RANGE[0]:g}, {INERTIA_RANGE[1]:g}] "
                       "kg m^2 (plausible range), or be left out for the uniform shape's", value)
 
     @property
@@ -318,39 +316,39 @@ class ControllerParams:
         for name in ("input1_bounds", "input2_bounds", "state1_bounds", "state2_bounds",
                      "cop_bounds", "com_bounds", "penalty_weights"):
             object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
-        _check_finite("controller", self)
+        check_finite("controller", self)
         if self.convention not in CONVENTIONS:
-            _fail("controller", "convention", f"must be one of {CONVENTIONS}", self.convention)
+            fail("controller", "convention", f"must be one of {CONVENTIONS}", self.convention)
         if not isinstance(self.horizon, int) or self.horizon < 1:
-            _fail("controller", "horizon", "must be an integer >= 1", self.horizon)
+            fail("controller", "horizon", "must be an integer >= 1", self.horizon)
         if len(self.q_diag) != 4 or min(self.q_diag) < 0:
-            _fail("controller", "q_diag", "must be 4 non-negative numbers", self.q_diag)
+            fail("controller", "q_diag", "must be 4 non-negative numbers", self.q_diag)
         if len(self.r_diag) != 2 or min(self.r_diag) <= 0:
-            _fail("controller", "r_diag", "must be 2 positive numbers", self.r_diag)
+            fail("controller", "r_diag", "must be 2 positive numbers", self.r_diag)
         for name in ("input1_bounds", "input2_bounds", "state1_bounds", "state2_bounds",
                      "cop_bounds", "com_bounds"):
             _check_bounds("controller", name, getattr(self, name))
         _check_positive("controller", self, ("osqp_eps", "admm_rho",
                                              "admm_eps_abs", "admm_eps_rel"))
         if not self.admm_sigma >= 0:
-            _fail("controller", "admm_sigma", "must be >= 0", self.admm_sigma)
+            fail("controller", "admm_sigma", "must be >= 0", self.admm_sigma)
         if not 0 < self.admm_alpha < 2:
-            _fail("controller", "admm_alpha", "must lie in (0, 2)", self.admm_alpha)
+            fail("controller", "admm_alpha", "must lie in (0, 2)", self.admm_alpha)
         for name in ("osqp_max_iter", "admm_max_iter", "admm_check_every"):
             value = getattr(self, name)
             if not isinstance(value, int) or value < 1:
-                _fail("controller", name, "must be an integer >= 1", value)
+                fail("controller", name, "must be an integer >= 1", value)
         if self.infeasible not in INFEASIBLE_MODES:
-            _fail("controller", "infeasible", f"must be one of {INFEASIBLE_MODES}",
+            fail("controller", "infeasible", f"must be one of {INFEASIBLE_MODES}",
                   self.infeasible)
         if len(self.penalty_weights) != 3 or not min(self.penalty_weights) > 0:
-            _fail("controller", "penalty_weights", "must be 3 positive numbers (state, CoP, "
+            fail("controller", "penalty_weights", "must be 3 positive numbers (state, CoP, "
                   "CoM rows)", self.penalty_weights)
         if not 0 <= self.target_margin < 1:
-            _fail("controller", "target_margin", "must lie in [0, 1) (a fraction of each "
+            fail("controller", "target_margin", "must lie in [0, 1) (a fraction of each "
                   "input's half-range)", self.target_margin)
         if not 0 <= self.observer_pole < 1:
-            _fail("controller", "observer_pole", "must lie in [0, 1) (the observer's pole per "
+            fail("controller", "observer_pole", "must lie in [0, 1) (the observer's pole per "
                   "control period; 0: deadbeat)", self.observer_pole)
 
     @property
@@ -386,47 +384,47 @@ class ScenarioParams:
 
     def __post_init__(self) -> None:
         _check_types("scenario", self)
-        _check_finite("scenario", self)
+        check_finite("scenario", self)
         _check_positive("scenario", self, ("t_end", "physics_dt", "control_dt",
                                            "foot_pitch_limit", "foot_lift_limit",
                                            "bound_violation_limit", "lower_tilt_limit",
                                            "settle_angle_tol", "settle_rate_tol"))
         if self.physics_dt > MAX_PHYSICS_DT:
-            _fail("scenario", "physics_dt",
+            fail("scenario", "physics_dt",
                   f"must be <= {MAX_PHYSICS_DT:g} s (half the contact time constant, 0.02 s, "
                   "for a stable contact)", self.physics_dt)
         if self.duration < 0:
-            _fail("scenario", "duration", "must be >= 0", self.duration)
+            fail("scenario", "duration", "must be >= 0", self.duration)
         if self.duration > self.t_end:
-            _fail("scenario", "duration", f"must not exceed t_end = {self.t_end}", self.duration)
+            fail("scenario", "duration", f"must not exceed t_end = {self.t_end}", self.duration)
         # Step counts are int32 on the device: a window of more steps cannot be indexed (and
         # 1e308 s would overflow Python's round() below).
         for name in ("t_end", "controller_delay"):
             if getattr(self, name) / self.physics_dt > MAX_STEPS:
-                _fail("scenario", name, f"must be at most {MAX_STEPS:,} physics steps "
+                fail("scenario", name, f"must be at most {MAX_STEPS:,} physics steps "
                       f"(physics_dt = {self.physics_dt:g} s)", getattr(self, name))
         if self.controller_delay >= self.t_end:
-            _fail("scenario", "controller_delay", f"must be shorter than t_end = {self.t_end:g} "
+            fail("scenario", "controller_delay", f"must be shorter than t_end = {self.t_end:g} "
                   "s (the controller would never see a measurement)", self.controller_delay)
         ratio = self.control_dt / self.physics_dt
         if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
-            _fail("scenario", "control_dt",
+            fail("scenario", "control_dt",
                   f"must be a whole multiple of physics_dt = {self.physics_dt}", self.control_dt)
         steps = self.t_end / self.control_dt
         if abs(steps - round(steps)) > 1e-6:
-            _fail("scenario", "t_end",
+            fail("scenario", "t_end",
                   f"must be a whole multiple of control_dt = {self.control_dt}", self.t_end)
         if self.push_body not in ("upper", "hip"):
-            _fail("scenario", "push_body", "must be 'upper' or 'hip'", self.push_body)
+            fail("scenario", "push_body", "must be 'upper' or 'hip'", self.push_body)
         if self.controller_delay < 0:
-            _fail("scenario", "controller_delay", "must be >= 0", self.controller_delay)
+            fail("scenario", "controller_delay", "must be >= 0", self.controller_delay)
         for name in ("controller_delay", "delay_error"):
             steps = getattr(self, name) / self.physics_dt
             if abs(steps - round(steps)) > 1e-6:
-                _fail("scenario", name, f"must be a whole multiple of physics_dt = "
+                fail("scenario", name, f"must be a whole multiple of physics_dt = "
                       f"{self.physics_dt}", getattr(self, name))
         if self.controller_delay + self.delay_error < -1e-12:
-            _fail("scenario", "delay_error", "must be >= -controller_delay (the measurement "
+            fail("scenario", "delay_error", "must be >= -controller_delay (the measurement "
                   "cannot come from the future)", self.delay_error)
 
     @property
@@ -470,21 +468,20 @@ class Config:
 
     def replace(self, **sections: Any) -> "Config":
         """Return a copy with fields replaced, e.g. ``cfg.replace(controller={"horizon": 10})``.
-        ``subject={"height": 1.62, "mass": 58}`` (or a :class:`Subject`) first puts that
+        ``subject={"height": 1.62, "mass": 58}`` (or a ``subject.Subject``) first puts that
         person's body on this configuration (:meth:`Subject.config`); a value the subject
         derives may then not be given in ``body`` or ``controller`` too (ParameterError
         naming both)."""
         if "subject" in sections:
             sections = dict(sections)
-            subject = as_subject(sections.pop("subject"))
-            check_subject_conflicts(subject, sections)
-            return subject.config(self).replace(**sections)
+            return _put_subject(self, sections.pop("subject"), sections)
         updated = {}
         for name, changes in sections.items():
             if name not in ("body", "controller", "scenario"):
                 raise ParameterError(f"unknown section {name!r}")
             current = getattr(self, name)
-            updated[name] = _build(type(current), name, {**dataclasses.asdict(current), **changes})
+            updated[name] = build_section(type(current), name,
+                                          {**dataclasses.asdict(current), **changes})
         return dataclasses.replace(self, **updated)
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
@@ -560,302 +557,42 @@ def forget_warnings() -> None:
     _WARNED.clear()
 
 
-# -- subjects -------------------------------------------------------------------------------
-# The study's body (BodyParams' defaults) weighs 66.3 kg: a subject's torque bounds are the
-# configuration's bounds (read as those of that body) times mass / 66.3 times a strength factor.
-STUDY_BODY_MASS = 66.3  # kg, BodyParams().total_mass
-HEIGHT_RANGE = (0.5, 2.5)  # m: small children to the tallest adults
-SUBJECT_MASS_RANGE = (5.0, 300.0)  # kg
-# Body mass index mass / height^2 [kg/m^2]: height and mass each in range can still make no
-# body. Below 10 no adult has survived and no child lies (the WHO growth charts' lowest
-# centiles are near 12); above 60 lies beyond the severely obese participants of balance
-# studies, where a segment table fitted to lean young adults (de Leva 1996: BMI 20-24) no
-# longer describes the body. The bound refuses a height or a mass mistyped or misread, e.g. a
-# decimal comma's "1,6" read as 1 m and 6 kg (BMI 6) or "1,75" as 1 m and 75 kg (BMI 75).
-BMI_RANGE = (10.0, 60.0)  # kg/m^2
-STRENGTH_RANGE = (0.0, 10.0)  # factor, > 0
-# What a subject derives (a configuration's values that [subject] replaces).
-SUBJECT_BODY_KEYS = ("foot_mass", "foot_length", "foot_inertia", "lower_mass", "lower_length",
-                     "lower_com", "lower_inertia", "upper_mass", "upper_length", "upper_com",
-                     "upper_inertia")
-SUBJECT_CONTROLLER_KEYS = ("cop_bounds", "com_bounds")
+# -- subjects on a configuration ---------------------------------------------------------------
+# ``Config.replace(subject=...)`` puts a person's body on a configuration. The person
+# (model/subject.py) builds configurations from this module's records, so this module does not
+# import it: subject.py installs its function here when it is imported (:func:`use_subjects`),
+# and model/__init__.py imports subject.py, so it is in place before any configuration exists.
+_SUBJECTS: list[Callable[[Config, Any, dict[str, Any]], Config]] = []
 
 
-@dataclass(frozen=True)
-class Subject:
-    """A person: stature ``height`` [m], body ``mass`` [kg], ``sex`` ("male" or "female") and
-    strength factors for the ankle and the hip (1: the mass-scaled study's body).
-
-    ``config(base)`` is ``base`` (default: the study's configuration) with this person's body
-    from de Leva (1996) Table 4 (model/subject.py; docs/model.md, "Subjects"): every segment's
-    mass, length, CoM and pitch inertia, the foot's length and mass, CoP and CoM bounds at the
-    sole's edges (+-foot_length / 2, as the study's +-0.15 m on its 0.30-m foot), and the input
-    bounds of ``base`` times ``mass / 66.3`` (the study's body mass) times ``ankle_strength``
-    (input 1) or ``hip_strength`` (input 2)."""
-
-    height: float
-    mass: float
-    sex: str = "male"
-    ankle_strength: float = 1.0
-    hip_strength: float = 1.0
-
-    def __post_init__(self) -> None:
-        for name in ("height", "mass", "ankle_strength", "hip_strength"):
-            if not _is_number(getattr(self, name)):
-                _fail("subject", name, "must be a number", getattr(self, name))
-            object.__setattr__(self, name, float(getattr(self, name)))
-        _check_finite("subject", self)
-        if self.sex not in SEXES:
-            _fail("subject", "sex", f"must be one of {SEXES}", self.sex)
-        _check_range("subject", self, ("height",), *HEIGHT_RANGE, "m")
-        _check_range("subject", self, ("mass",), *SUBJECT_MASS_RANGE, "kg")
-        bmi = self.mass / self.height ** 2
-        if not BMI_RANGE[0] <= bmi <= BMI_RANGE[1]:
-            raise ParameterError(
-                f"subject.mass = {self.mass:g} kg at subject.height = {self.height:g} m: body "
-                f"mass index {bmi:.3g} kg/m^2, outside the plausible [{BMI_RANGE[0]:g}, "
-                f"{BMI_RANGE[1]:g}]; check the height [m] and the mass [kg] (a decimal comma?)")
-        for name in ("ankle_strength", "hip_strength"):
-            value = getattr(self, name)
-            if not STRENGTH_RANGE[0] < value <= STRENGTH_RANGE[1]:
-                _fail("subject", name, f"must lie in ({STRENGTH_RANGE[0]:g}, "
-                      f"{STRENGTH_RANGE[1]:g}] (a factor on the mass-scaled torque bounds)",
-                      value)
-
-    def body_values(self) -> dict[str, float]:
-        """The body's values this subject derives (``SUBJECT_BODY_KEYS``)."""
-        return segments(self.height, self.mass, self.sex)
-
-    def controller_values(self, base: ControllerParams) -> dict[str, tuple[float, float]]:
-        """CoP and CoM bounds at the sole's edges and ``base``'s input bounds scaled."""
-        half = self.body_values()["foot_length"] / 2
-        scale = self.mass / STUDY_BODY_MASS
-        return {"cop_bounds": (-half, half), "com_bounds": (-half, half),
-                "input1_bounds": tuple(v * scale * self.ankle_strength
-                                       for v in base.input1_bounds),
-                "input2_bounds": tuple(v * scale * self.hip_strength
-                                       for v in base.input2_bounds)}
-
-    def config(self, base: Config | None = None) -> Config:
-        """``base`` (None: the defaults, the study's configuration) with this subject's body."""
-        base = Config() if base is None else base
-        return base.replace(body=self.body_values(),
-                            controller=self.controller_values(base.controller))
-
-    def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
-
-    def describe(self) -> str:
-        """``height=1.62,mass=58,sex=female`` (the --subject form; strengths when not 1)."""
-        parts = [f"height={self.height:g}", f"mass={self.mass:g}", f"sex={self.sex}"]
-        parts += [f"{n}={getattr(self, n):g}" for n in ("ankle_strength", "hip_strength")
-                  if getattr(self, n) != 1.0]
-        return ",".join(parts)
+def use_subjects(put: Callable[[Config, Any, dict[str, Any]], Config]) -> None:
+    """Install ``put(config, subject, sections)``, which :meth:`Config.replace` calls for its
+    ``subject``: ``config`` with that subject's body, then ``sections`` replaced."""
+    _SUBJECTS[:] = [put]
 
 
-def as_subject(value: Any) -> Subject:
-    """A Subject from a Subject or a table of its fields (a TOML [subject])."""
-    if isinstance(value, Subject):
-        return value
-    if not isinstance(value, dict):
-        raise ParameterError(f"section 'subject' must be a table (height, mass, sex, "
-                             f"ankle_strength, hip_strength), got {value!r}")
-    known = [f.name for f in fields(Subject)]
-    unknown = sorted(set(value) - set(known))
-    if unknown:
-        raise ParameterError(f"subject: unknown key(s) {', '.join(unknown)}; known keys: "
-                             f"{', '.join(known)}")
-    missing = [name for name in ("height", "mass") if name not in value]
-    if missing:
-        raise ParameterError(f"subject: give {' and '.join(missing)} (known keys: "
-                             f"{', '.join(known)})")
-    return Subject(**{k: _plain(v) for k, v in value.items()})
+def _put_subject(config: Config, subject: Any, sections: dict[str, Any]) -> Config:
+    if not _SUBJECTS:  # only if model/subject.py was never imported
+        raise ParameterError("subject: import mjx_balance.model.subject to put a subject on a "
+                             "configuration")
+    return _SUBJECTS[0](config, subject, sections)
 
 
-def check_subject_conflicts(subject: Subject, sections: dict[str, Any]) -> None:
-    """Refuse a value given beside ``subject`` in the same place that the subject derives
-    (SUBJECT_BODY_KEYS, SUBJECT_CONTROLLER_KEYS), naming both."""
-    derived = {"body": SUBJECT_BODY_KEYS, "controller": SUBJECT_CONTROLLER_KEYS}
-    for section, keys in derived.items():
-        given = sections.get(section)
-        if not isinstance(given, dict):
-            continue
-        clash = [k for k in keys if k in given]
-        if clash:
-            key = clash[0]
-            values = subject.body_values() if section == "body" else {
-                "cop_bounds": "+-foot_length / 2", "com_bounds": "+-foot_length / 2"}
-            derived_value = values[key]
-            shown = f"{derived_value:.6g}" if isinstance(derived_value, float) else derived_value
-            raise ParameterError(
-                f"{section}.{key} = {given[key]!r} and subject {subject.describe()} (which "
-                f"derives {section}.{key} = {shown}) both set it: give one of them (a later "
-                "--set overrides a subject's value)")
+SECTIONS = {"body": BodyParams, "controller": ControllerParams, "scenario": ScenarioParams}
 
 
-def parse_subject(text: str) -> Subject:
-    """``--subject height=1.62,mass=58[,sex=female][,ankle_strength=0.6][,hip_strength=0.8]``
-    as a Subject (ParameterError naming the part that is wrong)."""
-    values: dict[str, Any] = {}
-    for part in str(text).split(","):
-        key, sep, raw = part.partition("=")
-        key, raw = key.strip(), raw.strip()
-        if not sep or not key or not raw:
-            raise ParameterError(f"--subject {text!r}: {part.strip()!r} is not KEY=VALUE "
-                                 "(e.g. height=1.62,mass=58,sex=female)")
-        if key in values:
-            raise ParameterError(f"--subject {text!r}: {key} given twice")
-        try:
-            values[key] = _subject_value(key, raw)
-        except ValueError:
-            raise ParameterError(f"--subject {text!r}: {key}={raw!r} is not a number") from None
-    try:
-        return as_subject(values)
-    except ParameterError as exc:
-        raise ParameterError(f"--subject {text!r}: {exc}") from None
-
-
-def _subject_value(key: str, raw: str) -> str | float:
-    """A subject field's value from its text: ``sex`` in lower case (``Female`` is female), any
-    other a number (ValueError where it is not one)."""
-    return raw.lower() if key == "sex" else float(raw)
-
-
-# A subjects CSV file's columns besides Subject's fields: the subject's id (cohorts name its
-# folder after it) and free-text columns, read and ignored. Any other column is refused: a
-# misspelt ``ankle_strenght`` would otherwise leave every strength at 1 without a word.
-CSV_ID_COLUMN = "id"
-CSV_TEXT_COLUMNS = ("note", "notes", "comment", "comments")
-
-
-@dataclass(frozen=True)
-class SubjectRow:
-    """One subject of a CSV file: its line in the file, its id as written ("" when the row or
-    the file gives none) and the Subject."""
-
-    line: int
-    id: str
-    subject: Subject
-
-
-def subjects_from_csv(path: str | Path) -> list[Subject]:
-    """The subjects of a CSV file (:func:`subject_rows`), without their ids."""
-    return [row.subject for row in subject_rows(path)]
-
-
-def subject_rows(path: str | Path) -> list[SubjectRow]:
-    """The subjects of a CSV file with a header: columns ``height`` and ``mass`` (required),
-    ``sex``, ``ankle_strength``, ``hip_strength`` (optional; empty cells take the defaults),
-    ``id`` (optional) and free text in ``note``/``notes``/``comment``/``comments`` (ignored).
-    Column names are matched ignoring case and surrounding spaces; an Excel byte-order mark is
-    skipped; lines starting with ``#`` are comments, skipped, and blank lines too. Refused,
-    with a ParameterError naming the file, the line and the value: an unknown or repeated
-    column, a row with more values than the header has columns (a decimal comma: ``1,62``),
-    a value that is not a number, a subject out of its plausible ranges."""
-    import csv
-
-    path = Path(path)
-    try:
-        with path.open(newline="", encoding="utf-8-sig") as fh:
-            rows = list(_csv_rows(fh))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise ParameterError(f"{path}: cannot be read as a CSV file ({exc})") from None
-    if not rows:
-        raise ParameterError(f"{path}: empty; give a header (such as id,height,mass,sex) and "
-                             "a row per subject")
-    columns = _subject_columns(path, *rows[0])
-    if len(rows) == 1:
-        raise ParameterError(f"{path}: holds a header and no subject")
-    return [_subject_row(path, line, columns, cells) for line, cells in rows[1:]]
-
-
-def _csv_rows(fh: Any) -> list[tuple[int, list[str]]]:
-    """(line number, cells) of each row of a CSV file that holds something: lines starting
-    with ``#`` (after spaces) are comments, left out before the CSV reader sees them."""
-    import csv
-
-    where = [0]
-
-    def lines() -> Any:
-        for number, text in enumerate(fh, start=1):
-            if text.lstrip().startswith("#"):
-                continue
-            where[0] = number
-            yield text
-
-    return [(where[0], cells) for cells in csv.reader(lines())
-            if any(cell.strip() for cell in cells)]
-
-
-def _subject_columns(path: Path, line: int, header: list[str]) -> list[str]:
-    """The header's column names, stripped and in lower case, checked: each known, once, and
-    height and mass among them."""
-    known = [CSV_ID_COLUMN, *(f.name for f in fields(Subject))]
-    names = [h.strip().lower() for h in header]
-    listed = f"known columns: {', '.join(known)} (and {', '.join(CSV_TEXT_COLUMNS)}: ignored)"
-    unknown = [h.strip() for h, n in zip(header, names) if n and n not in known
-               and n not in CSV_TEXT_COLUMNS]
-    if unknown:
-        hint = ("; columns are separated by commas" if any(";" in u or "\t" in u
-                                                          for u in unknown) else "")
-        raise ParameterError(f"{path}, line {line}: unknown column(s) "
-                             f"{', '.join(repr(u) for u in unknown)}; {listed}{hint}")
-    twice = sorted({n for n in names if n and names.count(n) > 1})
-    if twice:
-        raise ParameterError(f"{path}, line {line}: column {twice[0]!r} is given twice "
-                             "(column names ignore case)")
-    missing = [n for n in ("height", "mass") if n not in names]
-    if missing:
-        raise ParameterError(f"{path}, line {line}: the header has no column "
-                             f"{' and no column '.join(missing)}; {listed}")
-    return names
-
-
-def _subject_row(path: Path, line: int, columns: list[str], cells: list[str]) -> SubjectRow:
-    """One data row as a SubjectRow (ParameterError naming the file, the line and the value)."""
-    where = f"{path}, line {line}"
-    if len(cells) > len(columns):
-        raise ParameterError(
-            f"{where}: {len(cells)} values for the header's {len(columns)} columns "
-            f"({','.join(cells)}); a decimal comma? Write decimals with a point (1.62)")
-    values: dict[str, Any] = {}
-    ident = ""
-    for name, raw in zip(columns, cells):
-        raw = raw.strip()
-        if not raw or name in CSV_TEXT_COLUMNS:
-            continue
-        if not name:
-            raise ParameterError(f"{where}: {raw!r} is in a column without a name; name it "
-                                 "in the header or remove it")
-        if name == CSV_ID_COLUMN:
-            ident = raw
-            continue
-        try:
-            values[name] = _subject_value(name, raw)
-        except ValueError:
-            hint = " (a decimal comma? write a point)" if "," in raw else ""
-            raise ParameterError(f"{where}: {name} = {raw!r} is not a number{hint}") from None
-    try:
-        return SubjectRow(line, ident, as_subject(values))
-    except ParameterError as exc:
-        raise ParameterError(f"{where}: {exc}") from None
-
-
-_SECTIONS = {"body": BodyParams, "controller": ControllerParams, "scenario": ScenarioParams}
-
-
-def _plain(value: Any) -> Any:
+def plain(value: Any) -> Any:
     """A NumPy scalar (or a list or array of them) as the Python value it holds, so that a
     configuration built from arrays is read as the same numbers (numpy is not imported)."""
     if type(value).__module__ == "numpy" and hasattr(value, "tolist"):
         return value.tolist()
     if isinstance(value, (list, tuple)):
-        return type(value)(_plain(v) for v in value)
+        return type(value)(plain(v) for v in value)
     return value
 
 
-def _build(cls: type, section: str, values: dict[str, Any]) -> Any:
-    values = {key: _plain(value) for key, value in values.items()}
+def build_section(cls: type, section: str, values: dict[str, Any]) -> Any:
+    values = {key: plain(value) for key, value in values.items()}
     known = {f.name: f for f in fields(cls)}
     unknown = sorted(set(values) - set(known))
     if unknown:
@@ -879,129 +616,33 @@ def _build(cls: type, section: str, values: dict[str, Any]) -> Any:
         elif isinstance(default, str) and not isinstance(value, str):
             raise ParameterError(f"{section}.{key} = {value!r}: must be a string")
         elif default is None and value is not None:
-            if not _is_number(value):
+            if not is_number(value):
                 raise ParameterError(f"{section}.{key} = {value!r}: must be a number")
             value = float(value)
         coerced[key] = value
     return cls(**coerced)
 
 
-def config_from_dict(data: dict[str, Any]) -> Config:
-    """Build a validated Config from a nested dict (missing keys take their defaults). A
-    ``subject`` table (height, mass, sex, ankle_strength, hip_strength) puts that person's body
-    on the configuration the other sections make (:meth:`Config.replace`'s ``subject``)."""
-    if "subject" in data:
-        rest = {k: v for k, v in data.items() if k != "subject"}
-        subject = as_subject(data["subject"])
-        check_subject_conflicts(subject, rest)
-        return subject.config(config_from_dict(rest))
-    unknown = sorted(set(data) - set(_SECTIONS))
-    if unknown:
-        raise ParameterError(
-            f"unknown section(s) {', '.join(unknown)}; known sections: body, controller, "
-            "scenario, subject")
-    parts = {}
-    for name, cls in _SECTIONS.items():
-        section = data.get(name, {})
-        if not isinstance(section, dict):
-            raise ParameterError(f"section {name!r} must be a table")
-        parts[name] = _build(cls, name, section)
-    return Config(**parts)
+# -- names that live in model/subject.py and model/config_files.py ----------------------------
+# Both modules import this one; their names also import from here (``from
+# mjx_balance.model.params import load_config``), looked up when first asked for.
+ELSEWHERE = {
+    **dict.fromkeys((
+        "SEXES", "segments", "STUDY_BODY_MASS", "HEIGHT_RANGE", "SUBJECT_MASS_RANGE",
+        "BMI_RANGE", "STRENGTH_RANGE", "SUBJECT_BODY_KEYS", "SUBJECT_CONTROLLER_KEYS",
+        "Subject", "as_subject", "check_subject_conflicts", "parse_subject", "CSV_ID_COLUMN",
+        "CSV_TEXT_COLUMNS", "SubjectRow", "subjects_from_csv", "subject_rows",
+    ), "subject"),
+    **dict.fromkeys((
+        "config_from_dict", "read_toml", "load_config", "dumps_config", "save_config",
+        "with_convention", "parse_override", "apply_overrides", "run_config",
+    ), "config_files"),
+}
 
 
-def read_toml(path: str | Path, what: str = "configuration file") -> dict[str, Any]:
-    """The TOML file at ``path`` as a dict; ParameterError naming the file (and ``what`` it
-    should be) when it is missing, a folder, unreadable, not UTF-8 or not valid TOML."""
-    path = Path(path)
-    try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise ParameterError(f"{what} not found: {path}") from None
-    except IsADirectoryError:
-        raise ParameterError(f"{path}: a folder, not a {what}") from None
-    except OSError as exc:
-        raise ParameterError(f"{path}: cannot be read ({exc.strerror})") from None
-    except UnicodeDecodeError as exc:
-        raise ParameterError(f"{path}: not UTF-8 text (byte {exc.start}); a {what} "
-                             "is TOML") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"{path}: not valid TOML: {exc}") from None
+def __getattr__(name: str) -> Any:
+    if name in ELSEWHERE:
+        import importlib
 
-
-def load_config(path: str | Path) -> Config:
-    """Load a TOML configuration file; every value not given takes its default."""
-    path = Path(path)
-    data = read_toml(path)
-    try:
-        return config_from_dict(data)
-    except ParameterError as exc:
-        raise ParameterError(f"{path}: {exc}") from None
-
-
-def dumps_config(config: Config) -> str:
-    """The configuration as TOML text (every field written; ``tomli_w``)."""
-    import tomli_w
-
-    return tomli_w.dumps(config.to_dict())
-
-
-def save_config(config: Config, path: str | Path) -> None:
-    Path(path).write_text(dumps_config(config))
-
-
-def with_convention(config: Config, convention: str | None) -> Config:
-    """``config`` with the controller's convention replaced (unchanged for None)."""
-    return config.replace(controller={"convention": convention}) if convention else config
-
-
-def parse_override(text: str) -> tuple[str, str, Any]:
-    """One ``--set SECTION.KEY=VALUE`` as (section, key, value). VALUE is read as a TOML value
-    (``30``, ``6.0``, ``true``, ``[-10, 10]``, ``"joint"``); anything that is not one is taken
-    as a bare string (``joint``), which the configuration's rules then check."""
-    name, sep, raw = str(text).partition("=")
-    section, dot, key = name.strip().partition(".")
-    if not sep or not dot or not section or not key.strip() or "." in key:
-        raise ParameterError(f"--set {text!r}: expected SECTION.KEY=VALUE, e.g. "
-                             "controller.horizon=30 (sections: body, controller, scenario)")
-    raw = raw.strip()
-    if not raw:
-        raise ParameterError(f"--set {text!r}: give a value after '='")
-    try:
-        value = tomllib.loads(f"v = {raw}")["v"]
-    except tomllib.TOMLDecodeError:
-        value = raw
-    return section, key.strip(), value
-
-
-def apply_overrides(config: Config, overrides: "list[str] | tuple[str, ...] | None") -> Config:
-    """``config`` with ``--set SECTION.KEY=VALUE`` overrides on top, validated as a TOML file's
-    values are (:func:`config_from_dict`: the same rules and messages, prefixed ``--set:``)."""
-    if not overrides:
-        return config
-    data = config.to_dict()
-    for text in overrides:
-        section, key, value = parse_override(text)
-        data.setdefault(section, {})[key] = value
-    try:
-        return config_from_dict(data)
-    except ParameterError as exc:
-        raise ParameterError(f"--set: {exc}") from None
-
-
-def run_config(path: str | Path | None = None, convention: str | None = None,
-               overrides: "list[str] | tuple[str, ...] | None" = None,
-               subject: Subject | None = None) -> Config:
-    """A run's configuration: the TOML file at ``path`` (or the defaults) with ``subject``
-    (``--subject``) in place of its [subject] table, then ``--set`` ``overrides``, then
-    ``convention`` on top (None keeps the configuration's)."""
-    if subject is None:
-        config = load_config(path) if path else Config()
-    else:
-        data = dict(read_toml(path)) if path else {}
-        data["subject"] = subject
-        try:
-            config = config_from_dict(data)
-        except ParameterError as exc:
-            raise ParameterError(f"{path}: {exc}" if path else str(exc)) from None
-    return with_convention(apply_overrides(config, overrides), convention)
+        return getattr(importlib.import_module(f"{__package__}.{ELSEWHERE[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -27,13 +27,23 @@ How our three segments aggregate the table's (docs/model.md, "Subjects"):
   the lower body.
 
 Segment lengths scale with stature (L = L_table x height / stature_table), masses with body
-mass; CoM and radius fractions are the table's. Everything here is plain arithmetic on floats
-(no configuration classes: ``params.Subject`` builds the configuration from these values).
+mass; CoM and radius fractions are the table's.
+
+:class:`Subject` is a person (height, mass, sex, strengths) checked for plausibility, and builds
+a configuration from the table's values (``Subject.config``); it is read from ``--subject``
+(:func:`parse_subject`), a configuration's ``[subject]`` table (:func:`as_subject`) or a CSV
+file of participants (:func:`subject_rows`).
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+import dataclasses
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from .params import (Config, ControllerParams, ParameterError, check_finite, check_range, fail,
+                     is_number, plain, use_subjects)
 
 SEXES = ("male", "female")
 
@@ -142,3 +152,296 @@ def segments(height: float, mass: float, sex: str = "male") -> dict[str, float]:
         "upper_mass": upper[0], "upper_length": upper_length, "upper_com": upper[1],
         "upper_inertia": upper[2],
     }
+
+
+# -- subjects -------------------------------------------------------------------------------
+# The study's body (BodyParams' defaults) weighs 66.3 kg: a subject's torque bounds are the
+# configuration's bounds (read as those of that body) times mass / 66.3 times a strength factor.
+STUDY_BODY_MASS = 66.3  # kg, BodyParams().total_mass
+HEIGHT_RANGE = (0.5, 2.5)  # m: small children to the tallest adults
+SUBJECT_MASS_RANGE = (5.0, 300.0)  # kg
+# Body mass index mass / height^2 [kg/m^2]: height and mass each in range can still make no
+# body. Below 10 no adult has survived and no child lies (the WHO growth charts' lowest
+# centiles are near 12); above 60 lies beyond the severely obese participants of balance
+# studies, where a segment table fitted to lean young adults (de Leva 1996: BMI 20-24) no
+# longer describes the body. The bound refuses a height or a mass mistyped or misread, e.g. a
+# decimal comma's "1,6" read as 1 m and 6 kg (BMI 6) or "1,75" as 1 m and 75 kg (BMI 75).
+BMI_RANGE = (10.0, 60.0)  # kg/m^2
+STRENGTH_RANGE = (0.0, 10.0)  # factor, > 0
+# What a subject derives (a configuration's values that [subject] replaces).
+SUBJECT_BODY_KEYS = ("foot_mass", "foot_length", "foot_inertia", "lower_mass", "lower_length",
+                     "lower_com", "lower_inertia", "upper_mass", "upper_length", "upper_com",
+                     "upper_inertia")
+SUBJECT_CONTROLLER_KEYS = ("cop_bounds", "com_bounds")
+
+
+@dataclass(frozen=True)
+class Subject:
+    """A person: stature ``height`` [m], body ``mass`` [kg], ``sex`` ("male" or "female") and
+    strength factors for the ankle and the hip (1: the mass-scaled study's body).
+
+    ``config(base)`` is ``base`` (default: the study's configuration) with this person's body
+    from de Leva (1996) Table 4 (:func:`segments`; docs/model.md, "Subjects"): every segment's
+    mass, length, CoM and pitch inertia, the foot's length and mass, CoP and CoM bounds at the
+    sole's edges (+-foot_length / 2, as the study's +-0.15 m on its 0.30-m foot), and the input
+    bounds of ``base`` times ``mass / 66.3`` (the study's body mass) times ``ankle_strength``
+    (input 1) or ``hip_strength`` (input 2)."""
+
+    height: float
+    mass: float
+    sex: str = "male"
+    ankle_strength: float = 1.0
+    hip_strength: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("height", "mass", "ankle_strength", "hip_strength"):
+            if not is_number(getattr(self, name)):
+                fail("subject", name, "must be a number", getattr(self, name))
+            object.__setattr__(self, name, float(getattr(self, name)))
+        check_finite("subject", self)
+        if self.sex not in SEXES:
+            fail("subject", "sex", f"must be one of {SEXES}", self.sex)
+        check_range("subject", self, ("height",), *HEIGHT_RANGE, "m")
+        check_range("subject", self, ("mass",), *SUBJECT_MASS_RANGE, "kg")
+        bmi = self.mass / self.height ** 2
+        if not BMI_RANGE[0] <= bmi <= BMI_RANGE[1]:
+            raise ParameterError(
+                f"subject.mass = {self.mass:g} kg at subject.height = {self.height:g} m: body "
+                f"mass index {bmi:.3g} kg/m^2, outside the plausible [{BMI_RANGE[0]:g}, "
+                f"{BMI_RANGE[1]:g}]; check the height [m] and the mass [kg] (a decimal comma?)")
+        for name in ("ankle_strength", "hip_strength"):
+            value = getattr(self, name)
+            if not STRENGTH_RANGE[0] < value <= STRENGTH_RANGE[1]:
+                fail("subject", name, f"must lie in ({STRENGTH_RANGE[0]:g}, "
+                      f"{STRENGTH_RANGE[1]:g}] (a factor on the mass-scaled torque bounds)",
+                      value)
+
+    def body_values(self) -> dict[str, float]:
+        """The body's values this subject derives (``SUBJECT_BODY_KEYS``)."""
+        return segments(self.height, self.mass, self.sex)
+
+    def controller_values(self, base: ControllerParams) -> dict[str, tuple[float, float]]:
+        """CoP and CoM bounds at the sole's edges and ``base``'s input bounds scaled."""
+        half = self.body_values()["foot_length"] / 2
+        scale = self.mass / STUDY_BODY_MASS
+        return {"cop_bounds": (-half, half), "com_bounds": (-half, half),
+                "input1_bounds": tuple(v * scale * self.ankle_strength
+                                       for v in base.input1_bounds),
+                "input2_bounds": tuple(v * scale * self.hip_strength
+                                       for v in base.input2_bounds)}
+
+    def config(self, base: Config | None = None) -> Config:
+        """``base`` (None: the defaults, the study's configuration) with this subject's body."""
+        base = Config() if base is None else base
+        return base.replace(body=self.body_values(),
+                            controller=self.controller_values(base.controller))
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    def describe(self) -> str:
+        """``height=1.62,mass=58,sex=female`` (the --subject form; strengths when not 1)."""
+        parts = [f"height={self.height:g}", f"mass={self.mass:g}", f"sex={self.sex}"]
+        parts += [f"{n}={getattr(self, n):g}" for n in ("ankle_strength", "hip_strength")
+                  if getattr(self, n) != 1.0]
+        return ",".join(parts)
+
+
+def as_subject(value: Any) -> Subject:
+    """A Subject from a Subject or a table of its fields (a TOML [subject])."""
+    if isinstance(value, Subject):
+        return value
+    if not isinstance(value, dict):
+        raise ParameterError(f"section 'subject' must be a table (height, mass, sex, "
+                             f"ankle_strength, hip_strength), got {value!r}")
+    known = [f.name for f in fields(Subject)]
+    unknown = sorted(set(value) - set(known))
+    if unknown:
+        raise ParameterError(f"subject: unknown key(s) {', '.join(unknown)}; known keys: "
+                             f"{', '.join(known)}")
+    missing = [name for name in ("height", "mass") if name not in value]
+    if missing:
+        raise ParameterError(f"subject: give {' and '.join(missing)} (known keys: "
+                             f"{', '.join(known)})")
+    return Subject(**{k: plain(v) for k, v in value.items()})
+
+
+def check_subject_conflicts(subject: Subject, sections: dict[str, Any]) -> None:
+    """Refuse a value given beside ``subject`` in the same place that the subject derives
+    (SUBJECT_BODY_KEYS, SUBJECT_CONTROLLER_KEYS), naming both."""
+    derived = {"body": SUBJECT_BODY_KEYS, "controller": SUBJECT_CONTROLLER_KEYS}
+    for section, keys in derived.items():
+        given = sections.get(section)
+        if not isinstance(given, dict):
+            continue
+        clash = [k for k in keys if k in given]
+        if clash:
+            key = clash[0]
+            values = subject.body_values() if section == "body" else {
+                "cop_bounds": "+-foot_length / 2", "com_bounds": "+-foot_length / 2"}
+            derived_value = values[key]
+            shown = f"{derived_value:.6g}" if isinstance(derived_value, float) else derived_value
+            raise ParameterError(
+                f"{section}.{key} = {given[key]!r} and subject {subject.describe()} (which "
+                f"derives {section}.{key} = {shown}) both set it: give one of them (a later "
+                "--set overrides a subject's value)")
+
+
+def parse_subject(text: str) -> Subject:
+    """``--subject height=1.62,mass=58[,sex=female][,ankle_strength=0.6][,hip_strength=0.8]``
+    as a Subject (ParameterError naming the part that is wrong)."""
+    values: dict[str, Any] = {}
+    for part in str(text).split(","):
+        key, sep, raw = part.partition("=")
+        key, raw = key.strip(), raw.strip()
+        if not sep or not key or not raw:
+            raise ParameterError(f"--subject {text!r}: {part.strip()!r} is not KEY=VALUE "
+                                 "(e.g. height=1.62,mass=58,sex=female)")
+        if key in values:
+            raise ParameterError(f"--subject {text!r}: {key} given twice")
+        try:
+            values[key] = _subject_value(key, raw)
+        except ValueError:
+            raise ParameterError(f"--subject {text!r}: {key}={raw!r} is not a number") from None
+    try:
+        return as_subject(values)
+    except ParameterError as exc:
+        raise ParameterError(f"--subject {text!r}: {exc}") from None
+
+
+def _subject_value(key: str, raw: str) -> str | float:
+    """A subject field's value from its text: ``sex`` in lower case (``Female`` is female), any
+    other a number (ValueError where it is not one)."""
+    return raw.lower() if key == "sex" else float(raw)
+
+
+# A subjects CSV file's columns besides Subject's fields: the subject's id (cohorts name its
+# folder after it) and free-text columns, read and ignored. Any other column is refused: a
+# misspelt ``ankle_strenght`` would otherwise leave every strength at 1 without a word.
+CSV_ID_COLUMN = "id"
+CSV_TEXT_COLUMNS = ("note", "notes", "comment", "comments")
+
+
+@dataclass(frozen=True)
+class SubjectRow:
+    """One subject of a CSV file: its line in the file, its id as written ("" when the row or
+    the file gives none) and the Subject."""
+
+    line: int
+    id: str
+    subject: Subject
+
+
+def subjects_from_csv(path: str | Path) -> list[Subject]:
+    """The subjects of a CSV file (:func:`subject_rows`), without their ids."""
+    return [row.subject for row in subject_rows(path)]
+
+
+def subject_rows(path: str | Path) -> list[SubjectRow]:
+    """The subjects of a CSV file with a header: columns ``height`` and ``mass`` (required),
+    ``sex``, ``ankle_strength``, ``hip_strength`` (optional; empty cells take the defaults),
+    ``id`` (optional) and free text in ``note``/``notes``/``comment``/``comments`` (ignored).
+    Column names are matched ignoring case and surrounding spaces; an Excel byte-order mark is
+    skipped; lines starting with ``#`` are comments, skipped, and blank lines too. Refused,
+    with a ParameterError naming the file, the line and the value: an unknown or repeated
+    column, a row with more values than the header has columns (a decimal comma: ``1,62``),
+    a value that is not a number, a subject out of its plausible ranges."""
+    import csv
+
+    path = Path(path)
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as fh:
+            rows = list(_csv_rows(fh))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise ParameterError(f"{path}: cannot be read as a CSV file ({exc})") from None
+    if not rows:
+        raise ParameterError(f"{path}: empty; give a header (such as id,height,mass,sex) and "
+                             "a row per subject")
+    columns = _subject_columns(path, *rows[0])
+    if len(rows) == 1:
+        raise ParameterError(f"{path}: holds a header and no subject")
+    return [_subject_row(path, line, columns, cells) for line, cells in rows[1:]]
+
+
+def _csv_rows(fh: Any) -> list[tuple[int, list[str]]]:
+    """(line number, cells) of each row of a CSV file that holds something: lines starting
+    with ``#`` (after spaces) are comments, left out before the CSV reader sees them."""
+    import csv
+
+    where = [0]
+
+    def lines() -> Any:
+        for number, text in enumerate(fh, start=1):
+            if text.lstrip().startswith("#"):
+                continue
+            where[0] = number
+            yield text
+
+    return [(where[0], cells) for cells in csv.reader(lines())
+            if any(cell.strip() for cell in cells)]
+
+
+def _subject_columns(path: Path, line: int, header: list[str]) -> list[str]:
+    """The header's column names, stripped and in lower case, checked: each known, once, and
+    height and mass among them."""
+    known = [CSV_ID_COLUMN, *(f.name for f in fields(Subject))]
+    names = [h.strip().lower() for h in header]
+    listed = f"known columns: {', '.join(known)} (and {', '.join(CSV_TEXT_COLUMNS)}: ignored)"
+    unknown = [h.strip() for h, n in zip(header, names) if n and n not in known
+               and n not in CSV_TEXT_COLUMNS]
+    if unknown:
+        hint = ("; columns are separated by commas" if any(";" in u or "\t" in u
+                                                          for u in unknown) else "")
+        raise ParameterError(f"{path}, line {line}: unknown column(s) "
+                             f"{', '.join(repr(u) for u in unknown)}; {listed}{hint}")
+    twice = sorted({n for n in names if n and names.count(n) > 1})
+    if twice:
+        raise ParameterError(f"{path}, line {line}: column {twice[0]!r} is given twice "
+                             "(column names ignore case)")
+    missing = [n for n in ("height", "mass") if n not in names]
+    if missing:
+        raise ParameterError(f"{path}, line {line}: the header has no column "
+                             f"{' and no column '.join(missing)}; {listed}")
+    return names
+
+
+def _subject_row(path: Path, line: int, columns: list[str], cells: list[str]) -> SubjectRow:
+    """One data row as a SubjectRow (ParameterError naming the file, the line and the value)."""
+    where = f"{path}, line {line}"
+    if len(cells) > len(columns):
+        raise ParameterError(
+            f"{where}: {len(cells)} values for the header's {len(columns)} columns "
+            f"({','.join(cells)}); a decimal comma? Write decimals with a point (1.62)")
+    values: dict[str, Any] = {}
+    ident = ""
+    for name, raw in zip(columns, cells):
+        raw = raw.strip()
+        if not raw or name in CSV_TEXT_COLUMNS:
+            continue
+        if not name:
+            raise ParameterError(f"{where}: {raw!r} is in a column without a name; name it "
+                                 "in the header or remove it")
+        if name == CSV_ID_COLUMN:
+            ident = raw
+            continue
+        try:
+            values[name] = _subject_value(name, raw)
+        except ValueError:
+            hint = " (a decimal comma? write a point)" if "," in raw else ""
+            raise ParameterError(f"{where}: {name} = {raw!r} is not a number{hint}") from None
+    try:
+        return SubjectRow(line, ident, as_subject(values))
+    except ParameterError as exc:
+        raise ParameterError(f"{where}: {exc}") from None
+
+
+def put_subject(config: Config, subject: Any, sections: dict[str, Any]) -> Config:
+    """``config`` with ``subject`` (a Subject or a table of its fields) and then ``sections``
+    (``Config.replace``'s other arguments): a value the subject derives may not be given in
+    ``sections`` too (ParameterError naming both)."""
+    subject = as_subject(subject)
+    check_subject_conflicts(subject, sections)
+    return subject.config(config).replace(**sections)
+
+
+use_subjects(put_subject)

@@ -33,7 +33,8 @@ from ..figures.report import (
 )
 from ..measures.outcomes import OUTCOMES, RECOVERED
 from ..measures.units import describe
-from ..model.params import Config, config_from_dict, with_convention
+from ..model.params import Config
+from ..model.config_files import config_from_dict, with_convention
 from ..store.files import write_atomic
 from ..studies import catalog as studies
 from ..studies.experiments import REPORT_JSON, WEIGHTS_RECOVERING, read_record

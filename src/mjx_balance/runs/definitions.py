@@ -15,7 +15,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from ..model.params import Config, ParameterError, read_toml
+from ..model.params import Config, ParameterError
+from ..model.config_files import read_toml
 
 # The robustness table of the study (SPEC §6.3).
 STUDY_TABLE_FORCES = (5, 10, 15, 20, 30, 40, 50, 60, 80, 100, 120)

@@ -43,7 +43,8 @@ from ..runtime.fingerprint import differences, numerics
 from ..runtime.version import __version__
 from ..measures.outcomes import OUTCOMES, SUMMARY_COLUMNS
 from ..measures.strategy import with_strategy
-from ..model.params import Config, ParameterError, config_warnings, dumps_config, load_config
+from ..model.params import Config, ParameterError, config_warnings
+from ..model.config_files import dumps_config, load_config
 from .files import (CONFIG, LOCK, MANIFEST, TABLE, TABLE_CELLS, TABLE_RUNS, with_units,
                     write_parquet, write_text)
 from .provenance import finish_run, with_run

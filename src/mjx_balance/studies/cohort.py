@@ -1,7 +1,7 @@
 """Cohorts (``mjx-balance cohort``, :func:`run_cohort`): one region map per subject of a
 population, and the population's numbers.
 
-Each subject is a person (``model.params.Subject``: height, mass, sex, ankle and hip strength)
+Each subject is a person (``model.subject.Subject``: height, mass, sex, ankle and hip strength)
 whose body goes on the base configuration (``Subject.config(base)``). Each subject's region
 map is a plain sweep folder ``OUT/subjects/<id>/`` run by ``runs.folders.run_region`` (its own
 manifest, chunks and resume: a cohort run again skips finished subjects and resumes a partial
@@ -29,7 +29,7 @@ the persistent cache warm; docs/studies.md, "Cohorts", has the measured cost).
 Populations (:func:`population`): ``N`` subjects drawn from a NumPy ``Generator`` seeded
 with ``seed``; subject by subject: sex (female with probability ``female_fraction``), then
 height ~ Normal(height_mean, height_sd) and mass ~ Normal(mass_mean, mass_sd), independent,
-each redrawn until it lies in the range a Subject accepts (``params.HEIGHT_RANGE``, then
+each redrawn until it lies in the range a Subject accepts (``subject.HEIGHT_RANGE``, then
 ``SUBJECT_MASS_RANGE`` narrowed to the body mass indices of ``BMI_RANGE`` at that height): a
 truncated normal. The same seed gives the same subjects.
 
@@ -56,15 +56,8 @@ import pandas as pd
 
 from ..figures import cohort as cohort_figures
 from ..figures.region import log_durations
-from ..model.params import (
-    BMI_RANGE,
-    HEIGHT_RANGE,
-    SUBJECT_MASS_RANGE,
-    Config,
-    ParameterError,
-    Subject,
-    subject_rows,
-)
+from ..model.params import Config, ParameterError
+from ..model.subject import BMI_RANGE, HEIGHT_RANGE, SUBJECT_MASS_RANGE, Subject, subject_rows
 from ..rollout.cpath import PATHS
 from ..runs.folders import (
     check_batched,
@@ -189,14 +182,14 @@ def population(n: int, seed: int, *, height_mean: float = 1.70, height_sd: float
         sex = "female" if rng.random() < female_fraction else "male"
         height = round(_truncated(rng, height_mean, height_sd, *HEIGHT_RANGE, "height"), 4)
         low = max(SUBJECT_MASS_RANGE[0], BMI_RANGE[0] * height ** 2)  # a body that can be
-        high = min(SUBJECT_MASS_RANGE[1], BMI_RANGE[1] * height ** 2)  # (params.BMI_RANGE)
+        high = min(SUBJECT_MASS_RANGE[1], BMI_RANGE[1] * height ** 2)  # (subject.BMI_RANGE)
         mass = _truncated(rng, mass_mean, mass_sd, low, high, "mass")
         subjects.append(Subject(height, _rounded_within(mass, low, high), sex))
     return numbered(subjects)
 
 
 def read_subjects(path: str | Path) -> list[Member]:
-    """The subjects of a CSV file (``params.subject_rows``: columns id (optional), height,
+    """The subjects of a CSV file (``subject.subject_rows``: columns id (optional), height,
     mass, sex, ankle_strength, hip_strength, notes; a bad column or row refused naming its
     line and value); rows without an id are numbered s01, ... by their position. Ids are
     checked here, as the file is read (:func:`id_problem`, each once)."""

@@ -30,15 +30,9 @@ import pandas as pd
 
 from ..figures import style as figure_style
 from ..figures.region import cell_bounds, duration_axis, log_durations
-from ..model.params import (
-    Config,
-    ParameterError,
-    Subject,
-    config_from_dict,
-    load_config,
-    read_toml,
-    run_config,
-)
+from ..model.params import Config, ParameterError
+from ..model.config_files import config_from_dict, load_config, read_toml, run_config
+from ..model.subject import Subject
 from ..runs import cluster as cluster_mod
 from ..runs.definitions import load_sweep
 from ..runs.folders import check_batched, run_region, run_table_folder
@@ -136,7 +130,7 @@ def load_base(path: str | Path | None, subject: Subject | None = None) -> Config
     """The base configuration of a comparison (``compare --config FILE --subject ...``): the
     file read as each compared FILE is (:func:`load_one`: a configuration file, or a sweep
     definition whose grid is left out), with ``subject``'s body. On a configuration file the
-    subject takes the place of its [subject] table (``params.run_config``, whose checks refuse
+    subject takes the place of its [subject] table (``config_files.run_config``, whose checks refuse
     a value both set); on a sweep definition the file's values go over the subject's body, as
     ``sweep --sweep FILE --subject ...`` layers them. None: no file and no subject."""
     if subject is None:

@@ -27,7 +27,8 @@ import pandas as pd
 from ..runtime.version import __version__
 from . import catalog as studies
 from ..measures.outcomes import SUMMARY_COLUMNS
-from ..model.params import CONVENTIONS, Config, ParameterError, dumps_config, with_convention
+from ..model.params import CONVENTIONS, Config, ParameterError
+from ..model.config_files import dumps_config, with_convention
 from ..runs import (DEFAULT_SWEEP, STUDY_TABLE_FORCES, LazyBatch, SweepDefinition,
                     default_chunk_size, parse_grid, run_sweep, run_table)
 from ..store.files import write_atomic, write_parquet, write_text

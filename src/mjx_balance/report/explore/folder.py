@@ -39,7 +39,8 @@ from ...figures.style import OUTCOME_COLOURS, OUTCOME_HATCHES, SERIES
 from ...measures.outcomes import OUTCOMES, RECOVERED
 from ...measures.strategy import HIP_SHARE_THRESHOLD
 from ...measures.units import describe
-from ...model.params import Config, ParameterError, config_from_dict, load_config
+from ...model.params import Config, ParameterError
+from ...model.config_files import config_from_dict, load_config
 from ...runtime.version import __version__
 from ...store.files import CONFIG, MANIFEST, REGION, TABLE
 
