@@ -83,3 +83,45 @@ def test_a_signal_after_the_console_scripts_work_changes_nothing(tmp_path):
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and done.stderr == "", done.stderr
     assert (tmp_path / "body.xml").exists()
+
+
+def test_a_ctrl_c_that_osqp_caught_is_delivered():
+    """OSQP listens for SIGINT while it solves and ends the solve with status OSQP_SIGINT
+    (Python's handler never runs): the reference's solver delivers it as Interrupted."""
+    import types
+
+    import osqp
+
+    from mjx_balance.control.osqp_mpc import checked
+
+    caught = types.SimpleNamespace(info=types.SimpleNamespace(
+        status_val=osqp.SolverStatus.OSQP_SIGINT))
+    solved = types.SimpleNamespace(info=types.SimpleNamespace(
+        status_val=osqp.SolverStatus.OSQP_SOLVED))
+    assert checked(solved) is solved
+    with pytest.raises(signals.Interrupted):
+        with signals.honoured():
+            checked(caught)
+    with pytest.raises(KeyboardInterrupt):  # outside a command or API call: Python's own
+        checked(caught)
+
+
+def test_ctrl_c_during_simulate_ends_it(tmp_path):
+    """A real simulate (the scalar reference spends most of its time in OSQP's solves), sent
+    SIGINT while its pushes run: exit 130, one line, the finished pushes kept."""
+    import subprocess
+
+    out = tmp_path / "sim"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "mjx_balance", "-q", "simulate", "--forces", "60,80,100",
+         "--durations", "0.2", "--set", "scenario.t_end=4", "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not (out / "pushes" / "request.json").exists() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    time.sleep(1.0)  # inside the first push's solves
+    os.kill(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines() == ["mjx-balance: error: interrupted (SIGINT); what "
+                                        "finished is kept: run the same command to resume"]

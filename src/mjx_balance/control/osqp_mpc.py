@@ -8,11 +8,14 @@ QP runs to max_iter and returns its last iterate, as the batched ADMM does by de
 
 from __future__ import annotations
 
+import signal
+
 import numpy as np
 import osqp
 import scipy.sparse as sp
 
 from ..model.params import ControllerParams
+from ..runtime import signals
 from .qp import CondensedQP, shift_warm_start
 
 INFEASIBILITY_EPS_OFF = 1e-30  # eps_prim_inf / eps_dual_inf that never certify infeasibility
@@ -37,12 +40,21 @@ def osqp_solve(solver: osqp.OSQP, qp: CondensedQP, x0: np.ndarray,
                offset: np.ndarray | None = None):
     """Solve the QP of measured state ``x0`` [4] (optionally from a primal/dual warm start;
     ``offset``: the offset-free deviation QP's row offsets, ``qp.bounds``); OSQP's result
-    object, never an exception."""
+    object; an exception only for a Ctrl-C that OSQP caught (:func:`checked`)."""
     lower, upper = qp.bounds(x0, offset)
     solver.update(q=qp.linear_term(x0), l=lower, u=upper)
     if warm is not None:
         solver.warm_start(x=warm[0], y=warm[1])
-    return solver.solve(raise_error=False)
+    return checked(solver.solve(raise_error=False))
+
+
+def checked(result):
+    """OSQP's result, unless OSQP stopped on a Ctrl-C: while it solves, OSQP listens for
+    SIGINT itself and ends the solve with status OSQP_SIGINT, so Python's handler never sees
+    the signal; it is delivered here (runtime/signals.py: Interrupted, KeyboardInterrupt)."""
+    if result.info.status_val == osqp.SolverStatus.OSQP_SIGINT:
+        signals.received(signal.SIGINT)
+    return result
 
 
 SOFT_GROUPS = ("states", "cop", "com")  # the rows an exact penalty softens (inputs stay hard)
@@ -96,7 +108,7 @@ class PenaltyOSQP:
         self.solver.update(q=q, l=lo, u=hi)
         if z_warm is not None:
             self.solver.warm_start(x=np.concatenate([z_warm, np.zeros(self.soft.size)]))
-        result = self.solver.solve(raise_error=False)
+        result = checked(self.solver.solve(raise_error=False))
         x = np.array(result.x, dtype=float)
         ok = result.info.status_val == osqp.SolverStatus.OSQP_SOLVED
         z, slack = x[:self.qp.n], x[self.qp.n:]

@@ -83,6 +83,15 @@ def check() -> None:
         raise exception(st.pending)
 
 
+def received(signum: int) -> None:
+    """A signal that a library caught for itself (OSQP's Ctrl-C during a solve) and reported:
+    handled as if Python's handler had seen it (raised where the work is; outside a
+    :func:`honoured` block, as Python's KeyboardInterrupt)."""
+    if _STATE.depth == 0:
+        raise KeyboardInterrupt
+    _handler(signum, None)
+
+
 def _handler(signum: int, _frame) -> None:
     st = _STATE
     if st.depth == 0 or st.seen:
