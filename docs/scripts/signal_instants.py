@@ -1,8 +1,9 @@
-"""SIGINT and SIGTERM at many instants of a real sweep: each run must end with exit 130 / 143,
+"""SIGINT and SIGTERM at many instants of a real sweep (or cohort): each run must end with exit 130 / 143,
 one line on stderr, no traceback, the run recorded ``interrupted`` in the manifest; the same
 command then resumes it to the region an uninterrupted run computes.
 
-    python docs/scripts/signal_instants.py [--instants 10] [--out /tmp/signal_instants]
+    python docs/scripts/signal_instants.py [--instants 10] [--command sweep|cohort]
+        [--out /tmp/signal_instants]
 
 (--instants per signal: 10 gives 20 runs stopped, each resumed.)
 
@@ -26,12 +27,19 @@ from pathlib import Path
 
 import pandas as pd
 
-SWEEP = ["sweep", "--forces", "0:150:10", "--durations", "0.1:2:0.1", "--set",
-         "scenario.t_end=2", "--chunk", "32"]
+# The work, and the table it ends in (compared with an uninterrupted run's).
+COMMANDS = {
+    "sweep": (["sweep", "--forces", "0:150:10", "--durations", "0.1:2:0.1", "--set",
+               "scenario.t_end=2", "--chunk", "32"], "region.parquet"),
+    "cohort": (["cohort", "--heights", "1.6,1.8", "--masses", "60,80", "--forces", "0:150:30",
+                "--durations", "0.1:1:0.3", "--set", "scenario.t_end=2"], "cohort.csv"),
+}
+COMMAND = "sweep"
 
 
 def start(out: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "mjx_balance", "-q", *SWEEP, "--out", str(out)],
+    argv = COMMANDS[COMMAND][0]
+    return subprocess.Popen([sys.executable, "-m", "mjx_balance", "-q", *argv, "--out", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -44,14 +52,19 @@ def wait_for_manifest(out: Path, proc: subprocess.Popen) -> float:
 
 
 def region(out: Path) -> pd.DataFrame:
-    return pd.read_parquet(out / "region.parquet").reset_index(drop=True)
+    path = out / COMMANDS[COMMAND][1]
+    frame = pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
+    return frame.reset_index(drop=True)
 
 
 def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("--instants", type=int, default=10)
     parser.add_argument("--out", type=Path, default=Path("/tmp/signal_instants"))
+    parser.add_argument("--command", choices=sorted(COMMANDS), default="sweep")
     args = parser.parse_args()
+    global COMMAND
+    COMMAND = args.command
     shutil.rmtree(args.out, ignore_errors=True)
     whole = args.out / "whole"
     proc = start(whole)
