@@ -124,44 +124,45 @@ INFO = {  # timed, not parts of the sum
 # One lane's stages (mirrors of kernel.period and kernel.control)
 
 
-def physics(ar, sn, st, carry: Carry, k, force, n_push, torques, *, u) -> Carry:
+def physics(arrays, sensors, static, carry: Carry, k, force, n_push, torques, *, u) -> Carry:
     """``kernel.period`` after the solve, lean path: ``substeps`` physics steps, each sample
     completed with the positions the next step computes, the last with one kinematics."""
-    dtype = ar.d0.qpos.dtype
-    S = st.substeps
+    dtype = arrays.d0.qpos.dtype
+    S = static.substeps
 
     def fold(carry, s, i):
         acc = sample_update(carry.acc, s, i, torques, u, carry.q_prev, carry.x_prev,
-                            limits_of(ar, st))
+                            limits_of(arrays, static))
         return carry._replace(q_prev=s.q, x_prev=s.x, acc=acc)
 
     def lean_step(cs, i):
         carry, pending = cs
-        d = step(ar.mx, sn, carry.d, torques, jnp.where(i < n_push, force, jnp.zeros((), dtype)),
-                 st.push_at_hip)
-        folded = fold(carry, with_positions(pending, ar, sn, d), i - 1)
+        d = step(arrays.mx, sensors, carry.d, torques,
+                 jnp.where(i < n_push, force, jnp.zeros((), dtype)), static.push_at_hip)
+        folded = fold(carry, with_positions(pending, arrays, sensors, d), i - 1)
         kept = select(i > k * S, (folded.acc, folded.q_prev, folded.x_prev),
                       (carry.acc, carry.q_prev, carry.x_prev))
         carry = carry._replace(acc=kept[0], q_prev=kept[1], x_prev=kept[2])
-        s = measure_step(ar, sn, d)
+        s = measure_step(arrays, sensors, d)
         return (carry._replace(d=d, history=remember(carry.history, s)), s), None
 
     steps = k * S + jnp.arange(S, dtype=jnp.int32)
-    (carry, last), _ = jax.lax.scan(lean_step, (carry, measure_step(ar, sn, carry.d)), steps)
-    positions = mjx.kinematics(ar.mx, carry.d)
-    return fold(carry, with_positions(last, ar, sn, positions), steps[-1])
+    (carry, last), _ = jax.lax.scan(lean_step, (carry, measure_step(arrays, sensors, carry.d)),
+                                    steps)
+    positions = mjx.kinematics(arrays.mx, carry.d)
+    return fold(carry, with_positions(last, arrays, sensors, positions), steps[-1])
 
 
-def bare_physics(ar, sn, st, d, k, force, n_push, torques):
+def bare_physics(arrays, sensors, static, d, k, force, n_push, torques):
     """Only the physics of :func:`physics`: ``substeps`` steps and one kinematics."""
-    dtype = ar.d0.qpos.dtype
+    dtype = arrays.d0.qpos.dtype
 
     def one(d, i):
         push = jnp.where(i < n_push, force, jnp.zeros((), dtype))
-        return step(ar.mx, sn, d, torques, push, st.push_at_hip), None
+        return step(arrays.mx, sensors, d, torques, push, static.push_at_hip), None
 
-    d, _ = jax.lax.scan(one, d, k * st.substeps + jnp.arange(st.substeps, dtype=jnp.int32))
-    return mjx.kinematics(ar.mx, d).xpos
+    d, _ = jax.lax.scan(one, d, k * static.substeps + jnp.arange(static.substeps, dtype=jnp.int32))
+    return mjx.kinematics(arrays.mx, d).xpos
 
 
 def qp_vectors(data: admm_mod.ADMMData, x0, warm):
@@ -235,7 +236,7 @@ def drive_mjx(engine, forces, n_push, *, record: bool = False, sampled: int = 0)
     n = forces.shape[0]
     fn = engine.block_fn()
     r = engine.runner
-    split, _ = r._shardings()
+    batch_sharding, _ = r._shardings()
     state = engine._state if engine._state is not None else engine._initial_state()
     engine._state = None
     clock, out, records, calls = Clock(), {}, [], 0
@@ -246,7 +247,7 @@ def drive_mjx(engine, forces, n_push, *, record: bool = False, sampled: int = 0)
         with clock("python"):
             cells, f, p, init = queue.offer()
         with clock("transfers"):
-            args = _offer_args(r, split, cells, f, p, init)
+            args = _offer_args(r, batch_sharding, cells, f, p, init)
         if record:
             with clock.paused():
                 records.append((jax.device_get(state), jax.device_get(args)))
@@ -274,21 +275,23 @@ def warm_up(engine) -> None:
     """One call of the MJX engine's compiled block on vacant slots with nothing to refill
     (its first execution, outside the runs: vacant slots idle at rest, as after any run)."""
     r = engine.runner
-    split, _ = r._shardings()
+    batch_sharding, _ = r._shardings()
     n = engine.refill * engine.n_devices
-    args = _offer_args(r, split, np.full(n, -1, np.int32), np.zeros(n), np.zeros(n, np.int32),
-                       np.zeros((n, 4)))
+    args = _offer_args(r, batch_sharding, np.full(n, -1, np.int32), np.zeros(n),
+                       np.zeros(n, np.int32), np.zeros((n, 4)))
     state = engine._state if engine._state is not None else engine._initial_state()
     state, taken, done = engine.block_fn()(r.arrays, engine.cert, state, *args)
     _fetch(taken, done)
     engine._state = state
 
 
-def _offer_args(r, split, cells, f, p, init) -> tuple:
+def _offer_args(r, batch_sharding, cells, f, p, init) -> tuple:
     """The refill offer on the devices, as ``Engine.stream`` places it."""
     args = (jnp.asarray(cells), jnp.asarray(f.astype(r.dtype)), jnp.asarray(p),
             jnp.asarray(init.astype(r.dtype)))
-    return args if split is None else tuple(jax.device_put(a, split) for a in args)
+    if batch_sharding is None:
+        return args
+    return tuple(jax.device_put(a, batch_sharding) for a in args)
 
 
 def _fetch(taken, done) -> tuple:
@@ -377,9 +380,9 @@ class Stages:
     :meth:`scan` times a stage over many periods in one compiled ``scan`` (as the engine's
     block runs its periods: each device loops on its own, the devices meet at the end of the
     call): the median of ``repeats`` calls after a first (compiling) one, less the median of a
-    no-op of the same arguments and as many outputs (:func:`tiny`: the call's own cost), times
-    ``weight`` (the periods each replayed period stands for); it returns the stage's outputs of
-    every period. Where a period's inputs need the period before (the MJX path), the replay
+    no-op of the same arguments and as many outputs (:func:`noop_outputs`: the call's own
+    cost), times ``weight`` (the periods each replayed period stands for); it returns the
+    stage's outputs of every period. Where a period's inputs need the period before (the MJX path), the replay
     calls each stage once per period instead (:meth:`__call__`, not timed), which keeps the
     inputs for :meth:`flush` to time with :meth:`scan`."""
 
@@ -450,8 +453,8 @@ class Stages:
             if name not in self.overhead:
                 jax.block_until_ready(fn(self.leaves, *args))  # compiles
                 shapes = jax.eval_shape(fn, self.leaves, *args)  # (jit's own trace)
-                noop = self.sharded(lambda leaves, *a: tiny(shapes, stacked=True), len(args),
-                                    scan=True)
+                noop = self.sharded(lambda leaves, *a: noop_outputs(shapes, stacked=True),
+                                    len(args), scan=True)
                 jax.block_until_ready(noop(self.leaves, *args))
                 self.overhead[name] = _median_call(noop, self.leaves, args, 5)[0]
             seconds, out = _median_call(fn, self.leaves, args, self.repeats)
@@ -466,7 +469,7 @@ class Stages:
         self.kept = {}
 
 
-def tiny(shapes, stacked: bool = False):
+def noop_outputs(shapes, stacked: bool = False):
     """Outputs of the tree structure and types of ``shapes``, one element per device each: a
     no-op's outputs (as many arrays as the real function returns, next to no data)."""
     return jax.tree.map(lambda v: jnp.zeros((1, 1) if stacked else (1,), v.dtype), shapes)
@@ -549,7 +552,7 @@ class Agreement:
 
 def call_cost(engine, stages: Stages, tail: tuple, repeats: int = 9) -> dict[str, Any]:
     """Seconds of one of the engine's compiled calls that do nothing: a no-op with the call's
-    arguments, shardings and donation and as many outputs (:func:`tiny`), dispatched as the
+    arguments, shardings and donation and as many outputs (:func:`noop_outputs`), dispatched as the
     engine dispatches its call (the MJX block ahead of time, the C path's period call through
     jit); the median of ``repeats``. ``tail``: the host inputs of one recorded call after the
     shared arrays (MJX: the slots and the refill offer; C: the slots, floats and ints).
@@ -561,7 +564,7 @@ def call_cost(engine, stages: Stages, tail: tuple, repeats: int = 9) -> dict[str
     shapes = (jax.eval_shape(fn, *head, *stages.put(tail)) if c_path  # (jit's own trace)
               else fn.out_info)
     def run(*args):
-        return tiny(shapes)
+        return noop_outputs(shapes)
 
     if r.mesh is not None:
         P = jax.sharding.PartitionSpec
@@ -590,62 +593,64 @@ def call_cost(engine, stages: Stages, tail: tuple, repeats: int = 9) -> dict[str
 def mjx_bodies(engine) -> dict[str, Any]:
     """The stage bodies of one MJX control period (``engine.block``'s step, in its order)."""
     r = engine.runner
-    sn, st, packing, S = r.sensors, r.static, engine.packing, engine.slots
+    sensors, static, packing, S = r.sensors, r.static, engine.packing, engine.slots
     every = cert_mod.CHECK_EVERY
     early = engine.cert is not None
 
-    def rest(ar):
-        return engine_mod.broadcast(initial_carry(ar, sn, st), S)
+    def rest(arrays):
+        return engine_mod.broadcast(initial_carry(arrays, sensors, static), S)
 
-    def unpack(ar, cert, slots, inits):
-        single = initial_carry(ar, sn, st)
-        starts = jax.vmap(lambda init: start(ar, sn, single, init))(inits)
+    def unpack(arrays, cert, slots, inits):
+        single = initial_carry(arrays, sensors, static)
+        starts = jax.vmap(lambda init: start(arrays, sensors, single, init))(inits)
         return slots._replace(carry=packing.unpack(slots.carry, S)), starts
 
-    def refill(ar, cert, slots, taken, s, offer):
+    def refill(arrays, cert, slots, taken, s, offer):
         cells, force, push, starts = offer
         vacant = slots.cell < 0
         if early:
             vacant = vacant & (s[0] % every == 0)
-        slots, taken = engine_mod.refill(slots, rest(ar), taken[0], vacant, cells, force, push,
+        slots, taken = engine_mod.refill(slots, rest(arrays), taken[0], vacant, cells, force, push,
                                          starts)
         return slots, taken[None]
 
-    def certify(ar, cert, carry, due):
+    def certify(arrays, cert, carry, due):
         k = due.k + 1
-        ended = ~carry.acc.alive | (k >= ar.n_control)
-        acc, certified = engine_mod.certify(engine_mod.checker(cert if early else None), st,
+        ended = ~carry.acc.alive | (k >= arrays.n_control)
+        acc, certified = engine_mod.certify(engine_mod.checker(cert if early else None), static,
                                             carry.x_prev, carry.acc, k, due.n_push, ended,
-                                            due.due[0], n_control=ar.n_control)
+                                            due.due[0], n_control=arrays.n_control)
         return acc, certified, (due.cell >= 0) & (ended | certified)
 
-    def harvest(ar, cert, buffer, decided, slots, acc, certified, carry):
+    def harvest(arrays, cert, buffer, decided, slots, acc, certified, carry):
         done, n_done = buffer
         k = slots.k + 1
         done, n_done = engine_mod.harvest(done, n_done[0], decided, slots.cell, acc, k, certified)
-        return done, n_done[None], engine_mod.vacate(decided, rest(ar), carry, slots, k)
+        return done, n_done[None], engine_mod.vacate(decided, rest(arrays), carry, slots, k)
 
     return dict(
         unpack=unpack, refill=refill, certify=certify, harvest=harvest,
-        pack=lambda ar, cert, slots: slots._replace(carry=packing.pack(slots.carry)),
-        prepare=lambda ar, cert, carry, k: jax.vmap(
-            lambda c: kernel.prepare(ar, st, c, initial_carry(ar, sn, st)))(carry),
-        solve=lambda ar, cert, pre: kernel.solve_batch(ar, st, pre, engine.tile),
-        conclude=lambda ar, cert, pre, res, k: jax.vmap(
-            lambda p, q, k: kernel.conclude(ar, st, p, q, k, initial_carry(ar, sn, st)))(
+        pack=lambda arrays, cert, slots: slots._replace(carry=packing.pack(slots.carry)),
+        prepare=lambda arrays, cert, carry, k: jax.vmap(
+            lambda c: kernel.prepare(arrays, static, c,
+                                     initial_carry(arrays, sensors, static)))(carry),
+        solve=lambda arrays, cert, pre: kernel.solve_batch(arrays, static, pre, engine.tile),
+        conclude=lambda arrays, cert, pre, res, k: jax.vmap(
+            lambda p, q, k: kernel.conclude(arrays, static, p, q, k,
+                                            initial_carry(arrays, sensors, static)))(
                 pre, res, k),
-        physics=lambda ar, cert, carry, slots, torques, u: jax.vmap(
-            lambda c, k, f, n, t, u: physics(ar, sn, st, c, k, f, n, t, u=u))(
+        physics=lambda arrays, cert, carry, slots, torques, u: jax.vmap(
+            lambda c, k, f, n, t, u: physics(arrays, sensors, static, c, k, f, n, t, u=u))(
             carry, slots.k, slots.force, slots.n_push, torques, u),
-        bare_physics=lambda ar, cert, d, slots, torques: jax.vmap(
-            lambda d, k, f, n, t: bare_physics(ar, sn, st, d, k, f, n, t))(
+        bare_physics=lambda arrays, cert, d, slots, torques: jax.vmap(
+            lambda d, k, f, n, t: bare_physics(arrays, sensors, static, d, k, f, n, t))(
             d, slots.k, slots.force, slots.n_push, torques),
-        qp_vectors=lambda ar, cert, pre: jax.vmap(
-            lambda p: qp_vectors(ar.qp, p.x0, p.carry.warm))(pre),
+        qp_vectors=lambda arrays, cert, pre: jax.vmap(
+            lambda p: qp_vectors(arrays.qp, p.x0, p.carry.warm))(pre),
     )
 
 
-class Due(NamedTuple):
+class CertifyInputs(NamedTuple):
     """The per-period numbers a certify body needs besides the slots."""
 
     k: jax.Array
@@ -654,14 +659,15 @@ class Due(NamedTuple):
     due: jax.Array  # [devices] bool: this period checks the certificate
 
 
-def mjx_period(stages: Stages, bodies: dict, st: dict, s: int, iters: Iterations) -> dict:
-    """One control period of the replay (``engine.block``'s step): ``st`` holds slots, taken,
-    done, n_done and the block's refill arrays; returns it updated."""
+def mjx_period(stages: Stages, bodies: dict, held: dict, s: int, iters: Iterations) -> dict:
+    """One control period of the replay (``engine.block``'s step): ``held`` is what one period
+    hands the next (slots, taken, done, n_done and the block's refill arrays); returns it
+    updated."""
     D = iters.devices
     every = cert_mod.CHECK_EVERY
     s_arr = stages.put(np.full(D, s, np.int32))
-    slots, taken = stages("refill", bodies["refill"], st["slots"], st["taken"], s_arr,
-                          (*st["offer"], st["starts"]))
+    slots, taken = stages("refill", bodies["refill"], held["slots"], held["taken"], s_arr,
+                          (*held["offer"], held["starts"]))
     pre = stages("prepare", bodies["prepare"], slots.carry, slots.k)
     stages("qp_vectors", bodies["qp_vectors"], pre, run=False)
     res = stages("solve", bodies["solve"], pre)
@@ -669,12 +675,12 @@ def mjx_period(stages: Stages, bodies: dict, st: dict, s: int, iters: Iterations
     carry, u, torques = stages("conclude", bodies["conclude"], pre, res, slots.k)
     stages("bare_physics", bodies["bare_physics"], carry.d, slots, torques, run=False)
     carry = stages("physics", bodies["physics"], carry, slots, torques, u)
-    due = Due(slots.k, slots.n_push, slots.cell,
+    due = CertifyInputs(slots.k, slots.n_push, slots.cell,
               stages.put(np.full(D, s % every == every - 1)))
     acc, certified, decided = stages("certify", bodies["certify"], carry, due)
-    done, n_done, slots = stages("harvest", bodies["harvest"], (st["done"], st["n_done"]),
+    done, n_done, slots = stages("harvest", bodies["harvest"], (held["done"], held["n_done"]),
                                  decided, slots, acc, certified, carry)
-    return dict(st, slots=slots, taken=taken, done=done, n_done=n_done)
+    return dict(held, slots=slots, taken=taken, done=done, n_done=n_done)
 
 
 def replay_mjx(engine, records: list, stages: Stages, sampled: int) -> dict[str, Any]:
@@ -692,15 +698,15 @@ def replay_mjx(engine, records: list, stages: Stages, sampled: int) -> dict[str,
         packed, offer = stages.put(packed), stages.put(offer)
         slots, starts = stages("unpack", bodies["unpack"], packed, offer[3], keep=False)
         empty = engine_mod.empty_finished(engine.slots + engine.refill, r.dtype)
-        st = dict(slots=slots, taken=stages.put(np.zeros(D, np.int32)), offer=offer[:3],
-                  starts=starts, n_done=stages.put(np.zeros(D, np.int32)),
-                  done=stages.put(jax.tree.map(lambda v: np.concatenate([v] * D),
-                                               jax.device_get(empty))))
+        held = dict(slots=slots, taken=stages.put(np.zeros(D, np.int32)), offer=offer[:3],
+                    starts=starts, n_done=stages.put(np.zeros(D, np.int32)),
+                    done=stages.put(jax.tree.map(lambda v: np.concatenate([v] * D),
+                                                 jax.device_get(empty))))
         for s in range(periods):
-            st = mjx_period(stages, bodies, st, s, iters)
+            held = mjx_period(stages, bodies, held, s, iters)
         stages.flush(engine.block / periods)
         if periods == engine.block:
-            packed = stages("pack", bodies["pack"], st["slots"], keep=False)
+            packed = stages("pack", bodies["pack"], held["slots"], keep=False)
             agreement.add(jax.device_get(packed), records[b + 1][0])
             checked += 1
     cost = call_cost(engine, stages, (records[0][0], *records[0][1]))
@@ -717,42 +723,42 @@ def replay_mjx(engine, records: list, stages: Stages, sampled: int) -> dict[str,
 def c_bodies(engine) -> dict[str, Any]:
     """The stage bodies of one call of the C path (``cpath.call``, in its order)."""
     r = engine.runner
-    sn, st, B, S = r.sensors, r.static, engine.slots, r.static.substeps
+    sensors, static, B, S = r.sensors, r.static, engine.slots, r.static.substeps
     every = cert_mod.CHECK_EVERY
     early = engine.cert is not None
 
-    def rest(ar):
-        return engine_mod.broadcast(initial_carry(ar, sn, st)._replace(d=None), B)
+    def rest(arrays):
+        return engine_mod.broadcast(initial_carry(arrays, sensors, static)._replace(d=None), B)
 
-    def fold(ar, cert, cs, floats, ints):
+    def fold(arrays, cert, cs, floats, ints):
         rows, last_qpos, cell, force, push, p = cpath.unpack(floats, ints, S)
         slots = cs.slots
         folded = jax.vmap(lambda c, w, q, k, t, u: cpath.fold_period(
-            ar, sn, st, c, w, q, k, torques=t, u=u))(slots.carry, rows, last_qpos, slots.k,
-                                                     cs.torques, cs.u)
+            arrays, sensors, static, c, w, q, k, torques=t, u=u))(slots.carry, rows, last_qpos,
+                                                                 slots.k, cs.torques, cs.u)
         carry = select(cs.ran, folded, slots.carry)
         k = jnp.where(cs.ran, slots.k + 1, slots.k)
-        return carry, k, ~carry.acc.alive | (k >= ar.n_control), (cell, force, push), p[None]
+        return carry, k, ~carry.acc.alive | (k >= arrays.n_control), (cell, force, push), p[None]
 
-    def certify(ar, cert, carry, k, n_push, ended, p):
-        return engine_mod.certify(engine_mod.checker(cert if early else None), st,
+    def certify(arrays, cert, carry, k, n_push, ended, p):
+        return engine_mod.certify(engine_mod.checker(cert if early else None), static,
                                   carry.x_prev, carry.acc, k, n_push, ended,
-                                  (p[0] - 1) % every == every - 1, n_control=ar.n_control)
+                                  (p[0] - 1) % every == every - 1, n_control=arrays.n_control)
 
-    def refill(ar, cert, cs, carry, verdict, offer, p):
+    def refill(arrays, cert, cs, carry, verdict, offer, p):
         acc, k, certified, ended = verdict
         decided = cs.ran & (ended | certified)
         zero = jnp.zeros((), jnp.int32)
         done, _ = engine_mod.harvest(engine_mod.empty_finished(B, r.dtype), zero, decided,
                                      cs.slots.cell, acc, k, certified)
-        slots = engine_mod.vacate(decided, rest(ar), carry, cs.slots, k)
+        slots = engine_mod.vacate(decided, rest(arrays), carry, cs.slots, k)
         vacant = slots.cell < 0
         if early:
             vacant = vacant & (p[0] % every == 0)
-        slots, taken = engine_mod.refill(slots, rest(ar), zero, vacant, *offer)
+        slots, taken = engine_mod.refill(slots, rest(arrays), zero, vacant, *offer)
         return slots, vacant & (slots.cell >= 0), taken[None], done
 
-    def finish(ar, cert, slots, u, torques, fresh, taken, done):
+    def finish(arrays, cert, slots, u, torques, fresh, taken, done):
         busy = slots.cell >= 0
         steps = slots.k[:, None] * S + jnp.arange(S, dtype=jnp.int32)[None]
         push = jnp.where(steps < slots.n_push[:, None], slots.force[:, None],
@@ -765,12 +771,13 @@ def c_bodies(engine) -> dict[str, Any]:
 
     return dict(
         fold=fold, certify=certify, refill=refill, finish=finish,
-        prepare=lambda ar, cert, carry, k: jax.vmap(lambda c: kernel.prepare(ar, st, c))(carry),
-        solve=lambda ar, cert, pre: jax.vmap(lambda p: kernel.solve(ar, st, p))(pre),
-        conclude=lambda ar, cert, pre, res, k: jax.vmap(
-            lambda p, q, k: kernel.conclude(ar, st, p, q, k))(pre, res, k),
-        qp_vectors=lambda ar, cert, pre: jax.vmap(
-            lambda p: qp_vectors(ar.qp, p.x0, p.carry.warm))(pre),
+        prepare=lambda arrays, cert, carry, k: jax.vmap(
+            lambda c: kernel.prepare(arrays, static, c))(carry),
+        solve=lambda arrays, cert, pre: jax.vmap(lambda p: kernel.solve(arrays, static, p))(pre),
+        conclude=lambda arrays, cert, pre, res, k: jax.vmap(
+            lambda p, q, k: kernel.conclude(arrays, static, p, q, k))(pre, res, k),
+        qp_vectors=lambda arrays, cert, pre: jax.vmap(
+            lambda p: qp_vectors(arrays.qp, p.x0, p.carry.warm))(pre),
     )
 
 

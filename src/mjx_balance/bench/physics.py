@@ -71,7 +71,7 @@ def _best(fn, repeats: int) -> float:
 
 def _mjx_steps(runner, forces: np.ndarray, n_steps: int, kinematics: bool) -> float:
     """Seconds per scenario-step of vmap(mjx.step) (+ mjx.kinematics) over the local devices."""
-    ar, sn = runner.arrays, runner.sensors
+    arrays, sensors = runner.arrays, runner.sensors
     devices = jax.local_devices()
     mesh = jax.sharding.Mesh(np.array(devices), ("batch",))
     split = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("batch"))
@@ -80,10 +80,10 @@ def _mjx_steps(runner, forces: np.ndarray, n_steps: int, kinematics: bool) -> fl
         def body(d, i):
             push = jnp.where(i < n_steps // 4, force, 0.0).astype(d.qpos.dtype)
             d = d.replace(xfrc_applied=jnp.zeros_like(d.xfrc_applied)
-                          .at[sn.upper_body, 0].set(push))
-            d = mjx.step(ar.mx, d)
-            return (mjx.kinematics(ar.mx, d) if kinematics else d), None
-        return jax.lax.scan(body, ar.d0, jnp.arange(n_steps))[0].qpos
+                          .at[sensors.upper_body, 0].set(push))
+            d = mjx.step(arrays.mx, d)
+            return (mjx.kinematics(arrays.mx, d) if kinematics else d), None
+        return jax.lax.scan(body, arrays.d0, jnp.arange(n_steps))[0].qpos
 
     fn = jax.jit(jax.vmap(one))
     f = jax.device_put(jnp.asarray(forces, runner.dtype), split)
@@ -95,15 +95,15 @@ def _closed_loop_steps(runner, forces: np.ndarray, push_steps: np.ndarray,
                        periods: int) -> float:
     """Seconds per scenario-step of ``periods`` control periods of ``kernel.period`` for every
     scenario in lock-step, split over the local devices."""
-    ar, sn, st = runner.arrays, runner.sensors, runner.static
+    arrays, sensors, static = runner.arrays, runner.sensors, runner.static
     devices = jax.local_devices()
     split = jax.sharding.NamedSharding(jax.sharding.Mesh(np.array(devices), ("batch",)),
                                        jax.sharding.PartitionSpec("batch"))
 
     def one(force, n_push):
         def body(carry, k):
-            return kernel.period(ar, sn, st, carry, k, force, n_push)[0], None
-        carry = kernel.initial_carry(ar, sn, st)
+            return kernel.period(arrays, sensors, static, carry, k, force, n_push)[0], None
+        carry = kernel.initial_carry(arrays, sensors, static)
         return jax.lax.scan(body, carry, jnp.arange(periods, dtype=jnp.int32))[0].acc.alive
 
     fn = jax.jit(jax.vmap(one))
@@ -111,7 +111,7 @@ def _closed_loop_steps(runner, forces: np.ndarray, push_steps: np.ndarray,
     n = jax.device_put(jnp.asarray(push_steps, jnp.int32), split)
     with jax.default_matmul_precision(MATMUL_PRECISION):
         seconds = _best(lambda: jax.block_until_ready(fn(f, n)), 3)
-    return seconds / (forces.size * periods * st.substeps)
+    return seconds / (forces.size * periods * static.substeps)
 
 
 class CPhysics:
@@ -165,21 +165,21 @@ def _c_closed_loop(c: CPhysics, runner, forces: np.ndarray, push_steps: np.ndarr
                    periods: int) -> tuple[float, float]:
     """(seconds per scenario-step, ADMM seconds per scenario-step) of the C closed loop bound:
     per period one jitted batched ADMM call, then one C period."""
-    ar, st = runner.arrays, runner.static
+    arrays, static = runner.arrays, runner.static
     S = c.substeps
 
     @jax.jit
     def control(joints, warm):
         def one(jq, w):
-            x = ar.to_state @ jq[:2], ar.to_state @ jq[2:]
-            res = admm_mod.admm_solve(ar.qp, jnp.concatenate(x), w, st.settings)
-            return ar.torque_map @ res.u0, admm_mod.ADMMWarm(*res.warm_next)
+            x = arrays.to_state @ jq[:2], arrays.to_state @ jq[2:]
+            res = admm_mod.admm_solve(arrays.qp, jnp.concatenate(x), w, static.settings)
+            return arrays.torque_map @ res.u0, admm_mod.ADMMWarm(*res.warm_next)
         return jax.vmap(one)(joints, warm)
 
     devices = jax.local_devices()
     split = jax.sharding.NamedSharding(jax.sharding.Mesh(np.array(devices), ("batch",)),
                                        jax.sharding.PartitionSpec("batch"))
-    warm0 = jax.device_put(jax.vmap(lambda _: admm_mod.initial_warm(ar.qp))(
+    warm0 = jax.device_put(jax.vmap(lambda _: admm_mod.initial_warm(arrays.qp))(
         jnp.arange(c.slots)), split)
     state0 = c.state.copy()
     times = {"admm": 0.0}

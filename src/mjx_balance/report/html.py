@@ -334,11 +334,11 @@ def _physical_unit(column: Any) -> str | None:
     return None if unit in ("", "1", "mixed") or unit.startswith("(") else unit
 
 
-def _params(text: str | Markup) -> dict:
+def _run_settings(text: str | Markup) -> dict:
     return {"kind": "params", "text": text}
 
 
-def _para(text: str | Markup, cls: str = "") -> dict:
+def _paragraph(text: str | Markup, cls: str = "") -> dict:
     return {"kind": "paragraph", "text": text, "cls": cls}
 
 
@@ -419,8 +419,8 @@ def overview_section(page: Page) -> dict:
            + ". Base configuration: " + _config_text(page.config) + ".")
     return page.section(
         "overview",
-        _params(run),
-        _para("Pushes start at upright rest: a horizontal force F (+ forward) on the upper "
+        _run_settings(run),
+        _paragraph("Pushes start at upright rest: a horizontal force F (+ forward) on the upper "
               "body's centre of mass for T seconds. " + _outcomes_text(page.config)
               + " Two energies. The study's (its eq. 20), headlined in the paper convention: "
               "|∫ τ1 dq1| and |∫ τ2 dq2|, the magnitude of the signed work of its generalised "
@@ -469,7 +469,7 @@ def timeseries_section(page: Page, convention: str, res: dict) -> dict:
     paths = draw_timeseries(res["timeseries"], page.figures, convention, cfg, res["summary"])
     return page.section(
         f"timeseries-{convention}",
-        _params(f"Reference loop, {convention} convention, F = "
+        _run_settings(f"Reference loop, {convention} convention, F = "
                 f"{_numbers(page.plan['timeseries_forces'])} N, "
                 f"T = {page.plan['push_duration']:g} s (shaded), t_end = "
                 f"{cfg.scenario.t_end:g} s; time axes end where the action ends; dashed red: "
@@ -494,7 +494,7 @@ def weights_section(page: Page, convention: str, res: dict) -> dict:
     on a push that recovers under every setting; a setting that did not recover shows its
     outcome, never its energy (the energy of a fall is not a recovery cost)."""
     plan = page.plan
-    blocks = [_params(f"Reference loop, {convention} convention, T = "
+    blocks = [_run_settings(f"Reference loop, {convention} convention, T = "
                       f"{plan['push_duration']:g} s; Q = s·I4 for s in "
                       f"{_numbers(plan['q_scales'])} (R default); R = s·diag(1000, 1) for s in "
                       f"{_numbers(plan['r_scales'])} (Q default).")]
@@ -520,7 +520,7 @@ def _weight_blocks(page: Page, convention: str, weights: pd.DataFrame, name: str
                + ("." if recovered == len(weights) else
                   "; the others show their outcome instead of an energy: the energy of a fall "
                   "is not a recovery cost, so they are not compared."))
-    return [_para(lead + " " + verdict),
+    return [_paragraph(lead + " " + verdict),
             img(path, ("the study's energy (eq. 20, top) and the motors' (bottom) per weight "
                        "setting" if convention == "paper"
                        else "ankle, hip and total energy per weight setting")),
@@ -542,7 +542,7 @@ def table_section(page: Page, convention: str, res: dict) -> dict:
     path = draw_table(res["table"], page.figures, cfg)
     return page.section(
         f"table-{convention}",
-        _params(f"Batch backend {page.record['backend']}, {convention} convention, table "
+        _run_settings(f"Batch backend {page.record['backend']}, {convention} convention, table "
                 f"forces {_numbers(res['table']['force'])} N: for each force the largest T "
                 f"(to 0.01 s) such that every T up to it recovers within t_end = "
                 f"{cfg.scenario.t_end:g} s (coarse scan, then bisection; "
@@ -568,16 +568,16 @@ def region_section(page: Page, convention: str, res: dict) -> dict:
     cfg = with_convention(page.config, convention)
     return page.section(
         f"region-{convention}",
-        _params(f"Batch backend {page.record['backend']}, {convention} convention, grid "
+        _run_settings(f"Batch backend {page.record['backend']}, {convention} convention, grid "
                 f"{studies.grid_text(region)}; each sampled (F, T) is one cell (bounds half-way "
                 "between samples, the outer ones on the first and last sample); blue: the "
                 "table's bisected max acting time."),
         _row(img(outcome, "outcome map"), img(energy, "energy of the recovered pushes")),
-        _para(f"Recovered area {numbers['area']:.3g} N·s ({numbers['fraction']:.0%} of the "
+        _paragraph(f"Recovered area {numbers['area']:.3g} N·s ({numbers['fraction']:.0%} of the "
               f"grid, {numbers['recovered_cells']} of {numbers['cells']} cells); at T = "
               f"{numbers['t_ref']:g} s the largest recovered force is "
               f"{studies.force_text(numbers['f_max_ref'])}."),
-        _para(f"Why the falls happened ({studies.grid_text(region)}): "
+        _paragraph(f"Why the falls happened ({studies.grid_text(region)}): "
               + studies.infeasibility_text(region)),
         *strategy_blocks(region, res["table"], page.figures, cfg, convention))
 
@@ -625,7 +625,7 @@ def conventions_section(page: Page) -> dict:
     images = [img(region_figure(page.figures, c), f"region map, {c}") for c in convs]
     return page.section(
         "conventions",
-        _params("Both conventions with the same configuration otherwise; the paper "
+        _run_settings("Both conventions with the same configuration otherwise; the paper "
                 "convention reads the study's equations literally (generalised forces "
                 "τ1, τ2 on the absolute tilts), the joint convention uses the motor "
                 "torques and joint angles. Bounds apply to each convention's own x and u. "
@@ -634,7 +634,7 @@ def conventions_section(page: Page) -> dict:
         {"kind": "heading", "text": f"Time-series pushes (T = {page.plan['push_duration']:g} s)"},
         _table(outcomes),
         _row(*images),
-        _para(_conventions_reading(tables, numbers, _grid_of(results[a]["region"])),
+        _paragraph(_conventions_reading(tables, numbers, _grid_of(results[a]["region"])),
               "reading"))
 
 
@@ -647,13 +647,13 @@ def study_section(page: Page, key: str, res: dict) -> dict:
     files = ", ".join(v["file"] for v in res["variants"] if v["file"])
     return page.section(
         f"study-{key}",
-        _params(st.question + f" Sweep definitions (shipped with the package): {files}; "
+        _run_settings(st.question + f" Sweep definitions (shipped with the package): {files}; "
                 f"convention {page.config.controller.convention}; batch backend "
                 f"{page.record['backend']}; grid {studies.grid_text(first)}."),
         _row(*images),
         _table(numbers, STUDY_SHOWN),
-        _para(studies.reading(st, numbers, first), "reading"),
-        *(_para(f"{v['label']}: " + studies.infeasibility_text(res["regions"][v["key"]]))
+        _paragraph(studies.reading(st, numbers, first), "reading"),
+        *(_paragraph(f"{v['label']}: " + studies.infeasibility_text(res["regions"][v["key"]]))
           for v in res["variants"]))
 
 

@@ -254,32 +254,33 @@ class CState(NamedTuple):
     u: jax.Array  # [2]
 
 
-def fold_period(ar, sn: Sensors, st, carry: Carry, rows: jax.Array, last_qpos: jax.Array,
-                k: jax.Array, *, torques: jax.Array, u: jax.Array) -> Carry:
+def fold_period(arrays, sensors: Sensors, static, carry: Carry, rows: jax.Array,
+                last_qpos: jax.Array, k: jax.Array, *, torques: jax.Array,
+                u: jax.Array) -> Carry:
     """The S samples of period k (decoded ``rows`` [S, ROW]; ``last_qpos`` [nq] the last
     sample's) folded into one slot's carry; torques [2] and u [2] held during the period."""
-    dtype = ar.d0.qpos.dtype
-    S = st.substeps
-    d = mjx.kinematics(ar.mx, ar.d0.replace(qpos=last_qpos.astype(dtype)))
+    dtype = arrays.d0.qpos.dtype
+    S = static.substeps
+    d = mjx.kinematics(arrays.mx, arrays.d0.replace(qpos=last_qpos.astype(dtype)))
     rows = rows.astype(dtype)
-    rows = rows.at[S - 1, CELLS].set(cell_heights(ar.mx, d, sn))
-    rows = rows.at[S - 1, COM].set(whole_body_com(ar.mx, d, sn))
-    rows = rows.at[S - 1, VCOM].set(com_velocity(ar.mx, d, sn, rows[S - 1, QVEL]))
-    heel, toe = outcomes.support_edges(jnp, d.geom_xpos[sn.cells, 0])
+    rows = rows.at[S - 1, CELLS].set(cell_heights(arrays.mx, d, sensors))
+    rows = rows.at[S - 1, COM].set(whole_body_com(arrays.mx, d, sensors))
+    rows = rows.at[S - 1, VCOM].set(com_velocity(arrays.mx, d, sensors, rows[S - 1, QVEL]))
+    heel, toe = outcomes.support_edges(jnp, d.geom_xpos[sensors.cells, 0])
     rows = rows.at[S - 1, HEEL].set(heel).at[S - 1, TOE].set(toe)
-    omega0 = pendulum_frequency(ar, sn).astype(dtype)
+    omega0 = pendulum_frequency(arrays, sensors).astype(dtype)
 
     def one(carry: Carry, inputs):
         j, r = inputs
         q, dq = r[Q], r[DQ]
         _, mos_toe, mos_heel = outcomes.stability_margins(jnp, r[COM], r[VCOM], r[HEEL],
                                                           r[TOE], omega0)
-        s = Sample(q=q, dq=dq, x=state(ar, q, dq), pitch=r[PITCH], cell_low=r[CELLS],
+        s = Sample(q=q, dq=dq, x=state(arrays, q, dq), pitch=r[PITCH], cell_low=r[CELLS],
                    cop=r[COP], com=r[COM],
                    magnitude=jnp.where(r[OK] > 0, jnp.zeros((), dtype), jnp.inf),
                    qvel=r[QVEL], com_vel=r[VCOM], mos_toe=mos_toe, mos_heel=mos_heel)
         acc = sample_update(carry.acc, s, k * S + j, torques, u, carry.q_prev, carry.x_prev,
-                            limits_of(ar, st))
+                            limits_of(arrays, static))
         return carry._replace(acc=acc, q_prev=s.q, x_prev=s.x,
                               history=remember(carry.history, s)), None
 
@@ -303,7 +304,7 @@ def pack(rows: np.ndarray, last_qpos: np.ndarray, cell: np.ndarray, force: np.nd
     return floats.astype(dtype), ints
 
 
-def call(ar, sn, st, cert, cs: CState, floats, ints, *, early: bool):
+def call(arrays, sensors, static, cert, cs: CState, floats, ints, *, early: bool):
     """One control period of one device's slots (pure JAX): fold the physics run since the
     previous call, decide and harvest, refill, solve. Inputs packed (:func:`unpack`). Returns
     the state and two arrays [slots, ...] (one transfer each): floats = the torques [2] and
@@ -312,21 +313,22 @@ def call(ar, sn, st, cert, cs: CState, floats, ints, *, early: bool):
     periods and certified, the refill cells taken, then its integer accumulators
     (:func:`pack_acc`)."""
     B = cs.slots.cell.shape[0]
-    S = st.substeps
-    dtype = ar.d0.qpos.dtype
+    S = static.substeps
+    dtype = arrays.d0.qpos.dtype
     rows, last_qpos, refill_cell, refill_force, refill_push, p = unpack(floats, ints, S)
     every = cert_mod.CHECK_EVERY
     check = checker(cert if early else None)
-    rest = broadcast(initial_carry(ar, sn, st)._replace(d=None), B)
+    rest = broadcast(initial_carry(arrays, sensors, static)._replace(d=None), B)
     slots = cs.slots
     # 1. the period each busy slot ran since the previous call
-    fold = (lambda c, r, q, k, t, u: fold_period(ar, sn, st, c, r, q, k, torques=t, u=u))
+    fold = (lambda c, r, q, k, t, u: fold_period(arrays, sensors, static, c, r, q, k, torques=t,
+                                                 u=u))
     folded = jax.vmap(fold)(slots.carry, rows, last_qpos, slots.k, cs.torques, cs.u)
     carry = select(cs.ran, folded, slots.carry)
     k = jnp.where(cs.ran, slots.k + 1, slots.k)
-    ended = ~carry.acc.alive | (k >= ar.n_control)
-    acc, certified = certify(check, st, carry.x_prev, carry.acc, k, slots.n_push, ended,
-                             (p - 1) % every == every - 1, n_control=ar.n_control)
+    ended = ~carry.acc.alive | (k >= arrays.n_control)
+    acc, certified = certify(check, static, carry.x_prev, carry.acc, k, slots.n_push, ended,
+                             (p - 1) % every == every - 1, n_control=arrays.n_control)
     decided = cs.ran & (ended | certified)
     zero = jnp.zeros((), jnp.int32)
     done, _ = harvest(empty_finished(B, dtype), zero, decided, slots.cell, acc, k, certified)
@@ -339,7 +341,7 @@ def call(ar, sn, st, cert, cs: CState, floats, ints, *, early: bool):
     slots, taken = refill(slots, rest, zero, vacant, refill_cell, refill_force, refill_push)
     fresh = vacant & (slots.cell >= 0)
     # 3. every slot's MPC (a vacant one solves x = 0 at rest; its result is not used)
-    carry, u, torques = jax.vmap(lambda c, k: control(ar, st, c, k))(slots.carry, slots.k)
+    carry, u, torques = jax.vmap(lambda c, k: control(arrays, static, c, k))(slots.carry, slots.k)
     busy = slots.cell >= 0
     steps = slots.k[:, None] * S + jnp.arange(S, dtype=jnp.int32)[None]
     push = jnp.where(steps < slots.n_push[:, None], slots.force[:, None], jnp.zeros((), dtype))
@@ -406,8 +408,8 @@ class CEngine(Engine):
                       u=jnp.zeros((n, 2), r.dtype))
 
     def _initial_state(self) -> CState:
-        split, _ = self.runner._shardings()
-        return jax.jit(self._template, out_shardings=split)(self.runner.arrays)
+        batch_sharding, _ = self.runner._shardings()
+        return jax.jit(self._template, out_shardings=batch_sharding)(self.runner.arrays)
 
     def block_fn(self):
         """The jitted period call (see :func:`call`), sharded over the runner's devices, and
@@ -418,13 +420,13 @@ class CEngine(Engine):
             return self._fn
         t0 = _time.perf_counter()
         r = self.runner
-        sn, st, early = r.sensors, self.static, self.cert is not None
+        sensors, static, early = r.sensors, self.static, self.cert is not None
         treedef = self._treedef
 
         def one(leaves, cs, floats, ints):
             arrays, cert = jax.tree.unflatten(treedef, leaves)
             with jax.default_matmul_precision(MATMUL_PRECISION):
-                return call(arrays, sn, st, cert, cs, floats, ints, early=early)
+                return call(arrays, sensors, static, cert, cs, floats, ints, early=early)
 
         def build():
             run = one
@@ -452,8 +454,8 @@ class CEngine(Engine):
         return fn
 
     def _put(self, a: np.ndarray) -> jax.Array:
-        split, _ = self.runner._shardings()
-        return jnp.asarray(a) if split is None else jax.device_put(a, split)
+        batch_sharding, _ = self.runner._shardings()
+        return jnp.asarray(a) if batch_sharding is None else jax.device_put(a, batch_sharding)
 
     def stream(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None
                ) -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:

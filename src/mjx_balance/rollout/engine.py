@@ -107,7 +107,7 @@ def refill(slots: Slots, rest: Carry, taken, vacant, refill_cell, refill_force, 
     return slots, taken + take.sum(dtype=jnp.int32)
 
 
-def certify(check, st, x, acc: Accumulators, k, n_push, ended, due, *, n_control):
+def certify(check, static, x, acc: Accumulators, k, n_push, ended, due, *, n_control):
     """The certificate's verdict on every slot after its period ``k`` (1-based count; ``due``:
     whether this period is a check, the same for every slot) and the accumulators with a
     certified scenario's predicted rest of the window added. x: [S, 4] latest states;
@@ -117,10 +117,10 @@ def certify(check, st, x, acc: Accumulators, k, n_push, ended, due, *, n_control
     certified = jnp.zeros_like(ended)
     if check is None:
         return acc, certified
-    over = k * st.substeps >= n_push
+    over = k * static.substeps >= n_push
 
     def checked(_):
-        ok, tail = check(x, acc, over, (n_control - k) * st.substeps)
+        ok, tail = check(x, acc, over, (n_control - k) * static.substeps)
         return ~ended & ok, tail
 
     def skipped(_):
@@ -175,7 +175,7 @@ def checker(cert, periods: int | None = None):
     return jax.vmap(lambda x, acc, over, left: cert_mod.check(jnp, cert, x, acc, over, left))
 
 
-def block(ar, sn, st, cert, slots: Slots, *, refill_cell, refill_force, refill_push,
+def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_force, refill_push,
           refill_init, periods: int, early: bool, packing: Packing, tile: int | None = None):
     """``periods`` control periods of one device's slots with refill and harvest (pure JAX).
 
@@ -187,12 +187,12 @@ def block(ar, sn, st, cert, slots: Slots, *, refill_cell, refill_force, refill_p
     S = slots.cell.shape[0]
     slots = slots._replace(carry=packing.unpack(slots.carry, S))
     R = refill_cell.shape[0]
-    dtype = ar.d0.qpos.dtype
-    single = initial_carry(ar, sn, st)
+    dtype = arrays.d0.qpos.dtype
+    single = initial_carry(arrays, sensors, static)
     rest = broadcast(single, S)
-    starts = jax.vmap(lambda init: start(ar, sn, single, init))(refill_init)
+    starts = jax.vmap(lambda init: start(arrays, sensors, single, init))(refill_init)
     def run(c, k, f, n):
-        return period_batch(ar, sn, st, c, k, f, n, tile)[0]
+        return period_batch(arrays, sensors, static, c, k, f, n, tile)[0]
     every = cert_mod.CHECK_EVERY
     check = checker(cert if early else None, periods)
 
@@ -210,9 +210,9 @@ def block(ar, sn, st, cert, slots: Slots, *, refill_cell, refill_force, refill_p
         active = slots.cell >= 0
         carry = run(slots.carry, slots.k, slots.force, slots.n_push)
         k = slots.k + 1
-        ended = ~carry.acc.alive | (k >= ar.n_control)
-        acc, certified = certify(check, st, carry.x_prev, carry.acc, k, slots.n_push, ended,
-                                 s % every == every - 1, n_control=ar.n_control)
+        ended = ~carry.acc.alive | (k >= arrays.n_control)
+        acc, certified = certify(check, static, carry.x_prev, carry.acc, k, slots.n_push, ended,
+                                 s % every == every - 1, n_control=arrays.n_control)
         decided = active & (ended | certified)
         # 3. decided scenarios go to the buffer; their slots are vacated (reset to rest)
         done, n_done = harvest(done, n_done, decided, slots.cell, acc, k, certified)
@@ -349,8 +349,8 @@ class Engine:
         self.early = bool(early)
         self.cert = None
         if self.early and cert_mod.applies(config):
-            ar, sn = runner.arrays, runner.sensors
-            com = float(whole_body_com(ar.mx, ar.d0, sn))
+            arrays, sensors = runner.arrays, runner.sensors
+            com = float(whole_body_com(arrays.mx, arrays.d0, sensors))
             rest = (com, com)  # static equilibrium: the CoP lies under the CoM
             try:
                 cert = cert_mod.build(runner.qp, config.controller, config.scenario, rest=rest)
@@ -382,13 +382,13 @@ class Engine:
             return self._fn
         t0 = _time.perf_counter()
         r = self.runner
-        sn, st, periods, early = r.sensors, self.static, self.block, self.cert is not None
+        sensors, static, periods, early = r.sensors, self.static, self.block, self.cert is not None
         packing, tile = self.packing, self.tile
 
         def call(arrays, cert, slots, cell, force, push, init):
-            return block(arrays, sn, st, cert, slots, refill_cell=cell, refill_force=force,
-                         refill_push=push, refill_init=init, periods=periods, early=early,
-                         packing=packing, tile=tile)
+            return block(arrays, sensors, static, cert, slots, refill_cell=cell,
+                         refill_force=force, refill_push=push, refill_init=init,
+                         periods=periods, early=early, packing=packing, tile=tile)
 
         def build():
             run = call
@@ -399,15 +399,15 @@ class Engine:
                                               P("batch"), P("batch")),
                                     out_specs=P("batch"), check_vma=False)
             slots = jax.eval_shape(self._vacant, r.arrays)
-            split, _ = r._shardings()
-            spec = (lambda a: jax.ShapeDtypeStruct(a.shape, a.dtype, sharding=split))
+            batch_sharding, _ = r._shardings()
+            spec = (lambda a: jax.ShapeDtypeStruct(a.shape, a.dtype, sharding=batch_sharding))
             n = self.refill * self.n_devices
             return jax.jit(run, donate_argnums=(2,)).lower(
                 r.arrays, self.cert, jax.tree.map(spec, slots),
-                jax.ShapeDtypeStruct((n,), jnp.int32, sharding=split),
-                jax.ShapeDtypeStruct((n,), r.dtype, sharding=split),
-                jax.ShapeDtypeStruct((n,), jnp.int32, sharding=split),
-                jax.ShapeDtypeStruct((n, 4), r.dtype, sharding=split)).compile()
+                jax.ShapeDtypeStruct((n,), jnp.int32, sharding=batch_sharding),
+                jax.ShapeDtypeStruct((n,), r.dtype, sharding=batch_sharding),
+                jax.ShapeDtypeStruct((n,), jnp.int32, sharding=batch_sharding),
+                jax.ShapeDtypeStruct((n, 4), r.dtype, sharding=batch_sharding)).compile()
 
         fn = get_or_compile(self._key(), build)
         self.compile_seconds = _time.perf_counter() - t0
@@ -425,8 +425,8 @@ class Engine:
                      k=jnp.zeros(n, jnp.int32))
 
     def _initial_state(self) -> Slots:
-        split, _ = self.runner._shardings()
-        return jax.jit(self._vacant, out_shardings=split)(self.runner.arrays)
+        batch_sharding, _ = self.runner._shardings()
+        return jax.jit(self._vacant, out_shardings=batch_sharding)(self.runner.arrays)
 
     # -- running --------------------------------------------------------------------------
 
@@ -443,7 +443,7 @@ class Engine:
             return
         fn = self.block_fn()
         r = self.runner
-        split, _ = r._shardings()
+        batch_sharding, _ = r._shardings()
         state = self._state if self._state is not None else self._initial_state()
         self._state = None
         queue = Queue(forces, n_push, self.n_devices, self.refill, inits, self.block)
@@ -454,8 +454,8 @@ class Engine:
                 cells, f, p, init = queue.offer()
                 args = (jnp.asarray(cells), jnp.asarray(f.astype(r.dtype)), jnp.asarray(p),
                         jnp.asarray(init.astype(r.dtype)))
-                if split is not None:
-                    args = tuple(jax.device_put(a, split) for a in args)
+                if batch_sharding is not None:
+                    args = tuple(jax.device_put(a, batch_sharding) for a in args)
                 state, taken, done = fn(r.arrays, self.cert, state, *args)
                 queue.took(np.asarray(taken))
                 index = np.asarray(done.cell)

@@ -137,10 +137,10 @@ def split_limits(limits: Limits, dtype: Any) -> tuple[Limits, jax.Array]:
                            input_upper=None), bounds
 
 
-def limits_of(ar: "Arrays", st: Static) -> Limits:
+def limits_of(arrays: "Arrays", static: Static) -> Limits:
     """The outcome rules' limits: the static thresholds with the traced bounds."""
-    return st.limits._replace(state_lower=ar.bounds[0], state_upper=ar.bounds[1],
-                              input_lower=ar.bounds[2], input_upper=ar.bounds[3])
+    return static.limits._replace(state_lower=arrays.bounds[0], state_upper=arrays.bounds[1],
+                              input_lower=arrays.bounds[2], input_upper=arrays.bounds[3])
 
 
 class Arrays(NamedTuple):
@@ -209,49 +209,49 @@ def select(pred: jax.Array, a: Any, b: Any) -> Any:
     return jax.tree_util.tree_map(pick, a, b)
 
 
-def joints(sn: Sensors, d: mjx.Data) -> tuple[jax.Array, jax.Array]:
+def joints(sensors: Sensors, d: mjx.Data) -> tuple[jax.Array, jax.Array]:
     """Joint angles and rates (ankle, hip)."""
-    return d.qpos[sn.joints_q], d.qvel[sn.joints_v]
+    return d.qpos[sensors.joints_q], d.qvel[sensors.joints_v]
 
 
-def state(ar: Arrays, q: jax.Array, dq: jax.Array) -> jax.Array:
+def state(arrays: Arrays, q: jax.Array, dq: jax.Array) -> jax.Array:
     """The convention state x [4] of joint angles and rates."""
-    return jnp.concatenate([ar.to_state @ q, ar.to_state @ dq])
+    return jnp.concatenate([arrays.to_state @ q, arrays.to_state @ dq])
 
 
-def measure(ar: Arrays, sn: Sensors, d: mjx.Data) -> Sample:
+def measure(arrays: Arrays, sensors: Sensors, d: mjx.Data) -> Sample:
     """The sample of ``d`` right after :func:`physics.advance` (positions at the new time)."""
-    return with_positions(measure_step(ar, sn, d), ar, sn, d)
+    return with_positions(measure_step(arrays, sensors, d), arrays, sensors, d)
 
 
-def measure_step(ar: Arrays, sn: Sensors, d: mjx.Data) -> Sample:
+def measure_step(arrays: Arrays, sensors: Sensors, d: mjx.Data) -> Sample:
     """The sample of ``d`` right after :func:`physics.step`, without what needs the positions at
     the new time (``cell_low`` and ``com`` are NaN; :func:`with_positions` fills them in)."""
-    q, dq = joints(sn, d)
-    cop, _ = load_cell_cop(d, sn)
+    q, dq = joints(sensors, d)
+    cop, _ = load_cell_cop(d, sensors)
     nan = jnp.full((), jnp.nan, d.qpos.dtype)
-    return Sample(q=q, dq=dq, x=state(ar, q, dq), pitch=d.qpos[sn.foot_pitch],
-                  cell_low=jnp.full((sn.cells.shape[0],), nan), cop=cop, com=nan,
+    return Sample(q=q, dq=dq, x=state(arrays, q, dq), pitch=d.qpos[sensors.foot_pitch],
+                  cell_low=jnp.full((sensors.cells.shape[0],), nan), cop=cop, com=nan,
                   magnitude=jnp.max(jnp.abs(jnp.concatenate([d.qpos, d.qvel, d.qacc, d.ctrl]))),
                   qvel=d.qvel, com_vel=nan, mos_toe=nan, mos_heel=nan)
 
 
-def with_positions(s: Sample, ar: Arrays, sn: Sensors, d: mjx.Data) -> Sample:
+def with_positions(s: Sample, arrays: Arrays, sensors: Sensors, d: mjx.Data) -> Sample:
     """``s`` with the load-cell heights, the CoM, its velocity (from ``s.qvel``) and the
     margins of stability of the body and geom positions in ``d``."""
-    com = whole_body_com(ar.mx, d, sn)
-    com_vel = com_velocity(ar.mx, d, sn, s.qvel)
-    _, mos_toe, mos_heel = margins(ar, sn, com, com_vel, d.geom_xpos[sn.cells, 0])
-    return s._replace(cell_low=cell_heights(ar.mx, d, sn), com=com, com_vel=com_vel,
+    com = whole_body_com(arrays.mx, d, sensors)
+    com_vel = com_velocity(arrays.mx, d, sensors, s.qvel)
+    _, mos_toe, mos_heel = margins(arrays, sensors, com, com_vel, d.geom_xpos[sensors.cells, 0])
+    return s._replace(cell_low=cell_heights(arrays.mx, d, sensors), com=com, com_vel=com_vel,
                       mos_toe=mos_toe, mos_heel=mos_heel)
 
 
-def com_velocity(mx: mjx.Model, d: mjx.Data, sn: Sensors, qvel: jax.Array) -> jax.Array:
+def com_velocity(mx: mjx.Model, d: mjx.Data, sensors: Sensors, qvel: jax.Array) -> jax.Array:
     """Horizontal velocity of the whole-body CoM (the foot's subtree): sum over its bodies of
     m_b J_b qvel / M, J_b the Jacobian of the body's CoM (xipos) from the joint axes and
     anchors of the positions in ``d`` (``mjx.kinematics``), as ``mj_jacSubtreeCom`` times
     qvel in the reference. Slide and hinge joints only."""
-    bodies = np.asarray(sn.subtree)
+    bodies = np.asarray(sensors.subtree)
     mass = mx.body_mass[bodies]
     total = jnp.zeros((), qvel.dtype)
     for j in range(int(mx.njnt)):
@@ -278,23 +278,23 @@ def _moves(mx: mjx.Model, joint_body: int, body: int) -> bool:
     return body == joint_body
 
 
-def pendulum_frequency(ar: Arrays, sn: Sensors) -> jax.Array:
+def pendulum_frequency(arrays: Arrays, sensors: Sensors) -> jax.Array:
     """omega0 = sqrt(g / l), l the whole-body CoM's height above the ankle axis at upright
-    rest (``ar.d0``), as ``metrics.pendulum_frequency``."""
-    mass = ar.mx.body_mass[sn.subtree]
-    com_z = (mass * ar.d0.xipos[sn.subtree, 2]).sum() / mass.sum()
-    ankle = int(ar.mx.dof_jntid[int(sn.joints_v[0])])
-    return jnp.sqrt(jnp.abs(ar.mx.opt.gravity[2]) / (com_z - ar.d0.xanchor[ankle, 2]))
+    rest (``arrays.d0``), as ``metrics.pendulum_frequency``."""
+    mass = arrays.mx.body_mass[sensors.subtree]
+    com_z = (mass * arrays.d0.xipos[sensors.subtree, 2]).sum() / mass.sum()
+    ankle = int(arrays.mx.dof_jntid[int(sensors.joints_v[0])])
+    return jnp.sqrt(jnp.abs(arrays.mx.opt.gravity[2]) / (com_z - arrays.d0.xanchor[ankle, 2]))
 
 
-def margins(ar: Arrays, sn: Sensors, com: jax.Array, com_vel: jax.Array,
+def margins(arrays: Arrays, sensors: Sensors, com: jax.Array, com_vel: jax.Array,
             cell_x: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
     """(XcoM, toe margin, heel margin) of a sample from its CoM, CoM velocity and the load-cell
     centres' x [4] (outcomes.support_edges, outcomes.stability_margins)."""
     heel, toe = outcomes.support_edges(jnp, cell_x)
     dtype = com.dtype
     return tuple(v.astype(dtype) for v in outcomes.stability_margins(
-        jnp, com, com_vel, heel, toe, pendulum_frequency(ar, sn).astype(dtype)))
+        jnp, com, com_vel, heel, toe, pendulum_frequency(arrays, sensors).astype(dtype)))
 
 
 def remember(history: jax.Array, s: Sample) -> jax.Array:
@@ -395,34 +395,34 @@ def period_update(acc: Accumulators, res: admm_mod.ADMMResult, u: jax.Array,
     )
 
 
-def initial_carry(ar: Arrays, sn: Sensors, st: Static) -> Carry:
+def initial_carry(arrays: Arrays, sensors: Sensors, static: Static) -> Carry:
     """Upright rest, a cold controller, fresh accumulators (every scenario starts here)."""
-    dtype = ar.d0.qpos.dtype
-    q0, dq0 = joints(sn, ar.d0)
-    history0 = jnp.tile(jnp.concatenate([q0, dq0])[None], (st.delay_steps + 1, 1))
-    x0 = state(ar, q0, dq0)
-    return Carry(d=ar.d0, warm=admm_mod.initial_warm(ar.qp), history=history0, q_prev=q0,
+    dtype = arrays.d0.qpos.dtype
+    q0, dq0 = joints(sensors, arrays.d0)
+    history0 = jnp.tile(jnp.concatenate([q0, dq0])[None], (static.delay_steps + 1, 1))
+    x0 = state(arrays, q0, dq0)
+    return Carry(d=arrays.d0, warm=admm_mod.initial_warm(arrays.qp), history=history0, q_prev=q0,
                  x_prev=x0, acc=Accumulators.initial(dtype),
-                 inputs=jnp.zeros((ar.pred_G.shape[0], 2), dtype),
+                 inputs=jnp.zeros((arrays.pred_G.shape[0], 2), dtype),
                  dist=jnp.zeros(2, dtype), x_last=x0, u_last=jnp.zeros(2, dtype))
 
 
-def start(ar: Arrays, sn: Sensors, rest: Carry, init: jax.Array) -> Carry:
+def start(arrays: Arrays, sensors: Sensors, rest: Carry, init: jax.Array) -> Carry:
     """The carry of a scenario that starts from joint state ``init`` = [q_a, q_h, dq_a, dq_h]
     instead of upright rest (``rest``: :func:`initial_carry`): the foot settled on the floor
-    (``ar.settled``, as the reference), a cold controller, the measurement buffer full of the
+    (``arrays.settled``, as the reference), a cold controller, the measurement buffer full of the
     initial state. init = 0 gives ``rest`` exactly (push scenarios start at qpos = 0)."""
     init = jnp.asarray(init, rest.x_prev.dtype)
     q, dq = init[:2], init[2:]
-    qpos = jnp.where(jnp.any(init != 0), ar.settled, rest.d.qpos)
-    d = rest.d.replace(qpos=qpos.at[sn.joints_q].set(q),
-                       qvel=rest.d.qvel.at[sn.joints_v].set(dq))
-    x = state(ar, q, dq)
+    qpos = jnp.where(jnp.any(init != 0), arrays.settled, rest.d.qpos)
+    d = rest.d.replace(qpos=qpos.at[sensors.joints_q].set(q),
+                       qvel=rest.d.qvel.at[sensors.joints_v].set(dq))
+    x = state(arrays, q, dq)
     return rest._replace(d=d, history=jnp.broadcast_to(init, rest.history.shape), q_prev=q,
                          x_prev=x, x_last=x)
 
 
-class Pre(NamedTuple):
+class Prepared(NamedTuple):
     """A scenario's control instant before the solve (:func:`prepare`)."""
 
     carry: Carry  # after the reset of a dead scenario (``rest`` given)
@@ -433,52 +433,53 @@ class Pre(NamedTuple):
     alive: jax.Array  # bool
 
 
-def prepare(ar: Arrays, st: Static, carry: Carry, rest: Carry | None = None) -> Pre:
+def prepare(arrays: Arrays, static: Static, carry: Carry, rest: Carry | None = None) -> Prepared:
     """The MPC's state from the carry's (delayed) measurement, predicted to the control
     instant with delay compensation (``linear.predict``), x = 0 for a dead scenario;
     offset-free, the observer's update and the QP in deviation from the steady-state target
     (``offset_free.py``). With ``rest`` (:func:`initial_carry`), a dead scenario first restarts
     from rest with a cold controller (the MJX period; see the module docstring)."""
-    dtype = ar.d0.qpos.dtype
+    dtype = arrays.d0.qpos.dtype
     alive = carry.acc.alive
     if rest is not None:
-        carry = carry._replace(d=select(alive, carry.d, ar.d0),
+        carry = carry._replace(d=select(alive, carry.d, arrays.d0),
                                warm=select(alive, carry.warm, rest.warm))
-    measured = carry.history[st.delay_steps]
-    x_meas = state(ar, measured[:2], measured[2:])
-    if st.compensate:
-        x_meas = linear_mod.predict(jnp, ar.pred_A, ar.pred_G, x_meas, carry.inputs)
+    measured = carry.history[static.delay_steps]
+    x_meas = state(arrays, measured[:2], measured[2:])
+    if static.compensate:
+        x_meas = linear_mod.predict(jnp, arrays.pred_A, arrays.pred_G, x_meas, carry.inputs)
     x_meas = jnp.where(alive, x_meas, jnp.zeros(4, dtype))
-    if st.offset_free:
-        dist = offset_free_mod.observe(jnp, ar.ofs, carry.dist, carry.x_last, carry.u_last,
+    if static.offset_free:
+        dist = offset_free_mod.observe(jnp, arrays.ofs, carry.dist, carry.x_last, carry.u_last,
                                        x_meas)
-        x_s, _, _, offset = offset_free_mod.steady_state(jnp, ar.ofs, dist)
-        return Pre(carry, x_meas - x_s, offset, x_meas, dist, alive)
-    return Pre(carry, x_meas, None, x_meas, carry.dist, alive)
+        x_s, _, _, offset = offset_free_mod.steady_state(jnp, arrays.ofs, dist)
+        return Prepared(carry, x_meas - x_s, offset, x_meas, dist, alive)
+    return Prepared(carry, x_meas, None, x_meas, carry.dist, alive)
 
 
-def solve(ar: Arrays, st: Static, pre: Pre) -> admm_mod.ADMMResult:
+def solve(arrays: Arrays, static: Static, pre: Prepared) -> admm_mod.ADMMResult:
     """The MPC's QP at :func:`prepare`'s state, warm-started from the carry."""
-    return admm_mod.admm_solve(ar.qp, pre.x0, pre.carry.warm, st.settings, pre.offset)
+    return admm_mod.admm_solve(arrays.qp, pre.x0, pre.carry.warm, static.settings, pre.offset)
 
 
-def solve_batch(ar: Arrays, st: Static, pre: Pre, tile: int | None) -> admm_mod.ADMMResult:
+def solve_batch(arrays: Arrays, static: Static, pre: Prepared,
+                tile: int | None) -> admm_mod.ADMMResult:
     """:func:`solve` over a batch of :func:`prepare` results (``admm_solve_batch``: with
     ``tile``, sequential tiles of that many lanes, each stopping at its own slowest)."""
-    return admm_mod.admm_solve_batch(ar.qp, pre.x0, pre.carry.warm, st.settings, tile,
+    return admm_mod.admm_solve_batch(arrays.qp, pre.x0, pre.carry.warm, static.settings, tile,
                                      offset=pre.offset)
 
 
-def conclude(ar: Arrays, st: Static, pre: Pre, res: admm_mod.ADMMResult, k: jax.Array,
+def conclude(arrays: Arrays, static: Static, pre: Prepared, res: admm_mod.ADMMResult, k: jax.Array,
              rest: Carry | None = None) -> tuple[Carry, jax.Array, jax.Array]:
     """After the solve: the carry (next warm start, :func:`period_update` folded in, the input
     buffer, the observer's state), the input u [2] and the motor torques [2] to hold (zero if
     not finite). With ``rest``, a dead scenario's buffers start from rest."""
-    dtype = ar.d0.qpos.dtype
+    dtype = arrays.d0.qpos.dtype
     carry = pre.carry
     u = res.u0.astype(dtype)
-    torques = ar.torque_map @ u
-    acc = period_update(carry.acc, res, u, torques, limits_of(ar, st), k)
+    torques = arrays.torque_map @ u
+    acc = period_update(carry.acc, res, u, torques, limits_of(arrays, static), k)
     finite = jnp.isfinite(u).all() & jnp.isfinite(torques).all()
     u = jnp.where(finite, u, jnp.zeros_like(u))
     torques = jnp.where(finite, torques, jnp.zeros_like(torques))
@@ -495,50 +496,51 @@ def conclude(ar: Arrays, st: Static, pre: Pre, res: admm_mod.ADMMResult, k: jax.
     return carry, u, torques
 
 
-def control(ar: Arrays, st: Static, carry: Carry, k: jax.Array
+def control(arrays: Arrays, static: Static, carry: Carry, k: jax.Array
             ) -> tuple[Carry, jax.Array, jax.Array]:
     """The MPC solve of control period k (:func:`prepare`, :func:`solve`, :func:`conclude`):
     the carry, the input u [2] and the motor torques [2]. The MuJoCo C path's control step
     (``cpath.py``); the MJX period (:func:`period`) adds the restart of a dead scenario."""
-    pre = prepare(ar, st, carry)
-    return conclude(ar, st, pre, solve(ar, st, pre), k)
+    pre = prepare(arrays, static, carry)
+    return conclude(arrays, static, pre, solve(arrays, static, pre), k)
 
 
-def period(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array, force: jax.Array,
-           n_push: jax.Array) -> tuple[Carry, dict[str, jax.Array] | None]:
-    """Control period k of one scenario: the MPC solve, then ``st.substeps`` physics steps.
+def period(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: jax.Array,
+           force: jax.Array, n_push: jax.Array) -> tuple[Carry, dict[str, jax.Array] | None]:
+    """Control period k of one scenario: the MPC solve, then ``static.substeps`` physics steps.
 
-    Returns the carry and, with ``st.trajectories``, the period's per-step series [S, ...].
+    Returns the carry and, with ``static.trajectories``, the period's per-step series [S, ...].
     """
-    rest = initial_carry(ar, sn, st)
-    pre = prepare(ar, st, carry, rest)
-    return advance_period(ar, sn, st, pre, solve(ar, st, pre), k, force, n_push)
+    rest = initial_carry(arrays, sensors, static)
+    pre = prepare(arrays, static, carry, rest)
+    return advance_period(arrays, sensors, static, pre, solve(arrays, static, pre), k, force,
+                          n_push)
 
 
-def period_batch(ar: Arrays, sn: Sensors, st: Static, carry: Carry, k: jax.Array,
+def period_batch(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: jax.Array,
                  force: jax.Array, n_push: jax.Array, tile: int | None = None
                  ) -> tuple[Carry, dict[str, jax.Array] | None]:
-    """:func:`period` of a batch of scenarios (every argument but ``ar`` with a leading batch
+    """:func:`period` of a batch of scenarios (every argument but ``arrays`` with a leading batch
     axis), the QPs solved by :func:`solve_batch` (``tile``: lanes per ADMM loop)."""
-    rest = initial_carry(ar, sn, st)
-    pre = jax.vmap(lambda c: prepare(ar, st, c, rest))(carry)
-    res = solve_batch(ar, st, pre, tile)
-    return jax.vmap(lambda p, r, k, f, n: advance_period(ar, sn, st, p, r, k, f, n))(
+    rest = initial_carry(arrays, sensors, static)
+    pre = jax.vmap(lambda c: prepare(arrays, static, c, rest))(carry)
+    res = solve_batch(arrays, static, pre, tile)
+    return jax.vmap(lambda p, r, k, f, n: advance_period(arrays, sensors, static, p, r, k, f, n))(
         pre, res, k, force, n_push)
 
 
-def advance_period(ar: Arrays, sn: Sensors, st: Static, pre: Pre, res: admm_mod.ADMMResult,
-                   k: jax.Array, force: jax.Array, n_push: jax.Array
+def advance_period(arrays: Arrays, sensors: Sensors, static: Static, pre: Prepared,
+                   res: admm_mod.ADMMResult, k: jax.Array, force: jax.Array, n_push: jax.Array
                    ) -> tuple[Carry, dict[str, jax.Array] | None]:
-    """:func:`period` after the solve: :func:`conclude`, then ``st.substeps`` physics steps."""
-    dtype = ar.d0.qpos.dtype
-    S = st.substeps
-    rest = initial_carry(ar, sn, st)
+    """:func:`period` after the solve: :func:`conclude`, then ``static.substeps`` physics steps."""
+    dtype = arrays.d0.qpos.dtype
+    S = static.substeps
+    rest = initial_carry(arrays, sensors, static)
 
     def fold(carry: Carry, s: Sample, i: jax.Array, torques: jax.Array, u: jax.Array) -> Carry:
         """Carry after the complete sample ``s`` of physics step ``i``."""
         acc = sample_update(carry.acc, s, i, torques, u, carry.q_prev, carry.x_prev,
-                            limits_of(ar, st))
+                            limits_of(arrays, static))
         return carry._replace(q_prev=s.q, x_prev=s.x, acc=acc)
 
     def push(i: jax.Array) -> jax.Array:
@@ -550,11 +552,11 @@ def advance_period(ar: Arrays, sn: Sensors, st: Static, pre: Pre, res: admm_mod.
 
     def physics_step(carry: Carry, i: jax.Array, torques: jax.Array, u: jax.Array):
         """Step i, then its sample: positions from an extra ``mjx.kinematics``."""
-        d = advance(ar.mx, sn, carry.d, torques, push(i), st.push_at_hip)
-        s = measure(ar, sn, d)
+        d = advance(arrays.mx, sensors, carry.d, torques, push(i), static.push_at_hip)
+        s = measure(arrays, sensors, d)
         carry = fold(record(carry, d, s), s, i, torques, u)
         out = None
-        if st.trajectories:  # NaN from the fall sample on (the run is reset)
+        if static.trajectories:  # NaN from the fall sample on (the run is reset)
             out = dict(qpos=d.qpos, qvel=d.qvel, tau=torques, u=u, cop=s.cop, com=s.com)
             out = {k: jnp.where(carry.acc.alive, v, jnp.nan).astype(dtype)
                    for k, v in out.items()}
@@ -565,49 +567,50 @@ def advance_period(ar: Arrays, sn: Sensors, st: Static, pre: Pre, res: admm_mod.
         """Step i; the positions its start computed complete sample i - 1 (``pending``,
         folded unless i starts the period), and sample i waits for the next step's."""
         carry, pending = state
-        d = step(ar.mx, sn, carry.d, torques, push(i), st.push_at_hip)
-        folded = fold(carry, with_positions(pending, ar, sn, d), i - 1, torques, u)
+        d = step(arrays.mx, sensors, carry.d, torques, push(i), static.push_at_hip)
+        folded = fold(carry, with_positions(pending, arrays, sensors, d), i - 1, torques, u)
         kept = select(i > k * S, (folded.acc, folded.q_prev, folded.x_prev),
                       (carry.acc, carry.q_prev, carry.x_prev))
         carry = carry._replace(acc=kept[0], q_prev=kept[1], x_prev=kept[2])
-        s = measure_step(ar, sn, d)
+        s = measure_step(arrays, sensors, d)
         return (record(carry, d, s), s), None
 
     # A dead scenario restarted from rest with a cold controller (see the module docstring).
-    carry, u, torques = conclude(ar, st, pre, res, k, rest)
+    carry, u, torques = conclude(arrays, static, pre, res, k, rest)
 
     steps = k * S + jnp.arange(S, dtype=jnp.int32)
-    if st.trajectories or st.push_at_hip:
+    if static.trajectories or static.push_at_hip:
         # the series are read step by step, and the push at the hip needs the positions at
         # the step's start: one mjx.kinematics per step
         return jax.lax.scan(lambda c, i: physics_step(c, i, torques, u), carry, steps)
     # lean: a sample's positions are those the next step computes at its start; the period's
     # last sample takes them from one mjx.kinematics, so no sample is pending between periods
     (carry, last), _ = jax.lax.scan(lambda cs, i: lean_step(cs, i, torques, u),
-                                    (carry, measure_step(ar, sn, carry.d)), steps)
-    positions = mjx.kinematics(ar.mx, carry.d)
-    return fold(carry, with_positions(last, ar, sn, positions), steps[-1], torques, u), None
+                                    (carry, measure_step(arrays, sensors, carry.d)), steps)
+    positions = mjx.kinematics(arrays.mx, carry.d)
+    return (fold(carry, with_positions(last, arrays, sensors, positions), steps[-1], torques, u),
+            None)
 
 
-def scenario(ar: Arrays, sn: Sensors, st: Static, force: jax.Array,
+def scenario(arrays: Arrays, sensors: Sensors, static: Static, force: jax.Array,
              n_push: jax.Array) -> tuple[Accumulators, dict[str, jax.Array] | None]:
-    """Run one scenario to t_end; pure, jit-able (``sn``, ``st`` static). force: [] N;
+    """Run one scenario to t_end; pure, jit-able (``sensors``, ``static`` static). force: [] N;
     n_push: [] int.
 
-    Returns the final accumulators and, with ``st.trajectories``, per-physics-step series
+    Returns the final accumulators and, with ``static.trajectories``, per-physics-step series
     (qpos [n, nq], qvel [n, nv], tau [n, 2], u [n, 2], cop [n], com [n]; sample i is at
     t = (i+1) dt; NaN from the fall sample on, which the reference's series still holds).
     """
-    dtype = ar.d0.qpos.dtype
+    dtype = arrays.d0.qpos.dtype
     force = jnp.asarray(force, dtype)
     n_push = jnp.asarray(n_push, jnp.int32)
 
     def control_period(carry: Carry, k: jax.Array):
-        return period(ar, sn, st, carry, k, force, n_push)
+        return period(arrays, sensors, static, carry, k, force, n_push)
 
-    carry, series = jax.lax.scan(control_period, initial_carry(ar, sn, st),
-                                 jnp.arange(st.n_control, dtype=jnp.int32))
+    carry, series = jax.lax.scan(control_period, initial_carry(arrays, sensors, static),
+                                 jnp.arange(static.n_control, dtype=jnp.int32))
     if series is not None:
-        S = st.substeps
-        series = {k: v.reshape((st.n_control * S,) + v.shape[2:]) for k, v in series.items()}
+        S = static.substeps
+        series = {k: v.reshape((static.n_control * S,) + v.shape[2:]) for k, v in series.items()}
     return carry.acc, series

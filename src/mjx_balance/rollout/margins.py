@@ -29,7 +29,7 @@ def measure(config=None, forces=None, durations=None) -> dict:
         pick = np.nonzero(early.last_certified)[0]
         traj = BatchRunner(config, trajectories=True)
         summary = traj.run(f[pick], d[pick])
-    series, sn = traj.last_trajectories, traj.sensors
+    series, sensors = traj.last_trajectories, traj.sensors
     lm = traj.qp.linear
     P = traj.qp.Qf
     com_rest = float(np.asarray(early.engine.cert.rest)[1])
@@ -37,15 +37,15 @@ def measure(config=None, forces=None, durations=None) -> dict:
     ratio, floor = 0.0, 0.0
     for row, i in enumerate(pick):
         step = int(early.last_periods[i]) * sc.substeps
-        q = series["qpos"][row][:, sn.joints_q]
-        dq = series["qvel"][row][:, sn.joints_v]
+        q = series["qpos"][row][:, sensors.joints_q]
+        dq = series["qvel"][row][:, sensors.joints_v]
         angle_use = max(angle_use, float(np.abs(q[step - 1:]).max()) / sc.settle_angle_tol)
         rate_use = max(rate_use, float(np.abs(dq[step - 1:]).max()) / sc.settle_rate_tol)
         x = lm.state_from_joints(q[step - 1::sc.substeps], dq[step - 1::sc.substeps])
         V = np.einsum("ti,ij,tj->t", x, P, x)
         growth = max(growth, float(V.max() / V[0]))
         if summary["outcome"][row] == 0:  # recovered: the foot-pitch relation
-            pitch = np.abs(series["qpos"][row][:, sn.foot_pitch])
+            pitch = np.abs(series["qpos"][row][:, sensors.foot_pitch])
             excursion = np.abs(series["cop"][row] - com_rest)
             big = np.isfinite(excursion) & (excursion > 1e-4)
             ratio = max(ratio, float((pitch[big] / excursion[big]).max(initial=0.0)))

@@ -211,33 +211,33 @@ def _is_descendant(model: mujoco.MjModel, body: int, root: int) -> bool:
     return body == root
 
 
-def load_cell_cop(d: mjx.Data, sn: Sensors) -> tuple[jax.Array, jax.Array]:
+def load_cell_cop(d: mjx.Data, sensors: Sensors) -> tuple[jax.Array, jax.Array]:
     """(CoP x, total normal force) of the load-cell contacts acting in ``d``.
 
     As ``metrics.load_cell_cop``: sum F_i x_i / sum F_i, F_i the normal force of a pyramidal
     contact (the sum of its edge forces, as ``mj_contactForce`` decodes it), x_i the contact
     point found by the step's collision. NaN when the load cells carry nothing.
     """
-    normal = d._impl.efc_force[sn.contact_efc].sum(axis=-1)
-    x = d._impl.contact.pos[sn.cell_contacts, 0]
+    normal = d._impl.efc_force[sensors.contact_efc].sum(axis=-1)
+    x = d._impl.contact.pos[sensors.cell_contacts, 0]
     total = normal.sum()
     loaded = total > 0
     cop = jnp.where(loaded, (normal * x).sum() / jnp.where(loaded, total, 1.0), jnp.nan)
     return cop.astype(normal.dtype), total
 
 
-def whole_body_com(mx: mjx.Model, d: mjx.Data, sn: Sensors) -> jax.Array:
+def whole_body_com(mx: mjx.Model, d: mjx.Data, sensors: Sensors) -> jax.Array:
     """Horizontal CoM of the foot's subtree from the current body positions (subtree_com x)."""
-    mass = mx.body_mass[sn.subtree]
-    return (mass * d.xipos[sn.subtree, 0]).sum() / mass.sum()
+    mass = mx.body_mass[sensors.subtree]
+    return (mass * d.xipos[sensors.subtree, 0]).sum() / mass.sum()
 
 
-def cell_heights(mx: mjx.Model, d: mjx.Data, sn: Sensors) -> jax.Array:
+def cell_heights(mx: mjx.Model, d: mjx.Data, sensors: Sensors) -> jax.Array:
     """Lowest point (centre z - radius) of each load-cell sphere [4]."""
-    return d.geom_xpos[sn.cells, 2] - mx.geom_size[sn.cells, 0]
+    return d.geom_xpos[sensors.cells, 2] - mx.geom_size[sensors.cells, 0]
 
 
-def step(mx: mjx.Model, sn: Sensors, d: mjx.Data, torques: jax.Array, force: jax.Array,
+def step(mx: mjx.Model, sensors: Sensors, d: mjx.Data, torques: jax.Array, force: jax.Array,
          push_at_hip: bool = False) -> mjx.Data:
     """One physics step (``mjx.step``) with motor ``torques`` [2] and the push ``force`` []
     (N, along x). Afterwards qpos and qvel are those at the new time, while body and geom
@@ -248,39 +248,39 @@ def step(mx: mjx.Model, sn: Sensors, d: mjx.Data, torques: jax.Array, force: jax
     ``d`` (those of the current time only if ``d`` came from :func:`advance`).
     """
     dtype = d.qpos.dtype
-    push = jnp.zeros(d.xfrc_applied.shape, dtype).at[sn.upper_body, 0].set(force)
+    push = jnp.zeros(d.xfrc_applied.shape, dtype).at[sensors.upper_body, 0].set(force)
     if push_at_hip:
-        r = d.xpos[sn.upper_body] - d.xipos[sn.upper_body]
+        r = d.xpos[sensors.upper_body] - d.xipos[sensors.upper_body]
         moment = jnp.cross(r, jnp.stack([force, 0 * force, 0 * force]).astype(dtype))
-        push = push.at[sn.upper_body, 3:].set(moment)
+        push = push.at[sensors.upper_body, 3:].set(moment)
     d = d.replace(ctrl=torques.astype(dtype), xfrc_applied=push)
     return cast_floats(mjx.step(mx, d), dtype)
 
 
-def advance(mx: mjx.Model, sn: Sensors, d: mjx.Data, torques: jax.Array, force: jax.Array,
+def advance(mx: mjx.Model, sensors: Sensors, d: mjx.Data, torques: jax.Array, force: jax.Array,
             push_at_hip: bool = False) -> mjx.Data:
     """:func:`step`, then the positions refreshed (``mjx.kinematics``): body and geom
     positions are those at the new time while the contacts and constraint forces stay those
     that acted during the step (as the reference leaves them after ``mj_step`` +
     ``mj_kinematics``)."""
-    d = step(mx, sn, d, torques, force, push_at_hip)
+    d = step(mx, sensors, d, torques, force, push_at_hip)
     return cast_floats(mjx.kinematics(mx, d), d.qpos.dtype)
 
 
-def open_loop(mx: mjx.Model, sn: Sensors, d0: mjx.Data, torques: jax.Array, force: jax.Array,
+def open_loop(mx: mjx.Model, sensors: Sensors, d0: mjx.Data, torques: jax.Array, force: jax.Array,
               n_push: jax.Array, push_at_hip: bool = False) -> dict[str, jax.Array]:
     """Physics only: motor ``torques`` [n, 2] applied at steps i = 0..n-1, the push on for
     i < n_push. Returns per-step samples at t = (i+1) dt: qpos [n, nq], qvel [n, nv], cop [n],
-    com [n], cell_low [n, 4]. Jit with ``sn`` and ``push_at_hip`` static."""
+    com [n], cell_low [n, 4]. Jit with ``sensors`` and ``push_at_hip`` static."""
     dtype = d0.qpos.dtype
     force = jnp.asarray(force, dtype)
 
     def body(d, inputs):
         i, tau = inputs
-        d = advance(mx, sn, d, tau, jnp.where(i < n_push, force, 0 * force), push_at_hip)
-        cop, _ = load_cell_cop(d, sn)
-        return d, dict(qpos=d.qpos, qvel=d.qvel, cop=cop, com=whole_body_com(mx, d, sn),
-                       cell_low=cell_heights(mx, d, sn))
+        d = advance(mx, sensors, d, tau, jnp.where(i < n_push, force, 0 * force), push_at_hip)
+        cop, _ = load_cell_cop(d, sensors)
+        return d, dict(qpos=d.qpos, qvel=d.qvel, cop=cop, com=whole_body_com(mx, d, sensors),
+                       cell_low=cell_heights(mx, d, sensors))
 
     steps = jnp.arange(torques.shape[0], dtype=jnp.int32)
     return jax.lax.scan(body, d0, (steps, jnp.asarray(torques, dtype)))[1]

@@ -147,10 +147,10 @@ class BatchRunner:
     # -- compilation ----------------------------------------------------------------------
 
     def _batched(self):
-        sn, st = self.sensors, self.static
+        sensors, static = self.sensors, self.static
 
         def run_batch(arrays: Arrays, force: jax.Array, n_push: jax.Array):
-            one = functools.partial(scenario, arrays, sn, st)
+            one = functools.partial(scenario, arrays, sensors, static)
             return jax.vmap(one)(force, n_push)  # the one place batching is added
 
         mesh = self.mesh
@@ -169,9 +169,10 @@ class BatchRunner:
         tree structure, shapes and dtypes, the static addresses and settings (``static``:
         what the function bakes in, default the runner's), the batch."""
         leaves, treedef = jax.tree.flatten(self.arrays)
-        sn = tuple(tuple(np.asarray(v).ravel().tolist()) + (np.shape(v),) for v in self.sensors)
+        sensors = tuple(tuple(np.asarray(v).ravel().tolist()) + (np.shape(v),)
+                        for v in self.sensors)
         devices = None if self.mesh is None else tuple(d.id for d in self.mesh.devices.flat)
-        return (treedef, tuple((np.shape(v), str(v.dtype)) for v in leaves), sn,
+        return (treedef, tuple((np.shape(v), str(v.dtype)) for v in leaves), sensors,
                 self.static if static is None else static, batch, devices,
                 jax.config.jax_enable_x64)
 
@@ -185,9 +186,9 @@ class BatchRunner:
         fn = self._compiled_fns.get(batch)
         if fn is None:
             t0 = _time.perf_counter()
-            split, _ = self._shardings()
-            force = jax.ShapeDtypeStruct((batch,), self.dtype, sharding=split)
-            n_push = jax.ShapeDtypeStruct((batch,), jnp.int32, sharding=split)
+            batch_sharding, _ = self._shardings()
+            force = jax.ShapeDtypeStruct((batch,), self.dtype, sharding=batch_sharding)
+            n_push = jax.ShapeDtypeStruct((batch,), jnp.int32, sharding=batch_sharding)
             fn = get_or_compile(self._shape_key(batch),
                           lambda: self._batched().lower(self.arrays, force, n_push).compile())
             self.compile_seconds[batch] = _time.perf_counter() - t0
@@ -253,12 +254,13 @@ class BatchRunner:
         steps = np.zeros(batch, np.int32)
         steps[:n] = push_steps(durations, self.config.scenario.physics_dt)
         fn = self.compiled(batch)
-        split, _ = self._shardings()
+        batch_sharding, _ = self._shardings()
         f = np.asarray(f, self.dtype)
-        if split is None:
+        if batch_sharding is None:
             acc, series = fn(self.arrays, jnp.asarray(f), jnp.asarray(steps))
         else:  # the batch axis split over the devices (padding cells F = 0, T = 0)
-            acc, series = fn(self.arrays, jax.device_put(f, split), jax.device_put(steps, split))
+            acc, series = fn(self.arrays, jax.device_put(f, batch_sharding),
+                             jax.device_put(steps, batch_sharding))
         acc = Accumulators(*(np.asarray(v)[:n] for v in acc))
         if series is not None:
             series = {k: np.asarray(v)[:n] for k, v in series.items()}

@@ -9,7 +9,7 @@ draws every configuration's recovery boundary on one force x duration plane
 Numbers of a configuration:
 
 area, fraction, recovered_cells, cells, t_ref, f_max_ref, rest_recovered
-    of its region map (``studies.region_numbers``: area in N s over the grid's cells)
+    of its region map (``catalog.region_numbers``: area in N s over the grid's cells)
 mean_recovery_energy
     the mean total joint energy [J] of its recovered cells
 sustained_push_limit
@@ -39,7 +39,7 @@ from ..runs.folders import check_batched, run_region, run_table_folder
 from ..runs.grid import check_durations, describe, parse_grid, same_values
 from ..store.files import REGION, TABLE, write_csv
 from ..store.folder import OutputFolder, config_dict, config_differences
-from . import catalog as studies
+from . import catalog
 
 COMPARE_CSV = "compare.csv"
 COMPARE_PNG = "compare.png"
@@ -130,8 +130,8 @@ def load_base(path: str | Path | None, subject: Subject | None = None) -> Config
     """The base configuration of a comparison (``compare --config FILE --subject ...``): the
     file read as each compared FILE is (:func:`load_one`: a configuration file, or a sweep
     definition whose grid is left out), with ``subject``'s body. On a configuration file the
-    subject takes the place of its [subject] table (``config_files.run_config``, whose checks refuse
-    a value both set); on a sweep definition the file's values go over the subject's body, as
+    subject takes the place of its [subject] table (``config_files.run_config``, whose checks
+    refuse a value both set); on a sweep definition the file's values go over the subject's body, as
     ``sweep --sweep FILE --subject ...`` layers them. None: no file and no subject."""
     if subject is None:
         return load_one(path) if path else None
@@ -169,8 +169,8 @@ def check_folder(folder: Path, name: str, config: Config, forces: np.ndarray,
 
 def numbers(region: pd.DataFrame, table: pd.DataFrame | None) -> dict[str, float]:
     """The comparison's numbers of one configuration (module docstring)."""
-    row: dict[str, float] = dict(studies.region_numbers(region))
-    recovered = region[studies.is_recovered(region)]
+    row: dict[str, float] = dict(catalog.region_numbers(region))
+    recovered = region[catalog.is_recovered(region)]
     row["mean_recovery_energy"] = (float(recovered["energy_total"].mean()) if len(recovered)
                                    else float("nan"))
     row["sustained_push_limit"] = float("nan")
@@ -264,7 +264,7 @@ def boundary_segments(region: pd.DataFrame, log: bool) -> list[tuple[tuple[float
     durations = np.sort(region["duration"].unique())
     fb, db = cell_bounds(forces), cell_bounds(durations, log=log)
     ok = np.zeros((forces.size + 2, durations.size + 2), bool)  # padded with "not recovered"
-    rec = region[studies.is_recovered(region)]
+    rec = region[catalog.is_recovered(region)]
     fi = np.searchsorted(forces, rec["force"].to_numpy())
     di = np.searchsorted(durations, rec["duration"].to_numpy())
     ok[fi + 1, di + 1] = True
@@ -291,7 +291,7 @@ def _shade_recovered(ax, first: tuple[str, pd.DataFrame], log: bool) -> Any:
     forces = np.sort(region["force"].unique())
     durations = np.sort(region["duration"].unique())
     grid = np.full((durations.size, forces.size), np.nan)
-    rec = region[studies.is_recovered(region)]
+    rec = region[catalog.is_recovered(region)]
     grid[np.searchsorted(durations, rec["duration"].to_numpy()),
          np.searchsorted(forces, rec["force"].to_numpy())] = 1.0
     colour = figure_style.OUTCOME_COLOURS["recovered"]

@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from ..runtime.version import __version__
-from . import catalog as studies
+from . import catalog
 from ..measures.outcomes import SUMMARY_COLUMNS
 from ..model.params import CONVENTIONS, Config, ParameterError
 from ..model.config_files import dumps_config, with_convention
@@ -102,13 +102,13 @@ def weight_settings(plan: Plan) -> list[tuple[str, float, dict[str, tuple[float,
     return out
 
 
-def selected_studies(names: str | None) -> list[studies.Study]:
+def selected_studies(names: str | None) -> list[catalog.Study]:
     """The studies named in a comma list; None or 'all': every study, 'none': none."""
     if names is None or names.strip().lower() == "all":
-        return list(studies.STUDIES)
+        return list(catalog.STUDIES)
     if names.strip().lower() == "none":
         return []
-    return [studies.study(n.strip()) for n in names.split(",") if n.strip()]
+    return [catalog.study(n.strip()) for n in names.split(",") if n.strip()]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -377,41 +377,41 @@ def run_experiments(run: ReportRun, convention: str) -> None:
 # The studies
 
 
-def study_grid(plan: Plan, st: studies.Study,
+def study_grid(plan: Plan, study: catalog.Study,
                definition: SweepDefinition) -> tuple[np.ndarray, np.ndarray]:
     """The (forces, durations) of a study variant: the plan's grid, else the definition's."""
-    forces = (plan.backward_forces if st.signed else plan.study_forces) or definition.forces
+    forces = (plan.backward_forces if study.signed else plan.study_forces) or definition.forces
     durations = plan.study_durations or definition.durations
     return parse_grid(forces, "study forces"), parse_grid(durations, "study durations")
 
 
-def run_variant(run: ReportRun, st: studies.Study, variant: studies.Variant) -> dict:
+def run_variant(run: ReportRun, study: catalog.Study, variant: catalog.Variant) -> dict:
     """One study variant's region map, studies/<study>/<variant>/region.parquet; returns its
     entry in report.json."""
-    definition = studies.variant_definition(st, variant, run.config, run.sweeps)
-    forces, durations = study_grid(run.plan, st, definition)
-    run.log.stage(f"study {st.key}: {variant.label}, {forces.size} x {durations.size} cells")
-    run.batches.sweep(run.out / "studies" / st.key / variant.key, definition.config, forces,
+    definition = catalog.variant_definition(study, variant, run.config, run.sweeps)
+    forces, durations = study_grid(run.plan, study, definition)
+    run.log.stage(f"study {study.key}: {variant.label}, {forces.size} x {durations.size} cells")
+    run.batches.sweep(run.out / "studies" / study.key / variant.key, definition.config, forces,
                       durations, run.chunk, run.quiet)
     return {"key": variant.key, "label": variant.label, "file": variant.file,
             "config": definition.config.to_dict()}
 
 
-def study_numbers(st: studies.Study, folder: Path, variants: list[dict]) -> pd.DataFrame:
+def study_numbers(study: catalog.Study, folder: Path, variants: list[dict]) -> pd.DataFrame:
     """The study's numbers from its saved maps: the halves of the signed map, or every
     variant against the first (studies.signed_halves, studies.compare)."""
     regions = {v["key"]: pd.read_parquet(folder / v["key"] / "region.parquet")
                for v in variants}
-    if st.signed:
-        return studies.signed_halves(next(iter(regions.values())))
-    return studies.compare(regions, {v["key"]: v["label"] for v in variants})
+    if study.signed:
+        return catalog.signed_halves(next(iter(regions.values())))
+    return catalog.compare(regions, {v["key"]: v["label"] for v in variants})
 
 
-def run_study(run: ReportRun, st: studies.Study) -> None:
+def run_study(run: ReportRun, study: catalog.Study) -> None:
     """Every variant's map, then studies/<study>/numbers.csv; recorded in report.json."""
-    entry = {"key": st.key, "variants": [run_variant(run, st, v) for v in st.variants]}
-    folder = run.out / "studies" / st.key
-    write_csv(study_numbers(st, folder, entry["variants"]), folder / "numbers.csv")
+    entry = {"key": study.key, "variants": [run_variant(run, study, v) for v in study.variants]}
+    folder = run.out / "studies" / study.key
+    write_csv(study_numbers(study, folder, entry["variants"]), folder / "numbers.csv")
     run.record["studies"].append(entry)
     run.save_record()
 
@@ -463,7 +463,7 @@ def run_sensitivity_stage(run: ReportRun) -> None:
 
 
 def start_report(out: Path, config: Config, plan: Plan, *, backend: str,
-                 study_list: list[studies.Study], conventions: tuple[str, ...],
+                 study_list: list[catalog.Study], conventions: tuple[str, ...],
                  sweeps: Path | None, quiet: bool, physics: str = "auto") -> ReportRun:
     """Open report.json in ``out`` and set up what the steps share (``config``: the base
     configuration with the plan's overrides)."""
@@ -480,7 +480,7 @@ def start_report(out: Path, config: Config, plan: Plan, *, backend: str,
 
 
 def run_report(out: str | Path, config: Config = Config(), plan: Plan = PLANS["default"], *,
-               backend: str | None = None, study_list: list[studies.Study] | None = None,
+               backend: str | None = None, study_list: list[catalog.Study] | None = None,
                conventions: tuple[str, ...] = CONVENTIONS, sweeps: Path | None = None,
                quiet: bool = False, cluster: Any = None, physics: str = "auto") -> dict:
     """Run everything and save the tables in ``out``; returns the report record (report.json).
@@ -492,7 +492,7 @@ def run_report(out: str | Path, config: Config = Config(), plan: Plan = PLANS["d
     connection serves every map; the tables and time series run here). physics: the
     batched backend's physics path (auto, mjx or c).
     """
-    study_list = list(studies.STUDIES) if study_list is None else study_list
+    study_list = list(catalog.STUDIES) if study_list is None else study_list
     run = start_report(Path(out), plan_config(config, plan), plan,
                        backend=backend or plan.backend, study_list=study_list,
                        conventions=conventions, sweeps=sweeps, quiet=quiet, physics=physics)
@@ -503,8 +503,8 @@ def run_report(out: str | Path, config: Config = Config(), plan: Plan = PLANS["d
     try:
         for convention in conventions:
             run_experiments(run, convention)
-        for st in study_list:
-            run_study(run, st)
+        for study in study_list:
+            run_study(run, study)
         run_sensitivity_stage(run)
     finally:
         if client is not None:

@@ -40,7 +40,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 import pandas as pd
 
-from . import compare as comparison, catalog as studies
+from . import catalog, compare as comparison
 from ..model.params import Config, ParameterError
 from ..runs.grid import check_durations, parse_grid
 from ..store.files import REGION, TABLE, write_atomic, write_csv
@@ -294,8 +294,8 @@ def paired_energy(region: pd.DataFrame, base: pd.DataFrame) -> tuple[int, float]
     """(cells both maps recover, mean energy_total of ``region`` over them / that of ``base``;
     NaN when there are none or the base's mean is 0)."""
     keys = ["force", "duration"]
-    a = region[studies.is_recovered(region)].set_index(keys)["energy_total"]
-    b = base[studies.is_recovered(base)].set_index(keys)["energy_total"]
+    a = region[catalog.is_recovered(region)].set_index(keys)["energy_total"]
+    b = base[catalog.is_recovered(base)].set_index(keys)["energy_total"]
     both = a.index.intersection(b.index)
     if not len(both) or not b.loc[both].mean() > 0:
         return int(len(both)), float("nan")
