@@ -29,9 +29,10 @@ scenario (backend ``reference``, what the ``tiny`` plan uses). A finished stage 
 
 from ..figures.report import conventions_figure, save_figure, weight_figure
 from .html import HTML, build_report, key_numbers, load_results, sections
-from ..studies.experiments import (PLANS, Q_SCALES, R_SCALES, REPORT_JSON, Plan, ReferenceBatch,
-                                   batch_function, plan_config, run_report, run_weights,
-                                   selected_studies, weight_settings)
+from ..runs.batch import ReferenceBatch
+from ..runs.folders import batch_function
+from ..studies.experiments import (PLANS, Q_SCALES, R_SCALES, REPORT_JSON, Plan, plan_config,
+                                   run_report, run_weights, selected_studies, weight_settings)
 
 __all__ = [
     "HTML", "PLANS", "Plan", "Q_SCALES", "REPORT_JSON", "R_SCALES", "ReferenceBatch",

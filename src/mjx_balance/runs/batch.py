@@ -22,6 +22,7 @@ from .chunks import chunk_slices
 from ..rollout import BatchRunner
 from ..rollout.cpath import PATHS
 from ..rollout.cpath import resolve
+from ..reference.loop import simulate_scenario
 from ..store.provenance import note_physics
 
 RunBatch = Callable[[np.ndarray, np.ndarray], "pd.DataFrame | dict[str, np.ndarray]"]
@@ -236,3 +237,21 @@ def chunk_frames(run_batch: Any, slices: list[slice], cell_f: np.ndarray, cell_d
                 yield int(k), rows
         if update is not None:
             update(len(index))
+
+
+class ReferenceBatch:
+    """A batch function that runs the scalar reference loop scenario by scenario (results
+    memoised, so padding and repeated cells cost nothing): the report's ``reference`` backend."""
+
+    def __init__(self, config: Config):
+        self.config = config
+        self._done: dict[tuple[float, float], dict[str, Any]] = {}
+
+    def __call__(self, forces: np.ndarray, durations: np.ndarray) -> pd.DataFrame:
+        rows = []
+        for f, d in zip(np.asarray(forces, float), np.asarray(durations, float)):
+            key = (round(float(f), 9), round(float(d), 9))
+            if key not in self._done:
+                self._done[key] = simulate_scenario(self.config, key[0], key[1], record=False)[0]
+            rows.append(self._done[key])
+        return pd.DataFrame(rows, columns=SUMMARY_COLUMNS)

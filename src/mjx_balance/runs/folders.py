@@ -26,7 +26,7 @@ from ..rollout.runner import BatchRunner
 from ..runtime import cache
 from ..store.folder import folder_lock
 from .acting_time import TableResult, run_table, table_batch_size
-from .batch import LazyBatch
+from .batch import LazyBatch, ReferenceBatch
 from .chunks import memory_budget, scenario_bytes
 from .grid import check_durations, parse_grid
 from .region import SweepResult, run_sweep
@@ -194,11 +194,17 @@ def check_reference(config: Config) -> None:
 
 
 def batch_function(config: Config, *, slots: int | None = None, full_length: bool = False,
-                   physics: str = "auto"):
+                   physics: str = "auto", backend: str = "mjx"):
     """The batch function of ``sweep`` and ``table``: the batched closed loop of ``config`` on
     the continuous-batching engine, built and compiled on its first call (with the persistent
     compilation cache on, :func:`mjx_balance.runtime.cache.enable`). ``physics``: "mjx", "c" (MuJoCo C
-    stepped on a thread pool, the ADMM in JAX) or "auto" (docs/engine.md)."""
+    stepped on a thread pool, the ADMM in JAX) or "auto" (docs/engine.md). ``backend``
+    "reference": the scalar reference loop instead, scenario by scenario (:class:`ReferenceBatch`:
+    the report's small plans)."""
+    if backend == "reference":
+        return ReferenceBatch(config)
+    if backend != "mjx":
+        raise ParameterError(f"backend must be 'mjx' or 'reference', got {backend!r}")
     return LazyBatch(config, slots=slots, early_stop=not full_length, physics=physics)
 
 def run_region(out: str | os.PathLike[str], config: Config, forces: Values, durations: Values,

@@ -29,9 +29,10 @@ from . import catalog
 from ..measures.outcomes import SUMMARY_COLUMNS
 from ..model.params import CONVENTIONS, Config, ParameterError
 from ..model.config_files import dumps_config, with_convention
-from ..runs import (DEFAULT_SWEEP, STUDY_TABLE_FORCES, LazyBatch, SweepDefinition,
-                    default_chunk_size, parse_grid, run_sweep, run_table)
-from ..store.files import write_atomic, write_parquet, write_text
+from ..runs import (DEFAULT_SWEEP, STUDY_TABLE_FORCES, SweepDefinition, default_chunk_size,
+                    parse_grid, run_sweep, run_table)
+from ..runs.folders import batch_function
+from ..store.files import write_csv, write_parquet, write_text
 from ..reference.loop import simulate_scenario
 from ..reference.loop import simulate_many
 from . import sensitivity
@@ -115,34 +116,6 @@ def selected_studies(names: str | None) -> list[catalog.Study]:
 # Batch functions
 
 
-class ReferenceBatch:
-    """A sweep batch function that runs the scalar reference loop scenario by scenario
-    (results memoised, so padding and repeated cells cost nothing)."""
-
-    def __init__(self, config: Config):
-        self.config = config
-        self._done: dict[tuple[float, float], dict[str, Any]] = {}
-
-    def __call__(self, forces: np.ndarray, durations: np.ndarray) -> pd.DataFrame:
-        rows = []
-        for f, d in zip(np.asarray(forces, float), np.asarray(durations, float)):
-            key = (round(float(f), 9), round(float(d), 9))
-            if key not in self._done:
-                self._done[key] = simulate_scenario(self.config, key[0], key[1], record=False)[0]
-            rows.append(self._done[key])
-        return pd.DataFrame(rows, columns=SUMMARY_COLUMNS)
-
-
-def batch_function(config: Config, backend: str, physics: str = "auto"):
-    """The sweep batch function of a backend: 'mjx' (the batched rollout, built on first use,
-    on the ``physics`` path: auto, mjx or c) or 'reference' (:class:`ReferenceBatch`)."""
-    if backend == "reference":
-        return ReferenceBatch(config)
-    if backend == "mjx":
-        return LazyBatch(config, physics=physics)
-    raise ParameterError(f"backend must be 'mjx' or 'reference', got {backend!r}")
-
-
 def sweep_chunk_size(config: Config, backend: str, n_cells: int) -> int:
     """Scenarios per sweep chunk: REFERENCE_CHUNK for the reference loop, else from the
     memory budget (sweep.default_chunk_size)."""
@@ -162,7 +135,8 @@ class Batches:
 
     def __call__(self, config: Config):
         if config not in self._runs:
-            self._runs[config] = batch_function(config, self.backend, self.physics)
+            self._runs[config] = batch_function(config, backend=self.backend,
+                                                physics=self.physics)
         return self._runs[config]
 
     def sweep(self, folder: Path, config: Config, forces: np.ndarray, durations: np.ndarray,
@@ -184,11 +158,6 @@ class Batches:
 def write_json(path: Path, data: dict) -> None:
     """Write ``data`` as JSON atomically (a reader never sees half a file)."""
     write_text(json.dumps(data, indent=2, default=float) + "\n", path)
-
-
-def write_csv(frame: pd.DataFrame, path: Path) -> None:
-    """Write a table as CSV atomically (whole or absent: the old file stays if this fails)."""
-    write_atomic(path, lambda tmp: frame.to_csv(tmp, index=False))
 
 
 def read_record(path: Path, *, required: bool = True) -> dict:
@@ -294,7 +263,7 @@ def run_stage(run: ReportRun, key: str, params: dict, files: list[Path],
 # The experiments of SPEC §6, one convention at a time
 
 
-def run_timeseries(run: ReportRun, convention: str) -> None:
+def timeseries_stage(run: ReportRun, convention: str) -> None:
     """Experiment 1: summary.csv and timeseries.parquet of the time-series pushes."""
     plan, folder = run.plan, run.out / convention
     cfg = with_convention(run.config, convention)
@@ -302,7 +271,7 @@ def run_timeseries(run: ReportRun, convention: str) -> None:
     def work() -> None:
         summary, series = simulate_many(cfg, list(plan.timeseries_forces),
                                         [plan.push_duration], progress=not run.quiet)
-        write_csv(summary, folder / "summary.csv")
+        write_csv(summary, folder / "summary.csv", units=False)
         write_parquet(series, folder / "timeseries.parquet")
 
     run.log.stage(f"{convention}: time series, F = {plan.timeseries_forces} N, "
@@ -325,7 +294,7 @@ def run_weights(config: Config, plan: Plan, force: float | None = None) -> pd.Da
     return pd.DataFrame(rows, columns=["weight", "scale", *SUMMARY_COLUMNS])
 
 
-def run_weight_study(run: ReportRun, convention: str) -> None:
+def weights_stage(run: ReportRun, convention: str) -> None:
     """Experiment 2: weights.csv (the study's push) and weights_recovering.csv (a push that
     recovers under every setting, so that its energies compare recovery costs)."""
     plan, folder = run.plan, run.out / convention
@@ -334,17 +303,18 @@ def run_weight_study(run: ReportRun, convention: str) -> None:
     run_stage(run, f"{convention}/weights",
               {"force": plan.weight_force, "q": list(plan.q_scales), "r": list(plan.r_scales)},
               [folder / "weights.csv"],
-              lambda: write_csv(run_weights(cfg, plan), folder / "weights.csv"))
+              lambda: write_csv(run_weights(cfg, plan), folder / "weights.csv", units=False))
     force = plan.weight_recovering_force
     run.log.stage(f"{convention}: weight study at F = {force} N, a push every setting should "
                   "recover (reference loop)")
     run_stage(run, f"{convention}/weights_recovering",
               {"force": force, "q": list(plan.q_scales), "r": list(plan.r_scales)},
               [folder / WEIGHTS_RECOVERING],
-              lambda: write_csv(run_weights(cfg, plan, force), folder / WEIGHTS_RECOVERING))
+              lambda: write_csv(run_weights(cfg, plan, force), folder / WEIGHTS_RECOVERING,
+                                units=False))
 
 
-def run_region(run: ReportRun, convention: str) -> None:
+def region_stage(run: ReportRun, convention: str) -> None:
     """Experiment 4: the region map, region/region.parquet (a sweep folder)."""
     forces, durations = run.region_forces, run.region_durations
     run.log.stage(f"{convention}: region map, {forces.size} x {durations.size} cells "
@@ -353,7 +323,7 @@ def run_region(run: ReportRun, convention: str) -> None:
                       forces, durations, run.chunk, run.quiet)
 
 
-def run_robustness_table(run: ReportRun, convention: str) -> None:
+def table_stage(run: ReportRun, convention: str) -> None:
     """Experiment 3: the max acting time per force, table/table.csv (a sweep folder)."""
     cfg = with_convention(run.config, convention)
     run.log.stage(f"{convention}: robustness table, {len(run.plan.table_forces)} forces "
@@ -367,10 +337,10 @@ def run_robustness_table(run: ReportRun, convention: str) -> None:
 def run_experiments(run: ReportRun, convention: str) -> None:
     """The four experiments in one convention, into ``out/<convention>/``."""
     (run.out / convention).mkdir(exist_ok=True)
-    run_timeseries(run, convention)
-    run_weight_study(run, convention)
-    run_region(run, convention)
-    run_robustness_table(run, convention)
+    timeseries_stage(run, convention)
+    weights_stage(run, convention)
+    region_stage(run, convention)
+    table_stage(run, convention)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -411,7 +381,8 @@ def run_study(run: ReportRun, study: catalog.Study) -> None:
     """Every variant's map, then studies/<study>/numbers.csv; recorded in report.json."""
     entry = {"key": study.key, "variants": [run_variant(run, study, v) for v in study.variants]}
     folder = run.out / "studies" / study.key
-    write_csv(study_numbers(study, folder, entry["variants"]), folder / "numbers.csv")
+    write_csv(study_numbers(study, folder, entry["variants"]), folder / "numbers.csv",
+              units=False)
     run.record["studies"].append(entry)
     run.save_record()
 
