@@ -1,5 +1,5 @@
 """``mjx-balance compare`` / ``mb.compare``: several configurations on one grid, with the
-stand-in batch function of tests/test_sweep.py (recovered iff |F| T < c), whose numbers are
+stand-in batch function of tests/support.py (recovered iff |F| T < c), whose numbers are
 known in closed form: nothing compiles here."""
 
 import json
@@ -128,7 +128,7 @@ def test_compare_on_a_local_cluster_gives_the_local_numbers(tmp_path, monkeypatc
     the worker by value (it cannot import this test module). Needs Dask (the cluster extra)."""
     distributed = pytest.importorskip("distributed")
     import cloudpickle
-    import test_sweep
+    import support  # the stand-in's module (FakeThresholdBatch)
 
     from mjx_balance.runs import cluster as cluster_mod
     from mjx_balance.studies.compare import run_compare
@@ -146,11 +146,11 @@ def test_compare_on_a_local_cluster_gives_the_local_numbers(tmp_path, monkeypatc
     connect = cluster_mod.connect
     monkeypatch.setattr(cluster_mod, "connect",
                         lambda *a, **k: connections.append(a[0]) or connect(*a, **k))
-    cloudpickle.register_pickle_by_value(test_sweep)
+    cloudpickle.register_pickle_by_value(support)
     try:
         on_cluster, here = run(tmp_path / "cluster", cluster="local:1")
     finally:
-        cloudpickle.unregister_pickle_by_value(test_sweep)
+        cloudpickle.unregister_pickle_by_value(support)
     # one cluster started; each configuration's map and table reuse its client
     assert connections[0] == "local:1" and len(connections) == 1 + 2 * len(configs)
     assert all(c is connections[1] and isinstance(c, distributed.Client)
