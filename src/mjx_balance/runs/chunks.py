@@ -100,7 +100,7 @@ def chunk_slices(n_cells: int, chunk_size: int) -> list[slice]:
 SIMULATED_SECONDS_PER_SECOND = (88 * 12.0, 130 * 12.0)
 # Disk per scenario in a chunk file, rounded up from a default sweep's 64-row chunks
 # (BENCHMARKS.md, "Disk"); the merged region.parquet holds the same rows again.
-CHUNK_BYTES_PER_SCENARIO = 400
+CHUNK_BYTES_PER_SCENARIO = 650
 # The scalar reference (MuJoCo C + OSQP, one scenario at a time: simulate), hard pushes (bounds
 # active: OSQP iterates long) to light ones (BENCHMARKS.md, "The scalar reference's rate").
 REFERENCE_SECONDS_PER_SECOND = (1.0, 15.0)
