@@ -181,6 +181,32 @@ class AdmmMPC:
 # -- figures' input ---------------------------------------------------------------------------------
 
 
+def assert_cells_like_the_reference(config, frame: pd.DataFrame, cells, mpc) -> list[str]:
+    """Each batched cell of ``frame`` (one row per (force, duration) of ``cells``) against the
+    reference run with the same MPC (``mpc``, e.g. :class:`AdmmMPC`): the same outcome, the
+    same fall sample, and the energies within ``margins.closed_loop_rounding`` (the float32
+    controls' rounding through the loop's gain, grown after an infeasible QP when it falls).
+    Returns the reference's outcomes."""
+    import margins  # the tolerances' module (tests/margins.py)
+
+    from mjx_balance.reference import loop as reference
+
+    outcomes = []
+    for b, (force, duration) in enumerate(cells):
+        ref = reference.simulate_scenario(config, force, duration, record=False, mpc=mpc)[0]
+        mine = frame.iloc[b]
+        outcomes.append(ref["outcome"])
+        assert mine.outcome == ref["outcome"], (force, duration)
+        margins.within(mine.fall_time, ref["fall_time"], atol=1e-12, msg=(force, duration),
+                       why="the same fall sample (both compute its time as k dt)")
+        tol = margins.closed_loop_rounding(config, ref, force, duration)
+        for key in ("energy_ankle", "energy_hip", "energy_u1", "energy_u2"):
+            margins.within(mine[key], ref[key], rtol=tol[key], atol=1e-9, msg=(key, force),
+                           why="float32 ADMM rounding x the loop's gain, grown after an "
+                               "infeasible QP when it falls (margins.closed_loop_rounding)")
+    return outcomes
+
+
 def synthetic_series(t_end=4.0, dt=0.01, duration=0.1) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Three synthetic runs: 0 N (still), 50 N (recovers, settles by ~1.1 s), 120 N (falls at
     0.9 s, its angle growing far beyond the others)."""

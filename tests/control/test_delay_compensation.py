@@ -2,12 +2,10 @@
 linear plant, and the batched path and the reference compensate alike."""
 
 import jax
-import margins
 import numpy as np
 import pytest
 import scipy.linalg
-from margins import within
-from support import AdmmMPC
+from support import AdmmMPC, assert_cells_like_the_reference
 
 from mjx_balance.model.linear import delay_predictor, linear_model, predict, zoh
 from mjx_balance.model.params import Config, ParameterError
@@ -87,24 +85,14 @@ def test_batched_and_reference_compensate_alike():
     frame = runner.run_frame(forces, durations)
     mpc = AdmmMPC(runner)
     assert runner.static.compensate
-    for b, (force, duration) in enumerate(CELLS):
-        ref = reference.simulate_scenario(config, force, duration, record=False, mpc=mpc)[0]
-        mine = frame.iloc[b]
-        assert mine.outcome == ref["outcome"], (force, duration)
-        within(mine.fall_time, ref["fall_time"], atol=1e-12, msg=(force, duration),
-               why="the same fall sample (both compute its time as k dt)")
-        # the float32 controls' rounding (4 slots here, 1 in the reference: XLA's vector
-        # code, which also differs between CPUs) through the stable loop, grown exponentially
-        # along the unstable direction after an infeasible QP when it falls
-        # (margins.closed_loop_rounding; measured on a 2-core AMD EPYC: 1.2e-3 relative on the
-        # falls, 3.8e-6 on recoveries). In the linear plant the compensated loop is the undelayed
-        # one (above), whose gain margins.input_gains computes; the predictor, float32 here and
-        # float64 in the reference, rounds within gamma_14 (1.7e-6 relative), far below that.
-        tol = margins.closed_loop_rounding(config, ref, force, duration)
-        for key in ("energy_ankle", "energy_hip", "energy_u1", "energy_u2"):
-            within(mine[key], ref[key], rtol=tol[key], atol=1e-9, msg=(key, force),
-                   why="float32 ADMM rounding x the loop's gain, grown after an infeasible QP "
-                       "when it falls (margins.closed_loop_rounding)")
+    # The energies' tolerance: the float32 controls' rounding (4 slots here, 1 in the reference:
+    # XLA's vector code, which also differs between CPUs) through the stable loop, grown
+    # exponentially along the unstable direction after an infeasible QP when it falls
+    # (margins.closed_loop_rounding; measured on a 2-core AMD EPYC: 1.2e-3 relative on the
+    # falls, 3.8e-6 on recoveries). In the linear plant the compensated loop is the undelayed
+    # one (above), whose gain margins.input_gains computes; the predictor, float32 here and
+    # float64 in the reference, rounds within gamma_14 (1.7e-6 relative), far below that.
+    assert_cells_like_the_reference(config, frame, CELLS, mpc)
     # and compensation is what made the difference: without it the same pushes end otherwise
     # (the reference's plain loop, cheaper than a second compile: 20 N for 0.1 s falls)
     plain = config.replace(controller={"delay_compensation": False})

@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-import margins
 import numpy as np
 import osqp
 import pytest
 import scipy.sparse as sp
 from margins import within
-from support import ENGINE_SLOTS, AdmmMPC
+from support import ENGINE_SLOTS, AdmmMPC, assert_cells_like_the_reference
 
 from mjx_balance.control import offset_free as ofm
 from mjx_balance.control.osqp_mpc import ReferenceMPC
@@ -200,26 +199,14 @@ def test_batched_and_reference_offset_free_alike():
     forces, durations = np.array(CELLS).T
     frame = runner.run_frame(forces, durations)
     mpc = AdmmMPC(runner)
-    outcomes = []
-    for b, (force, duration) in enumerate(CELLS):
-        ref = reference.simulate_scenario(config, force, duration, record=False, mpc=mpc)[0]
-        mine = frame.iloc[b]
-        outcomes.append(ref["outcome"])
-        assert mine.outcome == ref["outcome"], (force, duration)
-        within(mine.fall_time, ref["fall_time"], atol=1e-12, msg=(force, duration),
-               why="the same fall sample (both compute its time as k dt)")
-        # the float32 controls' rounding (4 slots here, 1 in the reference; other CPUs sum in
-        # other orders: 1.06e-4 relative on energy_ankle seen on an Intel Xeon, 3.3e-5 on an
-        # AMD EPYC) through the stable loop, grown along the unstable direction after an
-        # infeasible QP when it falls (margins.closed_loop_rounding, as in test_cpath). The
-        # observer and the target, float32 here and float64 in the reference, round within a
-        # few eps_float32 of their sizes and the observer's pole (0.8) lets that build up at
-        # most fivefold: far below the ADMM's share.
-        tol = margins.closed_loop_rounding(config, ref, force, duration)
-        for key in ("energy_ankle", "energy_hip", "energy_u1", "energy_u2"):
-            within(mine[key], ref[key], rtol=tol[key], atol=1e-9, msg=(key, force),
-                   why="float32 ADMM rounding x the loop's gain, grown after an infeasible QP "
-                       "when it falls (margins.closed_loop_rounding)")
+    # The energies' tolerance: the float32 controls' rounding (4 slots here, 1 in the
+    # reference; other CPUs sum in other orders: 1.06e-4 relative on energy_ankle seen on an
+    # Intel Xeon, 3.3e-5 on an AMD EPYC) through the stable loop, grown along the unstable
+    # direction after an infeasible QP when it falls (margins.closed_loop_rounding, as in
+    # test_cpath). The observer and the target, float32 here and float64 in the reference,
+    # round within a few eps_float32 of their sizes and the observer's pole (0.8) lets that
+    # build up at most fivefold: far below the ADMM's share.
+    outcomes = assert_cells_like_the_reference(config, frame, CELLS, mpc)
     assert {"recovered", "fell"} <= set(outcomes)
 
 

@@ -144,13 +144,18 @@ def test_certificate_tail_integrals_give_each_definition():
     assert short["work_u2"] == pytest.approx(-40 * (0.03 - 0.01))
 
 
-def test_time_series_carries_the_cumulative_study_energy():
+def _frame() -> pd.DataFrame:
+    """The reference's time-series frame of :func:`_series` (paper convention, at rest)."""
     s = _series()
     n = len(Q1)
-    frame = reference.timeseries_frame(0, 0.0, 0.1, "paper", q0=np.zeros(2), x0=np.zeros(4),
-                                       time=s["time"], q=s["q"], dq=np.zeros((n, 2)), x=s["x"],
-                                       foot=np.zeros((n, 3)), u=s["u"], tau=s["tau"],
-                                       cop=np.zeros(n), com=np.zeros(n))
+    return reference.timeseries_frame(0, 0.0, 0.1, "paper", q0=np.zeros(2), x0=np.zeros(4),
+                                      time=s["time"], q=s["q"], dq=np.zeros((n, 2)), x=s["x"],
+                                      foot=np.zeros((n, 3)), u=s["u"], tau=s["tau"],
+                                      cop=np.zeros(n), com=np.zeros(n))
+
+
+def test_time_series_carries_the_cumulative_study_energy():
+    frame = _frame()
     np.testing.assert_allclose(frame["study_energy_u1"], CUMULATIVE_1, atol=1e-12)
     np.testing.assert_allclose(frame["study_energy_u2"], CUMULATIVE_2, atol=1e-12)
     np.testing.assert_allclose(frame["study_energy_total"],
@@ -175,12 +180,7 @@ def test_paper_convention_outputs_headline_the_study_energy():
     from mjx_balance.report import html
     from mjx_balance.runs import acting_time
 
-    s = _series()
-    n = len(Q1)
-    frame = reference.timeseries_frame(0, 0.0, 0.1, "paper", q0=np.zeros(2), x0=np.zeros(4),
-                                       time=s["time"], q=s["q"], dq=np.zeros((n, 2)), x=s["x"],
-                                       foot=np.zeros((n, 3)), u=s["u"], tau=s["tau"],
-                                       cop=np.zeros(n), com=np.zeros(n))
+    frame = _frame()
     assert plots.energy_rows(frame) == [plots.STUDY_ENERGY, plots.PAIRS["energy"]]
     assert plots.energy_rows(frame.assign(convention="joint")) == [plots.PAIRS["energy"]]
     assert "study's (eq. 20)" in plots.energy_title(plots.energy_rows(frame))
