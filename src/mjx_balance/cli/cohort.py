@@ -195,15 +195,17 @@ def cohort_command(args: Any) -> int:
                                                                 "table forces")
     # The work is planned (and absurd work refused) before the subjects are drawn or checked:
     # a population's count is known from the options, a grid's from its values.
-    count = subject_count(args)
-    members = members_from(args) if count is None else None
-    count = len(members) if members is not None else count
+    members, count = None, subject_count(args)
+    if count is None:  # a CSV file: read to count
+        members = members_from(args)
+        count = len(members)
     guard_work(args, base, count * forces.size * durations.size, "cells",
                extra=0 if tables is None else count * table_scenarios(base, tables.size))
     if count > MAX_SUBJECTS:
         raise ParameterError(f"{count:,} subjects is more than a cohort may hold "
                              f"({MAX_SUBJECTS:,}: a folder each); run it in parts")
-    members = members if members is not None else members_from(args)
+    if members is None:
+        members = members_from(args)
     out = Path(args.out)
     say = logging.getLogger("mjx_balance").info
     plan = plan_cohort(out, members, base, forces, durations, table_forces=tables, log=say,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import logging
 import math
 import sys
 from pathlib import Path
@@ -59,8 +60,6 @@ def guard_work(args: argparse.Namespace, config: Config, n_scenarios: int, what:
     the limit unless --yes, before anything is compiled or written. ``extra``: scenarios
     beyond ``n_scenarios`` (a table's); ``reference``: run one at a time by the scalar
     reference (its rate), not by the batched engine."""
-    import logging
-
     from ..runs import chunks  # lazy: the runs floor loads JAX
 
     t_end = config.scenario.t_end
