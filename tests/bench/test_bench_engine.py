@@ -137,7 +137,8 @@ def test_bench_engine_mjx_path():
 @pytest.mark.slow  # compiles both engines
 @pytest.mark.parametrize("physics", ["c", "mjx"])
 def test_the_instrumented_run_is_the_engine(physics):
-    """drive_mjx / drive_c give exactly what Engine.run gives on the same cells."""
+    """The probed run (its recording on) gives exactly what Engine.run gives on the same
+    cells: the probe changes nothing the engine computes."""
     from mjx_balance.model.params import Config
     from mjx_balance.rollout import BatchRunner
     from mjx_balance.rollout.runner import push_steps
@@ -148,8 +149,7 @@ def test_the_instrumented_run_is_the_engine(physics):
         forces = np.array([10.0, 60.0, 120.0, 150.0, 30.0])
         n_push = push_steps(np.array([0.1, 0.3, 0.05, 0.2, 0.3]), 0.002)
         expected = runner.engine.run(forces, n_push)
-        drive = bench_engine.drive_mjx if physics == "mjx" else bench_engine.drive_c
-        got = drive(runner.engine, forces, n_push, record=True).raw
+        got = bench_engine.drive(runner.engine, forces, n_push, record=True).raw
     assert set(got) == set(expected)
     for name in expected:
         assert np.asarray(got[name]).tobytes() == np.asarray(expected[name]).tobytes(), name

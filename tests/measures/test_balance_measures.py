@@ -18,7 +18,7 @@ from mjx_balance.measures import metrics, outcomes
 from mjx_balance.model.mjcf import build_model, indices
 from mjx_balance.model.params import Config
 from mjx_balance.reference import loop as reference
-from mjx_balance.rollout import kernel, physics
+from mjx_balance.rollout import physics, sensing
 
 CONFIG = Config().replace(scenario={"t_end": 2.0})
 BODY = CONFIG.body
@@ -84,11 +84,11 @@ def test_com_velocity_and_pendulum_by_hand():
     mjm = physics.mj_model(CONFIG)
     with jax.enable_x64(False):
         d0 = physics.rest_data(mjm)
-        sn = physics.sensors(mjm, d0)
+        sn = sensing.sensors(mjm, d0)
         mx = physics.mjx_model(mjm)
-        v = kernel.com_velocity(mx, d0, sn, jnp.asarray(_qvel(mjm, indices(mjm)), jnp.float32))
+        v = sensing.com_velocity(mx, d0, sn, jnp.asarray(_qvel(mjm, indices(mjm)), jnp.float32))
         ar = SimpleNamespace(mx=mx, d0=d0)
-        w = float(kernel.pendulum_frequency(ar, sn))
+        w = float(sensing.pendulum_frequency(ar, sn))
     # float32: the levers (<= 1.3 m) and masses rounded (eps 1.2e-7 relative each), a 5-term
     # sum: 10 eps of the 0.7 m/s result and its terms (<= 1.2 m/s) is < 2e-6
     within(float(v), 0.695777, atol=2e-6 + 1e-6,

@@ -31,7 +31,7 @@ from mjx_balance.measures import metrics
 from mjx_balance.measures.outcomes import SUMMARY_COLUMNS, Limits
 from mjx_balance.model.params import Config
 from mjx_balance.reference import loop as reference
-from mjx_balance.rollout import kernel, runner
+from mjx_balance.rollout import kernel, runner, sensing
 
 U = (10.0, -40.0)
 TAU = (-30.0, -40.0)  # tau1 + tau2, tau2
@@ -106,7 +106,7 @@ def test_batched_accumulators_give_each_definition():
     q_prev, x_prev = jnp.zeros(2, jnp.float32), jnp.zeros(4, jnp.float32)
     for i in range(len(Q1)):
         q, x = jnp.asarray(s["q"][i], jnp.float32), jnp.asarray(s["x"][i], jnp.float32)
-        sample = kernel.Sample(q=q, dq=jnp.zeros(2, jnp.float32), x=x, pitch=jnp.float32(0),
+        sample = sensing.Sample(q=q, dq=jnp.zeros(2, jnp.float32), x=x, pitch=jnp.float32(0),
                                cell_low=jnp.zeros(4, jnp.float32), cop=jnp.float32(0),
                                com=jnp.float32(0), magnitude=jnp.float32(0))
         acc = kernel.sample_update(acc, sample, jnp.int32(i), jnp.asarray(TAU, jnp.float32),

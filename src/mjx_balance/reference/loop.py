@@ -18,7 +18,7 @@ and the metrics run undelayed; d = 0 is the undelayed loop. With scenario.delay_
 measurement is really D + delay_error old while a compensating controller assumes D. With
 controller.delay_compensation the controller predicts the state at t_k from its measurement
 and the inputs it applied since (``linear.delay_predictor``, over the D it assumes) and solves
-the MPC for the prediction; the batched path does the same (``rollout.kernel.control``).
+the MPC for the prediction; the batched path does the same (``rollout.kernel.prepare``).
 """
 
 from __future__ import annotations

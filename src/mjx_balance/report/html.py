@@ -36,7 +36,7 @@ from ..measures.units import describe
 from ..model.params import Config
 from ..model.config_files import config_from_dict, with_convention
 from ..store.files import write_atomic
-from ..studies import catalog as studies
+from ..studies import catalog
 from ..studies.experiments import REPORT_JSON, WEIGHTS_RECOVERING, read_record
 from ..studies.scorecard import read_references
 from .blocks import embed, img
@@ -142,7 +142,7 @@ def sections(out: str | Path) -> list[tuple[str, str]]:
     if len(record["conventions"]) > 1:
         ids.append(("conventions", "Side by side: paper vs joint convention"))
     for entry in record["studies"]:
-        ids.append((f"study-{entry['key']}", "Study: " + studies.study(entry["key"]).title))
+        ids.append((f"study-{entry['key']}", "Study: " + catalog.study(entry["key"]).title))
     ids += [(s["id"], s["heading"]) for s in extra_sections(out)]
     return ids
 
@@ -152,7 +152,7 @@ def sections(out: str | Path) -> list[tuple[str, str]]:
 
 
 def _grid_of(region: pd.DataFrame) -> str:
-    return "grid " + studies.grid_text(region)
+    return "grid " + catalog.grid_text(region)
 
 
 def _study_grid(res: dict) -> str:
@@ -173,7 +173,7 @@ def key_numbers(results: dict[str, Any]) -> list[str]:
     for key in ("older_adult", "push_height"):
         if key in st:
             rows = st[key]["numbers"]
-            lines.append(f"{studies.study(key).title}: " + ", ".join(
+            lines.append(f"{catalog.study(key).title}: " + ", ".join(
                 f"{label} {a:.3g} N·s" for label, a in zip(rows["label"], rows["area"]))
                 + f" ({_study_grid(st[key])}).")
     if "backward" in st:
@@ -202,7 +202,7 @@ def _experiment_lines(conventions: dict[str, dict], config: Config | None = None
     lines.append("Sustained-push limit (the largest force held for the whole window, to 0.1 N)"
                  " — " + "; ".join(limits) + ".")
     for convention, res in conventions.items():
-        n = studies.region_numbers(res["region"])
+        n = catalog.region_numbers(res["region"])
         lines.append(f"Recoverable region ({convention}): {n['area']:.3g} N·s, "
                      f"{n['fraction']:.0%} of the grid ({_grid_of(res['region'])}).")
     return lines
@@ -515,7 +515,7 @@ def _weight_blocks(page: Page, convention: str, weights: pd.DataFrame, name: str
                    lead: str) -> list[dict]:
     """One weight comparison: its lead, figure, outcome count and table."""
     path = draw_weights(weights, page.figures, convention, name=name)
-    recovered = int(studies.is_recovered(weights).sum())
+    recovered = int(catalog.is_recovered(weights).sum())
     verdict = (f"{recovered} of {len(weights)} settings recover"
                + ("." if recovered == len(weights) else
                   "; the others show their outcome instead of an energy: the energy of a fall "
@@ -564,21 +564,21 @@ def region_section(page: Page, convention: str, res: dict) -> dict:
     region = res["region"]
     outcome, energy = draw_region(region, page.figures, with_convention(page.config, convention),
                                   res["table"])
-    numbers = studies.region_numbers(region)
+    numbers = catalog.region_numbers(region)
     cfg = with_convention(page.config, convention)
     return page.section(
         f"region-{convention}",
         _run_settings(f"Batch backend {page.record['backend']}, {convention} convention, grid "
-                f"{studies.grid_text(region)}; each sampled (F, T) is one cell (bounds half-way "
+                f"{catalog.grid_text(region)}; each sampled (F, T) is one cell (bounds half-way "
                 "between samples, the outer ones on the first and last sample); blue: the "
                 "table's bisected max acting time."),
         _row(img(outcome, "outcome map"), img(energy, "energy of the recovered pushes")),
         _paragraph(f"Recovered area {numbers['area']:.3g} N·s ({numbers['fraction']:.0%} of the "
               f"grid, {numbers['recovered_cells']} of {numbers['cells']} cells); at T = "
               f"{numbers['t_ref']:g} s the largest recovered force is "
-              f"{studies.force_text(numbers['f_max_ref'])}."),
-        _paragraph(f"Why the falls happened ({studies.grid_text(region)}): "
-              + studies.infeasibility_text(region)),
+              f"{catalog.force_text(numbers['f_max_ref'])}."),
+        _paragraph(f"Why the falls happened ({catalog.grid_text(region)}): "
+              + catalog.infeasibility_text(region)),
         *strategy_blocks(region, res["table"], page.figures, cfg, convention))
 
 
@@ -597,8 +597,8 @@ def _conventions_reading(tables: dict[str, pd.DataFrame], numbers: dict[str, dic
             + (f" ({grid})" if grid else "") + " recover "
             f"{numbers[a]['area']:.3g} N·s ({a}) and {numbers[b]['area']:.3g} N·s ({b}); at T = "
             f"{numbers[a]['t_ref']:g} s the largest recovered force is "
-            f"{studies.force_text(numbers[a]['f_max_ref'])} ({a}) and "
-            f"{studies.force_text(numbers[b]['f_max_ref'])} ({b}).")
+            f"{catalog.force_text(numbers[a]['f_max_ref'])} ({a}) and "
+            f"{catalog.force_text(numbers[b]['f_max_ref'])} ({b}).")
 
 
 def conventions_section(page: Page) -> dict:
@@ -615,7 +615,7 @@ def conventions_section(page: Page) -> dict:
         part = part.rename(columns={k: f"{k} ({c})" for k in part.columns if k != "force"})
         merged = part if merged is None else merged.merge(part, on="force", how="outer")
     path = save_figure(conventions_figure(tables), page.figures / "conventions_table.png")
-    numbers = {c: studies.region_numbers(results[c]["region"]) for c in convs}
+    numbers = {c: catalog.region_numbers(results[c]["region"]) for c in convs}
     a = convs[0]
     outcomes = pd.DataFrame({"force": results[a]["summary"]["force"]})
     for c in convs:
@@ -640,7 +640,7 @@ def conventions_section(page: Page) -> dict:
 
 def study_section(page: Page, key: str, res: dict) -> dict:
     """A study: every variant's outcome map, the numbers and the reading."""
-    st = studies.study(key)
+    st = catalog.study(key)
     images = [img(path, label) for path, label in draw_study(key, res, page.figures)]
     first = next(iter(res["regions"].values()))
     numbers = res["numbers"]
@@ -649,11 +649,11 @@ def study_section(page: Page, key: str, res: dict) -> dict:
         f"study-{key}",
         _run_settings(st.question + f" Sweep definitions (shipped with the package): {files}; "
                 f"convention {page.config.controller.convention}; batch backend "
-                f"{page.record['backend']}; grid {studies.grid_text(first)}."),
+                f"{page.record['backend']}; grid {catalog.grid_text(first)}."),
         _row(*images),
         _table(numbers, STUDY_SHOWN),
-        _paragraph(studies.reading(st, numbers, first), "reading"),
-        *(_paragraph(f"{v['label']}: " + studies.infeasibility_text(res["regions"][v["key"]]))
+        _paragraph(catalog.reading(st, numbers, first), "reading"),
+        *(_paragraph(f"{v['label']}: " + catalog.infeasibility_text(res["regions"][v["key"]]))
           for v in res["variants"]))
 
 

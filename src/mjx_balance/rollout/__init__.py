@@ -12,8 +12,8 @@ Throughput and compile times are measured by ``mjx-balance bench`` (BENCHMARKS.m
 """
 
 from .kernel import Accumulators, Arrays, Static, scenario
-from .physics import (MJX_OPTIONS, Sensors, advance, cast_floats, mj_model, mjx_model, open_loop,
-                      rest_data, sensors)
+from .physics import MJX_OPTIONS, advance, cast_floats, mj_model, mjx_model, open_loop, rest_data
+from .sensing import Sensors, sensors
 from .runner import BatchRunner, push_steps, summarize
 
 __all__ = [

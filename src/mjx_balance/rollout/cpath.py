@@ -7,7 +7,7 @@ next cell when its scenario is decided), run one control period per call:
         call(p)   jitted, vmapped over the slots, sharded over the JAX devices:
             fold the samples of the period the slots ran since call(p - 1)  (kernel.sample_update)
             decide (fall, t_end, certificate), harvest and vacate            (engine.certify, ...)
-            refill vacant slots; solve every slot's MPC                       (kernel.control)
+            refill vacant slots; solve every slot's MPC       (kernel.prepare, solve, conclude)
         MuJoCo C: every busy slot advances ``substeps`` steps (``mujoco.rollout`` on a
             persistent thread pool, one MjData per thread) with the held torques and the push
         decode the samples on the host (float64), for call(p + 1)
@@ -58,13 +58,15 @@ from ..control import certificate as cert_mod
 from ..measures import outcomes
 from ..model.mjcf import indices
 from ..model.params import Config
-from .engine import (Engine, Queue, Slots, broadcast, certify, checker, empty_finished, harvest,
-                     refill, vacate)
+from .engine import (NO_PROBE, Engine, Finished, Probe, Queue, Slots, broadcast, cells_of, checker,
+                     decide, empty_finished, retire, take)
 from ..runtime import compiled, signals
 from ..runtime.compiled import MATMUL_PRECISION
-from .kernel import (Carry, Sample, com_velocity, control, initial_carry, limits_of,
-                     pendulum_frequency, remember, sample_update, select, state)
-from .physics import Sensors, cell_heights, mj_model, mjx, whole_body_com
+from .kernel import (Carry, conclude_batch, initial_carry, limits_of, prepare_batch, remember,
+                     sample_update, select, solve_lanes)
+from .physics import mj_model, mjx
+from .sensing import (Sample, Sensors, cell_heights, com_velocity, pendulum_frequency, state,
+                      whole_body_com)
 
 PATHS = ("auto", "mjx", "c")
 
@@ -307,51 +309,78 @@ def pack(rows: np.ndarray, last_qpos: np.ndarray, cell: np.ndarray, force: np.nd
 def call(arrays, sensors, static, cert, cs: CState, floats, ints, *, early: bool):
     """One control period of one device's slots (pure JAX): fold the physics run since the
     previous call, decide and harvest, refill, solve. Inputs packed (:func:`unpack`). Returns
-    the state and two arrays [slots, ...] (one transfer each): floats = the torques [2] and
-    push [S] to run, then the finished buffer's float accumulators; ints = whether the slot was
-    refilled (its physics restarts from rest), whether it is busy, the finished buffer's cell,
-    periods and certified, the refill cells taken, then its integer accumulators
-    (:func:`pack_acc`)."""
-    B = cs.slots.cell.shape[0]
+    the state and two arrays [slots, ...] (one transfer each, :func:`outputs`)."""
     S = static.substeps
-    dtype = arrays.d0.qpos.dtype
     rows, last_qpos, refill_cell, refill_force, refill_push, p = unpack(floats, ints, S)
-    every = cert_mod.CHECK_EVERY
     check = checker(cert if early else None)
-    rest = broadcast(initial_carry(arrays, sensors, static)._replace(d=None), B)
-    slots = cs.slots
     # 1. the period each busy slot ran since the previous call
+    carry, k = folded(arrays, sensors, static, cs, rows, last_qpos)
+    # 2. decided scenarios harvested and their slots vacated; vacant slots take new cells
+    verdict = judged(arrays, static, check, cs, carry, k, p)
+    slots, fresh, taken, done = turnover(arrays, sensors, static, check is not None, cs, carry,
+                                         k, p, verdict=verdict,
+                                         offer=(refill_cell, refill_force, refill_push))
+    # 3. every slot's MPC (a vacant one solves x = 0 at rest; its result is not used)
+    pre = prepare_batch(arrays, static, slots.carry)
+    carry, u, torques = conclude_batch(arrays, static, pre, solve_lanes(arrays, static, pre),
+                                       slots.k)
+    return outputs(static, slots._replace(carry=carry), u, torques, fresh, taken, done)
+
+
+def folded(arrays, sensors: Sensors, static, cs: CState, rows, last_qpos
+           ) -> tuple[Carry, jax.Array]:
+    """Step 1 of a call: the samples of the period each slot ran (``cs.ran``) folded into its
+    carry (:func:`fold_period`); the carry and the periods done."""
     fold = (lambda c, r, q, k, t, u: fold_period(arrays, sensors, static, c, r, q, k, torques=t,
                                                  u=u))
-    folded = jax.vmap(fold)(slots.carry, rows, last_qpos, slots.k, cs.torques, cs.u)
-    carry = select(cs.ran, folded, slots.carry)
-    k = jnp.where(cs.ran, slots.k + 1, slots.k)
-    ended = ~carry.acc.alive | (k >= arrays.n_control)
-    acc, certified = certify(check, static, carry.x_prev, carry.acc, k, slots.n_push, ended,
-                             (p - 1) % every == every - 1, n_control=arrays.n_control)
-    decided = cs.ran & (ended | certified)
+    slots = cs.slots
+    carry = jax.vmap(fold)(slots.carry, rows, last_qpos, slots.k, cs.torques, cs.u)
+    return select(cs.ran, carry, slots.carry), jnp.where(cs.ran, slots.k + 1, slots.k)
+
+
+def judged(arrays, static, check, cs: CState, carry: Carry, k, p):
+    """The engine's :func:`engine.decide` over the slots that ran a period before call ``p``
+    (the certificate checks after every ``CHECK_EVERY``-th period, as on the MJX path)."""
+    every = cert_mod.CHECK_EVERY
+    return decide(check, static, arrays.n_control, carry, k, cs.slots.n_push, cs.ran,
+                  (p - 1) % every == every - 1)
+
+
+def turnover(arrays, sensors: Sensors, static, gated: bool, cs: CState, carry: Carry, k, p, *,
+             verdict, offer) -> tuple[Slots, jax.Array, jax.Array, Finished]:
+    """Step 2 of call ``p``: the decided scenarios (``verdict``: :func:`judged`) harvested and
+    their slots vacated, then the refill (``gated``: with the certificate, only every
+    ``CHECK_EVERY`` periods, as on the MJX path). Returns the slots, which were refilled (their
+    physics restarts from rest), the refill cells taken and the finished buffer."""
+    B = cs.slots.cell.shape[0]
+    acc, certified, decided = verdict
+    rest = broadcast(initial_carry(arrays, sensors, static)._replace(d=None), B)
     zero = jnp.zeros((), jnp.int32)
-    done, _ = harvest(empty_finished(B, dtype), zero, decided, slots.cell, acc, k, certified)
-    slots = vacate(decided, rest, carry, slots, k)
-    # 2. vacant slots take new cells (with the certificate only every ``every`` periods, as on
-    # the MJX path, so that a scenario's k is a multiple of ``every`` when it is checked)
+    done, _, slots = retire(empty_finished(B, arrays.d0.qpos.dtype), zero, decided, cs.slots,
+                            acc, k, certified, carry=carry, rest=rest)
     vacant = slots.cell < 0
-    if check is not None:
-        vacant = vacant & (p % every == 0)
-    slots, taken = refill(slots, rest, zero, vacant, refill_cell, refill_force, refill_push)
-    fresh = vacant & (slots.cell >= 0)
-    # 3. every slot's MPC (a vacant one solves x = 0 at rest; its result is not used)
-    carry, u, torques = jax.vmap(lambda c, k: control(arrays, static, c, k))(slots.carry, slots.k)
+    slots, taken = take(slots, rest, zero, p, *offer, None, gated=gated)
+    return slots, vacant & (slots.cell >= 0), taken, done
+
+
+def outputs(static, slots: Slots, u, torques, fresh, taken, done: Finished
+            ) -> tuple[CState, jax.Array, jax.Array]:
+    """Step 3's end: the state and the call's two output arrays. floats = the torques [2] and
+    push [S] to run, then the finished buffer's float accumulators; ints = whether the slot was
+    refilled, whether it is busy, the finished buffer's cell, periods and certified, the
+    refill cells taken, then its integer accumulators (:func:`pack_acc`)."""
+    S = static.substeps
+    B = slots.cell.shape[0]
     busy = slots.cell >= 0
     steps = slots.k[:, None] * S + jnp.arange(S, dtype=jnp.int32)[None]
-    push = jnp.where(steps < slots.n_push[:, None], slots.force[:, None], jnp.zeros((), dtype))
-    cs = CState(slots=slots._replace(carry=carry), ran=busy, torques=torques, u=u)
+    push = jnp.where(steps < slots.n_push[:, None], slots.force[:, None],
+                     jnp.zeros((), slots.force.dtype))
+    cs = CState(slots=slots, ran=busy, torques=torques, u=u)
     acc_f, acc_i = pack_acc(done.acc)
     out_f = jnp.concatenate([torques, push, acc_f], axis=1)
-    out_i = jnp.concatenate([jnp.stack([fresh, busy, done.cell, done.periods, done.certified,
-                                        jnp.broadcast_to(taken, (B,))], axis=1).astype(jnp.int32),
-                             acc_i], axis=1)
-    return cs, out_f, out_i
+    flags = jnp.stack([fresh, busy, done.cell, done.periods, done.certified,
+                       jnp.broadcast_to(taken, (B,))], axis=1).astype(jnp.int32)
+    return cs, out_f, jnp.concatenate([flags, acc_i], axis=1)
 
 
 def pack_acc(acc) -> tuple[jax.Array, jax.Array]:
@@ -457,22 +486,21 @@ class CEngine(Engine):
         batch_sharding, _ = self.runner._shardings()
         return jnp.asarray(a) if batch_sharding is None else jax.device_put(a, batch_sharding)
 
-    def stream(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None
+    def stream(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None,
+               probe: Probe | None = None
                ) -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:
         """As :meth:`engine.Engine.stream`, one control period per call (from upright rest
         only: ``inits`` must be None or zero)."""
         if inits is not None and np.any(inits):
             raise ValueError("the MuJoCo C path starts every scenario at upright rest; "
                              "initial states need --physics mjx")
-        forces = np.asarray(forces, np.float64)
-        n_push = np.asarray(n_push, np.int32)
-        n = forces.shape[0]
+        probe = probe or NO_PROBE
+        forces, n_push, n = cells_of(forces, n_push)
         if n == 0:
             return
         fn = self.block_fn()
         r, c = self.runner, self.c
-        cs = self._state if self._state is not None else self._initial_state()
-        self._state = None
+        cs = self._take_state()
         template = jax.eval_shape(lambda: initial_carry(r.arrays, r.sensors, r.static).acc)
         B = self.slots * self.n_devices
         S = c.substeps
@@ -485,34 +513,47 @@ class CEngine(Engine):
         try:
             while remaining:
                 signals.check()  # a checkpoint: a signal dropped where it landed ends the run
-                cells, f, pp, _ = queue.offer()
-                floats, ints = pack(rows, last_qpos, cells, f, pp, p, r.dtype)
-                cs, out_f, out_i = fn(self._leaves, cs, self._put(floats), self._put(ints))
-                out_f, out_i = jax.device_get((out_f, out_i))
+                with probe("python"):
+                    cells, f, pp, _ = queue.offer()
+                    floats, ints = pack(rows, last_qpos, cells, f, pp, p, r.dtype)
+                with probe("transfers"):
+                    args = (self._put(floats), self._put(ints))
+                probe.before(p, cs, (floats, ints))
+                with probe("device_call"):
+                    cs, out_f, out_i = probe.call(fn, self._leaves, cs, *args)
+                with probe("transfers"):
+                    out_f, out_i = jax.device_get((out_f, out_i))
+                probe.after(p, (out_f, out_i))
                 p += 1
-                torques, push = out_f[:, :2], out_f[:, 2:2 + S]
-                reset, busy = out_i[:, 0] > 0, out_i[:, 1] > 0
-                index = out_i[:, 2]
-                queue.took(out_i[::self.slots, 5])  # one per device
-                keep = index >= 0
+                with probe("python"):
+                    torques, push = out_f[:, :2], out_f[:, 2:2 + S]
+                    reset, busy = out_i[:, 0] > 0, out_i[:, 1] > 0
+                    index = out_i[:, 2]
+                    queue.took(out_i[::self.slots, 5])  # one per device
+                    keep = index >= 0
+                    if keep.any():
+                        raw = unpack_acc(out_f[keep, 2 + S:], out_i[keep, 6:], template)
+                        raw["periods"], raw["certified"] = out_i[keep, 3], out_i[keep, 4] > 0
+                        queue.finished(index[keep], raw["periods"])
+                        remaining -= int(keep.sum())
                 if keep.any():
-                    raw = unpack_acc(out_f[keep, 2 + S:], out_i[keep, 6:], template)
-                    raw["periods"], raw["certified"] = out_i[keep, 3], out_i[keep, 4] > 0
-                    queue.finished(index[keep], raw["periods"])
-                    remaining -= int(keep.sum())
                     yield index[keep].astype(np.int64), raw
                 if not remaining:
                     break
                 # the physics of the period just solved, on the slots that hold a scenario
-                phys[reset], warm[reset] = c.rest, c.rest_warm
-                run = np.flatnonzero(busy)
+                with probe("samples_host"):
+                    phys[reset], warm[reset] = c.rest, c.rest_warm
+                    run = np.flatnonzero(busy)
                 if run.size:
-                    states, sens = c.advance(phys[run], warm[run], torques[run].astype(float),
-                                             push[run].astype(float))
-                    warm[run] = c.next_warm(phys[run], states)
-                    phys[run] = states[:, -1]
-                    phys[run, 0] = TIME0
-                    rows[run], last_qpos[run] = c.samples(states, sens)
+                    with probe("physics"):
+                        states, sens = c.advance(phys[run], warm[run],
+                                                 torques[run].astype(float),
+                                                 push[run].astype(float))
+                    with probe("samples_host"):
+                        warm[run] = c.next_warm(phys[run], states)
+                        phys[run] = states[:, -1]
+                        phys[run, 0] = TIME0
+                        rows[run], last_qpos[run] = c.samples(states, sens)
             finished = True
         finally:
             if finished:

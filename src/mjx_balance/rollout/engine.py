@@ -23,6 +23,7 @@ count, which a sweep therefore records.
 
 from __future__ import annotations
 
+import contextlib
 import time as _time
 import warnings
 from typing import Any, Iterator, NamedTuple
@@ -36,7 +37,7 @@ from ..runtime import signals
 from ..runtime.xla import deterministic_flags
 from ..runtime.compiled import get_or_compile
 from .kernel import Accumulators, Arrays, Carry, initial_carry, period_batch, select, start
-from .physics import whole_body_com
+from .sensing import whole_body_com
 
 def default_slots(platform: str) -> int:
     """Slots per device: 32 on a CPU (the fastest per scenario measured on 2 cores, batch 16-64:
@@ -159,6 +160,38 @@ def vacate(decided, rest: Carry, carry: Carry, slots: Slots, k) -> Slots:
                  n_push=jnp.where(decided, 0, slots.n_push), k=k)
 
 
+def take(slots: Slots, rest: Carry, taken, s, refill_cell, refill_force, refill_push,
+         starts: Carry | None, *, gated: bool) -> tuple[Slots, jax.Array]:
+    """Step 1 of a period (``s``: its index in the call): vacant slots take the next refill
+    cells, in slot order. ``gated`` (with the certificate): only every ``CHECK_EVERY`` periods,
+    so that every scenario's k is a multiple of it when it is checked (a check skipped for the
+    whole batch, not masked per slot)."""
+    vacant = slots.cell < 0
+    if gated:
+        vacant = vacant & (s % cert_mod.CHECK_EVERY == 0)
+    return refill(slots, rest, taken, vacant, refill_cell, refill_force, refill_push, starts)
+
+
+def decide(check, static, n_control, carry: Carry, k, n_push, busy, due
+           ) -> tuple[Accumulators, jax.Array, jax.Array]:
+    """Step 3 of a period, after the period ran (``carry``; ``k``: periods done): whether each
+    busy slot's scenario ended (fell, diverged or reached t_end) or is certified (``due``: the
+    certificate checks this period). Returns the accumulators (a certified scenario's with
+    its predicted rest of the window), the certified flags and the decided ones."""
+    ended = ~carry.acc.alive | (k >= n_control)
+    acc, certified = certify(check, static, carry.x_prev, carry.acc, k, n_push, ended, due,
+                             n_control=n_control)
+    return acc, certified, busy & (ended | certified)
+
+
+def retire(done: Finished, n_done, decided, slots: Slots, acc: Accumulators, k, certified, *,
+           carry: Carry, rest: Carry) -> tuple[Finished, jax.Array, Slots]:
+    """Step 4 of a period: decided scenarios go to the buffer (:func:`harvest`) and their
+    slots are vacated (:func:`vacate`)."""
+    done, n_done = harvest(done, n_done, decided, slots.cell, acc, k, certified)
+    return done, n_done, vacate(decided, rest, carry, slots, k)
+
+
 def empty_finished(capacity: int, dtype) -> Finished:
     return Finished(
         cell=jnp.full(capacity, -1, jnp.int32),
@@ -175,6 +208,16 @@ def checker(cert, periods: int | None = None):
     return jax.vmap(lambda x, acc, over, left: cert_mod.check(jnp, cert, x, acc, over, left))
 
 
+def opened(arrays, sensors, static, slots: Slots, refill_init, packing: Packing
+           ) -> tuple[Slots, Carry, Carry]:
+    """A call's start: the slots with their carry unpacked (:class:`Packing`), upright rest
+    for every slot, and each refill cell's first carry (from its initial joint state)."""
+    n = slots.cell.shape[0]
+    single = initial_carry(arrays, sensors, static)
+    starts = jax.vmap(lambda init: start(arrays, sensors, single, init))(refill_init)
+    return (slots._replace(carry=packing.unpack(slots.carry, n)), broadcast(single, n), starts)
+
+
 def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_force, refill_push,
           refill_init, periods: int, early: bool, packing: Packing, tile: int | None = None):
     """``periods`` control periods of one device's slots with refill and harvest (pure JAX).
@@ -185,41 +228,25 @@ def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_fo
     (:class:`Packing`).
     """
     S = slots.cell.shape[0]
-    slots = slots._replace(carry=packing.unpack(slots.carry, S))
-    R = refill_cell.shape[0]
-    dtype = arrays.d0.qpos.dtype
-    single = initial_carry(arrays, sensors, static)
-    rest = broadcast(single, S)
-    starts = jax.vmap(lambda init: start(arrays, sensors, single, init))(refill_init)
-    def run(c, k, f, n):
-        return period_batch(arrays, sensors, static, c, k, f, n, tile)[0]
+    slots, rest, starts = opened(arrays, sensors, static, slots, refill_init, packing)
     every = cert_mod.CHECK_EVERY
     check = checker(cert if early else None, periods)
 
     def step(state, s):
         slots, taken, done, n_done = state
-        # 1. vacant slots take the next refill cells, in slot order; with the certificate only
-        # every ``every`` periods, so that every scenario's k is a multiple of ``every`` when
-        # it is checked (a check skipped for the whole batch, not masked per slot)
-        vacant = slots.cell < 0
-        if check is not None:
-            vacant = vacant & (s % every == 0)
-        slots, taken = refill(slots, rest, taken, vacant, refill_cell, refill_force,
-                              refill_push, starts)
-        # 2. one control period of every slot
-        active = slots.cell >= 0
-        carry = run(slots.carry, slots.k, slots.force, slots.n_push)
+        # 1. refill; 2. one control period of every slot; 3. decide; 4. harvest and vacate
+        slots, taken = take(slots, rest, taken, s, refill_cell, refill_force, refill_push,
+                            starts, gated=check is not None)
+        carry = period_batch(arrays, sensors, static, slots.carry, slots.k, slots.force,
+                             slots.n_push, tile)[0]
         k = slots.k + 1
-        ended = ~carry.acc.alive | (k >= arrays.n_control)
-        acc, certified = certify(check, static, carry.x_prev, carry.acc, k, slots.n_push, ended,
-                                 s % every == every - 1, n_control=arrays.n_control)
-        decided = active & (ended | certified)
-        # 3. decided scenarios go to the buffer; their slots are vacated (reset to rest)
-        done, n_done = harvest(done, n_done, decided, slots.cell, acc, k, certified)
-        slots = vacate(decided, rest, carry, slots, k)
+        acc, certified, decided = decide(check, static, arrays.n_control, carry, k,
+                                         slots.n_push, slots.cell >= 0, s % every == every - 1)
+        done, n_done, slots = retire(done, n_done, decided, slots, acc, k, certified,
+                                     carry=carry, rest=rest)
         return (slots, taken, done, n_done), None
 
-    done = empty_finished(S + R, dtype)
+    done = empty_finished(S + refill_cell.shape[0], arrays.d0.qpos.dtype)
     zero = jnp.zeros((), jnp.int32)
     (slots, taken, done, _), _ = jax.lax.scan(step, (slots, zero, done, zero),
                                               jnp.arange(periods, dtype=jnp.int32))
@@ -314,6 +341,40 @@ class Queue:
         self.length[cells] = periods
 
 
+def cells_of(forces, n_push) -> tuple[np.ndarray, np.ndarray, int]:
+    """A run's cells as the engines take them: forces float64 [n], push steps int32 [n]."""
+    forces = np.asarray(forces, np.float64)
+    return forces, np.asarray(n_push, np.int32), forces.shape[0]
+
+
+class Probe:
+    """What a benchmark hooks into an engine's loop (``stream(..., probe=)``); this one does
+    nothing, so a run without a probe is the plain loop.
+
+    ``probe(name)`` is a context around each part of the host's loop: ``python`` (the queue
+    and the results), ``transfers`` (host <-> device), ``device_call`` (one compiled call), and
+    on the C path ``physics`` (MuJoCo's rollout) and ``samples_host`` (decoding its samples).
+    :meth:`before` sees each call's inputs (call ``p``, the slots' state, the arguments) before
+    the call takes them (the state is donated), :meth:`after` its outputs (C path), and
+    :meth:`call` runs it.
+    """
+
+    def __call__(self, name: str):
+        return contextlib.nullcontext()
+
+    def before(self, p: int, state, args) -> None:
+        pass
+
+    def after(self, p: int, outputs) -> None:
+        pass
+
+    def call(self, fn, *args):
+        return fn(*args)
+
+
+NO_PROBE = Probe()
+
+
 class Engine:
     """Continuous batching for one :class:`runner.BatchRunner` (its model, QP and devices).
 
@@ -331,8 +392,9 @@ class Engine:
         platform = (jax.local_devices()[0] if runner.mesh is None else devices[0]).platform
         if platform == "cpu" and not deterministic_flags():
             warnings.warn("JAX started before mjx_balance could set its XLA options "
-                          "(mjx_balance.runtime.xla): results may depend on the slot a scenario ran "
-                          "in; import mjx_balance before running anything with JAX",
+                          "(mjx_balance.runtime.xla): results may depend on the slot a "
+                          "scenario ran in; import mjx_balance before running anything with "
+                          "JAX",
                           stacklevel=3)
         self.slots = int(slots or default_slots(platform))
         if self.slots < 1:
@@ -430,48 +492,68 @@ class Engine:
 
     # -- running --------------------------------------------------------------------------
 
-    def stream(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None
+    def stream(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None,
+               probe: Probe | None = None
                ) -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:
         """Run every cell (forces [n], push steps [n], initial joint states [n, 4] or None:
         upright rest); yield (cell indices, finished raw results) after each call, as cells
         complete. Raw results: the accumulators' fields, ``periods`` and ``certified``, numpy,
-        one entry per index."""
-        forces = np.asarray(forces, np.float64)
-        n_push = np.asarray(n_push, np.int32)
-        n = forces.shape[0]
+        one entry per index. ``probe``: what a benchmark hooks into the loop (:class:`Probe`)."""
+        probe = probe or NO_PROBE
+        forces, n_push, n = cells_of(forces, n_push)
         if n == 0:
             return
         fn = self.block_fn()
         r = self.runner
-        batch_sharding, _ = r._shardings()
-        state = self._state if self._state is not None else self._initial_state()
-        self._state = None
+        state = self._take_state()
         queue = Queue(forces, n_push, self.n_devices, self.refill, inits, self.block)
-        remaining, finished = n, False
+        remaining, finished, p = n, False, 0
         try:
             while remaining:
                 signals.check()  # a checkpoint: a signal dropped where it landed ends the run
-                cells, f, p, init = queue.offer()
-                args = (jnp.asarray(cells), jnp.asarray(f.astype(r.dtype)), jnp.asarray(p),
-                        jnp.asarray(init.astype(r.dtype)))
-                if batch_sharding is not None:
-                    args = tuple(jax.device_put(a, batch_sharding) for a in args)
-                state, taken, done = fn(r.arrays, self.cert, state, *args)
-                queue.took(np.asarray(taken))
-                index = np.asarray(done.cell)
-                keep = index >= 0
+                with probe("python"):
+                    cells, f, pp, init = queue.offer()
+                with probe("transfers"):
+                    args = self.offer_args(cells, f, pp, init)
+                probe.before(p, state, args)
+                with probe("device_call"):
+                    state, taken, done = probe.call(fn, r.arrays, self.cert, state, *args)
+                with probe("transfers"):
+                    taken, index, acc, periods, certified = jax.device_get(
+                        (taken, done.cell, tuple(done.acc), done.periods, done.certified))
+                p += 1
+                with probe("python"):
+                    queue.took(taken)
+                    keep = index >= 0
+                    if keep.any():
+                        raw = {name: v[keep] for name, v in zip(Accumulators._fields, acc)}
+                        raw["periods"], raw["certified"] = periods[keep], certified[keep]
+                        queue.finished(index[keep], raw["periods"])
+                        remaining -= int(keep.sum())
                 if keep.any():
-                    raw = {name: np.asarray(v)[keep] for name, v in zip(Accumulators._fields,
-                                                                         done.acc)}
-                    raw["periods"] = np.asarray(done.periods)[keep]
-                    raw["certified"] = np.asarray(done.certified)[keep]
-                    queue.finished(index[keep], raw["periods"])
-                    remaining -= int(keep.sum())
                     yield index[keep].astype(np.int64), raw
             finished = True
         finally:
             if finished:
                 self._state = state  # every slot vacant: reusable by the next run
+
+    def _take_state(self):
+        """The slots' state to run from: the last run's (every slot vacant) or a new one; the
+        engine holds none while a run has it (the call donates it)."""
+        state = self._state if self._state is not None else self._initial_state()
+        self._state = None
+        return state
+
+    def offer_args(self, cells, f, p, init) -> tuple:
+        """A refill offer (:meth:`Queue.offer`) as the compiled call's arguments, placed on the
+        devices."""
+        r = self.runner
+        batch_sharding, _ = r._shardings()
+        args = (jnp.asarray(cells), jnp.asarray(f.astype(r.dtype)), jnp.asarray(p),
+                jnp.asarray(init.astype(r.dtype)))
+        if batch_sharding is None:
+            return args
+        return tuple(jax.device_put(a, batch_sharding) for a in args)
 
     def run(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None
             ) -> dict[str, np.ndarray]:

@@ -35,7 +35,6 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
-import mujoco
 import numpy as np
 
 from ..control import admm as admm_mod
@@ -43,7 +42,8 @@ from ..model import linear as linear_mod
 from ..control import offset_free as offset_free_mod
 from ..measures import outcomes
 from ..measures.outcomes import Limits
-from .physics import Sensors, advance, cell_heights, load_cell_cop, mjx, step, whole_body_com
+from .physics import advance, mjx, step
+from .sensing import Sample, Sensors, joints, measure, measure_step, state, with_positions
 
 
 class Accumulators(NamedTuple):
@@ -162,24 +162,6 @@ class Arrays(NamedTuple):
     n_control: jax.Array
 
 
-class Sample(NamedTuple):
-    """What is read after one physics step (positions at t = (i+1) dt)."""
-
-    q: jax.Array  # [2] joint angles (ankle, hip)
-    dq: jax.Array  # [2] joint rates
-    x: jax.Array  # [4] the convention state
-    pitch: jax.Array  # foot pitch
-    cell_low: jax.Array  # [4] lowest point of each load-cell sphere
-    cop: jax.Array  # load-cell CoP x (NaN when unloaded)
-    com: jax.Array  # whole-body CoM x
-    magnitude: jax.Array  # largest |value| of qpos, qvel, qacc and ctrl (NaN if any is NaN)
-    # (defaults: a sample built without them has NaN CoM velocity and margins)
-    qvel: Any = None  # [nv] all rates (for the CoM velocity)
-    com_vel: Any = math.nan  # whole-body CoM x velocity
-    mos_toe: Any = math.nan  # margins of stability (outcomes.stability_margins)
-    mos_heel: Any = math.nan
-
-
 # MuJoCo's bound on qpos, qvel, qacc and ctrl (mjMAXVAL): beyond it, or NaN, the C library
 # warns of a bad value (mjWARN_BADQPOS/QVEL/QACC/CTRL) and resets the data, which the
 # reference counts as divergence; a sample beyond it counts as not finite here.
@@ -207,94 +189,6 @@ def select(pred: jax.Array, a: Any, b: Any) -> Any:
         return jnp.where(jnp.reshape(pred, jnp.shape(pred) + extra), u, v)
 
     return jax.tree_util.tree_map(pick, a, b)
-
-
-def joints(sensors: Sensors, d: mjx.Data) -> tuple[jax.Array, jax.Array]:
-    """Joint angles and rates (ankle, hip)."""
-    return d.qpos[sensors.joints_q], d.qvel[sensors.joints_v]
-
-
-def state(arrays: Arrays, q: jax.Array, dq: jax.Array) -> jax.Array:
-    """The convention state x [4] of joint angles and rates."""
-    return jnp.concatenate([arrays.to_state @ q, arrays.to_state @ dq])
-
-
-def measure(arrays: Arrays, sensors: Sensors, d: mjx.Data) -> Sample:
-    """The sample of ``d`` right after :func:`physics.advance` (positions at the new time)."""
-    return with_positions(measure_step(arrays, sensors, d), arrays, sensors, d)
-
-
-def measure_step(arrays: Arrays, sensors: Sensors, d: mjx.Data) -> Sample:
-    """The sample of ``d`` right after :func:`physics.step`, without what needs the positions at
-    the new time (``cell_low`` and ``com`` are NaN; :func:`with_positions` fills them in)."""
-    q, dq = joints(sensors, d)
-    cop, _ = load_cell_cop(d, sensors)
-    nan = jnp.full((), jnp.nan, d.qpos.dtype)
-    return Sample(q=q, dq=dq, x=state(arrays, q, dq), pitch=d.qpos[sensors.foot_pitch],
-                  cell_low=jnp.full((sensors.cells.shape[0],), nan), cop=cop, com=nan,
-                  magnitude=jnp.max(jnp.abs(jnp.concatenate([d.qpos, d.qvel, d.qacc, d.ctrl]))),
-                  qvel=d.qvel, com_vel=nan, mos_toe=nan, mos_heel=nan)
-
-
-def with_positions(s: Sample, arrays: Arrays, sensors: Sensors, d: mjx.Data) -> Sample:
-    """``s`` with the load-cell heights, the CoM, its velocity (from ``s.qvel``) and the
-    margins of stability of the body and geom positions in ``d``."""
-    com = whole_body_com(arrays.mx, d, sensors)
-    com_vel = com_velocity(arrays.mx, d, sensors, s.qvel)
-    _, mos_toe, mos_heel = margins(arrays, sensors, com, com_vel, d.geom_xpos[sensors.cells, 0])
-    return s._replace(cell_low=cell_heights(arrays.mx, d, sensors), com=com, com_vel=com_vel,
-                      mos_toe=mos_toe, mos_heel=mos_heel)
-
-
-def com_velocity(mx: mjx.Model, d: mjx.Data, sensors: Sensors, qvel: jax.Array) -> jax.Array:
-    """Horizontal velocity of the whole-body CoM (the foot's subtree): sum over its bodies of
-    m_b J_b qvel / M, J_b the Jacobian of the body's CoM (xipos) from the joint axes and
-    anchors of the positions in ``d`` (``mjx.kinematics``), as ``mj_jacSubtreeCom`` times
-    qvel in the reference. Slide and hinge joints only."""
-    bodies = np.asarray(sensors.subtree)
-    mass = mx.body_mass[bodies]
-    total = jnp.zeros((), qvel.dtype)
-    for j in range(int(mx.njnt)):
-        moved = np.array([_moves(mx, int(mx.jnt_bodyid[j]), int(b)) for b in bodies])
-        if not moved.any():
-            continue
-        dof, kind = int(mx.jnt_dofadr[j]), int(mx.jnt_type[j])
-        weight = mass[moved]
-        if kind == int(mujoco.mjtJoint.mjJNT_SLIDE):
-            velocity = d.xaxis[j] * weight.sum()
-        elif kind == int(mujoco.mjtJoint.mjJNT_HINGE):
-            lever = (weight[:, None] * (d.xipos[bodies[moved]] - d.xanchor[j])).sum(axis=0)
-            velocity = jnp.cross(d.xaxis[j], lever)
-        else:
-            raise ValueError("the CoM velocity supports slide and hinge joints only")
-        total = total + velocity[0] * qvel[dof]
-    return (total / mass.sum()).astype(qvel.dtype)
-
-
-def _moves(mx: mjx.Model, joint_body: int, body: int) -> bool:
-    """Whether a joint of ``joint_body`` moves ``body`` (it is that body or a descendant)."""
-    while body != joint_body and body > 0:
-        body = int(mx.body_parentid[body])
-    return body == joint_body
-
-
-def pendulum_frequency(arrays: Arrays, sensors: Sensors) -> jax.Array:
-    """omega0 = sqrt(g / l), l the whole-body CoM's height above the ankle axis at upright
-    rest (``arrays.d0``), as ``metrics.pendulum_frequency``."""
-    mass = arrays.mx.body_mass[sensors.subtree]
-    com_z = (mass * arrays.d0.xipos[sensors.subtree, 2]).sum() / mass.sum()
-    ankle = int(arrays.mx.dof_jntid[int(sensors.joints_v[0])])
-    return jnp.sqrt(jnp.abs(arrays.mx.opt.gravity[2]) / (com_z - arrays.d0.xanchor[ankle, 2]))
-
-
-def margins(arrays: Arrays, sensors: Sensors, com: jax.Array, com_vel: jax.Array,
-            cell_x: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
-    """(XcoM, toe margin, heel margin) of a sample from its CoM, CoM velocity and the load-cell
-    centres' x [4] (outcomes.support_edges, outcomes.stability_margins)."""
-    heel, toe = outcomes.support_edges(jnp, cell_x)
-    dtype = com.dtype
-    return tuple(v.astype(dtype) for v in outcomes.stability_margins(
-        jnp, com, com_vel, heel, toe, pendulum_frequency(arrays, sensors).astype(dtype)))
 
 
 def remember(history: jax.Array, s: Sample) -> jax.Array:
@@ -496,15 +390,6 @@ def conclude(arrays: Arrays, static: Static, pre: Prepared, res: admm_mod.ADMMRe
     return carry, u, torques
 
 
-def control(arrays: Arrays, static: Static, carry: Carry, k: jax.Array
-            ) -> tuple[Carry, jax.Array, jax.Array]:
-    """The MPC solve of control period k (:func:`prepare`, :func:`solve`, :func:`conclude`):
-    the carry, the input u [2] and the motor torques [2]. The MuJoCo C path's control step
-    (``cpath.py``); the MJX period (:func:`period`) adds the restart of a dead scenario."""
-    pre = prepare(arrays, static, carry)
-    return conclude(arrays, static, pre, solve(arrays, static, pre), k)
-
-
 def period(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: jax.Array,
            force: jax.Array, n_push: jax.Array) -> tuple[Carry, dict[str, jax.Array] | None]:
     """Control period k of one scenario: the MPC solve, then ``static.substeps`` physics steps.
@@ -523,21 +408,59 @@ def period_batch(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry,
     """:func:`period` of a batch of scenarios (every argument but ``arrays`` with a leading batch
     axis), the QPs solved by :func:`solve_batch` (``tile``: lanes per ADMM loop)."""
     rest = initial_carry(arrays, sensors, static)
-    pre = jax.vmap(lambda c: prepare(arrays, static, c, rest))(carry)
+    pre = prepare_batch(arrays, static, carry, rest)
     res = solve_batch(arrays, static, pre, tile)
-    return jax.vmap(lambda p, r, k, f, n: advance_period(arrays, sensors, static, p, r, k, f, n))(
-        pre, res, k, force, n_push)
+    carry, u, torques = conclude_batch(arrays, static, pre, res, k, rest)
+    return physics_batch(arrays, sensors, static, carry, k, force, n_push, torques=torques, u=u)
+
+
+def prepare_batch(arrays: Arrays, static: Static, carry: Carry, rest: Carry | None = None
+                  ) -> Prepared:
+    """:func:`prepare` over a batch of carries (``rest``: one carry, shared)."""
+    return jax.vmap(lambda c: prepare(arrays, static, c, rest))(carry)
+
+
+def solve_lanes(arrays: Arrays, static: Static, pre: Prepared) -> admm_mod.ADMMResult:
+    """:func:`solve` vmapped over a batch of :func:`prepare` results (the C path's solve)."""
+    return jax.vmap(lambda p: solve(arrays, static, p))(pre)
+
+
+def conclude_batch(arrays: Arrays, static: Static, pre: Prepared, res: admm_mod.ADMMResult,
+                   k: jax.Array, rest: Carry | None = None
+                   ) -> tuple[Carry, jax.Array, jax.Array]:
+    """:func:`conclude` over a batch (``rest``: one carry, shared)."""
+    return jax.vmap(lambda p, r, k: conclude(arrays, static, p, r, k, rest))(pre, res, k)
+
+
+def physics_batch(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: jax.Array,
+                  force: jax.Array, n_push: jax.Array, *, torques: jax.Array, u: jax.Array
+                  ) -> tuple[Carry, dict[str, jax.Array] | None]:
+    """:func:`physics_period` over a batch."""
+    return jax.vmap(lambda c, k, f, n, t, u: physics_period(arrays, sensors, static, c, k, f, n,
+                                                            torques=t, u=u))(
+        carry, k, force, n_push, torques, u)
 
 
 def advance_period(arrays: Arrays, sensors: Sensors, static: Static, pre: Prepared,
                    res: admm_mod.ADMMResult, k: jax.Array, force: jax.Array, n_push: jax.Array
                    ) -> tuple[Carry, dict[str, jax.Array] | None]:
-    """:func:`period` after the solve: :func:`conclude`, then ``static.substeps`` physics steps."""
+    """:func:`period` after the solve: :func:`conclude` (a dead scenario restarts from rest with
+    a cold controller; see the module docstring), then :func:`physics_period`."""
+    carry, u, torques = conclude(arrays, static, pre, res, k,
+                                 initial_carry(arrays, sensors, static))
+    return physics_period(arrays, sensors, static, carry, k, force, n_push, torques=torques, u=u)
+
+
+def physics_period(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: jax.Array,
+                   force: jax.Array, n_push: jax.Array, *, torques: jax.Array, u: jax.Array
+                   ) -> tuple[Carry, dict[str, jax.Array] | None]:
+    """The ``static.substeps`` physics steps of control period k with ``torques`` held (u: the
+    input they come from), each sample folded into the accumulators; with
+    ``static.trajectories``, the per-step series [S, ...]."""
     dtype = arrays.d0.qpos.dtype
     S = static.substeps
-    rest = initial_carry(arrays, sensors, static)
 
-    def fold(carry: Carry, s: Sample, i: jax.Array, torques: jax.Array, u: jax.Array) -> Carry:
+    def fold(carry: Carry, s: Sample, i: jax.Array) -> Carry:
         """Carry after the complete sample ``s`` of physics step ``i``."""
         acc = sample_update(carry.acc, s, i, torques, u, carry.q_prev, carry.x_prev,
                             limits_of(arrays, static))
@@ -550,11 +473,11 @@ def advance_period(arrays: Arrays, sensors: Sensors, static: Static, pre: Prepar
         """The new physics state and the controller's (delayed) measurement buffer."""
         return carry._replace(d=d, history=remember(carry.history, s))
 
-    def physics_step(carry: Carry, i: jax.Array, torques: jax.Array, u: jax.Array):
+    def physics_step(carry: Carry, i: jax.Array):
         """Step i, then its sample: positions from an extra ``mjx.kinematics``."""
         d = advance(arrays.mx, sensors, carry.d, torques, push(i), static.push_at_hip)
         s = measure(arrays, sensors, d)
-        carry = fold(record(carry, d, s), s, i, torques, u)
+        carry = fold(record(carry, d, s), s, i)
         out = None
         if static.trajectories:  # NaN from the fall sample on (the run is reset)
             out = dict(qpos=d.qpos, qvel=d.qvel, tau=torques, u=u, cop=s.cop, com=s.com)
@@ -562,34 +485,29 @@ def advance_period(arrays: Arrays, sensors: Sensors, static: Static, pre: Prepar
                    for k, v in out.items()}
         return carry, out
 
-    def lean_step(state: tuple[Carry, Sample], i: jax.Array, torques: jax.Array,
-                  u: jax.Array):
+    def lean_step(state: tuple[Carry, Sample], i: jax.Array):
         """Step i; the positions its start computed complete sample i - 1 (``pending``,
         folded unless i starts the period), and sample i waits for the next step's."""
         carry, pending = state
         d = step(arrays.mx, sensors, carry.d, torques, push(i), static.push_at_hip)
-        folded = fold(carry, with_positions(pending, arrays, sensors, d), i - 1, torques, u)
+        folded = fold(carry, with_positions(pending, arrays, sensors, d), i - 1)
         kept = select(i > k * S, (folded.acc, folded.q_prev, folded.x_prev),
                       (carry.acc, carry.q_prev, carry.x_prev))
         carry = carry._replace(acc=kept[0], q_prev=kept[1], x_prev=kept[2])
         s = measure_step(arrays, sensors, d)
         return (record(carry, d, s), s), None
 
-    # A dead scenario restarted from rest with a cold controller (see the module docstring).
-    carry, u, torques = conclude(arrays, static, pre, res, k, rest)
-
     steps = k * S + jnp.arange(S, dtype=jnp.int32)
     if static.trajectories or static.push_at_hip:
         # the series are read step by step, and the push at the hip needs the positions at
         # the step's start: one mjx.kinematics per step
-        return jax.lax.scan(lambda c, i: physics_step(c, i, torques, u), carry, steps)
+        return jax.lax.scan(physics_step, carry, steps)
     # lean: a sample's positions are those the next step computes at its start; the period's
     # last sample takes them from one mjx.kinematics, so no sample is pending between periods
-    (carry, last), _ = jax.lax.scan(lambda cs, i: lean_step(cs, i, torques, u),
-                                    (carry, measure_step(arrays, sensors, carry.d)), steps)
+    (carry, last), _ = jax.lax.scan(lean_step, (carry, measure_step(arrays, sensors, carry.d)),
+                                    steps)
     positions = mjx.kinematics(arrays.mx, carry.d)
-    return (fold(carry, with_positions(last, arrays, sensors, positions), steps[-1], torques, u),
-            None)
+    return fold(carry, with_positions(last, arrays, sensors, positions), steps[-1]), None
 
 
 def scenario(arrays: Arrays, sensors: Sensors, static: Static, force: jax.Array,

@@ -1,12 +1,12 @@
-"""MJX physics of the balance model and the measurements read out of ``mjx.Data``.
+"""MJX physics of the balance model: the model, the rest state, the steps.
 
 A sample is read after every physics step, at t = (i+1) dt: joints and velocities at the new
 time, contacts and constraint forces those that acted during the step (as the reference leaves
 them after ``mj_step`` + ``mj_kinematics``), body and geom positions at the new time. ``mjx.step``
 computes positions at its start only, so those of t = (i+1) dt come either from an extra
 ``mjx.kinematics`` (:func:`advance`) or, for free, from the next step (:func:`step`; the
-closed loop reads them there, ``kernel.period``). The load-cell CoP, the whole-body CoM and the
-load-cell heights are then read with the static addresses of :class:`Sensors`.
+closed loop reads them there, ``kernel.period``). What a sample holds is read by
+``sensing.py``.
 
 MJX options (:data:`MJX_OPTIONS`), chosen for speed on the CPU and justified by the agreement
 tests in tests/test_rollout.py:
@@ -32,7 +32,7 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import io
-from typing import Any, NamedTuple
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -49,9 +49,10 @@ else:
     with contextlib.redirect_stdout(io.StringIO()):
         from mujoco import mjx
 
-from ..model.mjcf import indices, mjcf
+from ..model.mjcf import mjcf
 from ..model.params import Config
 from ..runtime.version import check_mujoco
+from .sensing import Sensors, cell_heights, load_cell_cop, whole_body_com
 
 MJX_OPTIONS: dict[str, Any] = {
     "solver": int(mujoco.mjtSolver.mjSOL_NEWTON),
@@ -154,87 +155,6 @@ def rest_data(model: mujoco.MjModel, dtype=jnp.float32) -> mjx.Data:
         return x
 
     return jax.tree_util.tree_map(match, d, stepped)
-
-
-# --------------------------------------------------------------------------------------------
-# Reading a sample out of mjx.Data
-
-
-class Sensors(NamedTuple):
-    """Static (numpy) addresses for reading a sample out of mjx.Data."""
-
-    joints_q: np.ndarray  # [2] qpos addresses of ankle, hip
-    joints_v: np.ndarray  # [2] dof addresses of ankle, hip
-    foot_pitch: int  # qpos address
-    upper_body: int
-    subtree: np.ndarray  # [k] bodies of the foot's subtree (the whole body)
-    cells: np.ndarray  # [4] load-cell geoms
-    cell_radius: np.ndarray  # [4]
-    cell_contacts: np.ndarray  # [c] contacts that involve a load cell
-    contact_efc: np.ndarray  # [c, w] their efc rows (pyramid edges)
-
-
-def sensors(model: mujoco.MjModel, d0: mjx.Data) -> Sensors:
-    """Addresses of ``model``; the contact layout (fixed in MJX) is read from ``d0``."""
-    if model.opt.cone != mujoco.mjtCone.mjCONE_PYRAMIDAL:
-        raise ValueError("the load-cell CoP reads pyramidal contact forces; use cone=pyramidal")
-    ix = indices(model)
-    contact = d0._impl.contact
-    geom = np.asarray(contact.geom)
-    dim = np.asarray(contact.dim)
-    efc_address = np.asarray(contact.efc_address)
-    cells = np.array(ix.cell_geoms)
-    ids, rows = [], []
-    for c in range(geom.shape[0]):
-        if np.isin(geom[c], cells).any() and efc_address[c] >= 0:
-            # pyramidal cone: 2 (condim - 1) edges whose sum is the normal force
-            width = 1 if dim[c] == 1 else 2 * (int(dim[c]) - 1)
-            ids.append(c)
-            rows.append(efc_address[c] + np.arange(width))
-    if not rows or len({len(r) for r in rows}) != 1:
-        raise ValueError("expected load-cell contacts, all of one dimension")
-    body_ids = np.arange(model.nbody)
-    in_subtree = np.array([_is_descendant(model, b, ix.foot_body) for b in body_ids])
-    return Sensors(
-        joints_q=np.array([ix.ankle_qpos, ix.hip_qpos]),
-        joints_v=np.array([ix.ankle_dof, ix.hip_dof]),
-        foot_pitch=ix.foot_pitch, upper_body=ix.upper_body,
-        subtree=body_ids[in_subtree], cells=cells,
-        cell_radius=np.asarray(model.geom_size[cells, 0]),
-        cell_contacts=np.array(ids), contact_efc=np.stack(rows),
-    )
-
-
-def _is_descendant(model: mujoco.MjModel, body: int, root: int) -> bool:
-    while body != root and body > 0:
-        body = int(model.body_parentid[body])
-    return body == root
-
-
-def load_cell_cop(d: mjx.Data, sensors: Sensors) -> tuple[jax.Array, jax.Array]:
-    """(CoP x, total normal force) of the load-cell contacts acting in ``d``.
-
-    As ``metrics.load_cell_cop``: sum F_i x_i / sum F_i, F_i the normal force of a pyramidal
-    contact (the sum of its edge forces, as ``mj_contactForce`` decodes it), x_i the contact
-    point found by the step's collision. NaN when the load cells carry nothing.
-    """
-    normal = d._impl.efc_force[sensors.contact_efc].sum(axis=-1)
-    x = d._impl.contact.pos[sensors.cell_contacts, 0]
-    total = normal.sum()
-    loaded = total > 0
-    cop = jnp.where(loaded, (normal * x).sum() / jnp.where(loaded, total, 1.0), jnp.nan)
-    return cop.astype(normal.dtype), total
-
-
-def whole_body_com(mx: mjx.Model, d: mjx.Data, sensors: Sensors) -> jax.Array:
-    """Horizontal CoM of the foot's subtree from the current body positions (subtree_com x)."""
-    mass = mx.body_mass[sensors.subtree]
-    return (mass * d.xipos[sensors.subtree, 0]).sum() / mass.sum()
-
-
-def cell_heights(mx: mjx.Model, d: mjx.Data, sensors: Sensors) -> jax.Array:
-    """Lowest point (centre z - radius) of each load-cell sphere [4]."""
-    return d.geom_xpos[sensors.cells, 2] - mx.geom_size[sensors.cells, 0]
 
 
 def step(mx: mjx.Model, sensors: Sensors, d: mjx.Data, torques: jax.Array, force: jax.Array,

@@ -36,7 +36,8 @@ from .cpath import CEngine, unsupported
 from .engine import Engine
 from .kernel import Accumulators, Arrays, Static, scenario, split_limits
 from ..model.mjcf import settled_rest
-from .physics import canonical_hfield_bounds, mj_model, mjx_model, rest_data, sensors
+from .physics import canonical_hfield_bounds, mj_model, mjx_model, rest_data
+from .sensing import sensors
 
 
 def push_steps(durations: np.ndarray, physics_dt: float) -> np.ndarray:

@@ -197,10 +197,10 @@ def batch_function(config: Config, *, slots: int | None = None, full_length: boo
                    physics: str = "auto", backend: str = "mjx"):
     """The batch function of ``sweep`` and ``table``: the batched closed loop of ``config`` on
     the continuous-batching engine, built and compiled on its first call (with the persistent
-    compilation cache on, :func:`mjx_balance.runtime.cache.enable`). ``physics``: "mjx", "c" (MuJoCo C
-    stepped on a thread pool, the ADMM in JAX) or "auto" (docs/engine.md). ``backend``
-    "reference": the scalar reference loop instead, scenario by scenario (:class:`ReferenceBatch`:
-    the report's small plans)."""
+    compilation cache on, :func:`mjx_balance.runtime.cache.enable`). ``physics``: "mjx", "c"
+    (MuJoCo C stepped on a thread pool, the ADMM in JAX) or "auto" (docs/engine.md).
+    ``backend`` "reference": the scalar reference loop instead, scenario by scenario
+    (:class:`ReferenceBatch`: the report's small plans)."""
     if backend == "reference":
         return ReferenceBatch(config)
     if backend != "mjx":
@@ -210,11 +210,13 @@ def batch_function(config: Config, *, slots: int | None = None, full_length: boo
 def run_region(out: str | os.PathLike[str], config: Config, forces: Values, durations: Values,
                *, run_batch: Any = None, chunk: int | None = None, slots: int | None = None,
                full_length: bool = False, progress: bool | None = None,
-               wait: bool = False, cluster: Any = None, physics: str = "auto") -> "SweepResult":
+               wait: bool = False, cluster: Any = None, physics: str = "auto",
+               say: Any = log.info) -> "SweepResult":
     """The region sweep into the folder ``out`` (resumable; ``sweep.run_sweep``) under its lock
     (``wait``: wait for another run that holds it). ``run_batch``: a batch function (default:
     :func:`batch_function`); ``cluster``: run the chunks on a Dask cluster (``"local:N"``, a
-    scheduler address or file, or a ``distributed.Client``; docs/cluster.md). Returns the
+    scheduler address or file, or a ``distributed.Client``; docs/cluster.md); ``say``: where
+    the sweep's lines go (default: the ``mjx_balance`` logger; None: nowhere). Returns the
     SweepResult (the command line draws its figures)."""
     forces = grid_values(forces, "forces")
     durations = duration_values(durations, config)
@@ -227,19 +229,22 @@ def run_region(out: str | os.PathLike[str], config: Config, forces: Values, dura
     cache.enable()
     with folder_lock(out, wait=wait):
         return run_sweep(out, config, forces, durations, run_batch=run_batch, chunk_size=chunk,
-                         progress=progress, log=log.info, cluster=cluster)
+                         progress=progress, log=say, cluster=cluster)
 
 
 def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values, *,
                      run_batch: Any = None, batch: int | None = None, slots: int | None = None,
                      full_length: bool = False, progress: bool | None = None,
                      wait: bool = False, cluster: Any = None,
-                     physics: str = "auto") -> "TableResult | None":
+                     physics: str = "auto", sustained: bool = True,
+                     say: Any = log.info) -> "TableResult | None":
     """The max-acting-time table into the folder ``out`` (``sweep.run_table``: resumable, the
     scenarios it ran kept) under its lock. ``batch``: scenarios per call (default:
-    ``sweep.table_batch_size``); ``cluster``: run each round's calls on a Dask cluster (as
-    :func:`run_region`; the same table). Returns None when the folder already held this
-    table."""
+    ``sweep.table_batch_size``; the scalar reference loop, :class:`ReferenceBatch`, runs
+    scenario by scenario and bisects, one point per round); ``cluster``: run each round's
+    calls on a Dask cluster (as :func:`run_region`; the same table); ``sustained``: also the
+    sustained-push limit; ``say``: as :func:`run_region`'s. Returns None when the folder
+    already held this table."""
     forces = grid_values(forces, "forces")
     batch, slots = size_value(batch, "batch"), size_value(slots, "slots")
     if run_batch is None or isinstance(run_batch, LazyBatch):  # the batched engine's run
@@ -247,9 +252,9 @@ def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values
     if run_batch is None:
         run_batch = batch_function(config, slots=slots, full_length=full_length,
                                    physics=physics)
-    if batch is None:
+    if batch is None and not isinstance(run_batch, ReferenceBatch):
         batch = table_batch_size(config, forces.size)
     cache.enable()
     with folder_lock(out, wait=wait):
         return run_table(out, config, forces, run_batch=run_batch, batch=batch,
-                         progress=progress, log=log.info, cluster=cluster)
+                         progress=progress, log=say, cluster=cluster, sustained=sustained)

@@ -7,8 +7,9 @@ table under every reading of the study (convention x plain/offset-free MPC, sens
 sensitivity/, whose section report/extra.py draws. Each of these is one function
 below, given the :class:`ReportRun` that holds what they share. A finished step is not rerun:
 the time series and the weight study are recorded in report.json with their parameters
-(:func:`run_stage`), and the sweeps resume chunk by chunk (``sweep.run_sweep``,
-``sweep.run_table``).
+(:func:`run_stage`), and the region maps and tables run into their folders as every caller
+runs them (``runs.folders.run_region``, ``run_table_folder``: resumable, under each folder's
+lock).
 """
 
 from __future__ import annotations
@@ -30,8 +31,8 @@ from ..measures.outcomes import SUMMARY_COLUMNS
 from ..model.params import CONVENTIONS, Config, ParameterError
 from ..model.config_files import dumps_config, with_convention
 from ..runs import (DEFAULT_SWEEP, STUDY_TABLE_FORCES, SweepDefinition, default_chunk_size,
-                    parse_grid, run_sweep, run_table)
-from ..runs.folders import batch_function
+                    parse_grid)
+from ..runs.folders import batch_function, run_region, run_table_folder
 from ..store.files import write_csv, write_parquet, write_text
 from ..reference.loop import simulate_scenario
 from ..reference.loop import simulate_many
@@ -141,13 +142,14 @@ class Batches:
 
     def sweep(self, folder: Path, config: Config, forces: np.ndarray, durations: np.ndarray,
               chunk: int, quiet: bool) -> None:
-        """run_sweep, or a copy of an identical sweep made earlier in this report."""
+        """``runs.folders.run_region``, or a copy of an identical sweep made earlier in this
+        report."""
         key = (config, tuple(forces), tuple(durations))
         done = self._regions.get(key)
         if done is not None and not (folder / "region.parquet").exists():
             shutil.copytree(done, folder, dirs_exist_ok=True)
-        run_sweep(folder, config, forces, durations, run_batch=self(config), chunk_size=chunk,
-                  progress=not quiet, log=None if quiet else print, cluster=self.cluster)
+        run_region(folder, config, forces, durations, run_batch=self(config), chunk=chunk,
+                   progress=not quiet, say=None if quiet else print, cluster=self.cluster)
         self._regions.setdefault(key, folder)
 
 
@@ -328,10 +330,15 @@ def table_stage(run: ReportRun, convention: str) -> None:
     cfg = with_convention(run.config, convention)
     run.log.stage(f"{convention}: robustness table, {len(run.plan.table_forces)} forces "
                   f"({run.backend})")
-    run_table(run.out / convention / "table", cfg, list(run.plan.table_forces),
-              run_batch=run.batches(cfg),
-              batch=None if run.backend == "reference" else run.chunk,
-              progress=not run.quiet, log=run.sweep_log, sustained=run.plan.sustained)
+    table_folder(run, run.out / convention / "table", cfg)
+
+
+def table_folder(run: ReportRun, folder: Path, cfg: Config) -> None:
+    """The plan's table of ``cfg`` into ``folder`` (``runs.folders.run_table_folder``; the
+    reference loop bisects, the engine takes the report's chunk per call)."""
+    run_table_folder(folder, cfg, list(run.plan.table_forces), run_batch=run.batches(cfg),
+                     batch=None if run.backend == "reference" else run.chunk,
+                     progress=not run.quiet, say=run.sweep_log, sustained=run.plan.sustained)
 
 
 def run_experiments(run: ReportRun, convention: str) -> None:
@@ -422,9 +429,7 @@ def run_sensitivity_stage(run: ReportRun) -> None:
         if (cfg == with_convention(run.config, convention) and (done / "table.csv").exists()
                 and not (folder / key / "table.csv").exists()):
             shutil.copytree(done, folder / key, dirs_exist_ok=True)
-        run_table(folder / key, cfg, list(run.plan.table_forces), run_batch=run.batches(cfg),
-                  batch=None if run.backend == "reference" else run.chunk,
-                  progress=not run.quiet, log=run.sweep_log, sustained=run.plan.sustained)
+        table_folder(run, folder / key, cfg)
         tables[key] = pd.read_csv(folder / key / "table.csv")
     sensitivity.write_sensitivity(folder, tables, say=run.sweep_log or (lambda _m: None))
 
@@ -445,7 +450,8 @@ def start_report(out: Path, config: Config, plan: Plan, *, backend: str,
     forces = parse_grid(plan.region_forces, "region forces")
     durations = parse_grid(plan.region_durations, "region durations")
     return ReportRun(out=out, config=config, plan=plan, backend=backend, record=record, log=log,
-                     batches=Batches(backend, physics=physics), region_forces=forces, region_durations=durations,
+                     batches=Batches(backend, physics=physics), region_forces=forces,
+                     region_durations=durations,
                      chunk=sweep_chunk_size(config, backend, forces.size * durations.size),
                      sweeps=sweeps, quiet=quiet)
 
