@@ -202,9 +202,9 @@ def warm_up(engine) -> None:
     (its first execution, outside the runs: vacant slots idle at rest, as after any run)."""
     n = engine.refill * engine.n_devices
     args = engine.offer_args(np.full(n, -1, np.int32), np.zeros(n), np.zeros(n, np.int32),
-                             np.zeros((n, 4)))
+                             np.zeros((n, 4)), np.zeros(n, np.int32))
     state = engine._take_state()
-    state, *_ = engine.block_fn()(engine.runner.arrays, engine.cert, state, *args)
+    state, *_ = engine.block_fn()(engine.arrays, engine.cert, state, *args)
     engine._state = jax.block_until_ready(state)
 
 

@@ -86,7 +86,7 @@ class Stages:
         self.split, whole = r._shardings()
         self.stacked = (None if self.mesh is None else jax.sharding.NamedSharding(
             self.mesh, jax.sharding.PartitionSpec(None, "batch")))
-        leaves, self.treedef = jax.tree.flatten((r.arrays, engine.cert))
+        leaves, self.treedef = jax.tree.flatten((engine.arrays, engine.cert))
         self.leaves = tuple(leaves if whole is None else jax.device_put(leaves, whole))
         self.fns: dict[Any, Any] = {}
         self.overhead: dict[str, float] = {}
@@ -254,7 +254,7 @@ def call_cost(engine, stages: Stages, tail: tuple, repeats: int = 9) -> dict[str
     r = engine.runner
     fn = engine.block_fn()
     c_path = isinstance(engine, cpath.CEngine)
-    head = (engine._leaves,) if c_path else (r.arrays, engine.cert)
+    head = (engine._leaves,) if c_path else (engine.arrays, engine.cert)
     shapes = (jax.eval_shape(fn, *head, *stages.put(tail)) if c_path  # (jit's own trace)
               else fn.out_info)
     def run(*args):

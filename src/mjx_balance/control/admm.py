@@ -462,9 +462,10 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
 
 
 def admm_solve_batch(data: ADMMData, x0: jax.Array, warm: ADMMWarm, settings: ADMMSettings,
-                     tile: int | None = None, offset: jax.Array | None = None) -> ADMMResult:
+                     tile: int | None = None, offset: jax.Array | None = None,
+                     data_axis: int | None = None) -> ADMMResult:
     """``admm_solve`` vmapped over x0 [B, 4], warm ([B, n], [B, m]) and offset ([B, m] or
-    None); data shared.
+    None); data shared, or (``data_axis`` 0) one QP per lane, every leaf [B, ...].
 
     With ``tile`` (a divisor of B), the batch is solved as B / tile sequential tiles
     (``lax.map`` over a vmapped solve): each tile's iterates stay in cache, and a tile whose
@@ -472,18 +473,23 @@ def admm_solve_batch(data: ADMMData, x0: jax.Array, warm: ADMMWarm, settings: AD
     Every lane's iterates are the same whatever its tile: a lane that stopped is held, not
     iterated, while its tile runs on.
     """
-    solve = jax.vmap(lambda x, w, o: admm_solve(data, x, w, settings, o),
-                     in_axes=(0, 0, None if offset is None else 0))
+    solve = jax.vmap(lambda d, x, w, o: admm_solve(d, x, w, settings, o),
+                     in_axes=(data_axis, 0, 0, None if offset is None else 0))
     batch = x0.shape[0]
     if tile is None or tile >= batch:
-        return solve(x0, warm, offset)
+        return solve(data, x0, warm, offset)
     if batch % tile:
         raise ValueError(f"tile {tile} must divide the batch size {batch}")
 
     def split(a):
         return a.reshape((batch // tile, tile) + a.shape[1:])
 
-    out = jax.lax.map(lambda args: solve(*args),
-                      (split(x0), jax.tree.map(split, warm),
-                       None if offset is None else split(offset)))
+    if data_axis is None:
+        out = jax.lax.map(lambda args: solve(data, *args),
+                          (split(x0), jax.tree.map(split, warm),
+                           None if offset is None else split(offset)))
+    else:
+        out = jax.lax.map(lambda args: solve(*args),
+                          (jax.tree.map(split, data), split(x0), jax.tree.map(split, warm),
+                           None if offset is None else split(offset)))
     return jax.tree.map(lambda a: a.reshape((batch,) + a.shape[2:]), out)

@@ -432,7 +432,8 @@ class CEngine(Engine):
         n = self.slots * self.n_devices
         carry = broadcast(initial_carry(arrays, r.sensors, r.static)._replace(d=None), n)
         slots = Slots(carry=carry, cell=jnp.full(n, -1, jnp.int32), force=jnp.zeros(n, r.dtype),
-                      n_push=jnp.zeros(n, jnp.int32), k=jnp.zeros(n, jnp.int32))
+                      n_push=jnp.zeros(n, jnp.int32), k=jnp.zeros(n, jnp.int32),
+                      body=jnp.zeros(n, jnp.int32))
         return CState(slots=slots, ran=jnp.zeros(n, bool), torques=jnp.zeros((n, 2), r.dtype),
                       u=jnp.zeros((n, 2), r.dtype))
 
@@ -514,7 +515,7 @@ class CEngine(Engine):
             while remaining:
                 signals.check()  # a checkpoint: a signal dropped where it landed ends the run
                 with probe("python"):
-                    cells, f, pp, _ = queue.offer()
+                    cells, f, pp, *_ = queue.offer()
                     floats, ints = pack(rows, last_qpos, cells, f, pp, p, r.dtype)
                 with probe("transfers"):
                     args = (self._put(floats), self._put(ints))

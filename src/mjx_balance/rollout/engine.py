@@ -26,6 +26,7 @@ from __future__ import annotations
 import contextlib
 import time as _time
 import warnings
+from collections.abc import Sequence
 from typing import Any, Iterator, NamedTuple
 
 import jax
@@ -36,7 +37,8 @@ from ..control import certificate as cert_mod
 from ..runtime import signals
 from ..runtime.xla import deterministic_flags
 from ..runtime.compiled import get_or_compile
-from .kernel import Accumulators, Arrays, Carry, initial_carry, period_batch, select, start
+from .kernel import (Accumulators, Arrays, Carry, initial_carry, lane_arrays, period_batch,
+                     rest_of, select, start)
 from .sensing import whole_body_com
 
 def default_slots(platform: str) -> int:
@@ -53,6 +55,7 @@ class Slots(NamedTuple):
     force: jax.Array
     n_push: jax.Array  # int32
     k: jax.Array  # int32 control periods done
+    body: jax.Array  # int32 the scenario's body (lanes; 0 when the engine has one shared body)
 
 
 class Finished(NamedTuple):
@@ -89,11 +92,14 @@ def broadcast(tree, n):
 
 
 def refill(slots: Slots, rest: Carry, taken, vacant, refill_cell, refill_force, refill_push,
-           starts: Carry | None = None) -> tuple[Slots, jax.Array]:
+           starts: Carry | None = None, refill_body=None) -> tuple[Slots, jax.Array]:
     """Vacant slots take the next refill cells, in slot order (``taken`` already used).
     ``starts`` [R]: each refill cell's first carry (:func:`kernel.start`, a per-scenario
-    initial state); None: upright rest (``rest``)."""
+    initial state); None: upright rest (``rest``). ``refill_body`` [R]: each cell's body
+    (lanes; None: 0)."""
     R = refill_cell.shape[0]
+    if refill_body is None:
+        refill_body = jnp.zeros(R, jnp.int32)
     rank = taken + jnp.cumsum(vacant) - 1
     source = jnp.clip(rank, 0, R - 1)
     take = vacant & (rank < R) & (refill_cell[source] >= 0)
@@ -104,6 +110,7 @@ def refill(slots: Slots, rest: Carry, taken, vacant, refill_cell, refill_force, 
         force=jnp.where(take, refill_force[source], slots.force),
         n_push=jnp.where(take, refill_push[source], slots.n_push),
         k=jnp.where(take, 0, slots.k),
+        body=jnp.where(take, refill_body[source], slots.body),
     )
     return slots, taken + take.sum(dtype=jnp.int32)
 
@@ -157,11 +164,11 @@ def vacate(decided, rest: Carry, carry: Carry, slots: Slots, k) -> Slots:
     idles at rest, unpushed, until it is refilled)."""
     return Slots(carry=select(decided, rest, carry), cell=jnp.where(decided, -1, slots.cell),
                  force=jnp.where(decided, 0, slots.force),
-                 n_push=jnp.where(decided, 0, slots.n_push), k=k)
+                 n_push=jnp.where(decided, 0, slots.n_push), k=k, body=slots.body)
 
 
 def take(slots: Slots, rest: Carry, taken, s, refill_cell, refill_force, refill_push,
-         starts: Carry | None, *, gated: bool) -> tuple[Slots, jax.Array]:
+         starts: Carry | None, *, gated: bool, refill_body=None) -> tuple[Slots, jax.Array]:
     """Step 1 of a period (``s``: its index in the call): vacant slots take the next refill
     cells, in slot order. ``gated`` (with the certificate): only every ``CHECK_EVERY`` periods,
     so that every scenario's k is a multiple of it when it is checked (a check skipped for the
@@ -169,7 +176,8 @@ def take(slots: Slots, rest: Carry, taken, s, refill_cell, refill_force, refill_
     vacant = slots.cell < 0
     if gated:
         vacant = vacant & (s % cert_mod.CHECK_EVERY == 0)
-    return refill(slots, rest, taken, vacant, refill_cell, refill_force, refill_push, starts)
+    return refill(slots, rest, taken, vacant, refill_cell, refill_force, refill_push, starts,
+                  refill_body)
 
 
 def decide(check, static, n_control, carry: Carry, k, n_push, busy, due
@@ -199,51 +207,70 @@ def empty_finished(capacity: int, dtype) -> Finished:
         periods=jnp.zeros(capacity, jnp.int32), certified=jnp.zeros(capacity, bool))
 
 
-def checker(cert, periods: int | None = None):
-    """The vmapped certificate test, or None without a certificate."""
+def checker(cert, periods: int | None = None, axis: int | None = None):
+    """The vmapped certificate test, or None without a certificate (``axis`` 0: ``cert`` has
+    one certificate per lane, every leaf [B, ...])."""
     if cert is None:
         return None
     if periods is not None and periods % cert_mod.CHECK_EVERY:
         raise ValueError(f"block of {periods} periods: not a multiple of {cert_mod.CHECK_EVERY}")
-    return jax.vmap(lambda x, acc, over, left: cert_mod.check(jnp, cert, x, acc, over, left))
+    check = jax.vmap(lambda c, x, acc, over, left: cert_mod.check(jnp, c, x, acc, over, left),
+                     in_axes=(axis, 0, 0, 0, 0))
+    return lambda x, acc, over, left: check(cert, x, acc, over, left)
 
 
-def opened(arrays, sensors, static, slots: Slots, refill_init, packing: Packing
-           ) -> tuple[Slots, Carry, Carry]:
+def opened(arrays, sensors, static, slots: Slots, refill_init, packing: Packing,
+           refill_body=None) -> tuple[Slots, Carry, Carry]:
     """A call's start: the slots with their carry unpacked (:class:`Packing`), upright rest
-    for every slot, and each refill cell's first carry (from its initial joint state)."""
+    (shared arrays: every slot's [S]; lanes, ``refill_body`` given: each body's
+    [n_bodies]), and each refill cell's first carry (from its initial joint state)."""
     n = slots.cell.shape[0]
-    single = initial_carry(arrays, sensors, static)
-    starts = jax.vmap(lambda init: start(arrays, sensors, single, init))(refill_init)
-    return (slots._replace(carry=packing.unpack(slots.carry, n)), broadcast(single, n), starts)
+    slots = slots._replace(carry=packing.unpack(slots.carry, n))
+    if refill_body is None:
+        single = initial_carry(arrays, sensors, static)
+        starts = jax.vmap(lambda init: start(arrays, sensors, single, init))(refill_init)
+        return slots, broadcast(single, n), starts
+    rests = rest_of(arrays, sensors, static, 0)
+    starts = jax.vmap(lambda a, r, init: start(a, sensors, r, init))(
+        lane_arrays(arrays, refill_body), lane_arrays(rests, refill_body), refill_init)
+    return slots, rests, starts
 
 
 def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_force, refill_push,
-          refill_init, periods: int, early: bool, packing: Packing, tile: int | None = None):
+          refill_init, refill_body, periods: int, early: bool, packing: Packing,
+          tile: int | None = None, lanes: bool = False):
     """``periods`` control periods of one device's slots with refill and harvest (pure JAX).
 
     refill_*: [R] the next cells for this device (cell -1: none), refill_init [R, 4] their
-    initial joint states (0: upright rest). Returns the slots, the number of refill cells
-    taken [1] and the finished buffer [slots + R]. ``slots.carry`` is packed
-    (:class:`Packing`).
+    initial joint states (0: upright rest), refill_body [R] their bodies. Returns the slots,
+    the number of refill cells taken [1] and the finished buffer [slots + R]. ``slots.carry``
+    is packed (:class:`Packing`). ``lanes``: ``arrays`` and ``cert`` hold one body each
+    [n_bodies, ...] and every slot runs its scenario's body (``kernel.lane_arrays``);
+    otherwise they are shared by every slot.
     """
     S = slots.cell.shape[0]
-    slots, rest, starts = opened(arrays, sensors, static, slots, refill_init, packing)
+    slots, rest, starts = opened(arrays, sensors, static, slots, refill_init, packing,
+                                 refill_body if lanes else None)
     every = cert_mod.CHECK_EVERY
-    check = checker(cert if early else None, periods)
+    axis = 0 if lanes else None
 
     def step(state, s):
         slots, taken, done, n_done = state
         # 1. refill; 2. one control period of every slot; 3. decide; 4. harvest and vacate
         slots, taken = take(slots, rest, taken, s, refill_cell, refill_force, refill_push,
-                            starts, gated=check is not None)
-        carry = period_batch(arrays, sensors, static, slots.carry, slots.k, slots.force,
-                             slots.n_push, tile)[0]
+                            starts, gated=early and cert is not None, refill_body=refill_body)
+        body, body_cert, body_rest = ((lane_arrays(arrays, slots.body),
+                                       None if cert is None else lane_arrays(cert, slots.body),
+                                       lane_arrays(rest, slots.body)) if lanes
+                                      else (arrays, cert, rest))
+        check = checker(body_cert if early else None, periods, axis)
+        carry = period_batch(body, sensors, static, slots.carry, slots.k, slots.force,
+                             slots.n_push, tile, axis)[0]
         k = slots.k + 1
-        acc, certified, decided = decide(check, static, arrays.n_control, carry, k,
+        acc, certified, decided = decide(check, static, body.n_control, carry, k,
                                          slots.n_push, slots.cell >= 0, s % every == every - 1)
         done, n_done, slots = retire(done, n_done, decided, slots, acc, k, certified,
-                                     carry=carry, rest=rest)
+                                     carry=carry, rest=body_rest)
         return (slots, taken, done, n_done), None
 
     done = empty_finished(S + refill_cell.shape[0], arrays.d0.qpos.dtype)
@@ -271,10 +298,12 @@ class Queue:
     """
 
     def __init__(self, forces: np.ndarray, n_push: np.ndarray, devices: int, refill: int,
-                 inits: np.ndarray | None = None, block: int = 1):
+                 inits: np.ndarray | None = None, block: int = 1,
+                 bodies: np.ndarray | None = None):
         self.forces, self.n_push = forces, n_push
         n = forces.shape[0]
         self.inits = np.zeros((n, 4)) if inits is None else inits
+        self.bodies = np.zeros(n, np.int32) if bodies is None else bodies
         self.D, self.R, self.block = devices, refill, block
         self.pending = np.argsort(np.abs(forces), kind="stable")
         self.length = np.full(n, -1, np.int64)  # control periods of a finished cell
@@ -284,8 +313,9 @@ class Queue:
         self._per: list[np.ndarray] = []
 
     def _features(self) -> np.ndarray:
-        """Each cell's (force, log push steps, initial state) scaled to [-1, 1] per column."""
-        cols = np.column_stack([self.forces, np.log1p(self.n_push), self.inits])
+        """Each cell's (force, log push steps, initial state, body) scaled to [-1, 1] per
+        column."""
+        cols = np.column_stack([self.forces, np.log1p(self.n_push), self.inits, self.bodies])
         span = np.abs(cols).max(axis=0)
         return cols[:, span > 0] / span[span > 0]
 
@@ -308,9 +338,9 @@ class Queue:
         expected = ran[known][near]
         self.pending = self.pending[np.argsort(-expected, kind="stable")]
 
-    def offer(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def offer(self) -> tuple[np.ndarray, ...]:
         """(cells [D R], -1: none; their forces; their push steps; their initial joint states
-        [D R, 4]) for the next call."""
+        [D R, 4]; their bodies) for the next call."""
         D, R = self.D, self.R
         self._order()
         offer = self.pending[:D * R]
@@ -324,7 +354,9 @@ class Queue:
         f[used], p[used] = self.forces[cells[used]], self.n_push[cells[used]]
         init = np.zeros((D * R, 4), np.float64)
         init[used] = self.inits[cells[used]]
-        return cells, f, p, init
+        body = np.zeros(D * R, np.int32)
+        body[used] = self.bodies[cells[used]]
+        return cells, f, p, init, body
 
     def took(self, taken: np.ndarray) -> None:
         """How many of its offered cells each device took [D]."""
@@ -339,6 +371,54 @@ class Queue:
     def finished(self, cells: np.ndarray, periods: np.ndarray) -> None:
         """Cells decided, with the control periods each ran (orders what is still queued)."""
         self.length[cells] = periods
+
+
+def certificate(runner, early: bool):
+    """The certificate of ``runner``'s configuration (``certificate.py``) in its dtype, or None
+    (``early`` off, or no certificate applies: then its scenarios run to t_end)."""
+    config = runner.config
+    if not (early and cert_mod.applies(config)):
+        return None
+    arrays, sensors = runner.arrays, runner.sensors
+    com = float(whole_body_com(arrays.mx, arrays.d0, sensors))
+    rest = (com, com)  # static equilibrium: the CoP lies under the CoM
+    try:
+        cert = cert_mod.build(runner.qp, config.controller, config.scenario, rest=rest)
+    except ValueError as exc:  # e.g. a bound through rest: run to t_end instead
+        warnings.warn(f"no certified early stop for this configuration: {exc}", stacklevel=4)
+        return None
+    return jax.tree.map(lambda v: jnp.asarray(v, runner.dtype), cert)
+
+
+def lane_bodies(runner, bodies: Sequence[Any], early: bool) -> tuple[Arrays, Any]:
+    """The arrays and certificates of ``bodies`` (runners whose compiled programs agree with
+    ``runner``'s: the same shapes and static settings) stacked along a first axis, padded to a
+    power of two (at least 2) with copies of the last (padding is never a cell's body). Raises ValueError
+    for bodies of another shape, or some with a certificate and some without."""
+    if not bodies:
+        raise ValueError("bodies: at least one")
+    key = runner._shape_key(1, runner.static._replace(n_control=None))
+    for other in bodies:
+        if other._shape_key(1, other.static._replace(n_control=None)) != key:
+            raise ValueError("bodies must share the shapes and static settings of one compiled "
+                             "program (horizon, delay, t_end, ADMM settings, thresholds)")
+    certs = [certificate(b, early) for b in bodies]
+    if len({c is None for c in certs}) > 1:
+        raise ValueError("bodies: some have a certificate and some not; run them apart")
+    # at least two: with one, XLA would see that every lane gathers the same body and could
+    # compute it as a shared body, whose rounding differs
+    size = max(2, 1 << (len(bodies) - 1).bit_length())
+    padded = list(bodies) + [bodies[-1]] * (size - len(bodies))
+    certs += [certs[-1]] * (len(padded) - len(certs))
+
+    def stack(trees):
+        return jax.tree.map(lambda *v: jnp.stack([jnp.asarray(x) for x in v]), *trees)
+
+    arrays = stack([b.arrays for b in padded])
+    _, whole = runner._shardings()
+    if whole is not None:
+        arrays = jax.device_put(arrays, whole)
+    return arrays, None if certs[0] is None else stack(certs)
 
 
 def cells_of(forces, n_push) -> tuple[np.ndarray, np.ndarray, int]:
@@ -382,10 +462,17 @@ class Engine:
     early: stop certified recoveries (``--full-length`` turns it off). Falls and t_end stop a
     scenario either way. tile: slots per ADMM loop, solved one tile after the other (default:
     one loop over the device's slots; docs/engine.md, "ADMM tiles").
+
+    bodies: runners of one shape (:func:`lane_bodies`; the first is ``runner``) whose
+    scenarios share the queue, each slot running its scenario's body, QP and certificate
+    (:meth:`stream`'s ``bodies``); their arrays are stacked, padded to a power of two so that
+    populations of similar size share one compiled program. None: one body, shared by
+    every slot.
     """
 
     def __init__(self, runner, *, slots: int | None = None, block: int = 100,
-                 early: bool = True, refill: int | None = None, tile: int | None = None):
+                 early: bool = True, refill: int | None = None, tile: int | None = None,
+                 bodies: Sequence[Any] | None = None):
         self.runner = runner
         devices = [None] if runner.mesh is None else list(runner.mesh.devices.flat)
         self.n_devices = len(devices)
@@ -407,20 +494,14 @@ class Engine:
         if tile is not None and (tile < 1 or self.slots % tile):
             raise ValueError(f"ADMM tile {tile} must divide the slots per device, {self.slots}")
         self.tile = int(tile) if tile is not None and tile < self.slots else None
-        config = runner.config
         self.early = bool(early)
-        self.cert = None
-        if self.early and cert_mod.applies(config):
-            arrays, sensors = runner.arrays, runner.sensors
-            com = float(whole_body_com(arrays.mx, arrays.d0, sensors))
-            rest = (com, com)  # static equilibrium: the CoP lies under the CoM
-            try:
-                cert = cert_mod.build(runner.qp, config.controller, config.scenario, rest=rest)
-            except ValueError as exc:  # e.g. a bound through rest: run to t_end instead
-                warnings.warn(f"no certified early stop for this configuration: {exc}",
-                              stacklevel=3)
-            else:
-                self.cert = jax.tree.map(lambda v: jnp.asarray(v, runner.dtype), cert)
+        self.lanes = bodies is not None
+        if self.lanes:
+            self.n_bodies = len(bodies)
+            self.arrays, self.cert = lane_bodies(runner, bodies, self.early)
+        else:
+            self.n_bodies = 1
+            self.arrays, self.cert = runner.arrays, certificate(runner, self.early)
         # what the compiled call bakes in: the runner's static settings without the window's
         # length, which the call reads from the traced Arrays.n_control
         self.static = runner.static._replace(n_control=None)
@@ -435,7 +516,8 @@ class Engine:
         return ("engine", self.runner._shape_key(self.slots, self.static), self.refill,
                 self.block,
                 self.tile, self.cert is not None, None if self.cert is None else
-                tuple(np.shape(v) for v in self.cert))
+                tuple(np.shape(v) for v in self.cert),
+                self.lanes and jax.tree.leaves(self.arrays)[0].shape[0])
 
     def block_fn(self):
         """The compiled call: (arrays, cert, slots, refill cell/force/push) -> (slots, taken,
@@ -445,12 +527,13 @@ class Engine:
         t0 = _time.perf_counter()
         r = self.runner
         sensors, static, periods, early = r.sensors, self.static, self.block, self.cert is not None
-        packing, tile = self.packing, self.tile
+        packing, tile, lanes = self.packing, self.tile, self.lanes
 
-        def call(arrays, cert, slots, cell, force, push, init):
+        def call(arrays, cert, slots, cell, force, push, init, body):
             return block(arrays, sensors, static, cert, slots, refill_cell=cell,
                          refill_force=force, refill_push=push, refill_init=init,
-                         periods=periods, early=early, packing=packing, tile=tile)
+                         refill_body=body, periods=periods, early=early, packing=packing,
+                         tile=tile, lanes=lanes)
 
         def build():
             run = call
@@ -458,18 +541,19 @@ class Engine:
                 P = jax.sharding.PartitionSpec
                 run = jax.shard_map(call, mesh=r.mesh,
                                     in_specs=(P(), P(), P("batch"), P("batch"), P("batch"),
-                                              P("batch"), P("batch")),
+                                              P("batch"), P("batch"), P("batch")),
                                     out_specs=P("batch"), check_vma=False)
-            slots = jax.eval_shape(self._vacant, r.arrays)
+            slots = jax.eval_shape(self._vacant, self.arrays)
             batch_sharding, _ = r._shardings()
             spec = (lambda a: jax.ShapeDtypeStruct(a.shape, a.dtype, sharding=batch_sharding))
             n = self.refill * self.n_devices
             return jax.jit(run, donate_argnums=(2,)).lower(
-                r.arrays, self.cert, jax.tree.map(spec, slots),
+                self.arrays, self.cert, jax.tree.map(spec, slots),
                 jax.ShapeDtypeStruct((n,), jnp.int32, sharding=batch_sharding),
                 jax.ShapeDtypeStruct((n,), r.dtype, sharding=batch_sharding),
                 jax.ShapeDtypeStruct((n,), jnp.int32, sharding=batch_sharding),
-                jax.ShapeDtypeStruct((n, 4), r.dtype, sharding=batch_sharding)).compile()
+                jax.ShapeDtypeStruct((n, 4), r.dtype, sharding=batch_sharding),
+                jax.ShapeDtypeStruct((n,), jnp.int32, sharding=batch_sharding)).compile()
 
         fn = get_or_compile(self._key(), build)
         self.compile_seconds = _time.perf_counter() - t0
@@ -481,43 +565,46 @@ class Engine:
         shapes share the compiled function, in the process and in the persistent cache)."""
         r = self.runner
         n = self.slots * self.n_devices
+        if self.lanes:  # vacant slots idle at the first body's rest
+            arrays = jax.tree.map(lambda v: v[0], arrays)
         carry = broadcast(initial_carry(arrays, r.sensors, r.static), n)
         return Slots(carry=self.packing.pack(carry), cell=jnp.full(n, -1, jnp.int32),
                      force=jnp.zeros(n, r.dtype), n_push=jnp.zeros(n, jnp.int32),
-                     k=jnp.zeros(n, jnp.int32))
+                     k=jnp.zeros(n, jnp.int32), body=jnp.zeros(n, jnp.int32))
 
     def _initial_state(self) -> Slots:
         batch_sharding, _ = self.runner._shardings()
-        return jax.jit(self._vacant, out_shardings=batch_sharding)(self.runner.arrays)
+        return jax.jit(self._vacant, out_shardings=batch_sharding)(self.arrays)
 
     # -- running --------------------------------------------------------------------------
 
     def stream(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None,
-               probe: Probe | None = None
+               probe: Probe | None = None, bodies: np.ndarray | None = None
                ) -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:
         """Run every cell (forces [n], push steps [n], initial joint states [n, 4] or None:
         upright rest); yield (cell indices, finished raw results) after each call, as cells
         complete. Raw results: the accumulators' fields, ``periods`` and ``certified``, numpy,
-        one entry per index. ``probe``: what a benchmark hooks into the loop (:class:`Probe`)."""
+        one entry per index. ``probe``: what a benchmark hooks into the loop (:class:`Probe`).
+        ``bodies`` [n]: each cell's body, an index into the engine's ``bodies`` (None: 0)."""
         probe = probe or NO_PROBE
         forces, n_push, n = cells_of(forces, n_push)
         if n == 0:
             return
+        bodies = self._bodies_of(bodies, n)
         fn = self.block_fn()
-        r = self.runner
         state = self._take_state()
-        queue = Queue(forces, n_push, self.n_devices, self.refill, inits, self.block)
+        queue = Queue(forces, n_push, self.n_devices, self.refill, inits, self.block, bodies)
         remaining, finished, p = n, False, 0
         try:
             while remaining:
                 signals.check()  # a checkpoint: a signal dropped where it landed ends the run
                 with probe("python"):
-                    cells, f, pp, init = queue.offer()
+                    offer = queue.offer()
                 with probe("transfers"):
-                    args = self.offer_args(cells, f, pp, init)
+                    args = self.offer_args(*offer)
                 probe.before(p, state, args)
                 with probe("device_call"):
-                    state, taken, done = probe.call(fn, r.arrays, self.cert, state, *args)
+                    state, taken, done = probe.call(fn, self.arrays, self.cert, state, *args)
                 with probe("transfers"):
                     taken, index, acc, periods, certified = jax.device_get(
                         (taken, done.cell, tuple(done.acc), done.periods, done.certified))
@@ -544,24 +631,36 @@ class Engine:
         self._state = None
         return state
 
-    def offer_args(self, cells, f, p, init) -> tuple:
+    def _bodies_of(self, bodies, n: int) -> np.ndarray | None:
+        if bodies is None:
+            return None
+        bodies = np.asarray(bodies)
+        if bodies.shape != (n,) or not np.issubdtype(bodies.dtype, np.integer):
+            raise ValueError(f"bodies: one integer per cell ({n}), got {bodies.dtype} "
+                             f"{bodies.shape}")
+        if n and (bodies.min() < 0 or bodies.max() >= self.n_bodies):
+            raise ValueError(f"bodies: indices must lie in [0, {self.n_bodies}), got "
+                             f"{bodies.min()}..{bodies.max()}")
+        return bodies.astype(np.int32)
+
+    def offer_args(self, cells, f, p, init, body) -> tuple:
         """A refill offer (:meth:`Queue.offer`) as the compiled call's arguments, placed on the
         devices."""
         r = self.runner
         batch_sharding, _ = r._shardings()
         args = (jnp.asarray(cells), jnp.asarray(f.astype(r.dtype)), jnp.asarray(p),
-                jnp.asarray(init.astype(r.dtype)))
+                jnp.asarray(init.astype(r.dtype)), jnp.asarray(body))
         if batch_sharding is None:
             return args
         return tuple(jax.device_put(a, batch_sharding) for a in args)
 
-    def run(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None
-            ) -> dict[str, np.ndarray]:
+    def run(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None,
+            bodies: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Every cell's raw results (see :meth:`stream`), in the order of the cells."""
         n = np.asarray(forces).shape[0]
         out: dict[str, Any] = {}
         seen = np.zeros(n, bool)
-        for index, raw in self.stream(forces, n_push, inits):
+        for index, raw in self.stream(forces, n_push, inits, bodies=bodies):
             for name, v in raw.items():
                 if name not in out:
                     out[name] = np.zeros((n,) + v.shape[1:], v.dtype)

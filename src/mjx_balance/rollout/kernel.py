@@ -357,11 +357,13 @@ def solve(arrays: Arrays, static: Static, pre: Prepared) -> admm_mod.ADMMResult:
 
 
 def solve_batch(arrays: Arrays, static: Static, pre: Prepared,
-                tile: int | None) -> admm_mod.ADMMResult:
+                tile: int | None, axis: int | None = None) -> admm_mod.ADMMResult:
     """:func:`solve` over a batch of :func:`prepare` results (``admm_solve_batch``: with
-    ``tile``, sequential tiles of that many lanes, each stopping at its own slowest)."""
+    ``tile``, sequential tiles of that many lanes, each stopping at its own slowest; ``axis``
+    0: one QP per lane)."""
     return admm_mod.admm_solve_batch(arrays.qp, pre.x0, pre.carry.warm, static.settings, tile,
-                                     offset=pre.offset)
+                                     offset=pre.offset,
+                                     data_axis=axis.qp if isinstance(axis, Arrays) else axis)
 
 
 def conclude(arrays: Arrays, static: Static, pre: Prepared, res: admm_mod.ADMMResult, k: jax.Array,
@@ -403,21 +405,40 @@ def period(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: ja
 
 
 def period_batch(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: jax.Array,
-                 force: jax.Array, n_push: jax.Array, tile: int | None = None
-                 ) -> tuple[Carry, dict[str, jax.Array] | None]:
+                 force: jax.Array, n_push: jax.Array, tile: int | None = None,
+                 axis: int | None = None) -> tuple[Carry, dict[str, jax.Array] | None]:
     """:func:`period` of a batch of scenarios (every argument but ``arrays`` with a leading batch
-    axis), the QPs solved by :func:`solve_batch` (``tile``: lanes per ADMM loop)."""
-    rest = initial_carry(arrays, sensors, static)
-    pre = prepare_batch(arrays, static, carry, rest)
-    res = solve_batch(arrays, static, pre, tile)
-    carry, u, torques = conclude_batch(arrays, static, pre, res, k, rest)
-    return physics_batch(arrays, sensors, static, carry, k, force, n_push, torques=torques, u=u)
+    axis), the QPs solved by :func:`solve_batch` (``tile``: lanes per ADMM loop). ``axis``
+    None: ``arrays`` shared by every lane; 0: one body per lane (every leaf [B, ...], the
+    engine's lanes; see :func:`lane_arrays`)."""
+    rest = rest_of(arrays, sensors, static, axis)
+    pre = prepare_batch(arrays, static, carry, rest, axis)
+    res = solve_batch(arrays, static, pre, tile, axis)
+    carry, u, torques = conclude_batch(arrays, static, pre, res, k, rest, axis)
+    return physics_batch(arrays, sensors, static, carry, k, force, n_push, torques=torques, u=u,
+                         axis=axis)
 
 
-def prepare_batch(arrays: Arrays, static: Static, carry: Carry, rest: Carry | None = None
-                  ) -> Prepared:
-    """:func:`prepare` over a batch of carries (``rest``: one carry, shared)."""
-    return jax.vmap(lambda c: prepare(arrays, static, c, rest))(carry)
+def rest_of(arrays: Arrays, sensors: Sensors, static: Static, axis: int | None = None) -> Carry:
+    """:func:`initial_carry` of shared ``arrays`` (axis None), or of each lane's (axis 0)."""
+    if axis is None:
+        return initial_carry(arrays, sensors, static)
+    return jax.vmap(lambda a: initial_carry(a, sensors, static), in_axes=(axis,))(arrays)
+
+
+def lane_arrays(bodies: Arrays, body: jax.Array) -> Arrays:
+    """Each lane's body: ``bodies`` stacked [n_bodies, ...] gathered at ``body`` [B] (int)."""
+    return jax.tree.map(lambda v: v[body], bodies)
+
+
+def prepare_batch(arrays: Arrays, static: Static, carry: Carry, rest: Carry | None = None,
+                  axis: int | None = None) -> Prepared:
+    """:func:`prepare` over a batch of carries (``rest``: one carry, shared; with ``axis`` 0,
+    ``arrays`` and ``rest`` per lane)."""
+    if rest is None:
+        return jax.vmap(lambda a, c: prepare(a, static, c), in_axes=(axis, 0))(arrays, carry)
+    return jax.vmap(lambda a, c, r: prepare(a, static, c, r),
+                    in_axes=(axis, 0, None if axis is None else 0))(arrays, carry, rest)
 
 
 def solve_lanes(arrays: Arrays, static: Static, pre: Prepared) -> admm_mod.ADMMResult:
@@ -426,19 +447,25 @@ def solve_lanes(arrays: Arrays, static: Static, pre: Prepared) -> admm_mod.ADMMR
 
 
 def conclude_batch(arrays: Arrays, static: Static, pre: Prepared, res: admm_mod.ADMMResult,
-                   k: jax.Array, rest: Carry | None = None
+                   k: jax.Array, rest: Carry | None = None, axis: int | None = None
                    ) -> tuple[Carry, jax.Array, jax.Array]:
-    """:func:`conclude` over a batch (``rest``: one carry, shared)."""
-    return jax.vmap(lambda p, r, k: conclude(arrays, static, p, r, k, rest))(pre, res, k)
+    """:func:`conclude` over a batch (``rest``: one carry, shared; with ``axis`` 0,
+    ``arrays`` and ``rest`` per lane)."""
+    if rest is None:
+        return jax.vmap(lambda a, p, r, k: conclude(a, static, p, r, k),
+                        in_axes=(axis, 0, 0, 0))(arrays, pre, res, k)
+    return jax.vmap(lambda a, p, r, k, rest: conclude(a, static, p, r, k, rest),
+                    in_axes=(axis, 0, 0, 0, None if axis is None else 0))(arrays, pre, res, k,
+                                                                          rest)
 
 
 def physics_batch(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: jax.Array,
-                  force: jax.Array, n_push: jax.Array, *, torques: jax.Array, u: jax.Array
-                  ) -> tuple[Carry, dict[str, jax.Array] | None]:
-    """:func:`physics_period` over a batch."""
-    return jax.vmap(lambda c, k, f, n, t, u: physics_period(arrays, sensors, static, c, k, f, n,
-                                                            torques=t, u=u))(
-        carry, k, force, n_push, torques, u)
+                  force: jax.Array, n_push: jax.Array, *, torques: jax.Array, u: jax.Array,
+                  axis: int | None = None) -> tuple[Carry, dict[str, jax.Array] | None]:
+    """:func:`physics_period` over a batch (``axis`` 0: ``arrays`` per lane)."""
+    return jax.vmap(lambda a, c, k, f, n, t, u: physics_period(a, sensors, static, c, k, f, n,
+                                                               torques=t, u=u),
+                    in_axes=(axis, 0, 0, 0, 0, 0, 0))(arrays, carry, k, force, n_push, torques, u)
 
 
 def advance_period(arrays: Arrays, sensors: Sensors, static: Static, pre: Prepared,

@@ -43,6 +43,8 @@ class LazyBatch:
     sweep folder records all three and resumes with them.
     """
 
+    queue = "each"  # its cells run with this body alone (runs.population: "one")
+
     def __init__(self, config: Config, *, slots: int | None = None, early_stop: bool = True,
                  physics: str = "auto"):
         if physics not in PATHS:
@@ -140,6 +142,12 @@ def resume_engine(run_batch: RunBatch, recorded: dict | None, path: Any,
     refused: a map of mixed physics would be no map."""
     if recorded is None or not hasattr(run_batch, "engine_record"):
         return
+    queue = recorded.get("queue", "each")
+    if queue != getattr(run_batch, "queue", "each"):
+        raise ParameterError(
+            f"{path} was started with the cohort's queue {queue!r} (per-lane bodies: 'one'); "
+            "its results differ by float rounding from the other queue's: resume it with "
+            f"queue {queue!r}, or use another --out folder")
     physics = recorded.get("physics", "mjx")
     asked_physics = getattr(run_batch, "asked_physics", "auto")
     if asked_physics not in ("auto", physics):

@@ -68,6 +68,7 @@ from ..runs.folders import (
     run_table_folder,
     size_value,
 )
+from ..runs.population import Population, queues
 from ..runs.progress import progress_bar
 from ..store.files import MANIFEST, REGION, TABLE, write_csv, write_text
 from ..store.folder import OutputFolder, config_dict
@@ -313,20 +314,37 @@ class CohortPlan:
         return _record(self.members, self.base, self.forces, self.durations, self.tables)
 
 
+QUEUES = ("each", "one")
+
+
 def check_engine(slots: Any = None, full_length: Any = False, physics: Any = "auto",
-                 cluster: Any = None) -> dict[str, Any]:
-    """The engine's options as ``run_region`` takes them, each checked (ParameterError, a
-    ValueError, naming the argument and what it accepts)."""
+                 cluster: Any = None, queue: Any = "each") -> dict[str, Any]:
+    """The engine's options as ``run_region`` takes them, and ``queue``, each checked
+    (ParameterError, a ValueError, naming the argument and what it accepts). ``queue``:
+    "each", every subject's map its own engine run (the bytes of ``sweep --subject``); "one",
+    every subject's map through one engine queue (``runs.population``; MJX path, no
+    cluster)."""
     if not isinstance(physics, str) or physics not in PATHS:
         raise ParameterError(f"physics = {physics!r}: must be one of "
                              f"{', '.join(repr(p) for p in PATHS)}")
+    if not isinstance(queue, str) or queue not in QUEUES:
+        raise ParameterError(f"queue = {queue!r}: must be one of "
+                             f"{', '.join(repr(q) for q in QUEUES)}")
+    if queue == "one" and (physics == "c" or cluster is not None):
+        raise ParameterError("queue = 'one' runs every subject on the MJX path in this "
+                             "process: not with physics 'c' or a cluster")
     if not isinstance(full_length, bool) and type(full_length).__name__ != "bool_":
         raise ParameterError(f"full_length = {full_length!r}: must be True or False")
     engine = {"slots": size_value(slots, "slots"), "full_length": bool(full_length),
-              "physics": physics}
+              "physics": physics, "queue": queue}
     if cluster is not None:
         engine["cluster"] = cluster
     return engine
+
+
+def run_options(engine: dict[str, Any]) -> dict[str, Any]:
+    """The engine options ``run_region`` and ``run_table_folder`` take (all but ``queue``)."""
+    return {k: v for k, v in engine.items() if k != "queue"}
 
 
 def plan_cohort(out: str | Path, members: Sequence[Member], base: Config, forces: Any,
@@ -412,16 +430,57 @@ def run_plan(plan: CohortPlan, *, run_batches: Callable[[Config], Any] | None = 
         f"output {out}")
     bar = progress_bar(len(members) * cells, done * cells, progress, desc="cohort")
     try:
-        for member in members:
-            finished = (folders[member.id] / REGION).exists()
-            _run_subject(member, folders[member.id], plan.configs[member.id], forces,
-                         durations, plan.tables, run_batches=run_batches, say=say,
-                         engine=plan.engine)
-            if not finished:
-                bar.update(cells)
+        if run_batches is None and one_queue(plan):
+            _run_queued(plan, folders, say, bar)
+        else:
+            for member in members:
+                finished = (folders[member.id] / REGION).exists()
+                _run_subject(member, folders[member.id], plan.configs[member.id], forces,
+                             durations, plan.tables, run_batches=run_batches, say=say,
+                             engine=run_options(plan.engine))
+                if not finished:
+                    bar.update(cells)
     finally:
         bar.close()
     return write_outputs(out, members, folders, say)
+
+
+def one_queue(plan: CohortPlan) -> bool:
+    """Whether the subjects' maps run through one engine queue (``runs.population``; asked with
+    queue 'one', which :func:`check_engine` allows on the MJX path without a cluster only: the
+    C path steps one MuJoCo model per run, a cluster spreads one map's chunks)."""
+    return plan.engine["queue"] == "one" and bool(plan.members)
+
+
+def _run_queued(plan: CohortPlan, folders: dict[str, Path], say: Callable[[str], None],
+                bar: Any) -> None:
+    """The unfinished subjects' maps through one engine queue (at most
+    ``population.QUEUE_CELLS`` cells at a time), each then written to its folder as a sweep
+    of that subject writes it; the tables (``table_forces``) subject by subject after."""
+    members = list(plan.members)
+    pending = [i for i, m in enumerate(members) if not (folders[m.id] / REGION).exists()]
+    engine = {k: v for k, v in run_options(plan.engine).items() if k != "physics"}
+    if pending:
+        cells = plan.forces.size * plan.durations.size
+        people = Population([plan.configs[m.id] for m in members], plan.forces,
+                            plan.durations, slots=engine["slots"],
+                            early_stop=not engine["full_length"])
+        for part in queues(len(pending), cells):
+            which = [pending[i] for i in part]
+            say(f"cohort: {len(which)} subjects' maps ({len(which) * cells} cells) in one "
+                "queue")
+            columns = people.run(which, update=bar.update)
+            for i in which:
+                member = members[i]
+                say(f"cohort: subject {member.id} ({member.subject.describe()}) -> "
+                    f"{folders[member.id]}")
+                run_region(folders[member.id], plan.configs[member.id], plan.forces,
+                           plan.durations, run_batch=people.batch(i, columns[i]),
+                           progress=False, **engine)
+    if plan.tables is not None:
+        for member in members:
+            run_table_folder(folders[member.id], plan.configs[member.id], plan.tables,
+                             progress=False, **run_options(plan.engine))
 
 
 def _run_subject(member: Member, folder: Path, config: Config, forces: np.ndarray,

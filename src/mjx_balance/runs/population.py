@@ -1,0 +1,142 @@
+"""Many bodies' region maps through one engine queue (a cohort's subjects, on the MJX path).
+
+:class:`Population` builds one runner per body and one continuous-batching engine whose slots
+each run their scenario's body (``rollout.engine.Engine``'s ``bodies``: the body, its QP and
+its certificate are per-lane data, not compile keys). :meth:`Population.run` puts every grid
+cell of the bodies asked for into that one queue, so the slots stay busy until the last body's
+last cell instead of waiting at the end of each body's map, and returns each body's summary
+columns. :class:`ServedBatch` then hands one body's columns to ``runs.folders.run_region`` as
+its batch function, so each body's folder is written, resumed and recorded exactly as a
+``sweep`` of that body writes it.
+
+Why the bytes agree with a sweep of the body alone: a lane's computation does not depend on
+the other lanes or on which slot it runs in (``rollout/engine.py``, "Schedule independence"),
+and every MJX engine run, a single body's too, runs its body as per-lane data
+(``BatchRunner.engine``), so the arithmetic is the same program's in both.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from ..model.params import Config
+from .batch import LazyBatch
+
+# Cells in one queue at most (its bodies' grids together): an interrupted population loses at
+# most one queue's work, and the host keeps one queue's summaries; at least 64 refills of the
+# engine's slots, so that the queue is long enough to keep them busy.
+QUEUE_CELLS = 20_000
+
+
+class Population:
+    """The runners and the shared engine of ``configs`` (bodies of one compiled program's
+    shapes; the first one's engine settings), for the cells of ``forces`` x ``durations``.
+    ``slots``, ``early_stop``: as a sweep's."""
+
+    def __init__(self, configs: Sequence[Config], forces: np.ndarray, durations: np.ndarray, *,
+                 slots: int | None = None, early_stop: bool = True):
+        from ..rollout import BatchRunner  # lazy: JAX loads when a population runs
+        from ..rollout.engine import Engine
+        from ..runs.grid import grid_cells
+
+        self.configs = list(configs)
+        self.runners = [BatchRunner(c, slots=slots, early_stop=early_stop, physics="mjx")
+                        for c in self.configs]
+        self.engine = Engine(self.runners[0], slots=slots, early=early_stop,
+                             bodies=self.runners)
+        self.slots, self.early_stop = self.engine.slots, early_stop
+        self.cell_f, self.cell_d = grid_cells(forces, durations)
+
+    def run(self, which: Sequence[int], update: Callable[[int], None] | None = None
+            ) -> dict[int, dict[str, np.ndarray]]:
+        """Every grid cell of the bodies ``which`` (indices into ``configs``) through the one
+        queue; each body's summary columns (``BatchRunner.stream``'s), in grid order.
+        ``update(n)``: n more cells decided."""
+        from ..rollout.kernel import Accumulators
+        from ..rollout.runner import push_steps, summarize
+
+        which = list(which)
+        n = self.cell_f.size
+        forces = np.tile(self.cell_f, len(which))
+        steps = np.tile(push_steps(self.cell_d, self.configs[0].scenario.physics_dt),
+                        len(which))
+        bodies = np.repeat(np.asarray(which, np.int32), n)
+        raw: dict[str, np.ndarray] = {}
+        for index, part in self.engine.stream(forces, steps, bodies=bodies):
+            for name, v in part.items():
+                if name not in raw:
+                    raw[name] = np.zeros((forces.size,) + v.shape[1:], v.dtype)
+                raw[name][index] = v
+            if update is not None:
+                update(len(index))
+        out = {}
+        for j, body in enumerate(which):
+            part = {name: v[j * n:(j + 1) * n] for name, v in raw.items()}
+            acc = Accumulators(*(part[name] for name in Accumulators._fields))
+            out[body] = {"force": self.cell_f, "duration": self.cell_d,
+                         **summarize(acc, self.configs[body], self.cell_f),
+                         "periods": part["periods"], "certified": part["certified"]}
+        return out
+
+    def batch(self, body: int, columns: dict[str, np.ndarray]) -> ServedBatch:
+        """Body ``body``'s batch function, serving ``columns`` (:meth:`run`'s)."""
+        return ServedBatch(self.configs[body], columns, slots=self.slots,
+                           early_stop=self.early_stop)
+
+
+def queues(count: int, cells: int, limit: int = QUEUE_CELLS) -> list[range]:
+    """The bodies 0..count-1 split into consecutive queues of at most ``limit`` cells (at
+    least one body each), of equal size but the last."""
+    per = max(1, limit // max(1, cells))
+    return [range(s, min(count, s + per)) for s in range(0, count, per)]
+
+
+class ServedBatch(LazyBatch):
+    """A body's batch function whose cells already ran in a :class:`Population`'s queue: it
+    streams their summary columns to ``run_sweep`` as the engine would (a sweep folder records
+    the same engine settings: the slots, early stopping, the MJX path)."""
+
+    def __init__(self, config: Config, columns: dict[str, np.ndarray], *, slots: int,
+                 early_stop: bool):
+        super().__init__(config, slots=slots, early_stop=early_stop, physics="mjx")
+        self.columns = columns
+        self._row = {(float(f), float(d)): i
+                     for i, (f, d) in enumerate(zip(columns["force"], columns["duration"]))}
+
+    @property
+    def runner(self):
+        return None
+
+    def can_stream(self) -> bool:
+        return True
+
+    queue = "one"  # what a sweep folder records: its cells ran with per-lane bodies
+
+    def engine_record(self) -> dict[str, Any]:
+        return {"slots": int(self.slots), "early_stop": bool(self.early_stop), "physics": "mjx",
+                "queue": self.queue}
+
+    def use_engine(self, slots: int | None, early_stop: bool, physics: str | None = None
+                   ) -> None:
+        """A folder started with other engine settings cannot be served these results."""
+        if (slots, early_stop, physics or "mjx") != (self.slots, self.early_stop, "mjx"):
+            raise ValueError(f"this folder was started with {slots} slots, early stop "
+                             f"{early_stop}, {physics} physics; the population ran "
+                             f"{self.slots} slots, early stop {self.early_stop}, mjx")
+
+    def prepare(self, batch: int, log: Callable[[str], None] | None = print) -> None:
+        pass
+
+    def stream(self, forces: np.ndarray, durations: np.ndarray):
+        rows = np.array([self._row[(float(f), float(d))] for f, d in zip(forces, durations)],
+                        np.int64)
+        yield np.arange(rows.size), {name: v[rows] for name, v in self.columns.items()}
+
+    def __call__(self, forces: np.ndarray, durations: np.ndarray):
+        from ..measures.outcomes import summary_frame
+
+        _, columns = next(self.stream(forces, durations))
+        return summary_frame(columns, self.config.controller.convention, extra=False)
