@@ -10,6 +10,7 @@ torque bound, so heavier subjects recover more cells)."""
 from __future__ import annotations
 
 import math
+import shutil
 
 import numpy as np
 import pandas as pd
@@ -20,7 +21,7 @@ import mjx_balance as mb
 from mjx_balance.cli import main
 from mjx_balance.figures.region import recovery_boundary
 from mjx_balance.measures import units
-from mjx_balance.model.params import Config
+from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.store.files import readable_png
 from mjx_balance.studies import cohort, probability
 
@@ -229,3 +230,18 @@ def test_the_command_writes_the_probability_map_and_plans_its_width(tmp_path, ca
                       config=BASE, progress=False)
     pd.testing.assert_frame_equal(again.attrs["probability"], cells, check_dtype=False)
     assert math.isclose(again.attrs["half_width"], probability.half_width(2))
+
+
+def test_the_base_map_is_a_result_that_keeps_the_folder(tmp_path):
+    """A cohort folder whose only result is its base map is not taken over by another cohort
+    (a subject's map would not be either): the base map was run with this cohort's base."""
+    out = tmp_path / "out"
+    cohort.run_cohort(out, cohort.subject_grid([1.7], [70]), BASE, FORCES, DURATIONS,
+                      run_batches=stand_ins, log=None)
+    (out / "cohort.csv").unlink()
+    shutil.rmtree(out / "subjects")
+    assert (out / "base" / "region.parquet").exists()
+    with pytest.raises(ParameterError, match="holds a cohort with other configuration"):
+        cohort.run_cohort(out, cohort.subject_grid([1.7], [70]),
+                          BASE.replace(controller={"horizon": 15}), FORCES, DURATIONS,
+                          run_batches=stand_ins, log=None)
