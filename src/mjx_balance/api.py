@@ -341,8 +341,13 @@ def cohort(out: str | os.PathLike[str],
     :class:`Subject` on ``config``, default the study's configuration) in
     ``out/subjects/<id>/``, then ``out/cohort.csv`` (returned: one row per subject, its body,
     recoverable area [N s], mean recovery energy, ...), ``out/cohort_summary.csv`` (mean, SD,
-    5/50/95th percentiles) and the figures (docs/outputs.md, "cohort"). Resumable: a rerun
-    skips finished subjects and resumes a partial one.
+    5/50/95th percentiles), the probability map (``out/cohort_probability.csv``: P(recover)
+    per cell with its 95 % Wilson interval; ``out/cohort_probability_boundaries.csv``: the
+    95/50/5 % boundaries and the base body's, from its own map in ``out/base/``) and the
+    figures (docs/outputs.md, "cohort"). The returned frame carries the probability map's
+    tables in ``.attrs["probability"]`` and ``.attrs["probability_boundaries"]`` and the
+    interval's worst-case half-width in ``.attrs["half_width"]``. Resumable: a rerun skips
+    finished subjects and resumes a partial one.
 
     ``subjects``: one Subject (id s01), a sequence of Subjects (ids s01, s02, ...), a dict
     id -> Subject, or a CSV file's path (columns height, mass and optionally id, sex,

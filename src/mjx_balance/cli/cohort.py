@@ -86,8 +86,10 @@ def add_parser(sub: Any) -> None:
     format_option(p)
     figure_options(p)
     p.add_argument("--out", type=out_folder, required=True,
-                   help="output folder: subjects/<id>/ (one sweep folder each), cohort.csv, "
-                        "cohort_summary.csv, manifest.json, the figures")
+                   help="output folder: subjects/<id>/ (one sweep folder each), base/ (the "
+                        "base configuration's map), cohort.csv, cohort_summary.csv, "
+                        "cohort_probability.csv (P(recover) per cell with its 95 %% interval), "
+                        "cohort_probability_boundaries.csv, manifest.json, the figures")
     p.set_defaults(target="mjx_balance.cli.cohort:cohort_command")
 
 
@@ -183,6 +185,7 @@ def cohort_command(args: Any) -> int:
     from ..model.config_files import with_convention  # lazy: not for --help
     from ..runs import DEFAULT_SWEEP  # lazy: the runs floor loads JAX; not for --help
     from ..studies.cohort import plan_cohort, run_plan  # lazy: as above
+    from ..studies.probability import interval_text  # lazy: as above
 
     from ..runs.folders import grid_values  # lazy: as above
 
@@ -199,8 +202,10 @@ def cohort_command(args: Any) -> int:
     if count is None:  # a CSV file: read to count
         members = members_from(args)
         count = len(members)
-    guard_work(args, base, count * forces.size * durations.size, "cells",
-               extra=0 if tables is None else count * table_scenarios(base, tables.size))
+    # the subjects' maps and the base body's (the probability figure's reference boundary)
+    guard_work(args, base, (count + 1) * forces.size * durations.size, "cells",
+               extra=0 if tables is None else count * table_scenarios(base, tables.size),
+               note=interval_text(count))
     if count > MAX_SUBJECTS:
         raise ParameterError(f"{count:,} subjects is more than a cohort may hold "
                              f"({MAX_SUBJECTS:,}: a folder each); run it in parts")

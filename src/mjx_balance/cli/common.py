@@ -55,11 +55,13 @@ def one_push(args: argparse.Namespace) -> tuple[Config, float]:
 
 
 def guard_work(args: argparse.Namespace, config: Config, n_scenarios: int, what: str, *,
-               chunk_size: int | None = None, extra: int = 0, reference: bool = False) -> None:
+               chunk_size: int | None = None, extra: int = 0, reference: bool = False,
+               note: str = "") -> None:
     """Say the planned work (one line: scenarios, estimated time and disk) and refuse it above
     the limit unless --yes, before anything is compiled or written. ``extra``: scenarios
     beyond ``n_scenarios`` (a table's); ``reference``: run one at a time by the scalar
-    reference (its rate), not by the batched engine."""
+    reference (its rate), not by the batched engine; ``note``: what the work will give,
+    appended to the line after a semicolon."""
     from ..runs import chunks  # lazy: the runs floor loads JAX
 
     t_end = config.scenario.t_end
@@ -68,7 +70,8 @@ def guard_work(args: argparse.Namespace, config: Config, n_scenarios: int, what:
     disk = {} if not reference else {"bytes_per_scenario": reference_bytes(config)}
     logging.getLogger("mjx_balance").info(
         chunks.planned_work(n_scenarios, t_end, chunk_size, what, rate=rate, **disk)
-        + (f" (+ about {extra:,} table scenarios)" if extra else ""))
+        + (f" (+ about {extra:,} table scenarios)" if extra else "")
+        + (f"; {note}" if note else ""))
     if not getattr(args, "yes", False):
         chunks.check_planned_work(n_scenarios + extra, t_end, what, rate=rate)
 

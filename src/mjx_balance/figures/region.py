@@ -235,17 +235,19 @@ def _table_beside(path: str | Path, region: pd.DataFrame) -> pd.DataFrame | None
     return table if {"force", "max_acting_time"} <= set(table.columns) else None
 
 
-def boundary_line(ax, region: pd.DataFrame, fx: np.ndarray, dy: np.ndarray):
-    """Draw the recovery boundary on the grid (:func:`recovery_boundary`) as a black step line
-    along the top of each force's first recovered range of durations; returns the line."""
+def boundary_line(ax, region: pd.DataFrame, fx: np.ndarray, dy: np.ndarray, **line_style):
+    """Draw the recovery boundary on the grid (:func:`recovery_boundary`) as a step line along
+    the top of each force's first recovered range of durations (black, 2 pt, unless
+    ``line_style``, matplotlib's ``plot`` keywords, says otherwise); returns the line."""
     forces = np.sort(region["force"].unique())
     durations = np.sort(region["duration"].unique())
     boundary = recovery_boundary(region).set_index("force").reindex(forces)
     d_index = {d: i for i, d in enumerate(durations)}
     tops = np.array([dy[d_index[b] + 1] if b in d_index else dy[0]
                      for b in boundary["boundary"].to_numpy()])
-    (line,) = ax.plot(np.repeat(fx, 2)[1:-1], np.repeat(tops, 2), color="black", lw=2.0,
-                      label="recovery boundary on the grid")
+    line_style = {"color": "black", "lw": 2.0, "label": "recovery boundary on the grid",
+                  **line_style}
+    (line,) = ax.plot(np.repeat(fx, 2)[1:-1], np.repeat(tops, 2), **line_style)
     return line
 
 

@@ -125,6 +125,16 @@ UNITS: dict[str, tuple[str, str]] = {
     "ankle_strength": ("1", "factor on the mass-scaled ankle torque bound"),
     "hip_strength": ("1", "factor on the mass-scaled hip torque bound"),
     "statistic": ("", "mean, sd (n - 1), p5, p50 or p95 over the subjects"),
+    # --- cohort_probability.csv and cohort_probability_boundaries.csv (studies.probability)
+    "subjects": ("1", "count of subjects whose map holds the cell"),
+    "recovered_subjects": ("1", "count of those subjects that recover at the cell"),
+    "p_recover": ("1", "P(recover | F, T): recovered_subjects / subjects"),
+    "p_low": ("1", "lower bound of P's 95 % Wilson interval"),
+    "p_high": ("1", "upper bound of P's 95 % Wilson interval"),
+    "boundary_p95": ("s", "longest grid duration up to which P(recover) >= 0.95 at every one"),
+    "boundary_p50": ("s", "longest grid duration up to which P(recover) >= 0.5 at every one"),
+    "boundary_p5": ("s", "longest grid duration up to which P(recover) >= 0.05 at every one"),
+    "boundary_base": ("s", "the base configuration's body's recovery boundary on the grid"),
     # --- basin.parquet and pushes.csv (studies.basin)
     "cell": ("1", "cell index"),
     "x_com": ("m", "CoM x relative to the ankle"),

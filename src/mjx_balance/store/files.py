@@ -186,7 +186,8 @@ def write_csv(frame: pd.DataFrame, path: Path, *, units: bool = True) -> None:
 # The tables the commands write under their own names, in the format the product reads back.
 TABLES = ("region.parquet", "table.csv", "table_runs.parquet", "summary.csv",
           "timeseries.parquet", "basin.parquet", "pushes.csv", "compare.csv", "landscape.csv",
-          "sensitivity.csv", "scorecard.csv", "cohort.csv", "cohort_summary.csv")
+          "sensitivity.csv", "scorecard.csv", "cohort.csv", "cohort_summary.csv",
+          "cohort_probability.csv", "cohort_probability_boundaries.csv")
 
 
 def check_format(fmt: str | None) -> str | None:

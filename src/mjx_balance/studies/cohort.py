@@ -15,9 +15,18 @@ cohort.csv
 cohort_summary.csv
     the population's spread: mean, SD (n - 1), 5th, 50th and 95th percentile of every numeric
     column of cohort.csv (NaNs left out), one row per statistic
+cohort_probability.csv
+    per cell (F, T): the subjects, those that recover, P(recover | F, T) and its 95 % Wilson
+    interval (``studies.probability``)
+cohort_probability_boundaries.csv
+    per force: the longest duration up to which P(recover) >= 0.95, 0.5 and 0.05 at every
+    grid duration, and the base body's own recovery boundary
+base/
+    the base configuration's region map (a plain sweep folder, run after the subjects): the
+    reference boundary of cohort_probability.png
 manifest.json
     the base configuration, the grids, the subjects with their ids, and the runs' provenance
-cohort_area.png, cohort_boundaries.png, cohort_regions.png
+cohort_area.png, cohort_boundaries.png, cohort_probability.png, cohort_regions.png
     figures (``figures.cohort``); the small multiples only for cohorts of at most
     :data:`SMALL_COHORT` subjects
 
@@ -73,11 +82,15 @@ from ..runs.progress import progress_bar
 from ..store.files import MANIFEST, REGION, TABLE, write_csv, write_text
 from ..store.folder import OutputFolder, config_dict
 from ..store.provenance import with_run
+from . import probability
 from .compare import boundary_segments, numbers
 
 COHORT_CSV = "cohort.csv"
 SUMMARY_CSV = "cohort_summary.csv"
+PROBABILITY_CSV = "cohort_probability.csv"
+BOUNDARIES_CSV = "cohort_probability_boundaries.csv"
 SUBJECTS = "subjects"
+BASE = "base"  # the base configuration's own map: the probability figure's reference boundary
 SMALL_COHORT = 16  # cohort_regions.png: one panel per subject up to this many
 CHOSEN = 8  # cohort_boundaries.png: at most this many subjects' boundaries
 SUBJECT_COLUMNS = ["id", "height", "mass", "sex", "ankle_strength", "hip_strength"]
@@ -257,11 +270,13 @@ def _record(members: Sequence[Member], base: Config, forces: np.ndarray,
 
 
 def holds_results(out: Path, base: Config) -> bool:
-    """Whether a cohort folder holds anything computed: cohort.csv, or a subject's folder with
-    a result (``OutputFolder.holds_results``: a map, a chunk, a table's kept scenario)."""
+    """Whether a cohort folder holds anything computed: cohort.csv, or a subject's folder or
+    the base map's folder with a result (``OutputFolder.holds_results``: a map, a chunk, a
+    table's kept scenario)."""
     if (out / COHORT_CSV).exists():
         return True
-    folders = (out / SUBJECTS).glob("*/") if (out / SUBJECTS).is_dir() else []
+    folders = list((out / SUBJECTS).glob("*/")) if (out / SUBJECTS).is_dir() else []
+    folders += [out / BASE] if (out / BASE).is_dir() else []
     return any(OutputFolder(folder, base).holds_results() for folder in folders)
 
 
@@ -353,7 +368,8 @@ def plan_cohort(out: str | Path, members: Sequence[Member], base: Config, forces
     """Check a cohort before anything is written or locked: the ids, the grids, the engine's
     options (:func:`check_engine`), every subject's configuration (``Subject.config(base)``,
     the durations on its physics steps, and with ``batched`` everything the batched closed
-    loop refuses: ``runs.folders.check_batched``) and a folder
+    loop refuses: ``runs.folders.check_batched``; the base configuration too, whose map the
+    cohort also runs) and a folder
     ``out`` that holds another cohort's results. ParameterError (exit code 2) for the first
     problem, naming it."""
     members = tuple(members)
@@ -376,6 +392,12 @@ def plan_cohort(out: str | Path, members: Sequence[Member], base: Config, forces
         except ParameterError as exc:
             raise ParameterError(f"subject {member.id!r}: {exc}") from None
         configs[member.id] = config
+    if batched:  # the base map (the reference boundary) runs on the same engine
+        try:
+            check_batched(base, (forces, "forces"), (durations, "durations"))
+        except ParameterError as exc:
+            raise ParameterError(f"the base configuration (its map is the probability "
+                                 f"figure's reference): {exc}") from None
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ParameterError(f"--out {out}: is a file, not a folder")
@@ -405,10 +427,12 @@ def run_cohort(out: str | Path, members: Sequence[Member], base: Config, forces:
                run_batches: Callable[[Config], Any] | None = None, progress: bool = False,
                log: Callable[[str], None] | None = print, **engine: Any) -> pd.DataFrame:
     """Every subject's region map (and table, with ``table_forces``) in
-    ``out/subjects/<id>/``, then cohort.csv, cohort_summary.csv and the figures in ``out``;
-    returns cohort.csv's frame. ``run_batches``: a batch function per subject's configuration
-    (tests); ``engine``: ``slots``, ``full_length``, ``physics``, ``cluster`` for
-    ``run_region``. Everything is checked before anything is written (:func:`plan_cohort`)."""
+    ``out/subjects/<id>/`` and the base configuration's map in ``out/base/``, then
+    cohort.csv, cohort_summary.csv, the probability map's tables and the figures in ``out``;
+    returns cohort.csv's frame, the probability map's tables in its ``attrs``
+    (:func:`write_outputs`). ``run_batches``: a batch function per configuration (tests);
+    ``engine``: ``slots``, ``full_length``, ``physics``, ``cluster`` for ``run_region``.
+    Everything is checked before anything is written (:func:`plan_cohort`)."""
     plan = plan_cohort(out, members, base, forces, durations, table_forces=table_forces,
                        batched=run_batches is None, log=log, **engine)
     return run_plan(plan, run_batches=run_batches, progress=progress, log=log)
@@ -426,9 +450,12 @@ def run_plan(plan: CohortPlan, *, run_batches: Callable[[Config], Any] | None = 
     cells = forces.size * durations.size
     folders = {m.id: out / SUBJECTS / m.id for m in members}
     done = sum((folders[m.id] / REGION).exists() for m in members)
-    say(f"cohort: {len(members)} subjects x {cells} cells ({done} subjects already done); "
-        f"output {out}")
-    bar = progress_bar(len(members) * cells, done * cells, progress, desc="cohort")
+    base_done = (out / BASE / REGION).exists()
+    say(f"cohort: {len(members)} subjects x {cells} cells and the base body's map ({done} "
+        f"subjects already done); output {out}")
+    say(f"cohort: {probability.interval_text(len(members))}")
+    bar = progress_bar((len(members) + 1) * cells, (done + base_done) * cells, progress,
+                       desc="cohort")
     try:
         if run_batches is None and one_queue(plan):
             _run_queued(plan, folders, say, bar)
@@ -440,9 +467,15 @@ def run_plan(plan: CohortPlan, *, run_batches: Callable[[Config], Any] | None = 
                              engine=run_options(plan.engine))
                 if not finished:
                     bar.update(cells)
+        say(f"cohort: the base configuration's body (the reference boundary) -> {out / BASE}")
+        run_region(out / BASE, plan.base, forces, durations, progress=False,
+                   run_batch=run_batches(plan.base) if run_batches is not None else None,
+                   **run_options(plan.engine))
+        if not base_done:
+            bar.update(cells)
     finally:
         bar.close()
-    return write_outputs(out, members, folders, say)
+    return write_outputs(out, members, folders, say, base_label(plan.base))
 
 
 def one_queue(plan: CohortPlan) -> bool:
@@ -494,16 +527,37 @@ def _run_subject(member: Member, folder: Path, config: Config, forces: np.ndarra
         run_table_folder(folder, config, tables, run_batch=batch, progress=False, **engine)
 
 
+def base_label(base: Config) -> str:
+    """How the probability figure names the base configuration's body."""
+    return "the study's body" if base.body == Config().body else "the base configuration's body"
+
+
 def write_outputs(out: Path, members: Sequence[Member], folders: dict[str, Path],
-                  say: Callable[[str], None]) -> pd.DataFrame:
-    """cohort.csv, cohort_summary.csv and the figures from the subjects' folders."""
+                  say: Callable[[str], None], label: str = "the base body") -> pd.DataFrame:
+    """cohort.csv, cohort_summary.csv, the probability map's tables and the figures from the
+    subjects' folders and the base map's (``out/base``). Returns cohort.csv's frame with, in
+    its ``attrs``: ``probability`` (cohort_probability.csv's frame), ``probability_boundaries``
+    (cohort_probability_boundaries.csv's) and ``half_width`` (the interval's worst-case
+    half-width over these subjects, ``studies.probability.half_width``). ``label``: the base
+    body's name in the probability figure (:func:`base_label`)."""
     frame = pd.DataFrame([subject_numbers(m, folders[m.id]) for m in members])
     write_csv(frame, out / COHORT_CSV)
     write_csv(summary(frame), out / SUMMARY_CSV)
     regions = {m.id: pd.read_parquet(folders[m.id] / REGION) for m in members}
+    base = pd.read_parquet(out / BASE / REGION)
+    cells = probability.cells(regions)
+    lines = probability.boundaries(cells, base)
+    write_csv(cells, out / PROBABILITY_CSV)
+    write_csv(lines, out / BOUNDARIES_CSV)
     figures = draw(out, frame, regions)
-    say(f"wrote {out / COHORT_CSV}, {out / SUMMARY_CSV} and "
-        + ", ".join(p.name for p in figures))
+    levels = {p / 100: probability.thresholded(cells, p) for p in probability.LEVELS}
+    figures.append(cohort_figures.plot_probability(
+        cells, levels, (label, base), probability.half_width(len(members)),
+        out / "cohort_probability.png"))
+    say(f"wrote {out / COHORT_CSV}, {out / SUMMARY_CSV}, {out / PROBABILITY_CSV}, "
+        f"{out / BOUNDARIES_CSV} and " + ", ".join(p.name for p in figures))
+    frame.attrs = {"probability": cells, "probability_boundaries": lines,
+                   "half_width": probability.half_width(len(members))}
     return frame
 
 
