@@ -49,7 +49,8 @@ def main() -> None:
     print(f"{f.size} cells, t_end {args.t_end:g} s, {engines['shared body'].slots} slots, "
           f"{int(raw['periods'].sum())} scenario-periods a run")
     for name, ts in times.items():
-        print(f"{name}: median {np.median(ts):.2f} s of {len(ts)} ({', '.join(f'{t:.2f}' for t in ts)})")
+        runs = ", ".join(f"{t:.2f}" for t in ts)
+        print(f"{name}: median {np.median(ts):.2f} s of {len(ts)} ({runs})")
     ratio = np.median(times["per-lane body"]) / np.median(times["shared body"])
     print(f"per-lane / shared: {ratio:.3f}")
 

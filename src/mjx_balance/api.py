@@ -334,8 +334,8 @@ def cohort(out: str | os.PathLike[str],
            subjects: "Sequence[Subject] | Mapping[str, Subject] | str | os.PathLike[str]", *,
            forces: Values = None, durations: Values = None, config: ConfigLike = None,
            table_forces: Values = None, slots: int | None = None, full_length: bool = False,
-           physics: str = "auto", progress: bool | None = None, wait: bool = False,
-           format: str | None = None, figure_format: str | None = None,
+           physics: str = "auto", queue: str = "each", progress: bool | None = None,
+           wait: bool = False, format: str | None = None, figure_format: str | None = None,
            figure_size: str | None = None) -> "pd.DataFrame":
     """A cohort (``mjx-balance cohort``): each subject's region map (its body from
     :class:`Subject` on ``config``, default the study's configuration) in
@@ -355,7 +355,9 @@ def cohort(out: str | os.PathLike[str],
     Grids default to the default sweep's. ``table_forces``: also each subject's table (max
     acting time at these forces and the sustained-push limit; default: none, the limit NaN).
     ``slots``, ``full_length``, ``physics``, ``progress``, ``wait``, ``format``,
-    ``figure_format``, ``figure_size``: as :func:`sweep` and :func:`compare`. Every argument
+    ``figure_format``, ``figure_size``: as :func:`sweep` and :func:`compare`. ``queue``:
+    "each" (every subject its own engine run) or "one" (every subject through one engine
+    queue with per-lane bodies, MJX only; ``mjx-balance cohort --queue``). Every argument
     and every subject's configuration is checked before anything is written (a ValueError or
     TypeError naming the argument)."""
     check_format(format)
@@ -373,7 +375,7 @@ def cohort(out: str | os.PathLike[str],
                            DEFAULT_SWEEP["forces"] if forces is None else forces,
                            DEFAULT_SWEEP["durations"] if durations is None else durations,
                            table_forces=table_forces, log=log.info, slots=slots,
-                           full_length=full_length, physics=physics)
+                           full_length=full_length, physics=physics, queue=queue)
         with _session("cohort"), folder_lock(plan.out, wait=wait):
             frame = run_plan(plan, progress=wanted(progress), log=log.info)
             export_tables(plan.out, format)

@@ -369,6 +369,9 @@ def replay_mjx(engine, records: list, stages: Stages, sampled: int) -> dict[str,
     """Every recorded block's first ``sampled`` periods, stage by stage. Returns the stage
     seconds scaled to whole blocks, the ADMM iterations and, where whole blocks were replayed,
     whether the replay ended in the engine's own state (bit for bit)."""
+    if engine.lanes:
+        raise ValueError("the replay times an engine with one shared body (BatchRunner's); "
+                         "an engine with per-lane bodies is timed end to end")
     bodies = mjx_bodies(engine)
     r = engine.runner
     D = engine.n_devices

@@ -81,6 +81,11 @@ def add_parser(sub: Any) -> None:
                    help="also each subject's table at these forces [N]: its max acting times "
                         "and sustained-push limit in cohort.csv (default: no table)")
     engine_options(p)
+    p.add_argument("--queue", choices=("each", "one"), default="each",
+                   help="each (default): every subject's map its own engine run, the bytes of "
+                        "sweep --subject; one: every subject's map through one engine queue "
+                        "with per-lane bodies (MJX only; the maps differ from each's by float "
+                        "rounding; docs/studies.md, \"Cohorts\")")
     wait_option(p)
     yes_option(p)
     format_option(p)
@@ -215,7 +220,7 @@ def cohort_command(args: Any) -> int:
     say = logging.getLogger("mjx_balance").info
     plan = plan_cohort(out, members, base, forces, durations, table_forces=tables, log=say,
                        slots=args.slots, full_length=args.full_length,
-                       physics=args.physics or "auto")
+                       physics=args.physics or "auto", queue=args.queue)
 
     def work() -> None:
         run_plan(plan, progress=progress_enabled(args), log=say)

@@ -91,7 +91,7 @@ def broadcast(tree, n):
     return jax.tree.map(lambda v: jnp.broadcast_to(v, (n,) + jnp.shape(v)), tree)
 
 
-def refill(slots: Slots, rest: Carry, taken, vacant, refill_cell, refill_force, refill_push,
+def refill(slots: Slots, rest: Carry, taken, vacant, refill_cell, refill_force, refill_push, *,
            starts: Carry | None = None, refill_body=None) -> tuple[Slots, jax.Array]:
     """Vacant slots take the next refill cells, in slot order (``taken`` already used).
     ``starts`` [R]: each refill cell's first carry (:func:`kernel.start`, a per-scenario
@@ -176,8 +176,8 @@ def take(slots: Slots, rest: Carry, taken, s, refill_cell, refill_force, refill_
     vacant = slots.cell < 0
     if gated:
         vacant = vacant & (s % cert_mod.CHECK_EVERY == 0)
-    return refill(slots, rest, taken, vacant, refill_cell, refill_force, refill_push, starts,
-                  refill_body)
+    return refill(slots, rest, taken, vacant, refill_cell, refill_force, refill_push,
+                  starts=starts, refill_body=refill_body)
 
 
 def decide(check, static, n_control, carry: Carry, k, n_push, busy, due
@@ -265,7 +265,7 @@ def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_fo
                                       else (arrays, cert, rest))
         check = checker(body_cert if early else None, periods, axis)
         carry = period_batch(body, sensors, static, slots.carry, slots.k, slots.force,
-                             slots.n_push, tile, axis)[0]
+                             slots.n_push, tile=tile, axis=axis)[0]
         k = slots.k + 1
         acc, certified, decided = decide(check, static, body.n_control, carry, k,
                                          slots.n_push, slots.cell >= 0, s % every == every - 1)

@@ -405,7 +405,7 @@ def period(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: ja
 
 
 def period_batch(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: jax.Array,
-                 force: jax.Array, n_push: jax.Array, tile: int | None = None,
+                 force: jax.Array, n_push: jax.Array, *, tile: int | None = None,
                  axis: int | None = None) -> tuple[Carry, dict[str, jax.Array] | None]:
     """:func:`period` of a batch of scenarios (every argument but ``arrays`` with a leading batch
     axis), the QPs solved by :func:`solve_batch` (``tile``: lanes per ADMM loop). ``axis``

@@ -22,8 +22,14 @@ from typing import Any
 
 import numpy as np
 
+from ..measures.outcomes import summary_frame
 from ..model.params import Config
+from ..rollout import BatchRunner
+from ..rollout.engine import Engine
+from ..rollout.kernel import Accumulators
+from ..rollout.runner import push_steps, summarize
 from .batch import LazyBatch
+from .grid import grid_cells
 
 # Cells in one queue at most (its bodies' grids together): an interrupted population loses at
 # most one queue's work, and the host keeps one queue's summaries; at least 64 refills of the
@@ -38,10 +44,6 @@ class Population:
 
     def __init__(self, configs: Sequence[Config], forces: np.ndarray, durations: np.ndarray, *,
                  slots: int | None = None, early_stop: bool = True):
-        from ..rollout import BatchRunner  # lazy: JAX loads when a population runs
-        from ..rollout.engine import Engine
-        from ..runs.grid import grid_cells
-
         self.configs = list(configs)
         self.runners = [BatchRunner(c, slots=slots, early_stop=early_stop, physics="mjx")
                         for c in self.configs]
@@ -55,9 +57,6 @@ class Population:
         """Every grid cell of the bodies ``which`` (indices into ``configs``) through the one
         queue; each body's summary columns (``BatchRunner.stream``'s), in grid order.
         ``update(n)``: n more cells decided."""
-        from ..rollout.kernel import Accumulators
-        from ..rollout.runner import push_steps, summarize
-
         which = list(which)
         n = self.cell_f.size
         forces = np.tile(self.cell_f, len(which))
@@ -136,7 +135,5 @@ class ServedBatch(LazyBatch):
         yield np.arange(rows.size), {name: v[rows] for name, v in self.columns.items()}
 
     def __call__(self, forces: np.ndarray, durations: np.ndarray):
-        from ..measures.outcomes import summary_frame
-
         _, columns = next(self.stream(forces, durations))
         return summary_frame(columns, self.config.controller.convention, extra=False)

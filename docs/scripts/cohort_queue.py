@@ -1,0 +1,68 @@
+"""A cohort's time with each subject its own engine run (``--queue each``) and with every
+subject in one engine queue (``--queue one``), beside a plain sweep of as many cells, in one
+process (one sitting, the same machine load for all three).
+
+    python docs/scripts/cohort_queue.py OUT [--forces 0:105:15] [--durations 0.1,0.2,0.3,0.5] \
+        [--subjects 3] [--t-end 12]
+
+Each program is compiled first (a warm-up cohort of two subjects on a two-cell grid in each
+mode), so the times are runs, not compiles. Prints seconds and seconds per scenario.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+
+import mjx_balance as mb
+from mjx_balance.runs.folders import run_region
+from mjx_balance.runs.grid import parse_grid
+from mjx_balance.studies import cohort
+
+PEOPLE = [mb.Subject(1.55, 50, "female"), mb.Subject(1.70, 70), mb.Subject(1.85, 90),
+          mb.Subject(1.62, 58, "female"), mb.Subject(1.78, 82), mb.Subject(1.92, 100)]
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("out")
+    p.add_argument("--forces", default="0:105:15")
+    p.add_argument("--durations", default="0.1,0.2,0.3,0.5")
+    p.add_argument("--subjects", type=int, default=3)
+    p.add_argument("--t-end", type=float, default=12.0)
+    args = p.parse_args()
+    out = Path(args.out)
+    shutil.rmtree(out, ignore_errors=True)
+    config = mb.Config().replace(scenario={"t_end": args.t_end})
+    people = cohort.numbered(PEOPLE[:args.subjects])
+    forces = parse_grid(args.forces, "forces")
+    durations = parse_grid(args.durations, "durations")
+    cells = forces.size * durations.size
+    for queue in ("each", "one"):  # compile both programs (and the plain sweep's)
+        cohort.run_cohort(out / f"warm-{queue}", people[:2], config, forces[:2], durations[:1],
+                          log=None, queue=queue)
+    times = {}
+    for queue in ("each", "one"):
+        t0 = time.perf_counter()
+        cohort.run_cohort(out / queue, people, config, forces, durations, log=None, queue=queue)
+        times[f"cohort --queue {queue}"] = time.perf_counter() - t0
+    # the plain sweep: as many cells as a cohort runs (its subjects' and the base body's),
+    # the study's body, forces spread over the cohort's range
+    n = (len(people) + 1) * cells
+    plain = np.linspace(forces[0], forces[-1], n // durations.size)
+    t0 = time.perf_counter()
+    run_region(out / "plain", config, plain, durations)
+    times["plain sweep"] = time.perf_counter() - t0
+    print(f"{len(people)} subjects x {cells} cells and the base body's map: {n} scenarios a "
+          f"run; t_end {args.t_end:g} s")
+    for name, seconds in times.items():
+        print(f"{name}: {seconds:.1f} s, {1e3 * seconds / n:.1f} ms a scenario, "
+              f"{seconds / times['plain sweep']:.2f} x the plain sweep")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,95 @@
+"""A cohort through one engine queue (``cohort --queue one``, runs/population.py): each slot
+runs its scenario's body as per-lane data, so a subject's map does not depend on the other
+subjects in the queue, their order or their number; the options that cannot run that way are
+refused before anything is written."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from mjx_balance.cli.main import main
+from mjx_balance.model.params import Config, ParameterError
+from mjx_balance.model.subject import Subject
+from mjx_balance.runs import population
+from mjx_balance.studies import cohort
+
+BASE = Config().replace(scenario={"t_end": 1.0})
+
+
+def test_queues_split_the_bodies_by_cells():
+    assert population.queues(5, 100, limit=250) == [range(0, 2), range(2, 4), range(4, 5)]
+    assert population.queues(3, 1000, limit=250) == [range(0, 1), range(1, 2), range(2, 3)]
+    assert population.queues(4, 10, limit=1000) == [range(0, 4)]
+
+
+def test_a_served_batch_hands_back_the_rows_asked_for():
+    columns = {"force": np.array([0.0, 0.0, 10.0, 10.0]),
+               "duration": np.array([0.1, 0.2, 0.1, 0.2]),
+               "outcome": np.array([0, 0, 0, 1], np.int32), "settle_time": np.arange(4.0)}
+    batch = population.ServedBatch(BASE, columns, slots=8, early_stop=True)
+    assert batch.can_stream() and batch.engine_record() == {
+        "slots": 8, "early_stop": True, "physics": "mjx", "queue": "one"}
+    index, got = next(batch.stream(np.array([10.0, 0.0]), np.array([0.2, 0.1])))
+    assert index.tolist() == [0, 1]
+    assert got["settle_time"].tolist() == [3.0, 0.0] and got["outcome"].tolist() == [1, 0]
+    with pytest.raises(ValueError, match="started with 16 slots"):
+        batch.use_engine(16, True, "mjx")
+    batch.use_engine(8, True, "mjx")  # the same settings: nothing to say
+
+
+@pytest.mark.parametrize("options, message", [
+    ({"queue": "all"}, "queue = 'all'"),
+    ({"queue": "one", "physics": "c"}, "not with physics 'c'"),
+    ({"queue": "one", "cluster": "local:2"}, "or a cluster"),
+])
+def test_a_queue_that_cannot_run_is_refused_before_anything_is_written(tmp_path, options,
+                                                                       message):
+    out = tmp_path / "out"
+    with pytest.raises(ParameterError, match=message):
+        cohort.plan_cohort(out, cohort.numbered([Subject(1.7, 70)]), BASE, "0,50", "0.1",
+                           **options)
+    assert not out.exists()
+
+
+def test_bodies_of_another_shape_cannot_share_a_queue():
+    """The stacked arrays need one compiled program's shapes: a horizon of another length is
+    refused (building runners compiles nothing)."""
+    from mjx_balance.rollout import BatchRunner
+    from mjx_balance.rollout.engine import lane_bodies
+
+    one = BatchRunner(BASE, physics="mjx")
+    other = BatchRunner(BASE.replace(controller={"horizon": BASE.controller.horizon + 2}),
+                        physics="mjx")
+    with pytest.raises(ValueError, match="shapes and static settings"):
+        lane_bodies(one, [one, other], early=True)
+    arrays, cert = lane_bodies(one, [one, one, one], early=True)
+    import jax
+    assert {np.shape(v)[0] for v in jax.tree.leaves(arrays)} == {4}  # padded to 4
+    assert {np.shape(v)[0] for v in jax.tree.leaves(cert)} == {4}
+
+
+@pytest.mark.slow  # compiles the per-lane engine twice (2 and 4 bodies): about 3 min on 2 cores
+def test_a_subject_in_one_queue_is_the_same_among_any_others(tmp_path):
+    """Bit for bit (region.parquet's every column): each subject of a three-subject cohort
+    through one queue equals the same subject's one-subject cohort through one queue, whatever
+    the others and their order."""
+    people = tmp_path / "people.csv"
+    people.write_text("id,height,mass,sex\nann,1.55,50,female\nbob,1.75,75,male\n"
+                      "cy,1.92,100,male\n")
+    grid = ["--forces", "20,60,100", "--durations", "0.1,0.3", "--set", "scenario.t_end=2",
+            "--slots", "4", "--queue", "one", "-q"]
+    assert main(["cohort", "--subjects", str(people), *grid, "--out",
+                 str(tmp_path / "three")]) == 0
+    for name, row in (("bob", "bob,1.75,75,male"), ("cy", "cy,1.92,100,male")):
+        alone = tmp_path / f"{name}.csv"
+        alone.write_text(f"id,height,mass,sex\n{row}\n")
+        assert main(["cohort", "--subjects", str(alone), *grid, "--out",
+                     str(tmp_path / name)]) == 0
+        mine = pd.read_parquet(tmp_path / name / "subjects" / name / "region.parquet")
+        among = pd.read_parquet(tmp_path / "three" / "subjects" / name / "region.parquet")
+        pd.testing.assert_frame_equal(mine, among, check_exact=True)
+    maps = [pd.read_parquet(tmp_path / "three" / "subjects" / i / "region.parquet")
+            for i in ("ann", "bob", "cy")]
+    assert (maps[0]["outcome"] != maps[2]["outcome"]).any()  # the bodies do differ
