@@ -279,7 +279,7 @@ def scorecard(ours: "str | os.PathLike[str] | pd.DataFrame",
 def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
             out: str | os.PathLike[str], *, forces: Values = None, durations: Values = None,
             table_forces: Values = None, slots: int | None = None, full_length: bool = False,
-            physics: str = "auto", cluster: Any = None,
+            physics: str = "auto", cluster: Any = None, queue: str = "each",
             progress: bool | None = None, format: str | None = None,
             figure_format: str | None = None, figure_size: str | None = None) -> "pd.DataFrame":
     """Several configurations on one grid (``mjx-balance compare``): each one's region map and
@@ -290,7 +290,9 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
     default sweep's. ``format``: as :func:`sweep` (every table in ``out`` and its configuration
     folders also as CSV, parquet or both). ``figure_format``: "png", "svg" or "pdf";
     ``figure_size``: "screen", "one-column" or "two-column" (docs/outputs.md, "Figures");
-    None: the style in effect (:func:`figure_style`; png at screen size unless set)."""
+    None: the style in effect (:func:`figure_style`; png at screen size unless set).
+    ``queue``: "each" or "one" (every map through one engine queue, per-lane QPs: MJX only;
+    ``mjx-balance compare --queue``)."""
     check_format(format)
     if isinstance(configs, dict):
         configs = {str(name): as_config(c) for name, c in configs.items()}
@@ -301,8 +303,9 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
                             DEFAULT_SWEEP["forces"] if forces is None else forces,
                             DEFAULT_SWEEP["durations"] if durations is None else durations,
                             DEFAULT_SWEEP["table_forces"] if table_forces is None
-                            else table_forces, progress=wanted(progress), log=log.info, slots=slots,
-                            full_length=full_length, physics=physics, cluster=cluster)
+                            else table_forces, progress=wanted(progress), log=log.info,
+                            slots=slots, full_length=full_length, physics=physics,
+                            cluster=cluster, queue=queue)
         export_tables(out, format)
         return frame
 

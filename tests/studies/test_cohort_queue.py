@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import mjx_balance as mb
 from mjx_balance.cli.main import main
 from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.model.subject import Subject
@@ -53,6 +54,15 @@ def test_a_queue_that_cannot_run_is_refused_before_anything_is_written(tmp_path,
     assert not out.exists()
 
 
+@pytest.mark.parametrize("args, message", [
+    (("all",), "queue = 'all'"), (("one", "c"), "not with physics 'c'"),
+    (("one", "mjx", "local:2"), "or a cluster")])
+def test_every_command_checks_its_queue_alike(args, message):
+    with pytest.raises(ParameterError, match=message):
+        population.check_queue(*args)
+    assert population.check_queue("one", "auto") == "one"
+
+
 def test_bodies_of_another_shape_cannot_share_a_queue():
     """The stacked arrays need one compiled program's shapes: a horizon of another length is
     refused (building runners compiles nothing)."""
@@ -74,7 +84,8 @@ def test_bodies_of_another_shape_cannot_share_a_queue():
 def test_a_subject_in_one_queue_is_the_same_among_any_others(tmp_path):
     """Bit for bit (region.parquet's every column): each subject of a three-subject cohort
     through one queue equals the same subject's one-subject cohort through one queue, whatever
-    the others and their order."""
+    the others and their order, and compare's one queue maps that subject's configuration to
+    the same bytes."""
     people = tmp_path / "people.csv"
     people.write_text("id,height,mass,sex\nann,1.55,50,female\nbob,1.75,75,male\n"
                       "cy,1.92,100,male\n")
@@ -93,3 +104,10 @@ def test_a_subject_in_one_queue_is_the_same_among_any_others(tmp_path):
     maps = [pd.read_parquet(tmp_path / "three" / "subjects" / i / "region.parquet")
             for i in ("ann", "bob", "cy")]
     assert (maps[0]["outcome"] != maps[2]["outcome"]).any()  # the bodies do differ
+    # compare's one queue is the same queue: its map of cy's configuration is the cohort's
+    base = Config().replace(scenario={"t_end": 2.0})
+    mb.compare({"plain": base, "cy": Subject(1.92, 100, "male").config(base)},
+               tmp_path / "compare", forces="20,60,100", durations="0.1,0.3", table_forces="60",
+               slots=4, queue="one")
+    pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "compare" / "cy" / "region.parquet"),
+                                  maps[2], check_exact=True)

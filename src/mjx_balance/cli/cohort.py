@@ -19,6 +19,7 @@ from .common import base_config, guard_work, in_folder, progress_enabled, table_
 from .options import (
     config_options,
     engine_options,
+    queue_option,
     figure_options,
     finite_float,
     format_option,
@@ -81,11 +82,7 @@ def add_parser(sub: Any) -> None:
                    help="also each subject's table at these forces [N]: its max acting times "
                         "and sustained-push limit in cohort.csv (default: no table)")
     engine_options(p)
-    p.add_argument("--queue", choices=("each", "one"), default="each",
-                   help="each (default): every subject's map its own engine run, the bytes of "
-                        "sweep --subject; one: every subject's map through one engine queue "
-                        "with per-lane bodies (MJX only; the maps differ from each's by float "
-                        "rounding; docs/studies.md, \"Cohorts\")")
+    queue_option(p, "subject")
     wait_option(p)
     yes_option(p)
     format_option(p)

@@ -24,6 +24,7 @@ from .options import (
     cluster_option,
     config_options,
     engine_options,
+    queue_option,
     figure_options,
     format_option,
     out_folder,
@@ -61,6 +62,7 @@ def add_parser(sub: Any) -> None:
                    help="forces of each configuration's max-acting-time table [N] (default: "
                         f"the default sweep's, {DEFAULT_SWEEP_TABLE_FORCES})")
     engine_options(p)
+    queue_option(p, "configuration")
     cluster_option(p)
     wait_option(p)
     yes_option(p)
@@ -114,7 +116,7 @@ def compare_command(args: Any) -> int:
                for name, config in configs.items()}
     out = Path(args.out)
     engine = {"slots": args.slots, "full_length": args.full_length,
-              "physics": args.physics or "auto", "cluster": args.cluster}
+              "physics": args.physics or "auto", "cluster": args.cluster, "queue": args.queue}
     given = [DEFAULT_SWEEP[k] if getattr(args, k) is None else getattr(args, k)
              for k in ("forces", "durations", "table_forces")]  # empty: refused, not default
     grids = check_compare(out, configs, *given)

@@ -18,7 +18,7 @@ from ..studies.defaults import (DEFAULT_DELAYS, DEFAULT_SCALES,  # light
                                 DEFAULT_TABLE_FORCES)
 from .common import (base_config, chosen_physics, guard_work, in_folder, progress_enabled,
                      table_scenarios)
-from .options import (config_options, engine_options, figure_options, format_option,
+from .options import (config_options, engine_options, queue_option, figure_options, format_option,
                       out_folder, renamed_option,
                       sweep_file, wait_option, write_exports, yes_option)
 
@@ -59,6 +59,7 @@ def add_parser(sub: Any) -> None:
                    help="forces of each setting's max-acting-time table [N] (default: the "
                         f"--sweep file's, else {DEFAULT_TABLE_FORCES})")
     engine_options(p)
+    queue_option(p, "setting")
     wait_option(p)
     yes_option(p)
     format_option(p)
@@ -98,7 +99,7 @@ def landscape_command(args: Any) -> int:
     guard_work(args, config, settings * checked["forces"].size * checked["durations"].size,
                "cells", extra=settings * table_scenarios(config, checked["table_forces"].size))
     engine = {"slots": args.slots, "full_length": args.full_length,
-              "physics": chosen_physics(args, definition)}
+              "physics": chosen_physics(args, definition), "queue": args.queue}
 
     def work() -> None:
         run_landscape(out, config, forces, durations, q_scales=args.q_scales,

@@ -366,6 +366,15 @@ def engine_options(p: argparse.ArgumentParser) -> None:
     physics_option(p)
 
 
+def queue_option(p: argparse.ArgumentParser, maps: str) -> None:
+    """--queue of the commands that run several region maps (``maps``: what they are)."""
+    p.add_argument("--queue", choices=("each", "one"), default="each",
+                   help=f"each (default): every {maps}'s map its own engine run; one: every "
+                        f"{maps}'s map through one engine queue with per-lane bodies and QPs "
+                        "(MJX only; the maps differ from each's by float rounding; "
+                        "docs/engine.md, \"Per-lane bodies\")")
+
+
 def physics_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--physics", choices=("auto", "mjx", "c"), default=None,
                    help="physics of the batched closed loop: mjx (MuJoCo MJX in JAX, float32), "

@@ -18,17 +18,20 @@ and every MJX engine run, a single body's too, runs its body as per-lane data
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..measures.outcomes import summary_frame
-from ..model.params import Config
+from ..model.params import Config, ParameterError
 from ..rollout import BatchRunner
-from ..rollout.engine import Engine
+from ..rollout.engine import Engine, certificate
 from ..rollout.kernel import Accumulators
 from ..rollout.runner import push_steps, summarize
+from ..store.files import REGION
 from .batch import LazyBatch
+from .folders import run_region
 from .grid import grid_cells
 
 # Cells in one queue at most (its bodies' grids together): an interrupted population loses at
@@ -40,13 +43,16 @@ QUEUE_CELLS = 20_000
 class Population:
     """The runners and the shared engine of ``configs`` (bodies of one compiled program's
     shapes; the first one's engine settings), for the cells of ``forces`` x ``durations``.
-    ``slots``, ``early_stop``: as a sweep's."""
+    ``slots``, ``early_stop``: as a sweep's; ``runners``: the configurations' runners, when
+    already built."""
 
     def __init__(self, configs: Sequence[Config], forces: np.ndarray, durations: np.ndarray, *,
-                 slots: int | None = None, early_stop: bool = True):
+                 slots: int | None = None, early_stop: bool = True,
+                 runners: Sequence[Any] | None = None):
         self.configs = list(configs)
-        self.runners = [BatchRunner(c, slots=slots, early_stop=early_stop, physics="mjx")
-                        for c in self.configs]
+        self.runners = list(runners) if runners is not None else [
+            BatchRunner(c, slots=slots, early_stop=early_stop, physics="mjx")
+            for c in self.configs]
         self.engine = Engine(self.runners[0], slots=slots, early=early_stop,
                              bodies=self.runners)
         self.slots, self.early_stop = self.engine.slots, early_stop
@@ -84,6 +90,56 @@ class Population:
         """Body ``body``'s batch function, serving ``columns`` (:meth:`run`'s)."""
         return ServedBatch(self.configs[body], columns, slots=self.slots,
                            early_stop=self.early_stop)
+
+
+QUEUES = ("each", "one")
+
+
+def check_queue(queue: Any, physics: Any = "auto", cluster: Any = None) -> str:
+    """``queue`` checked: "each" (every map its own engine run) or "one" (the maps through one
+    engine queue, :func:`run_maps`: the MJX path in this process, so not with physics "c" or a
+    cluster). ParameterError (a ValueError) naming what it accepts."""
+    if not isinstance(queue, str) or queue not in QUEUES:
+        raise ParameterError(f"queue = {queue!r}: must be one of "
+                             f"{', '.join(repr(q) for q in QUEUES)}")
+    if queue == "one" and (physics == "c" or cluster is not None):
+        raise ParameterError("queue = 'one' runs every map on the MJX path in this process: "
+                             "not with physics 'c' or a cluster")
+    return queue
+
+
+def run_maps(maps: Sequence[tuple[Path, Config]], forces: np.ndarray, durations: np.ndarray,
+             *, slots: int | None = None, full_length: bool = False,
+             say: Callable[[str], None] | None = None,
+             update: Callable[[int], None] | None = None) -> None:
+    """The region maps of ``maps`` ((folder, configuration) pairs; those whose folder holds its
+    region.parquet are skipped) through one engine queue per compiled program: configurations
+    of one program's shapes and static settings, with a certificate or all without, share a
+    queue (``Engine``'s ``bodies``); each map is then written to its folder as its ``sweep``
+    writes one (``runs.folders.run_region`` with a :class:`ServedBatch`). ``update(n)``: n
+    more cells decided."""
+    say = say or (lambda _msg: None)
+    early = not full_length
+    groups: dict[Any, list[tuple[Path, Config, Any]]] = {}
+    for folder, config in maps:
+        if (Path(folder) / REGION).exists():
+            continue
+        runner = BatchRunner(config, slots=slots, early_stop=early, physics="mjx")
+        key = (runner._shape_key(1, runner.static._replace(n_control=None)),
+               certificate(runner, early) is None)
+        groups.setdefault(key, []).append((Path(folder), config, runner))
+    cells = forces.size * durations.size
+    for members in groups.values():
+        people = Population([c for _, c, _ in members], forces, durations, slots=slots,
+                            early_stop=early, runners=[r for _, _, r in members])
+        for part in queues(len(members), cells):
+            say(f"{len(part)} maps ({len(part) * cells} cells) in one engine queue")
+            columns = people.run(part, update=update)
+            for i in part:
+                folder, config, _ = members[i]
+                run_region(folder, config, forces, durations, slots=slots,
+                           full_length=full_length, progress=False,
+                           run_batch=people.batch(i, columns.pop(i)))
 
 
 def queues(count: int, cells: int, limit: int = QUEUE_CELLS) -> list[range]:

@@ -77,7 +77,7 @@ from ..runs.folders import (
     run_table_folder,
     size_value,
 )
-from ..runs.population import Population, queues
+from ..runs.population import check_queue, run_maps
 from ..runs.progress import progress_bar
 from ..store.files import MANIFEST, REGION, TABLE, write_csv, write_text
 from ..store.folder import OutputFolder, config_dict
@@ -329,9 +329,6 @@ class CohortPlan:
         return _record(self.members, self.base, self.forces, self.durations, self.tables)
 
 
-QUEUES = ("each", "one")
-
-
 def check_engine(slots: Any = None, full_length: Any = False, physics: Any = "auto",
                  cluster: Any = None, queue: Any = "each") -> dict[str, Any]:
     """The engine's options as ``run_region`` takes them, and ``queue``, each checked
@@ -342,12 +339,7 @@ def check_engine(slots: Any = None, full_length: Any = False, physics: Any = "au
     if not isinstance(physics, str) or physics not in PATHS:
         raise ParameterError(f"physics = {physics!r}: must be one of "
                              f"{', '.join(repr(p) for p in PATHS)}")
-    if not isinstance(queue, str) or queue not in QUEUES:
-        raise ParameterError(f"queue = {queue!r}: must be one of "
-                             f"{', '.join(repr(q) for q in QUEUES)}")
-    if queue == "one" and (physics == "c" or cluster is not None):
-        raise ParameterError("queue = 'one' runs every subject on the MJX path in this "
-                             "process: not with physics 'c' or a cluster")
+    check_queue(queue, physics, cluster)
     if not isinstance(full_length, bool) and type(full_length).__name__ != "bool_":
         raise ParameterError(f"full_length = {full_length!r}: must be True or False")
     engine = {"slots": size_value(slots, "slots"), "full_length": bool(full_length),
@@ -487,29 +479,14 @@ def one_queue(plan: CohortPlan) -> bool:
 
 def _run_queued(plan: CohortPlan, folders: dict[str, Path], say: Callable[[str], None],
                 bar: Any) -> None:
-    """The unfinished subjects' maps through one engine queue (at most
-    ``population.QUEUE_CELLS`` cells at a time), each then written to its folder as a sweep
-    of that subject writes it; the tables (``table_forces``) subject by subject after."""
+    """The unfinished subjects' maps through one engine queue (``runs.population.run_maps``),
+    each then written to its folder as a sweep of that subject writes it; the tables
+    (``table_forces``) subject by subject after."""
     members = list(plan.members)
-    pending = [i for i, m in enumerate(members) if not (folders[m.id] / REGION).exists()]
-    engine = {k: v for k, v in run_options(plan.engine).items() if k != "physics"}
-    if pending:
-        cells = plan.forces.size * plan.durations.size
-        people = Population([plan.configs[m.id] for m in members], plan.forces,
-                            plan.durations, slots=engine["slots"],
-                            early_stop=not engine["full_length"])
-        for part in queues(len(pending), cells):
-            which = [pending[i] for i in part]
-            say(f"cohort: {len(which)} subjects' maps ({len(which) * cells} cells) in one "
-                "queue")
-            columns = people.run(which, update=bar.update)
-            for i in which:
-                member = members[i]
-                say(f"cohort: subject {member.id} ({member.subject.describe()}) -> "
-                    f"{folders[member.id]}")
-                run_region(folders[member.id], plan.configs[member.id], plan.forces,
-                           plan.durations, run_batch=people.batch(i, columns[i]),
-                           progress=False, **engine)
+    run_maps([(folders[m.id], plan.configs[m.id]) for m in members], plan.forces,
+             plan.durations, slots=plan.engine["slots"],
+             full_length=plan.engine["full_length"], update=bar.update,
+             say=lambda text: say(f"cohort: {text}"))
     if plan.tables is not None:
         for member in members:
             run_table_folder(folders[member.id], plan.configs[member.id], plan.tables,

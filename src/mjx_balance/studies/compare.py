@@ -36,6 +36,7 @@ from ..model.subject import Subject
 from ..runs import cluster as cluster_mod
 from ..runs.definitions import load_sweep
 from ..runs.folders import check_batched, run_region, run_table_folder
+from ..runs.population import check_queue, run_maps
 from ..runs.grid import check_durations, describe, parse_grid, same_values
 from ..store.files import REGION, TABLE, write_csv
 from ..store.folder import OutputFolder, config_dict, config_differences
@@ -215,9 +216,14 @@ def run_compare(out: str | Path, configs: dict[str, Config], forces: Any, durati
     forces, durations, table_forces: grids (``parse_grid``); every duration must fit every
     configuration's window (checked for all before anything runs). run_batches: a batch
     function per name (tests); engine: ``slots``, ``full_length``, ``physics``, ``cluster``
-    for ``runs.folders.run_region`` / ``run_table_folder``."""
+    for ``runs.folders.run_region`` / ``run_table_folder``, and ``queue`` ("each": every
+    configuration's map its own engine run; "one": through one engine queue per compiled
+    shape, ``runs.population.run_maps``, MJX only, no cluster)."""
     say = log or (lambda _msg: None)
     out = Path(out)
+    engine = dict(engine)
+    queue = check_queue(engine.pop("queue", "each"), engine.get("physics", "auto"),
+                        engine.get("cluster"))
     forces, durations, table_forces = check_compare(out, configs, forces, durations,
                                                     table_forces)
     cluster = engine.get("cluster")
@@ -236,11 +242,17 @@ def run_compare(out: str | Path, configs: dict[str, Config], forces: Any, durati
             + ", ".join(f"{n}: {t:g} s" for n, t in windows.items()) + "); 'recovered' and "
             "the sustained-push limit are judged over each one's own window")
     regions, tables, rows = {}, {}, []
+    if queue == "one":  # every configuration's map through one engine queue per shape
+        run_maps([(out / name, config) for name, config in configs.items()], forces,
+                 durations, slots=engine.get("slots"),
+                 full_length=engine.get("full_length", False),
+                 say=lambda text: say(f"compare: {text}"))
     for name, config in configs.items():
         folder = out / name
         say(f"compare: {name} ({config.controller.convention} convention) -> {folder}")
         batch = (run_batches or {}).get(name)
-        run_region(folder, config, forces, durations, run_batch=batch, progress=progress,
+        if queue != "one":
+            run_region(folder, config, forces, durations, run_batch=batch, progress=progress,
                        **engine)
         run_table_folder(folder, config, table_forces, run_batch=batch, progress=progress,
                              **engine)

@@ -46,6 +46,7 @@ from ..runs.grid import check_durations, parse_grid
 from ..store.files import REGION, TABLE, write_atomic, write_csv
 from ..runs.folders import (batch_function, check_batched, check_float32_grid, run_region,
                             run_table_folder)
+from ..runs.population import check_queue, run_maps
 from .defaults import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES
 from ..figures import style as figure_style
 
@@ -215,9 +216,11 @@ def run_landscape(out: str | Path, base: Config, forces: Any, durations: Any, *,
     configuration or holding a map over another grid: refused, naming it). make_batch:
     ``make_batch(config, slots=, full_length=, physics=)`` -> a batch function (default
     ``batch_function``; tests pass a stand-in); engine: ``slots``, ``full_length``,
-    ``physics``."""
+    ``physics``, ``queue`` ("each": every setting's map its own engine run; "one": through one
+    engine queue per compiled shape, ``runs.population.run_maps``, MJX only)."""
     say = log or (lambda _msg: None)
     out = Path(out)
+    queue = check_queue(engine.get("queue", "each"), engine.get("physics") or "auto")
     checked = check_landscape(out, base, forces, durations, q_scales, r_scales, delays,
                               table_forces)
     q_scales, r_scales, delays = checked["q_scales"], checked["r_scales"], checked["delays"]
@@ -231,6 +234,10 @@ def run_landscape(out: str | Path, base: Config, forces: Any, durations: Any, *,
         f"{forces.size} x {durations.size} pushes and a table ({table_forces.size} force(s) + "
         f"the sustained-push limit); output {out}")
     out.mkdir(parents=True, exist_ok=True)
+    if queue == "one":  # every setting's map through one engine queue per compiled shape
+        run_maps([(out / name, config) for *_, name, config in settings], forces, durations,
+                 slots=options["slots"], full_length=options["full_length"],
+                 say=lambda text: say(f"landscape: {text}"))
     rows: list[dict[str, Any]] = []
     regions: dict[str, pd.DataFrame] = {}
     start = time.perf_counter()
@@ -241,7 +248,8 @@ def run_landscape(out: str | Path, base: Config, forces: Any, durations: Any, *,
         say(f"landscape [{k}/{len(settings)}] {delay.label}, Q x {q:g}, R x {r:g} -> {folder}"
             + (" (kept: checking)" if done else ""))
         run_batch = make_batch(config, **options)
-        run_region(folder, config, forces, durations, run_batch=run_batch,
+        if queue != "one":
+            run_region(folder, config, forces, durations, run_batch=run_batch,
                        progress=progress)
         run_table_folder(folder, config, table_forces, run_batch=run_batch,
                              progress=progress)
