@@ -80,6 +80,31 @@ def test_bodies_of_another_shape_cannot_share_a_queue():
     assert {np.shape(v)[0] for v in jax.tree.leaves(cert)} == {4}
 
 
+def test_each_lane_holds_its_own_bodys_compiled_model():
+    """A lane's body is the arrays its runner built from that body's own MJCF (MuJoCo's
+    derived quantities, mj_setConst's included), gathered unchanged: field by field, bit for
+    bit, for bodies of several sizes, and padding repeats the last body."""
+    import jax
+
+    from mjx_balance.rollout import BatchRunner
+    from mjx_balance.rollout.engine import lane_bodies
+    from mjx_balance.rollout.kernel import lane_arrays
+
+    people = [Subject(1.52, 48, "female", ankle_strength=0.6), Subject(1.75, 75),
+              Subject(1.95, 110, hip_strength=1.3)]
+    runners = [BatchRunner(p.config(BASE), physics="mjx") for p in people]
+    stacked, _ = lane_bodies(runners[0], runners, early=True)
+    lanes = lane_arrays(stacked, np.array([2, 0, 1, 3]))
+    for lane, runner in zip(range(4), [runners[2], runners[0], runners[1], runners[2]]):
+        mine = jax.tree.leaves(jax.tree.map(lambda v: v[lane], lanes))
+        own = jax.tree.leaves(runner.arrays)
+        assert len(mine) == len(own)
+        for a, b in zip(mine, own):
+            assert np.asarray(a).tobytes() == np.asarray(b).tobytes()
+    masses = [float(np.asarray(r.arrays.mx.body_mass).sum()) for r in runners]
+    assert masses[0] < masses[1] < masses[2]  # three bodies, not one three times
+
+
 @pytest.mark.slow  # compiles the per-lane engine twice (2 and 4 bodies): about 3 min on 2 cores
 def test_a_subject_in_one_queue_is_the_same_among_any_others(tmp_path):
     """Bit for bit (region.parquet's every column): each subject of a three-subject cohort
