@@ -619,7 +619,8 @@ def mjx_bodies(engine) -> dict[str, Any]:
         ended = ~carry.acc.alive | (k >= arrays.n_control)
         acc, certified = engine_mod.certify(engine_mod.checker(cert if early else None), static,
                                             carry.x_prev, carry.acc, k, due.n_push, ended,
-                                            due.due[0], n_control=arrays.n_control)
+                                            due.due[0], n_control=arrays.n_control,
+                                            force=due.force)
         return acc, certified, (due.cell >= 0) & (ended | certified)
 
     def harvest(arrays, cert, buffer, decided, slots, acc, certified, carry):
@@ -655,6 +656,7 @@ class CertifyInputs(NamedTuple):
 
     k: jax.Array
     n_push: jax.Array
+    force: jax.Array
     cell: jax.Array
     due: jax.Array  # [devices] bool: this period checks the certificate
 
@@ -675,7 +677,7 @@ def mjx_period(stages: Stages, bodies: dict, held: dict, s: int, iters: Iteratio
     carry, u, torques = stages("conclude", bodies["conclude"], pre, res, slots.k)
     stages("bare_physics", bodies["bare_physics"], carry.d, slots, torques, run=False)
     carry = stages("physics", bodies["physics"], carry, slots, torques, u)
-    due = CertifyInputs(slots.k, slots.n_push, slots.cell,
+    due = CertifyInputs(slots.k, slots.n_push, slots.force, slots.cell,
               stages.put(np.full(D, s % every == every - 1)))
     acc, certified, decided = stages("certify", bodies["certify"], carry, due)
     done, n_done, slots = stages("harvest", bodies["harvest"], (held["done"], held["n_done"]),
@@ -740,10 +742,11 @@ def c_bodies(engine) -> dict[str, Any]:
         k = jnp.where(cs.ran, slots.k + 1, slots.k)
         return carry, k, ~carry.acc.alive | (k >= arrays.n_control), (cell, force, push), p[None]
 
-    def certify(arrays, cert, carry, k, n_push, ended, p):
+    def certify(arrays, cert, carry, k, n_push, force, ended, p):
         return engine_mod.certify(engine_mod.checker(cert if early else None), static,
                                   carry.x_prev, carry.acc, k, n_push, ended,
-                                  (p[0] - 1) % every == every - 1, n_control=arrays.n_control)
+                                  (p[0] - 1) % every == every - 1, n_control=arrays.n_control,
+                                  force=force)
 
     def refill(arrays, cert, cs, carry, verdict, offer, p):
         acc, k, certified, ended = verdict
@@ -793,7 +796,7 @@ def c_group(stages: Stages, bodies: dict, records: list, weight: float,
         return stages.scan(name, bodies[name], *args, weight=weight, timed=timed)
 
     carry, k, ended, offer, p = scan("fold", cs, floats, ints)
-    acc, certified = scan("certify", carry, k, cs.slots.n_push, ended, p)
+    acc, certified = scan("certify", carry, k, cs.slots.n_push, cs.slots.force, ended, p)
     slots, fresh, taken, done = scan("refill", cs, carry, (acc, k, certified, ended), offer, p)
     pre = scan("prepare", slots.carry, slots.k)
     scan("qp_vectors", pre)

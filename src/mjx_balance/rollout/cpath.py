@@ -328,7 +328,8 @@ def call(arrays, sensors, static, cert, cs: CState, floats, ints, *, early: bool
     k = jnp.where(cs.ran, slots.k + 1, slots.k)
     ended = ~carry.acc.alive | (k >= arrays.n_control)
     acc, certified = certify(check, static, carry.x_prev, carry.acc, k, slots.n_push, ended,
-                             (p - 1) % every == every - 1, n_control=arrays.n_control)
+                             (p - 1) % every == every - 1, n_control=arrays.n_control,
+                             force=slots.force)
     decided = cs.ran & (ended | certified)
     zero = jnp.zeros((), jnp.int32)
     done, _ = harvest(empty_finished(B, dtype), zero, decided, slots.cell, acc, k, certified)

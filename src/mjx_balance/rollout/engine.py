@@ -107,17 +107,18 @@ def refill(slots: Slots, rest: Carry, taken, vacant, refill_cell, refill_force, 
     return slots, taken + take.sum(dtype=jnp.int32)
 
 
-def certify(check, static, x, acc: Accumulators, k, n_push, ended, due, *, n_control):
+def certify(check, static, x, acc: Accumulators, k, n_push, ended, due, *, n_control, force):
     """The certificate's verdict on every slot after its period ``k`` (1-based count; ``due``:
     whether this period is a check, the same for every slot) and the accumulators with a
     certified scenario's predicted rest of the window added. x: [S, 4] latest states;
-    ``n_control``: the window's control periods (``Arrays.n_control``)."""
+    ``n_control``: the window's control periods (``Arrays.n_control``); n_push, force: [S]
+    each slot's push."""
     S = k.shape[0]
     dtype = acc.max_residual.dtype
     certified = jnp.zeros_like(ended)
     if check is None:
         return acc, certified
-    over = k * static.substeps >= n_push
+    over = cert_mod.push_over(k * static.substeps, n_push, force)
 
     def checked(_):
         ok, tail = check(x, acc, over, (n_control - k) * static.substeps)
@@ -212,7 +213,8 @@ def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_fo
         k = slots.k + 1
         ended = ~carry.acc.alive | (k >= arrays.n_control)
         acc, certified = certify(check, static, carry.x_prev, carry.acc, k, slots.n_push, ended,
-                                 s % every == every - 1, n_control=arrays.n_control)
+                                 s % every == every - 1, n_control=arrays.n_control,
+                                 force=slots.force)
         decided = active & (ended | certified)
         # 3. decided scenarios go to the buffer; their slots are vacated (reset to rest)
         done, n_done = harvest(done, n_done, decided, slots.cell, acc, k, certified)
