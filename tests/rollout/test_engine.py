@@ -50,8 +50,9 @@ pytestmark = pytest.mark.usefixtures("float32")
 # joints stay inside the settle band (test_certified_runs_stay_in_the_band), so the full run's
 # extreme lies at most the band's reach beyond rest: margins.band_excursion, 6.8 cm for the
 # CoP and 1.1 cm for the CoM through the linear model's maps (the float32 contacts' jitter at
-# rest, ~1e-4 m of CoP, is far below). Measured on this grid: 9.9e-5 m (CoP), 0 (CoM); the
-# bound is loose because the certificate does not record how far inside the band a run is.
+# rest, ~1e-4 m of CoP, is far below). Measured on this grid: 1.1e-4 m (CoP), 6e-7 m (CoM), both
+# the rest jitter of the 0-N cells (a pushed cell's other side: 9.9e-5 m, 0); the bound is loose
+# because the certificate does not record how far inside the band a run is.
 EXTREME_ATOL = margins.band_excursion(Config())  # m, {"cop": ..., "com": ...}
 # What a scenario that falls or runs to t_end keeps bit for bit in both modes
 EXACT = (*CERTIFIED_EXACT, *peak_floors(), "max_residual")
@@ -81,8 +82,8 @@ def grid(window: str):
 # Per window: t_end, and how much the certificate must be seen to save. A certified scenario
 # stops at its first check inside the certified set after the push (every CHECK_EVERY
 # periods), so what it saves is the window's rest: most of a 12-s window (measured on the
-# 12-s grid: 0.55 of the full run's periods), about a second of a 3-s one (measured on the
-# 3-s grid: 20 certified, 0.875).
+# 12-s grid: 47 certified, 0.33 of the full run's periods), about a second of a 3-s one
+# (measured on the 3-s grid: 26 certified, 0.76).
 WINDOWS = {"3s": dict(t_end=3.0, min_certified=15, max_share=0.95),
            "12s": dict(t_end=12.0, min_certified=20, max_share=0.6)}
 
