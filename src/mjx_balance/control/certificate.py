@@ -29,16 +29,16 @@ invariant under u = -Kx. Over E(c) a linear function gᵀx ranges over ±sqrt(c 
    rest in the seconds an early stop skips (the CoP settles from either side), within the
    predicted CoP and CoM range (the difference measured: docs/engine.md, 0.1 mm).
 5. Near-zero pushes. Standing still, the closed loop jitters (the float32 contacts, the ADMM's
-   finite accuracy), and a push of a few newtons or less moves the joints, the torques or the
-   foot no more than that: its running peaks are jitter, which the rest of the window would only
-   replace with other jitter, and the prediction from a jittering state, with its margins, never
-   falls below them (the foot pitch's bound never falls below PITCH_FLOOR). So a peak whose
-   predicted future stays below the quantity's noise floor (:data:`ANGLE_FLOOR`,
-   :data:`TORQUE_FLOOR`, and for the foot pitch the bound of a CoP within :data:`COP_FLOOR`)
-   is not required to be final: the certified value may lie below the full run's, by less than
-   the floor, and only where the recorded peak is itself below the floor (a push that moves a
-   quantity beyond its floor keeps that peak exact). A push of 0 N is over from its start
-   (:func:`push_over`): it adds nothing to the physics, whatever its duration.
+   finite accuracy), and the check's bounds from a jittering state, with their margins, stay
+   above the peaks of a push of a few newtons or less: it would never be certified (the foot
+   pitch's bound never falls below PITCH_FLOOR, above what such a push rocks the foot). So a
+   peak whose predicted future stays below the quantity's noise floor (:data:`ANGLE_FLOOR`,
+   :data:`TORQUE_FLOOR`, and for the foot pitch the bound of a CoP within :data:`COP_FLOOR`;
+   the floors lie above what the bounds read at rest) is not required to be final: the certified
+   value may lie below the full run's, by less than the floor, and only where the recorded peak
+   is itself below the floor (a push that moves a quantity beyond its floor keeps that peak
+   exact). A push of 0 N is over from its start (:func:`push_over`): it adds nothing to the
+   physics, whatever its duration.
 
 Margins for the real plant (contact, nonlinearity, the ADMM's accuracy, float32): predicted
 values must stay within MARGIN of their limit, and V may grow by GROWTH in the QP test and the
@@ -81,10 +81,9 @@ PITCH_FLOOR = 2e-5
 # (the float32 contacts, the ADMM's finite accuracy), and the check's own bounds on the future,
 # evaluated at rest, read up to 1.3e-5 rad (joint angles), 0.063 N m (motor torques) and 8.1e-5 m
 # (CoP excursion) over a 0-N run of the whole window (the default body and five cohort
-# subjects: ``python docs/scripts/near_zero.py noise``). A running peak below its floor records
-# that jitter, not the push, and the rest of the window would only replace it with more jitter,
-# so it is not required to be final (:func:`check`, rule 5 of the module docstring). The floors
-# are those figures with a factor of about 2 for bodies and slot counts not measured.
+# subjects: ``python docs/scripts/near_zero.py noise``). Below its floor a running peak is not
+# required to be final (:func:`check`, rule 5 of the module docstring). The floors are those
+# figures with a factor of about 2 for bodies and slot counts not measured.
 ANGLE_FLOOR = 3e-5  # rad
 TORQUE_FLOOR = 0.15  # N m
 COP_FLOOR = 2e-4  # m
@@ -215,7 +214,7 @@ def check(xp, cert: Certificate, x, acc, push_over, samples_left):
     size = xp.maximum(high, -low)
     band = (size[:4] <= cert.band).all()
     # a peak is final if the future stays below it, or if the future stays below its noise
-    # floor (rule 5: the peak is then jitter, and the full run's differs by less than the floor)
+    # floor (rule 5: the full run's peak then differs by less than the floor)
     floor = cert.floor
     pitch_floor = cert.pitch_per_cop * floor[6] + cert.pitch_floor
     peaks = ((size[0] <= xp.maximum(acc.peak_ankle, floor[0]))
