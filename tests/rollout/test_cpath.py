@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 import pytest
 from margins import within
-from support import AdmmMPC
+from support import CERTIFIED_INTEGRALS, AdmmMPC, assert_certified_like_full_length
 
 from mjx_balance.control.certificate import PITCH_PER_COP
 from mjx_balance.measures import metrics, outcomes
@@ -220,6 +220,30 @@ def test_c_path_agrees_with_the_mjx_path(batch_runner, c_frame):
             continue
         near = batch_runner.run_frame(np.array([0.99, 1.01]) * force, [duration] * 2)
         assert set(near.outcome) != {mjx_frame.outcome[b]}, (force, duration)
+
+
+def test_near_zero_pushes_are_certified_on_the_c_path(c_runner):
+    """Rule 5 of certificate.py on the C path, as on the MJX path (test_engine.py): pushes of
+    0 N stop at the first check whatever their duration, a 3-N push of 0.05 s before t_end, and
+    their summaries (with a 20-N push's) match the C path's full-length runs by the documented
+    rule (support.assert_certified_like_full_length)."""
+    from mjx_balance.control.certificate import CHECK_EVERY
+
+    config = Config().replace(scenario={"t_end": 3.0})
+    forces, durations = np.array([(0.0, 0.1), (0.0, 1.5), (3.0, 0.05), (20.0, 0.1)]).T
+    out = {}
+    for name, early in (("early", True), ("full", False)):
+        runner = BatchRunner(config, physics="c", slots=4, threads=2, early_stop=early,
+                             devices=jax.local_devices()[:1])
+        out[name] = runner.run(forces, durations)
+        out[name + "_periods"], out[name + "_certified"] = (runner.last_periods,
+                                                            runner.last_certified)
+    assert out["early_certified"][:3].all()
+    assert (out["early_periods"][:2] == CHECK_EVERY).all()
+    assert out["early_periods"][2] < config.scenario.n_control
+    jitter = {c: abs(float(out["full"][c][0])) for c in CERTIFIED_INTEGRALS}
+    assert_certified_like_full_length(out["early"], out["full"], out["early_certified"], config,
+                                      jitter)
 
 
 def test_threads_slots_and_order_change_nothing(c_runner, c_frame):

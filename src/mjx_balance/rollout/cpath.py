@@ -342,8 +342,8 @@ def judged(arrays, static, check, cs: CState, carry: Carry, k, p):
     """The engine's :func:`engine.decide` over the slots that ran a period before call ``p``
     (the certificate checks after every ``CHECK_EVERY``-th period, as on the MJX path)."""
     every = cert_mod.CHECK_EVERY
-    return decide(check, static, arrays.n_control, carry, k, cs.slots.n_push, cs.ran,
-                  (p - 1) % every == every - 1)
+    return decide(check, static, arrays.n_control, carry, k,
+                  (cs.slots.n_push, cs.slots.force), cs.ran, (p - 1) % every == every - 1)
 
 
 def turnover(arrays, sensors: Sensors, static, gated: bool, cs: CState, carry: Carry, k, p, *,

@@ -115,17 +115,18 @@ def refill(slots: Slots, rest: Carry, taken, vacant, refill_cell, refill_force, 
     return slots, taken + take.sum(dtype=jnp.int32)
 
 
-def certify(check, static, x, acc: Accumulators, k, n_push, ended, due, *, n_control):
+def certify(check, static, x, acc: Accumulators, k, n_push, ended, due, *, n_control, force):
     """The certificate's verdict on every slot after its period ``k`` (1-based count; ``due``:
     whether this period is a check, the same for every slot) and the accumulators with a
     certified scenario's predicted rest of the window added. x: [S, 4] latest states;
-    ``n_control``: the window's control periods (``Arrays.n_control``)."""
+    ``n_control``: the window's control periods (``Arrays.n_control``); n_push, force: [S]
+    each slot's push."""
     S = k.shape[0]
     dtype = acc.max_residual.dtype
     certified = jnp.zeros_like(ended)
     if check is None:
         return acc, certified
-    over = k * static.substeps >= n_push
+    over = cert_mod.push_over(k * static.substeps, n_push, force)
 
     def checked(_):
         ok, tail = check(x, acc, over, (n_control - k) * static.substeps)
@@ -180,15 +181,17 @@ def take(slots: Slots, rest: Carry, taken, s, refill_cell, refill_force, refill_
                   starts=starts, refill_body=refill_body)
 
 
-def decide(check, static, n_control, carry: Carry, k, n_push, busy, due
+def decide(check, static, n_control, carry: Carry, k, push, busy, due
            ) -> tuple[Accumulators, jax.Array, jax.Array]:
-    """Step 3 of a period, after the period ran (``carry``; ``k``: periods done): whether each
-    busy slot's scenario ended (fell, diverged or reached t_end) or is certified (``due``: the
-    certificate checks this period). Returns the accumulators (a certified scenario's with
-    its predicted rest of the window), the certified flags and the decided ones."""
+    """Step 3 of a period, after the period ran (``carry``; ``k``: periods done; ``push``:
+    each slot's (push steps, force)): whether each busy slot's scenario ended (fell, diverged
+    or reached t_end) or is certified (``due``: the certificate checks this period). Returns
+    the accumulators (a certified scenario's with its predicted rest of the window), the
+    certified flags and the decided ones."""
     ended = ~carry.acc.alive | (k >= n_control)
+    n_push, force = push
     acc, certified = certify(check, static, carry.x_prev, carry.acc, k, n_push, ended, due,
-                             n_control=n_control)
+                             n_control=n_control, force=force)
     return acc, certified, busy & (ended | certified)
 
 
@@ -268,7 +271,8 @@ def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_fo
                              slots.n_push, tile=tile, axis=axis)[0]
         k = slots.k + 1
         acc, certified, decided = decide(check, static, body.n_control, carry, k,
-                                         slots.n_push, slots.cell >= 0, s % every == every - 1)
+                                         (slots.n_push, slots.force), slots.cell >= 0,
+                                         s % every == every - 1)
         done, n_done, slots = retire(done, n_done, decided, slots, acc, k, certified,
                                      carry=carry, rest=body_rest)
         return (slots, taken, done, n_done), None
@@ -393,8 +397,9 @@ def certificate(runner, early: bool):
 def lane_bodies(runner, bodies: Sequence[Any], early: bool) -> tuple[Arrays, Any]:
     """The arrays and certificates of ``bodies`` (runners whose compiled programs agree with
     ``runner``'s: the same shapes and static settings) stacked along a first axis, padded to a
-    power of two (at least 2) with copies of the last (padding is never a cell's body). Raises ValueError
-    for bodies of another shape, or some with a certificate and some without."""
+    power of two (at least 2) with copies of the last (padding is never a cell's body).
+    Raises ValueError for bodies of another shape, or some with a certificate and some
+    without."""
     if not bodies:
         raise ValueError("bodies: at least one")
     key = runner._shape_key(1, runner.static._replace(n_control=None))
