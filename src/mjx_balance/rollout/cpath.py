@@ -488,13 +488,16 @@ class CEngine(Engine):
         return jnp.asarray(a) if batch_sharding is None else jax.device_put(a, batch_sharding)
 
     def stream(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None,
-               probe: Probe | None = None
+               probe: Probe | None = None, bodies: np.ndarray | None = None
                ) -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:
         """As :meth:`engine.Engine.stream`, one control period per call (from upright rest
-        only: ``inits`` must be None or zero)."""
+        only: ``inits`` must be None or zero; one body: ``bodies`` None or zero)."""
         if inits is not None and np.any(inits):
             raise ValueError("the MuJoCo C path starts every scenario at upright rest; "
                              "initial states need --physics mjx")
+        if bodies is not None and np.any(bodies):
+            raise ValueError("the MuJoCo C path steps one body's model; several bodies in "
+                             "one queue need --physics mjx")
         probe = probe or NO_PROBE
         forces, n_push, n = cells_of(forces, n_push)
         if n == 0:
