@@ -9,10 +9,11 @@ columns. :class:`ServedBatch` then hands one body's columns to ``runs.folders.ru
 its batch function, so each body's folder is written, resumed and recorded exactly as a
 ``sweep`` of that body writes it.
 
-Why the bytes agree with a sweep of the body alone: a lane's computation does not depend on
-the other lanes or on which slot it runs in (``rollout/engine.py``, "Schedule independence"),
-and every MJX engine run, a single body's too, runs its body as per-lane data
-(``BatchRunner.engine``), so the arithmetic is the same program's in both.
+A body's bytes do not depend on the other bodies in its queue, their number or order: a lane's
+computation does not depend on the other lanes or on its slot (``rollout/engine.py``,
+"Schedule independence"), and the bodies are padded to at least two, so a body alone in a
+queue runs the same per-lane program. A ``sweep`` of the body alone runs it as a shared body,
+whose float rounding differs (docs/engine.md, "Per-lane bodies").
 """
 
 from __future__ import annotations
@@ -35,9 +36,11 @@ from .folders import run_region
 from .grid import grid_cells
 
 # Cells in one queue at most (its bodies' grids together): an interrupted population loses at
-# most one queue's work, and the host keeps one queue's summaries; at least 64 refills of the
-# engine's slots, so that the queue is long enough to keep them busy.
+# most one queue's work, and the host keeps one queue's summaries. At least QUEUE_CELLS, and
+# QUEUE_REFILLS times the engine's slots (every device's), so that an accelerator's thousands
+# of slots get a queue long enough to keep them busy (docs/studies.md, "Cohorts").
 QUEUE_CELLS = 20_000
+QUEUE_REFILLS = 40
 
 
 class Population:
@@ -132,7 +135,8 @@ def run_maps(maps: Sequence[tuple[Path, Config]], forces: np.ndarray, durations:
     for members in groups.values():
         people = Population([c for _, c, _ in members], forces, durations, slots=slots,
                             early_stop=early, runners=[r for _, _, r in members])
-        for part in queues(len(members), cells):
+        lanes = people.engine.slots * people.engine.n_devices
+        for part in queues(len(members), cells, max(QUEUE_CELLS, QUEUE_REFILLS * lanes)):
             say(f"{len(part)} maps ({len(part) * cells} cells) in one engine queue")
             columns = people.run(part, update=update)
             for i in part:
