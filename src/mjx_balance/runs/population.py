@@ -18,6 +18,7 @@ whose float rounding differs (docs/engine.md, "Per-lane bodies").
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -135,6 +136,12 @@ def run_maps(maps: Sequence[tuple[Path, Config]], forces: np.ndarray, durations:
     for members in groups.values():
         people = Population([c for _, c, _ in members], forces, durations, slots=slots,
                             early_stop=early, runners=[r for _, _, r in members])
+        t0 = time.perf_counter()
+        say(f"preparing the engine ({len(members)} bodies, each lane its own; compiled on "
+            "first use, or loaded from the cache) ...")
+        people.engine.block_fn()  # before the progress bar's first update
+        if time.perf_counter() - t0 > 1:
+            say(f"engine ready ({time.perf_counter() - t0:.0f} s)")
         lanes = people.engine.slots * people.engine.n_devices
         for part in queues(len(members), cells, max(QUEUE_CELLS, QUEUE_REFILLS * lanes)):
             say(f"{len(part)} maps ({len(part) * cells} cells) in one engine queue")
