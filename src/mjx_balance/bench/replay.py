@@ -304,8 +304,8 @@ def mjx_bodies(engine) -> dict[str, Any]:
 
     def certify(arrays, cert, carry, due):
         return engine_mod.decide(engine_mod.checker(cert if early else None), static,
-                                 arrays.n_control, carry, due.k + 1, due.n_push, due.cell >= 0,
-                                 due.due[0])
+                                 arrays.n_control, carry, due.k + 1, (due.n_push, due.force),
+                                 due.cell >= 0, due.due[0])
 
     def harvest(arrays, cert, buffer, decided, slots, acc, certified, carry):
         done, n_done, slots = engine_mod.retire(
@@ -337,6 +337,7 @@ class CertifyInputs(NamedTuple):
 
     k: jax.Array
     n_push: jax.Array
+    force: jax.Array
     cell: jax.Array
     due: jax.Array  # [devices] bool: this period checks the certificate
 
@@ -357,7 +358,7 @@ def mjx_period(stages: Stages, bodies: dict, held: dict, s: int, iters: Iteratio
     carry, u, torques = stages("conclude", bodies["conclude"], pre, res, slots.k)
     stages("bare_physics", bodies["bare_physics"], carry.d, slots, torques, run=False)
     carry = stages("physics", bodies["physics"], carry, slots, torques, u)
-    due = CertifyInputs(slots.k, slots.n_push, slots.cell,
+    due = CertifyInputs(slots.k, slots.n_push, slots.force, slots.cell,
                         stages.put(np.full(D, s % every == every - 1)))
     acc, certified, decided = stages("certify", bodies["certify"], carry, due)
     done, n_done, slots = stages("harvest", bodies["harvest"], (held["done"], held["n_done"]),
