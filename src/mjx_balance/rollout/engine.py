@@ -189,6 +189,8 @@ def decide(check, static, n_control, carry: Carry, k, push, busy, due
     the accumulators (a certified scenario's with its predicted rest of the window), the
     certified flags and the decided ones."""
     ended = ~carry.acc.alive | (k >= n_control)
+    if not isinstance(push, tuple):  # (an array of two slots would unpack silently)
+        raise TypeError(f"push: (push steps, force), got {type(push).__name__}")
     n_push, force = push
     acc, certified = certify(check, static, carry.x_prev, carry.acc, k, n_push, ended, due,
                              n_control=n_control, force=force)
