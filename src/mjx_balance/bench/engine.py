@@ -178,18 +178,11 @@ class Drive(NamedTuple):
 
 
 def drive(engine, forces, n_push, *, record: bool = False, sampled: int = 10) -> Drive:
-    """``engine.stream`` over every cell with a :class:`Recorder`; the results collected as
-    ``Engine.run`` collects them (clocked as ``python``). On the MJX path the records end with
-    the state the last call left (every slot vacant)."""
+    """``engine.run`` over every cell with a :class:`Recorder` (the results' collection
+    clocked as ``python``). On the MJX path the records end with the state the last call left
+    (every slot vacant)."""
     probe = Recorder(engine, record, sampled)
-    n = len(forces)
-    out: dict = {}
-    for index, raw in engine.stream(forces, n_push, probe=probe):
-        with probe("python"):
-            for name, v in raw.items():
-                if name not in out:
-                    out[name] = np.zeros((n,) + v.shape[1:], v.dtype)
-                out[name][index] = v
+    out = engine.run(forces, n_push, probe=probe)
     if record and not probe.c_path:
         with probe.paused():
             probe.records.append((jax.device_get(engine._state), None))

@@ -6,10 +6,9 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import math
 from pathlib import Path
 
-from ..model.params import ParameterError
+from ..model.params import ParameterError, finite_number
 from ..model.config_files import dumps_config
 from .common import guard_work, in_folder, load_run_config, progress_enabled
 from .options import (common_options, figure_options, format_option, renamed_option,
@@ -59,12 +58,7 @@ def parse_values(text: str, name: str, *, nonnegative: bool = False) -> list[flo
         raise ParameterError(f"--{name}: give at least one value")
     values = []
     for item in items:
-        try:
-            value = float(item)
-        except ValueError:
-            raise ParameterError(f"--{name}: {item!r} is not a number") from None
-        if not math.isfinite(value):
-            raise ParameterError(f"--{name}: {item!r} must be a finite number")
+        value = finite_number(item, f"--{name}")
         if nonnegative and value < 0:
             raise ParameterError(f"--{name}: {item!r} must be >= 0")
         values.append(value)

@@ -82,6 +82,19 @@ def is_number(value: Any) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
+def finite_number(text: str, name: str) -> float:
+    """``text`` (spaces around it ignored) as a finite number; otherwise a ParameterError whose
+    one line names ``name`` and the text."""
+    text = str(text).strip()
+    try:
+        value = float(text)
+    except ValueError:
+        raise ParameterError(f"{name}: {text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise ParameterError(f"{name}: must be a finite number, got {text!r}")
+    return value
+
+
 def _check_types(record: str, obj: Any) -> None:
     """Each field holds what its default is: a number (never a bool), a list of numbers (no
     nested lists, no bools, no strings), a bool or a string."""

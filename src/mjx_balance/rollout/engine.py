@@ -26,7 +26,7 @@ from __future__ import annotations
 import contextlib
 import time as _time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, Iterator, NamedTuple
 
 import jax
@@ -662,17 +662,23 @@ class Engine:
         return tuple(jax.device_put(a, batch_sharding) for a in args)
 
     def run(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None,
-            bodies: np.ndarray | None = None) -> dict[str, np.ndarray]:
-        """Every cell's raw results (see :meth:`stream`), in the order of the cells."""
+            bodies: np.ndarray | None = None, *, probe: Probe | None = None,
+            update: Callable[[int], None] | None = None) -> dict[str, np.ndarray]:
+        """Every cell's raw results (see :meth:`stream`; ``probe`` clocks their collection as
+        ``python`` too), in the order of the cells. ``update(n)``: n more cells decided."""
+        probe = probe or NO_PROBE
         n = np.asarray(forces).shape[0]
         out: dict[str, Any] = {}
         seen = np.zeros(n, bool)
-        for index, raw in self.stream(forces, n_push, inits, bodies=bodies):
-            for name, v in raw.items():
-                if name not in out:
-                    out[name] = np.zeros((n,) + v.shape[1:], v.dtype)
-                out[name][index] = v
-            seen[index] = True
+        for index, raw in self.stream(forces, n_push, inits, probe=probe, bodies=bodies):
+            with probe("python"):
+                for name, v in raw.items():
+                    if name not in out:
+                        out[name] = np.zeros((n,) + v.shape[1:], v.dtype)
+                    out[name][index] = v
+                seen[index] = True
+            if update is not None:
+                update(len(index))
         if not seen.all():
             raise RuntimeError(f"the engine returned {int(seen.sum())} of {n} scenarios")
         if not out:  # no cells: empty columns of the accumulators' types

@@ -73,14 +73,7 @@ class Population:
         steps = np.tile(push_steps(self.cell_d, self.configs[0].scenario.physics_dt),
                         len(which))
         bodies = np.repeat(np.asarray(which, np.int32), n)
-        raw: dict[str, np.ndarray] = {}
-        for index, part in self.engine.stream(forces, steps, bodies=bodies):
-            for name, v in part.items():
-                if name not in raw:
-                    raw[name] = np.zeros((forces.size,) + v.shape[1:], v.dtype)
-                raw[name][index] = v
-            if update is not None:
-                update(len(index))
+        raw = self.engine.run(forces, steps, bodies=bodies, update=update)
         out = {}
         for j, body in enumerate(which):
             part = {name: v[j * n:(j + 1) * n] for name, v in raw.items()}

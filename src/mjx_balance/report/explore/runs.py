@@ -32,7 +32,7 @@ import pandas as pd
 from ...figures.animation import ARROW_M_PER_N, segment_points
 from ...figures.timeseries import BOUND_COLOUR, bounds
 from ...measures.strategy import with_strategy
-from ...model.params import Config, ParameterError
+from ...model.params import Config, ParameterError, finite_number
 from ...reference import loop as reference
 from ...runs.grid import check_durations
 from ...runtime.version import __version__
@@ -71,14 +71,7 @@ def one_number(query: dict[str, list[str]], name: str) -> float:
     values = query.get(name, [])
     if len(values) != 1:
         raise ParameterError(f"{name}: give one value (got {len(values)})")
-    text = values[0].strip()
-    try:
-        value = float(text)
-    except ValueError:
-        raise ParameterError(f"{name}: {text!r} is not a number") from None
-    if not math.isfinite(value):
-        raise ParameterError(f"{name}: must be a finite number, got {text!r}")
-    return value + 0.0  # -0.0 is 0.0
+    return finite_number(values[0], name) + 0.0  # -0.0 is 0.0
 
 
 def check_cell(query: dict[str, list[str]], config: Config, found: MapFolder,
