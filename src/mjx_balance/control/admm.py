@@ -493,3 +493,33 @@ def admm_solve_batch(data: ADMMData, x0: jax.Array, warm: ADMMWarm, settings: AD
                           (jax.tree.map(split, data), split(x0), jax.tree.map(split, warm),
                            None if offset is None else split(offset)))
     return jax.tree.map(lambda a: a.reshape((batch,) + a.shape[2:]), out)
+
+
+def admm_solve_tiles(bodies: ADMMData, tile_body: jax.Array, x0: jax.Array, warm: ADMMWarm,
+                     settings: ADMMSettings, tile: int, offset: jax.Array | None = None
+                     ) -> ADMMResult:
+    """``admm_solve`` over x0 [B, 4], warm ([B, n], [B, m]) and offset ([B, m] or None) in
+    B / ``tile`` tiles of ``tile`` consecutive lanes, every lane of tile t solving the QP
+    ``bodies[tile_body[t]]`` (``bodies``: QPs stacked [n_bodies, ...], every leaf; tile_body
+    [B / tile] int).
+
+    Within a tile the QP is shared, so its products are [tile, m] x [m, n] matrix products, as
+    :func:`admm_solve_batch` computes them for a batch that shares one QP (each lane's row of a
+    product is its own sums: the same bits in any tile), where one QP per lane
+    (``data_axis`` 0) reads each lane's matrices every iteration. One loop for every tile, as
+    ``admm_solve_batch`` without tiles: it runs to the slowest lane's stop.
+    """
+    batch = x0.shape[0]
+    if batch % tile:
+        raise ValueError(f"tile {tile} must divide the batch size {batch}")
+
+    def split(a):
+        return a.reshape((batch // tile, tile) + a.shape[1:])
+
+    solve = jax.vmap(lambda d, x, w, o: admm_solve(d, x, w, settings, o),
+                     in_axes=(None, 0, 0, None if offset is None else 0))
+    per_tile = jax.vmap(lambda b, x, w, o: solve(jax.tree.map(lambda v: v[b], bodies), x, w, o),
+                        in_axes=(0, 0, 0, None if offset is None else 0))
+    out = per_tile(tile_body, split(x0), jax.tree.map(split, warm),
+                   None if offset is None else split(offset))
+    return jax.tree.map(lambda a: a.reshape((batch,) + a.shape[2:]), out)

@@ -24,6 +24,7 @@ count, which a sweep therefore records.
 from __future__ import annotations
 
 import contextlib
+import math
 import time as _time
 import warnings
 from collections.abc import Callable, Sequence
@@ -40,6 +41,12 @@ from ..runtime.compiled import get_or_compile
 from .kernel import (Accumulators, Arrays, Carry, initial_carry, lane_arrays, period_batch,
                      rest_of, select, start)
 from .sensing import whole_body_com
+
+# Slots per body tile of an engine with per-lane bodies (``refill_tiles``): each tile solves
+# one body's QP with shared matrix products; a tile's slots switch body only when all are vacant
+# (docs/engine.md, "Per-lane bodies").
+LANE_TILE = 8
+
 
 def default_slots(platform: str) -> int:
     """Slots per device: 32 on a CPU (the fastest per scenario measured on 2 cores, batch 16-64:
@@ -115,6 +122,43 @@ def refill(slots: Slots, rest: Carry, taken, vacant, refill_cell, refill_force, 
     return slots, taken + take.sum(dtype=jnp.int32)
 
 
+def refill_tiles(slots: Slots, rests: Carry, used, vacant, refill_cell, refill_force,
+                 refill_push, *, starts: Carry, refill_body, tile: int) -> tuple[Slots, jax.Array]:
+    """:func:`refill` for per-lane bodies solved by body tiles: every ``tile`` consecutive
+    slots hold one body's scenarios (``admm.admm_solve_tiles`` solves one QP per tile). A
+    tile's vacant slots take the first offered cells not yet ``used`` [R] of the tile's body,
+    in order; a tile with no scenario takes the body of the first cell left (its vacant slots
+    are then at that body's rest: ``rests`` [n_bodies]). Returns the slots and ``used``."""
+    S = slots.cell.shape[0]
+    T = S // tile
+
+    def one(avail, row):
+        cell, body, vac = row
+        empty = (cell < 0).all()
+        first = refill_body[jnp.argmax(avail)]
+        b = jnp.where(empty & avail.any(), first, body[0])
+        count = jnp.cumsum(avail & (refill_body == b))
+        rank = jnp.cumsum(vac) - 1
+        take = vac & (rank < count[-1])
+        source = jnp.clip(jnp.searchsorted(count, rank + 1), 0, refill_cell.shape[0] - 1)
+        avail = avail & ~jnp.zeros_like(avail).at[source].max(take)
+        return avail, (take, source, jnp.full(tile, b, body.dtype))
+
+    rows = (slots.cell.reshape(T, tile), slots.body.reshape(T, tile), vacant.reshape(T, tile))
+    avail, (take, source, body) = jax.lax.scan(one, (refill_cell >= 0) & ~used, rows)
+    take, source, body = take.reshape(S), source.reshape(S), body.reshape(S)
+    idle = (slots.cell < 0) & ~take  # vacant slots, at their (maybe new) body's rest
+    first = jax.tree.map(lambda v: v[source], starts)
+    carry = select(idle, lane_arrays(rests, body), slots.carry)
+    slots = Slots(
+        carry=select(take, first, carry),
+        cell=jnp.where(take, refill_cell[source], slots.cell),
+        force=jnp.where(take, refill_force[source], slots.force),
+        n_push=jnp.where(take, refill_push[source], slots.n_push),
+        k=jnp.where(take, 0, slots.k), body=body)
+    return slots, ~avail & (refill_cell >= 0)
+
+
 def certify(check, static, x, acc: Accumulators, k, n_push, ended, due, *, n_control, force):
     """The certificate's verdict on every slot after its period ``k`` (1-based count; ``due``:
     whether this period is a check, the same for every slot) and the accumulators with a
@@ -169,14 +213,19 @@ def vacate(decided, rest: Carry, carry: Carry, slots: Slots, k) -> Slots:
 
 
 def take(slots: Slots, rest: Carry, taken, s, refill_cell, refill_force, refill_push,
-         starts: Carry | None, *, gated: bool, refill_body=None) -> tuple[Slots, jax.Array]:
+         starts: Carry | None, *, gated: bool, refill_body=None,
+         tile: int | None = None) -> tuple[Slots, jax.Array]:
     """Step 1 of a period (``s``: its index in the call): vacant slots take the next refill
     cells, in slot order. ``gated`` (with the certificate): only every ``CHECK_EVERY`` periods,
     so that every scenario's k is a multiple of it when it is checked (a check skipped for the
-    whole batch, not masked per slot)."""
+    whole batch, not masked per slot). ``tile``: per-lane bodies by body tiles
+    (:func:`refill_tiles`; ``rest``: each body's, ``taken``: the offered cells used [R])."""
     vacant = slots.cell < 0
     if gated:
         vacant = vacant & (s % cert_mod.CHECK_EVERY == 0)
+    if tile is not None:
+        return refill_tiles(slots, rest, taken, vacant, refill_cell, refill_force, refill_push,
+                            starts=starts, refill_body=refill_body, tile=tile)
     return refill(slots, rest, taken, vacant, refill_cell, refill_force, refill_push,
                   starts=starts, refill_body=refill_body)
 
@@ -250,27 +299,32 @@ def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_fo
     initial joint states (0: upright rest), refill_body [R] their bodies. Returns the slots,
     the number of refill cells taken [1] and the finished buffer [slots + R]. ``slots.carry``
     is packed (:class:`Packing`). ``lanes``: ``arrays`` and ``cert`` hold one body each
-    [n_bodies, ...] and every slot runs its scenario's body (``kernel.lane_arrays``);
-    otherwise they are shared by every slot.
+    [n_bodies, ...] and every slot runs its scenario's body (``kernel.lane_arrays``), each
+    ``tile`` slots one body whose QP they solve together (:func:`refill_tiles`; then the refill
+    cells taken are returned as a mask [R]); otherwise they are shared by every slot (``tile``:
+    sequential ADMM tiles).
     """
     S = slots.cell.shape[0]
     slots, rest, starts = opened(arrays, sensors, static, slots, refill_init, packing,
                                  refill_body if lanes else None)
     every = cert_mod.CHECK_EVERY
     axis = 0 if lanes else None
+    # lanes: the QPs by body tiles of ``tile`` slots (:func:`refill_tiles`)
+    qp_tiles = (lambda body: (arrays.qp, body[::tile])) if lanes else (lambda body: None)
 
     def step(state, s):
         slots, taken, done, n_done = state
         # 1. refill; 2. one control period of every slot; 3. decide; 4. harvest and vacate
         slots, taken = take(slots, rest, taken, s, refill_cell, refill_force, refill_push,
-                            starts, gated=early and cert is not None, refill_body=refill_body)
+                            starts, gated=early and cert is not None, refill_body=refill_body,
+                            tile=tile if lanes else None)
         body, body_cert, body_rest = ((lane_arrays(arrays, slots.body),
                                        None if cert is None else lane_arrays(cert, slots.body),
                                        lane_arrays(rest, slots.body)) if lanes
                                       else (arrays, cert, rest))
         check = checker(body_cert if early else None, periods, axis)
         carry = period_batch(body, sensors, static, slots.carry, slots.k, slots.force,
-                             slots.n_push, tile=tile, axis=axis)[0]
+                             slots.n_push, tile=tile, axis=axis, tiles=qp_tiles(slots.body))[0]
         k = slots.k + 1
         acc, certified, decided = decide(check, static, body.n_control, carry, k,
                                          (slots.n_push, slots.force), slots.cell >= 0,
@@ -281,9 +335,10 @@ def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_fo
 
     done = empty_finished(S + refill_cell.shape[0], arrays.d0.qpos.dtype)
     zero = jnp.zeros((), jnp.int32)
-    (slots, taken, done, _), _ = jax.lax.scan(step, (slots, zero, done, zero),
+    taken = jnp.zeros(refill_cell.shape, bool) if lanes else zero
+    (slots, taken, done, _), _ = jax.lax.scan(step, (slots, taken, done, zero),
                                               jnp.arange(periods, dtype=jnp.int32))
-    return slots._replace(carry=packing.pack(slots.carry)), taken[None], done
+    return slots._replace(carry=packing.pack(slots.carry)), taken if lanes else taken[None], done
 
 
 class Queue:
@@ -305,13 +360,14 @@ class Queue:
 
     def __init__(self, forces: np.ndarray, n_push: np.ndarray, devices: int, refill: int,
                  inits: np.ndarray | None = None, block: int = 1,
-                 bodies: np.ndarray | None = None):
+                 bodies: np.ndarray | None = None, wave: int = 1):
         self.forces, self.n_push = forces, n_push
+        self.wave = max(1, int(wave))
         n = forces.shape[0]
         self.inits = np.zeros((n, 4)) if inits is None else inits
         self.bodies = np.zeros(n, np.int32) if bodies is None else bodies
         self.D, self.R, self.block = devices, refill, block
-        self.pending = np.argsort(np.abs(forces), kind="stable")
+        self.pending = self._grouped(np.argsort(np.abs(forces), kind="stable"))
         self.length = np.full(n, -1, np.int64)  # control periods of a finished cell
         self.taken_at = np.full(n, -1, np.int64)  # the call in which a cell took a slot
         self.calls = 0
@@ -342,7 +398,15 @@ class Queue:
         ran = np.where(done, self.length, (self.calls - self.taken_at - 1) * self.block)
         _, near = cKDTree(feats[known]).query(feats[self.pending])
         expected = ran[known][near]
-        self.pending = self.pending[np.argsort(-expected, kind="stable")]
+        self.pending = self._grouped(self.pending[np.argsort(-expected, kind="stable")])
+
+    def _grouped(self, order: np.ndarray) -> np.ndarray:
+        """``order`` with the cells grouped by waves of ``wave`` bodies (bodies 0..wave-1
+        first, then the next ``wave``, ...), stable within a wave. An engine whose slots hold
+        one body per tile (``refill_tiles``) is given as many bodies at a time as it has tiles:
+        each tile then finds its body's cells in the offers, and the longest cells of the
+        wave's bodies start first, instead of one body's after another's."""
+        return order[np.argsort(self.bodies[order] // self.wave, kind="stable")]
 
     def offer(self) -> tuple[np.ndarray, ...]:
         """(cells [D R], -1: none; their forces; their push steps; their initial joint states
@@ -365,11 +429,16 @@ class Queue:
         return cells, f, p, init, body
 
     def took(self, taken: np.ndarray) -> None:
-        """How many of its offered cells each device took [D]."""
+        """How many of its offered cells each device took [D] (the first ones of its offer),
+        or which [D R] (bool, :meth:`offer`'s layout; body tiles take cells out of order)."""
         offer = self.pending[:self.D * self.R]  # device d's part is offer[d::D]
         left = np.ones(offer.size, bool)
-        for d, t in enumerate(taken):
-            left[d::self.D][:int(t)] = False
+        for d in range(self.D):
+            part = left[d::self.D]
+            if taken.dtype == bool:
+                part &= ~taken[d * self.R: d * self.R + part.size]
+            else:
+                part[:int(taken[d])] = False
         self.taken_at[offer[~left]] = self.calls
         self.pending = np.concatenate([offer[left], self.pending[offer.size:]])
         self.calls += 1
@@ -473,8 +542,9 @@ class Engine:
     bodies: runners of one shape (:func:`lane_bodies`; the first is ``runner``) whose
     scenarios share the queue, each slot running its scenario's body, QP and certificate
     (:meth:`stream`'s ``bodies``); their arrays are stacked, padded to a power of two so that
-    populations of similar size share one compiled program. None: one body, shared by
-    every slot.
+    populations of similar size share one compiled program. Each ``tile`` slots (default
+    :data:`LANE_TILE`) then hold one body at a time and solve its QP together
+    (:func:`refill_tiles`). None: one body, shared by every slot.
     """
 
     def __init__(self, runner, *, slots: int | None = None, block: int = 100,
@@ -500,9 +570,12 @@ class Engine:
         self.refill = int(refill or 4 * self.slots)
         if tile is not None and (tile < 1 or self.slots % tile):
             raise ValueError(f"ADMM tile {tile} must divide the slots per device, {self.slots}")
-        self.tile = int(tile) if tile is not None and tile < self.slots else None
-        self.early = bool(early)
         self.lanes = bodies is not None
+        if self.lanes:  # body tiles (default: LANE_TILE slots, or fewer dividing the slots)
+            self.tile = int(tile) if tile is not None else math.gcd(self.slots, LANE_TILE)
+        else:
+            self.tile = int(tile) if tile is not None and tile < self.slots else None
+        self.early = bool(early)
         if self.lanes:
             self.n_bodies = len(bodies)
             self.arrays, self.cert = lane_bodies(runner, bodies, self.early)
@@ -600,7 +673,8 @@ class Engine:
         bodies = self._bodies_of(bodies, n)
         fn = self.block_fn()
         state = self._take_state()
-        queue = Queue(forces, n_push, self.n_devices, self.refill, inits, self.block, bodies)
+        queue = Queue(forces, n_push, self.n_devices, self.refill, inits, self.block, bodies,
+                      wave=self.slots * self.n_devices // self.tile if self.lanes else 1)
         remaining, finished, p = n, False, 0
         try:
             while remaining:

@@ -357,10 +357,15 @@ def solve(arrays: Arrays, static: Static, pre: Prepared) -> admm_mod.ADMMResult:
 
 
 def solve_batch(arrays: Arrays, static: Static, pre: Prepared,
-                tile: int | None, axis: int | None = None) -> admm_mod.ADMMResult:
+                tile: int | None, axis: int | None = None,
+                tiles: tuple[admm_mod.ADMMData, jax.Array] | None = None) -> admm_mod.ADMMResult:
     """:func:`solve` over a batch of :func:`prepare` results (``admm_solve_batch``: with
     ``tile``, sequential tiles of that many lanes, each stopping at its own slowest; ``axis``
-    0: one QP per lane)."""
+    0: one QP per lane). ``tiles``: (the bodies' QPs stacked, each tile's body), every tile of
+    ``tile`` lanes solving its body's QP (``admm_solve_tiles``; ``arrays.qp`` unused)."""
+    if tiles is not None:
+        return admm_mod.admm_solve_tiles(tiles[0], tiles[1], pre.x0, pre.carry.warm,
+                                         static.settings, tile, offset=pre.offset)
     return admm_mod.admm_solve_batch(arrays.qp, pre.x0, pre.carry.warm, static.settings, tile,
                                      offset=pre.offset,
                                      data_axis=axis.qp if isinstance(axis, Arrays) else axis)
@@ -406,14 +411,17 @@ def period(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: ja
 
 def period_batch(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: jax.Array,
                  force: jax.Array, n_push: jax.Array, *, tile: int | None = None,
-                 axis: int | None = None) -> tuple[Carry, dict[str, jax.Array] | None]:
+                 axis: int | None = None,
+                 tiles: tuple[admm_mod.ADMMData, jax.Array] | None = None
+                 ) -> tuple[Carry, dict[str, jax.Array] | None]:
     """:func:`period` of a batch of scenarios (every argument but ``arrays`` with a leading batch
     axis), the QPs solved by :func:`solve_batch` (``tile``: lanes per ADMM loop). ``axis``
     None: ``arrays`` shared by every lane; 0: one body per lane (every leaf [B, ...], the
-    engine's lanes; see :func:`lane_arrays`)."""
+    engine's lanes; see :func:`lane_arrays`). ``tiles``: the QPs by tiles of ``tile`` lanes
+    (:func:`solve_batch`)."""
     rest = rest_of(arrays, sensors, static, axis)
     pre = prepare_batch(arrays, static, carry, rest, axis)
-    res = solve_batch(arrays, static, pre, tile, axis)
+    res = solve_batch(arrays, static, pre, tile, axis, tiles)
     carry, u, torques = conclude_batch(arrays, static, pre, res, k, rest, axis)
     return physics_batch(arrays, sensors, static, carry, k, force, n_push, torques=torques, u=u,
                          axis=axis)

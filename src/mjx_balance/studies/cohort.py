@@ -450,7 +450,7 @@ def run_plan(plan: CohortPlan, *, run_batches: Callable[[Config], Any] | None = 
                        desc="cohort")
     try:
         if run_batches is None and one_queue(plan):
-            _run_queued(plan, folders, say, bar)
+            _run_queued(plan, folders, say, bar)  # the base body's map too
         else:
             for member in members:
                 finished = (folders[member.id] / REGION).exists()
@@ -459,12 +459,13 @@ def run_plan(plan: CohortPlan, *, run_batches: Callable[[Config], Any] | None = 
                              engine=run_options(plan.engine))
                 if not finished:
                     bar.update(cells)
-        say(f"cohort: the base configuration's body (the reference boundary) -> {out / BASE}")
-        run_region(out / BASE, plan.base, forces, durations, progress=False,
-                   run_batch=run_batches(plan.base) if run_batches is not None else None,
-                   **run_options(plan.engine))
-        if not base_done:
-            bar.update(cells)
+            say(f"cohort: the base configuration's body (the reference boundary) -> "
+                f"{out / BASE}")
+            run_region(out / BASE, plan.base, forces, durations, progress=False,
+                       run_batch=run_batches(plan.base) if run_batches is not None else None,
+                       **run_options(plan.engine))
+            if not base_done:
+                bar.update(cells)
     finally:
         bar.close()
     return write_outputs(out, members, folders, say, base_label(plan.base))
@@ -479,11 +480,14 @@ def one_queue(plan: CohortPlan) -> bool:
 
 def _run_queued(plan: CohortPlan, folders: dict[str, Path], say: Callable[[str], None],
                 bar: Any) -> None:
-    """The unfinished subjects' maps through one engine queue (``runs.population.run_maps``),
-    each then written to its folder as a sweep of that subject writes it; the tables
-    (``table_forces``) subject by subject after."""
+    """The unfinished subjects' maps and the base body's through one engine queue
+    (``runs.population.run_maps``), each then written to its folder as a sweep of that body
+    writes it; the tables (``table_forces``) subject by subject after."""
     members = list(plan.members)
-    run_maps([(folders[m.id], plan.configs[m.id]) for m in members], plan.forces,
+    say(f"cohort: the base configuration's body (the reference boundary) -> "
+        f"{plan.out / BASE}, in the same queue")
+    run_maps([(folders[m.id], plan.configs[m.id]) for m in members]
+             + [(plan.out / BASE, plan.base)], plan.forces,
              plan.durations, slots=plan.engine["slots"],
              full_length=plan.engine["full_length"], update=bar.update,
              say=lambda text: say(f"cohort: {text}"))
