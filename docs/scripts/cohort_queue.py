@@ -7,7 +7,9 @@ process (one sitting, the same machine load for all three).
 
 Each program is compiled first (a warm-up cohort of the same subjects on a two-cell grid in
 each mode: the one queue's program depends on their count), so the times are runs, not
-compiles. Prints seconds and seconds per scenario.
+compiles. Prints seconds, seconds per scenario and per scenario-period (the control periods the
+engine simulated, summed over the run's cells: bodies whose cells run longer cost more per
+scenario for the same engine speed).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 import mjx_balance as mb
+from mjx_balance.rollout import engine as engine_mod
 from mjx_balance.runs.folders import run_region
 from mjx_balance.runs.grid import parse_grid
 from mjx_balance.studies import cohort
@@ -57,7 +60,17 @@ def main() -> None:
             outputs[queue] = time.perf_counter() - t
 
     cohort.write_outputs = timed_outputs
+    work: dict[str, int] = {}
+    stream = engine_mod.Engine.stream
+
+    def counted(self, *a, **k):  # the control periods of every cell the engines decide
+        for index, raw in stream(self, *a, **k):
+            work[label] = work.get(label, 0) + int(raw["periods"].sum())
+            yield index, raw
+
+    engine_mod.Engine.stream = counted
     for queue in ("each", "one"):
+        label = f"cohort --queue {queue}"
         t0 = time.perf_counter()
         cohort.run_cohort(out / queue, people, config, forces, durations, log=None, queue=queue)
         times[f"cohort --queue {queue}"] = time.perf_counter() - t0 - outputs[queue]
@@ -65,14 +78,18 @@ def main() -> None:
     # the study's body, forces spread over the cohort's range
     n = (len(people) + 1) * cells
     plain = np.linspace(forces[0], forces[-1], n // durations.size)
+    label = "plain sweep"
     t0 = time.perf_counter()
     run_region(out / "plain", config, plain, durations)
     times["plain sweep"] = time.perf_counter() - t0
     print(f"{len(people)} subjects x {cells} cells and the base body's map: {n} scenarios a "
           f"run; t_end {args.t_end:g} s")
+    plain_rate = times["plain sweep"] / work["plain sweep"]
     for name, seconds in times.items():
         print(f"{name}: {seconds:.1f} s, {1e3 * seconds / n:.1f} ms a scenario, "
-              f"{seconds / times['plain sweep']:.2f} x the plain sweep")
+              f"{seconds / times['plain sweep']:.2f} x the plain sweep; {work[name]} "
+              f"scenario-periods, {1e6 * seconds / work[name]:.0f} us each, "
+              f"{seconds / work[name] / plain_rate:.2f} x the plain sweep's")
     print("(the cohorts' times leave out their tables and figures: "
           + ", ".join(f"{q} {s:.1f} s" for q, s in outputs.items()) + ")")
 

@@ -1,9 +1,9 @@
 """What the per-lane bodies cost a plain sweep: the same cells through the engine with one
-shared body and with the body as per-lane data (the cohort's one queue), alternated in one
-process so that both see the same machine load.
+shared body and with the body as per-lane data (the cohort's one queue; its QPs by body tiles
+of each size asked), alternated in one process so that all see the same machine load.
 
     python docs/scripts/lanes_cost.py [--forces 0:155:5] [--durations 0.1,0.2,0.3,0.5] \
-        [--t-end 12] [--repeats 3]
+        [--t-end 12] [--repeats 3] [--tiles 8]
 
 Prints seconds per run (compiling excluded: each engine runs once before timing).
 """
@@ -29,13 +29,16 @@ def main() -> None:
     p.add_argument("--t-end", type=float, default=12.0)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--slots", type=int, default=None)
+    p.add_argument("--tiles", default="8", help="body tile sizes, comma-separated")
     args = p.parse_args()
     config = mb.Config().replace(scenario={"t_end": args.t_end})
     f, d = grid_cells(parse_grid(args.forces, "forces"), parse_grid(args.durations, "durations"))
     n_push = push_steps(d, config.scenario.physics_dt)
     runner = BatchRunner(config, slots=args.slots, physics="mjx")
-    engines = {"shared body": Engine(runner, slots=args.slots),
-               "per-lane body": Engine(runner, slots=args.slots, bodies=[runner])}
+    engines = {"shared body": Engine(runner, slots=args.slots)}
+    for tile in (int(t) for t in args.tiles.split(",")):
+        engines[f"per-lane body, tiles of {tile}"] = Engine(runner, slots=args.slots,
+                                                            bodies=[runner], tile=tile)
     for name, engine in engines.items():
         t0 = time.perf_counter()
         engine.run(f, n_push)
@@ -51,8 +54,9 @@ def main() -> None:
     for name, ts in times.items():
         runs = ", ".join(f"{t:.2f}" for t in ts)
         print(f"{name}: median {np.median(ts):.2f} s of {len(ts)} ({runs})")
-    ratio = np.median(times["per-lane body"]) / np.median(times["shared body"])
-    print(f"per-lane / shared: {ratio:.3f}")
+    for name, ts in times.items():
+        if name != "shared body":
+            print(f"{name} / shared: {np.median(ts) / np.median(times['shared body']):.3f}")
 
 
 if __name__ == "__main__":

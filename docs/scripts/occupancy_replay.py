@@ -13,14 +13,18 @@ a model of a population, stated as such): every slot takes the next queued cell 
 is decided (in whole blocks of ``--block`` periods, as the engine refills after each call),
 the cells longest first (the engine's queue orders by expected length; here the lengths are
 known, the best case), one subject's map queued after another's as a sweep per subject would
-(``each``) or all in one queue (``one``). Prints the occupancy (busy slot-periods / slots x
-periods) and the periods to finish, for each.
+(``each``) or all in one queue (``one``), and all in one queue with the slots in body tiles
+of ``--tile`` (the engine's per-lane bodies, ``rollout.engine.refill_tiles``: a tile's free
+slots take only cells of the tile's body; a tile whose slots are all free takes the body whose
+next cell is the longest left; the offer is not limited). Prints the occupancy (busy
+slot-periods / slots x periods) and the periods to finish, for each.
 """
 
 from __future__ import annotations
 
 import argparse
 import heapq
+from collections import deque
 
 import numpy as np
 
@@ -52,6 +56,46 @@ def replay(lengths: list[np.ndarray], slots: int, block: int, one_queue: bool
     return busy / (slots * clock), clock
 
 
+def replay_tiles(lengths: list[np.ndarray], slots: int, block: int, tile: int
+                 ) -> tuple[float, int]:
+    """(occupancy, periods) of one queue on ``slots`` slots in tiles of ``tile``, each tile
+    one body at a time, refilled at a call's boundary (every ``block`` periods)."""
+    cells = [deque(np.sort(c)[::-1].tolist()) for c in lengths]
+    heads = [(-c[0], k) for k, c in enumerate(cells) if c]  # bodies by their longest cell left
+    heapq.heapify(heads)
+    finish = np.zeros(slots, np.int64)
+    body = np.full(slots // tile, -1)
+    left, clock, busy = sum(len(c) for c in cells), 0, 0
+    while left:
+        free = finish <= clock
+        for t in range(slots // tile):
+            mine = np.flatnonzero(free[t * tile:(t + 1) * tile]) + t * tile
+            if not mine.size:
+                continue
+            if mine.size == tile:  # every slot free: the body whose next cell is the longest
+                body[t] = -1
+                while heads:
+                    head, k = heapq.heappop(heads)
+                    if cells[k] and -head == cells[k][0]:
+                        body[t] = k
+                        break
+                    if cells[k]:  # a stale entry: the body's head moved on
+                        heapq.heappush(heads, (-cells[k][0], k))
+            k = body[t]
+            if k < 0:
+                continue
+            for slot in mine[:len(cells[k])]:
+                length = cells[k].popleft()
+                finish[slot] = clock + length
+                busy += length
+                left -= 1
+            if cells[k]:
+                heapq.heappush(heads, (-cells[k][0], k))
+        clock += block
+    end = int(finish.max())
+    return busy / (slots * end), end
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--subjects", type=int, default=4)
@@ -60,6 +104,7 @@ def main() -> None:
     p.add_argument("--slots", type=int, default=16384)
     p.add_argument("--block", type=int, default=100)
     p.add_argument("--population", type=int, default=1200)
+    p.add_argument("--tile", type=int, default=8)
     args = p.parse_args()
     heights = np.linspace(1.55, 1.90, args.subjects)
     masses = np.linspace(50, 100, args.subjects)
@@ -81,6 +126,9 @@ def main() -> None:
         occupancy, periods = replay(lengths, args.slots, args.block, one)
         print(f"  {'one queue' if one else 'each subject its own run'}: occupancy "
               f"{100 * occupancy:.1f} %, {periods:,} periods")
+    occupancy, periods = replay_tiles(lengths, args.slots, args.block, args.tile)
+    print(f"  one queue, body tiles of {args.tile}: occupancy {100 * occupancy:.1f} %, "
+          f"{periods:,} periods")
 
 
 if __name__ == "__main__":

@@ -337,7 +337,7 @@ def cohort(out: str | os.PathLike[str],
            subjects: "Sequence[Subject] | Mapping[str, Subject] | str | os.PathLike[str]", *,
            forces: Values = None, durations: Values = None, config: ConfigLike = None,
            table_forces: Values = None, slots: int | None = None, full_length: bool = False,
-           physics: str = "auto", queue: str = "each", progress: bool | None = None,
+           physics: str = "auto", queue: str = "auto", progress: bool | None = None,
            wait: bool = False, format: str | None = None, figure_format: str | None = None,
            figure_size: str | None = None) -> "pd.DataFrame":
     """A cohort (``mjx-balance cohort``): each subject's region map (its body from
@@ -359,8 +359,10 @@ def cohort(out: str | os.PathLike[str],
     acting time at these forces and the sustained-push limit; default: none, the limit NaN).
     ``slots``, ``full_length``, ``physics``, ``progress``, ``wait``, ``format``,
     ``figure_format``, ``figure_size``: as :func:`sweep` and :func:`compare`. ``queue``:
-    "each" (every subject its own engine run) or "one" (every subject through one engine
-    queue with per-lane bodies, MJX only; ``mjx-balance cohort --queue``). Every argument
+    "each" (every subject its own engine run: the bytes of ``sweep --subject``), "one" (every
+    subject through one engine queue with per-lane bodies, MJX only) or "auto" (one on the MJX
+    path without a cluster, else each; a resumed folder's own queue; ``mjx-balance cohort
+    --queue``). Every argument
     and every subject's configuration is checked before anything is written (a ValueError or
     TypeError naming the argument)."""
     check_format(format)

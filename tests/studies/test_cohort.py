@@ -231,14 +231,14 @@ def test_the_command_runs_a_cohort_from_a_csv(tmp_path, monkeypatch):
     out = tmp_path / "out"
     assert main(["cohort", "--subjects", str(people), "--forces", FORCES, "--durations",
                  DURATIONS, "--set", "scenario.t_end=2", "--format", "parquet", "-q",
-                 "--out", str(out)]) == 0
+                 "--queue", "each", "--out", str(out)]) == 0  # each: the fake rollout
     frame = pd.read_csv(out / "cohort.csv")
     assert list(frame["id"]) == ["ann", "bob"] and list(frame["sex"]) == ["female", "male"]
     assert frame.loc[0, "area"] < frame.loc[1, "area"]
     assert (out / "cohort.parquet").exists()  # --format: the tables also as parquet
     # mb.cohort on the same folder and subjects: resumed, the same table
     again = mb.cohort(out, {"ann": Subject(1.62, 58, "female"), "bob": Subject(1.85, 90)},
-                      forces=FORCES, durations=DURATIONS, config=BASE)
+                      forces=FORCES, durations=DURATIONS, config=BASE, queue="each")
     pd.testing.assert_frame_equal(again, frame, check_dtype=False)
 
 
@@ -248,14 +248,14 @@ def test_the_command_runs_a_cohort_from_a_csv(tmp_path, monkeypatch):
 @pytest.mark.slow
 def test_a_cohort_of_one_is_the_plain_sweep_of_that_body(tmp_path):
     """Bit for bit (region.parquet's every column) at the same slot count: the cohort's subject
-    folder is the plain sweep's folder of that --subject. One compile (the two runs share the
-    compiled program: the same body), about 90 s on a 2-core CPU."""
+    folder (``--queue each``) is the plain sweep's folder of that --subject. One compile (the
+    two runs share the compiled program: the same body), about 90 s on a 2-core CPU."""
     person = "height=1.58,mass=52,sex=female,ankle_strength=0.7"
     grid = ["--forces", "30,90", "--durations", "0.1,0.3", "--slots", "8", "-q"]
     assert main(["sweep", "--subject", person, *grid, "--out", str(tmp_path / "plain")]) == 0
     people = tmp_path / "one.csv"
     people.write_text("id,height,mass,sex,ankle_strength\nmona,1.58,52,female,0.7\n")
-    assert main(["cohort", "--subjects", str(people), *grid, "--out",
+    assert main(["cohort", "--subjects", str(people), *grid, "--queue", "each", "--out",
                  str(tmp_path / "cohort")]) == 0
     plain = pd.read_parquet(tmp_path / "plain" / "region.parquet")
     one = pd.read_parquet(tmp_path / "cohort" / "subjects" / "mona" / "region.parquet")
@@ -263,6 +263,30 @@ def test_a_cohort_of_one_is_the_plain_sweep_of_that_body(tmp_path):
     assert plain["outcome"].nunique() > 1  # the grid crosses the boundary: not a trivial map
     row = pd.read_csv(tmp_path / "cohort" / "cohort.csv").iloc[0]
     assert row["area"] == pytest.approx(mb.region_numbers(plain)["area"])
+
+
+def test_the_queue_by_default_is_one_on_mjx_each_elsewhere_and_a_resumed_folders_own(tmp_path):
+    """``--queue auto``: one engine queue on the MJX path without a cluster, every subject its
+    own run on the C path or a cluster, and a folder whose maps started keeps their queue
+    (resuming under the other is refused: the results differ by float rounding)."""
+    out = tmp_path / "c"
+    assert cohort.resolved_queue(out, "auto", "auto", None) == "one"
+    assert cohort.resolved_queue(out, "auto", "mjx", None) == "one"
+    assert cohort.resolved_queue(out, "auto", "c", None) == "each"
+    assert cohort.resolved_queue(out, "auto", "auto", "local:2") == "each"
+    assert cohort.resolved_queue(out, "each", "auto", None) == "each"  # asked: kept
+    started = out / "subjects" / "s02"
+    started.mkdir(parents=True)
+    (out / "subjects" / "s01").mkdir()  # a folder with no manifest yet: nothing to resume
+    (started / "manifest.json").write_text(json.dumps(
+        {"region": {"engine": {"slots": 32, "early_stop": True, "physics": "mjx"}}}))
+    assert cohort.resolved_queue(out, "auto", "auto", None) == "each"  # before queues: each
+    (started / "manifest.json").write_text(json.dumps(
+        {"region": {"engine": {"slots": 32, "physics": "mjx", "queue": "one"}}}))
+    assert cohort.resolved_queue(out, "auto", "c", None) == "one"
+    plan = cohort.plan_cohort(tmp_path / "new", cohort.numbered([Subject(1.7, 70)]),
+                              Config(), "0,50", "0.1", physics="c")
+    assert plan.engine["queue"] == "each"
 
 
 def test_subjects_share_one_compiled_program():

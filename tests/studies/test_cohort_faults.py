@@ -137,7 +137,7 @@ def test_the_corrected_command_takes_over_a_refused_runs_folder(tmp_path, capsys
     _leftover(out, BASE.replace(controller={"horizon": 200}))
     code, err = run_cli(["cohort", "--heights", "1.7", "--masses", "70", "--forces", FORCES,
                          "--durations", DURATIONS, "--set", "scenario.t_end=2", "-q",
-                         "--out", str(out)], capsys)
+                         "--queue", "each", "--out", str(out)], capsys)  # each: the fake rollout
     assert code == 0, err
     assert (out / "cohort.csv").exists()
 
@@ -163,7 +163,8 @@ def test_the_api_takes_one_subject(tmp_path, fake_rollout):
     """`mb.cohort(DIR, mb.Subject(1.7, 70))` failed "'Subject' object is not iterable"."""
     fake_rollout(FakeThresholdBatch(c=20.0))
     frame = mb.cohort(tmp_path / "out", mb.Subject(1.7, 70), forces=FORCES,
-                      durations=DURATIONS, config=BASE, progress=False)
+                      durations=DURATIONS, config=BASE, progress=False,
+                      queue="each")  # each: the fake rollout
     assert list(frame["id"]) == ["s01"] and frame.loc[0, "height"] == 1.7
 
 

@@ -215,7 +215,7 @@ def test_the_command_writes_the_probability_map_and_plans_its_width(tmp_path, ca
     out = tmp_path / "out"
     assert main(["cohort", "--population", "2", "--seed", "2", "--forces", FORCES,
                  "--durations", DURATIONS, "--set", "scenario.t_end=2", "--format", "parquet",
-                 "--out", str(out)]) == 0
+                 "--queue", "each", "--out", str(out)]) == 0  # each: the fake rollout
     printed = capsys.readouterr().out
     planned = next(line for line in printed.splitlines() if line.startswith("planned work"))
     assert planned.startswith("planned work: 45 cells")  # 2 subjects and the base, 15 each
@@ -227,7 +227,7 @@ def test_the_command_writes_the_probability_map_and_plans_its_width(tmp_path, ca
     assert readable_png(out / "cohort_probability.png")
     # mb.cohort on the same folder: resumed, the probability map in the result's attrs
     again = mb.cohort(out, cohort.population(2, 2), forces=FORCES, durations=DURATIONS,
-                      config=BASE, progress=False)
+                      config=BASE, progress=False, queue="each")
     pd.testing.assert_frame_equal(again.attrs["probability"], cells, check_dtype=False)
     assert math.isclose(again.attrs["half_width"], probability.half_width(2))
 

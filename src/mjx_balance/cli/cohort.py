@@ -82,7 +82,7 @@ def add_parser(sub: Any) -> None:
                    help="also each subject's table at these forces [N]: its max acting times "
                         "and sustained-push limit in cohort.csv (default: no table)")
     engine_options(p)
-    queue_option(p, "subject")
+    queue_option(p, "subject", auto=True)
     wait_option(p)
     yes_option(p)
     format_option(p)

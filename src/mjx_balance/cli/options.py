@@ -366,13 +366,20 @@ def engine_options(p: argparse.ArgumentParser) -> None:
     physics_option(p)
 
 
-def queue_option(p: argparse.ArgumentParser, maps: str) -> None:
-    """--queue of the commands that run several region maps (``maps``: what they are)."""
-    p.add_argument("--queue", choices=("each", "one"), default="each",
-                   help=f"each (default): every {maps}'s map its own engine run; one: every "
-                        f"{maps}'s map through one engine queue with per-lane bodies and QPs "
-                        "(MJX only; the maps differ from each's by float rounding; "
-                        "docs/engine.md, \"Per-lane bodies\")")
+def queue_option(p: argparse.ArgumentParser, maps: str, auto: bool = False) -> None:
+    """--queue of the commands that run several region maps (``maps``: what they are);
+    ``auto``: the default is auto (``studies.cohort.resolved_queue``), else each."""
+    default = "auto" if auto else "each"
+    p.add_argument("--queue", choices=("auto", "each", "one") if auto else ("each", "one"),
+                   default=default,
+                   help=("auto (default): one on the MJX path without a cluster, each "
+                         "otherwise, or the queue a resumed folder was started with; "
+                         if auto else "") +
+                        f"each{'' if auto else ' (default)'}: every {maps}'s map its own "
+                        f"engine run (the bytes of sweep --subject); one: every {maps}'s map "
+                        "through one engine queue with per-lane bodies (MJX only; the maps "
+                        "differ from each's by float rounding; docs/engine.md, "
+                        "\"Per-lane bodies\")")
 
 
 def physics_option(p: argparse.ArgumentParser) -> None:

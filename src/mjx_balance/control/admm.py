@@ -23,8 +23,9 @@ by :func:`build_admm`, then cast to the working dtype:
 - The reduced KKT system (P̄ + σI + Āᵀ diag(ρ) Ā) x̃ = σx - q̄ + Āᵀ(ρz - y) (OSQP eq. 23) has a
   fixed matrix K; its inverse is folded into Mw = K⁻¹Āᵀ diag(ρ) (n x m), Mx = σK⁻¹ and
   g = -K⁻¹q̄ = G x0; the iteration carries y / ρ in place of y.
-- With the defaults (``mjx-balance bench solver``, tests/test_admm.py) warm-started solves of closed-loop states
-  reach 1e-3 of each input's range against OSQP at 1e-9 on every OSQP-solved state measured.
+- With the defaults (``mjx-balance bench solver``, tests/control/test_admm.py) warm-started
+  solves of closed-loop states reach 1e-3 of each input's range against OSQP at 1e-9 on every
+  OSQP-solved state measured.
 
 One iteration therefore costs two dense products, x̃ = Mw (z - y/ρ) + g (+ Mx x when σ > 0) and
 z̃ = Ā x̃, i.e. 4 n m = 19,200 flops for N = 20 (σ = 0), plus O(m) elementwise work. Products
@@ -462,10 +463,9 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
 
 
 def admm_solve_batch(data: ADMMData, x0: jax.Array, warm: ADMMWarm, settings: ADMMSettings,
-                     tile: int | None = None, offset: jax.Array | None = None,
-                     data_axis: int | None = None) -> ADMMResult:
+                     tile: int | None = None, offset: jax.Array | None = None) -> ADMMResult:
     """``admm_solve`` vmapped over x0 [B, 4], warm ([B, n], [B, m]) and offset ([B, m] or
-    None); data shared, or (``data_axis`` 0) one QP per lane, every leaf [B, ...].
+    None), the QP ``data`` shared (one QP per tile of lanes: :func:`admm_solve_tiles`).
 
     With ``tile`` (a divisor of B), the batch is solved as B / tile sequential tiles
     (``lax.map`` over a vmapped solve): each tile's iterates stay in cache, and a tile whose
@@ -473,25 +473,20 @@ def admm_solve_batch(data: ADMMData, x0: jax.Array, warm: ADMMWarm, settings: AD
     Every lane's iterates are the same whatever its tile: a lane that stopped is held, not
     iterated, while its tile runs on.
     """
-    solve = jax.vmap(lambda d, x, w, o: admm_solve(d, x, w, settings, o),
-                     in_axes=(data_axis, 0, 0, None if offset is None else 0))
+    solve = jax.vmap(lambda x, w, o: admm_solve(data, x, w, settings, o),
+                     in_axes=(0, 0, None if offset is None else 0))
     batch = x0.shape[0]
     if tile is None or tile >= batch:
-        return solve(data, x0, warm, offset)
+        return solve(x0, warm, offset)
     if batch % tile:
         raise ValueError(f"tile {tile} must divide the batch size {batch}")
 
     def split(a):
         return a.reshape((batch // tile, tile) + a.shape[1:])
 
-    if data_axis is None:
-        out = jax.lax.map(lambda args: solve(data, *args),
-                          (split(x0), jax.tree.map(split, warm),
-                           None if offset is None else split(offset)))
-    else:
-        out = jax.lax.map(lambda args: solve(*args),
-                          (jax.tree.map(split, data), split(x0), jax.tree.map(split, warm),
-                           None if offset is None else split(offset)))
+    out = jax.lax.map(lambda args: solve(*args),
+                      (split(x0), jax.tree.map(split, warm),
+                       None if offset is None else split(offset)))
     return jax.tree.map(lambda a: a.reshape((batch,) + a.shape[2:]), out)
 
 
@@ -504,10 +499,11 @@ def admm_solve_tiles(bodies: ADMMData, tile_body: jax.Array, x0: jax.Array, warm
     [B / tile] int).
 
     Within a tile the QP is shared, so its products are [tile, m] x [m, n] matrix products, as
-    :func:`admm_solve_batch` computes them for a batch that shares one QP (each lane's row of a
-    product is its own sums: the same bits in any tile), where one QP per lane
-    (``data_axis`` 0) reads each lane's matrices every iteration. One loop for every tile, as
-    ``admm_solve_batch`` without tiles: it runs to the slowest lane's stop.
+    :func:`admm_solve_batch` computes them for a batch that shares one QP, where one QP per lane
+    would read each lane's matrices every iteration (docs/engine.md, "Per-lane bodies", has
+    the cost). A lane's row of a product is its own sums: 32 engine lanes of one body gave the
+    same bits in tiles of 8 and of 32. One loop for every tile, as ``admm_solve_batch``
+    without tiles: it runs to the slowest lane's stop.
     """
     batch = x0.shape[0]
     if batch % tile:

@@ -356,19 +356,17 @@ def solve(arrays: Arrays, static: Static, pre: Prepared) -> admm_mod.ADMMResult:
     return admm_mod.admm_solve(arrays.qp, pre.x0, pre.carry.warm, static.settings, pre.offset)
 
 
-def solve_batch(arrays: Arrays, static: Static, pre: Prepared,
-                tile: int | None, axis: int | None = None,
+def solve_batch(arrays: Arrays, static: Static, pre: Prepared, tile: int | None,
                 tiles: tuple[admm_mod.ADMMData, jax.Array] | None = None) -> admm_mod.ADMMResult:
-    """:func:`solve` over a batch of :func:`prepare` results (``admm_solve_batch``: with
-    ``tile``, sequential tiles of that many lanes, each stopping at its own slowest; ``axis``
-    0: one QP per lane). ``tiles``: (the bodies' QPs stacked, each tile's body), every tile of
+    """:func:`solve` over a batch of :func:`prepare` results, ``arrays.qp`` shared
+    (``admm_solve_batch``: with ``tile``, sequential tiles of that many lanes, each stopping at
+    its own slowest). ``tiles``: (the bodies' QPs stacked, each tile's body), every tile of
     ``tile`` lanes solving its body's QP (``admm_solve_tiles``; ``arrays.qp`` unused)."""
     if tiles is not None:
         return admm_mod.admm_solve_tiles(tiles[0], tiles[1], pre.x0, pre.carry.warm,
                                          static.settings, tile, offset=pre.offset)
     return admm_mod.admm_solve_batch(arrays.qp, pre.x0, pre.carry.warm, static.settings, tile,
-                                     offset=pre.offset,
-                                     data_axis=axis.qp if isinstance(axis, Arrays) else axis)
+                                     offset=pre.offset)
 
 
 def conclude(arrays: Arrays, static: Static, pre: Prepared, res: admm_mod.ADMMResult, k: jax.Array,
@@ -417,11 +415,13 @@ def period_batch(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry,
     """:func:`period` of a batch of scenarios (every argument but ``arrays`` with a leading batch
     axis), the QPs solved by :func:`solve_batch` (``tile``: lanes per ADMM loop). ``axis``
     None: ``arrays`` shared by every lane; 0: one body per lane (every leaf [B, ...], the
-    engine's lanes; see :func:`lane_arrays`). ``tiles``: the QPs by tiles of ``tile`` lanes
+    engine's lanes; see :func:`lane_arrays`), the QPs then by ``tiles`` of ``tile`` lanes
     (:func:`solve_batch`)."""
+    if axis is not None and tiles is None:
+        raise ValueError("per-lane bodies (axis 0) solve their QPs by body tiles (tiles=)")
     rest = rest_of(arrays, sensors, static, axis)
     pre = prepare_batch(arrays, static, carry, rest, axis)
-    res = solve_batch(arrays, static, pre, tile, axis, tiles)
+    res = solve_batch(arrays, static, pre, tile, tiles)
     carry, u, torques = conclude_batch(arrays, static, pre, res, k, rest, axis)
     return physics_batch(arrays, sensors, static, carry, k, force, n_push, torques=torques, u=u,
                          axis=axis)

@@ -335,7 +335,7 @@ def check_engine(slots: Any = None, full_length: Any = False, physics: Any = "au
     (ParameterError, a ValueError, naming the argument and what it accepts). ``queue``:
     "each", every subject's map its own engine run (the bytes of ``sweep --subject``); "one",
     every subject's map through one engine queue (``runs.population``; MJX path, no
-    cluster)."""
+    cluster); "auto" is resolved before (:func:`resolved_queue`)."""
     if not isinstance(physics, str) or physics not in PATHS:
         raise ParameterError(f"physics = {physics!r}: must be one of "
                              f"{', '.join(repr(p) for p in PATHS)}")
@@ -366,6 +366,9 @@ def plan_cohort(out: str | Path, members: Sequence[Member], base: Config, forces
     problem, naming it."""
     members = tuple(members)
     check_ids(members)
+    out = Path(out)
+    engine["queue"] = resolved_queue(out, engine.get("queue", "auto"),
+                                     engine.get("physics", "auto"), engine.get("cluster"))
     engine = check_engine(**engine)
     forces = grid_values(forces, "forces")
     tables = None if table_forces is None else grid_values(table_forces, "table forces")
@@ -390,11 +393,28 @@ def plan_cohort(out: str | Path, members: Sequence[Member], base: Config, forces
         except ParameterError as exc:
             raise ParameterError(f"the base configuration (its map is the probability "
                                  f"figure's reference): {exc}") from None
-    out = Path(out)
     if out.exists() and not out.is_dir():
         raise ParameterError(f"--out {out}: is a file, not a folder")
     open_manifest(out, _record(members, base, forces, durations, tables), base)
     return CohortPlan(out, members, base, configs, forces, durations, tables, engine)
+
+
+def resolved_queue(out: Path, queue: Any, physics: Any, cluster: Any) -> Any:
+    """``queue`` "auto" (the default) resolved: the queue the maps in ``out`` were started
+    with (a folder refuses to be resumed under the other: its results differ by float rounding),
+    else "one" on the MJX path without a cluster (one engine queue: docs/studies.md,
+    "Cohorts", has its speed), else "each". Anything else is returned as given (checked by
+    :func:`check_engine`)."""
+    if not isinstance(queue, str) or queue != "auto":
+        return queue
+    if out.is_dir():
+        for manifest in [*sorted((out / SUBJECTS).glob(f"*/{MANIFEST}")), out / BASE / MANIFEST]:
+            try:
+                engine = json.loads(manifest.read_text())["region"]["engine"]
+                return str(engine.get("queue", "each"))
+            except (OSError, ValueError, KeyError, TypeError, AttributeError):
+                continue  # no map started there: nothing to resume
+    return "one" if physics in ("auto", "mjx") and cluster is None else "each"
 
 
 def subject_numbers(member: Member, folder: Path) -> dict[str, Any]:
