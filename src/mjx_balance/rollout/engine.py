@@ -261,15 +261,20 @@ def empty_finished(capacity: int, dtype) -> Finished:
         periods=jnp.zeros(capacity, jnp.int32), certified=jnp.zeros(capacity, bool))
 
 
-def checker(cert, periods: int | None = None, axis: int | None = None):
+def checker(cert, periods: int | None = None, axis: int | None = None, body=None):
     """The vmapped certificate test, or None without a certificate (``axis`` 0: ``cert`` has
-    one certificate per lane, every leaf [B, ...])."""
+    one certificate per lane, every leaf [B, ...]; or, with ``body`` [B], one per body
+    [n_bodies, ...], gathered at each lane's body when the test runs: it runs every
+    ``CHECK_EVERY`` periods only, inside ``certify``'s conditional, and a certificate is large
+    (about 190,000 numbers for the study's configuration), so its gather is left to then)."""
     if cert is None:
         return None
     if periods is not None and periods % cert_mod.CHECK_EVERY:
         raise ValueError(f"block of {periods} periods: not a multiple of {cert_mod.CHECK_EVERY}")
     check = jax.vmap(lambda c, x, acc, over, left: cert_mod.check(jnp, c, x, acc, over, left),
                      in_axes=(axis, 0, 0, 0, 0))
+    if body is not None:
+        return lambda x, acc, over, left: check(lane_arrays(cert, body), x, acc, over, left)
     return lambda x, acc, over, left: check(cert, x, acc, over, left)
 
 
@@ -318,11 +323,10 @@ def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_fo
         slots, taken = take(slots, rest, taken, s, refill_cell, refill_force, refill_push,
                             starts, gated=early and cert is not None, refill_body=refill_body,
                             tile=tile if lanes else None)
-        body, body_cert, body_rest = ((lane_arrays(arrays, slots.body),
-                                       None if cert is None else lane_arrays(cert, slots.body),
-                                       lane_arrays(rest, slots.body)) if lanes
-                                      else (arrays, cert, rest))
-        check = checker(body_cert if early else None, periods, axis)
+        body, body_rest = ((lane_arrays(arrays, slots.body), lane_arrays(rest, slots.body))
+                           if lanes else (arrays, rest))
+        check = checker(cert if early else None, periods, axis,
+                        slots.body if lanes else None)
         carry = period_batch(body, sensors, static, slots.carry, slots.k, slots.force,
                              slots.n_push, tile=tile, axis=axis, tiles=qp_tiles(slots.body))[0]
         k = slots.k + 1
