@@ -145,16 +145,41 @@ def rest_data(model: mujoco.MjModel, dtype=jnp.float32) -> mjx.Data:
     d = cast_floats(mjx.put_data(model, data, impl="jax"), dtype)
     # mjx.step builds some integer fields (the contacts' geom ids) in JAX's default integer width
     # (int64 under jax_enable_x64) where put_data writes int32: give every integer leaf the type
-    # the step returns (traced abstractly, nothing compiled), so the state is a valid scan carry
-    # either way. (Floating leaves are cast back to ``dtype`` after every step.)
-    stepped = jax.eval_shape(mjx.step, mjx_model(model, dtype), d)
+    # the step returns, so the state is a valid scan carry either way. (Floating leaves are cast
+    # back to ``dtype`` after every step.)
+    stepped = _stepped_dtypes(model, dtype, d)
 
     def match(x, s):
-        if jnp.issubdtype(x.dtype, jnp.integer) and x.dtype != s.dtype:
-            return x.astype(s.dtype)
+        if jnp.issubdtype(x.dtype, jnp.integer) and x.dtype != s:
+            return x.astype(s)
         return x
 
-    return jax.tree_util.tree_map(match, d, stepped)
+    return jax.tree_util.tree_unflatten(
+        jax.tree_util.tree_structure(d),
+        [match(x, s) for x, s in zip(jax.tree_util.tree_leaves(d), stepped)])
+
+
+_STEPPED: dict[tuple, tuple] = {}
+
+
+def _stepped_dtypes(model: mujoco.MjModel, dtype, d: mjx.Data) -> tuple:
+    """The dtype of every leaf of ``mjx.step`` from ``d``, traced abstractly (nothing
+    compiled) once per kind of model and state: the state's layout (its tree structure, with
+    the contacts' static geom arrays, and the leaves' shapes and dtypes), JAX's integer width
+    and what picks ``mjx.step``'s code paths (the geom and joint types, the integrator,
+    friction cone, solver and flags). Tracing the step is most of a runner's set-up
+    (BENCHMARKS.md, "Per-lane bodies and a cohort's one queue"), and bodies of one MJCF
+    structure, a cohort's, share it."""
+    leaves, treedef = jax.tree_util.tree_flatten(d)
+    opt = model.opt
+    key = (treedef, tuple((np.shape(v), str(np.result_type(v))) for v in leaves),
+           bool(jax.config.jax_enable_x64), np.dtype(dtype).name, model.geom_type.tobytes(),
+           model.jnt_type.tobytes(), int(opt.integrator), int(opt.cone), int(opt.solver),
+           int(opt.disableflags), int(opt.enableflags))
+    if key not in _STEPPED:
+        _STEPPED[key] = tuple(s.dtype for s in jax.tree_util.tree_leaves(
+            jax.eval_shape(mjx.step, mjx_model(model, dtype), d)))
+    return _STEPPED[key]
 
 
 def step(mx: mjx.Model, sensors: Sensors, d: mjx.Data, torques: jax.Array, force: jax.Array,
