@@ -475,18 +475,26 @@ def admm_solve_batch(data: ADMMData, x0: jax.Array, warm: ADMMWarm, settings: AD
     """
     solve = jax.vmap(lambda x, w, o: admm_solve(data, x, w, settings, o),
                      in_axes=(0, 0, None if offset is None else 0))
-    batch = x0.shape[0]
-    if tile is None or tile >= batch:
+    if tile is None or tile >= x0.shape[0]:
         return solve(x0, warm, offset)
+    return _by_tiles(lambda args: jax.lax.map(lambda a: solve(*a), args), tile, x0, warm,
+                     offset)
+
+
+def _by_tiles(solve, tile: int, x0: jax.Array, warm: ADMMWarm, offset: jax.Array | None,
+              *leading) -> ADMMResult:
+    """``solve((*leading, x0, warm, offset))`` with x0, warm and offset [B, ...] split into
+    B / ``tile`` tiles [B / tile, tile, ...] (``leading``: per-tile arguments, given as they
+    are), and its result merged back to [B, ...]."""
+    batch = x0.shape[0]
     if batch % tile:
         raise ValueError(f"tile {tile} must divide the batch size {batch}")
 
     def split(a):
         return a.reshape((batch // tile, tile) + a.shape[1:])
 
-    out = jax.lax.map(lambda args: solve(*args),
-                      (split(x0), jax.tree.map(split, warm),
-                       None if offset is None else split(offset)))
+    out = solve((*leading, split(x0), jax.tree.map(split, warm),
+                 None if offset is None else split(offset)))
     return jax.tree.map(lambda a: a.reshape((batch,) + a.shape[2:]), out)
 
 
@@ -505,17 +513,8 @@ def admm_solve_tiles(bodies: ADMMData, tile_body: jax.Array, x0: jax.Array, warm
     same bits in tiles of 8 and of 32. One loop for every tile, as ``admm_solve_batch``
     without tiles: it runs to the slowest lane's stop.
     """
-    batch = x0.shape[0]
-    if batch % tile:
-        raise ValueError(f"tile {tile} must divide the batch size {batch}")
-
-    def split(a):
-        return a.reshape((batch // tile, tile) + a.shape[1:])
-
     solve = jax.vmap(lambda d, x, w, o: admm_solve(d, x, w, settings, o),
                      in_axes=(None, 0, 0, None if offset is None else 0))
     per_tile = jax.vmap(lambda b, x, w, o: solve(jax.tree.map(lambda v: v[b], bodies), x, w, o),
                         in_axes=(0, 0, 0, None if offset is None else 0))
-    out = per_tile(tile_body, split(x0), jax.tree.map(split, warm),
-                   None if offset is None else split(offset))
-    return jax.tree.map(lambda a: a.reshape((batch,) + a.shape[2:]), out)
+    return _by_tiles(lambda args: per_tile(*args), tile, x0, warm, offset, tile_body)
