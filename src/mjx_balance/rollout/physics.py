@@ -172,7 +172,7 @@ def _stepped_dtypes(model: mujoco.MjModel, dtype, d: mjx.Data) -> tuple:
     structure, a cohort's, share it."""
     leaves, treedef = jax.tree_util.tree_flatten(d)
     opt = model.opt
-    key = (treedef, tuple((np.shape(v), str(np.asarray(v).dtype)) for v in leaves),
+    key = (treedef, tuple((v.shape, str(v.dtype)) for v in leaves),  # jax arrays, all
            bool(jax.config.jax_enable_x64), np.dtype(dtype).name, model.geom_type.tobytes(),
            model.jnt_type.tobytes(), int(opt.integrator), int(opt.cone), int(opt.solver),
            int(opt.disableflags), int(opt.enableflags))
