@@ -509,8 +509,8 @@ def admm_solve_tiles(bodies: ADMMData, tile_body: jax.Array, x0: jax.Array, warm
     Within a tile the QP is shared, so its products are [tile, m] x [m, n] matrix products, as
     :func:`admm_solve_batch` computes them for a batch that shares one QP, where one QP per lane
     would read each lane's matrices every iteration (docs/engine.md, "Per-lane bodies", has
-    the cost). A lane's row of a product is its own sums: 32 engine lanes of one body gave the
-    same bits in tiles of 8 and of 32. One loop for every tile, as ``admm_solve_batch``
+    the cost). A lane's row of a product is its own sums: each lane equals its body's shared
+    solve (tests/rollout/test_body_tiles.py). One loop for every tile, as ``admm_solve_batch``
     without tiles: it runs to the slowest lane's stop.
     """
     solve = jax.vmap(lambda d, x, w, o: admm_solve(d, x, w, settings, o),
