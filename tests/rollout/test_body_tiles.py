@@ -81,6 +81,64 @@ def test_no_cell_is_taken_twice_and_unused_offers_stay_for_later():
                 assert new_body[2 * t] == body[2 * t]
 
 
+def rule(cell, body, vacant, offer_body, used, tile):
+    """refill_tiles's documented rule, one slot and one tile at a time: busy tiles' vacant
+    slots first, each taking its body's first cell left; then each empty tile (in order) the
+    next group of up to ``tile`` cells of one body (groups in the order of their first cells)."""
+    cell, body, avail = list(cell), list(body), [not u for u in used]
+    T = len(cell) // tile
+    empty = [all(c < 0 for c in cell[t * tile:(t + 1) * tile]) for t in range(T)]
+    for s in range(len(cell)):
+        if vacant[s] and not empty[s // tile]:
+            mine = [c for c in range(len(avail)) if avail[c] and offer_body[c] == body[s]]
+            if mine:
+                cell[s], avail[mine[0]] = mine[0], False
+    groups = []
+    for b in sorted(set(offer_body)):
+        mine = [c for c in range(len(avail)) if avail[c] and offer_body[c] == b]
+        groups += [mine[i:i + tile] for i in range(0, len(mine), tile)]
+    groups.sort(key=lambda g: g[0])
+    for t in range(T):
+        seats = [s for s in range(t * tile, (t + 1) * tile) if vacant[s]]
+        if empty[t] and seats and groups:
+            group = groups.pop(0)
+            for s in range(t * tile, (t + 1) * tile):
+                body[s] = offer_body[group[0]]
+            for s, c in zip(seats, group):
+                cell[s], avail[c] = c, False
+    return cell, body, [not a for a in avail]
+
+
+@pytest.mark.parametrize("tile", [2, 4])
+def test_the_refill_follows_its_rule_on_random_slots(tile):
+    """Random slots, bodies, gating and offers with cells already used: refill_tiles (sorts and
+    searches) takes exactly the cells the rule above takes, and puts the idle slots of a tile
+    that changed body at that body's rest."""
+    rng = np.random.default_rng(7)
+    S = 4 * tile
+    for _ in range(40):
+        cell = np.where(rng.random(S) < 0.4, rng.integers(50, 60, S), -1)
+        body = np.repeat(rng.integers(0, 4, S // tile), tile)
+        offer = rng.integers(0, 4, 12)  # any order: waves interleave bodies
+        used = rng.random(12) < 0.3
+        gated = rng.random() < 0.2  # a period between refills: no slot takes a cell
+        slots = slots_of(cell, body)
+        R = offer.size
+        new, took = refill_tiles(
+            slots, {"x": jnp.arange(4, dtype=jnp.float32)}, jnp.asarray(used),
+            (slots.cell < 0) & (not gated), jnp.arange(R, dtype=jnp.int32), jnp.ones(R),
+            jnp.ones(R, jnp.int32), starts={"x": 100.0 + jnp.arange(R, dtype=jnp.float32)},
+            refill_body=jnp.asarray(offer, jnp.int32), tile=tile)
+        want_cell, want_body, want_used = rule(cell, body, (cell < 0) & (not gated),
+                                               offer.tolist(), used, tile)
+        assert np.asarray(new.cell).tolist() == want_cell
+        assert np.asarray(new.body).tolist() == want_body
+        assert np.asarray(took).tolist() == want_used
+        want_x = np.where(np.asarray(want_cell) >= 0, 100 + np.asarray(want_cell),
+                          np.where(cell >= 0, 100 + cell, want_body))
+        assert np.asarray(new.carry["x"]).tolist() == want_x.tolist()
+
+
 def test_the_queue_groups_by_body_and_takes_back_a_mask():
     forces = np.array([30.0, 10.0, 20.0, 0.0, 5.0])
     q = Queue(forces, np.ones(5, np.int32), devices=2, refill=2,

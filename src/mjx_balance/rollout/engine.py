@@ -122,31 +122,63 @@ def refill(slots: Slots, rest: Carry, taken, vacant, refill_cell, refill_force, 
     return slots, taken + take.sum(dtype=jnp.int32)
 
 
+def _ranks(key, mask):
+    """Each masked entry's rank among the masked entries of its key, in order, and the stable
+    sort by key (masked entries first, by key then position) with its sorted keys."""
+    n = key.shape[0]
+    keyed = jnp.where(mask, key, jnp.iinfo(jnp.int32).max)
+    order = jnp.argsort(keyed, stable=True)
+    sorted_key = keyed[order]
+    rank = jnp.arange(n, dtype=jnp.int32) - jnp.searchsorted(sorted_key, sorted_key, side="left")
+    return jnp.zeros(n, jnp.int32).at[order].set(rank.astype(jnp.int32)), order, sorted_key
+
+
 def refill_tiles(slots: Slots, rests: Carry, used, vacant, refill_cell, refill_force,
                  refill_push, *, starts: Carry, refill_body, tile: int) -> tuple[Slots, jax.Array]:
     """:func:`refill` for per-lane bodies solved by body tiles: every ``tile`` consecutive
-    slots hold one body's scenarios (``admm.admm_solve_tiles`` solves one QP per tile). A
-    tile's vacant slots take the first offered cells not yet ``used`` [R] of the tile's body,
-    in order; a tile with no scenario takes the body of the first cell left (its vacant slots
-    are then at that body's rest: ``rests`` [n_bodies]). Returns the slots and ``used``."""
-    S = slots.cell.shape[0]
+    slots hold one body's scenarios (``admm.admm_solve_tiles`` solves one QP per tile).
+
+    First the vacant slots of tiles with a scenario take offered cells not yet ``used`` [R] of
+    their tile's body: the j-th such slot of body b (in slot order) the j-th such cell of b.
+    Then each tile with no scenario takes the next group of up to ``tile`` cells left of one
+    body (a body's cells left, in order, cut into groups of ``tile``; the groups in the order
+    of their first cells): it switches to that body, and its slots that find no cell idle at
+    the body's rest (``rests`` [n_bodies]). Sorts and searches, no loop over tiles, so its
+    cost grows as R log R rather than with the tiles. Returns the slots and ``used``."""
+    S, R = slots.cell.shape[0], refill_cell.shape[0]
     T = S // tile
+    n_bodies = jax.tree.leaves(rests)[0].shape[0]
+    avail = (refill_cell >= 0) & ~used
+    rank, order, sorted_body = _ranks(refill_body, avail)
+    body_first = jnp.searchsorted(sorted_body, jnp.arange(n_bodies, dtype=jnp.int32),
+                                  side="left").astype(jnp.int32)
 
-    def one(avail, row):
-        cell, body, vac = row
-        empty = (cell < 0).all()
-        first = refill_body[jnp.argmax(avail)]
-        b = jnp.where(empty & avail.any(), first, body[0])
-        count = jnp.cumsum(avail & (refill_body == b))
-        rank = jnp.cumsum(vac) - 1
-        take = vac & (rank < count[-1])
-        source = jnp.clip(jnp.searchsorted(count, rank + 1), 0, refill_cell.shape[0] - 1)
-        avail = avail & ~jnp.zeros_like(avail).at[source].max(take)
-        return avail, (take, source, jnp.full(tile, b, body.dtype))
+    def cell_of(b, r):  # the offered cell of body b at rank r among those available, if any
+        at = body_first[b] + r
+        found = (r >= 0) & (at < R) & (sorted_body[jnp.clip(at, 0, R - 1)] == b)
+        return found, order[jnp.clip(at, 0, R - 1)]
 
-    rows = (slots.cell.reshape(T, tile), slots.body.reshape(T, tile), vacant.reshape(T, tile))
-    avail, (take, source, body) = jax.lax.scan(one, (refill_cell >= 0) & ~used, rows)
-    take, source, body = take.reshape(S), source.reshape(S), body.reshape(S)
+    empty = jnp.repeat((slots.cell < 0).reshape(T, tile).all(axis=1), tile)
+    joining = vacant & ~empty  # vacant slots of tiles with a scenario
+    found, source_busy = cell_of(slots.body, _ranks(slots.body, joining)[0])
+    take_busy = joining & found
+    # each body's first cells went to the busy tiles: the rest are ranked from there
+    gone = jnp.zeros(n_bodies, jnp.int32).at[slots.body].add(take_busy.astype(jnp.int32))
+    left = rank - gone[refill_body]
+    leads = avail & (left >= 0) & (left % tile == 0)  # each group's first cell
+    n_groups = leads.sum(dtype=jnp.int32)
+    tile_free = (empty & vacant).reshape(T, tile).any(axis=1)
+    nth = jnp.cumsum(tile_free.astype(jnp.int32)) - 1  # the empty tile's turn
+    served = tile_free & (nth < n_groups)
+    lead = jnp.clip(jnp.searchsorted(jnp.cumsum(leads.astype(jnp.int32)), nth + 1,
+                                     side="left"), 0, R - 1)
+    new_body = jnp.where(served, refill_body[lead], slots.body.reshape(T, tile)[:, 0])
+    body = jnp.repeat(new_body.astype(slots.body.dtype), tile)
+    seat = jnp.cumsum(vacant.reshape(T, tile), axis=1).reshape(S) - 1  # j-th vacant of a tile
+    found, source_new = cell_of(body, jnp.repeat(rank[lead], tile) + seat)
+    take_new = jnp.repeat(served, tile) & vacant & found & (seat < tile)
+    take = take_busy | take_new
+    source = jnp.where(take_busy, source_busy, source_new)
     idle = (slots.cell < 0) & ~take  # vacant slots, at their (maybe new) body's rest
     first = jax.tree.map(lambda v: v[source], starts)
     carry = select(idle, lane_arrays(rests, body), slots.carry)
@@ -156,7 +188,7 @@ def refill_tiles(slots: Slots, rests: Carry, used, vacant, refill_cell, refill_f
         force=jnp.where(take, refill_force[source], slots.force),
         n_push=jnp.where(take, refill_push[source], slots.n_push),
         k=jnp.where(take, 0, slots.k), body=body)
-    return slots, ~avail & (refill_cell >= 0)
+    return slots, (refill_cell >= 0) & (used | jnp.zeros(R, bool).at[source].max(take))
 
 
 def certify(check, static, x, acc: Accumulators, k, n_push, ended, due, *, n_control, force):
@@ -221,11 +253,16 @@ def take(slots: Slots, rest: Carry, taken, s, refill_cell, refill_force, refill_
     whole batch, not masked per slot). ``tile``: per-lane bodies by body tiles
     (:func:`refill_tiles`; ``rest``: each body's, ``taken``: the offered cells used [R])."""
     vacant = slots.cell < 0
+    if tile is not None:
+        def fill(_):
+            return refill_tiles(slots, rest, taken, vacant, refill_cell, refill_force,
+                                refill_push, starts=starts, refill_body=refill_body, tile=tile)
+        if not gated:
+            return fill(None)
+        # the tiles' sorts and searches run only in the periods that refill
+        return jax.lax.cond(s % cert_mod.CHECK_EVERY == 0, fill, lambda _: (slots, taken), None)
     if gated:
         vacant = vacant & (s % cert_mod.CHECK_EVERY == 0)
-    if tile is not None:
-        return refill_tiles(slots, rest, taken, vacant, refill_cell, refill_force, refill_push,
-                            starts=starts, refill_body=refill_body, tile=tile)
     return refill(slots, rest, taken, vacant, refill_cell, refill_force, refill_push,
                   starts=starts, refill_body=refill_body)
 
