@@ -9,7 +9,8 @@ The cohort runs as ``mjx-balance cohort --population N --seed S`` does (``run_co
 plain sweep maps the study's body over as many cells (forces spread over the cohort's range,
 the same durations). Each engine's compile is timed apart (the first build of its compiled
 call), so "engine s" is the queue's run alone: every call, the host's refills and the
-harvested cells' hand-over. Occupancy: the cells' control periods summed over the slot-periods
+harvested cells' hand-over; so are the cohort's runners (its bodies' set-up), its maps'
+folders and its tables and figures. Occupancy: the cells' control periods summed over the slot-periods
 the engine ran (calls x block x slots of every device); scen/s: cells over engine seconds.
 """
 
@@ -26,6 +27,7 @@ import numpy as np
 import mjx_balance as mb
 from mjx_balance.rollout import engine as engine_mod
 from mjx_balance.runs.folders import run_region
+from mjx_balance.runs import population
 from mjx_balance.runs.grid import parse_grid
 from mjx_balance.studies import cohort
 
@@ -74,6 +76,19 @@ class Meter:
 
         engine_mod.Engine.stream = counted
         engine_mod.Engine.block_fn = timed_build
+        # a population's runners (its bodies' set-up) and its maps' folders, timed apart
+        population.Population.__init__ = self.timed("setup_s", population.Population.__init__)
+        population.run_region = self.timed("folders_s", population.run_region)
+
+    def timed(self, name: str, fn):
+        def run(*a, **k):
+            t0 = time.perf_counter()
+            try:
+                return fn(*a, **k)
+            finally:
+                fig = self.figures[self.label]
+                fig[name] = fig.get(name, 0.0) + time.perf_counter() - t0
+        return run
 
     def start(self, label: str) -> None:
         self.label = label
@@ -145,8 +160,9 @@ def main() -> None:
               f"{fig['calls']} calls of {fig['block']} periods; occupancy "
               f"{100 * fig['occupancy']:.1f} %; {fig['cell_periods']} scenario-periods, "
               f"{1e6 * fig['engine_s'] / fig['cell_periods']:.2f} us each"
-              + (f"; tables and figures {fig['outputs_s']:.1f} s" if "outputs_s" in fig
-                 else ""))
+              + "".join(f"; {what} {fig[key]:.1f} s" for key, what in (
+                  ("setup_s", "runners' set-up"), ("folders_s", "maps' folders"),
+                  ("outputs_s", "tables and figures")) if key in fig))
     if len(results) == 2:
         (_, a), (_, b) = results.items()
         per_cell = (a["engine_s"] / a["cells"]) / (b["engine_s"] / b["cells"])

@@ -41,6 +41,7 @@ from mjx_balance.control.qp import build_qp
 from mjx_balance.measures.outcomes import OUTCOMES, SUMMARY_COLUMNS
 from mjx_balance.model.linear import zoh
 from mjx_balance.model.params import Config
+from mjx_balance.rollout import engine as engine_mod
 
 pytestmark = pytest.mark.usefixtures("float32")
 
@@ -98,11 +99,22 @@ def runs(request):
     config = Config().replace(scenario={"t_end": window["t_end"]})
     forces, durations = grid(request.param)
     out = {"window": window, "config": config}
+    told = out["running"] = []  # what the engine told its queue after each call
+    heard = engine_mod.Queue.running
+
+    def running(queue, cells, periods):
+        told.append((cells.copy(), periods.copy()))
+        return heard(queue, cells, periods)
+
     with jax.enable_x64(False):
         for name, early in (("early", True), ("full", False)):
             runner = BatchRunner(config, slots=ENGINE_SLOTS, early_stop=early,
                                  devices=jax.local_devices()[:1])
-            out[name] = runner.run(forces, durations)
+            engine_mod.Queue.running = running if early else heard
+            try:
+                out[name] = runner.run(forces, durations)
+            finally:
+                engine_mod.Queue.running = heard
             out[name + "_periods"] = runner.last_periods
             out[name + "_certified"] = runner.last_certified
             out[name + "_runner"] = runner
@@ -113,6 +125,17 @@ def runs(request):
 def test_grid_reaches_every_outcome_the_window_allows(runs):
     seen = {OUTCOMES[i] for i in runs["full"]["outcome"]}
     assert {"recovered", "not_settled", "fell"} <= seen
+
+
+def test_the_queue_hears_how_long_each_cell_in_a_slot_has_run(runs):
+    """After each call the engine tells its queue the cells still in a slot and the periods
+    each has run (Queue.running: the lower bounds of their lengths): fewer than the cell's
+    length, at least one."""
+    told, length = runs["running"], np.asarray(runs["early_periods"])
+    assert len(told) >= 2 and any((cells >= 0).any() for cells, _ in told)
+    for cells, periods in told:
+        busy = cells >= 0
+        assert (periods[busy] >= 1).all() and (periods[busy] < length[cells[busy]]).all()
 
 
 def test_early_stopping_changes_no_decided_column(runs):

@@ -109,6 +109,37 @@ def test_a_cell_still_running_counts_as_long_as_it_has_run():
     assert cells[:4].tolist() == [4, 5, 1, 2]
 
 
+def test_a_cell_beside_a_long_ridge_goes_before_cells_in_short_country():
+    """Known cells on a line of forces, one push: short falls with a thin ridge of long
+    recoveries at 40-42 N. A queued cell at 44.5 N has a short nearest neighbour (44 N) but long
+    ones within the 16 nearest: it goes before the cells among short ones only (with the nearest
+    neighbour alone it would rank with them)."""
+    known = np.arange(0.0, 300.0, 1.0)  # 300 cells known: the longest of 16 neighbours
+    length = np.where((known >= 40) & (known <= 42), 800, 30)
+    queued = np.array([150.5, 44.5, 250.5])
+    forces = np.concatenate([known, queued])
+    queue = Queue(forces, np.full(forces.size, 50, np.int32), devices=1, refill=3)
+    queue.pending = np.arange(known.size, forces.size)
+    queue.finished(np.arange(known.size), length)
+    cells, *_ = queue.offer()
+    assert cells[0] == known.size + 1  # 44.5 N first, then the others in their given order
+    assert cells.tolist() == [known.size + 1, known.size, known.size + 2]
+
+
+def test_running_gives_a_cell_in_a_slot_the_periods_it_has_run():
+    """A cell told to have run 700 periods in its slot (``running``) counts as at least that
+    long before the calls it has been in say so (one call of 100 periods here)."""
+    forces = np.array([1.0, 2.0, 3.0, 100.0, 101.0, 102.0])
+    queue = Queue(forces, np.full(6, 50, np.int32), devices=1, refill=6, block=100)
+    queue.pending = np.array([1, 2, 4, 5])
+    queue.taken_at[[0, 3]] = 0
+    queue.calls = 1  # cell 3 took a slot in the call just run: no whole call yet
+    queue.running(np.array([3, -1]), np.array([700, 0]))  # vacant slots are ignored
+    queue.finished(np.array([0]), np.array([20]))
+    cells, *_ = queue.offer()
+    assert cells[:4].tolist() == [4, 5, 1, 2]
+
+
 def test_the_order_shortens_the_schedule():
     """On a bench-like workload the queue's schedule is within 10 % of the longest-first
     schedule that knows every length, and shorter than the given order's by 15 % or more. The

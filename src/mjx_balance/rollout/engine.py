@@ -47,6 +47,11 @@ from .sensing import whole_body_com
 # (docs/engine.md, "Per-lane bodies").
 LANE_TILE = 8
 
+# Finished or running cells whose longest length is a queued cell's expected length (Queue);
+# 16 against 1: 11 calls instead of 14 for a 153,520-cell sweep replayed on 16,384 slots, and
+# 14 instead of 17 for a cohort of that size (docs/scripts/queue_replay.py, BENCHMARKS.md).
+NEIGHBOURS = 16
+
 
 def default_slots(platform: str) -> int:
     """Slots per device: 32 on a CPU (the fastest per scenario measured on 2 cores, batch 16-64:
@@ -391,12 +396,18 @@ class Queue:
     run's end while the other slots idle, so the queue starts the cells expected to run longest
     first. Before any cell has finished, smaller |force| first: small pushes recover, and a
     recovery runs until it is certified or to t_end, a fall only until it falls (docs/engine.md,
-    "Longest first"). Once cells finish
-    (:meth:`finished`), a cell's expected length is that of its nearest neighbour in (force,
-    push steps, initial state) among the cells that finished, or that have run so long in a
-    slot (a lower bound), re-estimated each time the count of finished cells has grown by a
-    tenth. Only the schedule depends on it: a cell's result is the same in any slot and at any
-    time (the module docstring), so ``block`` (periods per call) serves only the lower bounds.
+    "Longest first"). Once cells finish (:meth:`finished`), a cell's expected length is the
+    longest of its ``NEIGHBOURS`` nearest cells in (force, push steps, initial state), of any
+    body, among the cells that finished or that are in a slot (as long as they have run so
+    far: :meth:`running`, else the whole calls since they took a slot); while fewer than
+    ``NEIGHBOURS`` squared are known, of fewer (a sixteenth of those known). Re-estimated each
+    time the count of finished cells has grown by a tenth. The longest of several, not the
+    nearest one: lengths peak on the thin ridge along the recovery boundary, where one
+    neighbour is often a short fall across it, and a long cell started late costs the run far
+    more than a short one started early. Other bodies' cells count as neighbours: a body's
+    index says nothing about its cells, and a cohort's bodies run at once. Only the schedule
+    depends on it: a cell's result is the same in any slot and at any time (the module
+    docstring).
     """
 
     def __init__(self, forces: np.ndarray, n_push: np.ndarray, devices: int, refill: int,
@@ -410,15 +421,15 @@ class Queue:
         self.D, self.R, self.block = devices, refill, block
         self.pending = self._grouped(np.argsort(np.abs(forces), kind="stable"))
         self.length = np.full(n, -1, np.int64)  # control periods of a finished cell
+        self.progress = np.full(n, -1, np.int64)  # periods run so far by a cell in a slot
         self.taken_at = np.full(n, -1, np.int64)  # the call in which a cell took a slot
         self.calls = 0
         self._sorted_at = 0  # finished cells when the queue was last ordered
         self._per: list[np.ndarray] = []
 
     def _features(self) -> np.ndarray:
-        """Each cell's (force, log push steps, initial state, body) scaled to [-1, 1] per
-        column."""
-        cols = np.column_stack([self.forces, np.log1p(self.n_push), self.inits, self.bodies])
+        """Each cell's (force, log push steps, initial state) scaled to [-1, 1] per column."""
+        cols = np.column_stack([self.forces, np.log1p(self.n_push), self.inits])
         span = np.abs(cols).max(axis=0)
         return cols[:, span > 0] / span[span > 0]
 
@@ -436,9 +447,11 @@ class Queue:
 
         flight = (self.taken_at >= 0) & ~done
         known = np.flatnonzero(done | flight)
-        ran = np.where(done, self.length, (self.calls - self.taken_at - 1) * self.block)
-        _, near = cKDTree(feats[known]).query(feats[self.pending])
-        expected = ran[known][near]
+        ran = np.where(done, self.length, np.maximum(self.progress, (self.calls - self.taken_at
+                                                                     - 1) * self.block))
+        k = min(NEIGHBOURS, max(1, known.size // NEIGHBOURS))
+        _, near = cKDTree(feats[known]).query(feats[self.pending], k=k, workers=-1)
+        expected = ran[known][near.reshape(self.pending.size, k)].max(axis=1)
         self.pending = self._grouped(self.pending[np.argsort(-expected, kind="stable")])
 
     def _grouped(self, order: np.ndarray) -> np.ndarray:
@@ -487,6 +500,13 @@ class Queue:
     def finished(self, cells: np.ndarray, periods: np.ndarray) -> None:
         """Cells decided, with the control periods each ran (orders what is still queued)."""
         self.length[cells] = periods
+
+    def running(self, cells: np.ndarray, periods: np.ndarray) -> None:
+        """The cells in a slot after a call (-1: a vacant slot) and the control periods each
+        has run: their lengths' lower bounds, up to a call sharper than the calls they have
+        been in."""
+        busy = cells >= 0
+        self.progress[cells[busy]] = periods[busy]
 
 
 def certificate(runner, early: bool):
@@ -728,11 +748,13 @@ class Engine:
                 with probe("device_call"):
                     state, taken, done = probe.call(fn, self.arrays, self.cert, state, *args)
                 with probe("transfers"):
-                    taken, index, acc, periods, certified = jax.device_get(
-                        (taken, done.cell, tuple(done.acc), done.periods, done.certified))
+                    taken, index, acc, periods, certified, in_slot, ran = jax.device_get(
+                        (taken, done.cell, tuple(done.acc), done.periods, done.certified,
+                         state.cell, state.k))
                 p += 1
                 with probe("python"):
                     queue.took(taken)
+                    queue.running(in_slot, ran)
                     keep = index >= 0
                     if keep.any():
                         raw = {name: v[keep] for name, v in zip(Accumulators._fields, acc)}
