@@ -548,8 +548,9 @@ def lane_bodies(runner, bodies: Sequence[Any], early: bool) -> tuple[Arrays, Any
     padded = list(bodies) + [bodies[-1]] * (size - len(bodies))
     certs += [certs[-1]] * (len(padded) - len(certs))
 
-    def stack(trees):
-        return jax.tree.map(lambda *v: jnp.stack([jnp.asarray(x) for x in v]), *trees)
+    def stack(trees):  # on the host: jnp.stack or jnp.asarray would compile a program per leaf
+        return jax.tree.map(lambda *v: jax.device_put(np.stack([np.asarray(x) for x in v])),
+                            *trees)
 
     arrays = stack([b.arrays for b in padded])
     _, whole = runner._shardings()
