@@ -511,10 +511,14 @@ class Queue:
 
 def certificate(runner, early: bool):
     """The certificate of ``runner``'s configuration (``certificate.py``) in its dtype, or None
-    (``early`` off, or no certificate applies: then its scenarios run to t_end)."""
+    (``early`` off, or no certificate applies: then its scenarios run to t_end). Built once
+    per runner (kept on it): a population asks for each body's twice."""
     config = runner.config
     if not (early and cert_mod.applies(config)):
         return None
+    built = runner.__dict__.setdefault("_certificate", [])
+    if built:
+        return built[0]
     arrays, sensors = runner.arrays, runner.sensors
     com = float(whole_body_com(arrays.mx, arrays.d0, sensors))
     rest = (com, com)  # static equilibrium: the CoP lies under the CoM
@@ -522,8 +526,10 @@ def certificate(runner, early: bool):
         cert = cert_mod.build(runner.qp, config.controller, config.scenario, rest=rest)
     except ValueError as exc:  # e.g. a bound through rest: run to t_end instead
         warnings.warn(f"no certified early stop for this configuration: {exc}", stacklevel=4)
-        return None
-    return jax.tree.map(lambda v: jnp.asarray(v, runner.dtype), cert)
+        cert = None
+    built.append(None if cert is None else
+                 jax.tree.map(lambda v: jnp.asarray(v, runner.dtype), cert))
+    return built[0]
 
 
 def lane_bodies(runner, bodies: Sequence[Any], early: bool) -> tuple[Arrays, Any]:
