@@ -5,7 +5,13 @@ lasting its recorded control periods instead of being simulated. It predicts an 
 calls and slot occupancy from a CPU's recordings.
 
     python docs/scripts/queue_replay.py [--record FILE.npz] [--subjects 3] \
-        [--forces 0:150:4] [--durations 0.05:2.0:0.05] [--population 100] [--slots 16384]
+        [--forces 0:150:4] [--durations 0.05:2.0:0.05] [--population 100] [--slots 16384] \
+        [--oracle]
+
+``--oracle``: a queue that knows every cell's length, longest first from the start (the best
+this rule can do). With ``PYTHONPATH=CHECKOUT/src`` it replays another commit's queue and
+refill (one without ``Queue.running`` is not told the periods of the cells in a slot, as its
+engine did not tell it).
 
 Records (or reads from ``--record``, written the first time) the control periods of every cell
 of the study's body and ``--subjects`` subjects of ``cohort.population(100, 1)`` over the grid,
@@ -44,13 +50,22 @@ def record(path: Path, forces, durations, subjects: int) -> dict[str, np.ndarray
     return dict(lengths=lengths, forces=forces, durations=durations)
 
 
+class Known(Queue):
+    """A queue given the cells longest first, which it keeps."""
+
+    def _order(self) -> None:
+        return None
+
+
 def replay(forces, n_push, lengths, bodies, slots: int, block: int, tile: int | None,
-           n_bodies: int = 1) -> dict:
+           n_bodies: int = 1, oracle: bool = False) -> dict:
     """Calls, periods and occupancy of the engine's loop over these cells (one device)."""
     n = forces.size
     R = 4 * slots
-    queue = Queue(forces, n_push, 1, R, None, block, bodies,
-                  wave=slots // tile if tile else 1)
+    queue = (Known if oracle else Queue)(forces, n_push, 1, R, None, block, bodies,
+                                         wave=slots // tile if tile else 1)
+    if oracle:
+        queue.pending = queue._grouped(np.argsort(-lengths, kind="stable"))
     cell = np.full(slots, -1, np.int64)
     body = np.zeros(slots, np.int32)
     k = np.zeros(slots, np.int64)
@@ -95,7 +110,8 @@ def replay(forces, n_push, lengths, bodies, slots: int, block: int, tile: int | 
             periods.append(k[done].copy())
             cell[done] = -1
         queue.took(taken if tile else np.array([used]))
-        queue.running(cell, k)  # as the engine tells it after each call
+        if hasattr(queue, "running"):  # as the engine tells it after each call
+            queue.running(cell, k)
         ended = np.concatenate(finished)
         queue.finished(ended, np.concatenate(periods))
         left -= ended.size
@@ -115,6 +131,7 @@ def main() -> None:
     p.add_argument("--slots", type=int, default=16384)
     p.add_argument("--block", type=int, default=100)
     p.add_argument("--plain", action=argparse.BooleanOptionalAction, default=True)
+    p.add_argument("--oracle", action="store_true")
     args = p.parse_args()
     forces = parse_grid(args.forces, "forces")
     durations = parse_grid(args.durations, "durations")
@@ -129,7 +146,7 @@ def main() -> None:
     cohort_lengths = np.concatenate([lengths[b % len(lengths)] for b in range(n_maps)])
     got = replay(np.tile(F.ravel(), n_maps), np.tile(steps, n_maps), cohort_lengths,
                  np.repeat(np.arange(n_maps, dtype=np.int32), cells), args.slots, args.block,
-                 LANE_TILE, n_maps)
+                 LANE_TILE, n_maps, args.oracle)
     print(f"cohort, one queue, body tiles of {LANE_TILE}: {n_maps * cells:,} cells on "
           f"{args.slots:,} slots: {got['calls']} calls, occupancy "
           f"{100 * got['occupancy']:.1f} %")
@@ -140,7 +157,8 @@ def main() -> None:
         PF, PD = np.meshgrid(plain, durations, indexing="ij")
         got = replay(PF.ravel(), push_steps(PD.ravel(), mb.Config().scenario.physics_dt),
                      plain_lengths,
-                     np.zeros(PF.size, np.int32), args.slots, args.block, None)
+                     np.zeros(PF.size, np.int32), args.slots, args.block, None,
+                     oracle=args.oracle)
         print(f"plain sweep: {PF.size:,} cells: {got['calls']} calls, occupancy "
               f"{100 * got['occupancy']:.1f} %")
 
