@@ -47,8 +47,9 @@ from .sensing import whole_body_com
 # (docs/engine.md, "Per-lane bodies").
 LANE_TILE = 8
 
-# Finished or running cells whose longest length is a queued cell's expected length (Queue);
-# 16 against 1: 11 calls instead of 14 for a 153,520-cell sweep replayed on 16,384 slots, and
+# Finished or running cells whose longest length is a queued cell's expected length (Queue).
+# 16 of them and the periods of the cells in a slot (Queue.running), against the nearest one
+# and whole calls: 11 calls instead of 14 for a 153,520-cell sweep replayed on 16,384 slots,
 # 14 instead of 17 for a cohort of that size (docs/scripts/queue_replay.py, BENCHMARKS.md).
 NEIGHBOURS = 16
 
@@ -181,7 +182,7 @@ def refill_tiles(slots: Slots, rests: Carry, used, vacant, refill_cell, refill_f
     body = jnp.repeat(new_body.astype(slots.body.dtype), tile)
     seat = jnp.cumsum(vacant.reshape(T, tile), axis=1).reshape(S) - 1  # j-th vacant of a tile
     found, source_new = cell_of(body, jnp.repeat(rank[lead], tile) + seat)
-    take_new = jnp.repeat(served, tile) & vacant & found & (seat < tile)
+    take_new = jnp.repeat(served, tile) & vacant & found
     take = take_busy | take_new
     source = jnp.where(take_busy, source_busy, source_new)
     idle = (slots.cell < 0) & ~take  # vacant slots, at their (maybe new) body's rest
