@@ -33,7 +33,7 @@ import numpy as np
 
 import mjx_balance as mb
 from mjx_balance.control.certificate import CHECK_EVERY
-from mjx_balance.rollout.engine import LANE_TILE, Queue, Slots, refill_tiles
+from mjx_balance.rollout.engine import LANE_TILE, Queue, Slots, refill, refill_tiles
 from mjx_balance.rollout.runner import push_steps
 from mjx_balance.runs.grid import parse_grid
 from mjx_balance.runs.population import Population
@@ -69,39 +69,36 @@ def replay(forces, n_push, lengths, bodies, slots: int, block: int, tile: int | 
     cell = np.full(slots, -1, np.int64)
     body = np.zeros(slots, np.int32)
     k = np.zeros(slots, np.int64)
+    rests = {"x": jnp.zeros((n_bodies, 1))}
 
     @jax.jit
-    def fill(state, rests, taken, vacant, offer, f, p, offer_body):
-        return refill_tiles(state, rests, taken, vacant, offer, f, p,
-                            starts={"x": jnp.zeros((R, 1))}, refill_body=offer_body, tile=tile)
+    def fill(cell, body, taken, vacant, offer, offer_body):  # the engine's own refill
+        state = Slots(carry={"x": jnp.zeros((slots, 1))}, cell=cell, force=jnp.zeros(slots),
+                      n_push=jnp.zeros(slots, jnp.int32), k=jnp.zeros(slots, jnp.int32),
+                      body=body)
+        args = (taken, vacant, offer, jnp.ones(R), jnp.ones(R, jnp.int32))
+        starts = {"x": jnp.zeros((R, 1))}
+        if tile:
+            new, taken = refill_tiles(state, rests, *args, starts=starts,
+                                      refill_body=offer_body, tile=tile)
+        else:
+            new, taken = refill(state, rests, *args, starts=starts, refill_body=offer_body)
+        return new.cell, new.body, taken
 
     left, calls = n, 0
-    rests = {"x": jnp.zeros((n_bodies, 1))}
     while left:
-        offer, f, p, _, offer_body = queue.offer()
-        taken = np.zeros(R, bool)
-        used = 0
+        offer, _, _, _, offer_body = queue.offer()
+        taken = np.zeros(R, bool) if tile else np.int32(0)
         finished, periods = [], []
         for s in range(block):
             if s % CHECK_EVERY == 0:
                 vacant = cell < 0
-                if tile:
-                    state = Slots(carry={"x": jnp.zeros((slots, 1))}, cell=jnp.asarray(cell,
-                                  jnp.int32), force=jnp.zeros(slots), n_push=jnp.zeros(
-                                  slots, jnp.int32), k=jnp.asarray(k, jnp.int32),
-                                  body=jnp.asarray(body))
-                    new, now = fill(state, rests, jnp.asarray(taken), jnp.asarray(vacant),
-                                    jnp.asarray(offer, jnp.int32), jnp.ones(R),
-                                    jnp.ones(R, jnp.int32), jnp.asarray(offer_body, jnp.int32))
-                    new_cell = np.asarray(new.cell, np.int64)
-                    fresh = vacant & (new_cell >= 0)
-                    cell, body, taken = new_cell, np.asarray(new.body), np.asarray(now)
-                else:
-                    rank = used + np.cumsum(vacant) - 1
-                    fresh = vacant & (rank < R)
-                    fresh[fresh] = offer[rank[fresh]] >= 0
-                    cell[fresh] = offer[rank[fresh]]
-                    used += int(fresh.sum())
+                new_cell, body, taken = jax.device_get(fill(
+                    jnp.asarray(cell, jnp.int32), jnp.asarray(body), jnp.asarray(taken),
+                    jnp.asarray(vacant), jnp.asarray(offer, jnp.int32),
+                    jnp.asarray(offer_body, jnp.int32)))
+                fresh = vacant & (new_cell >= 0)
+                cell = new_cell.astype(np.int64)
                 k[fresh] = 0
             busy = cell >= 0
             k[busy] += 1
@@ -109,7 +106,7 @@ def replay(forces, n_push, lengths, bodies, slots: int, block: int, tile: int | 
             finished.append(cell[done].copy())
             periods.append(k[done].copy())
             cell[done] = -1
-        queue.took(taken if tile else np.array([used]))
+        queue.took(taken if tile else np.array([taken]))
         if hasattr(queue, "running"):  # as the engine tells it after each call
             queue.running(cell, k)
         ended = np.concatenate(finished)
