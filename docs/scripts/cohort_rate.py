@@ -10,8 +10,9 @@ plain sweep maps the study's body over as many cells (forces spread over the coh
 the same durations). Each engine's compile is timed apart (the first build of its compiled
 call), so "engine s" is the queue's run alone: every call, the host's refills and the
 harvested cells' hand-over; so are the cohort's runners (its bodies' set-up), its maps'
-folders and its tables and figures. Occupancy: the cells' control periods summed over the slot-periods
-the engine ran (calls x block x slots of every device); scen/s: cells over engine seconds.
+folders and its tables and figures. Occupancy: the cells' control periods summed over the
+slot-periods the engine ran (calls x block x slots of every device); scen/s: cells over
+engine seconds.
 """
 
 from __future__ import annotations
@@ -76,9 +77,11 @@ class Meter:
 
         engine_mod.Engine.stream = counted
         engine_mod.Engine.block_fn = timed_build
-        # a population's runners (its bodies' set-up) and its maps' folders, timed apart
+        # a population's runners (its bodies' set-up), its maps' folders and a cohort's
+        # tables and figures, timed apart
         population.Population.__init__ = self.timed("setup_s", population.Population.__init__)
         population.run_region = self.timed("folders_s", population.run_region)
+        cohort.write_outputs = self.timed("outputs_s", cohort.write_outputs)
 
     def timed(self, name: str, fn):
         def run(*a, **k):
@@ -124,17 +127,6 @@ def main() -> None:
     durations = parse_grid(args.durations, "durations")
     n = (len(people) + 1) * forces.size * durations.size
     meter = Meter()
-    outputs = {}
-    write_outputs = cohort.write_outputs
-
-    def timed_outputs(*a, **k):  # the cohort's tables and figures, timed apart
-        t = time.perf_counter()
-        try:
-            return write_outputs(*a, **k)
-        finally:
-            outputs["s"] = time.perf_counter() - t
-
-    cohort.write_outputs = timed_outputs
     results = {}
     label = f"cohort --queue {args.queue}"
     meter.start(label)
@@ -142,7 +134,6 @@ def main() -> None:
     cohort.run_cohort(out / "cohort", people, config, forces, durations, log=None,
                       queue=args.queue, slots=args.slots, physics="mjx")
     results[label] = meter.summary(label, time.perf_counter() - t0)
-    results[label]["outputs_s"] = outputs["s"]
     if not args.no_plain:
         plain = np.linspace(forces[0], forces[-1], n // durations.size)
         label = "plain sweep"
