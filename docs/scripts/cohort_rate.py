@@ -3,14 +3,15 @@ process, one sitting): the figures issue 39 asks of an accelerator.
 
     python docs/scripts/cohort_rate.py OUT [--population 100] [--seed 1] \
         [--forces 0:150:4] [--durations 0.05:2.0:0.05] [--slots 16384] [--queue one] \
-        [--no-plain] [--json FILE]
+        [--no-plain] [--json FILE] [--tile 8]
 
 The cohort runs as ``mjx-balance cohort --population N --seed S`` does (``run_cohort``); the
 plain sweep maps the study's body over as many cells (forces spread over the cohort's range,
 the same durations). Each engine's compile is timed apart (the first build of its compiled
 call), so "engine s" is the queue's run alone: every call, the host's refills and the
-harvested cells' hand-over; so are the cohort's runners (its bodies' set-up), its maps'
-folders and its tables and figures. Occupancy: the cells' control periods summed over the
+harvested cells' hand-over; so are the cohort's runners (its bodies' models, rest states and
+QPs), the one queue's set-up (stacking the bodies), its maps' folders and its tables and
+figures. Occupancy: the cells' control periods summed over the
 slot-periods the engine ran (calls x block x slots of every device); scen/s: cells over
 engine seconds.
 """
@@ -77,8 +78,10 @@ class Meter:
 
         engine_mod.Engine.stream = counted
         engine_mod.Engine.block_fn = timed_build
-        # a population's runners (its bodies' set-up), its maps' folders and a cohort's
-        # tables and figures, timed apart
+        # a population's runners (its bodies' models, rest states and QPs), the one queue's
+        # set-up (stacking the bodies), its maps' folders and a cohort's tables and figures,
+        # timed apart
+        population.BatchRunner = self.timed("runners_s", population.BatchRunner)
         population.Population.__init__ = self.timed("setup_s", population.Population.__init__)
         population.run_region = self.timed("folders_s", population.run_region)
         cohort.write_outputs = self.timed("outputs_s", cohort.write_outputs)
@@ -118,7 +121,11 @@ def main() -> None:
     p.add_argument("--queue", default="one", choices=("one", "each"))
     p.add_argument("--no-plain", action="store_true", help="the cohort alone")
     p.add_argument("--json", default=None, help="also write the figures to this file")
+    p.add_argument("--tile", type=int, default=None,
+                   help="slots per body tile (default: the engine's LANE_TILE)")
     args = p.parse_args()
+    if args.tile:
+        engine_mod.LANE_TILE = args.tile  # read when an engine is built
     out = Path(args.out)
     shutil.rmtree(out, ignore_errors=True)
     config = mb.Config()
@@ -152,7 +159,8 @@ def main() -> None:
               f"{100 * fig['occupancy']:.1f} %; {fig['cell_periods']} scenario-periods, "
               f"{1e6 * fig['engine_s'] / fig['cell_periods']:.2f} us each"
               + "".join(f"; {what} {fig[key]:.1f} s" for key, what in (
-                  ("setup_s", "runners' set-up"), ("folders_s", "maps' folders"),
+                  ("runners_s", "runners"), ("setup_s", "the queue's set-up"),
+                  ("folders_s", "maps' folders"),
                   ("outputs_s", "tables and figures")) if key in fig))
     if len(results) == 2:
         (_, a), (_, b) = results.items()
