@@ -14,11 +14,6 @@ JAX nor MuJoCo; the API functions import them when called.
 """
 
 import importlib
-import importlib.abc
-import importlib.util
-import sys
-import types
-import warnings
 
 from .runtime.xla import deterministic_flags
 
@@ -63,58 +58,3 @@ def __getattr__(name: str):
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_LAZY))
-
-
-# -- the modules' old names, for one release (0.1 -> 0.2: docs/architecture.md) ----------------
-# ``from mjx_balance.params import Config`` or ``mjx_balance.sweep.definitions`` still import,
-# with a DeprecationWarning naming the new module; the old module is the new one (one object).
-
-LEGACY = {
-    "_xla": "runtime.xla", "cache": "runtime.cache", "params": "model.params",
-    "linear": "model.linear", "outcomes": "measures.outcomes", "metrics": "measures.metrics",
-    "qp": "control.qp", "admm": "control.admm", "osqp_mpc": "control.osqp_mpc",
-    "offset_free": "control.offset_free", "certificate": "control.certificate",
-    "sweep": "runs", "sweep.store": "store.folder", "sweep.grid": "runs.grid",
-    "sweep.chunks": "runs.chunks", "sweep.batch": "runs.batch",
-    "sweep.progress": "runs.progress", "sweep.region": "runs.region",
-    "sweep.acting_time": "runs.acting_time", "sweep.definitions": "runs.definitions",
-    "sweep.cluster": "runs.cluster", "plots": "figures.timeseries",
-    "region_plots": "figures.region", "animate": "figures.animation",
-    "comparison": "studies.compare",
-    "landscape": "studies.landscape", "sensitivity": "studies.sensitivity",
-    "recovery_basin": "studies.basin", "report.run": "studies.experiments",
-}
-
-
-class _Legacy(importlib.abc.MetaPathFinder, importlib.abc.Loader):
-    """Finds ``mjx_balance.<old name>`` and hands out the module at its new name."""
-
-    def find_spec(self, fullname, path=None, target=None):
-        old = fullname[len(__name__) + 1:] if fullname.startswith(__name__ + ".") else None
-        if old not in LEGACY:
-            return None
-        return importlib.util.spec_from_loader(fullname, self)
-
-    def create_module(self, spec):
-        new = f"{__name__}.{LEGACY[spec.name[len(__name__) + 1:]]}"
-        warnings.warn(f"{spec.name} is now {new} (the old name goes in the next release)",
-                      DeprecationWarning, stacklevel=2)
-        return importlib.import_module(new)
-
-    def exec_module(self, module):
-        pass  # the new module is already executed
-
-
-class _Package(types.ModuleType):
-    """This package: the name ``sweep`` stays the function (``help(mjx_balance.sweep)``) when
-    the legacy subpackage ``mjx_balance.sweep`` is imported (Python binds a subpackage to its
-    parent's attribute)."""
-
-    def __setattr__(self, name, value):
-        if name == "sweep" and isinstance(value, types.ModuleType):
-            return
-        super().__setattr__(name, value)
-
-
-sys.meta_path.insert(0, _Legacy())
-sys.modules[__name__].__class__ = _Package

@@ -1,6 +1,6 @@
 """One vocabulary for every command: the same flag for the same thing
 (plural where a list is accepted), --config / --set / --convention on every command that runs
-the model, the old names kept for a release with a one-line notice, defaults and the default
+the model, no old names nor prefixes of names, defaults and the default
 grid in --help, an honest planned-work line and progress bars with a fixed total.
 
 Parse-level tests (``build_parser``) and a few stand-in runs: nothing compiles or simulates.
@@ -71,25 +71,28 @@ def test_every_model_command_takes_config_set_and_convention(name, files):
                                           "--set", "controller.horizon=30",
                                           "--convention", "joint"))
     assert args.convention == "joint" and args.set == ["controller.horizon=30"]
-    assert args.config in (files["BASE"], [files["BASE"]])  # compare: a list (the old form)
+    assert args.config in (files["BASE"], [files["BASE"]])  # compare: a list (refused past one)
     if name != "compare":  # compare's base goes under each variant (test below)
         config = load_run_config(args)
         assert (config.controller.horizon, config.scenario.t_end,
                 config.controller.convention) == (30, 6.0, "joint")
 
 
-@pytest.mark.parametrize("name,old,new,value", [
-    ("simulate", "--force", "forces", "10,20"),
-    ("simulate", "--duration", "durations", "0.1"),
-    ("landscape", "--delay", "delays", "0,100c"),
+@pytest.mark.parametrize("name,old,new,dest,value", [
+    ("simulate", "--force", "--forces", "forces", "10,20"),
+    ("simulate", "--duration", "--durations", "durations", "0.1"),
+    ("landscape", "--delay", "--delays", "delays", "0,100c"),
+    ("bench", "--reference", "--reference-runs", "reference", "4"),
 ])
-def test_old_names_still_work_with_a_notice(name, old, new, value, files, capsys):
-    args = build_parser().parse_args(argv(name, files, old, value))
-    assert getattr(args, new) == value
-    err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"mjx-balance: {old} is now --{new} (the old name goes in a later release)"]
-    build_parser().parse_args(argv(name, files, f"--{new}", value))
-    assert capsys.readouterr().err == ""  # the new name says nothing
+def test_old_names_and_prefixes_are_refused(name, old, new, dest, value, files, capsys):
+    """The names of an unreleased version, which are also prefixes of today's, are not taken
+    as abbreviations (one spelling per option: the parser has allow_abbrev off)."""
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(argv(name, files, old, value))
+    err = capsys.readouterr().err  # bench's positional sub-command takes the value, then says so
+    assert f"unrecognized arguments: {old}" in err or "invalid choice: '4'" in err
+    args = build_parser().parse_args(argv(name, files, new, value))
+    assert str(getattr(args, dest)) == value
 
 
 def test_help_uses_the_plural_names_only():
@@ -141,7 +144,7 @@ def test_report_conventions_and_convention(files, capsys):
     assert "--conventions: unknown sideways" in capsys.readouterr().err
 
 
-# --- compare: variants, base, old form --------------------------------------------------------
+# --- compare: variants and base --------------------------------------------------------------
 
 @pytest.fixture
 def ran(monkeypatch):
@@ -171,12 +174,12 @@ def test_compare_variants_go_on_top_of_the_base(files, ran, capsys):
     ).controller.horizon
 
 
-def test_compare_old_form_still_works_with_a_notice(files, ran, capsys):
+def test_compare_without_a_variant_is_refused(files, ran, capsys):
+    """--config names the base; the configurations to compare are FILEs or --variant."""
     code = main(["-q", "compare", "--config", files["A"], "--config", files["B"], "--out",
                  files["OUT"]])
-    assert code == 0 and list(ran) == ["a", "b"]
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "compare FILE ... or --variant NAME=FILE" in err[0]
+    assert code == 2 and not ran
+    assert "compare FILE ... or --variant NAME=FILE" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("extra,message", [

@@ -121,16 +121,3 @@ def test_shipped_model_is_the_generated_default():
     assert shipped == mjcf()
     with open(default_model_path()) as fh:
         assert fh.read() == mjcf()
-
-
-def test_names_of_subjects_and_configuration_files_also_import_from_params():
-    # model/subject.py and model/config_files.py hold them; code that imports them from
-    # params gets the same objects.
-    from mjx_balance.model import config_files, params, subject
-
-    for name, home in params.ELSEWHERE.items():
-        module = subject if home == "subject" else config_files
-        assert getattr(params, name) is getattr(module, name), name
-    from mjx_balance.model.params import Subject, load_config  # noqa: F401
-    with pytest.raises(AttributeError):
-        params.no_such_name  # noqa: B018

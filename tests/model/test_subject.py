@@ -25,7 +25,7 @@ from mjx_balance.model.mjcf import mjcf
 from mjx_balance.model.params import (BodyParams, Config, ParameterError, ParameterWarning,
                                       config_warnings)
 from mjx_balance.model.config_files import load_config, run_config
-from mjx_balance.model.subject import Subject, parse_subject
+from mjx_balance.model.subject import Subject, parse_subject, with_sections
 from mjx_balance.runs.definitions import load_sweep
 from mjx_balance.store.folder import OutputFolder, record_simulation
 
@@ -414,7 +414,7 @@ def test_a_body_no_one_has_is_refused_on_every_path(tmp_path, height, mass):
     assert not BMI_RANGE[0] <= bmi <= BMI_RANGE[1]
     for make in (lambda: Subject(height, mass),
                  lambda: parse_subject(f"height={height},mass={mass}"),
-                 lambda: Config().replace(subject={"height": height, "mass": mass}),
+                 lambda: with_sections(Config(), {"subject": {"height": height, "mass": mass}}),
                  lambda: subjects_from_csv(_csv(tmp_path, f"height,mass\n{height},{mass}\n"))):
         with pytest.raises(ParameterError, match=r"body mass index .* outside the plausible"):
             make()

@@ -17,12 +17,15 @@ package can show every rule failing (``test_each_rule_fails_on_a_broken_fixture`
 from __future__ import annotations
 
 import ast
+import importlib
 import os
 import pkgutil
 import subprocess
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+
+import pytest
 
 import mjx_balance
 
@@ -301,39 +304,16 @@ def test_help_of_the_sweep_function():
     assert mjx_balance.sweep is api.sweep
     text = pydoc.render_doc(mjx_balance.sweep, renderer=pydoc.plaintext)
     assert api.sweep.__doc__.strip().splitlines()[0] in text
-    # a legacy import of the old subpackage does not rebind the name to a module
-    import warnings
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        from mjx_balance.sweep.definitions import load_sweep  # noqa: F401
-    assert mjx_balance.sweep is api.sweep
+    # the package holds no module called ``sweep`` that could shadow the function
+    assert not (PACKAGE / "sweep").exists() and not (PACKAGE / "sweep.py").exists()
 
 
-def test_old_module_names_warn_and_give_the_new_modules():
-    # docs/cluster.md told users to import these before the re-layering (one release).
-    code = (
-        "import warnings, importlib\n"
-        "warnings.simplefilter('always')\n"
-        "import mjx_balance\n"
-        "pairs = [('mjx_balance.params', 'mjx_balance.model.params'),\n"
-        "         ('mjx_balance.sweep', 'mjx_balance.runs'),\n"
-        "         ('mjx_balance.sweep.definitions', 'mjx_balance.runs.definitions'),\n"
-        "         ('mjx_balance.sweep.store', 'mjx_balance.store.folder')]\n"
-        "for old, new in pairs:\n"
-        "    with warnings.catch_warnings(record=True) as caught:\n"
-        "        warnings.simplefilter('always')\n"
-        "        module = importlib.import_module(old)\n"
-        "    assert module is importlib.import_module(new), old\n"
-        "    assert any(issubclass(w.category, DeprecationWarning) and new in str(w.message)\n"
-        "               for w in caught), (old, [str(w.message) for w in caught])\n"
-        "from mjx_balance.sweep import run_sweep\n"
-        "from mjx_balance.api import sweep\n"
-        "assert mjx_balance.sweep is sweep and callable(run_sweep)\n"
-        "print('ok')\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         timeout=300)
-    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr
+def test_old_module_names_are_gone():
+    # The flat layout's names (``mjx_balance.params``, ``mjx_balance.sweep.*``) were never
+    # released: nothing answers to them (CHANGELOG.md, "Removed").
+    for old in ("mjx_balance.params", "mjx_balance.sweep.definitions", "mjx_balance.region_plots"):
+        with pytest.raises(ModuleNotFoundError):
+            importlib.import_module(old)
 
 
 def test_no_library_module_switches_the_matplotlib_backend():

@@ -358,18 +358,6 @@ def test_figures_from_fake_results(tmp_path):
     assert (tmp_path / "table.png").stat().st_size > 10_000
 
 
-def test_reference_points_file(tmp_path):
-    from mjx_balance.figures import region as region_plots
-
-    good = tmp_path / "points.csv"
-    good.write_text("force,duration\n20,1.4\n50,0.5\n")
-    assert len(region_plots.load_reference(good)) == 2
-    bad = tmp_path / "bad.csv"
-    bad.write_text("F,T\n1,2\n")
-    with pytest.raises(ParameterError, match="force, duration"):
-        region_plots.load_reference(bad)
-
-
 def test_default_sweep_command_writes_region_and_table(tmp_path, monkeypatch):
     from mjx_balance.cli import main
 

@@ -24,6 +24,8 @@ import pytest
 from support import REPO, FakeThresholdBatch, sweep_fake
 
 from mjx_balance import runs as sweep
+from mjx_balance.store import files as store_files
+from mjx_balance.store.folder import TableCells
 from mjx_balance.model.params import Config, ParameterError
 
 FORCES = "0:120:10"  # 13 forces
@@ -53,7 +55,7 @@ def table(out: Path, fake, forces: str = FORCES):
 
 
 def same_files(a: Path, b: Path) -> None:
-    for name in (sweep.TABLE, sweep.TABLE_RUNS):
+    for name in (store_files.TABLE, store_files.TABLE_RUNS):
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
 
 
@@ -73,8 +75,8 @@ def test_table_interrupted_after_its_coarse_scan_resumes(tmp_path, whole, k):
     cut = CellLog(fail_on_call=k)
     with pytest.raises(KeyboardInterrupt):
         table(tmp_path, cut)
-    assert not (tmp_path / sweep.TABLE).exists()
-    assert len(list((tmp_path / sweep.TABLE_CELLS).glob("part-*.parquet"))) == k - 1
+    assert not (tmp_path / store_files.TABLE).exists()
+    assert len(list((tmp_path / store_files.TABLE_CELLS).glob("part-*.parquet"))) == k - 1
     kept = cut.all_cells()
     resumed = CellLog()
     table(tmp_path, resumed)
@@ -119,10 +121,10 @@ def test_table_killed_by_sigkill_resumes(tmp_path, whole):
     assert proc.poll() is None, "the table ended before it could be killed"
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait(timeout=30)
-    assert not (out / sweep.TABLE).exists()
-    kept = sweep.TableCells(out, "paper").rows
+    assert not (out / store_files.TABLE).exists()
+    kept = TableCells(out, "paper").rows
     assert len(kept) >= 13 * sweep.coarse_steps(12.0, 0.01).size  # the coarse scan at least
-    (out / sweep.TABLE_CELLS / ".part-00099.parquet.x.tmp").write_text("left by a kill")
+    (out / store_files.TABLE_CELLS / ".part-00099.parquet.x.tmp").write_text("left by a kill")
     resumed = CellLog()
     with jax.enable_x64(False):  # the numerics the killed process ran under (its default)
         table(out, resumed)
@@ -130,7 +132,7 @@ def test_table_killed_by_sigkill_resumes(tmp_path, whole):
     assert len(resumed.calls) < len(whole_fake.calls)
     assert not {(round(f, 6), round(d, 6)) for f, d in kept} & resumed.all_cells()
     same_files(out, whole_out)
-    assert not list((out / sweep.TABLE_CELLS).glob(".*.tmp"))
+    assert not list((out / store_files.TABLE_CELLS).glob(".*.tmp"))
 
 
 def test_overlapping_force_list_reuses_the_cells(tmp_path):
@@ -172,9 +174,9 @@ def test_overlapping_force_list_in_fixed_batches_reuses_the_coarse_scan(tmp_path
 def test_damaged_part_file_is_run_again(tmp_path, whole):
     whole_out, _ = whole
     table(tmp_path, CellLog())
-    part = sorted((tmp_path / sweep.TABLE_CELLS).glob("part-*.parquet"))[3]
+    part = sorted((tmp_path / store_files.TABLE_CELLS).glob("part-*.parquet"))[3]
     part.write_bytes(part.read_bytes()[:100])
-    (tmp_path / sweep.TABLE).unlink()
+    (tmp_path / store_files.TABLE).unlink()
     again = CellLog()
     table(tmp_path, again)
     assert again.calls == [BATCH]  # only the damaged call's cells
@@ -219,27 +221,27 @@ def no_run(forces, durations):
 ])
 @pytest.mark.parametrize("run", ["table", "sweep"])
 def test_bad_manifest_is_one_clear_error(tmp_path, text, problem, run):
-    (tmp_path / sweep.MANIFEST).write_text(text)
+    (tmp_path / store_files.MANIFEST).write_text(text)
     with pytest.raises(ParameterError) as error:
         if run == "table":
             sweep.run_table(tmp_path, Config(), "20", run_batch=no_run, progress=False, log=None)
         else:
             sweep_fake(tmp_path, no_run)
     message = str(error.value)
-    assert str(tmp_path / sweep.MANIFEST) in message and problem in message
+    assert str(tmp_path / store_files.MANIFEST) in message and problem in message
     assert "\n" not in message
 
 
 def test_rebuilt_manifest_keeps_the_table(tmp_path, capsys):
     table(tmp_path, CellLog(), "20,50")
-    before = json.loads((tmp_path / sweep.MANIFEST).read_text())
-    (tmp_path / sweep.MANIFEST).unlink()
+    before = json.loads((tmp_path / store_files.MANIFEST).read_text())
+    (tmp_path / store_files.MANIFEST).unlink()
     idle = CellLog(fail_on_call=1)
     assert sweep.run_table(tmp_path, Config(), "20,50", run_batch=idle, batch=BATCH,
                            progress=False) is None
     assert idle.calls == []
     assert "nothing to do" in capsys.readouterr().out
-    after = json.loads((tmp_path / sweep.MANIFEST).read_text())
+    after = json.loads((tmp_path / store_files.MANIFEST).read_text())
     assert after["table"]["forces"] == before["table"]["forces"] == [20.0, 50.0]
     assert after["config"] == before["config"]
 
@@ -248,11 +250,11 @@ def test_rebuilt_manifest_without_a_table_resumes_from_the_kept_cells(tmp_path, 
     whole_out, _ = whole
     with pytest.raises(KeyboardInterrupt):
         table(tmp_path, CellLog(fail_on_call=10))
-    (tmp_path / sweep.MANIFEST).unlink()
+    (tmp_path / store_files.MANIFEST).unlink()
     resumed = CellLog()
     table(tmp_path, resumed)
     assert len(resumed.calls) == len(whole[1].calls) - 9  # the 9 kept calls are not rerun
-    assert "table" in json.loads((tmp_path / sweep.MANIFEST).read_text())
+    assert "table" in json.loads((tmp_path / store_files.MANIFEST).read_text())
     same_files(tmp_path, whole_out)
 
 
@@ -261,7 +263,7 @@ def test_lost_manifest_with_kept_cells_of_another_configuration_is_refused(tmp_p
     when config.toml matches this run's configuration."""
     with pytest.raises(KeyboardInterrupt):
         table(tmp_path, CellLog(fail_on_call=3))
-    (tmp_path / sweep.MANIFEST).unlink()
+    (tmp_path / store_files.MANIFEST).unlink()
     other = Config().replace(scenario={"t_end": 6.0})
     with pytest.raises(ParameterError, match="config.toml differs"):
         sweep.run_table(tmp_path, other, FORCES, run_batch=no_run, progress=False, log=None)

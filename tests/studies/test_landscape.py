@@ -75,7 +75,7 @@ def calls(made) -> int:
 
 
 def cli(out, *extra):
-    return main(["landscape", "--q-scales", QS, "--r-scales", RS, "--delay", "0,100c",
+    return main(["landscape", "--q-scales", QS, "--r-scales", RS, "--delays", "0,100c",
                  "--forces", FORCES, "--durations", DURATIONS, "--table-forces", TABLE_FORCES,
                  "--out", str(out), *extra])
 
@@ -139,12 +139,12 @@ def test_bad_input_is_refused_before_any_work_and_nothing_is_lost(tmp_path, stan
     out = tmp_path / "land"
     for flag, value, message in (("--q-scales", "0,1", "must be > 0"),
                                  ("--r-scales", "1,x", "not a number"),
-                                 ("--delay", "0,5x", "not a delay setting"),
-                                 ("--delay", "0c", "needs a delay > 0"),
-                                 ("--delay", "10,10", "given twice"),
-                                 ("--delay", "0.3", "whole multiple of physics_dt"),
+                                 ("--delays", "0,5x", "not a delay setting"),
+                                 ("--delays", "0c", "needs a delay > 0"),
+                                 ("--delays", "10,10", "given twice"),
+                                 ("--delays", "0.3", "whole multiple of physics_dt"),
                                  ("--durations", "0.5,13", "t_end")):
-        args = {"--q-scales": QS, "--r-scales": RS, "--delay": "0", "--forces": FORCES,
+        args = {"--q-scales": QS, "--r-scales": RS, "--delays": "0", "--forces": FORCES,
                 "--durations": DURATIONS, flag: value}
         code = main(["landscape", *[w for k, v in args.items() for w in (k, v)],
                      "--out", str(out)])
@@ -158,7 +158,7 @@ def test_bad_input_is_refused_before_any_work_and_nothing_is_lost(tmp_path, stan
     done = calls(stand_in)
     # another grid, or another base configuration, over a finished landscape: refused,
     # naming the setting, before any scenario runs or any file changes
-    assert main(["landscape", "--q-scales", QS, "--r-scales", RS, "--delay", "0,100c",
+    assert main(["landscape", "--q-scales", QS, "--r-scales", RS, "--delays", "0,100c",
                  "--forces", "0:40:20", "--durations", DURATIONS, "--out", str(out)]) == 2
     assert "delay_000ms/q1_r0.1" in capsys.readouterr().err
     assert cli(out, "--set", "controller.horizon=10") == 2

@@ -27,7 +27,6 @@ from .options import (
     positive_float,
     positive_int,
     positive_int_list,
-    renamed_option,
 )
 
 # One compile of the benchmark's engine in a fresh process, with the persistent compilation
@@ -137,8 +136,6 @@ def _pipeline_arguments(p: argparse.ArgumentParser) -> None:
                    help="scenarios through MJX + ADMM (continuous batching and --full-length)")
     p.add_argument("--reference-runs", dest="reference", type=nonnegative_int, default=16,
                    help="of those, how many through the scalar reference (0: skip)")
-    p.add_argument("--reference", dest="reference", type=nonnegative_int,
-                   action=renamed_option("--reference-runs"), help=argparse.SUPPRESS)
     p.add_argument("--ipopt", type=nonnegative_int, default=8,
                    help="of those, how many through CasADi/IPOPT + MuJoCo C, with the "
                         "reference's outcome mix (0: skip)")

@@ -2,13 +2,11 @@
 
 The variants are whole configurations (positional FILEs, or --variant NAME=FILE); each one's
 values go on top of the base --config (default: the defaults), then --set and --convention on
-top of each variant. The old form, --config given for each variant and no FILE, still works
-for a release (a notice on stderr)."""
+top of each variant."""
 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -34,9 +32,6 @@ from .options import (
     yes_option,
 )
 
-OLD_FORM = ("mjx-balance: compare --config FILE ... (the configurations to compare) is now "
-            "compare FILE ... or --variant NAME=FILE; --config names the base configuration "
-            "(the old form goes in a later release)")
 
 
 
@@ -86,16 +81,12 @@ def variant(text: str) -> tuple[str, str]:
 
 
 def variants_and_base(args: Any) -> tuple[list[tuple[str | None, str]], str | None]:
-    """([(name or None, file)], base file or None) from the options; the old form (--config
-    for each variant, no FILE and no --variant) with its notice on stderr."""
+    """([(name or None, file)], base file or None) from the options."""
     variants = [(None, path) for path in args.variants or []] + list(args.variant or [])
     configs = args.config or []
     if not variants:
-        if not configs:
-            raise ParameterError("compare needs at least one configuration: compare FILE ... "
-                                 "or --variant NAME=FILE")
-        print(OLD_FORM, file=sys.stderr)
-        return [(None, path) for path in configs], None
+        raise ParameterError("compare needs at least one configuration: compare FILE ... "
+                             "or --variant NAME=FILE (--config names the base configuration)")
     if len(configs) > 1:
         raise ParameterError("--config: give one base configuration (the configurations to "
                              "compare are the FILEs or --variant NAME=FILE)")

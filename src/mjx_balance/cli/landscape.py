@@ -7,7 +7,6 @@ it runs.
 
 from __future__ import annotations
 
-import argparse
 import logging
 from pathlib import Path
 from typing import Any
@@ -19,8 +18,7 @@ from ..studies.defaults import (DEFAULT_DELAYS, DEFAULT_SCALES,  # light
 from .common import (base_config, chosen_physics, guard_work, in_folder, progress_enabled,
                      table_scenarios)
 from .options import (config_options, engine_options, queue_option, figure_options, format_option,
-                      out_folder, renamed_option,
-                      sweep_file, wait_option, write_exports, yes_option)
+                      out_folder, sweep_file, wait_option, write_exports, yes_option)
 
 
 
@@ -47,8 +45,6 @@ def add_parser(sub: Any) -> None:
                    help="delay settings, comma list in ms, a trailing c for the "
                         "delay-compensated controller (controller.delay_compensation), "
                         "e.g. 0,10,100c; each replaces the base's scenario.controller_delay")
-    p.add_argument("--delay", dest="delays", action=renamed_option("--delays"),
-                   help=argparse.SUPPRESS)  # the old name, kept for a release
     p.add_argument("--forces", default=None,
                    help="start:stop:step or a comma list [N] (default: the --sweep file's, "
                         f"else the default sweep's {DEFAULT_SWEEP_FORCES})")

@@ -63,8 +63,9 @@ NEGATIVE_VALUE = re.compile(r"^-\.?\d")
 
 
 def build_parser() -> argparse.ArgumentParser:
+    # allow_abbrev=False: one spelling per option (a prefix such as --force is not --forces)
     parser = argparse.ArgumentParser(
-        prog="mjx-balance", formatter_class=HelpFormatter, epilog=EPILOG,
+        prog="mjx-balance", formatter_class=HelpFormatter, epilog=EPILOG, allow_abbrev=False,
         description="Standing-balance recovery under constrained MPC: pushes, sweeps, tables.")
     parser.add_argument("--version", action=_Version)
     conventions(parser)
@@ -73,7 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_parser = sub.add_parser
 
     def command(name: str, **kwargs) -> argparse.ArgumentParser:
-        p = add_parser(name, formatter_class=HelpFormatter, epilog=EPILOG,
+        p = add_parser(name, formatter_class=HelpFormatter, epilog=EPILOG, allow_abbrev=False,
                        parents=[parent], description=kwargs.get("help"), **kwargs)
         p._negative_number_matcher = NEGATIVE_VALUE
         return p

@@ -21,7 +21,6 @@ that need the library import it when they check a value.
 from __future__ import annotations
 
 import argparse
-import sys
 import math
 import os
 from pathlib import Path
@@ -389,20 +388,6 @@ def physics_option(p: argparse.ArgumentParser) -> None:
                         "ADMM stays in JAX) or auto (the faster on this machine: "
                         "docs/engine.md; default: a --sweep file's [sweep] physics, else auto); "
                         "a sweep folder keeps the path it started with")
-
-
-def renamed_option(new: str) -> type[argparse.Action]:
-    """An argparse action for an option's old name, kept for a release: it stores the value as
-    the new name does and says (on stderr, once per use) which name to use."""
-
-    class Renamed(argparse.Action):
-        def __call__(self, parser, namespace, values, option_string=None):
-            print(f"mjx-balance: {option_string} is now {new} (the old name goes in a later "
-                  "release)", file=sys.stderr)
-            setattr(namespace, self.dest, values)
-
-    return Renamed
-
 
 
 # ---------------------------------------------------------------------------------------------

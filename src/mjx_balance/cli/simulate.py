@@ -11,8 +11,7 @@ from pathlib import Path
 from ..model.params import ParameterError, finite_number
 from ..model.config_files import dumps_config
 from .common import guard_work, in_folder, load_run_config, progress_enabled
-from .options import (common_options, figure_options, format_option, renamed_option,
-                      write_exports, yes_option)
+from .options import (common_options, figure_options, format_option, write_exports, yes_option)
 
 log = logging.getLogger("mjx_balance")
 
@@ -33,11 +32,6 @@ def add_parser(sub) -> None:
     p.add_argument("--durations", default=None,
                    help=f"push durations [s], a comma list or start:stop:step (default: "
                         f"{DEFAULT_DURATIONS}); every force with every duration")
-    # the singular names, kept for a release (a notice on stderr)
-    p.add_argument("--force", dest="forces", action=renamed_option("--forces"),
-                   help=argparse.SUPPRESS)
-    p.add_argument("--duration", dest="durations", action=renamed_option("--durations"),
-                   help=argparse.SUPPRESS)
     p.add_argument("--pairs", default=None, metavar="F:T,... | FILE.csv",
                    help="given (force, duration) pairs instead of the cross product, e.g. "
                         "20:0.7,30:0.45, or a CSV with columns force, duration")

@@ -124,8 +124,9 @@ def sweep_command(args: Any) -> int:
     """
     # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
     from .. import api
-    from ..runs import (DEFAULT_SWEEP, MANIFEST, check_durations,  # lazy: the runs floor: JAX
+    from ..runs import (DEFAULT_SWEEP, check_durations,  # lazy: the runs floor: JAX
                         load_sweep, parse_grid)
+    from ..store.files import MANIFEST  # lazy: as above
     from ..studies.scorecard import read_references, reference_points  # lazy: as above
     from ..runs.chunks import default_chunk_size  # lazy: as above
     from ..runs.folders import check_batched  # lazy: as above
@@ -200,10 +201,10 @@ def table_command(args: Any) -> int:
     from .. import api
     from ..figures import region as region_plots  # lazy: matplotlib
     from ..figures.style import figure_name  # lazy: as above
-    from ..runs import (STUDY_TABLE_FORCES, TABLE, load_sweep,  # lazy: the runs floor: JAX
+    from ..runs import (STUDY_TABLE_FORCES, load_sweep,  # lazy: the runs floor: JAX
                         parse_grid, table_batch_size)
     from ..runs.folders import check_batched  # lazy: the runs floor: JAX
-    from ..store.files import REGION  # lazy: pandas
+    from ..store.files import REGION, TABLE  # lazy: pandas
     from ..studies.scorecard import read_references, reference_points  # lazy: as above
 
     definition = (load_sweep(args.sweep, base_config(args, overrides=False)) if args.sweep
@@ -262,7 +263,7 @@ def _make_region_figures(out: Path, result: SweepResult, config: Config,
     from ..figures import region as region_plots  # lazy: matplotlib
     from ..figures import strategy as strategy_plots  # lazy: matplotlib
     from ..figures.style import figure_name  # lazy: as above
-    from ..runs import TABLE  # lazy: the runs floor loads JAX
+    from ..store.files import TABLE  # lazy: pandas
     from ..store.files import readable_figure  # lazy: the store floor loads pandas
 
     targets = {"region": region_plots.plot_region, "energy": region_plots.plot_energy,
@@ -287,7 +288,7 @@ def _make_table_figure(out: Path, config: Config, force: bool) -> None:
     import pandas as pd
 
     from ..figures import region as region_plots  # lazy: matplotlib
-    from ..runs import TABLE  # lazy: the runs floor loads JAX
+    from ..store.files import TABLE  # lazy: pandas
 
     from ..figures.style import figure_name  # lazy: as above
 

@@ -38,7 +38,7 @@ from matplotlib.ticker import FuncFormatter  # noqa: E402
 
 from ..measures.outcomes import OUTCOMES, RECOVERED  # noqa: E402
 from ..measures.strategy import HIP_SHARE_THRESHOLD, takeover  # noqa: E402
-from ..model.params import Config, ParameterError  # noqa: E402
+from ..model.params import Config  # noqa: E402
 from ..store.files import TABLE
 from . import style
 from .style import OUTCOME_COLOURS, OUTCOME_HATCHES
@@ -91,27 +91,6 @@ def new_axes(ax, figsize):
     if ax is None:
         _, ax = style.subplots(figsize=figsize)
     return ax.figure, ax
-
-
-def load_reference(path: str | Path) -> pd.DataFrame:
-    """Reference points to draw over the region map: a CSV with columns force, duration
-    (an optional column ``label`` names the source in the legend)."""
-    path = Path(path)
-    try:
-        frame = pd.read_csv(path)
-    except FileNotFoundError:
-        raise ParameterError(f"reference points file not found: {path}") from None
-    except Exception as exc:  # noqa: BLE001
-        raise ParameterError(f"{path}: not a readable CSV ({exc})") from None
-    frame.columns = [str(c).strip().lower() for c in frame.columns]
-    missing = [c for c in ("force", "duration") if c not in frame]
-    if missing:
-        raise ParameterError(f"{path}: needs columns force, duration; missing {', '.join(missing)}")
-    values = frame[["force", "duration"]].apply(pd.to_numeric, errors="coerce")
-    if values.isna().any().any() or len(values) == 0:
-        raise ParameterError(f"{path}: force and duration must be numbers (and at least one row)")
-    frame[["force", "duration"]] = values
-    return frame
 
 
 def log_durations(durations) -> bool:

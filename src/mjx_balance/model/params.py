@@ -22,7 +22,7 @@ import math
 import numbers
 import warnings
 from dataclasses import dataclass, field, fields
-from typing import Any, Callable
+from typing import Any
 
 
 
@@ -481,13 +481,8 @@ class Config:
 
     def replace(self, **sections: Any) -> "Config":
         """Return a copy with fields replaced, e.g. ``cfg.replace(controller={"horizon": 10})``.
-        ``subject={"height": 1.62, "mass": 58}`` (or a ``subject.Subject``) first puts that
-        person's body on this configuration (:meth:`Subject.config`); a value the subject
-        derives may then not be given in ``body`` or ``controller`` too (ParameterError
-        naming both)."""
-        if "subject" in sections:
-            sections = dict(sections)
-            return _put_subject(self, sections.pop("subject"), sections)
+        A person's body goes on a configuration through ``Subject.config`` (model/subject.py;
+        ``subject.with_sections`` takes a ``subject`` table beside the sections)."""
         updated = {}
         for name, changes in sections.items():
             if name not in ("body", "controller", "scenario"):
@@ -570,27 +565,6 @@ def forget_warnings() -> None:
     _WARNED.clear()
 
 
-# -- subjects on a configuration ---------------------------------------------------------------
-# ``Config.replace(subject=...)`` puts a person's body on a configuration. The person
-# (model/subject.py) builds configurations from this module's records, so this module does not
-# import it: subject.py installs its function here when it is imported (:func:`use_subjects`),
-# and model/__init__.py imports subject.py, so it is in place before any configuration exists.
-_SUBJECTS: list[Callable[[Config, Any, dict[str, Any]], Config]] = []
-
-
-def use_subjects(put: Callable[[Config, Any, dict[str, Any]], Config]) -> None:
-    """Install ``put(config, subject, sections)``, which :meth:`Config.replace` calls for its
-    ``subject``: ``config`` with that subject's body, then ``sections`` replaced."""
-    _SUBJECTS[:] = [put]
-
-
-def _put_subject(config: Config, subject: Any, sections: dict[str, Any]) -> Config:
-    if not _SUBJECTS:  # only if model/subject.py was never imported
-        raise ParameterError("subject: import mjx_balance.model.subject to put a subject on a "
-                             "configuration")
-    return _SUBJECTS[0](config, subject, sections)
-
-
 SECTIONS = {"body": BodyParams, "controller": ControllerParams, "scenario": ScenarioParams}
 
 
@@ -634,28 +608,3 @@ def build_section(cls: type, section: str, values: dict[str, Any]) -> Any:
             value = float(value)
         coerced[key] = value
     return cls(**coerced)
-
-
-# -- names that live in model/subject.py and model/config_files.py ----------------------------
-# Both modules import this one; their names also import from here (``from
-# mjx_balance.model.params import load_config``), looked up when first asked for.
-ELSEWHERE = {
-    **dict.fromkeys((
-        "SEXES", "segments", "STUDY_BODY_MASS", "HEIGHT_RANGE", "SUBJECT_MASS_RANGE",
-        "BMI_RANGE", "STRENGTH_RANGE", "SUBJECT_BODY_KEYS", "SUBJECT_CONTROLLER_KEYS",
-        "Subject", "as_subject", "check_subject_conflicts", "parse_subject", "CSV_ID_COLUMN",
-        "CSV_TEXT_COLUMNS", "SubjectRow", "subjects_from_csv", "subject_rows",
-    ), "subject"),
-    **dict.fromkeys((
-        "config_from_dict", "read_toml", "load_config", "dumps_config", "save_config",
-        "with_convention", "parse_override", "apply_overrides", "run_config",
-    ), "config_files"),
-}
-
-
-def __getattr__(name: str) -> Any:
-    if name in ELSEWHERE:
-        import importlib
-
-        return getattr(importlib.import_module(f"{__package__}.{ELSEWHERE[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -43,7 +43,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from .params import (Config, ControllerParams, ParameterError, check_finite, check_range, fail,
-                     is_number, plain, use_subjects)
+                     is_number, plain)
 
 SEXES = ("male", "female")
 
@@ -435,13 +435,14 @@ def _subject_row(path: Path, line: int, columns: list[str], cells: list[str]) ->
         raise ParameterError(f"{where}: {exc}") from None
 
 
-def put_subject(config: Config, subject: Any, sections: dict[str, Any]) -> Config:
-    """``config`` with ``subject`` (a Subject or a table of its fields) and then ``sections``
-    (``Config.replace``'s other arguments): a value the subject derives may not be given in
-    ``sections`` too (ParameterError naming both)."""
-    subject = as_subject(subject)
+def with_sections(config: Config, sections: dict[str, Any]) -> Config:
+    """``config`` with ``sections`` (``Config.replace``'s arguments, as a TOML file's tables):
+    a ``subject`` table (a Subject or a table of its fields) first puts that person's body on
+    ``config``, then the other sections replace; a value the subject derives may not be given
+    in them too (ParameterError naming both)."""
+    sections = dict(sections)
+    if "subject" not in sections:
+        return config.replace(**sections)
+    subject = as_subject(sections.pop("subject"))
     check_subject_conflicts(subject, sections)
     return subject.config(config).replace(**sections)
-
-
-use_subjects(put_subject)

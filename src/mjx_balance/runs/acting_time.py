@@ -27,10 +27,10 @@ from ..model.params import Config, ParameterError
 from .batch import LazyBatch, RunBatch, evaluate, evaluate_batches, resume_engine
 from .chunks import batch_limit, chunk_slices
 from .cluster import ClusterBatch
-from .grid import GRID_TOL, describe, parse_grid, same_values
+from .grid import describe, parse_grid
 from .progress import NoBar, progress_bar
 from ..store.files import TABLE, TABLE_RUNS, write_csv, write_parquet
-from ..store.folder import OutputFolder, TableCells, folder_lock
+from ..store.folder import GRID_TOL, OutputFolder, TableCells, folder_lock, same_values
 
 # Coarse scan of the table: durations [s] tried for every force before bisecting. 0.1 s is
 # always included (the table reports the energies there); t_end is added.

@@ -57,8 +57,7 @@ import pandas as pd
 from ..model.params import Config, ParameterError
 from .batch import LazyBatch, chunk_frames, evaluate, streams
 from .chunks import chunk_slices
-from .grid import same_values
-from ..store.folder import config_dict
+from ..store.folder import config_dict, same_values
 from ..store.provenance import versions
 from ..runtime import xla as _xla
 from ..runtime import cache

@@ -17,6 +17,7 @@ from typing import Any
 
 from ..model.params import Config, ParameterError
 from ..model.config_files import read_toml
+from ..model.subject import with_sections
 
 # The robustness table of the study (SPEC §6.3).
 STUDY_TABLE_FORCES = (5, 10, 15, 20, 30, 40, 50, 60, 80, 100, 120)
@@ -94,7 +95,7 @@ def load_sweep(path: str | Path | None, base: Config) -> SweepDefinition:
         raise ParameterError(f"{path}: [sweep] has unknown key(s) {', '.join(unknown)}; "
                              f"known: {', '.join(_SWEEP_KEYS)}")
     try:
-        config = base.replace(**data) if data else base
+        config = with_sections(base, data) if data else base
     except ParameterError as exc:
         raise ParameterError(f"{path}: {exc}") from None
     chunk = sweep.get("chunk")

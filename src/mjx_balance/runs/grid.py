@@ -11,10 +11,7 @@ import numpy as np
 import pandas as pd
 
 from ..model.params import ParameterError
-from ..store.folder import GRID_TOL, same_values  # noqa: F401 - grids compare as the store does
-
-
-
+from ..store.folder import GRID_TOL
 
 
 def parse_grid(spec: str | float | Sequence[float], name: str = "grid") -> np.ndarray:

@@ -29,11 +29,11 @@ from ..model.params import Config, ParameterError
 from .batch import LazyBatch, RunBatch, chunk_frames, evaluate, resume_engine, streams
 from .chunks import chunk_slices, default_chunk_size
 from .cluster import ClusterBatch
-from .grid import check_durations, describe, grid_cells, parse_grid, same_values
+from .grid import check_durations, describe, grid_cells, parse_grid
 from .progress import progress_bar
 from ..store.files import MANIFEST, REGION, write_atomic
 from ..store.folder import (OutputFolder, chunk_path, folder_lock, merge_chunks, read_chunk,
-                            write_chunk)
+                            same_values, write_chunk)
 
 
 @dataclass

@@ -38,10 +38,10 @@ from ..reference import loop as reference
 from ..model.mjcf import indices, settled_rest
 from ..measures.outcomes import FALL_CAUSES, OUTCOMES
 from ..model.params import Config, ParameterError
-from ..runs.grid import check_durations, describe, parse_grid, same_values
+from ..runs.grid import check_durations, describe, parse_grid
 from ..runs.folders import check_float32_grid
 from ..store.files import write_csv, write_parquet
-from ..store.folder import OutputFolder, folder_lock
+from ..store.folder import OutputFolder, folder_lock, same_values
 from ..rollout import BatchRunner
 from .defaults import DEFAULT_V, DEFAULT_X, POSTURES
 from ..figures import style as figure_style

@@ -32,14 +32,14 @@ from ..figures import style as figure_style
 from ..figures.region import cell_bounds, duration_axis, log_durations
 from ..model.params import Config, ParameterError
 from ..model.config_files import config_from_dict, load_config, read_toml, run_config
-from ..model.subject import Subject
+from ..model.subject import Subject, with_sections
 from ..runs import cluster as cluster_mod
 from ..runs.definitions import load_sweep
 from ..runs.folders import check_batched, run_region, run_table_folder
 from ..runs.population import check_queue, run_maps
-from ..runs.grid import check_durations, describe, parse_grid, same_values
+from ..runs.grid import check_durations, describe, parse_grid
 from ..store.files import REGION, TABLE, write_csv
-from ..store.folder import OutputFolder, config_dict, config_differences
+from ..store.folder import OutputFolder, config_dict, config_differences, same_values
 from . import catalog
 
 COMPARE_CSV = "compare.csv"
@@ -118,7 +118,7 @@ def load_one(path: str | Path, base: Config | None = None) -> Config:
     if base is None:
         return load_config(path)
     if "subject" in data:  # the subject's body on the base; its conflicts are the file's own
-        return base.replace(**data)
+        return with_sections(base, data)
     merged: dict[str, Any] = base.to_dict()
     for section, values in data.items():  # the file's values over the base's, section by section
         known = merged.get(section)
