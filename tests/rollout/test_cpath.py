@@ -259,6 +259,14 @@ def test_threads_slots_and_order_change_nothing(c_runner, c_frame):
                                       err_msg=column)
 
 
+def test_the_c_engine_refuses_what_it_cannot_honour():
+    """Engine's block, tile and bodies have no meaning on the C path: a TypeError naming them,
+    raised before anything is built (the runner is never touched)."""
+    for option in ({"block": 10}, {"tile": 2}, {"bodies": [None, None]}):
+        with pytest.raises(TypeError, match=next(iter(option))):
+            cpath.CEngine(None, slots=4, **option)
+
+
 def test_the_path_is_resolved_and_recorded():
     hip = CONFIG.replace(scenario={"push_body": "hip"})
     assert cpath.resolve("auto", hip, platform="cpu") == "mjx"

@@ -409,7 +409,12 @@ class CEngine(Engine):
     physics = "c"
 
     def __init__(self, runner, *, slots: int | None = None, early: bool = True,
-                 threads: int | None = None, **_ignored: Any):
+                 threads: int | None = None, **options: Any):
+        # Engine's other options have no meaning here: one control period a call (block), no
+        # ADMM tiles of a slot group (tile), one body per engine (bodies). Refused, not dropped.
+        if options:
+            raise TypeError(f"the C path's engine takes slots, early and threads; not "
+                            f"{', '.join(sorted(options))}")
         reason = unsupported(runner.config, runner.trajectories)
         if reason:
             raise ValueError(reason)
