@@ -1,7 +1,10 @@
 """The notebook executes on a tiny report's saved results, with this interpreter's kernel, only
 reads them, and shows the numbers of the saved tables; without saved results it computes a small
-one through the public API."""
+one through the public API. Both executions are in the slow run (a kernel compiles the batched
+closed loop anew); the default run checks the notebook's calls against the public API."""
 
+import ast
+import inspect
 import json
 import re
 import sys
@@ -62,6 +65,34 @@ def test_notebook_executes(tmp_path_factory, tmp_path, monkeypatch):
     assert markdown == expected
 
 
+def test_the_notebooks_calls_fit_the_public_api():
+    """Every ``mb.NAME`` the notebook's code uses exists, and every call ``mb.NAME(...)`` binds
+    to that function's signature (its positional count and keyword names): the same calls
+    test_notebook_computes_a_small_result_without_a_saved_report executes in the slow run."""
+    import mjx_balance as mb
+
+    nbformat = pytest.importorskip("nbformat")
+    cells = [c.source for c in nbformat.read(NOTEBOOK, as_version=4).cells
+             if c.cell_type == "code"]
+    used, calls = set(), []
+    for source in cells:
+        code = "\n".join(line for line in source.splitlines() if not line.startswith("%"))
+        for node in ast.walk(ast.parse(code)):
+            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                    and node.value.id == "mb"):
+                used.add(node.attr)
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                    and isinstance(node.func.value, ast.Name) and node.func.value.id == "mb"):
+                calls.append(node)
+    assert {"simulate", "sweep", "table", "load_report", "region_map"} <= used
+    for name in used:
+        assert hasattr(mb, name), name
+    for call in calls:
+        signature = inspect.signature(getattr(mb, call.func.attr))
+        signature.bind(*[None] * len(call.args), **{k.arg: None for k in call.keywords})
+
+
+@pytest.mark.slow  # about 55 s cold on 2 cores: test_the_notebooks_calls_fit_the_public_api
 def test_notebook_computes_a_small_result_without_a_saved_report(tmp_path, monkeypatch):
     """No report in MJX_BALANCE_RESULTS: the notebook says so and computes a small result with
     the public API (simulate, sweep, table), drawing what it can without the studies."""

@@ -40,7 +40,7 @@ def configs(tmp_path):
 def test_compare_writes_its_figure_and_table(tmp_path, stand_in):
     a, b = configs(tmp_path)
     out = tmp_path / "out"
-    assert main(["compare", "--config", str(a), "--config", str(b), "--forces", FORCES,
+    assert main(["compare", str(a), str(b), "--forces", FORCES,
                  "--durations", DURATIONS, "--table-forces", TABLE_FORCES, "--out",
                  str(out)]) == 0
     frame = pd.read_csv(out / "compare.csv").set_index("name")
@@ -64,7 +64,7 @@ def test_compare_writes_its_figure_and_table(tmp_path, stand_in):
     assert shade.mean() > 0.05
     # a rerun finds everything done: no batch function is even called
     calls = sum(len(f.calls) for f in stand_in)
-    assert main(["compare", "--config", str(a), "--config", str(b), "--forces", FORCES,
+    assert main(["compare", str(a), str(b), "--forces", FORCES,
                  "--durations", DURATIONS, "--table-forces", TABLE_FORCES, "--out",
                  str(out)]) == 0
     assert sum(len(f.calls) for f in stand_in) == calls
@@ -89,7 +89,7 @@ def test_bad_input_is_refused_before_any_work(tmp_path, stand_in, capsys):
         mb.compare([a, short], out, forces=FORCES, durations=DURATIONS)
     assert not (out / "plain").exists() and not stand_in  # nothing ran, nothing written
     with pytest.raises(SystemExit) as exited:
-        main(["compare", "--config", str(tmp_path / "missing.toml"), "--out", str(out)])
+        main(["compare", str(tmp_path / "missing.toml"), "--out", str(out)])
     assert exited.value.code == 2 and "missing.toml" in capsys.readouterr().err
     bad = tmp_path / "bad.toml"
     bad.write_text("[controller]\nhorizon = 0\n")
@@ -169,7 +169,7 @@ def test_sweep_definitions_are_configurations_too(tmp_path, stand_in):
     plain = tmp_path / "plain.toml"
     plain.write_text('[controller]\nconvention = "paper"\n')
     out = tmp_path / "out"
-    assert main(["compare", "--config", str(plain), "--config", "study_offset_free", "--forces",
+    assert main(["compare", str(plain), "study_offset_free", "--forces",
                  FORCES, "--durations", DURATIONS, "--table-forces", TABLE_FORCES, "--out",
                  str(out)]) == 0
     made = json.loads((out / "study_offset_free" / "manifest.json").read_text())
@@ -177,4 +177,4 @@ def test_sweep_definitions_are_configurations_too(tmp_path, stand_in):
     region = pd.read_parquet(out / "study_offset_free" / "region.parquet")
     assert sorted(region.force.unique()) == [0.0, 10.0, 20.0, 30.0, 40.0]  # FORCES, not its own
     with pytest.raises(SystemExit):
-        main(["compare", "--config", "no_such_sweep", "--out", str(out)])
+        main(["compare", "no_such_sweep", "--out", str(out)])
