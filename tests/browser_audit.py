@@ -7,7 +7,8 @@ script appended, loads the copy in an iframe of the given width inside a host pa
 Chromium's window is at least 500 px wide, so a phone's 390 px needs the iframe; the report's
 viewport meta tag makes a phone lay the page out at its own width, as the iframe does), asks
 ``chromium --headless --dump-dom`` for the host's DOM after the script ran and posted its result
-to the host, and reads the JSON back from the dumped DOM. Used by tests/test_report_browser.py.
+to the host, and reads the JSON back from the dumped DOM. Used by
+tests/report/test_report_browser.py.
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ jax.config.update("jax_enable_x64", True)
 # processes it starts: the repository's .cache/jax-tests (ignored by git), so that a program
 # compiled once (in this process or a child) is loaded by every later process and run, and
 # tests never write into the user's own cache folder. MJX_BALANCE_CACHE_DIR set by the user
-# wins (``off`` compiles everything anew: the cold run). tests/test_cache.py gives its
+# wins (``off`` compiles everything anew: the cold run). tests/runtime/test_cache.py gives its
 # processes their own folders.
 TEST_CACHE = Path(__file__).resolve().parents[1] / ".cache" / "jax-tests"
 os.environ.setdefault("MJX_BALANCE_CACHE_DIR", str(TEST_CACHE))

@@ -73,7 +73,7 @@ def scorecard() -> pd.DataFrame:
     """Our table of the study's forces (MJX path, default configuration) scored against the
     shipped study table as printed (eq. 20) and read as the motors' absolute work."""
     folder = OUT / "table"
-    mb.table(FORCES, mb.Config(), folder)
+    mb.table(FORCES, mb.Config(), out=folder)
     motors = OUT / "study_as_motors.csv"
     text = pd.read_csv(mb.references()["study"], comment="#", dtype=str, keep_default_na=False)
     text.columns = [c.replace("study_energy_u1", "energy_ankle")

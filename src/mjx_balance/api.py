@@ -155,8 +155,8 @@ def _folder(out: str | os.PathLike[str] | None, what: str) -> Iterator[Path]:
         yield Path(tmp)
 
 
-def sweep(forces: Values, durations: Values, config: ConfigLike = None,
-          out: str | os.PathLike[str] | None = None, *, chunk: int | None = None,
+def sweep(forces: Values, durations: Values, config: ConfigLike = None, *,
+          out: str | os.PathLike[str] | None = None, chunk: int | None = None,
           slots: int | None = None, full_length: bool = False, progress: bool | None = None,
           wait: bool = False, cluster: Any = None, physics: str = "auto",
           reference: References = None, format: str | None = None) -> "pd.DataFrame":
@@ -198,8 +198,8 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None,
         return region
 
 
-def table(forces: Values, config: ConfigLike = None,
-          out: str | os.PathLike[str] | None = None, *, slots: int | None = None,
+def table(forces: Values, config: ConfigLike = None, *,
+          out: str | os.PathLike[str] | None = None, slots: int | None = None,
           full_length: bool = False, progress: bool | None = None,
           wait: bool = False, cluster: Any = None, physics: str = "auto",
           reference: References = None, format: str | None = None,
@@ -277,7 +277,7 @@ def scorecard(ours: "str | os.PathLike[str] | pd.DataFrame",
 
 
 def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
-            out: str | os.PathLike[str], *, forces: Values = None, durations: Values = None,
+            *, out: str | os.PathLike[str], forces: Values = None, durations: Values = None,
             table_forces: Values = None, slots: int | None = None, full_length: bool = False,
             physics: str = "auto", cluster: Any = None, queue: str = "each",
             progress: bool | None = None, format: str | None = None,
@@ -310,7 +310,7 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
         return frame
 
 
-def basin(out: str | os.PathLike[str], config: ConfigLike = None, *, x_com: Values = None,
+def basin(config: ConfigLike = None, *, out: str | os.PathLike[str], x_com: Values = None,
           v_com: Values = None, posture: str = "rigid", pushes: Any = None,
           slots: int | None = None, full_length: bool = False,
           progress: bool | None = None, format: str | None = None,
@@ -333,8 +333,8 @@ def basin(out: str | os.PathLike[str], config: ConfigLike = None, *, x_com: Valu
         return frame
 
 
-def cohort(out: str | os.PathLike[str],
-           subjects: "Sequence[Subject] | Mapping[str, Subject] | str | os.PathLike[str]", *,
+def cohort(subjects: "Sequence[Subject] | Mapping[str, Subject] | str | os.PathLike[str]", *,
+           out: str | os.PathLike[str],
            forces: Values = None, durations: Values = None, config: ConfigLike = None,
            table_forces: Values = None, slots: int | None = None, full_length: bool = False,
            physics: str = "auto", queue: str = "auto", progress: bool | None = None,

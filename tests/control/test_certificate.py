@@ -1,6 +1,6 @@
 """The recovery certificate's linear part (control/certificate.py), in NumPy: no JAX program.
 
-The margin is a measured design value (docs/engine.md, "Early stopping"): the linear prediction
+The margin is a measured design value (docs/engine.md, "Certified recovery"): the linear prediction
 of the joint angles must stay within MARGIN = 0.5 of the settle band, because the real plant
 used up to 49.8 % of the band after certification when the prediction was held to 50 %. A
 change of the margin must be re-measured, so these tests pin it from both sides.

@@ -76,7 +76,7 @@ CELLS = [(0.0, 0.1), (20.0, 0.1), (40.0, 0.3), (120.0, 0.1)]
 def test_batched_and_reference_compensate_alike():
     """The C path (the reference's physics) and the reference with the same ADMM controller,
     both compensating a 50-ms delay: the same outcomes and fall samples, summaries as close as
-    without compensation (tests/test_cpath.py)."""
+    without compensation (tests/rollout/test_cpath.py)."""
     config = Config().replace(scenario={"t_end": 2.0, "controller_delay": DELAY},
                               controller={"delay_compensation": True})
     runner = BatchRunner(config, physics="c", slots=4, early_stop=False,

@@ -4,7 +4,7 @@ hip motor can be switched off (the ankle-only study, sweeps/study_ankle_only.tom
 The servo is part of the plant: MuJoCo's joint stiffness and damping in the generated model
 (mj_step integrates the damping implicitly, Euler with eulerdamp), the same in the batched MJX
 rollout (which keeps those flags on for a model that has them), and exactly in the linear model
-(tests/test_linear.py). K and D are the study's (see its TOML file for their derivation).
+(tests/model/test_linear.py). K and D are the study's (see its TOML file for their derivation).
 """
 
 from __future__ import annotations

@@ -189,7 +189,7 @@ CELLS = [(0.0, 0.1), (15.0, 2.0), (25.0, 2.0), (100.0, 0.1), (-40.0, 0.3)]
 def test_batched_and_reference_offset_free_alike():
     """The C path (the reference's physics) and the reference with the same float32 ADMM, both
     offset-free: the same outcomes and fall samples, energies as close as the plain controller's
-    (tests/test_cpath.py). The C path runs the batched kernel's controller (kernel.prepare,
+    (tests/rollout/test_cpath.py). The C path runs the batched kernel's controller (kernel.prepare,
     solve and conclude: the observer, the target and the ADMM the MJX engine runs); the slow
     test_the_mjx_path_runs_offset_free_alike runs it with MJX physics too."""
     config = CONFIG.replace(scenario={"t_end": 2.0})

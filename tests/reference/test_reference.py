@@ -171,7 +171,8 @@ def test_load_cell_cop_at_rest():
 
 
 def test_settle_time_and_saturation_fractions():
-    """The series rules of metrics.py (the rules of one sample: tests/test_outcomes.py)."""
+    """The series rules of metrics.py (the rules of one sample:
+    tests/measures/test_outcomes.py)."""
     limits = Limits.from_params(ScenarioParams(), ControllerParams())
     time = np.array([0.1, 0.2, 0.3, 0.4])
     q = np.array([[0.02, 0.0], [0.0, 0.0], [0.0, 0.011], [0.0, 0.0]])

@@ -26,7 +26,8 @@ from mjx_balance.runs.batch import LazyBatch, resume_engine
 
 CONFIG = Config().replace(scenario={"t_end": 2.0})
 # recovered (0, 20 N), falls by several rules (heel/toe lift, state bound), and not settled (a
-# push that ends at t_end): every outcome but divergence, which test_a_reset_is_divergence covers
+# push that ends at t_end): every outcome but divergence, which
+# test_a_reset_simulation_is_divergence covers
 CELLS = [(0.0, 0.1), (20.0, 0.1), (50.0, 0.3), (150.0, 0.1), (200.0, 0.1), (-150.0, 0.3),
          (80.0, 0.5), (8.0, 2.0)]
 

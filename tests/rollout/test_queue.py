@@ -2,8 +2,8 @@
 taken once, and the queue starts the cells expected to run longest first.
 
 Only the schedule depends on the order (a cell's result is the same in any slot and at any
-time: tests/test_engine.py checks the bytes), so these tests drive the queue with a model of the
-engine (slots refilled at period boundaries, ``block`` periods per call) and known lengths.
+time: tests/rollout/test_engine.py checks the bytes), so these tests drive the queue with a model
+of the engine (slots refilled at period boundaries, ``block`` periods per call) and known lengths.
 """
 
 import heapq

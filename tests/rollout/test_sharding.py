@@ -47,7 +47,7 @@ CONFIG = Config().replace(scenario={"t_end": 0.15})
 EXACT = ("force", "duration", "outcome", "settle_time", "fall_time", "nonconverged_solves")
 # Inputs of every control period, as a fraction of each input's range: two ADMM runs whose
 # arithmetic rounds differently agree to 1e-4 of the range (float32 against float64 in
-# tests/test_admm.py::test_float32_agrees_with_float64); measured here at most 8.3e-6.
+# tests/control/test_admm.py::test_float32_agrees_with_float64); measured here at most 8.3e-6.
 INPUT_TOL = 1e-4
 
 SCRIPT = r"""

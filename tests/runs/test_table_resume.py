@@ -4,7 +4,7 @@ Every scenario the table evaluates is kept in ``DIR/table_runs/`` as its batch c
 a table interrupted (an exception on the k-th call, a real SIGKILL) runs only the cells it had
 not kept and writes a table.csv and table_runs.parquet byte-identical to an uninterrupted run's;
 a table over an overlapping force list reuses the cells it shares. The rollout is replaced by
-FakeThresholdBatch (tests/test_sweep.py), which records the cells of every call.
+FakeThresholdBatch (tests/support.py), which records the cells of every call.
 """
 
 from __future__ import annotations

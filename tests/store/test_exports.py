@@ -2,8 +2,8 @@
 every column's unit in one registry (``measures/units.py``) written into the parquet schema
 and a CSV's ``NAME.units.csv``, CSVs in full precision, and grid values exact at the parser.
 
-The commands run with the stand-in batch function of tests/test_sweep.py (nothing compiles);
-``simulate`` runs the real scalar reference over a 0.5-s window (as tests/test_cli_simulate.py)
+The commands run with the stand-in batch function of tests/support.py (nothing compiles);
+``simulate`` runs the real scalar reference over a 0.5-s window (as tests/cli/test_cli_simulate.py)
 and the basin a stand-in engine (its columns are the runner's stream's, listed in the fake)."""
 
 import json

@@ -1,4 +1,4 @@
-"""The recovery basin (recovery_basin.py): initial states in both engines, the map's rules, resuming."""
+"""The recovery basin (studies/basin.py): initial states in both engines, the map's rules, resuming."""
 
 from __future__ import annotations
 
@@ -120,7 +120,7 @@ def test_the_map_rest_recovers_beyond_the_capture_point_falls(tmp_path, plane, f
     assert sorted((out / basin.CELLS_DIR).iterdir()) == parts
     pd.testing.assert_frame_equal(again, frame)
     import mjx_balance as mb  # the Python API on the same folder: nothing to run either
-    pd.testing.assert_frame_equal(mb.basin(out, CONFIG, x_com="0,0.1", v_com="0,0.5"), frame)
+    pd.testing.assert_frame_equal(mb.basin(CONFIG, out=out, x_com="0,0.1", v_com="0,0.5"), frame)
     with pytest.raises(ParameterError, match="another --out folder"):
         basin.run_basin(out, CONFIG, "0,0.1", "0,0.4", progress=False, say=lambda s: None)
     with pytest.raises(ParameterError, match="posture"):

@@ -237,7 +237,7 @@ def test_the_command_runs_a_cohort_from_a_csv(tmp_path, monkeypatch):
     assert frame.loc[0, "area"] < frame.loc[1, "area"]
     assert (out / "cohort.parquet").exists()  # --format: the tables also as parquet
     # mb.cohort on the same folder and subjects: resumed, the same table
-    again = mb.cohort(out, {"ann": Subject(1.62, 58, "female"), "bob": Subject(1.85, 90)},
+    again = mb.cohort({"ann": Subject(1.62, 58, "female"), "bob": Subject(1.85, 90)}, out=out,
                       forces=FORCES, durations=DURATIONS, config=BASE, queue="each")
     pd.testing.assert_frame_equal(again, frame, check_dtype=False)
 

@@ -160,9 +160,9 @@ def test_a_folder_with_one_subjects_chunk_is_not_taken_over(tmp_path):
 
 
 def test_the_api_takes_one_subject(tmp_path, fake_rollout):
-    """`mb.cohort(DIR, mb.Subject(1.7, 70))` failed "'Subject' object is not iterable"."""
+    """`mb.cohort(mb.Subject(1.7, 70), out=DIR)` failed "'Subject' object is not iterable"."""
     fake_rollout(FakeThresholdBatch(c=20.0))
-    frame = mb.cohort(tmp_path / "out", mb.Subject(1.7, 70), forces=FORCES,
+    frame = mb.cohort(mb.Subject(1.7, 70), out=tmp_path / "out", forces=FORCES,
                       durations=DURATIONS, config=BASE, progress=False,
                       queue="each")  # each: the fake rollout
     assert list(frame["id"]) == ["s01"] and frame.loc[0, "height"] == 1.7
@@ -193,7 +193,7 @@ def test_the_api_refuses_a_bad_argument_before_writing(tmp_path, kwargs, error, 
     args = {"subjects": [Subject(1.7, 70)], "forces": FORCES, "durations": DURATIONS,
             "config": BASE, "progress": False, **kwargs}
     with pytest.raises(error) as err:
-        mb.cohort(out, **args)
+        mb.cohort(out=out, **args)
     message = str(err.value)
     assert "\n" not in message
     for word in words:

@@ -226,7 +226,7 @@ def test_the_command_writes_the_probability_map_and_plans_its_width(tmp_path, ca
     assert (out / "cohort_probability_boundaries.parquet").exists()
     assert readable_png(out / "cohort_probability.png")
     # mb.cohort on the same folder: resumed, the probability map in the result's attrs
-    again = mb.cohort(out, cohort.population(2, 2), forces=FORCES, durations=DURATIONS,
+    again = mb.cohort(cohort.population(2, 2), out=out, forces=FORCES, durations=DURATIONS,
                       config=BASE, progress=False, queue="each")
     pd.testing.assert_frame_equal(again.attrs["probability"], cells, check_dtype=False)
     assert math.isclose(again.attrs["half_width"], probability.half_width(2))

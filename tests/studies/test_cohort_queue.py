@@ -132,7 +132,7 @@ def test_a_subject_in_one_queue_is_the_same_among_any_others(tmp_path):
     # compare's one queue is the same queue: its map of cy's configuration is the cohort's
     base = Config().replace(scenario={"t_end": 2.0})
     mb.compare({"plain": base, "cy": Subject(1.92, 100, "male").config(base)},
-               tmp_path / "compare", forces="20,60,100", durations="0.1,0.3", table_forces="60",
+               out=tmp_path / "compare", forces="20,60,100", durations="0.1,0.3", table_forces="60",
                slots=4, queue="one")
     pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "compare" / "cy" / "region.parquet"),
                                   maps[2], check_exact=True)

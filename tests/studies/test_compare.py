@@ -72,7 +72,7 @@ def test_compare_writes_its_figure_and_table(tmp_path, stand_in):
 
 def test_the_api_compares_named_configurations(tmp_path, stand_in):
     frame = mb.compare({"paper": {"controller": {"convention": "paper"}},
-                        "joint": {"controller": {"convention": "joint"}}}, tmp_path,
+                        "joint": {"controller": {"convention": "joint"}}}, out=tmp_path,
                        forces=FORCES, durations=DURATIONS, table_forces=TABLE_FORCES)
     assert list(frame["name"]) == ["paper", "joint"]
     assert frame["area"].iloc[1] > frame["area"].iloc[0]  # c = 60 recovers more than 30
@@ -86,7 +86,7 @@ def test_bad_input_is_refused_before_any_work(tmp_path, stand_in, capsys):
     short.write_text("[scenario]\nt_end = 1.0\n")
     out = tmp_path / "out"
     with pytest.raises(ParameterError, match="'short'.*t_end"):
-        mb.compare([a, short], out, forces=FORCES, durations=DURATIONS)
+        mb.compare([a, short], out=out, forces=FORCES, durations=DURATIONS)
     assert not (out / "plain").exists() and not stand_in  # nothing ran, nothing written
     with pytest.raises(SystemExit) as exited:
         main(["compare", str(tmp_path / "missing.toml"), "--out", str(out)])
@@ -94,19 +94,19 @@ def test_bad_input_is_refused_before_any_work(tmp_path, stand_in, capsys):
     bad = tmp_path / "bad.toml"
     bad.write_text("[controller]\nhorizon = 0\n")
     with pytest.raises(ParameterError, match="bad.toml"):
-        mb.compare([bad], out)
+        mb.compare([bad], out=out)
     with pytest.raises(ParameterError, match="plain.toml: this configuration file is given twice"):
-        mb.compare([a, tmp_path / "." / "plain.toml"], out)
+        mb.compare([a, tmp_path / "." / "plain.toml"], out=out)
     for name, message in (("../up", "not a folder name"), ("compare.csv", "taken by"),
                           ("", "not a folder name")):
         with pytest.raises(ParameterError, match=message):
-            mb.compare({name: {}}, out)
-    mb.compare({"b": {}}, out, forces=FORCES, durations="0.5,1", table_forces="10")
+            mb.compare({name: {}}, out=out)
+    mb.compare({"b": {}}, out=out, forces=FORCES, durations="0.5,1", table_forces="10")
     with pytest.raises(ParameterError, match="'b'.*another grid"):  # found before 'a' runs
-        mb.compare({"a": {}, "b": {}}, out, forces=FORCES, durations=DURATIONS)
+        mb.compare({"a": {}, "b": {}}, out=out, forces=FORCES, durations=DURATIONS)
     assert not (out / "a").exists()
     with pytest.raises(ParameterError, match="'b'.*different configuration"):
-        mb.compare({"b": {"controller": {"convention": "joint"}}}, out, forces=FORCES,
+        mb.compare({"b": {"controller": {"convention": "joint"}}}, out=out, forces=FORCES,
                    durations="0.5,1")
 
 

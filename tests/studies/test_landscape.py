@@ -1,7 +1,7 @@
 """``mjx-balance landscape`` / ``landscape.run_landscape``: the weight landscape.
 
 Most tests use a stand-in batch function whose outcome depends on the weights and the delay in
-closed form (recovered iff |F| T < c(config), the stand-in of tests/test_sweep.py), so every
+closed form (recovered iff |F| T < c(config), the stand-in of tests/support.py), so every
 number of landscape.csv is known and nothing compiles. One test runs the real rollout (the
 session's compiled closed loop, shared because weights are data) and checks the landscape's
 numbers against a direct ``compare`` of the same configuration, written independently."""

@@ -1,5 +1,5 @@
 """The sensitivity of the reproduction table to the reading of the study (sensitivity.py),
-with stand-in batch functions (tests/test_sweep.py's FakeThresholdBatch: recovered iff
+with stand-in batch functions (tests/support.py's FakeThresholdBatch: recovered iff
 F T < c), so the spread and the conclusions are known in closed form."""
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ timed apart.
 Peak memory is ``resource.getrusage`` maxrss: of this process (which runs the batched pipeline),
 and the largest of its finished worker processes (:func:`peak_rss_mib`).
 
-:func:`memory_sweep` runs one sweep (``sweep.run_sweep``, the user's path: chunks from the
+:func:`memory_sweep` runs one sweep (``runs.region.run_sweep``, the user's path: chunks from the
 memory budget, chunk files on disk) of a given number of cells with a tiny ``t_end`` in a fresh
 subprocess (``python -m mjx_balance.bench.pipeline --memory-child ...``) and returns that
 process's peak resident memory.

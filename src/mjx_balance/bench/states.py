@@ -1,4 +1,5 @@
-"""The solver benchmark's states and its trusted references (``bench.solver``, tests/test_admm.py).
+"""The solver benchmark's states and its trusted references (``bench.solver``,
+tests/control/test_admm.py).
 
 - states: closed-loop trajectories of the *linear* model (A, B) under the OSQP MPC, pushed from
   upright rest by F in 20..120 N for T in {0.1, 0.15, 0.2} s (the push enters as a generalised

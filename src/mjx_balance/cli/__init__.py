@@ -1,30 +1,7 @@
-"""The ``mjx-balance`` command line: the top layer, which nothing in the library imports.
-
-    main.py         main(argv), build_parser() (each command module's add_parser), logging,
-                    --version, use_host_cores; exit codes 0 success, 1 failure during the
-                    work, 2 bad usage
-    options.py      argument types (finite_float, out_folder, ...), HelpFormatter, EPILOG and
-                    the flags several commands share (common_options, engine_options, ...)
-    common.py       what the commands share when they run: the run's configuration, one push,
-                    progress, the physics path, the work in an output folder under its lock
-
-One module per command, each with ``add_parser(sub)`` and its command function(s):
-
-    simulate.py     simulate       scalar MuJoCo C + OSQP, one scenario at a time
-    bench.py        bench          whole closed loop: MJX + ADMM vs reference vs IPOPT
-                    bench solver   batched ADMM vs OSQP vs CasADi/IPOPT
-                    bench physics  where the time goes; MJX vs MuJoCo C
-    sweep.py        sweep          force x duration region map (MJX + ADMM)
-                    table          max acting time per force (batched bisection)
-    compare.py      compare        several configurations on one grid
-    landscape.py    landscape      area, sustained limit, energy over Q x R scales
-    basin.py        basin          recovery basin over initial CoM states
-    sensitivity.py  sensitivity    the table under every reading of the study
-    animate.py      animate        stick-figure GIF of one push (reference)
-    report.py       report         HTML report: the study's experiments and studies
-    explore.py      explore        a local page: every cell of a folder's map opens its run
-    model.py        model          the MJCF of the configured body
-                    view           one push replayed in MuJoCo's passive viewer
+"""Floor 13, the ``mjx-balance`` command line: the top layer, which nothing in the library
+imports; one module per command, each with ``add_parser(sub)`` and its command function(s).
+docs/architecture.md, "The modules", maps its modules; the README's "Commands" lists the
+commands.
 
 simulate, sweep and table are thin layers over the Python API (``mjx_balance.api``): they
 resolve their options into its arguments, then write figures and print.

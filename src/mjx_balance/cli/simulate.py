@@ -60,7 +60,7 @@ def parse_values(text: str, name: str, *, nonnegative: bool = False) -> list[flo
 
 
 def parse_option_grid(text: str, name: str) -> list[float]:
-    """``--name``'s values as ``sweep`` reads a grid (sweep.grid.parse_grid): ``start:stop:step``
+    """``--name``'s values as ``sweep`` reads a grid (runs.grid.parse_grid): ``start:stop:step``
     or a comma list, sorted, each value once; ParameterError naming ``--name`` otherwise."""
     from ..runs.grid import parse_grid  # lazy: the runs floor loads JAX
 
@@ -154,7 +154,7 @@ def simulate_command(args: argparse.Namespace) -> int:
         write_csv(summary, out / "summary.csv")
         write_parquet(series, out / "timeseries.parquet")
         write_text(dumps_config(config), out / CONFIG)
-        # written atomically (plots._save)
+        # written atomically (figures.timeseries._save)
         result["figures"] = timeseries_figures(series, out, config=config, summary=summary,
                                                full_window=args.full_window)
         write_exports(out, args)

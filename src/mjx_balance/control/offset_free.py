@@ -36,9 +36,10 @@ W-projection of 0 onto one constraint line (one active constraint), or the inter
 constraint lines (two active; more than two lines through one point of a 2-D problem add no
 other candidate). :func:`target` evaluates all 1 + 12 + 66 = 79 candidates and returns the
 feasible one of least cost, which is therefore the exact minimiser (KKT: the minimiser has an
-active set of at most two independent constraints in two dimensions); tests/test_offset_free.py
-checks it against OSQP. When no candidate is feasible the push cannot be held in any steady
-posture: the candidate of least violation is returned and ``held`` is False.
+active set of at most two independent constraints in two dimensions);
+tests/control/test_offset_free.py checks it against OSQP. When no candidate is feasible the
+push cannot be held in any steady posture: the candidate of least violation is returned and
+``held`` is False.
 
 The MPC then solves its QP in deviation variables δx = x - x_s, δu = u - u_s: the dynamics
 δx+ = A δx + B δu are those of the plain QP (the target is an equilibrium), the cost is the

@@ -1,4 +1,5 @@
-"""The condensed MPC quadratic program (SPEC §3), built once per controller configuration.
+"""The condensed MPC quadratic program (docs/model.md, "The MPC"), built once per controller
+configuration.
 
 Decision variable: the input sequence z = [u_0; ...; u_{N-1}] (n = 2N). Predicted states
 X = [x_1; ...; x_N] = Phi x0 + Gamma z. The QP solved at every control instant is

@@ -35,7 +35,7 @@ OUTCOME_COLOURS = style.OUTCOME_COLOURS  # the one outcome palette (figures/styl
 
 class _GifWriter(PillowWriter):
     """PillowWriter that writes GIF whatever the file name ends with (the temporary file of
-    :func:`sweep.store.write_atomic`)."""
+    :func:`store.files.write_atomic`)."""
 
     def finish(self):
         self._frames[0].save(

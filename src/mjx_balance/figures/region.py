@@ -18,9 +18,9 @@ Cells (:func:`cell_bounds`). Each sampled (F, T) is drawn as one cell around its
 bound between two neighbouring samples is their midpoint (on a log axis their geometric mean),
 and the outer bounds are the first and last samples themselves, so the map covers exactly the
 sampled range [min, max] of each axis (the same cells as the recovered area of
-``studies.region_numbers``) and nothing outside it is painted. Only an axis with a single
-sample, which has no neighbour to take a width from, gets a band of +-5 % of its value (at
-least 0.01), clipped at 0 when the value is >= 0. The duration axis is logarithmic when the
+``studies.catalog.region_numbers``) and nothing outside it is painted. Only an axis with a
+single sample, which has no neighbour to take a width from, gets a band of +-5 % of its value
+(at least 0.01), clipped at 0 when the value is >= 0. The duration axis is logarithmic when the
 durations span more than a decade (all > 0 and max / min > 10).
 """
 

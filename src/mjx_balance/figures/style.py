@@ -4,8 +4,8 @@ Outcome palette (:data:`OUTCOME_COLOURS`, every figure and the animation take it
 Okabe & Ito's colour-blind-safe colours, recovered bluish green ``#009E73``, not settled yellow
 ``#F0E442``, fell vermillion ``#D55E00``, diverged dark grey ``#3A3A3A``. Under the Machado et
 al. (2009) deuteranopia and protanopia simulations the three main colours stay at least 33.6
-and 37.2 CIELAB units apart (CIE76; ``tests/test_figure_style.py`` computes it and asks for 30);
-in greyscale recovered and fell have nearly the same lightness (L* 58 and 54), so the fell
+and 37.2 CIELAB units apart (CIE76; ``tests/figures/test_figure_style.py`` computes it and asks
+for 30); in greyscale recovered and fell have nearly the same lightness (L* 58 and 54), so the fell
 cells are also hatched
 (:data:`OUTCOME_HATCHES`). Series without an outcome (several runs, configurations,
 thresholds) take :data:`SERIES`, the Okabe-Ito colours in a fixed order.

@@ -1,6 +1,6 @@
 """Measurements of one closed-loop run from MuJoCo C data, and its summary row (numpy).
 
-The scalar reference (``reference.py``) samples a run with the functions of the first section
+The scalar reference (``reference/loop.py``) samples a run with the functions of the first section
 and turns the sample series into one summary row with :func:`summarize`; the outcome rules
 (fall, settle band, saturation, classification) are those of ``outcomes.py``, shared with the
 batched closed loop.

@@ -22,7 +22,7 @@ sample (at t_end) is in the band, else ``not_settled``.
 Fall cause. The rule that fired at the fall sample, in the order of :data:`FALL_CAUSES`
 (foot pitch, heel lift, toe lift, state bound, lower-body tilt) when several fire at once;
 ``non_finite`` for a diverged run; empty for a run that neither fell nor diverged. The heel
-cells are the back pair of ``model.LOAD_CELLS``, the toe cells the front pair.
+cells are the back pair of ``model.mjcf.LOAD_CELLS``, the toe cells the front pair.
 
 Outcome codes: ``OUTCOMES[code]``; diverged (a non-finite state, torque or solver output) takes
 precedence over fell, which takes precedence over the settle band.

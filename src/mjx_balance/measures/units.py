@@ -7,7 +7,7 @@ True/False flag. Columns whose names carry a value (``max_acting_time_50N``, sen
 ``energy_study_paper_plain``) match :data:`PATTERNS`.
 
 The writers (``store.files.write_parquet`` / ``write_csv``) put these units in the parquet
-schema's field metadata and in a CSV's ``NAME.units.csv`` sidecar; ``tests/test_units.py``
+schema's field metadata and in a CSV's ``NAME.units.csv`` sidecar; ``tests/store/test_exports.py``
 checks that every column of every table the commands write has an entry here and that
 docs/outputs.md's units table lists the same units.
 """
@@ -98,7 +98,7 @@ UNITS: dict[str, tuple[str, str]] = {
     "evaluations": ("1", "count of scenarios evaluated for this force"),
     "note": ("", "free text"),
     "sustained_push_limit": ("N", "largest force the body holds for the whole window"),
-    # --- compare.csv and landscape.csv (studies.region_numbers and the study's own)
+    # --- compare.csv and landscape.csv (studies.catalog.region_numbers and the study's own)
     "name": ("", "the configuration's name"),
     "t_end": ("s", "the scenario's window"),
     "area": ("N s", "recovered area of the force x duration grid"),

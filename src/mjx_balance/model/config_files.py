@@ -8,7 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import tomllib
+import tomllib  # type: ignore[import-not-found,unused-ignore]  # 3.11+: requires-python says 3.10
 
 from .params import SECTIONS, Config, ParameterError, build_section
 from .subject import Subject, as_subject, check_subject_conflicts

@@ -1,4 +1,5 @@
-"""Analytic linearisation about upright (foot held flat), both conventions (SPEC §2).
+"""Analytic linearisation about upright (foot held flat), both conventions (docs/model.md,
+"Linear model and discretisation" and "Two conventions").
 
 Notation. Joint angles q = [q_a, q_h]; absolute segment tilts theta = [q1, q2] = S q with
 S = [[1, 0], [1, 1]]. Lagrangian of the two-link body on a fixed foot, linearised about

@@ -1,4 +1,4 @@
-"""MuJoCo model of the three-segment body, generated from BodyParams (SPEC §1).
+"""MuJoCo model of the three-segment body, generated from BodyParams (docs/model.md, "Body").
 
 The foot is free in the sagittal plane (slide x, slide z, pitch about y at the sole centre O)
 and touches the floor through four load-cell spheres at the sole corners. The lower body hangs

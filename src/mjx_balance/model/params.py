@@ -1,4 +1,4 @@
-"""Body, controller and scenario parameters (SPEC §1–4) as frozen dataclasses.
+"""Body, controller and scenario parameters (docs/model.md) as frozen dataclasses.
 
 Every number the package computes with comes from one of these three records. They are plain
 frozen dataclasses (hashable, so they can be static arguments under ``jax.jit``), validated on
@@ -9,9 +9,9 @@ to TOML (``config_files.py``) with the layout::
     [controller]  # ControllerParams
     [scenario]    # ScenarioParams
 
-Conventions (SPEC §2): ``paper`` uses absolute segment tilts x = [q1, q2, dq1, dq2] and
-generalised forces u = [tau1, tau2]; ``joint`` uses joint angles x = [q_a, q_h, dq_a, dq_h] and
-motor torques u = [tau_ankle, tau_hip].
+Conventions (docs/model.md, "Two conventions"): ``paper`` uses absolute segment tilts
+x = [q1, q2, dq1, dq2] and generalised forces u = [tau1, tau2]; ``joint`` uses joint angles
+x = [q_a, q_h, dq_a, dq_h] and motor torques u = [tau_ankle, tau_hip].
 """
 
 from __future__ import annotations
@@ -149,7 +149,7 @@ def _check_bounds(record: str, name: str, bounds: tuple[float, float]) -> None:
 
 @dataclass(frozen=True)
 class BodyParams:
-    """The three-segment body (SPEC §1, the study's Table 1). SI units."""
+    """The three-segment body (docs/model.md, "Body": the study's Table 1). SI units."""
 
     foot_mass: float = 1.3
     foot_length: float = 0.30  # sole length; load cells at x = ±foot_length/2
@@ -250,7 +250,8 @@ INFEASIBLE_MODES = ("capped", "exact_penalty")
 
 @dataclass(frozen=True)
 class ControllerParams:
-    """The constrained MPC (SPEC §2–3) and its solver settings.
+    """The constrained MPC (docs/model.md, "Two conventions" and "The MPC") and its solver
+    settings.
 
     Weights are diagonals: Q = diag(q_diag), R = diag(r_diag). Bounds are [lower, upper] pairs
     in the chosen convention's variables.
@@ -270,9 +271,10 @@ class ControllerParams:
     osqp_eps: float = 1e-8
     osqp_max_iter: int = 20000
     # Batched ADMM solver (admm.py); static under jit. Defaults measured on closed-loop states
-    # (`mjx-balance bench solver`, tests/test_admm.py): with H whitened, rho = 0.07 (x3 on input rows, x30 on CoP
-    # rows, admm.ADMMSettings.rho_scale), alpha = 1.8 and warm starts reach 1e-3 of each torque
-    # range against OSQP at 1e-9 on every solve of the bench states (5650 paper, 4583 joint);
+    # (`mjx-balance bench solver`, tests/control/test_admm.py): with H whitened, rho = 0.07
+    # (x3 on input rows, x30 on CoP rows, admm.ADMMSettings.rho_scale), alpha = 1.8 and warm
+    # starts reach 1e-3 of each torque range against OSQP at 1e-9 on every solve of the bench
+    # states (5650 paper, 4583 joint);
     # rho 0.05..0.15, alpha 1.6/1.8 and CoP factors 10..50 were compared: this pair needs the
     # fewest iterations (mean 43 paper, 53 joint) with a 2x margin on the error. The cap is 100
     # so that those solves also meet eps and report SOLVED (at 60, ~15% of them after large
@@ -319,7 +321,7 @@ class ControllerParams:
     # itself (its input bounds are pulled in by it): room for the MPC to act about the target.
     # A lean target with an input on its bound leaves the MPC no authority one way and is not
     # a stable operating point (measured in the linear plant: 0 and 0.1 diverge, 0.2 and 0.3
-    # settle; tests/test_offset_free.py, docs/model.md).
+    # settle; tests/control/test_offset_free.py, docs/model.md).
     target_margin: float = 0.2
 
     def __post_init__(self) -> None:
@@ -375,7 +377,8 @@ class ControllerParams:
 
 @dataclass(frozen=True)
 class ScenarioParams:
-    """The push protocol and outcome thresholds (SPEC §4)."""
+    """The push protocol and outcome thresholds (docs/model.md, "The push protocol" and "Samples
+    and outcome rules")."""
 
     force: float = 0.0  # N, + forward
     duration: float = 0.1  # s

@@ -220,7 +220,7 @@ class Subject:
         """The body's values this subject derives (``SUBJECT_BODY_KEYS``)."""
         return segments(self.height, self.mass, self.sex)
 
-    def controller_values(self, base: ControllerParams) -> dict[str, tuple[float, float]]:
+    def controller_values(self, base: ControllerParams) -> dict[str, tuple[float, ...]]:
         """CoP and CoM bounds at the sole's edges and ``base``'s input bounds scaled."""
         half = self.body_values()["foot_length"] / 2
         scale = self.mass / STUDY_BODY_MASS

@@ -108,9 +108,9 @@ def _model(body, physics_dt: float) -> mujoco.MjModel:
 
 def _initial_data(model: mujoco.MjModel, ix: Any, initial: Any) -> mujoco.MjData:
     """MuJoCo data at the run's start: upright rest, or the joint state ``initial`` [4]
-    (q_a, q_h, dq_a, dq_h) with the foot as at rest (model.settled_rest); kinematics done."""
+    (q_a, q_h, dq_a, dq_h) with the foot as at rest (model.mjcf.settled_rest); kinematics done."""
     data = mujoco.MjData(model)
-    if initial is not None and np.any(initial):  # the foot settled (model.settled_rest)
+    if initial is not None and np.any(initial):  # the foot settled (model.mjcf.settled_rest)
         data.qpos[:] = settled_rest(model)
         data.qpos[[ix.ankle_qpos, ix.hip_qpos]] = np.asarray(initial, float)[:2]
         data.qvel[[ix.ankle_dof, ix.hip_dof]] = np.asarray(initial, float)[2:]

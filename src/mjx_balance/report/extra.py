@@ -8,7 +8,7 @@ folder (nothing is computed here):
 ``build_report`` adds a section for each folder that holds its results, after the studies.
 The landscape and the basin are too costly for the report's own run (98 configurations'
 tables, 441 scenarios and 24 reference pushes), so the report shows them when they are there;
-the sensitivity folder is also filled by the report's run itself (report/run.py
+the sensitivity folder is also filled by the report's run itself (studies/experiments.py
 ``run_sensitivity_stage``: the plan's table forces, the experiments' tables reused).
 """
 

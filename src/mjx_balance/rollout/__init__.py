@@ -1,12 +1,6 @@
-"""The batched closed loop: MJX physics + the batched ADMM MPC, jitted and vmapped.
-
-    physics.py   the MuJoCo/MJX model, one physics step with the push, the measurements
-    kernel.py    one scenario as a pure function: control periods and physics steps in a
-                 ``lax.scan``, the running summary (accumulators) in the carry
-    engine.py    continuous batching: fixed slots per device, refilled on the device when a
-                 scenario is decided (fall, t_end, certified recovery: certificate.py)
-    runner.py    BatchRunner: the engine (or a padded batch with trajectories), sharded over
-                 the local devices, summary columns on the host
+"""Floor 5, rollout: the batched closed loop, MJX physics (or MuJoCo C) with the batched ADMM
+MPC, run by continuous batching over the local devices (docs/engine.md).
+docs/architecture.md, "The modules", maps its modules.
 
 Throughput and compile times are measured by ``mjx-balance bench`` (BENCHMARKS.md).
 """

@@ -15,17 +15,17 @@ next cell when its scenario is decided), run one control period per call:
 The rules, the accumulators, the controller and the engine's bookkeeping are the MJX path's
 functions; only the physics and the way a sample is read differ.
 
-Samples. MuJoCo's physics here is the reference's (``reference.py``: the same MJCF and MuJoCo's
-default solver options, float64; the MJX path runs float32 with a capped contact solver). The
-model carries sensors that only read the simulation (:func:`sensor_xml`): per load cell a
-contact sensor (normal force and point of the cell-floor contact, ``mj_contactForce`` as in
-``metrics.load_cell_cop``) and a frame-position sensor, and the foot subtree's CoM. ``mj_step``
-evaluates them at the step's start (positions) and after its constraint solve (forces), so the
-sample of step i -- joints at t = (i+1) dt, the contacts that acted during step i, positions at
-t = (i+1) dt, exactly the reference's -- takes its forces from step i's sensors and its
-positions from step i + 1's. The period's last sample takes its positions from
-``mjx.kinematics`` of its joint positions inside the next call (float32; the only float32
-physics quantity of this path).
+Samples. MuJoCo's physics here is the reference's (``reference/loop.py``: the same MJCF and
+MuJoCo's default solver options, float64; the MJX path runs float32 with a capped contact
+solver). The model carries sensors that only read the simulation (:func:`sensor_xml`): per load
+cell a contact sensor (normal force and point of the cell-floor contact, ``mj_contactForce`` as
+in ``metrics.load_cell_cop``) and a frame-position sensor, and the foot subtree's CoM.
+``mj_step`` evaluates them at the step's start (positions) and after its constraint solve
+(forces), so the sample of step i -- joints at t = (i+1) dt, the contacts that acted during step
+i, positions at t = (i+1) dt, exactly the reference's -- takes its forces from step i's sensors
+and its positions from step i + 1's. The period's last sample takes its positions from
+``mjx.kinematics`` of its joint positions inside the next call (float32; the only float32 physics
+quantity of this path).
 
 Warm start. ``mujoco.rollout`` starts every call from a full physics state, which does not hold
 the contact solver's warm start (``qacc_warmstart``, the previous step's accelerations, which

@@ -17,8 +17,8 @@ lane of a vmap (no value crosses lanes: refill and harvest are gathers and scatt
 compiled program always has ``slots`` lanes per device whatever the work, so only XLA's code for
 one lane position could differ. On the CPU it does unless XLA is told to use the same
 instructions everywhere (:data:`DETERMINISTIC_XLA_FLAGS`, set by :func:`deterministic_flags`
-before JAX starts; tests/test_engine.py checks the result bytes). Results do depend on the slot
-count, which a sweep therefore records.
+before JAX starts; tests/rollout/test_engine.py checks the result bytes). Results do depend on
+the slot count, which a sweep therefore records.
 """
 
 from __future__ import annotations

@@ -154,7 +154,7 @@ class Arrays(NamedTuple):
     pred_A: jax.Array  # [4, 4] the delay compensator's A_h^d (identity without one)
     pred_G: jax.Array  # [P, 4, 2] its input matrices (P = 0 without one)
     ofs: offset_free_mod.OffsetFree  # the offset-free controller's matrices (used if enabled)
-    settled: jax.Array  # [nq] upright rest with the contact settled (model.settled_rest)
+    settled: jax.Array  # [nq] upright rest with the contact settled (model.mjcf.settled_rest)
     bounds: jax.Array  # [4, 2] the outcome rules' state and input bounds (split_limits)
     # int32 []: control periods in the window (t_end / control_dt). The engines read this
     # traced value, so one compiled engine serves every t_end; the padded batch with

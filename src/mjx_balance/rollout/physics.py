@@ -9,13 +9,13 @@ closed loop reads them there, ``kernel.period``). What a sample holds is read by
 ``sensing.py``.
 
 MJX options (:data:`MJX_OPTIONS`), chosen for speed on the CPU and justified by the agreement
-tests in tests/test_rollout.py:
+tests in tests/rollout/test_rollout.py:
 
 - Newton solver (MuJoCo's default, so the reference uses it too) with ``iterations = 4`` and
   ``ls_iterations = 8``. The contact problem is four sphere-plane contacts on a five-dof chain,
   warm-started from the previous step's accelerations; with 3 or more iterations MJX matches
   ``mj_step`` as closely as with 100 (float32 rounding dominates); with 2 the rocking foot
-  drifts (tests/test_rollout.py states the figures). The tolerance stays at MuJoCo's 1e-8,
+  drifts (tests/rollout/test_rollout.py states the figures). The tolerance stays at MuJoCo's 1e-8,
   which float32 never meets, so every step runs the capped 4 iterations (under ``vmap`` the
   loop runs for the slowest element anyway).
 - pyramidal friction cone (MuJoCo's default; the load-cell CoP decodes pyramidal forces).
@@ -32,7 +32,7 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import io
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import jax
 import jax.numpy as jnp
@@ -43,7 +43,9 @@ import numpy as np
 # the JAX implementation used here does not need it, so keep that line off the user's screen.
 # Without mujoco-mjx this module still imports (the scalar reference runs on MuJoCo C alone);
 # the batched paths are refused at their first call (check_mujoco) with what to install.
-if importlib.util.find_spec("mujoco.mjx") is None:
+if TYPE_CHECKING:  # (for the type checker: the module, never None)
+    from mujoco import mjx
+elif importlib.util.find_spec("mujoco.mjx") is None:
     mjx = None
 else:
     with contextlib.redirect_stdout(io.StringIO()):

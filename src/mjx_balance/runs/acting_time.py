@@ -7,8 +7,8 @@ then rounds that each evaluate one midpoint per force, all forces in one batch, 
 bracket to one ``resolution`` step (:func:`refine_round`). Given a fixed batch size (the
 commands use one), each round evaluates several points per bracket instead (k-section), so
 every call has that size. :func:`run_table` writes the table into a sweep folder, keeping
-every scenario as its batch call returns (``store.TableCells``), so that a rerun, or a table
-over other forces, runs only the cells it has not seen.
+every scenario as its batch call returns (``store.folder.TableCells``), so that a rerun, or a
+table over other forces, runs only the cells it has not seen.
 """
 
 from __future__ import annotations
@@ -105,8 +105,9 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
                     points_per_round: int | None = None, progress: bool = True,
                     log: Callable[[str], None] | None = print,
                     cells: TableCells | None = None) -> TableResult:
-    """Max acting time of every force (SPEC §4): the largest T, a multiple of ``resolution`` in
-    [0, t_end], such that the push (F, T) recovers and so does every duration tried below it.
+    """Max acting time of every force (docs/outputs.md, "mjx-balance table"): the largest T, a
+    multiple of ``resolution`` in [0, t_end], such that the push (F, T) recovers and so does
+    every duration tried below it.
 
     1. Coarse scan: the durations ``coarse_steps`` for every force, one batch. The first failure
        brackets T between the last recovered coarse duration and it. A recovered coarse duration
@@ -502,7 +503,7 @@ def run_table(out: str | Path, config: Config, forces: np.ndarray | str | Sequen
               log: Callable[[str], None] | None = print, cluster: Any = None,
               sustained: bool = True, **options: Any) -> TableResult | None:
     """``max_acting_time`` into ``out/table.csv`` (+ table_runs.parquet, every scenario run),
-    under the folder's lock (``store.folder_lock``).
+    under the folder's lock (``store.folder.folder_lock``).
 
     Every scenario is kept in ``out/table_runs/`` as its batch call returns: an interrupted
     table resumes from them, and a table over other forces reuses the cells they share.

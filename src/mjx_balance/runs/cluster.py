@@ -14,8 +14,8 @@ the chunks of a region sweep as Dask tasks, one task per chunk:
   (:meth:`ClusterBatch.compute_chunks`). No shared filesystem is needed.
 - A worker builds the chunk's runner once per configuration and engine settings and keeps it
   (``_RUNNERS``, a module dictionary of the worker process): the compiled program is reused
-  by every later chunk, and loaded from the persistent compilation cache (``cache.py``) when
-  the worker's cache folder holds it.
+  by every later chunk, and loaded from the persistent compilation cache (``runtime/cache.py``)
+  when the worker's cache folder holds it.
 - A chunk's bytes do not depend on where it ran: every worker runs the slot count the folder's
   manifest records (asked of one worker for a new folder, so GPU workers get their own
   default), with the driver's ``jax_enable_x64`` setting, and the engine's results do not
@@ -30,8 +30,8 @@ the chunks of a region sweep as Dask tasks, one task per chunk:
 
 The robustness table (``run_table(..., cluster=SPEC)``, ``mjx-balance table --cluster SPEC``)
 uses the same connection, checks and runners: the driver keeps the bisection and the table's
-store (``store.TableCells``), and each round's batch calls run as tasks (each call split into
-about one task per worker, :meth:`ClusterBatch.evaluate_calls`, worker side
+store (``store.folder.TableCells``), and each round's batch calls run as tasks (each call split
+into about one task per worker, :meth:`ClusterBatch.evaluate_calls`, worker side
 :func:`compute_cells`) whose rows come back, reassembled in order, before the driver keeps
 them: the same part files, runs and table as a local table.
 
@@ -65,7 +65,8 @@ from ..runtime.fingerprint import numerics
 
 EXTRA = 'pip install "mjx_balance[cluster]"'
 LOCAL = "local:"
-# What the driver and every worker must agree on (store.versions() names, plus the XLA flags).
+# What the driver and every worker must agree on (store.provenance.versions() names, plus the XLA
+# flags).
 CHECKED = ("package", "jax", "jaxlib", "mujoco", "mujoco_mjx", "python", "deterministic_xla",
            "xla_flags", "matmul_precision")
 WAIT_FOR_WORKERS_S = 300.0  # how long a scheduler may take to get its first worker

@@ -212,8 +212,8 @@ def run_region(out: str | os.PathLike[str], config: Config, forces: Values, dura
                full_length: bool = False, progress: bool | None = None,
                wait: bool = False, cluster: Any = None, physics: str = "auto",
                say: Any = log.info) -> "SweepResult":
-    """The region sweep into the folder ``out`` (resumable; ``sweep.run_sweep``) under its lock
-    (``wait``: wait for another run that holds it). ``run_batch``: a batch function (default:
+    """The region sweep into the folder ``out`` (resumable; ``runs.region.run_sweep``) under its
+    lock (``wait``: wait for another run that holds it). ``run_batch``: a batch function (default:
     :func:`batch_function`); ``cluster``: run the chunks on a Dask cluster (``"local:N"``, a
     scheduler address or file, or a ``distributed.Client``; docs/cluster.md); ``say``: where
     the sweep's lines go (default: the ``mjx_balance`` logger; None: nowhere). Returns the
@@ -238,13 +238,13 @@ def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values
                      wait: bool = False, cluster: Any = None,
                      physics: str = "auto", sustained: bool = True,
                      say: Any = log.info) -> "TableResult | None":
-    """The max-acting-time table into the folder ``out`` (``sweep.run_table``: resumable, the
-    scenarios it ran kept) under its lock. ``batch``: scenarios per call (default:
-    ``sweep.table_batch_size``; the scalar reference loop, :class:`ReferenceBatch`, runs
-    scenario by scenario and bisects, one point per round); ``cluster``: run each round's
-    calls on a Dask cluster (as :func:`run_region`; the same table); ``sustained``: also the
-    sustained-push limit; ``say``: as :func:`run_region`'s. Returns None when the folder
-    already held this table."""
+    """The max-acting-time table into the folder ``out`` (``runs.acting_time.run_table``:
+    resumable, the scenarios it ran kept) under its lock. ``batch``: scenarios per call
+    (default: ``runs.acting_time.table_batch_size``; the scalar reference loop,
+    :class:`ReferenceBatch`, runs scenario by scenario and bisects, one point per round);
+    ``cluster``: run each round's calls on a Dask cluster (as :func:`run_region`; the same
+    table); ``sustained``: also the sustained-push limit; ``say``: as :func:`run_region`'s.
+    Returns None when the folder already held this table."""
     forces = grid_values(forces, "forces")
     batch, slots = size_value(batch, "batch"), size_value(slots, "slots")
     if run_batch is None or isinstance(run_batch, LazyBatch):  # the batched engine's run

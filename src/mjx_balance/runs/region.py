@@ -3,11 +3,11 @@
 The grid (force-major: all durations of the first force, then the next force) is split into
 chunks of one size (a power of two that fits the memory budget, ``chunks.py``; every call
 padded to it, so the rollout compiles one function); each chunk is written to its own file as
-soon as it is done (``store.py``). On restart, chunk files that read back with exactly their
+soon as it is done (``store/folder.py``). On restart, chunk files that read back with exactly their
 cells are kept and the others (damaged, partial, from another grid) are recomputed; a folder
 made with another configuration or grid is refused. A folder that lost its manifest but whose
 config.toml matches is taken up again once its chunk files (or region.parquet) check out
-against the grid. The sweep holds the folder's lock (``store.folder_lock``) throughout.
+against the grid. The sweep holds the folder's lock (``store.folder.folder_lock``) throughout.
 
 With ``cluster`` (``cluster.py``, docs/cluster.md) the chunks run as Dask tasks on a cluster's
 workers; everything else (the manifest, the chunk plan, the resume check, writing each chunk

@@ -82,7 +82,7 @@ def enable() -> str | None:
     """
     import jax
 
-    own = jax.config.jax_compilation_cache_dir
+    own = jax.config.jax_compilation_cache_dir  # type: ignore[attr-defined]  # dynamic JAX flag
     if own and own != _state["dir"]:
         return own  # the user's own setting wins
     folder = cache_dir()
@@ -248,8 +248,10 @@ class CompileCounter:
         from jax import monitoring
 
         self._active = True
-        monitoring.register_event_listener(self._event)
-        monitoring.register_event_duration_secs_listener(self._duration)
+        # (JAX calls listeners by position; their parameter names differ from its protocols')
+        monitoring.register_event_listener(self._event)  # type: ignore[arg-type]  # names differ
+        monitoring.register_event_duration_secs_listener(
+            self._duration)  # type: ignore[arg-type]  # parameter names differ (above)
         return self
 
     def __exit__(self, *exc) -> None:
@@ -257,8 +259,10 @@ class CompileCounter:
         try:
             from jax._src import monitoring as _monitoring
 
-            _monitoring.unregister_event_listener(self._event)
-            _monitoring.unregister_event_duration_listener(self._duration)
+            _monitoring.unregister_event_listener(
+                self._event)  # type: ignore[arg-type]  # parameter names differ (__enter__)
+            _monitoring.unregister_event_duration_listener(
+                self._duration)  # type: ignore[arg-type]  # parameter names differ (__enter__)
         except Exception:  # noqa: BLE001 - left registered, but inactive
             pass
 
@@ -266,7 +270,7 @@ class CompileCounter:
     def compiles(self) -> int:
         return self.requests - self.cache_hits
 
-    def as_dict(self) -> dict[str, float | int]:
+    def as_dict(self) -> dict[str, float | int | list[object]]:
         return {"requests": self.requests, "compiles": self.compiles, "cache_hits": self.cache_hits,
                 "cache_misses": self.cache_misses,
                 "compile_seconds": round(self.compile_seconds, 3),

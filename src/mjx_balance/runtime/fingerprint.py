@@ -6,7 +6,7 @@ Two kinds of fields:
 - :data:`RESULT_KEYS` change a result's bits: JAX's x64 mode (MJX does some of its arithmetic
   in float64 when it is on, even on a float32 model), the XLA flags other than those known not
   to change numbers (the host device count: the engine's results do not depend on it,
-  tests/test_engine.py), and JAX's default matmul precision. Resuming a folder under other
+  tests/rollout/test_engine.py), and JAX's default matmul precision. Resuming a folder under other
   values would merge rows computed differently: refused.
 - :data:`INFO_KEYS` may change bits but are not the user's choice within a session: the
   package's, JAX's and MuJoCo's versions, and the CPU's vector ISA as XLA targets it. A
@@ -75,8 +75,9 @@ def _jax_settings() -> tuple[bool, str]:
     if "jax" in sys.modules:
         import jax  # lazy: already imported; this module never starts JAX
 
-        return (bool(jax.config.jax_enable_x64),
-                str(jax.config.jax_default_matmul_precision or "default"))
+        return (bool(jax.config.jax_enable_x64),  # type: ignore[attr-defined]  # dynamic flag
+                str(jax.config.jax_default_matmul_precision  # type: ignore[attr-defined]  # ditto
+                    or "default"))
     x64 = os.environ.get("JAX_ENABLE_X64", "").strip().lower() in _TRUE
     return x64, os.environ.get("JAX_DEFAULT_MATMUL_PRECISION", "") or "default"
 

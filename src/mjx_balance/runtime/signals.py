@@ -28,7 +28,8 @@ import signal
 import sys
 import threading
 from contextlib import contextmanager
-from typing import Iterator
+from types import FrameType
+from typing import Any, Callable, Iterator
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 REDELIVER_S = 0.02  # how soon a dropped signal is sent again (the main thread runs meanwhile)
@@ -60,8 +61,9 @@ class _State:
         self.pending: int | None = None  # the first signal not yet seen by the work
         self.seen = False  # the work caught its exception: it is stopping
         self.dropped = False  # its exception was dropped where it landed: raise it again
-        self.previous: dict[int, object] = {}
-        self.hook = None
+        self.previous: dict[
+            int, Callable[[int, FrameType | None], Any] | int | signal.Handlers | None] = {}
+        self.hook: Callable[[sys.UnraisableHookArgs], Any] | None = None
         self.lock = threading.Lock()
         self.timers: list[threading.Timer] = []
 

@@ -9,22 +9,22 @@ import sys
 # position and the batch size: strict (unfused, unreordered) dot products, no platform-specific
 # approximations of transcendental functions, one vector width (128 bits). Without them the
 # vmapped ADMM gives other bits for other batch sizes, and without the vector width the
-# engine's results depend on the order of the cells (tests/test_engine.py). The vector width
-# changes float32 rounding (tests/test_rollout.py's open-loop drift against MuJoCo C). All
-# three are known to jaxlib 0.10 and 0.11 (XLA refuses unknown flags when it starts).
+# engine's results depend on the order of the cells (tests/rollout/test_engine.py). The vector
+# width changes float32 rounding (tests/rollout/test_rollout.py's open-loop drift against MuJoCo
+# C). All three are known to jaxlib 0.10 and 0.11 (XLA refuses unknown flags when it starts).
 #
 # And no FMA: XLA's CPU compiler lets LLVM fuse a multiply and an add into one FMA (one
 # rounding instead of two) where the target has it, and whether it does can depend on the code
 # path a lane takes (vector body or scalar remainder), so a scenario's bits would depend on its
-# slot (tests/test_engine.py::test_same_bits_in_any_order_and_split) and an early-stopped run
-# would differ from a full-length one. With the ISA capped at AVX (no FMA, no AVX2) every
+# slot (tests/rollout/test_engine.py::test_same_bits_in_any_order_and_split) and an early-stopped
+# run would differ from a full-length one. With the ISA capped at AVX (no FMA, no AVX2) every
 # x86-64 CPU from AVX on computes each lane with the same instructions (docs/reliability.md:
 # what is bitwise across CPUs).
 #
 # And single-threaded Eigen inside each device's ops: with several threads per device Eigen
 # splits a product's sums over them, and how it splits depends on the threads a device has, so
 # one device (both cores) and two (a core each) would give other bits
-# (tests/test_engine.py::test_one_and_two_host_devices_give_the_same_bits).
+# (tests/rollout/test_engine.py::test_one_and_two_host_devices_give_the_same_bits).
 #
 # What the cap and single-threaded Eigen cost: BENCHMARKS.md, "The deterministic XLA flags'
 # cost".

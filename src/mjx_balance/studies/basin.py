@@ -11,7 +11,7 @@ A cell is a whole-body CoM position x_com relative to the ankle and a CoM veloci
 
 The lean q_a solves x_com(q_a) = x (MuJoCo's kinematics, nonlinear), the rate is
 v_com / (dx_com/dq_a). Each cell runs as a scenario with no push from that state (the batched
-engine's per-scenario initial state; the foot settled on the floor, ``model.settled_rest``),
+engine's per-scenario initial state; the foot settled on the floor, ``model.mjcf.settled_rest``),
 with the outcome rules and energies of a push map. For reference the map draws the foot's edges
 and the linear inverted pendulum's capture-point bound: the capture point
 x_com + v_com / ω0 (ω0 = sqrt(g / z_com), z_com the CoM height at upright rest) must lie on the

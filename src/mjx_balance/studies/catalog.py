@@ -1,9 +1,9 @@
 """Studies beyond the source study: which variant changes the recoverable region, and by how much.
 
-A study compares region maps (force x duration outcome grids, ``sweep.run_sweep``) of a few
+A study compares region maps (force x duration outcome grids, ``runs.region.run_sweep``) of a few
 variants of one base configuration on one grid. Each variant other than the base is a sweep
 definition shipped in ``mjx_balance/sweeps/`` (``study_*.toml``: configuration overrides + the
-grid), loadable on its own by ``sweep.load_sweep`` and runnable with ``mjx-balance sweep
+grid), loadable on its own by ``runs.definitions.load_sweep`` and runnable with ``mjx-balance sweep
 --sweep NAME``; the base variant (``file=None``) is the base configuration on the same grid.
 
 Numbers of a map (``region_numbers``):
@@ -120,7 +120,7 @@ def study(key: str) -> Study:
 
 
 def sweeps_dir() -> Path:
-    """The shipped sweep definitions (package data, ``sweep.definitions.sweeps_dir``)."""
+    """The shipped sweep definitions (package data, ``runs.definitions.sweeps_dir``)."""
     return _sweeps_dir()
 
 

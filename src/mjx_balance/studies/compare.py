@@ -271,7 +271,7 @@ def run_compare(out: str | Path, configs: dict[str, Config], forces: Any, durati
 def boundary_segments(region: pd.DataFrame, log: bool) -> list[tuple[tuple[float, float],
                                                                       tuple[float, float]]]:
     """The edges between recovered and other cells of a region map, as ((F0, T0), (F1, T1))
-    segments on the cells' bounds (``region_plots.cell_bounds``: where each cell is drawn)."""
+    segments on the cells' bounds (``figures.region.cell_bounds``: where each cell is drawn)."""
     forces = np.sort(region["force"].unique())
     durations = np.sort(region["duration"].unique())
     fb, db = cell_bounds(forces), cell_bounds(durations, log=log)

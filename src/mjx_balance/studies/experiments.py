@@ -42,14 +42,15 @@ from ..runs import cluster as cluster_mod
 REPORT_JSON = "report.json"
 CONFIG_TOML = "config.toml"
 WEIGHTS_RECOVERING = "weights_recovering.csv"  # the weight study on a push that recovers
-Q_SCALES = (1e3, 1e4, 1e5, 1e6, 1e7)  # Q = s I4 (SPEC §6.2)
+# Q = s I4: the study's Fig. 14 (docs/studies.md, "The study's figures and tables, one by one")
+Q_SCALES = (1e3, 1e4, 1e5, 1e6, 1e7)
 R_SCALES = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8)  # R = s diag(1000, 1)
 REFERENCE_CHUNK = 8  # scenarios per sweep chunk with the reference batch function
 
 
 @dataclass(frozen=True)
 class Plan:
-    """Sizes of one report run. Grids are sweep.parse_grid strings; None: the study TOMLs'."""
+    """Sizes of one report run. Grids are runs.grid.parse_grid strings; None: the study TOMLs'."""
 
     name: str
     backend: str = "mjx"
@@ -119,7 +120,7 @@ def selected_studies(names: str | None) -> list[catalog.Study]:
 
 def sweep_chunk_size(config: Config, backend: str, n_cells: int) -> int:
     """Scenarios per sweep chunk: REFERENCE_CHUNK for the reference loop, else from the
-    memory budget (sweep.default_chunk_size)."""
+    memory budget (runs.chunks.default_chunk_size)."""
     return REFERENCE_CHUNK if backend == "reference" else default_chunk_size(config, n_cells)
 
 
@@ -262,7 +263,8 @@ def run_stage(run: ReportRun, key: str, params: dict, files: list[Path],
 
 
 # ---------------------------------------------------------------------------------------------
-# The experiments of SPEC §6, one convention at a time
+# The study's experiments (docs/studies.md, "The study's figures and tables, one by one"), one
+# convention at a time
 
 
 def timeseries_stage(run: ReportRun, convention: str) -> None:
@@ -376,7 +378,7 @@ def run_variant(run: ReportRun, study: catalog.Study, variant: catalog.Variant) 
 
 def study_numbers(study: catalog.Study, folder: Path, variants: list[dict]) -> pd.DataFrame:
     """The study's numbers from its saved maps: the halves of the signed map, or every
-    variant against the first (studies.signed_halves, studies.compare)."""
+    variant against the first (catalog.signed_halves, catalog.compare)."""
     regions = {v["key"]: pd.read_parquet(folder / v["key"] / "region.parquet")
                for v in variants}
     if study.signed:

@@ -6,9 +6,9 @@ A *weight setting* (q, r) is the base configuration with its controller's ``q_di
 multiplied by q and its ``r_diag`` by r (so (1, 1) is the base's, the study's, weights). A
 *delay setting* is a controller delay in ms, plain or compensated
 (``controller.delay_compensation``): ``"0"``, ``"10"``, ``"100c"``. Every (delay, q, r) is a
-configuration run exactly as ``mjx-balance compare`` runs one (``comparison``: its region map
+configuration run exactly as ``mjx-balance compare`` runs one (``compare``: its region map
 and its table in its own sweep folder ``OUT/<delay>/q<q>_r<r>/``, resumable, so a rerun
-computes only what is missing), and its numbers are ``comparison.numbers`` of that folder.
+computes only what is missing), and its numbers are ``compare.numbers`` of that folder.
 The compiled rollout is shared between configurations of equal shapes (weights are data, not
 shapes), so each setting costs only its scenarios; each delay compiles once.
 

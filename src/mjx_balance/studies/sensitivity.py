@@ -17,8 +17,8 @@ own resumable folder OUT/<reading>/ (as ``mjx-balance table`` writes one), then:
 - ``sensitivity.txt``: which conclusions hold under every reading and which depend on it,
   written from the numbers (:func:`reading_text`).
 
-The report runs the same as its last stage (``report.run.run_sensitivity_stage``: the plan's
-table forces, :func:`write_sensitivity` on the readings' tables) into DIR/sensitivity/.
+The report runs the same as its last stage (``studies.experiments.run_sensitivity_stage``: the
+plan's table forces, :func:`write_sensitivity` on the readings' tables) into DIR/sensitivity/.
 """
 
 from __future__ import annotations
@@ -44,7 +44,8 @@ ENERGIES = {"study": "study_energy_total_max", "motors": "energy_total_max",
 SENSITIVITY_CSV, SENSITIVITY_PNG, SENSITIVITY_TXT = ("sensitivity.csv", "sensitivity.png",
                                                      "sensitivity.txt")
 
-REPORT_DIR = "sensitivity"  # the report's folder of this analysis (report/run.py, report/extra.py)
+# the report's folder of this analysis (studies/experiments.py, report/extra.py)
+REPORT_DIR = "sensitivity"
 
 
 def reading_convention(key: str) -> str:
