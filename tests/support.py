@@ -110,8 +110,10 @@ GRID = ("-20:100:20", "0.1,0.5,1,1.5,2")  # 7 forces x 5 durations = 35 cells
 
 def sweep_fake(out, fake, chunk=8, config=None):
     from mjx_balance.runs import run_sweep
+    from mjx_balance.runs.grid import Grid
 
-    return run_sweep(out, config or tiny_config(), *GRID, run_batch=fake, chunk_size=chunk,
+    config = config or tiny_config()
+    return run_sweep(out, config, Grid.of(*GRID, config), run_batch=fake, chunk_size=chunk,
                      progress=False, log=None)
 
 

@@ -42,8 +42,9 @@ from .measures.strategy import with_strategy
 from .model.params import Config, ParameterError
 from .model.config_files import config_from_dict, load_config
 from .model.subject import Subject
-from .runs.folders import (Values, batch_function, duration_values, grid_values, run_region,
-                           run_table_folder, size_value, check_reference)
+from .runs.folders import (batch_function, run_region, run_table_folder, size_value,
+                           check_reference)
+from .runs.grid import Grid, Values, duration_values, grid_values
 from .runs.grid import check_durations, parse_pairs
 from .runs.progress import wanted
 from .store.folder import folder_lock
@@ -184,10 +185,11 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None, *,
     import pandas as pd
 
     config = as_config(config)
+    grid = Grid.of(forces, durations, config)  # checked once, before any folder
     check_format(format)
     refs = read_references(reference)
     with _session("sweep"), _folder(out, "sweep") as folder:
-        result = run_region(folder, config, forces, durations, chunk=chunk, slots=slots,
+        result = run_region(folder, config, grid, chunk=chunk, slots=slots,
                             full_length=full_length, progress=wanted(progress), wait=wait,
                             cluster=cluster, physics=physics)
         region = with_strategy(pd.read_parquet(result.region_path))

@@ -25,6 +25,7 @@ from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.model.config_files import load_config
 from mjx_balance.runs import load_sweep, parse_grid, run_sweep
 from mjx_balance.studies import catalog as studies
+from mjx_balance.runs.grid import Grid
 
 CONVENTIONS = ("paper", "joint")
 
@@ -339,7 +340,7 @@ def test_study_sweep_definition_loads_and_runs(path, tmp_path):
     config = definition.config.replace(scenario={"t_end": 0.5},
                                        controller={"osqp_max_iter": 200})
     tiny_f, tiny_d = forces[[0, -1]], durations[:1]
-    result = run_sweep(tmp_path, config, tiny_f, tiny_d, run_batch=report.ReferenceBatch(config),
+    result = run_sweep(tmp_path, config, Grid.of(tiny_f, tiny_d, config), run_batch=report.ReferenceBatch(config),
                        chunk_size=2, progress=False, log=None)
     assert len(result.region) == 2 and set(result.region.outcome) <= set(OUTCOMES)
     assert result.region.outcome.iloc[0] != "diverged"

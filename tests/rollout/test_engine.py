@@ -42,6 +42,7 @@ from mjx_balance.measures.outcomes import OUTCOMES, SUMMARY_COLUMNS
 from mjx_balance.model.linear import zoh
 from mjx_balance.model.params import Config
 from mjx_balance.rollout import engine as engine_mod
+from mjx_balance.runs.grid import Grid
 
 pytestmark = pytest.mark.usefixtures("float32")
 
@@ -443,15 +444,15 @@ def test_interrupted_sweep_resumes_to_the_same_bytes(tmp_path):
 
     with jax.enable_x64(False):
         with pytest.raises(KeyboardInterrupt):
-            run_sweep(tmp_path / "a", config, forces, durations, chunk_size=4,
+            run_sweep(tmp_path / "a", config, Grid.of(forces, durations, config), chunk_size=4,
                       run_batch=Interrupted(config, slots=ENGINE_SLOTS), progress=False,
                       log=None)
         assert any((tmp_path / "a" / "chunks").glob("chunk-*.parquet"))
-        resumed = run_sweep(tmp_path / "a", config, forces, durations,
+        resumed = run_sweep(tmp_path / "a", config, Grid.of(forces, durations, config),
                             run_batch=LazyBatch(config, slots=ENGINE_SLOTS), progress=False,
                           log=None)
         assert resumed.reused_chunks >= 1
-        whole = run_sweep(tmp_path / "b", config, forces, durations, chunk_size=16,
+        whole = run_sweep(tmp_path / "b", config, Grid.of(forces, durations, config), chunk_size=16,
                           run_batch=LazyBatch(config, slots=ENGINE_SLOTS), progress=False,
                           log=None)
     assert resumed.region_path.read_bytes() == whole.region_path.read_bytes()

@@ -29,6 +29,7 @@ import pytest
 
 from mjx_balance.measures.outcomes import SUMMARY_COLUMNS
 from mjx_balance.model.params import Config
+from mjx_balance.runs.grid import Grid
 
 try:
     import distributed
@@ -82,7 +83,8 @@ def reference(tmp_path_factory, compile_cache) -> Path:
         from mjx_balance import api
         from mjx_balance.model.params import Config
         config = Config().replace(scenario={{"t_end": {T_END}}})
-        api.run_region({str(out)!r}, config, {FORCES!r}, {DURATIONS!r}, chunk={CHUNK},
+        from mjx_balance.runs.grid import Grid
+        api.run_region({str(out)!r}, config, Grid.of({FORCES!r}, {DURATIONS!r}, config), chunk={CHUNK},
                        slots={SLOTS})
         api.run_table_folder({str(_local_table(out / "region.parquet"))!r}, config,
                              {TABLE_FORCES!r}, slots={SLOTS})
@@ -96,7 +98,7 @@ def _sweep(out, cluster, **kwargs):
 
     config = tiny_config()
     with jax.enable_x64(False):  # as sweeps run (conftest switches x64 on for the session)
-        return run_sweep(out, config, FORCES, DURATIONS, chunk_size=CHUNK, progress=False,
+        return run_sweep(out, config, Grid.of(FORCES, DURATIONS, config), chunk_size=CHUNK, progress=False,
                          run_batch=LazyBatch(config, slots=SLOTS), cluster=cluster, log=None,
                          **kwargs)
 
@@ -223,7 +225,7 @@ def test_worker_of_another_version_is_refused(tmp_path):
         _run_by_value(client, _other_version)
         refused = r"refusing the cluster.*worker tcp://.*: mjx_balance 0\.0\.0\+other \(driver: "
         with pytest.raises(ClusterError, match=refused):
-            run_sweep(tmp_path / "out", tiny_config(), FORCES, DURATIONS, run_batch=Fake(),
+            run_sweep(tmp_path / "out", tiny_config(), Grid.of(FORCES, DURATIONS, tiny_config()), run_batch=Fake(),
                       chunk_size=CHUNK, progress=False, log=None, cluster=client)
     assert not list((tmp_path / "out" / "chunks").glob("*.parquet"))
     # a worker that joined after the check: the task itself refuses
@@ -296,11 +298,12 @@ def test_plain_install_runs_without_dask(tmp_path):
             except SystemExit as exc:
                 assert exc.code == 0, exc.code
         config = Config().replace(scenario={{"t_end": 1.0}})
-        result = run_sweep({str(tmp_path / "plain")!r}, config, "0,60", "0.1,0.5",
+        from mjx_balance.runs.grid import Grid
+        result = run_sweep({str(tmp_path / "plain")!r}, config, Grid.of("0,60", "0.1,0.5", config),
                            run_batch=Fake(), progress=False, log=None)
         assert len(result.region) == 4
         with pytest.raises(ClusterError, match="mjx_balance\\\\[cluster\\\\]"):
-            run_sweep({str(tmp_path / "asked")!r}, config, "0,60", "0.1,0.5",
+            run_sweep({str(tmp_path / "asked")!r}, config, Grid.of("0,60", "0.1,0.5", config),
                       run_batch=Fake(), progress=False, log=None, cluster="local:2")
         from mjx_balance.runs import run_table
         table = run_table({str(tmp_path / "plain_table")!r}, config, "0,60", run_batch=Fake(),

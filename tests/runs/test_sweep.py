@@ -31,6 +31,7 @@ from mjx_balance import runs as sweep
 from mjx_balance.measures.outcomes import SUMMARY_COLUMNS
 from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.runs.definitions import sweeps_dir
+from mjx_balance.runs.grid import Grid
 
 # --- grids -----------------------------------------------------------------------------------
 
@@ -69,7 +70,7 @@ def test_duration_limits():
 def test_bad_grid_fails_before_any_work(tmp_path):
     fake = FakeThresholdBatch()
     with pytest.raises(ParameterError, match="t_end"):
-        sweep.run_sweep(tmp_path / "out", tiny_config(), "0:10:5", "0.5,3", run_batch=fake,
+        sweep.run_sweep(tmp_path / "out", tiny_config(), Grid.of("0:10:5", "0.5,3", tiny_config()), run_batch=fake,
                         progress=False, log=None)
     assert fake.calls == [] and not (tmp_path / "out").exists()
 
@@ -127,7 +128,7 @@ def test_interrupted_sweep_resumes_to_the_same_region(tmp_path):
 def test_finished_sweep_rerun_does_nothing(tmp_path, capsys):
     sweep_fake(tmp_path, FakeThresholdBatch())
     idle = FakeThresholdBatch(fail_on_call=1)
-    result = sweep.run_sweep(tmp_path, tiny_config(), *GRID, run_batch=idle, progress=False)
+    result = sweep.run_sweep(tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=idle, progress=False)
     assert result.already_complete and idle.calls == []
     assert "nothing to do" in capsys.readouterr().out
 
@@ -184,7 +185,7 @@ def test_other_configuration_or_grid_is_refused(tmp_path):
     with pytest.raises(ParameterError, match="different configuration.*controller.horizon"):
         sweep_fake(tmp_path, FakeThresholdBatch(), config=other)
     with pytest.raises(ParameterError, match="another grid"):
-        sweep.run_sweep(tmp_path, tiny_config(), "0:100:20", GRID[1], run_batch=FakeThresholdBatch(),
+        sweep.run_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()), run_batch=FakeThresholdBatch(),
                         progress=False, log=None)
 
 
@@ -341,7 +342,7 @@ def test_sweep_definition_errors(tmp_path):
 def test_figures_from_fake_results(tmp_path):
     from mjx_balance.figures import region as region_plots
 
-    sweep.run_sweep(tmp_path, Config(), "-20:120:10", "0.05:2:0.05",
+    sweep.run_sweep(tmp_path, Config(), Grid.of("-20:120:10", "0.05:2:0.05", Config()),
                     run_batch=FakeThresholdBatch(window=(1.5, 1.6)), progress=False, log=None)
     region = pd.read_parquet(tmp_path / "region.parquet")
     reference = pd.DataFrame({"force": [20, 50], "duration": [1.4, 0.55]})

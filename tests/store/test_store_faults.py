@@ -44,6 +44,7 @@ from mjx_balance.model.params import ParameterError
 from mjx_balance.runs import region as region_module
 from mjx_balance.store.files import readable_png
 from mjx_balance.store.folder import FolderBusy, folder_lock
+from mjx_balance.runs.grid import Grid
 
 # -- damaged and lost work, the lock, the disk ------------------------------------------------------
 
@@ -118,7 +119,7 @@ def test_lost_manifest_is_rebuilt_from_config_and_chunks(tmp_path):
 
     lines: list[str] = []
     resumed = FakeThresholdBatch()
-    result = sweep.run_sweep(out, tiny_config(), *GRID, run_batch=resumed, chunk_size=100,
+    result = sweep.run_sweep(out, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=resumed, chunk_size=100,
                              progress=False, log=lines.append)
     assert resumed.calls == [8] * 3 and result.reused_chunks == 2  # chunk size from the files
     rebuilt = [line for line in lines if "lost its manifest.json" in line]
@@ -146,13 +147,13 @@ def test_lost_manifest_is_not_rebuilt_for_other_results(tmp_path):
     with pytest.raises(ParameterError, match="config.toml differs.*controller.horizon"):
         sweep_fake(tmp_path, FakeThresholdBatch(), config=other)
     with pytest.raises(ParameterError, match="do not match this grid"):
-        sweep.run_sweep(tmp_path, tiny_config(), "0:100:20", GRID[1],
+        sweep.run_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()),
                         run_batch=FakeThresholdBatch(), progress=False, log=None)
     assert not (tmp_path / "manifest.json").exists()  # nothing rewritten by a refused run
     shutil.rmtree(tmp_path / "chunks")  # region.parquet alone, of another grid: kept, refused
     region = (tmp_path / "region.parquet").read_bytes()
     with pytest.raises(ParameterError, match="do not match this grid"):
-        sweep.run_sweep(tmp_path, tiny_config(), "0:100:20", GRID[1],
+        sweep.run_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()),
                         run_batch=FakeThresholdBatch(), progress=False, log=None)
     assert (tmp_path / "region.parquet").read_bytes() == region
     (tmp_path / "config.toml").unlink()
@@ -165,7 +166,7 @@ def test_lost_manifest_of_a_table_folder_lets_a_sweep_start(tmp_path):
                     progress=False, log=None)
     (tmp_path / "manifest.json").unlink()
     lines: list[str] = []
-    sweep.run_sweep(tmp_path, tiny_config(), *GRID, run_batch=FakeThresholdBatch(), chunk_size=8,
+    sweep.run_sweep(tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=FakeThresholdBatch(), chunk_size=8,
                     progress=False, log=lines.append)
     assert [line for line in lines if "lost its manifest.json" in line]
     assert json.loads((tmp_path / "manifest.json").read_text())["region"]["cells"] == 35

@@ -49,6 +49,7 @@ from .ipopt import study_mpc
 from ..reference import loop as reference
 from ..rollout import BatchRunner
 from .. import runs as sweep
+from ..runs.grid import Grid
 
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 FORCE_RANGE = (0.0, 150.0)
@@ -324,7 +325,8 @@ def memory_child(cells: int, t_end: float, chunk: int | None, out: str) -> None:
     n_f = int(math.ceil(cells / n_d))
     forces = np.linspace(0.0, 150.0, n_f)
     t0 = time.perf_counter()
-    result = sweep.run_sweep(out, config, forces, durations, chunk_size=chunk, progress=False,
+    result = sweep.run_sweep(out, config, Grid.of(forces, durations, config), chunk_size=chunk,
+                             progress=False,
                              log=None)
     seconds = time.perf_counter() - t0
     import pandas as pd

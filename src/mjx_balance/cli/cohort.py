@@ -189,7 +189,7 @@ def cohort_command(args: Any) -> int:
     from ..studies.cohort import plan_cohort, run_plan  # lazy: as above
     from ..studies.probability import interval_text  # lazy: as above
 
-    from ..runs.folders import grid_values  # lazy: as above
+    from ..runs.grid import grid_values  # lazy: as above
 
     base = with_convention(base_config(args), args.convention)
     given = {k: DEFAULT_SWEEP[k] if getattr(args, k) is None else getattr(args, k)

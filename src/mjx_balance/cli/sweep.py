@@ -124,13 +124,12 @@ def sweep_command(args: Any) -> int:
     """
     # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
     from .. import api
-    from ..runs import (DEFAULT_SWEEP, check_durations,  # lazy: the runs floor: JAX
-                        load_sweep, parse_grid)
+    from ..runs import DEFAULT_SWEEP, load_sweep, parse_grid  # lazy: the runs floor: JAX
     from ..store.files import MANIFEST  # lazy: as above
     from ..studies.scorecard import read_references, reference_points  # lazy: as above
     from ..runs.chunks import default_chunk_size  # lazy: as above
     from ..runs.folders import check_batched  # lazy: as above
-    from ..runs.grid import check_cell_count  # lazy: as above
+    from ..runs.grid import Grid  # lazy: as above
 
     use_default = args.sweep is None and args.forces is None and args.durations is None
     definition = load_sweep(args.sweep, base_config(args, overrides=False))
@@ -145,20 +144,17 @@ def sweep_command(args: Any) -> int:
     durations = args.durations if args.durations is not None else (
         definition.durations if definition.durations is not None else DEFAULT_SWEEP["durations"])
     chunk = args.chunk if args.chunk is not None else definition.chunk
-    # Check everything before any work.
-    forces = parse_grid(forces, "forces")
-    durations = check_durations(parse_grid(durations, "durations"), config.scenario.t_end,
-                                physics_dt=config.scenario.physics_dt)
+    # Check everything before any work: the grid once, here, carried down.
+    grid = Grid.of(forces, durations, config)
     table_forces = (parse_grid(definition.table_forces, "table_forces")
                     if definition.table_forces is not None else None)
     refs = read_references(args.reference)
     table_forces = with_reference_forces(table_forces, refs, "table")
-    n_cells = check_cell_count(forces.size, durations.size)
-    guard_work(args, config, n_cells, "cells",
-               chunk_size=chunk or default_chunk_size(config, n_cells),
+    guard_work(args, config, grid.n_cells, "cells",
+               chunk_size=chunk or default_chunk_size(config, grid.n_cells),
                extra=(table_scenarios(config, table_forces.size)
                       if table_forces is not None else 0))
-    check_batched(config, (forces, "forces"), (durations, "durations"),  # derived rules
+    check_batched(config, (grid.forces, "forces"), (grid.durations, "durations"),  # derived rules
                   *([(table_forces, "table_forces")] if table_forces is not None else []))
     reference = reference_points(refs)
     if use_default:
@@ -173,7 +169,7 @@ def sweep_command(args: Any) -> int:
         # built (and compiled) only if a scenario must run
         run_batch = api.batch_function(config, slots=args.slots, full_length=args.full_length,
                                        physics=chosen_physics(args, definition))
-        result = api.run_region(out, config, forces, durations, run_batch=run_batch,
+        result = api.run_region(out, config, grid, run_batch=run_batch,
                                 chunk=chunk, progress=progress, cluster=args.cluster)
         _make_region_figures(out, result, config, reference)
         if table_forces is not None:

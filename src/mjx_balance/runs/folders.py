@@ -13,8 +13,7 @@ import logging
 import math
 import numbers
 import os
-from collections.abc import Sequence
-from typing import Any, Union
+from typing import Any
 
 import numpy as np
 
@@ -28,41 +27,10 @@ from ..store.folder import folder_lock
 from .acting_time import TableResult, run_table, table_batch_size
 from .batch import LazyBatch, ReferenceBatch
 from .chunks import memory_budget, scenario_bytes
-from .grid import check_durations, parse_grid
+from .grid import Grid, Values, is_bool, grid_values
 from .region import SweepResult, run_sweep
 
 log = logging.getLogger("mjx_balance")
-
-Values = Union[str, float, Sequence[float], "np.ndarray"]
-
-def grid_values(values: Values, name: str) -> "np.ndarray":
-    """Forces or durations as ``sweep`` reads a grid: sorted, each value once. ``values``: a
-    grid string (``"0:150:10"``, ``"20,50,80"``), a number or a sequence of numbers (NumPy's
-    too); a bool, a string inside a list or anything else is refused (ParameterError, a
-    ValueError naming ``name``)."""
-    if isinstance(values, str):
-        return parse_grid(values, name)
-    expected = ("a number, a sequence of numbers or a grid string such as '0:150:10' or "
-                "'20,50,80'")
-    if _is_bool(values):
-        raise ParameterError(f"{name}: expected {expected}; got a bool ({values!r})")
-    if isinstance(values, numbers.Real):
-        values = [values]
-    try:
-        items = list(values)
-    except TypeError:
-        raise ParameterError(f"{name}: expected {expected}; got {type(values).__name__} "
-                             f"({values!r})") from None
-    for item in items:
-        if _is_bool(item) or not isinstance(item, numbers.Real):
-            raise ParameterError(f"{name}: expected {expected}; got {item!r} "
-                                 f"({type(item).__name__}) in the list")
-    return parse_grid([float(v) for v in items], name)
-
-
-def _is_bool(value: Any) -> bool:
-    return isinstance(value, bool) or type(value).__name__ == "bool_"
-
 
 def size_value(value: Any, name: str) -> int | None:
     """An optional size (``chunk``, ``slots``, ``batch``): None, or a whole number >= 1 (Python
@@ -70,7 +38,7 @@ def size_value(value: Any, name: str) -> int | None:
     ParameterError (a ValueError) naming ``name``."""
     if value is None:
         return None
-    if _is_bool(value) or not isinstance(value, numbers.Real):
+    if is_bool(value) or not isinstance(value, numbers.Real):
         raise ParameterError(f"{name} = {value!r}: must be a whole number >= 1 (or None for "
                              f"the default); got {type(value).__name__}")
     if not (math.isfinite(value) and float(value) == int(value) and value >= 1):
@@ -78,11 +46,6 @@ def size_value(value: Any, name: str) -> int | None:
                              "the default)")
     return int(value)
 
-
-def duration_values(values: Values, config: Config, name: str = "durations") -> "np.ndarray":
-    """Durations on the grid, in [0, t_end] and whole physics steps (snapped to them)."""
-    return check_durations(grid_values(values, name), config.scenario.t_end, name,
-                           physics_dt=config.scenario.physics_dt)
 
 FLOAT32_RANGE = (1.1754944e-38, 3.4028235e38)  # float32's smallest normal, largest finite
 
@@ -207,28 +170,30 @@ def batch_function(config: Config, *, slots: int | None = None, full_length: boo
         raise ParameterError(f"backend must be 'mjx' or 'reference', got {backend!r}")
     return LazyBatch(config, slots=slots, early_stop=not full_length, physics=physics)
 
-def run_region(out: str | os.PathLike[str], config: Config, forces: Values, durations: Values,
+def run_region(out: str | os.PathLike[str], config: Config, grid: Grid,
                *, run_batch: Any = None, chunk: int | None = None, slots: int | None = None,
                full_length: bool = False, progress: bool | None = None,
                wait: bool = False, cluster: Any = None, physics: str = "auto",
                say: Any = log.info) -> "SweepResult":
-    """The region sweep into the folder ``out`` (resumable; ``runs.region.run_sweep``) under its
-    lock (``wait``: wait for another run that holds it). ``run_batch``: a batch function (default:
+    """The region sweep of ``grid`` (:class:`grid.Grid`, made for ``config``: ``Grid.of``)
+    into the folder ``out`` (resumable; ``region.run_sweep``) under its lock (``wait``: wait
+    for another run that holds it). ``run_batch``: a batch function (default:
     :func:`batch_function`); ``cluster``: run the chunks on a Dask cluster (``"local:N"``, a
     scheduler address or file, or a ``distributed.Client``; docs/cluster.md); ``say``: where
     the sweep's lines go (default: the ``mjx_balance`` logger; None: nowhere). Returns the
     SweepResult (the command line draws its figures)."""
-    forces = grid_values(forces, "forces")
-    durations = duration_values(durations, config)
+    if not isinstance(grid, Grid):
+        raise TypeError(f"run_region takes a Grid (runs.grid.Grid.of), got {type(grid).__name__}")
+    grid.fits(config)
     chunk, slots = size_value(chunk, "chunk"), size_value(slots, "slots")
     if run_batch is None or isinstance(run_batch, LazyBatch):  # the batched engine's run
-        check_batched(config, (forces, "forces"), (durations, "durations"))
+        check_batched(config, (grid.forces, "forces"), (grid.durations, "durations"))
     if run_batch is None:
         run_batch = batch_function(config, slots=slots, full_length=full_length,
                                    physics=physics)
     cache.enable()
     with folder_lock(out, wait=wait):
-        return run_sweep(out, config, forces, durations, run_batch=run_batch, chunk_size=chunk,
+        return run_sweep(out, config, grid, run_batch=run_batch, chunk_size=chunk,
                          progress=progress, log=say, cluster=cluster)
 
 

@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import math
+import numbers
+from dataclasses import dataclass, field
 from decimal import Decimal
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Sequence, Union
 
 import numpy as np
 import pandas as pd
 
-from ..model.params import ParameterError
-from ..store.folder import GRID_TOL
+from ..model.params import Config, ParameterError
+from ..store.folder import GRID_TOL, same_values
 
 
 def parse_grid(spec: str | float | Sequence[float], name: str = "grid") -> np.ndarray:
@@ -215,3 +217,108 @@ def _pairs_frame(frame: pd.DataFrame, name: str) -> tuple[np.ndarray, np.ndarray
         raise ParameterError(f"{name}: needs columns force and duration and a row; got "
                              f"columns {', '.join(map(str, frame.columns)) or 'none'}")
     return parse_pairs(list(zip(frame["force"], frame["duration"])), name)
+
+
+# -- a request's grid, checked once ----------------------------------------------------------
+
+Values = Union[str, float, Sequence[float], "np.ndarray"]
+
+
+def is_bool(value: Any) -> bool:
+    return isinstance(value, bool) or type(value).__name__ == "bool_"
+
+
+def grid_values(values: Values, name: str) -> np.ndarray:
+    """Forces or durations as a request gives them (the command line's text, the API's
+    numbers): sorted, each value once. ``values``: a grid string (``"0:150:10"``,
+    ``"20,50,80"``), a number or a sequence of numbers (NumPy's too); a bool, a string inside
+    a list or anything else is refused (ParameterError, a ValueError naming ``name``)."""
+    if isinstance(values, str):
+        return parse_grid(values, name)
+    expected = ("a number, a sequence of numbers or a grid string such as '0:150:10' or "
+                "'20,50,80'")
+    if is_bool(values):
+        raise ParameterError(f"{name}: expected {expected}; got a bool ({values!r})")
+    if isinstance(values, numbers.Real):
+        values = [values]
+    try:
+        items = list(values)  # type: ignore[arg-type]
+    except TypeError:
+        raise ParameterError(f"{name}: expected {expected}; got {type(values).__name__} "
+                             f"({values!r})") from None
+    for item in items:
+        if is_bool(item) or not isinstance(item, numbers.Real):
+            raise ParameterError(f"{name}: expected {expected}; got {item!r} "
+                                 f"({type(item).__name__}) in the list")
+    return parse_grid([float(v) for v in items], name)
+
+
+def duration_values(values: Values, config: Config, name: str = "durations") -> np.ndarray:
+    """Durations as a request gives them, checked for ``config``'s window: sorted, each once,
+    in [0, t_end] and whole physics steps (snapped to them)."""
+    return check_durations(grid_values(values, name), config.scenario.t_end, name,
+                           physics_dt=config.scenario.physics_dt)
+
+
+@dataclass(frozen=True, eq=False)
+class Grid:
+    """A force x duration grid, parsed and checked once where a request enters (the command
+    line or an API function: :meth:`of`) and carried down: every floor below takes a Grid and
+    checks nothing again.
+
+    ``forces`` sorted, each once; ``durations`` sorted, each once, whole physics steps in
+    [0, t_end] of the configuration it was checked against (``t_end``, ``physics_dt``: the
+    scenario's window); ``cells``: every (force, duration), force-major, built once."""
+
+    forces: np.ndarray
+    durations: np.ndarray
+    t_end: float
+    physics_dt: float
+    _cells: list = field(default_factory=list, repr=False)
+
+    @classmethod
+    def of(cls, forces: Values, durations: Values, config: Config) -> "Grid":
+        """The grid of ``forces`` and ``durations`` (grid strings or numbers) for ``config``'s
+        scenario; ParameterError naming the value and the rule, before any work."""
+        if isinstance(forces, Grid):
+            raise TypeError("Grid.of: forces is already a Grid")
+        f = grid_values(forces, "forces")
+        sc = config.scenario
+        d = duration_values(durations, config)
+        check_cell_count(f.size, d.size)
+        for values in (f, d):
+            values.setflags(write=False)
+        return cls(f, d, float(sc.t_end), float(sc.physics_dt))
+
+    def fits(self, config: Config) -> None:
+        """Refuse (ValueError) a configuration whose window is not the one this grid was
+        checked against (a programming error: the grid is made for its configuration)."""
+        sc = config.scenario
+        if (float(sc.t_end), float(sc.physics_dt)) != (self.t_end, self.physics_dt):
+            raise ValueError(f"a grid checked for t_end {self.t_end:g} s, physics_dt "
+                             f"{self.physics_dt:g} s, run with t_end {sc.t_end:g} s, "
+                             f"physics_dt {sc.physics_dt:g} s: make it with Grid.of(..., config)")
+
+    @property
+    def cells(self) -> tuple[np.ndarray, np.ndarray]:
+        """(forces, durations) of every cell, force-major (:func:`grid_cells`), built once."""
+        if not self._cells:
+            self._cells.extend(grid_cells(self.forces, self.durations))
+        return self._cells[0], self._cells[1]
+
+    @property
+    def n_cells(self) -> int:
+        return int(self.forces.size * self.durations.size)
+
+    def record(self) -> dict:
+        """What a manifest records of the grid (and :meth:`matches` compares)."""
+        return {"forces": self.forces.tolist(), "durations": self.durations.tolist()}
+
+    def matches(self, recorded: dict) -> bool:
+        """Whether a manifest's record holds this grid (up to the store's float tolerance)."""
+        return (same_values(recorded["forces"], self.forces)
+                and same_values(recorded["durations"], self.durations))
+
+    def describe(self) -> str:
+        return (f"{self.forces.size} forces x {self.durations.size} durations = "
+                f"{self.n_cells} cells")

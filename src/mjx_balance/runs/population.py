@@ -34,7 +34,7 @@ from ..rollout.runner import push_steps, summarize
 from ..store.files import REGION
 from .batch import LazyBatch
 from .folders import run_region
-from .grid import grid_cells
+from .grid import Grid, grid_cells
 
 # Cells in one queue at most (its bodies' grids together): an interrupted population loses at
 # most one queue's work, and the host keeps one queue's summaries. At least QUEUE_CELLS, and
@@ -77,7 +77,8 @@ class Population:
         out = {}
         for j, body in enumerate(which):
             part = {name: v[j * n:(j + 1) * n] for name, v in raw.items()}
-            acc = Accumulators(*(part[name] for name in Accumulators._fields))
+            acc = Accumulators(
+                *(part[name] for name in Accumulators._fields))  # type: ignore[arg-type]  # numpy
             out[body] = {"force": self.cell_f, "duration": self.cell_d,
                          **summarize(acc, self.configs[body], self.cell_f),
                          "periods": part["periods"], "certified": part["certified"]}
@@ -141,7 +142,7 @@ def run_maps(maps: Sequence[tuple[Path, Config]], forces: np.ndarray, durations:
             columns = people.run(part, update=update)
             for i in part:
                 folder, config, _ = members[i]
-                run_region(folder, config, forces, durations, slots=slots,
+                run_region(folder, config, Grid.of(forces, durations, config), slots=slots,
                            full_length=full_length, progress=False,
                            run_batch=people.batch(i, columns.pop(i)))
 
@@ -175,6 +176,7 @@ class ServedBatch(LazyBatch):
     queue = "one"  # what a sweep folder records: its cells ran with per-lane bodies
 
     def engine_record(self) -> dict[str, Any]:
+        assert self.slots is not None  # (given to __init__, an int)
         return {"slots": int(self.slots), "early_stop": bool(self.early_stop), "physics": "mjx",
                 "queue": self.queue}
 

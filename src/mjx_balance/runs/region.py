@@ -29,7 +29,7 @@ from ..model.params import Config, ParameterError
 from .batch import LazyBatch, RunBatch, chunk_frames, evaluate, resume_engine, streams
 from .chunks import chunk_slices, default_chunk_size
 from .cluster import ClusterBatch
-from .grid import check_durations, describe, grid_cells, parse_grid
+from .grid import Grid, describe
 from .progress import progress_bar
 from ..store.files import MANIFEST, REGION, write_atomic
 from ..store.folder import (OutputFolder, chunk_path, folder_lock, merge_chunks, read_chunk,
@@ -51,9 +51,9 @@ class SweepResult:
         return pd.read_parquet(self.region_path)
 
 
-def check_region(region: pd.DataFrame, forces: np.ndarray, durations: np.ndarray) -> None:
+def check_region(region: pd.DataFrame, grid: Grid) -> None:
     """Every grid cell exactly once, in grid order."""
-    cell_f, cell_d = grid_cells(forces, durations)
+    cell_f, cell_d = grid.cells
     if len(region) != cell_f.size:
         raise RuntimeError(f"region has {len(region)} rows for {cell_f.size} cells")
     if region.duplicated(["force", "duration"]).any():
@@ -62,11 +62,12 @@ def check_region(region: pd.DataFrame, forces: np.ndarray, durations: np.ndarray
         raise RuntimeError("region cells differ from the grid")
 
 
-def run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np.ndarray, *,
+def run_sweep(out: str | Path, config: Config, grid: Grid, *,
               run_batch: RunBatch | None = None, chunk_size: int | None = None,
               progress: bool = True, log: Callable[[str], None] | None = print,
               cluster: Any = None) -> SweepResult:
-    """Evaluate every (force, duration) cell, resumably, into ``out/region.parquet``.
+    """Evaluate every cell of ``grid`` (:class:`grid.Grid`, checked for ``config``),
+    resumably, into ``out/region.parquet``.
 
     run_batch: batch function (default: the MJX rollout of ``config``), called with at most
     ``chunk_size`` scenarios at a time (every call padded to exactly chunk_size).
@@ -75,29 +76,26 @@ def run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np
     cluster: run the chunks on a Dask cluster (``cluster.ClusterBatch``): ``"local:N"`` (N
     local worker processes), a scheduler address, or a ``distributed.Client``; None: here.
     """
-    forces = parse_grid(forces, "forces")
-    durations = check_durations(parse_grid(durations, "durations"), config.scenario.t_end,
-                                physics_dt=config.scenario.physics_dt)
+    grid.fits(config)
     with folder_lock(out):  # a failure below marks this run failed in the manifest
         if cluster is None:
-            result = _run_sweep(out, config, forces, durations, run_batch, chunk_size,
+            result = _run_sweep(out, config, grid, run_batch, chunk_size,
                                 progress, log)
         else:
             with ClusterBatch(cluster, run_batch or LazyBatch(config), config,
                               log) as on_cluster:
-                result = _run_sweep(out, config, forces, durations, on_cluster, chunk_size,
+                result = _run_sweep(out, config, grid, on_cluster, chunk_size,
                                     progress, log)
         check_results(pd.read_parquet(result.region_path, columns=["outcome"])["outcome"],
                       "cells")
         return result
 
 
-def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: np.ndarray,
-               run_batch: RunBatch | None, chunk_size: int | None, progress: bool,
+def _run_sweep(out: str | Path, config: Config, grid: Grid, run_batch: RunBatch | None, chunk_size: int | None, progress: bool,
                log: Callable[[str], None] | None) -> SweepResult:
     say = log or (lambda _msg: None)
     start = time.perf_counter()
-    cell_f, cell_d = grid_cells(forces, durations)
+    cell_f, cell_d = grid.cells
     n_cells = cell_f.size
     folder = OutputFolder(out, config)
     manifest = folder.open()
@@ -105,15 +103,13 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
     convention = config.controller.convention
     run_batch = run_batch or LazyBatch(config)
 
-    chunk_size = _region_record(folder, manifest, config, forces, durations, chunk_size,
-                                run_batch, say)
+    chunk_size = _region_record(folder, manifest, config, grid, chunk_size, run_batch, say)
     slices = chunk_slices(n_cells, chunk_size)
 
     # A finished sweep: region.parquet that holds exactly the grid.
     if region_path.exists():
         try:
-            check_region(pd.read_parquet(region_path, columns=["force", "duration"]),
-                          forces, durations)
+            check_region(pd.read_parquet(region_path, columns=["force", "duration"]), grid)
             say(f"sweep already complete: {region_path} ({n_cells} cells); nothing to do")
             return SweepResult(region_path, 0, len(slices), 0, time.perf_counter() - start, True)
         except Exception as exc:  # noqa: BLE001 - rebuild it from the chunks
@@ -125,8 +121,7 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
     remaining = sum(slices[i].stop - slices[i].start for i in todo)
     if reused:
         say(f"resuming: {reused} of {len(slices)} chunks already done, {remaining} cells to go")
-    say(f"sweep: {forces.size} forces x {durations.size} durations = {n_cells} cells in "
-        f"{len(slices)} chunks of {chunk_size}; convention {convention}; output {folder.path}")
+    say(f"sweep: {grid.describe()} in {len(slices)} chunks of {chunk_size}; convention {convention}; output {folder.path}")
 
     if todo:
         folder.check_numerics(manifest)  # new rows: computed as the folder's were
@@ -146,19 +141,18 @@ def _run_sweep(out: str | Path, config: Config, forces: np.ndarray, durations: n
     return SweepResult(region_path, len(todo), reused, recomputed, seconds, False)
 
 
-def _region_record(folder: OutputFolder, manifest: dict, config: Config, forces: np.ndarray,
-                   durations: np.ndarray, chunk_size: int | None, run_batch: RunBatch,
+def _region_record(folder: OutputFolder, manifest: dict, config: Config, grid: Grid,
+                   chunk_size: int | None, run_batch: RunBatch,
                    say: Callable[[str], None]) -> int:
     """The chunk size of the sweep in ``folder``: the recorded one (and the recorded engine
     settings) when resuming, else a new record written to the manifest (after adopting results
     that lost their manifest, if they match the grid)."""
     region_path = folder.path / REGION
     convention = config.controller.convention
-    n_cells = forces.size * durations.size
+    n_cells = grid.n_cells
     recorded = manifest.get("region")
     if recorded is not None:
-        if not (same_values(recorded["forces"], forces)
-                and same_values(recorded["durations"], durations)):
+        if not grid.matches(recorded):
             raise ParameterError(
                 f"{folder.path} holds a sweep over another grid (forces {describe(recorded['forces'])}, "
                 f"durations {describe(recorded['durations'])}); use another --out folder or the "
@@ -176,15 +170,14 @@ def _region_record(folder: OutputFolder, manifest: dict, config: Config, forces:
         if found or (folder.rebuilt and region_path.exists()):
             # Region results without a record of their grid (a lost manifest): adopt them only
             # if they check out against this grid.
-            chunk_size, adopted = _adopt_results(folder.path, found, forces, durations, convention,
-                                                 chunk_size)
+            chunk_size, adopted = _adopt_results(folder.path, found, grid, convention, chunk_size)
             say(f"note: {folder.path} had lost its {MANIFEST}; rebuilt it: config.toml matches "
                 f"this run and {adopted} match the grid")
         elif folder.rebuilt:
             say(f"note: {folder.path} had lost its {MANIFEST}; rebuilt it: config.toml matches "
                 "this run")
-        manifest["region"] = {"forces": forces.tolist(), "durations": durations.tolist(),
-                              "chunk_size": int(chunk_size), "cells": int(n_cells)}
+        manifest["region"] = {**grid.record(), "chunk_size": int(chunk_size),
+                              "cells": int(n_cells)}
         record = run_batch.engine_record() if hasattr(run_batch, "engine_record") else None
         if record is not None:
             manifest["region"]["engine"] = record
@@ -238,8 +231,8 @@ def _stream_chunks(run_batch: Any, path: Path, slices: list[slice], indices: lis
         write_chunk(rows, path, indices[k])
 
 
-def _adopt_results(path: Path, found: list[Path], forces: np.ndarray, durations: np.ndarray,
-                   convention: str, chunk_size: int) -> tuple[int, str]:
+def _adopt_results(path: Path, found: list[Path], grid: Grid, convention: str,
+                   chunk_size: int) -> tuple[int, str]:
     """The chunk size of results found without a manifest, and what matched (for the message).
 
     Every chunk but the last holds chunk_size cells, so the largest chunk file gives it; the
@@ -249,7 +242,7 @@ def _adopt_results(path: Path, found: list[Path], forces: np.ndarray, durations:
     """
     import pyarrow.parquet as pq
 
-    cell_f, cell_d = grid_cells(forces, durations)
+    cell_f, cell_d = grid.cells
     rows = []
     for file in found:
         try:
@@ -265,8 +258,7 @@ def _adopt_results(path: Path, found: list[Path], forces: np.ndarray, durations:
             return size, f"{good} of {len(found)} chunk files"
     elif (path / REGION).exists():
         try:
-            check_region(pd.read_parquet(path / REGION, columns=["force", "duration"]),
-                         forces, durations)
+            check_region(pd.read_parquet(path / REGION, columns=["force", "duration"]), grid)
             return chunk_size, REGION
         except Exception:  # noqa: BLE001 - refused below
             pass

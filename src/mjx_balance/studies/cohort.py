@@ -71,12 +71,11 @@ from ..rollout.cpath import PATHS
 from ..runs.folders import (
     check_batched,
     check_float32_grid,
-    duration_values,
-    grid_values,
     run_region,
     run_table_folder,
     size_value,
 )
+from ..runs.grid import Grid, duration_values, grid_values
 from ..runs.population import check_queue, run_maps
 from ..runs.progress import progress_bar
 from ..store.files import MANIFEST, REGION, TABLE, write_csv, write_text
@@ -481,7 +480,7 @@ def run_plan(plan: CohortPlan, *, run_batches: Callable[[Config], Any] | None = 
                     bar.update(cells)
             say(f"cohort: the base configuration's body (the reference boundary) -> "
                 f"{out / BASE}")
-            run_region(out / BASE, plan.base, forces, durations, progress=False,
+            run_region(out / BASE, plan.base, Grid.of(forces, durations, plan.base), progress=False,
                        run_batch=run_batches(plan.base) if run_batches is not None else None,
                        **run_options(plan.engine))
             if not base_done:
@@ -523,7 +522,8 @@ def _run_subject(member: Member, folder: Path, config: Config, forces: np.ndarra
                  engine: dict[str, Any]) -> None:
     say(f"cohort: subject {member.id} ({member.subject.describe()}) -> {folder}")
     batch = run_batches(config) if run_batches is not None else None
-    run_region(folder, config, forces, durations, run_batch=batch, progress=False, **engine)
+    run_region(folder, config, Grid.of(forces, durations, config), run_batch=batch,
+               progress=False, **engine)
     if tables is not None:
         run_table_folder(folder, config, tables, run_batch=batch, progress=False, **engine)
 

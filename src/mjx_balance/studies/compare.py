@@ -37,7 +37,7 @@ from ..runs import cluster as cluster_mod
 from ..runs.definitions import load_sweep
 from ..runs.folders import check_batched, run_region, run_table_folder
 from ..runs.population import check_queue, run_maps
-from ..runs.grid import check_durations, describe, parse_grid
+from ..runs.grid import Grid, check_durations, describe, parse_grid
 from ..store.files import REGION, TABLE, write_csv
 from ..store.folder import OutputFolder, config_dict, config_differences, same_values
 from . import catalog
@@ -252,7 +252,7 @@ def run_compare(out: str | Path, configs: dict[str, Config], forces: Any, durati
         say(f"compare: {name} ({config.controller.convention} convention) -> {folder}")
         batch = (run_batches or {}).get(name)
         if queue != "one":
-            run_region(folder, config, forces, durations, run_batch=batch, progress=progress,
+            run_region(folder, config, Grid.of(forces, durations, config), run_batch=batch, progress=progress,
                        **engine)
         run_table_folder(folder, config, table_forces, run_batch=batch, progress=progress,
                              **engine)

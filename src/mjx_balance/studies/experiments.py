@@ -33,6 +33,7 @@ from ..model.config_files import dumps_config, with_convention
 from ..runs import (DEFAULT_SWEEP, STUDY_TABLE_FORCES, SweepDefinition, default_chunk_size,
                     parse_grid)
 from ..runs.folders import batch_function, run_region, run_table_folder
+from ..runs.grid import Grid
 from ..store.files import write_csv, write_parquet, write_text
 from ..reference.loop import simulate_scenario
 from ..reference.loop import simulate_many
@@ -149,7 +150,8 @@ class Batches:
         done = self._regions.get(key)
         if done is not None and not (folder / "region.parquet").exists():
             shutil.copytree(done, folder, dirs_exist_ok=True)
-        run_region(folder, config, forces, durations, run_batch=self(config), chunk=chunk,
+        run_region(folder, config, Grid.of(forces, durations, config), run_batch=self(config),
+                   chunk=chunk,
                    progress=not quiet, say=None if quiet else print, cluster=self.cluster)
         self._regions.setdefault(key, folder)
 

@@ -42,7 +42,7 @@ import pandas as pd
 
 from . import catalog, compare as comparison
 from ..model.params import Config, ParameterError
-from ..runs.grid import check_durations, parse_grid
+from ..runs.grid import Grid, check_durations, parse_grid
 from ..store.files import REGION, TABLE, write_atomic, write_csv
 from ..runs.folders import (batch_function, check_batched, check_float32_grid, run_region,
                             run_table_folder)
@@ -249,7 +249,7 @@ def run_landscape(out: str | Path, base: Config, forces: Any, durations: Any, *,
             + (" (kept: checking)" if done else ""))
         run_batch = make_batch(config, **options)
         if queue != "one":
-            run_region(folder, config, forces, durations, run_batch=run_batch,
+            run_region(folder, config, Grid.of(forces, durations, config), run_batch=run_batch,
                        progress=progress)
         run_table_folder(folder, config, table_forces, run_batch=run_batch,
                              progress=progress)
