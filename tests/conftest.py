@@ -25,7 +25,7 @@ jax.config.update("jax_enable_x64", True)
 TEST_CACHE = Path(__file__).resolve().parents[1] / ".cache" / "jax-tests"
 os.environ.setdefault("MJX_BALANCE_CACHE_DIR", str(TEST_CACHE))
 
-from mjx_balance.runtime import cache as _cache  # noqa: E402 - after the folder is chosen
+from mjx_balance.runtime import cache as _cache  # noqa: E402 - after the cache folder is set
 
 _cache.enable()
 
@@ -216,7 +216,7 @@ def pytest_sessionfinish(session, exitstatus):
     distinct = {b["id"] for b in _BUILT}
     if budget is not None and len(distinct) > budget and session.exitstatus == 0:
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
-        session.config._compile_budget_exceeded = budget  # noqa: SLF001 - read in the summary
+        session.config._compile_budget_exceeded = budget
 
 
 def pytest_terminal_summary(terminalreporter, config):

@@ -59,7 +59,6 @@ ACCEPTED = {
     ("*", "--forces"): {"0", "-1"},
     ("*", "--force"): {"0", "-1"},
     ("*", "--table-forces"): {"0", "-1"},
-    ("basin", "--push-forces"): {"0", "-1"},
     ("basin", "--v-com"): {"0", "-1"},  # at rest, and moving backward
     ("basin", "--x-com"): {"0"},  # the CoM over the ankle
     # the scalar reference runs in float64: 1e308 N diverges at once, which is its outcome

@@ -62,7 +62,8 @@ class Namespace:
             for a in args:
                 if a.dtype != bool:
                     assert a.dtype == self.dtype  # no silent promotion of the samples
-            fn = lambda *a: rule(self.xp, *a, **static)  # noqa: E731
+            def fn(*a):
+                return rule(self.xp, *a, **static)
             if self.jit:
                 fn = jax.jit(fn)
             return np.asarray(fn(*args))

@@ -166,7 +166,7 @@ def run_ipopt_pool(config: Config, forces, durations, workers: int) -> dict[str,
 def casadi_available() -> bool:
     """Whether the study's toolchain can run here (casadi importable)."""
     try:
-        import casadi  # noqa: F401
+        import casadi  # noqa: F401 - imported only to learn whether it is installed
     except ImportError:
         return False
     return True

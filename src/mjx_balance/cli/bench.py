@@ -502,7 +502,7 @@ def engine_command(args: argparse.Namespace) -> int:
                              repeats=args.repeats, sampled=args.sampled,
                              admm_tile=args.admm_tile,
                              log=lambda text: print(text, flush=True))
-    for path, fig in figures["paths"].items():
+    for fig in figures["paths"].values():
         print()
         for line in engine_table(fig):
             print(line)

@@ -78,7 +78,7 @@ def _weight_bars(axes, weights: pd.DataFrame, parts: list, ylabel: str) -> None:
         rows = weights[weights["weight"] == which].reset_index(drop=True)
         x = np.arange(len(rows))
         ok = (rows["outcome"] == OUTCOMES[RECOVERED]).to_numpy()
-        for j, (column, name, colour) in enumerate(parts):
+        for j, (column, _name, colour) in enumerate(parts):
             values = rows[column].to_numpy(float)
             values = np.where(values > 0, values, np.nan)
             ax.bar(x[ok] + (j - 1) * 0.27, values[ok], 0.27, color=colour)

@@ -72,7 +72,7 @@ class FigureStyle:
 
 
 _CURRENT: contextvars.ContextVar[FigureStyle] = contextvars.ContextVar(
-    "mjx_balance_figure_style", default=FigureStyle())  # noqa: B039 - frozen
+    "mjx_balance_figure_style", default=FigureStyle())  # noqa: B039 - a frozen dataclass
 
 
 def current() -> FigureStyle:

@@ -331,8 +331,8 @@ def folded(arrays, sensors: Sensors, static, cs: CState, rows, last_qpos
            ) -> tuple[Carry, jax.Array]:
     """Step 1 of a call: the samples of the period each slot ran (``cs.ran``) folded into its
     carry (:func:`fold_period`); the carry and the periods done."""
-    fold = (lambda c, r, q, k, t, u: fold_period(arrays, sensors, static, c, r, q, k, torques=t,
-                                                 u=u))
+    def fold(c, r, q, k, t, u):
+        return fold_period(arrays, sensors, static, c, r, q, k, torques=t, u=u)
     slots = cs.slots
     carry = jax.vmap(fold)(slots.carry, rows, last_qpos, slots.k, cs.torques, cs.u)
     return select(cs.ran, carry, slots.carry), jnp.where(cs.ran, slots.k + 1, slots.k)
@@ -347,7 +347,8 @@ def judged(arrays, static, check, cs: CState, carry: Carry, k, p):
 
 
 def turnover(arrays, sensors: Sensors, static, gated: bool, cs: CState, carry: Carry, k, p, *,
-             verdict, offer) -> tuple[Slots, jax.Array, jax.Array, Finished]:
+             verdict, offer: tuple[jax.Array, jax.Array, jax.Array]
+             ) -> tuple[Slots, jax.Array, jax.Array, Finished]:
     """Step 2 of call ``p``: the decided scenarios (``verdict``: :func:`judged`) harvested and
     their slots vacated, then the refill (``gated``: with the certificate, only every
     ``CHECK_EVERY`` periods, as on the MJX path). Returns the slots, which were refilled (their

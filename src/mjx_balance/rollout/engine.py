@@ -63,7 +63,7 @@ def default_slots(platform: str) -> int:
 class Slots(NamedTuple):
     """The scenarios in flight, one per slot (leading axis: slots of every device)."""
 
-    carry: Carry
+    carry: Any  # a Carry; between calls packed (Packing.pack: a tuple of its leaves)
     cell: jax.Array  # int32 cell index, -1: vacant
     force: jax.Array
     n_push: jax.Array  # int32
@@ -620,7 +620,7 @@ class Engine:
                  early: bool = True, refill: int | None = None, tile: int | None = None,
                  bodies: Sequence[Any] | None = None):
         self.runner = runner
-        devices = [None] if runner.mesh is None else list(runner.mesh.devices.flat)
+        devices: list[Any] = [None] if runner.mesh is None else list(runner.mesh.devices.flat)
         self.n_devices = len(devices)
         platform = (jax.local_devices()[0] if runner.mesh is None else devices[0]).platform
         if platform == "cpu" and not deterministic_flags():
@@ -641,11 +641,13 @@ class Engine:
             raise ValueError(f"ADMM tile {tile} must divide the slots per device, {self.slots}")
         self.lanes = bodies is not None
         if self.lanes:  # body tiles (default: LANE_TILE slots, or fewer dividing the slots)
-            self.tile = int(tile) if tile is not None else math.gcd(self.slots, LANE_TILE)
+            self.tile: int | None = (int(tile) if tile is not None
+                                     else math.gcd(self.slots, LANE_TILE))
         else:
             self.tile = int(tile) if tile is not None and tile < self.slots else None
         self.early = bool(early)
         if self.lanes:
+            assert bodies is not None  # (self.lanes says so)
             self.n_bodies = len(bodies)
             self.arrays, self.cert = lane_bodies(runner, bodies, self.early)
         else:
@@ -694,7 +696,8 @@ class Engine:
                                     out_specs=P("batch"), check_vma=False)
             slots = jax.eval_shape(self._vacant, self.arrays)
             batch_sharding, _ = r._shardings()
-            spec = (lambda a: jax.ShapeDtypeStruct(a.shape, a.dtype, sharding=batch_sharding))
+            def spec(a):
+                return jax.ShapeDtypeStruct(a.shape, a.dtype, sharding=batch_sharding)
             n = self.refill * self.n_devices
             return jax.jit(run, donate_argnums=(2,)).lower(
                 self.arrays, self.cert, jax.tree.map(spec, slots),
@@ -721,7 +724,7 @@ class Engine:
                      force=jnp.zeros(n, r.dtype), n_push=jnp.zeros(n, jnp.int32),
                      k=jnp.zeros(n, jnp.int32), body=jnp.zeros(n, jnp.int32))
 
-    def _initial_state(self) -> Slots:
+    def _initial_state(self) -> tuple:  # Slots (cpath.CEngine: its CState)
         batch_sharding, _ = self.runner._shardings()
         return jax.jit(self._vacant, out_shardings=batch_sharding)(self.arrays)
 
@@ -742,8 +745,12 @@ class Engine:
         bodies = self._bodies_of(bodies, n)
         fn = self.block_fn()
         state = self._take_state()
+        wave = 1
+        if self.lanes:
+            assert self.tile is not None  # (set with self.lanes: __init__)
+            wave = self.slots * self.n_devices // self.tile
         queue = Queue(forces, n_push, self.n_devices, self.refill, inits, self.block, bodies,
-                      wave=self.slots * self.n_devices // self.tile if self.lanes else 1)
+                      wave=wave)
         remaining, finished, p = n, False, 0
         try:
             while remaining:

@@ -190,7 +190,7 @@ def check_landscape(out: str | Path, base: Config, forces: Any, durations: Any,
     check_float32_grid(forces, "forces")
     check_float32_grid(table_forces, "table forces")
     settings = plan(base, delays, q_scales, r_scales)
-    for delay, q, r, name, config in settings:
+    for _delay, _q, _r, name, config in settings:
         try:
             durations = check_durations(durations, config.scenario.t_end,
                                         physics_dt=config.scenario.physics_dt)

@@ -173,7 +173,7 @@ def open_folder(path: str | os.PathLike[str]) -> Folder:
         if table.is_file():
             try:
                 names = [str(n) for n in pd.read_csv(table)["name"]]
-            except Exception:  # noqa: BLE001 - a damaged compare.csv: the folders' order
+            except Exception:
                 names = []
         kind, maps = "compare", _sub_maps(root, root, "", names)
     if not maps and kind != "cohort":
@@ -218,13 +218,13 @@ def _cells(found: MapFolder) -> pd.DataFrame:
     if region.is_file():
         try:
             return pd.read_parquet(region)
-        except Exception:  # noqa: BLE001 - replaced while read: the chunks below
+        except Exception:
             pass
     parts = []
     for path in sorted((found.path / CHUNKS).glob("chunk-*.parquet")):
         try:
             parts.append(pd.read_parquet(path))
-        except Exception:  # noqa: BLE001 - a file that cannot be read is not shown
+        except Exception:
             continue
     if not parts:
         return pd.DataFrame(columns=["force", "duration", "outcome"])
@@ -324,7 +324,7 @@ def table_points(found: MapFolder) -> list[dict[str, float]]:
     try:
         table = pd.read_csv(path)
         rows = table[["force", "max_acting_time"]].dropna().sort_values("force")
-    except Exception:  # noqa: BLE001 - a damaged table is not drawn
+    except Exception:
         return []
     return [{"force": float(f), "max_acting_time": float(t)}
             for f, t in rows.to_numpy(float) if math.isfinite(f) and math.isfinite(t)]
@@ -394,7 +394,7 @@ def probability(maps: list[dict[str, Any]]) -> dict[str, Any] | None:
         return None
     outcomes = np.array([m["cells"].get("outcome", [None] * m["total"]) for m in maps],
                         dtype=object)
-    counted = (outcomes != None).sum(axis=0)  # noqa: E711 - elementwise
+    counted = (outcomes != None).sum(axis=0)  # noqa: E711 - elementwise on an object array
     recovered = (outcomes == RECOVERED_TEXT).sum(axis=0)
     share = [plain(r / n) if n else None for r, n in zip(recovered, counted)]
     return {"share": share, "counted": [int(n) for n in counted], "subjects": len(maps),
