@@ -45,7 +45,7 @@ def test_help_shows_defaults_and_exit_codes():
     parser = build_parser()
     text = parser.format_help()
     assert "exit codes: 0 success; 1 failure" in text and "2 bad usage" in text
-    commands = parser._subparsers._group_actions[0].choices  # noqa: SLF001
+    commands = parser._subparsers._group_actions[0].choices
     assert {"simulate", "sweep", "table", "bench", "animate", "report", "model",
             "view"} <= set(commands)
     def words(name: str) -> str:  # the help text without its line breaks

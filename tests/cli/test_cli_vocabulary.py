@@ -61,7 +61,7 @@ def argv(name, files, *extra):
 
 
 def test_every_command_is_listed():
-    commands = build_parser()._subparsers._group_actions[0].choices  # noqa: SLF001
+    commands = build_parser()._subparsers._group_actions[0].choices
     assert set(commands) == set(MODEL_COMMANDS) | FOLDER_COMMANDS
 
 
@@ -96,7 +96,7 @@ def test_old_names_and_prefixes_are_refused(name, old, new, dest, value, files, 
 
 
 def test_help_uses_the_plural_names_only():
-    commands = build_parser()._subparsers._group_actions[0].choices  # noqa: SLF001
+    commands = build_parser()._subparsers._group_actions[0].choices
     for name in ("simulate", "sweep", "compare", "landscape"):
         text = commands[name].format_help()
         assert "--forces" in text and "--durations" in text
@@ -116,7 +116,7 @@ def test_simulate_pairs_conflict_names_the_new_flags(tmp_path, capsys):
 
 
 def test_sweep_help_shows_the_default_grid():
-    commands = build_parser()._subparsers._group_actions[0].choices  # noqa: SLF001
+    commands = build_parser()._subparsers._group_actions[0].choices
     text = " ".join(commands["sweep"].format_help().split())
     for key in ("forces", "durations", "table_forces"):
         assert DEFAULT_SWEEP[key] in text, key
@@ -130,7 +130,7 @@ def test_sweep_help_shows_the_default_grid():
 
 
 def test_report_conventions_and_convention(files, capsys):
-    commands = build_parser()._subparsers._group_actions[0].choices  # noqa: SLF001
+    commands = build_parser()._subparsers._group_actions[0].choices
     text = " ".join(commands["report"].format_help().split())
     assert "--conventions (a list): the study's experiments" in text
     assert "--convention (one, as in every other command): the studies" in text

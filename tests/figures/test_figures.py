@@ -9,23 +9,23 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-import pytest  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+import pytest
 from margins import within
-from matplotlib.collections import QuadMesh  # noqa: E402
-from matplotlib.patches import Rectangle  # noqa: E402
+from matplotlib.collections import QuadMesh
+from matplotlib.patches import Rectangle
 from support import (
-    FakeThresholdBatch,  # noqa: E402
+    FakeThresholdBatch,
     synthetic_series,
 )
 
-from mjx_balance import runs as sweep  # noqa: E402
+from mjx_balance import runs as sweep
 from mjx_balance.figures import region as region_plots
 from mjx_balance.figures import timeseries as plots
-from mjx_balance.measures.outcomes import OUTCOMES  # noqa: E402
-from mjx_balance.model.params import Config  # noqa: E402
+from mjx_balance.measures.outcomes import OUTCOMES
+from mjx_balance.model.params import Config
 
 
 @pytest.fixture(autouse=True)

@@ -286,7 +286,7 @@ def test_the_docs_pandas_lines_run(written):
     section = text.split("## Units and exports")[1].split("\n## ")[0]
     code = section.split("```python\n")[1].split("```")[0]
     scope: dict = {}
-    exec(code.replace('"out/', f'"{written / "sweep"}/'), scope)  # noqa: S102 - our own docs
+    exec(code.replace('"out/', f'"{written / "sweep"}/'), scope)
     assert scope["units"]["force"] == "N" and len(scope["region"]) == 15
 
 

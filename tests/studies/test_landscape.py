@@ -208,7 +208,7 @@ def test_landscape_numbers_equal_a_direct_compare_with_the_real_rollout(
 
     def make(config, **_engine):
         runner = rollout.BatchRunner(config, trajectories=True, devices=jax.local_devices()[:1])
-        assert runner._shape_key(8) == batch_runner._shape_key(8)  # no compile  # noqa: SLF001
+        assert runner._shape_key(8) == batch_runner._shape_key(8)  # no compile
         return runner.run_frame
 
     base = batch_runner.config

@@ -115,7 +115,7 @@ class ConsoleHandler(logging.Handler):
             stream.flush()
         except (OSError, ValueError, AttributeError):
             pass  # a closed or full stream: the run goes on, its results are in files
-        except Exception:  # noqa: BLE001 - logging's own convention
+        except Exception:
             self.handleError(record)
 
 

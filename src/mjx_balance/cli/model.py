@@ -106,7 +106,7 @@ def view_command(args) -> int:
         import mujoco.viewer
 
         viewer = mujoco.viewer.launch_passive(model, data)
-    except Exception as exc:  # noqa: BLE001 - no OpenGL, no window system, mjpython needed
+    except Exception as exc:
         first = (str(exc).splitlines() or [type(exc).__name__])[0]
         print(f"mjx-balance: error: the viewer cannot start here: {first}", file=sys.stderr)
         return NO_DISPLAY

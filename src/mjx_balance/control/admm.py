@@ -100,7 +100,7 @@ class ADMMSettings(NamedTuple):
     # The exact (l1) penalty of the softenable rows (controller.infeasible = "exact_penalty"):
     # the weight of each row group (RHO_GROUPS) on the rows' violation, inf for a hard group;
     # None: every row hard and an infeasible QP runs to the cap ("capped", the default).
-    penalty: tuple[float, float, float, float] | None = None
+    penalty: tuple[float, ...] | None = None  # one weight per RHO_GROUPS entry
 
     @property
     def n_chunks(self) -> int:
@@ -123,7 +123,7 @@ def settings_from_controller(controller: ControllerParams) -> ADMMSettings:
     )
 
 
-def penalty_of(controller: ControllerParams) -> tuple[float, float, float, float] | None:
+def penalty_of(controller: ControllerParams) -> tuple[float, ...] | None:
     """The row groups' l1 weights of ``controller.infeasible = "exact_penalty"`` (inputs hard),
     None for "capped"."""
     if controller.infeasible != "exact_penalty":

@@ -152,6 +152,7 @@ def build(qp: CondensedQP, controller, scenario, *, rest: tuple[float, float],
 
     # The quantities at sample j of a period that starts in x (u = -K x held): x_j = M_j x.
     to_q = np.linalg.solve(JOINT_TO_ABS, lm.P)  # joint angles q = to_q @ y
+    per_sample: list[np.ndarray] | np.ndarray  # the samples' matrices, then stacked
     per_sample = []
     for j in range(1, scenario.substeps + 1):
         Aj, Bj = zoh(lm.Ac, lm.Bc, j * scenario.physics_dt)

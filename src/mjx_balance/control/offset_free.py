@@ -53,12 +53,17 @@ jax.numpy for the batched kernel), so both paths run the same code.
 from __future__ import annotations
 
 import itertools
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, Union
 
 import numpy as np
 
 from ..model.params import ControllerParams
 from .qp import CondensedQP
+
+if TYPE_CHECKING:  # (annotations only)
+    import jax
+
+    Arrays = Union[np.ndarray, jax.Array]  # numpy (build) or JAX (cast for the kernel)
 
 # A candidate meets a constraint within this distance [rad of y]: the rows are normalised, so
 # this is a distance in the position plane; 1e-5 rad is ~50 float32 roundings of an angle of
@@ -71,17 +76,17 @@ class OffsetFree(NamedTuple):
     """The observer's and the target's fixed matrices (numpy float64 from :func:`build`, or cast
     to the kernel's dtype)."""
 
-    A: object  # [4, 4] the model (discrete, control period)
-    B: object  # [4, 2]
-    L: object  # [2, 4] the observer gain (1 - p) B^+
-    K: object  # [2, 2] u_s = -K y_s - d
-    normals: object  # [c, 2] unit constraint normals a_i (c = 12)
-    b0: object  # [c] b_i(d) = b0_i + bd_i · d
-    bd: object  # [c, 2]
-    W: object  # [2, 2] the target's weights
-    first: object  # [p] int: the pairs of constraints whose intersections are candidates
-    second: object  # [p] int
-    rows: object  # [m, 8] a QP row's value at the target: rows @ [x_s, u_s, d]
+    A: Arrays  # [4, 4] the model (discrete, control period)
+    B: Arrays  # [4, 2]
+    L: Arrays  # [2, 4] the observer gain (1 - p) B^+
+    K: Arrays  # [2, 2] u_s = -K y_s - d
+    normals: Arrays  # [c, 2] unit constraint normals a_i (c = 12)
+    b0: Arrays  # [c] b_i(d) = b0_i + bd_i · d
+    bd: Arrays  # [c, 2]
+    W: Arrays  # [2, 2] the target's weights
+    first: Arrays  # [p] int: the pairs of constraints whose intersections are candidates
+    second: Arrays  # [p] int
+    rows: Arrays  # [m, 8] a QP row's value at the target: rows @ [x_s, u_s, d]
 
 
 def build(qp: CondensedQP, controller: ControllerParams) -> OffsetFree:

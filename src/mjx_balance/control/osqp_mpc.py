@@ -158,6 +158,7 @@ class ReferenceMPC:
         if not self.hard_infeasible:
             return hard
         warm = z if np.isfinite(z).all() else None
+        assert self._penalty is not None  # (solve calls this only under the exact penalty)
         z, ok, prim_res, self.violation = self._penalty.solve(x0, warm, offset)
         self._z = z if np.isfinite(z).all() else None
         self._y = None if self._z is None else np.zeros(self.qp.m)
@@ -183,6 +184,7 @@ class ReferenceMPC:
         if self._z is None:
             warm = np.zeros(self.qp.n), np.zeros(self.qp.m)
         else:
+            assert self._y is not None  # (set together with _z)
             warm = shift_warm_start(self._z), self._shift_dual(self._y)
         result = osqp_solve(self._solver, self.qp, x0, warm, offset)
         z = np.array(result.x, dtype=float)

@@ -140,6 +140,10 @@ def build_qp(controller: ControllerParams, body: BodyParams, control_dt: float) 
     # x_k as affine function of (z, x0): x_k = Gk z + Pk x0, k = 0..N.
     Gk = [np.zeros((nx, n))] + [Gamma[(k - 1) * nx: k * nx] for k in range(1, N + 1)]
     Pk = powers
+    blocks_C: list[np.ndarray]
+    blocks_E: list[np.ndarray]
+    lows: list[np.ndarray | list[float]]
+    highs: list[np.ndarray | list[float]]
     blocks_C, blocks_E, lows, highs = [], [], [], []
 
     (u1l, u1h), (u2l, u2h) = controller.input_bounds

@@ -16,12 +16,12 @@ from pathlib import Path
 from typing import Any, Mapping
 
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from matplotlib.animation import FuncAnimation, PillowWriter
 
-from ..model.params import BodyParams, ScenarioParams  # noqa: E402
+from ..model.params import BodyParams, ScenarioParams
 from ..store.files import write_atomic
 from . import style
 

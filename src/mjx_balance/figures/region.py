@@ -29,16 +29,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import matplotlib.pyplot as plt
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
-from matplotlib.ticker import FuncFormatter  # noqa: E402
+import numpy as np
+import pandas as pd
+from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+from matplotlib.ticker import FuncFormatter
 
-from ..measures.outcomes import OUTCOMES, RECOVERED  # noqa: E402
-from ..measures.strategy import HIP_SHARE_THRESHOLD, takeover  # noqa: E402
-from ..model.params import Config  # noqa: E402
+from ..measures.outcomes import OUTCOMES, RECOVERED
+from ..measures.strategy import HIP_SHARE_THRESHOLD, takeover
+from ..model.params import Config
 from ..store.files import TABLE
 from . import style
 from .style import OUTCOME_COLOURS, OUTCOME_HATCHES
@@ -206,7 +206,7 @@ def _table_beside(path: str | Path, region: pd.DataFrame) -> pd.DataFrame | None
         return None
     try:
         table = pd.read_csv(candidate)
-    except Exception:  # noqa: BLE001 - a damaged table is not drawn
+    except Exception:
         return None
     if "convention" in table and "convention" in region and len(table) and len(region):
         if str(table["convention"].iloc[0]) != str(region["convention"].iloc[0]):

@@ -24,11 +24,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+import numpy as np
+import pandas as pd
 
-from ..model.params import Config  # noqa: E402
-from ..model.config_files import load_config  # noqa: E402
+from ..model.params import Config
+from ..model.config_files import load_config
 from ..store.files import CONFIG
 from . import style
 
@@ -430,12 +430,12 @@ def timeseries_figures(df: pd.DataFrame, out_dir: str | Path, *, config: Config 
     if config is None and (out_dir / CONFIG).exists():
         try:
             config = load_config(out_dir / CONFIG)
-        except Exception:  # noqa: BLE001 - figures without bounds rather than none
+        except Exception:
             config = None
     if summary is None and (out_dir / SUMMARY).exists():
         try:
             summary = pd.read_csv(out_dir / SUMMARY)
-        except Exception:  # noqa: BLE001
+        except Exception:
             summary = None
     options = {"config": config, "summary": summary, "full_window": full_window}
     paths = []

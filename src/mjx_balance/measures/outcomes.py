@@ -30,10 +30,13 @@ precedence over fell, which takes precedence over the settle band.
 
 from __future__ import annotations
 
-from typing import Any, Mapping, NamedTuple
+from typing import TYPE_CHECKING, Any, Mapping, NamedTuple
 
 import numpy as np
 import pandas as pd
+
+if TYPE_CHECKING:  # (annotations only)
+    import jax
 
 OUTCOMES = ("recovered", "not_settled", "fell", "diverged")
 RECOVERED, NOT_SETTLED, FELL, DIVERGED = range(4)
@@ -74,10 +77,11 @@ class Limits(NamedTuple):
     lower_tilt_limit: float
     settle_angle_tol: float
     settle_rate_tol: float
-    state_lower: tuple[float, float]  # bounds of x[0], x[1]
-    state_upper: tuple[float, float]
-    input_lower: tuple[float, float]  # bounds of u[0], u[1]
-    input_upper: tuple[float, float]
+    # (the bounds: a traced array inside the batched kernel, None in its static copy there)
+    state_lower: tuple[float, float] | jax.Array | None  # bounds of x[0], x[1]
+    state_upper: tuple[float, float] | jax.Array | None
+    input_lower: tuple[float, float] | jax.Array | None  # bounds of u[0], u[1]
+    input_upper: tuple[float, float] | jax.Array | None
 
     @classmethod
     def from_params(cls, scenario: Any, controller: Any) -> "Limits":

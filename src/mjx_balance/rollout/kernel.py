@@ -31,7 +31,7 @@ Times are carried as integer step indices and turned into seconds on the host in
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, TypeVar
 
 import jax
 import jax.numpy as jnp
@@ -44,6 +44,8 @@ from ..measures import outcomes
 from ..measures.outcomes import Limits
 from .physics import advance, mjx, step
 from .sensing import Sample, Sensors, joints, measure, measure_step, state, with_positions
+
+Tree = TypeVar("Tree")  # a pytree (Arrays, a Carry) of arrays stacked per body
 
 
 class Accumulators(NamedTuple):
@@ -115,7 +117,7 @@ class Accumulators(NamedTuple):
 class Static(NamedTuple):
     """Everything about a configuration that is fixed under jit (hashable numbers/flags)."""
 
-    n_control: int
+    n_control: int | None  # None in an engine's copy: it reads the traced Arrays.n_control
     substeps: int
     delay_steps: int  # how old the measurement is (physics steps)
     push_at_hip: bool
@@ -363,6 +365,7 @@ def solve_batch(arrays: Arrays, static: Static, pre: Prepared, tile: int | None,
     its own slowest). ``tiles``: (the bodies' QPs stacked, each tile's body), every tile of
     ``tile`` lanes solving its body's QP (``admm_solve_tiles``; ``arrays.qp`` unused)."""
     if tiles is not None:
+        assert tile is not None  # (body tiles come with their lane count: engine.Engine.tile)
         return admm_mod.admm_solve_tiles(tiles[0], tiles[1], pre.x0, pre.carry.warm,
                                          static.settings, tile, offset=pre.offset)
     return admm_mod.admm_solve_batch(arrays.qp, pre.x0, pre.carry.warm, static.settings, tile,
@@ -434,7 +437,7 @@ def rest_of(arrays: Arrays, sensors: Sensors, static: Static, axis: int | None =
     return jax.vmap(lambda a: initial_carry(a, sensors, static), in_axes=(axis,))(arrays)
 
 
-def lane_arrays(bodies: Arrays, body: jax.Array) -> Arrays:
+def lane_arrays(bodies: Tree, body: jax.Array) -> Tree:
     """Each lane's body: ``bodies`` stacked [n_bodies, ...] gathered at ``body`` [B] (int)."""
     return jax.tree.map(lambda v: v[body], bodies)
 
@@ -561,6 +564,7 @@ def scenario(arrays: Arrays, sensors: Sensors, static: Static, force: jax.Array,
     def control_period(carry: Carry, k: jax.Array):
         return period(arrays, sensors, static, carry, k, force, n_push)
 
+    assert static.n_control is not None  # (the runner's own Static: its window's length)
     carry, series = jax.lax.scan(control_period, initial_carry(arrays, sensors, static),
                                  jnp.arange(static.n_control, dtype=jnp.int32))
     if series is not None:

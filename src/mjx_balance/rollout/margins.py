@@ -26,10 +26,12 @@ def measure(config=None, forces=None, durations=None) -> dict:
     with jax.enable_x64(False):
         early = BatchRunner(config)
         early.run(f, d)
+        assert early.last_certified is not None and early.last_periods is not None  # (run sets)
         pick = np.nonzero(early.last_certified)[0]
         traj = BatchRunner(config, trajectories=True)
         summary = traj.run(f[pick], d[pick])
     series, sensors = traj.last_trajectories, traj.sensors
+    assert series is not None  # (trajectories=True)
     lm = traj.qp.linear
     P = traj.qp.Qf
     com_rest = float(np.asarray(early.engine.cert.rest)[1])

@@ -550,7 +550,7 @@ def _run_table(out: str | Path, config: Config, forces: np.ndarray, run_batch: R
             if same_values(done["force"], forces) and set(TABLE_COLUMNS) <= set(done):
                 say(f"table already complete: {table_path} ({forces.size} forces); nothing to do")
                 return None
-        except Exception:  # noqa: BLE001 - recompute a damaged table
+        except Exception:
             pass
     if recorded is not None and not same_values(recorded["forces"], forces):
         say(f"replacing the table for forces {describe(recorded['forces'])} in {folder.path} "

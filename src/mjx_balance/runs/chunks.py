@@ -32,7 +32,7 @@ def memory_budget() -> int:
         stats = device.memory_stats() if device.platform != "cpu" else None
         if stats and "bytes_limit" in stats:
             return int(0.25 * (stats["bytes_limit"] - stats.get("bytes_in_use", 0)))
-    except Exception:  # noqa: BLE001 - no device information: fall back to host memory
+    except Exception:
         pass
     try:
         with open("/proc/meminfo") as fh:
@@ -47,7 +47,7 @@ def _is_cpu() -> bool:
         import jax
 
         return jax.default_backend() == "cpu"
-    except Exception:  # noqa: BLE001
+    except Exception:
         return True
 
 

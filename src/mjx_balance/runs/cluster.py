@@ -113,7 +113,7 @@ def check_workers(client: Any, expected: dict[str, Any] | None = None) -> dict[s
     expected = expected or local_facts()
     try:
         facts = client.run(local_facts)
-    except Exception as exc:  # noqa: BLE001 - a worker without the package, typically
+    except Exception as exc:
         raise ClusterError(f"the cluster's workers cannot run mjx_balance ({type(exc).__name__}: "
                            f"{exc}); install the same mjx_balance, JAX and MuJoCo on every "
                            "worker") from None
@@ -536,5 +536,5 @@ def _tokenize(obj: Any) -> str:
         from dask.base import tokenize
 
         return tokenize(obj)
-    except Exception:  # noqa: BLE001 - an object dask cannot tokenize: a key of this run only
+    except Exception:
         return f"{id(obj)}-{os.getpid()}"

@@ -16,13 +16,15 @@ from ..model.params import Config, ParameterError
 from ..store.folder import GRID_TOL, same_values
 
 
-def parse_grid(spec: str | float | Sequence[float], name: str = "grid") -> np.ndarray:
+def parse_grid(spec: str | float | Sequence[float] | np.ndarray, name: str = "grid"
+               ) -> np.ndarray:
     """Values of a grid: ``"start:stop:step"`` (stop included when it lands on the grid, up to
     float error), a comma list ``"a,b,c"``, a number or a list of numbers.
 
     Returns the values sorted ascending (float64). Raises ParameterError for an empty grid, a
     non-finite value, a step <= 0, a repeated value or text that is not a number.
     """
+    values: list[float] | np.ndarray
     if isinstance(spec, str):
         text = spec.strip()
         if not text:
@@ -84,7 +86,7 @@ def exact_range(start: Decimal, step: Decimal, count: int) -> list[float]:
     step 10^d over 10^d; while both are exact in float64 (the whole numbers below 2^53, d <= 22)
     one IEEE division rounds the exact quotient to its nearest float, the same number as
     ``float(Decimal(...))``; otherwise each value goes through Decimal."""
-    decimals = max(0, -start.as_tuple().exponent, -step.as_tuple().exponent)
+    decimals = max(0, -start.as_tuple().exponent, -step.as_tuple().exponent)  # type: ignore[operator]  # finite: int exponents
     scale = 10 ** decimals
     first, stride = int(start * scale), int(step * scale)
     last = abs(first) + stride * max(count - 1, 0)
@@ -97,7 +99,7 @@ def exact_range(start: Decimal, step: Decimal, count: int) -> list[float]:
 STEP_TOL = 1e-6  # how far from a whole number of physics steps a duration may sit (in steps)
 
 
-def check_whole_steps(durations: Sequence[float], physics_dt: float,
+def check_whole_steps(durations: Sequence[float] | np.ndarray, physics_dt: float,
                       name: str = "durations", *, unique: bool = True) -> np.ndarray:
     """Durations must be whole numbers of physics steps (the push acts for whole steps, so any
     other value would be rounded silently), up to float error (STEP_TOL steps); returns them
@@ -124,7 +126,7 @@ def check_whole_steps(durations: Sequence[float], physics_dt: float,
     return snapped
 
 
-def check_durations(durations: np.ndarray, t_end: float, name: str = "durations",
+def check_durations(durations: Sequence[float] | np.ndarray, t_end: float, name: str = "durations",
                     physics_dt: float | None = None, *, unique: bool = True) -> np.ndarray:
     """Durations must lie in [0, t_end] (t_end = scenario.t_end) and, given physics_dt, be whole
     physics steps (check_whole_steps: then returned snapped to them; ``unique``: each once, as
@@ -206,7 +208,7 @@ def parse_pairs(spec: Any, name: str = "pairs") -> tuple[np.ndarray, np.ndarray]
 def _pairs_file(path: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
     try:
         frame = pd.read_csv(path, comment="#")
-    except Exception as exc:  # noqa: BLE001 - any parse failure is the file's
+    except Exception as exc:
         raise ParameterError(f"{name}: {path} is not a readable CSV ({exc})") from None
     return _pairs_frame(frame, f"{name} ({path})")
 

@@ -112,7 +112,7 @@ def _run_sweep(out: str | Path, config: Config, grid: Grid, run_batch: RunBatch 
             check_region(pd.read_parquet(region_path, columns=["force", "duration"]), grid)
             say(f"sweep already complete: {region_path} ({n_cells} cells); nothing to do")
             return SweepResult(region_path, 0, len(slices), 0, time.perf_counter() - start, True)
-        except Exception as exc:  # noqa: BLE001 - rebuild it from the chunks
+        except Exception as exc:
             say(f"{region_path} is damaged ({exc}); rebuilding it")
 
     (folder.path / "chunks").mkdir(exist_ok=True)
@@ -247,7 +247,7 @@ def _adopt_results(path: Path, found: list[Path], grid: Grid, convention: str,
     for file in found:
         try:
             rows.append(pq.ParquetFile(file).metadata.num_rows)
-        except Exception:  # noqa: BLE001 - a damaged file says nothing about the chunk size
+        except Exception:
             pass
     if rows:
         size = max(rows)
@@ -260,7 +260,7 @@ def _adopt_results(path: Path, found: list[Path], grid: Grid, convention: str,
         try:
             check_region(pd.read_parquet(path / REGION, columns=["force", "duration"]), grid)
             return chunk_size, REGION
-        except Exception:  # noqa: BLE001 - refused below
+        except Exception:
             pass
     raise ParameterError(f"{path} holds results but no {MANIFEST}, and they do not match this "
                          "grid; use another --out folder or the grid they were made with")

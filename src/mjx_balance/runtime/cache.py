@@ -190,7 +190,7 @@ def _reset() -> None:
         from jax.experimental.compilation_cache import compilation_cache
 
         compilation_cache.reset_cache()
-    except Exception:  # noqa: BLE001 - an older or newer JAX: it decides at its first compile
+    except Exception:
         pass
 
 
@@ -263,7 +263,7 @@ class CompileCounter:
                 self._event)  # type: ignore[arg-type]  # parameter names differ (__enter__)
             _monitoring.unregister_event_duration_listener(
                 self._duration)  # type: ignore[arg-type]  # parameter names differ (__enter__)
-        except Exception:  # noqa: BLE001 - left registered, but inactive
+        except Exception:
             pass
 
     @property

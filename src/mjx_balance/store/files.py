@@ -44,7 +44,7 @@ def current_umask() -> int:
     return mask
 
 
-def write_atomic(path: Path, write: Callable[[Path], None]) -> None:
+def write_atomic(path: Path, write: Callable[[Path], object]) -> None:
     """Write a file atomically: ``write(tmp)`` to a temporary file beside it, then rename.
 
     The file gets the mode a plain ``open`` would give it (0o666 less the umask), not
@@ -95,7 +95,7 @@ def readable_png(path: str | Path) -> bool:
     try:
         with Image.open(path) as image:
             image.verify()
-    except Exception:  # noqa: BLE001 - any failure means: draw it again
+    except Exception:
         return False
     return True
 
@@ -137,7 +137,9 @@ def with_units(schema: Any) -> Any:
     import pyarrow as pa
 
     known = {name: describe(name) for name in schema.names}
-    fields = [field.with_metadata({**(field.metadata or {}), b"unit": known[field.name][0]})
+    fields = [field.with_metadata(
+                  {**(field.metadata or {}),
+                   b"unit": known[field.name][0]})  # type: ignore[index]  # not None: the if
               if known[field.name] is not None else field for field in schema]
     units = {name: found[0] for name, found in known.items() if found is not None}
     return pa.schema(fields, metadata={**(schema.metadata or {}),

@@ -388,7 +388,7 @@ class OutputFolder:
             return None
         try:
             forces = pd.read_csv(self.path / TABLE)["force"].to_numpy(dtype=np.float64)
-        except Exception:  # noqa: BLE001 - no usable table: no record
+        except Exception:
             return None
         if forces.size == 0 or not np.isfinite(forces).all():
             return None
@@ -458,7 +458,7 @@ class TableCells:
             self.parts = max(self.parts, int(part.stem.split("-")[1]) + 1)
             try:
                 frame = pd.read_parquet(part)
-            except Exception:  # noqa: BLE001 - a damaged part is run again
+            except Exception:
                 continue
             if ([c for c in SUMMARY_COLUMNS if c not in frame]
                     or not set(frame["outcome"]) <= set(OUTCOMES)
@@ -493,13 +493,14 @@ class TableCells:
     def frame(self, forces: np.ndarray, durations: np.ndarray) -> pd.DataFrame:
         """The kept rows of these cells, in order (every cell must be kept), with the values
         of force and duration asked for."""
+        assert self.dtypes is not None  # (set with the first kept rows)
         rows = [{**self.rows[self.key(f, d)], "force": float(f), "duration": float(d)}
                 for f, d in zip(forces, durations)]
         frame = pd.DataFrame(rows, columns=list(self.dtypes.index))
         return frame.astype(self.dtypes.to_dict())
 
 
-def same_values(a: Sequence[float], b: Sequence[float]) -> bool:
+def same_values(a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndarray) -> bool:
     """Equal length and equal values up to GRID_TOL."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     return a.shape == b.shape and bool(np.allclose(a, b, rtol=0, atol=GRID_TOL))
@@ -532,7 +533,7 @@ def read_chunk(path: Path, forces: np.ndarray, durations: np.ndarray,
         return None, "missing"
     try:
         frame = pd.read_parquet(path)
-    except Exception as exc:  # noqa: BLE001 - any read failure means: recompute
+    except Exception as exc:
         return None, f"unreadable ({type(exc).__name__})"
     if len(frame) != forces.size:
         return None, f"{len(frame)} rows, expected {forces.size}"
@@ -561,11 +562,14 @@ def merge_chunks(folder: Path, slices: list[slice], cell_f: np.ndarray, cell_d: 
     # Row groups of ~64k rows: one per chunk would make the file's metadata, which the writer
     # holds until it closes, grow with every chunk (BENCHMARKS.md, memory scaling).
     rows_per_group = 65536
+    writer: pq.ParquetWriter | None
+    pending: list[pa.Table]
     writer, schema, pending, pending_rows = None, None, [], 0
 
     def flush() -> None:
         nonlocal pending, pending_rows
         if pending:
+            assert writer is not None  # (opened with the first chunk, before any is pending)
             writer.write_table(pa.concat_tables(pending), row_group_size=rows_per_group)
             pending, pending_rows = [], 0
 

@@ -201,7 +201,7 @@ def _read_fields(path: Path) -> pd.DataFrame:
                 f"{path}, line {extra[2]}: {extra[3]} fields where the header has {extra[1]} "
                 "(a trailing comma, or a comma in an unquoted text: quote it)") from None
         raise ParameterError(f"{path}: not a readable CSV ({exc})") from None
-    except Exception as exc:  # noqa: BLE001 - any parse failure is the file's
+    except Exception as exc:
         raise ParameterError(f"{path}: not a readable CSV ({exc})") from None
 
 

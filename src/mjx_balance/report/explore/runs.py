@@ -128,7 +128,7 @@ def read_kept(path: Path, config: Config) -> pd.DataFrame | None:
         return None
     try:
         frame = pd.read_parquet(path)
-    except Exception:  # noqa: BLE001 - unreadable: computed again
+    except Exception:
         return None
     if frame.attrs.get("config") != config_dict(config) or "summary" not in frame.attrs:
         return None

@@ -106,7 +106,7 @@ class Handler(BaseHTTPRequestHandler):
     server_version = "mjx-balance-explore"
     sys_version = ""
 
-    def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - the base's name
+    def log_message(self, format: str, *args: Any) -> None:
         log.debug("explore: " + format, *args)
 
     def send(self, status: int, body: bytes, ctype: str, policy: str = PAGE_POLICY) -> None:
@@ -136,7 +136,7 @@ class Handler(BaseHTTPRequestHandler):
 
     do_POST = do_PUT = do_DELETE = do_PATCH = do_HEAD = do_OPTIONS = refuse_method
 
-    def do_GET(self) -> None:  # noqa: N802 - the base's name
+    def do_GET(self) -> None:
         try:
             self.check_host()
             self.route(urlsplit(self.path))
@@ -146,7 +146,7 @@ class Handler(BaseHTTPRequestHandler):
             self.send_json(HTTPStatus.BAD_REQUEST, {"error": str(exc)})
         except KeyboardInterrupt:  # Ctrl-C reached the work of this request: the server stops
             self.send_json(HTTPStatus.SERVICE_UNAVAILABLE, {"error": "the server is stopping"})
-        except Exception as exc:  # noqa: BLE001 - one line, never a traceback
+        except Exception as exc:
             first = (str(exc).splitlines() or [""])[0]
             log.warning(f"explore: {self.path}: {type(exc).__name__}: {first}")
             self.send_json(HTTPStatus.INTERNAL_SERVER_ERROR,
