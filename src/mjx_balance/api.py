@@ -106,8 +106,8 @@ def _session(call: str, physics: str = "mjx") -> Iterator[None]:
 # simulate: the scalar reference
 
 
-def simulate(forces: Values = None, durations: Values = None, config: ConfigLike = None, *,
-             pairs: Any = None,
+def simulate(forces: Values | None = None, durations: Values | None = None,
+             config: ConfigLike = None, *, pairs: Any = None,
              progress: bool | None = None) -> "tuple[pd.DataFrame, pd.DataFrame]":
     """Every (force, duration) push through the scalar reference closed loop (MuJoCo C physics,
     the MPC solved by OSQP), one scenario at a time: the cross product of ``forces`` and
@@ -279,8 +279,9 @@ def scorecard(ours: "str | os.PathLike[str] | pd.DataFrame",
 
 
 def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
-            *, out: str | os.PathLike[str], forces: Values = None, durations: Values = None,
-            table_forces: Values = None, slots: int | None = None, full_length: bool = False,
+            *, out: str | os.PathLike[str], forces: Values | None = None,
+            durations: Values | None = None, table_forces: Values | None = None,
+            slots: int | None = None, full_length: bool = False,
             physics: str = "auto", cluster: Any = None, queue: str = "each",
             progress: bool | None = None, format: str | None = None,
             figure_format: str | None = None, figure_size: str | None = None) -> "pd.DataFrame":
@@ -296,12 +297,13 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
     ``queue``: "each" or "one" (every map through one engine queue, per-lane QPs: MJX only;
     ``mjx-balance compare --queue``)."""
     check_format(format)
+    named: dict[str, Config]  # (the configurations, each checked)
     if isinstance(configs, dict):
-        configs = {str(name): as_config(c) for name, c in configs.items()}
+        named = {str(name): as_config(c) for name, c in configs.items()}
     else:
-        configs = load_configs([str(p) for p in configs])
+        named = load_configs([str(p) for p in configs])
     with _session("compare"), figure_style(figure_format, figure_size):
-        frame = run_compare(out, configs,
+        frame = run_compare(out, named,
                             DEFAULT_SWEEP["forces"] if forces is None else forces,
                             DEFAULT_SWEEP["durations"] if durations is None else durations,
                             DEFAULT_SWEEP["table_forces"] if table_forces is None
@@ -312,8 +314,8 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
         return frame
 
 
-def basin(config: ConfigLike = None, *, out: str | os.PathLike[str], x_com: Values = None,
-          v_com: Values = None, posture: str = "rigid", pushes: Any = None,
+def basin(config: ConfigLike = None, *, out: str | os.PathLike[str], x_com: Values | None = None,
+          v_com: Values | None = None, posture: str = "rigid", pushes: Any = None,
           slots: int | None = None, full_length: bool = False,
           progress: bool | None = None, format: str | None = None,
           figure_format: str | None = None, figure_size: str | None = None) -> "pd.DataFrame":
@@ -337,8 +339,9 @@ def basin(config: ConfigLike = None, *, out: str | os.PathLike[str], x_com: Valu
 
 def cohort(subjects: "Sequence[Subject] | Mapping[str, Subject] | str | os.PathLike[str]", *,
            out: str | os.PathLike[str],
-           forces: Values = None, durations: Values = None, config: ConfigLike = None,
-           table_forces: Values = None, slots: int | None = None, full_length: bool = False,
+           forces: Values | None = None, durations: Values | None = None,
+           config: ConfigLike = None, table_forces: Values | None = None,
+           slots: int | None = None, full_length: bool = False,
            physics: str = "auto", queue: str = "auto", progress: bool | None = None,
            wait: bool = False, format: str | None = None, figure_format: str | None = None,
            figure_size: str | None = None) -> "pd.DataFrame":

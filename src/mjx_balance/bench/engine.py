@@ -125,7 +125,7 @@ class Recorder(engine_mod.Probe):
         self.records: list = []
         self.record, self.sampled = record, sampled
         self.c_path = isinstance(engine, cpath.CEngine)
-        self._kept = None
+        self._kept: tuple | None = None
         self.t0 = time.perf_counter()
 
     @contextmanager
@@ -321,6 +321,7 @@ def measure(config: Config, *, forces: str = DEFAULT_FORCES,
     f, d = grid_cells(parse_grid(forces, "forces"), parse_grid(durations, "durations"))
     d = np.minimum(d, config.scenario.t_end)
     load = os.getloadavg()
+    out: dict[str, Any]
     out = {"scenarios": int(f.size), "forces": forces, "durations": durations,
            "t_end": config.scenario.t_end, "cpus": os.cpu_count(),
            "load_average_start": [round(v, 2) for v in load], "paths": {}}

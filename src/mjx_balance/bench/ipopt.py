@@ -48,6 +48,7 @@ def ipopt_mpc(qp: CondensedQP, controller: ControllerParams):
         k4 = f(x + dt * k3, u)
         return x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
+    cost: ca.SX | int  # (0, then the SX expression)
     cost, g, lbg, ubg = 0, [X[:, 0] - P], [0.0] * 4, [0.0] * 4
     cop_x, cop_u, com_x = ca.DM(lm.cop_x).T, ca.DM(lm.cop_u).T, ca.DM(lm.com_x).T
     for k in range(N):

@@ -232,6 +232,7 @@ def measure(config: Config, *, slots: int = 64, seconds: float = 3.0,
     t0 = time.perf_counter()
     engine.run(forces, durations)
     wall = time.perf_counter() - t0
+    assert engine.last_periods is not None  # (set by run)
     us["pipeline"] = 1e6 * wall / (engine.last_periods.sum() * sc.substeps)
     floor = BatchRunner(config.replace(
         controller={"admm_max_iter": config.controller.admm_check_every}))

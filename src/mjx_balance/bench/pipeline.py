@@ -205,6 +205,7 @@ def run_batched(built: dict[str, Any], config: Config, forces: np.ndarray,
         t0 = time.perf_counter()
         summary = runner.run(forces, durations)  # host numpy: synchronous
         times.append(time.perf_counter() - t0)
+    assert summary is not None  # (max(1, repeats) runs)
     seconds = float(np.median(times))
     sc = config.scenario
     periods = runner.last_periods

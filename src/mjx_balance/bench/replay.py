@@ -264,6 +264,7 @@ def call_cost(engine, stages: Stages, tail: tuple, repeats: int = 9) -> dict[str
         P = jax.sharding.PartitionSpec
         run = jax.shard_map(run, mesh=r.mesh, out_specs=P("batch"), check_vma=False,
                             in_specs=(P(),) * len(head) + (P("batch"),) * len(tail))
+    noop: jax.stages.Wrapped | jax.stages.Compiled  # (compiled ahead of time on the MJX path)
     noop = jax.jit(run, donate_argnums=(len(head),), keep_unused=True)
     if not c_path:
         noop = noop.lower(*head, *stages.put(tail)).compile()

@@ -194,6 +194,7 @@ def cpu_peak_gflops(dtype: str = "float32") -> tuple[float, str]:
     Returns (GFLOP/s, a note saying how it was counted).
     """
     cores = os.cpu_count() or 1
+    flags: set[str]
     mhz, flags = 0.0, set()
     try:
         with open("/proc/cpuinfo") as fh:

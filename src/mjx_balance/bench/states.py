@@ -142,7 +142,7 @@ def admm_along_trajectories(qp: CondensedQP, trajectories: list[np.ndarray], set
     cold = admm.initial_warm(data)
     w = admm.ADMMWarm(z=jnp.tile(cold.z, (B, 1)), y=jnp.tile(cold.y, (B, 1)))
     keys = ("u0", "status", "iters", "prim_res", "z")
-    out = {k: [] for k in keys + ("warm_z", "warm_y")}
+    out: dict[str, list[np.ndarray]] = {k: [] for k in keys + ("warm_z", "warm_y")}
     for k in range(L):
         res = solve(data, jnp.asarray(X[k], dtype), w, settings)
         out["warm_z"].append(np.asarray(w.z))

@@ -79,7 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
         p._negative_number_matcher = NEGATIVE_VALUE
         return p
 
-    sub.add_parser = command  # every command: the conventions' options, defaults, epilog
+    sub.add_parser = command  # type: ignore[method-assign]  # on purpose: every command gets the conventions' options, defaults, epilog
     for module in COMMANDS:
         module.add_parser(sub)
     return parser

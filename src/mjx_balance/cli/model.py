@@ -93,6 +93,7 @@ def view_command(args) -> int:
     from ..reference.loop import simulate_scenario  # lazy: as above
 
     summary, series = simulate_scenario(config, args.force, duration, record=True)
+    assert series is not None  # (record=True)
     log.info(f"push {args.force:g} N for {duration:g} s: {summary['outcome']}; replaying "
              f"{series['time'].iloc[-1]:.2f} s at {args.speed:g}x (close the window to end)")
     model = build_model(config.body, config.scenario.physics_dt)

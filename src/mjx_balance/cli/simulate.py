@@ -96,6 +96,7 @@ def _pushes(args: argparse.Namespace, config) -> tuple[list, list, list | None]:
 
     from ..runs.grid import check_durations, parse_pairs  # lazy: the runs floor loads JAX
 
+    forces: np.ndarray | list[float]  # (the pairs' array, or the grid's values)
     if args.pairs is not None:
         forces, durations = parse_pairs(args.pairs, "--pairs")
         durations = check_durations(durations, config.scenario.t_end, "--pairs", unique=False,

@@ -255,7 +255,7 @@ def animate_timeseries(ts: pd.DataFrame, out: str | Path, body: BodyParams = Bod
                          frames=len(fr.times), blit=False)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
-        write_atomic(out, lambda tmp: anim.save(tmp, writer=_GifWriter(fps=fps), dpi=dpi))
+        write_atomic(out, lambda tmp: anim.save(tmp, writer=_GifWriter(fps=fps), dpi=dpi))  # type: ignore[arg-type]  # matplotlib's stub says int; a float fps works
     finally:
         plt.close(fig)
     return len(fr.times)

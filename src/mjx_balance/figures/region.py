@@ -466,6 +466,7 @@ def _energy_axes(ax2, table: pd.DataFrame, convention: str) -> None:
     # the paper convention headlines the study's energy (eq. 20, docs/model.md), the motors'
     # absolute work beside it in grey; the joint convention, the motors' alone
     study = convention == "paper" and "study_energy_total_max" in table
+    lines: list[tuple[str, str, str, dict[str, object]]]  # (column, format, label, line style)
     lines = [("energy_total_01", "s-", "total, T = 0.1 s", {}),
              ("energy_total_max", "o-", "total, T = max acting time", {}),
              ("energy_ankle_max", ".--", "ankle, T = max acting time", {}),

@@ -46,6 +46,7 @@ def strategy_map(region: pd.DataFrame, *, config: Config | None = None,
     fig.colorbar(mesh, ax=ax, label="hip's share of the motors' work  ∫|τ_hip q̇_h| / total")
     ax.set_xlim(fx[0], fx[-1])
     region_plots.duration_axis(ax, durations, dy, log)
+    handles: list[Patch | Line2D]
     handles = [Patch(facecolor="#bdbdbd", edgecolor="0.3", lw=0.5,
                      label=f"not recovered ({int((~recovered).sum())} cells)")]
     handles.append(region_plots.boundary_line(ax, region, fx, dy))

@@ -34,9 +34,12 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..model.params import ParameterError
+
+if TYPE_CHECKING:  # (annotations only: matplotlib loads when a figure is drawn)
+    from matplotlib.typing import RcKeyType
 
 OUTCOME_COLOURS = {
     "recovered": "#009E73",    # Okabe-Ito bluish green
@@ -53,10 +56,12 @@ FIGURE_SIZES = {"screen": None, "one-column": 3.5, "two-column": 7.2}  # width [
 MIN_FONT_PT, MAX_FONT_PT = 7.0, 9.0  # a column figure's text sizes
 MIN_PANEL_HEIGHT = {"one-column": 1.6, "two-column": 2.2}  # [in]
 MAX_HEIGHT = 9.5  # [in]: a column figure never grows taller than a page's text block
+COLUMN_RC: dict[RcKeyType, Any]  # (the keys matplotlib knows)
 COLUMN_RC = {"font.size": 8, "axes.titlesize": 8, "axes.labelsize": 8, "xtick.labelsize": 7,
              "ytick.labelsize": 7, "legend.fontsize": 7, "legend.title_fontsize": 7,
              "figure.titlesize": 8, "lines.linewidth": 1.2, "lines.markersize": 4,
              "axes.linewidth": 0.6, "hatch.linewidth": 0.6}
+SAVE_RC: dict[RcKeyType, Any]
 SAVE_RC = {"pdf.fonttype": 42, "ps.fonttype": 42}  # TrueType in PDFs (editable, as journals ask)
 
 

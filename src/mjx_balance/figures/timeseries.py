@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -437,7 +438,7 @@ def timeseries_figures(df: pd.DataFrame, out_dir: str | Path, *, config: Config 
             summary = pd.read_csv(out_dir / SUMMARY)
         except Exception:
             summary = None
-    options = {"config": config, "summary": summary, "full_window": full_window}
+    options: dict[str, Any] = {"config": config, "summary": summary, "full_window": full_window}
     paths = []
     for stem in SINGLE:
         fig = timeseries_figure(df, stem, **options)

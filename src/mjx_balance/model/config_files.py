@@ -5,10 +5,15 @@ takes its default, a ``[subject]`` table puts that person's body on it), written
 
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
 from typing import Any
 
-import tomllib  # type: ignore[import-not-found,unused-ignore]  # 3.11+: requires-python says 3.10
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # Python 3.10: the same parser, from PyPI (a dependency there: pyproject.toml)
+    import tomli as tomllib
 
 from .params import SECTIONS, Config, ParameterError, build_section
 from .subject import Subject, as_subject, check_subject_conflicts
@@ -57,7 +62,7 @@ def read_toml(path: str | Path, what: str = "configuration file") -> dict[str, A
         raise ParameterError(f"{path}: not valid TOML: {exc}") from None
 
 
-def load_config(path: str | Path) -> Config:
+def load_config(path: str | os.PathLike[str]) -> Config:
     """Load a TOML configuration file; every value not given takes its default."""
     path = Path(path)
     data = read_toml(path)

@@ -60,7 +60,7 @@ def store_references(out: str | Path, paths: Sequence[str | Path] | None) -> lis
         while target in stored:
             count += 1
             target = folder / f"{stem}_{count}.csv"
-        write_atomic(target, lambda tmp, src=source: shutil.copyfile(src, tmp))
+        write_atomic(target, lambda tmp, src=source: shutil.copyfile(src, tmp))  # type: ignore[misc]  # mypy cannot infer a lambda with a default argument
         stored.append(target)
     return stored
 

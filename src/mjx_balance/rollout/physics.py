@@ -175,8 +175,7 @@ def _stepped_dtypes(model: mujoco.MjModel, dtype, d: mjx.Data) -> tuple:
     leaves, treedef = jax.tree_util.tree_flatten(d)
     opt = model.opt
     key = (treedef, tuple((v.shape, str(v.dtype)) for v in leaves),  # jax arrays, all
-           bool(jax.config.jax_enable_x64),  # type: ignore[attr-defined]  # dynamic JAX flag
-           np.dtype(dtype).name, model.geom_type.tobytes(),
+           bool(jax.config.jax_enable_x64), np.dtype(dtype).name, model.geom_type.tobytes(),  # type: ignore[attr-defined]  # jax.config's flags are set at run time
            model.jnt_type.tobytes(), int(opt.integrator), int(opt.cone), int(opt.solver),
            int(opt.disableflags), int(opt.enableflags))
     if key not in _STEPPED:

@@ -175,7 +175,7 @@ class BatchRunner:
         devices = None if self.mesh is None else tuple(d.id for d in self.mesh.devices.flat)
         return (treedef, tuple((np.shape(v), str(v.dtype)) for v in leaves), sensors,
                 self.static if static is None else static, batch, devices,
-                jax.config.jax_enable_x64)  # type: ignore[attr-defined]  # dynamic JAX flag
+                jax.config.jax_enable_x64)  # type: ignore[attr-defined]  # jax.config's flags are set at run time
 
     def compiled(self, batch: int):
         """The compiled batch function for a padded batch size (compiled ahead of time).
@@ -262,7 +262,7 @@ class BatchRunner:
         else:  # the batch axis split over the devices (padding cells F = 0, T = 0)
             acc, series = fn(self.arrays, jax.device_put(f, batch_sharding),
                              jax.device_put(steps, batch_sharding))
-        acc = Accumulators(*(np.asarray(v)[:n] for v in acc))  # type: ignore[arg-type]  # host copy
+        acc = Accumulators(*(np.asarray(v)[:n] for v in acc))  # type: ignore[arg-type]  # the record's host (numpy) copy
         if series is not None:
             series = {k: np.asarray(v)[:n] for k, v in series.items()}
         return acc, series

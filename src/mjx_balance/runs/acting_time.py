@@ -14,6 +14,7 @@ table over other forces, runs only the cells it has not seen.
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -102,7 +103,7 @@ def table_batch_size(config: Config, n_forces: int, resolution: float = 0.01) ->
 def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, *,
                     run_batch: RunBatch | None = None, resolution: float = 0.01,
                     coarse: Iterable[float] = COARSE_DURATIONS, batch: int | None = None,
-                    points_per_round: int | None = None, progress: bool = True,
+                    points_per_round: int | None = None, progress: bool | None = True,
                     log: Callable[[str], None] | None = print,
                     cells: TableCells | None = None) -> TableResult:
     """Max acting time of every force (docs/outputs.md, "mjx-balance table"): the largest T, a
@@ -332,6 +333,8 @@ def refine_round(b: Brackets, forces: np.ndarray, run_batch: RunBatch, config: C
     ``batch``); each bracket shrinks to the gap around its first failing point. Updates ``b``
     and returns the round's summary rows."""
     k_points = int(points_per_round)
+    owner: list[int] | np.ndarray  # (lists while gathered, then arrays)
+    points: list[int] | np.ndarray
     owner, points = [], []
     for i in b.active():
         split = b.lo[i] + (b.hi[i] - b.lo[i]) * np.arange(1, k_points + 1) // (k_points + 1)
@@ -467,7 +470,7 @@ def sustained_push_limit(config: Config, run_batch: RunBatch, *, batch: int | No
 
 
 def _add_sustained_limit(result: TableResult, config: Config, run_batch: RunBatch,
-                         cells: TableCells, batch: int | None, progress: bool,
+                         cells: TableCells, batch: int | None, progress: bool | None,
                          say: Callable[[str], None]) -> None:
     """The sustained-push limit into ``result``'s table (a column) and runs, with a progress
     bar and a line on how it came out."""
@@ -498,8 +501,9 @@ def _get(row: dict | None, key: str) -> float:
     return float(row[key]) if row is not None else float("nan")
 
 
-def run_table(out: str | Path, config: Config, forces: np.ndarray | str | Sequence[float], *,
-              run_batch: RunBatch | None = None, progress: bool = True,
+def run_table(out: str | os.PathLike[str], config: Config,
+              forces: np.ndarray | str | Sequence[float], *,
+              run_batch: RunBatch | None = None, progress: bool | None = True,
               log: Callable[[str], None] | None = print, cluster: Any = None,
               sustained: bool = True, **options: Any) -> TableResult | None:
     """``max_acting_time`` into ``out/table.csv`` (+ table_runs.parquet, every scenario run),
@@ -531,9 +535,10 @@ def run_table(out: str | Path, config: Config, forces: np.ndarray | str | Sequen
         return result
 
 
-def _run_table(out: str | Path, config: Config, forces: np.ndarray, run_batch: RunBatch | None,
-               progress: bool, log: Callable[[str], None] | None,
+def _run_table(out: str | os.PathLike[str], config: Config, forces: np.ndarray, run_batch: Any,
+               progress: bool | None, log: Callable[[str], None] | None,
                options: dict[str, Any], sustained: bool = True) -> TableResult | None:
+    # (run_batch: a batch function, None, or a cluster.ClusterBatch, found by its methods)
     say = log or (lambda _msg: None)
     folder = OutputFolder(out, config)
     manifest = folder.open()

@@ -133,7 +133,7 @@ class LazyBatch:
             say(f"rollout ready ({seconds:.0f} s)")
 
 
-def resume_engine(run_batch: RunBatch, recorded: dict | None, path: Any,
+def resume_engine(run_batch: Any, recorded: dict | None, path: Any,
                    say: Callable[[str], None]) -> None:
     """Resume with the engine settings the folder was started with (results depend on the slot
     count's compiled program, on early stopping and on the physics path). A folder from before

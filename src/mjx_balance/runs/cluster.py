@@ -384,7 +384,7 @@ class ClusterBatch:
         if "jax" in sys.modules:
             import jax
 
-            x64 = bool(jax.config.jax_enable_x64)
+            x64 = bool(jax.config.jax_enable_x64)  # type: ignore[attr-defined]  # jax.config's flags are set at run time
         return ChunkSpec(self.config, self.slots, bool(self.early_stop), int(chunk_size), x64,
                          facts=dict(self._facts), device=self.device,
                          batch=None if self.engine else self.inner, physics=self.physics)
@@ -486,7 +486,7 @@ class ClusterBatch:
         if self.engine and spec.slots is None:
             raise RuntimeError("the engine's slot count is not set (no engine record)")
         workers = max(1, len(client.nthreads()))
-        smallest = int(spec.slots) if self.engine else 1
+        smallest = int(spec.slots) if self.engine and spec.slots is not None else 1
         base = {"runner": spec.runner_key(), "facts": spec.facts, "device": spec.device,
                 "batch": None if self.engine else _tokenize(self.inner)}
         tasks: list[list[tuple[Any, slice]]] = []

@@ -24,7 +24,7 @@ STUDY_TABLE_FORCES = (5, 10, 15, 20, 30, 40, 50, 60, 80, 100, 120)
 
 # The built-in default sweep (the README's main job; the same as the shipped default.toml): a coarse
 # region map and a short table that finish in a few minutes on a 2-core CPU.
-DEFAULT_SWEEP = {
+DEFAULT_SWEEP: dict[str, Any] = {
     "forces": "0:150:10",
     "durations": "0.05,0.1,0.15,0.2,0.3,0.5,1.0,1.5",
     "table_forces": "20,50,80,100,120",

@@ -41,10 +41,10 @@ def size_value(value: Any, name: str) -> int | None:
     if is_bool(value) or not isinstance(value, numbers.Real):
         raise ParameterError(f"{name} = {value!r}: must be a whole number >= 1 (or None for "
                              f"the default); got {type(value).__name__}")
-    if not (math.isfinite(value) and float(value) == int(value) and value >= 1):
+    if not (math.isfinite(value) and float(value) == int(value) and value >= 1):  # type: ignore[call-overload,operator]  # typeshed's numbers.Real has no int() or >=
         raise ParameterError(f"{name} = {value!r}: must be a whole number >= 1 (or None for "
                              "the default)")
-    return int(value)
+    return int(value)  # type: ignore[call-overload]  # typeshed's numbers.Real has no int()
 
 
 FLOAT32_RANGE = (1.1754944e-38, 3.4028235e38)  # float32's smallest normal, largest finite

@@ -86,7 +86,7 @@ def exact_range(start: Decimal, step: Decimal, count: int) -> list[float]:
     step 10^d over 10^d; while both are exact in float64 (the whole numbers below 2^53, d <= 22)
     one IEEE division rounds the exact quotient to its nearest float, the same number as
     ``float(Decimal(...))``; otherwise each value goes through Decimal."""
-    decimals = max(0, -start.as_tuple().exponent, -step.as_tuple().exponent)  # type: ignore[operator]  # finite: int exponents
+    decimals = max(0, -start.as_tuple().exponent, -step.as_tuple().exponent)  # type: ignore[operator]  # finite Decimals: the exponents are ints
     scale = 10 ** decimals
     first, stride = int(start * scale), int(step * scale)
     last = abs(first) + stride * max(count - 1, 0)
@@ -230,7 +230,7 @@ def is_bool(value: Any) -> bool:
     return isinstance(value, bool) or type(value).__name__ == "bool_"
 
 
-def grid_values(values: Values, name: str) -> np.ndarray:
+def grid_values(values: Values | None, name: str) -> np.ndarray:
     """Forces or durations as a request gives them (the command line's text, the API's
     numbers): sorted, each value once. ``values``: a grid string (``"0:150:10"``,
     ``"20,50,80"``), a number or a sequence of numbers (NumPy's too); a bool, a string inside
@@ -244,7 +244,7 @@ def grid_values(values: Values, name: str) -> np.ndarray:
     if isinstance(values, numbers.Real):
         values = [values]
     try:
-        items = list(values)  # type: ignore[arg-type]
+        items = list(values)  # type: ignore[arg-type]  # mypy: a float is no numbers.Real (wrapped above); None: TypeError below
     except TypeError:
         raise ParameterError(f"{name}: expected {expected}; got {type(values).__name__} "
                              f"({values!r})") from None
@@ -255,7 +255,8 @@ def grid_values(values: Values, name: str) -> np.ndarray:
     return parse_grid([float(v) for v in items], name)
 
 
-def duration_values(values: Values, config: Config, name: str = "durations") -> np.ndarray:
+def duration_values(values: Values | None, config: Config, name: str = "durations"
+                    ) -> np.ndarray:
     """Durations as a request gives them, checked for ``config``'s window: sorted, each once,
     in [0, t_end] and whole physics steps (snapped to them)."""
     return check_durations(grid_values(values, name), config.scenario.t_end, name,

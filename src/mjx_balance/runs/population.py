@@ -78,7 +78,7 @@ class Population:
         for j, body in enumerate(which):
             part = {name: v[j * n:(j + 1) * n] for name, v in raw.items()}
             acc = Accumulators(
-                *(part[name] for name in Accumulators._fields))  # type: ignore[arg-type]  # numpy
+                *(part[name] for name in Accumulators._fields))  # type: ignore[arg-type]  # the record's host (numpy) copy
             out[body] = {"force": self.cell_f, "duration": self.cell_d,
                          **summarize(acc, self.configs[body], self.cell_f),
                          "periods": part["periods"], "certified": part["certified"]}

@@ -16,6 +16,7 @@ file, the merge) stays here, on the driver.
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -62,9 +63,9 @@ def check_region(region: pd.DataFrame, grid: Grid) -> None:
         raise RuntimeError("region cells differ from the grid")
 
 
-def run_sweep(out: str | Path, config: Config, grid: Grid, *,
+def run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, *,
               run_batch: RunBatch | None = None, chunk_size: int | None = None,
-              progress: bool = True, log: Callable[[str], None] | None = print,
+              progress: bool | None = True, log: Callable[[str], None] | None = print,
               cluster: Any = None) -> SweepResult:
     """Evaluate every cell of ``grid`` (:class:`grid.Grid`, checked for ``config``),
     resumably, into ``out/region.parquet``.
@@ -91,8 +92,9 @@ def run_sweep(out: str | Path, config: Config, grid: Grid, *,
         return result
 
 
-def _run_sweep(out: str | Path, config: Config, grid: Grid, run_batch: RunBatch | None, chunk_size: int | None, progress: bool,
+def _run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, run_batch: Any, chunk_size: int | None, progress: bool | None,
                log: Callable[[str], None] | None) -> SweepResult:
+    # (run_batch: a batch function, None, or a cluster.ClusterBatch, found by its methods)
     say = log or (lambda _msg: None)
     start = time.perf_counter()
     cell_f, cell_d = grid.cells

@@ -82,7 +82,7 @@ def enable() -> str | None:
     """
     import jax
 
-    own = jax.config.jax_compilation_cache_dir  # type: ignore[attr-defined]  # dynamic JAX flag
+    own = jax.config.jax_compilation_cache_dir  # type: ignore[attr-defined]  # jax.config's flags are set at run time
     if own and own != _state["dir"]:
         return own  # the user's own setting wins
     folder = cache_dir()
@@ -248,10 +248,8 @@ class CompileCounter:
         from jax import monitoring
 
         self._active = True
-        # (JAX calls listeners by position; their parameter names differ from its protocols')
-        monitoring.register_event_listener(self._event)  # type: ignore[arg-type]  # names differ
-        monitoring.register_event_duration_secs_listener(
-            self._duration)  # type: ignore[arg-type]  # parameter names differ (above)
+        monitoring.register_event_listener(self._event)  # type: ignore[arg-type]  # JAX calls it by position: its protocol's parameter names differ
+        monitoring.register_event_duration_secs_listener(self._duration)  # type: ignore[arg-type]  # (as above)
         return self
 
     def __exit__(self, *exc) -> None:
@@ -259,10 +257,8 @@ class CompileCounter:
         try:
             from jax._src import monitoring as _monitoring
 
-            _monitoring.unregister_event_listener(
-                self._event)  # type: ignore[arg-type]  # parameter names differ (__enter__)
-            _monitoring.unregister_event_duration_listener(
-                self._duration)  # type: ignore[arg-type]  # parameter names differ (__enter__)
+            _monitoring.unregister_event_listener(self._event)  # type: ignore[arg-type]  # (as in __enter__)
+            _monitoring.unregister_event_duration_listener(self._duration)  # type: ignore[arg-type]  # (as in __enter__)
         except Exception:
             pass
 

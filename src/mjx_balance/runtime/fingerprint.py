@@ -75,9 +75,8 @@ def _jax_settings() -> tuple[bool, str]:
     if "jax" in sys.modules:
         import jax  # lazy: already imported; this module never starts JAX
 
-        return (bool(jax.config.jax_enable_x64),  # type: ignore[attr-defined]  # dynamic flag
-                str(jax.config.jax_default_matmul_precision  # type: ignore[attr-defined]  # ditto
-                    or "default"))
+        return (bool(jax.config.jax_enable_x64),  # type: ignore[attr-defined]  # jax.config's flags are set at run time
+                str(jax.config.jax_default_matmul_precision or "default"))  # type: ignore[attr-defined]  # (as above)
     x64 = os.environ.get("JAX_ENABLE_X64", "").strip().lower() in _TRUE
     return x64, os.environ.get("JAX_DEFAULT_MATMUL_PRECISION", "") or "default"
 

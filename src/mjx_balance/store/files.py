@@ -137,9 +137,7 @@ def with_units(schema: Any) -> Any:
     import pyarrow as pa
 
     known = {name: describe(name) for name in schema.names}
-    fields = [field.with_metadata(
-                  {**(field.metadata or {}),
-                   b"unit": known[field.name][0]})  # type: ignore[index]  # not None: the if
+    fields = [field.with_metadata({**(field.metadata or {}), b"unit": known[field.name][0]})  # type: ignore[index]  # not None (the if below); mypy narrows no dict lookup
               if known[field.name] is not None else field for field in schema]
     units = {name: found[0] for name, found in known.items() if found is not None}
     return pa.schema(fields, metadata={**(schema.metadata or {}),
@@ -201,7 +199,7 @@ def check_format(fmt: str | None) -> str | None:
     return fmt
 
 
-def export_tables(folder: str | Path, fmt: str | None) -> list[Path]:
+def export_tables(folder: str | os.PathLike[str], fmt: str | None) -> list[Path]:
     """Every table of ``folder`` and its sub-folders (:data:`TABLES`) also in the format(s)
     ``fmt`` asks for, beside it under the same name: ``csv`` (a parquet table also as CSV, with
     its sidecar), ``parquet`` (a CSV table also as parquet), ``both``; None asks for none. A

@@ -182,7 +182,7 @@ _HELD_LOCK = threading.Lock()
 
 
 @contextmanager
-def folder_lock(path: str | Path, *, wait: bool = False) -> Iterator[None]:
+def folder_lock(path: str | os.PathLike[str], *, wait: bool = False) -> Iterator[None]:
     """Hold the output folder (created if missing) for this run: an exclusive ``flock`` on
     ``DIR/.lock``, which records this process's PID and start time. Another process holding it
     makes this raise :class:`FolderBusy` at once, naming that run, or with ``wait`` print one
@@ -256,7 +256,7 @@ class OutputFolder:
     ``rebuilt`` is True after :meth:`open` took up a folder that had lost its manifest (the
     manifest it returns is then not yet written)."""
 
-    def __init__(self, path: str | Path, config: Config):
+    def __init__(self, path: str | os.PathLike[str], config: Config):
         self.path = Path(path)
         self.config = config
         self.manifest_path = self.path / MANIFEST

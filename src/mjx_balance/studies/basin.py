@@ -25,6 +25,7 @@ the missing ones; the folder's manifest records the configuration and the grid.
 from __future__ import annotations
 
 import math
+import os
 import time as _time
 from pathlib import Path
 from typing import Any, Callable
@@ -157,8 +158,9 @@ def check_basin(config: Config, x_com: Any, v_com: Any, posture: str,
     return xs, vs, plane
 
 
-def run_basin(out: str | Path, config: Config, x_com: Any = DEFAULT_X, v_com: Any = DEFAULT_V,
-              posture: str = "rigid", pushes: Any = None, *, physics: str = "mjx",
+def run_basin(out: str | os.PathLike[str], config: Config, x_com: Any = DEFAULT_X,
+              v_com: Any = DEFAULT_V, posture: str = "rigid", pushes: Any = None, *,
+              physics: str = "mjx",
               progress: bool = True, say: Callable[[str], None] = print,
               **engine: Any) -> pd.DataFrame:
     """The basin map of ``config`` in OUT (module docstring): basin.parquet, basin.png.
@@ -256,6 +258,7 @@ def push_ends(config: Config, plane: Plane, forces: Any, durations: Any, *,
     for force, duration in tqdm(cells, unit="push", disable=not progress, desc="push ends"):
         n_push = math.ceil(duration / dt - 1e-9)
         summary, series = reference.simulate_scenario(config, force, duration)
+        assert series is not None  # (record=True, the default)
         row = {"force": force, "duration": duration, "outcome": summary["outcome"]}
         end = dict.fromkeys(("x_com", "v_com", "q_a", "q_h", "dq_a", "dq_h"), math.nan)
         if n_push >= 2 and len(series) >= n_push:

@@ -54,6 +54,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import os
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -147,9 +148,10 @@ def _shown(ident: Any) -> str:
     return text if len(text) <= 40 else f"{text[:20]}...{text[-12:]}"
 
 
-def subject_grid(heights: Sequence[float], masses: Sequence[float],
-                 sexes: Sequence[str] = ("male",), ankle_strengths: Sequence[float] = (1.0,),
-                 hip_strengths: Sequence[float] = (1.0,)) -> list[Member]:
+def subject_grid(heights: Sequence[float] | np.ndarray, masses: Sequence[float] | np.ndarray,
+                 sexes: Sequence[str] = ("male",),
+                 ankle_strengths: Sequence[float] | np.ndarray = (1.0,),
+                 hip_strengths: Sequence[float] | np.ndarray = (1.0,)) -> list[Member]:
     """Every combination of the lists (heights vary slowest), numbered s01, s02, ...; a value
     a Subject refuses raises ParameterError naming it."""
     subjects = [Subject(float(h), float(m), str(s), float(a), float(p))
@@ -353,7 +355,7 @@ def run_options(engine: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in engine.items() if k != "queue"}
 
 
-def plan_cohort(out: str | Path, members: Sequence[Member], base: Config, forces: Any,
+def plan_cohort(out: str | os.PathLike[str], members: Sequence[Member], base: Config, forces: Any,
                 durations: Any, *, table_forces: Any = None, batched: bool = True,
                 log: Callable[[str], None] | None = None, **engine: Any) -> CohortPlan:
     """Check a cohort before anything is written or locked: the ids, the grids, the engine's

@@ -20,6 +20,7 @@ max_acting_time_<F>N
 
 from __future__ import annotations
 
+import os
 import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -206,8 +207,8 @@ def check_compare(out: str | Path, configs: dict[str, Config], forces: Any, dura
     return forces, durations, table_forces
 
 
-def run_compare(out: str | Path, configs: dict[str, Config], forces: Any, durations: Any,
-                table_forces: Any, *, run_batches: dict[str, Any] | None = None,
+def run_compare(out: str | os.PathLike[str], configs: dict[str, Config], forces: Any,
+                durations: Any, table_forces: Any, *, run_batches: dict[str, Any] | None = None,
                 progress: bool = False, log: Callable[[str], None] | None = print,
                 **engine: Any) -> pd.DataFrame:
     """Every configuration's region map and table in ``out/<name>/``, then compare.csv and

@@ -101,6 +101,7 @@ def plan_config(config: Config, plan: Plan) -> Config:
 
 def weight_settings(plan: Plan) -> list[tuple[str, float, dict[str, tuple[float, ...]]]]:
     """(which, scale, controller overrides) of the weight study."""
+    out: list[tuple[str, float, dict[str, tuple[float, ...]]]]
     out = [("Q", s, {"q_diag": (s,) * 4}) for s in plan.q_scales]
     out += [("R", s, {"r_diag": (1000.0 * s, s)}) for s in plan.r_scales]
     return out
@@ -390,6 +391,7 @@ def study_numbers(study: catalog.Study, folder: Path, variants: list[dict]) -> p
 
 def run_study(run: ReportRun, study: catalog.Study) -> None:
     """Every variant's map, then studies/<study>/numbers.csv; recorded in report.json."""
+    entry: dict[str, Any]
     entry = {"key": study.key, "variants": [run_variant(run, study, v) for v in study.variants]}
     folder = run.out / "studies" / study.key
     write_csv(study_numbers(study, folder, entry["variants"]), folder / "numbers.csv",

@@ -109,6 +109,7 @@ def parse_delays(spec: str | Sequence[str | float]) -> list[Delay]:
                                  "100c)")
         if ms < 0:
             raise ParameterError(f"delays: {item!r}: a delay must be >= 0 ms")
+        assert match is not None  # (no match: ms is NaN, refused above)
         compensated = bool(match.group(3))
         if compensated and ms == 0:
             raise ParameterError(f"delays: {item!r}: a compensated delay needs a delay > 0 ms")

@@ -12,6 +12,7 @@ Importing this module loads neither JAX, MuJoCo nor pandas (the command line's p
 
 from __future__ import annotations
 
+import os
 from importlib import resources
 from pathlib import Path
 
@@ -29,10 +30,10 @@ SHIPPED: dict[str, tuple[str, str]] = {
 def shipped_path(name: str) -> Path:
     """The file of the shipped reference ``name`` (KeyError for another name)."""
     file, _ = SHIPPED[name]
-    return Path(str(resources.files("mjx_balance").joinpath("data", "references", file)))
+    return Path(str(resources.files("mjx_balance") / "data" / "references" / file))
 
 
-def resolve(value: str | Path) -> Path:
+def resolve(value: str | os.PathLike[str]) -> Path:
     """The file a ``--reference`` value names: a shipped reference's, or the path itself."""
     if isinstance(value, str) and value in SHIPPED:
         return shipped_path(value)

@@ -95,7 +95,7 @@ class Reference:
         return rows[["force", "duration"]].assign(label=self.label) if len(rows) else None
 
 
-def read_reference(path: str | Path) -> Reference:
+def read_reference(path: str | os.PathLike[str]) -> Reference:
     """Read and check one reference file, or a shipped reference by name (``"study"``:
     :mod:`studies.references`); ParameterError naming the file, its line and column, and the
     value. Refused: a row with more fields than the header (a trailing comma would shift every
@@ -326,7 +326,8 @@ def _one_value_each(path: Path, frame: pd.DataFrame, lines: _Lines) -> None:
             frame.loc[groups["row"].to_numpy()[repeated], column] = np.nan
 
 
-def read_references(paths: Sequence[str | Path] | str | Path | None) -> list[Reference]:
+def read_references(paths: Sequence[str | os.PathLike[str]] | str | os.PathLike[str] | None
+                    ) -> list[Reference]:
     """Every reference file (labels made unique by a suffix: ``study``, ``study_2``).
     ``paths``: a path, a shipped reference's name or a sequence of them (TypeError for
     anything else, naming what is accepted)."""
@@ -565,6 +566,7 @@ def _tolerances(ref: Reference, rows: np.ndarray, column: str, ours_unc: np.ndar
     codes = combos.groupby(["stated", "res", "ours"], sort=False).ngroup().to_numpy()
     first = combos.drop_duplicates(["stated", "res", "ours"])
     words = []
+    basis: str | np.ndarray  # (a line's words, then every row's)
     for said, value, ours in zip(first["stated"], first["res"], first["ours"]):
         basis = (f"half the reference's {'stated' if said else 'printed'} resolution "
                  f"{value:g} {unit}").rstrip()
@@ -649,6 +651,7 @@ def _our_recovereds(forces: np.ndarray, durations: np.ndarray, index: np.ndarray
     rest = todo & (index >= 0)
     if not rest.any():
         return ours, how, status
+    assert table is not None  # (index >= 0 only against a table: score)
     if "max_acting_time" not in table:
         status[rest] = "not computed: our table has no max_acting_time"
         return ours, how, status
@@ -788,7 +791,7 @@ SCORECARD = "scorecard.csv"
 SCORECARD_FIGURE = "scorecard.png"
 
 
-def folder_results(folder: str | Path) -> dict[str, pd.DataFrame | None]:
+def folder_results(folder: str | os.PathLike[str]) -> dict[str, pd.DataFrame | None]:
     """Our saved results in a sweep or table folder: table.csv, table_runs.parquet and
     region.parquet (None for any that is not there)."""
     folder = Path(folder)

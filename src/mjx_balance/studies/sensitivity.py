@@ -50,7 +50,8 @@ REPORT_DIR = "sensitivity"
 
 def reading_convention(key: str) -> str:
     """The controller convention of a reading (``paper`` or ``joint``)."""
-    return READINGS[key][1]["controller"]["convention"]
+    changes: dict[str, dict[str, Any]] = READINGS[key][1]  # (str and bool values)
+    return changes["controller"]["convention"]
 
 
 def reading_configs(base: Config, readings: Any = None) -> dict[str, Config]:
@@ -118,6 +119,7 @@ def spread(tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
     rows = []
     for force in forces:
         row: dict[str, float] = {"force": float(force)}
+        energies: dict[str, list[float]]
         times, energies = [], {name: [] for name in ENERGIES}
         for key, table in tables.items():
             r = table[table["force"] == force].iloc[0]
@@ -149,7 +151,7 @@ def conclusions(frame: pd.DataFrame, keys: list[str]) -> list[tuple[str, list[st
     """(conclusion, the readings under which it holds) for each conclusion checked."""
     out = []
 
-    def holds(test: Callable[[str], bool]) -> list[str]:
+    def holds(test: Callable[..., bool]) -> list[str]:  # (...: lambdas with a bound default)
         return [k for k in keys if test(k)]
 
     out.append(("the max acting time falls (or stays) as the force grows",

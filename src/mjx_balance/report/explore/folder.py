@@ -29,7 +29,7 @@ import os
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 import pandas as pd
@@ -243,7 +243,7 @@ def grid_of(found: MapFolder, cells: pd.DataFrame) -> tuple[np.ndarray, np.ndarr
             np.unique(cells["duration"].to_numpy(float)))
 
 
-def index_on(values: np.ndarray, grid: np.ndarray) -> np.ndarray:
+def index_on(values: Sequence[float] | np.ndarray, grid: np.ndarray) -> np.ndarray:
     """Each value's index in the sorted ``grid`` (-1 where none lies within float error)."""
     values = np.asarray(values, float)
     if grid.size == 0:
@@ -301,6 +301,8 @@ def boundary_lines(outcome: list, forces: np.ndarray, durations: np.ndarray,
                           "duration": np.tile(durations, int(complete.sum())),
                           "outcome": grid[complete].ravel()})
     tops = dict(zip(*recovery_boundary(frame)[["force", "boundary"]].to_numpy().T))
+    lines: list[list[list[float]]]  # lines of [x, y] points
+    line: list[list[float]]
     lines, line = [], []
     for i, force in enumerate(forces):
         if not complete[i]:

@@ -175,6 +175,7 @@ class Runs:
         simulate = self.simulate or reference.simulate_scenario
         started = time.perf_counter()
         summary, frame = simulate(config, force, duration, record=True)
+        assert frame is not None  # (record=True)
         frame = frame.reset_index(drop=True)
         frame.attrs = {"summary": summary_row(summary), "config": config_dict(config),
                        "computed": {"at": now(), "seconds": time.perf_counter() - started,
@@ -207,7 +208,7 @@ def rounded(values: np.ndarray) -> list:
 def panels(config: Config, convention: str) -> list[dict[str, Any]]:
     out = []
     for title, columns in PANELS:
-        limits = []
+        limits: list[dict[str, Any]] = []
         for column in columns:
             limit = bounds(config, convention, column)
             if limit is not None and limit not in [tuple(b["values"]) for b in limits]:

@@ -177,7 +177,7 @@ class Handler(BaseHTTPRequestHandler):
     def static(self, name: str) -> None:
         if name not in STATIC:
             raise HttpError(404, f"{name!r}: no such file of the page")
-        body = resources.files(__package__).joinpath("static", name).read_bytes()
+        body = (resources.files(__package__) / "static" / name).read_bytes()
         self.send(HTTPStatus.OK, body, STATIC[name])
 
 
