@@ -44,6 +44,7 @@ from .model.config_files import config_from_dict, load_config
 from .model.subject import Subject
 from .runs.folders import (batch_function, run_region, run_table_folder, size_value,
                            check_reference)
+from .runs.chunks import Plan
 from .runs.grid import Grid, Values, duration_values, grid_values
 from .runs.grid import check_durations, parse_pairs
 from .runs.progress import wanted
@@ -51,7 +52,7 @@ from .store.folder import folder_lock
 from .runtime import signals
 from .store.provenance import run_context
 from .reference import loop as reference
-from .store.files import TABLE, check_format, export_tables
+from .store.files import TABLE, check_format, export_tables_said
 from .studies.compare import load_configs, run_compare
 from .figures.style import figure_style
 from .runs import DEFAULT_SWEEP
@@ -196,7 +197,7 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None, *,
         card = write_scorecard(folder, refs, figure=False)
         if card is not None:
             region.attrs["scorecard"] = card
-        export_tables(folder, format)
+        export_tables_said(folder, format, log.info)
         return region
 
 
@@ -232,7 +233,7 @@ def table(forces: Values, config: ConfigLike = None, *,
         card = write_scorecard(folder, refs)
         if card is not None:
             result.attrs["scorecard"] = card
-        export_tables(folder, format)
+        export_tables_said(folder, format, log.info)
         return result
 
 
@@ -284,7 +285,8 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
             slots: int | None = None, full_length: bool = False,
             physics: str = "auto", cluster: Any = None, queue: str = "each",
             progress: bool | None = None, format: str | None = None,
-            figure_format: str | None = None, figure_size: str | None = None) -> "pd.DataFrame":
+            figure_format: str | None = None, figure_size: str | None = None,
+            wait: bool = False, plan: Plan | None = None) -> "pd.DataFrame":
     """Several configurations on one grid (``mjx-balance compare``): each one's region map and
     table in ``out/<name>/``, then ``out/compare.csv`` (returned: area, mean recovery energy,
     sustained-push limit, max acting times, one row per configuration) and ``out/compare.png``
@@ -295,7 +297,9 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
     ``figure_size``: "screen", "one-column" or "two-column" (docs/outputs.md, "Figures");
     None: the style in effect (:func:`figure_style`; png at screen size unless set).
     ``queue``: "each" or "one" (every map through one engine queue, per-lane QPs: MJX only;
-    ``mjx-balance compare --queue``)."""
+    ``mjx-balance compare --queue``). ``wait``: as :func:`sweep`; ``plan``: called once with
+    the planned work (``runs.chunks.PlannedWork``) after every check, before anything is
+    written (the command line says it and refuses too much work without --yes)."""
     check_format(format)
     named: dict[str, Config]  # (the configurations, each checked)
     if isinstance(configs, dict):
@@ -309,8 +313,8 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
                             DEFAULT_SWEEP["table_forces"] if table_forces is None
                             else table_forces, progress=wanted(progress), log=log.info,
                             slots=slots, full_length=full_length, physics=physics,
-                            cluster=cluster, queue=queue)
-        export_tables(out, format)
+                            cluster=cluster, queue=queue, plan=plan, wait=wait)
+        export_tables_said(out, format, log.info)
         return frame
 
 
@@ -333,7 +337,7 @@ def basin(config: ConfigLike = None, *, out: str | os.PathLike[str], x_com: Valu
                           DEFAULT_V if v_com is None else v_com, posture, pushes,
                           progress=wanted(progress), say=log.info, slots=size_value(slots, "slots"),
                           early_stop=not full_length)
-        export_tables(out, format)
+        export_tables_said(out, format, log.info)
         return frame
 
 
@@ -388,7 +392,7 @@ def cohort(subjects: "Sequence[Subject] | Mapping[str, Subject] | str | os.PathL
                            full_length=full_length, physics=physics, queue=queue)
         with _session("cohort"), folder_lock(plan.out, wait=wait):
             frame = run_plan(plan, progress=wanted(progress), log=log.info)
-            export_tables(plan.out, format)
+            export_tables_said(plan.out, format, log.info)
             return frame
 
 

@@ -148,12 +148,12 @@ def test_report_conventions_and_convention(files, capsys):
 
 @pytest.fixture
 def ran(monkeypatch):
-    """run_compare replaced: records the configurations it was handed."""
+    """run_compare (as the API calls it) replaced: records the configurations it was handed."""
     seen = {}
 
     def record(out, configs, *_args, **_kwargs):
         seen.update(configs)
-    monkeypatch.setattr("mjx_balance.studies.compare.run_compare", record)
+    monkeypatch.setattr("mjx_balance.api.run_compare", record)  # what mb.compare calls
     return seen
 
 

@@ -217,7 +217,7 @@ def test_compare_with_a_subject_on_a_sweep_definition_base(tmp_path, capsys, mon
     t2 = tmp_path / "t2.toml"
     t2.write_text("[scenario]\nt_end = 2.0\n")
     seen = {}
-    monkeypatch.setattr(compare, "run_compare",
+    monkeypatch.setattr("mjx_balance.api.run_compare",  # what mb.compare (and the CLI) call
                         lambda out, configs, *args, **kwargs: seen.update(configs))
     subject = Subject(1.6, 55)
     for extra in ([], ["--subject", "height=1.6,mass=55"]):

@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 import errno
 import logging
-import math
 import sys
 from pathlib import Path
 from typing import Any, Callable
@@ -77,28 +76,19 @@ def guard_work(args: argparse.Namespace, config: Config, n_scenarios: int, what:
 
 
 def table_scenarios(config: Config, n_forces: int) -> int:
-    """Scenarios a table evaluates, at most: every force's (:func:`table_scenarios_per_force`)
-    and the sustained-push limit's (its coarse scan and rounds to 0.1 N from its widest
-    bracket)."""
-    import numpy as np
+    """``runs.acting_time.table_scenarios`` (the planning estimate of a table's scenarios)."""
+    from ..runs.acting_time import table_scenarios as estimate  # lazy: the runs floor: JAX
 
-    from ..runs.acting_time import SUSTAINED_COARSE  # lazy: the runs floor loads JAX
-
-    coarse = np.asarray(SUSTAINED_COARSE)
-    rounds = math.ceil(math.log(np.diff(coarse).max() / 0.1) / math.log(8))
-    return n_forces * table_scenarios_per_force(config) + coarse.size + 7 * rounds
+    return estimate(config, n_forces)
 
 
-def table_scenarios_per_force(config: Config, resolution: float = 0.01) -> int:
-    """Scenarios the table evaluates per force, at most: its coarse scan, then one bisection of
-    the widest bracket (a planning estimate; resumed or monotone forces need fewer)."""
-    import numpy as np
-
-    from ..runs.acting_time import coarse_steps  # lazy: the runs floor loads JAX
-
-    steps = coarse_steps(config.scenario.t_end, resolution)
-    widest = int(max(np.diff(np.concatenate([[0], steps])).max(), 1))
-    return int(steps.size + math.ceil(math.log2(widest)) + 1)
+def planner(args: argparse.Namespace) -> Any:
+    """The ``plan`` callable an API function calls with its ``runs.chunks.PlannedWork`` once
+    everything is checked: :func:`guard_work` with these options (--yes)."""
+    def plan(work: Any) -> None:
+        guard_work(args, work.config, work.scenarios, work.what, chunk_size=work.chunk_size,
+                   extra=work.extra, reference=work.reference, note=work.note)
+    return plan
 
 
 def reference_bytes(config: Config) -> int:
@@ -126,12 +116,17 @@ def chosen_physics(args: Any, definition: Any) -> str:
             or "auto")
 
 
-def in_folder(out: Path, work: Callable[[], None], *, wait: bool = False) -> int:
+def in_folder(out: Path, work: Callable[[], None], *, wait: bool = False,
+              lock: bool = True) -> int:
     """Run ``work`` holding the folder's lock (``wait``: waiting for another run to let go of
-    it, else refused at once); a failed write ends in one line, exit code 1."""
+    it, else refused at once; ``lock`` False: ``work`` is an API function that takes it
+    itself); a failed write ends in one line, exit code 1."""
     from ..store.folder import folder_lock  # lazy: the store floor loads pandas
 
     try:
+        if not lock:
+            work()
+            return 0
         with folder_lock(out, wait=wait):
             work()
     except OSError as exc:

@@ -17,7 +17,7 @@ from ..studies.defaults import (  # light
     DEFAULT_SWEEP_FORCES,
     DEFAULT_SWEEP_TABLE_FORCES,
 )
-from .common import guard_work, in_folder, progress_enabled, table_scenarios
+from .common import in_folder, planner, progress_enabled
 from .options import (
     cluster_option,
     config_options,
@@ -28,7 +28,6 @@ from .options import (
     out_folder,
     sweep_file,
     wait_option,
-    write_exports,
     yes_option,
 )
 
@@ -94,10 +93,10 @@ def variants_and_base(args: Any) -> tuple[list[tuple[str | None, str]], str | No
 
 
 def compare_command(args: Any) -> int:
-    """Each variant's region map and table in OUT/<name>/, then compare.csv and compare.png."""
-    from ..runs import DEFAULT_SWEEP  # lazy: the runs floor loads JAX; not for --help
-    from ..studies.compare import (check_compare, load_base,  # lazy: as above
-                                   load_configs, run_compare)
+    """Each variant's region map and table in OUT/<name>/, then compare.csv and compare.png:
+    ``mjx_balance.compare`` with the options resolved (its checks, plan line and lock)."""
+    from .. import api  # lazy: the library loads JAX; not for --help
+    from ..studies.compare import load_base, load_configs  # lazy: as above
 
     variants, base = variants_and_base(args)
     configs = load_configs([path for _, path in variants],
@@ -106,17 +105,13 @@ def compare_command(args: Any) -> int:
     configs = {name: with_convention(apply_overrides(config, args.set), args.convention)
                for name, config in configs.items()}
     out = Path(args.out)
-    engine = {"slots": args.slots, "full_length": args.full_length,
-              "physics": args.physics or "auto", "cluster": args.cluster, "queue": args.queue}
-    given = [DEFAULT_SWEEP[k] if getattr(args, k) is None else getattr(args, k)
-             for k in ("forces", "durations", "table_forces")]  # empty: refused, not default
-    grids = check_compare(out, configs, *given)
-    first = next(iter(configs.values()))
-    guard_work(args, first, len(configs) * grids[0].size * grids[1].size, "cells",
-               extra=len(configs) * table_scenarios(first, grids[2].size))
 
     def work() -> None:
-        run_compare(out, configs, *grids, progress=progress_enabled(args), **engine)
-        write_exports(out, args)
+        api.compare(configs, out=out, forces=args.forces, durations=args.durations,
+                    table_forces=args.table_forces, slots=args.slots,
+                    full_length=args.full_length, physics=args.physics or "auto",
+                    cluster=args.cluster, queue=args.queue, progress=progress_enabled(args),
+                    format=getattr(args, "table_format", None),
+                    wait=getattr(args, "wait", False), plan=planner(args))
 
-    return in_folder(out, work, wait=getattr(args, "wait", False))
+    return in_folder(out, work, lock=False)  # the API takes the folder's lock

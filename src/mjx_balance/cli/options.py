@@ -409,20 +409,12 @@ def format_option(p: argparse.ArgumentParser) -> None:
 def write_exports(out: str | Path, args: argparse.Namespace) -> None:
     """The --format copies of every table in ``out`` (and its sub-folders), and copies of an
     earlier --format that are older than their table written again; says which."""
-    fmt = getattr(args, "table_format", None)
     import logging
 
-    from ..store.files import export_tables  # lazy: the store floor loads pandas
+    from ..store.files import export_tables_said  # lazy: the store floor loads pandas
 
-    written = export_tables(out, fmt)
-    names = [str(Path(p).relative_to(out)) for p in written]
-    shown = ", ".join(names[:4]) + (f" and {len(names) - 4} more" if len(names) > 4 else "")
-    units = " (units in NAME.units.csv beside each CSV)" if any(
-        n.endswith(".csv") for n in names) else ""
-    if written or fmt is not None:
-        logging.getLogger("mjx_balance").info(
-            f"wrote {shown} in {out}{units}" if written
-            else f"--format {fmt}: every table in {out} is already in that format")
+    export_tables_said(out, getattr(args, "table_format", None),
+                       logging.getLogger("mjx_balance").info)
 
 
 # ---------------------------------------------------------------------------------------------

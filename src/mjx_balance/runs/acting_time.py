@@ -584,3 +584,20 @@ def _run_table(out: str | os.PathLike[str], config: Config, forces: np.ndarray, 
     folder.write_manifest(manifest)
     say(f"wrote {table_path}")
     return result
+
+
+def table_scenarios(config: Config, n_forces: int) -> int:
+    """Scenarios a table evaluates, at most: every force's (:func:`table_scenarios_per_force`)
+    and the sustained-push limit's (its coarse scan and rounds to 0.1 N from its widest
+    bracket); a planning estimate."""
+    coarse = np.asarray(SUSTAINED_COARSE)
+    rounds = math.ceil(math.log(np.diff(coarse).max() / 0.1) / math.log(8))
+    return n_forces * table_scenarios_per_force(config) + coarse.size + 7 * rounds
+
+
+def table_scenarios_per_force(config: Config, resolution: float = 0.01) -> int:
+    """Scenarios the table evaluates per force, at most: its coarse scan, then one bisection of
+    the widest bracket (a planning estimate; resumed or monotone forces need fewer)."""
+    steps = coarse_steps(config.scenario.t_end, resolution)
+    widest = int(max(np.diff(np.concatenate([[0], steps])).max(), 1))
+    return int(steps.size + math.ceil(math.log2(widest)) + 1)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Callable, NamedTuple
 
 from ..model.params import Config, ParameterError
 
@@ -163,3 +164,21 @@ def check_planned_work(n_scenarios: int, t_end: float, what: str = "cells", *,
             f"{n_scenarios:,} {what} of {t_end:g} s (up to {hours:,.1f} h on a 2-core CPU) is "
             f"beyond the limit of {scenarios_limit:,} {what} or {MAX_PLANNED_HOURS:g} h; "
             "use a coarser grid, or pass --yes to run it anyway")
+
+
+class PlannedWork(NamedTuple):
+    """The work a request is about to do, said and guarded before anything is compiled or
+    written (the command line's plan line and its refusal above the limit without --yes).
+    An API function that takes a ``plan`` callable calls it once with this, after every
+    check and before the folder is touched."""
+
+    config: Config  # the configuration whose window and rate the estimate uses
+    scenarios: int  # region cells (or table scenarios)
+    what: str = "cells"  # what they are, for the line
+    extra: int = 0  # table scenarios beyond them, at most
+    chunk_size: int | None = None
+    reference: bool = False  # run one at a time by the scalar reference (its rate)
+    note: str = ""  # what the work gives, after a semicolon
+
+
+Plan = Callable[[PlannedWork], None]

@@ -228,3 +228,17 @@ def export_tables(folder: str | os.PathLike[str], fmt: str | None) -> list[Path]
 
 def write_text(text: str, path: Path) -> None:
     write_atomic(path, lambda tmp: tmp.write_text(text))
+
+
+def export_tables_said(out: str | Path, fmt: str | None, say: Any) -> list[Path]:
+    """:func:`export_tables`, then one line through ``say`` naming what was written (or that
+    every table is already in ``fmt``); nothing said without ``fmt`` and nothing written."""
+    written = export_tables(out, fmt)
+    names = [str(Path(p).relative_to(out)) for p in written]
+    shown = ", ".join(names[:4]) + (f" and {len(names) - 4} more" if len(names) > 4 else "")
+    units = " (units in NAME.units.csv beside each CSV)" if any(
+        n.endswith(".csv") for n in names) else ""
+    if written or fmt is not None:
+        say(f"wrote {shown} in {out}{units}" if written
+            else f"--format {fmt}: every table in {out} is already in that format")
+    return written

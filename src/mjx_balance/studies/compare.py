@@ -36,11 +36,14 @@ from ..model.config_files import config_from_dict, load_config, read_toml, run_c
 from ..model.subject import Subject, with_sections
 from ..runs import cluster as cluster_mod
 from ..runs.definitions import load_sweep
+from ..runs.acting_time import table_scenarios
+from ..runs.chunks import Plan, PlannedWork
 from ..runs.folders import check_batched, run_region, run_table_folder
 from ..runs.population import check_queue, run_maps
 from ..runs.grid import Grid, check_durations, describe, parse_grid
 from ..store.files import REGION, TABLE, write_csv
-from ..store.folder import OutputFolder, config_dict, config_differences, same_values
+from ..store.folder import (OutputFolder, config_dict, config_differences, folder_lock,
+                            same_values)
 from . import catalog
 
 COMPARE_CSV = "compare.csv"
@@ -210,14 +213,16 @@ def check_compare(out: str | Path, configs: dict[str, Config], forces: Any, dura
 def run_compare(out: str | os.PathLike[str], configs: dict[str, Config], forces: Any,
                 durations: Any, table_forces: Any, *, run_batches: dict[str, Any] | None = None,
                 progress: bool = False, log: Callable[[str], None] | None = print,
-                **engine: Any) -> pd.DataFrame:
+                plan: Plan | None = None, wait: bool = False, **engine: Any) -> pd.DataFrame:
     """Every configuration's region map and table in ``out/<name>/``, then compare.csv and
     compare.png in ``out``; returns the comparison (one row per configuration, in order).
 
     forces, durations, table_forces: grids (``parse_grid``); every duration must fit every
-    configuration's window (checked for all before anything runs). run_batches: a batch
-    function per name (tests); engine: ``slots``, ``full_length``, ``physics``, ``cluster``
-    for ``runs.folders.run_region`` / ``run_table_folder``, and ``queue`` ("each": every
+    configuration's window. Everything is checked once (:func:`check_compare`), then ``plan``
+    (if given) hears the planned work (``runs.chunks.PlannedWork``), then the work runs under
+    ``out``'s lock (``wait``: for another run that holds it). run_batches: a batch function
+    per name (tests); engine: ``slots``, ``full_length``, ``physics``, ``cluster`` for
+    ``runs.folders.run_region`` / ``run_table_folder``, and ``queue`` ("each": every
     configuration's map its own engine run; "one": through one engine queue per compiled
     shape, ``runs.population.run_maps``, MJX only, no cluster)."""
     say = log or (lambda _msg: None)
@@ -225,18 +230,27 @@ def run_compare(out: str | os.PathLike[str], configs: dict[str, Config], forces:
     engine = dict(engine)
     queue = check_queue(engine.pop("queue", "each"), engine.get("physics", "auto"),
                         engine.get("cluster"))
-    forces, durations, table_forces = check_compare(out, configs, forces, durations,
-                                                    table_forces)
-    cluster = engine.get("cluster")
-    if isinstance(cluster, str):  # one connection for every configuration's work
-
-        client, local = cluster_mod.connect(cluster, say)
+    grids = check_compare(out, configs, forces, durations, table_forces)
+    if plan is not None:
+        first = next(iter(configs.values()))
+        plan(PlannedWork(first, len(configs) * grids[0].size * grids[1].size, "cells",
+                         extra=len(configs) * table_scenarios(first, grids[2].size)))
+    with folder_lock(out, wait=wait):
+        cluster = engine.get("cluster")
+        if not isinstance(cluster, str):
+            return _compare(out, configs, *grids, run_batches, progress, say, queue, engine)
+        client, local = cluster_mod.connect(cluster, say)  # one connection for every map
         try:
-            return run_compare(out, configs, forces, durations, table_forces,
-                               run_batches=run_batches, progress=progress, log=log,
-                               **{**engine, "cluster": client})
+            return _compare(out, configs, *grids, run_batches, progress, say, queue,
+                            {**engine, "cluster": client})
         finally:
             cluster_mod.close(client, local, owned=True)
+
+
+def _compare(out: Path, configs: dict[str, Config], forces: np.ndarray, durations: np.ndarray,
+             table_forces: np.ndarray, run_batches: dict[str, Any] | None, progress: bool,
+             say: Callable[[str], None], queue: str, engine: dict[str, Any]) -> pd.DataFrame:
+    """:func:`run_compare`'s work, its inputs checked and the folder locked."""
     windows = {name: config.scenario.t_end for name, config in configs.items()}
     if len(set(windows.values())) > 1:
         say("note: the configurations' windows differ ("
@@ -253,8 +267,8 @@ def run_compare(out: str | os.PathLike[str], configs: dict[str, Config], forces:
         say(f"compare: {name} ({config.controller.convention} convention) -> {folder}")
         batch = (run_batches or {}).get(name)
         if queue != "one":
-            run_region(folder, config, Grid.of(forces, durations, config), run_batch=batch, progress=progress,
-                       **engine)
+            run_region(folder, config, Grid.of(forces, durations, config), run_batch=batch,
+                       progress=progress, **engine)
         run_table_folder(folder, config, table_forces, run_batch=batch, progress=progress,
                              **engine)
         regions[name] = pd.read_parquet(folder / REGION)
