@@ -54,6 +54,10 @@ from .store.provenance import run_context
 from .reference import loop as reference
 from .store.files import TABLE, check_format, export_tables_said
 from .studies.compare import load_configs, run_compare
+from .studies.defaults import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES, READINGS
+from .studies.defaults import DEFAULT_FORCES as STUDY_TABLE_FORCES
+from .studies.landscape import run_landscape
+from .studies.sensitivity import run_sensitivity
 from .figures.style import figure_style
 from .runs import DEFAULT_SWEEP
 from .studies.basin import DEFAULT_V, DEFAULT_X, run_basin
@@ -68,7 +72,7 @@ if TYPE_CHECKING:
 
 
 __all__ = ["Config", "ParameterError", "basin", "batch_function", "cohort", "compare",
-           "explore", "load_config",
+           "explore", "landscape", "load_config", "sensitivity",
            "run_region", "run_table_folder", "scorecard", "simulate", "sweep", "table"]
 
 log = logging.getLogger("mjx_balance")
@@ -279,7 +283,7 @@ def scorecard(ours: "str | os.PathLike[str] | pd.DataFrame",
     return score_results(found["table"], refs, runs=found["runs"], region=found["region"])
 
 
-def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
+def compare(configs: "Mapping[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
             *, out: str | os.PathLike[str], forces: Values | None = None,
             durations: Values | None = None, table_forces: Values | None = None,
             slots: int | None = None, full_length: bool = False,
@@ -302,7 +306,7 @@ def compare(configs: "dict[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
     written (the command line says it and refuses too much work without --yes)."""
     check_format(format)
     named: dict[str, Config]  # (the configurations, each checked)
-    if isinstance(configs, dict):
+    if isinstance(configs, Mapping):
         named = {str(name): as_config(c) for name, c in configs.items()}
     else:
         named = load_configs([str(p) for p in configs])
@@ -394,6 +398,54 @@ def cohort(subjects: "Sequence[Subject] | Mapping[str, Subject] | str | os.PathL
             frame = run_plan(plan, progress=wanted(progress), log=log.info)
             export_tables_said(plan.out, format, log.info)
             return frame
+
+
+def landscape(config: ConfigLike = None, *, out: str | os.PathLike[str],
+              forces: Values | None = None, durations: Values | None = None,
+              q_scales: Values = DEFAULT_SCALES, r_scales: Values = DEFAULT_SCALES,
+              delays: str = DEFAULT_DELAYS, table_forces: Values = DEFAULT_TABLE_FORCES,
+              slots: int | None = None, full_length: bool = False, physics: str = "auto",
+              queue: str = "each", progress: bool | None = None, wait: bool = False,
+              format: str | None = None, figure_format: str | None = None,
+              figure_size: str | None = None, plan: Plan | None = None) -> "pd.DataFrame":
+    """The weight landscape (``mjx-balance landscape``): for every delay setting (``delays``:
+    a comma list in ms, a trailing c for the delay-compensated controller) and every Q and R
+    scale, the region map and table of ``config`` with those weights, in
+    ``out/<delay>/q<q>_r<r>/`` (resumable), then landscape.csv (returned: area, sustained-push
+    limit, mean recovery energy per setting), landscape.png and landscape.txt. Grids default
+    to the default sweep's. ``slots``, ``full_length``, ``physics``, ``queue``, ``progress``,
+    ``wait``, ``format``, ``figure_format``, ``figure_size``, ``plan``: as :func:`compare`."""
+    check_format(format)
+    with _session("landscape"), figure_style(figure_format, figure_size):
+        frame = run_landscape(out, as_config(config),
+                              DEFAULT_SWEEP["forces"] if forces is None else forces,
+                              DEFAULT_SWEEP["durations"] if durations is None else durations,
+                              q_scales=q_scales, r_scales=r_scales, delays=delays,
+                              table_forces=table_forces, progress=wanted(progress),
+                              log=log.info, slots=slots, full_length=full_length,
+                              physics=physics, queue=queue, plan=plan, wait=wait)
+        export_tables_said(out, format, log.info)
+        return frame
+
+
+def sensitivity(config: ConfigLike = None, *, out: str | os.PathLike[str],
+                forces: Values = STUDY_TABLE_FORCES, readings: Sequence[str] | None = None,
+                slots: int | None = None, full_length: bool = False, physics: str = "auto",
+                cluster: Any = None, progress: bool | None = None, wait: bool = False,
+                figure_format: str | None = None, figure_size: str | None = None,
+                plan: Plan | None = None) -> "pd.DataFrame":
+    """The robustness table under every reading of the study (``mjx-balance sensitivity``):
+    each reading's table (``readings``: keys of ``studies.defaults.READINGS``, default all) on
+    ``config`` in ``out/<reading>/`` (resumable), then sensitivity.csv (returned: the spread
+    per force), sensitivity.png and sensitivity.txt (what holds under every reading).
+    ``slots``, ``full_length``, ``physics``, ``cluster``, ``progress``, ``wait``,
+    ``figure_format``, ``figure_size``, ``plan``: as :func:`compare`."""
+    with _session("sensitivity"), figure_style(figure_format, figure_size):
+        return run_sensitivity(out, as_config(config), forces,
+                               readings=list(READINGS) if readings is None else list(readings),
+                               progress=wanted(progress), say=log.info, slots=slots,
+                               full_length=full_length, physics=physics, cluster=cluster,
+                               plan=plan, wait=wait)
 
 
 def explore(folder: str | os.PathLike[str], *, port: int = 0, browser: bool = False,

@@ -18,6 +18,7 @@ import contextlib
 import io
 import os
 import shutil
+import sys
 from pathlib import Path
 
 import pytest
@@ -94,8 +95,12 @@ def stand_in_work(monkeypatch):
     def reached(*_args, **_kwargs):
         raise Reached()
 
-    monkeypatch.setattr(store_folder, "folder_lock", reached)  # every folder's lock
-    monkeypatch.setattr(api, "folder_lock", reached)
+    # every folder's lock, wherever a module imported it (the store, the API, the studies)
+    lock = store_folder.folder_lock
+    for name, module in list(sys.modules.items()):
+        if name.startswith("mjx_balance") and getattr(module, "folder_lock", None) is lock:
+            monkeypatch.setattr(module, "folder_lock", reached)
+    assert api.folder_lock is reached
     monkeypatch.setattr(loop, "simulate_scenario", reached)  # every reference push
 
 

@@ -7,7 +7,6 @@ it runs.
 
 from __future__ import annotations
 
-import logging
 from pathlib import Path
 from typing import Any
 
@@ -15,10 +14,9 @@ from ..model.config_files import apply_overrides, with_convention
 from ..studies.defaults import (DEFAULT_DELAYS, DEFAULT_SCALES,  # light
                                 DEFAULT_SWEEP_DURATIONS, DEFAULT_SWEEP_FORCES,
                                 DEFAULT_TABLE_FORCES)
-from .common import (base_config, chosen_physics, guard_work, in_folder, progress_enabled,
-                     table_scenarios)
+from .common import base_config, chosen_physics, in_folder, planner, progress_enabled
 from .options import (config_options, engine_options, queue_option, figure_options, format_option,
-                      out_folder, sweep_file, wait_option, write_exports, yes_option)
+                      out_folder, sweep_file, wait_option, yes_option)
 
 
 
@@ -67,12 +65,12 @@ def add_parser(sub: Any) -> None:
 
 
 def landscape_command(args: Any) -> int:
-    """Every setting's map and table, then landscape.csv, .png and .txt in --out. Every input
-    is checked (``landscape.check_landscape``) before the folder is touched."""
+    """Every setting's map and table, then landscape.csv, .png and .txt in --out:
+    ``mjx_balance.landscape`` with the options resolved (every input checked before the
+    folder is touched, the plan line, the lock)."""
     # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
-    from ..runs import DEFAULT_SWEEP, load_sweep
-    from ..studies.landscape import (check_landscape,  # lazy: as above
-                                     run_landscape)
+    from .. import api
+    from ..runs import DEFAULT_SWEEP, load_sweep  # lazy: as above
 
     definition = load_sweep(args.sweep, base_config(args, overrides=False))
     # the command line wins: --set over the --config file and the sweep definition,
@@ -84,24 +82,20 @@ def landscape_command(args: Any) -> int:
         return given if given is not None else (from_file if from_file is not None
                                                 else fallback)
 
-    forces = pick(args.forces, definition.forces, DEFAULT_SWEEP["forces"])
-    durations = pick(args.durations, definition.durations, DEFAULT_SWEEP["durations"])
-    table_forces = pick(args.table_forces, definition.table_forces if args.sweep else None,
-                        DEFAULT_TABLE_FORCES)
     out = Path(args.out)
-    checked = check_landscape(out, config, forces, durations, args.q_scales, args.r_scales,
-                              args.delays, table_forces)
-    settings = len(checked["settings"])
-    guard_work(args, config, settings * checked["forces"].size * checked["durations"].size,
-               "cells", extra=settings * table_scenarios(config, checked["table_forces"].size))
-    engine = {"slots": args.slots, "full_length": args.full_length,
-              "physics": chosen_physics(args, definition), "queue": args.queue}
 
     def work() -> None:
-        run_landscape(out, config, forces, durations, q_scales=args.q_scales,
-                      r_scales=args.r_scales, delays=args.delays, table_forces=table_forces,
-                      progress=progress_enabled(args),
-                      log=logging.getLogger("mjx_balance").info, **engine)
-        write_exports(out, args)
+        api.landscape(
+            config, out=out,
+            forces=pick(args.forces, definition.forces, DEFAULT_SWEEP["forces"]),
+            durations=pick(args.durations, definition.durations, DEFAULT_SWEEP["durations"]),
+            q_scales=args.q_scales, r_scales=args.r_scales, delays=args.delays,
+            table_forces=pick(args.table_forces,
+                              definition.table_forces if args.sweep else None,
+                              DEFAULT_TABLE_FORCES),
+            slots=args.slots, full_length=args.full_length,
+            physics=chosen_physics(args, definition), queue=args.queue,
+            progress=progress_enabled(args), wait=getattr(args, "wait", False),
+            format=getattr(args, "table_format", None), plan=planner(args))
 
-    return in_folder(out, work, wait=getattr(args, "wait", False))
+    return in_folder(out, work, lock=False)  # the API takes the folder's lock

@@ -7,11 +7,10 @@ it runs.
 
 from __future__ import annotations
 
-import logging
 from pathlib import Path
 from typing import Any
 
-from .common import guard_work, in_folder, load_run_config, progress_enabled, table_scenarios
+from .common import in_folder, load_run_config, planner, progress_enabled
 from ..studies.defaults import DEFAULT_FORCES, READINGS  # light: no JAX
 from .options import (cluster_option, common_options, engine_options, figure_options,
                       wait_option, yes_option)
@@ -41,25 +40,18 @@ def add_parser(sub: Any) -> None:
 
 
 def sensitivity_command(args: Any) -> int:
-    """Every reading's table, then the spread (every input checked first)."""
-    from ..runs.folders import check_float32_grid  # lazy: JAX, MuJoCo; not for --help
-    from ..runs.grid import parse_grid  # lazy: as above
-    from ..studies.sensitivity import reading_configs, run_sensitivity  # lazy: as above
+    """Every reading's table, then the spread: ``mjx_balance.sensitivity`` with the options
+    resolved (every input checked first, the plan line, the lock)."""
+    from .. import api  # lazy: JAX, MuJoCo; not for --help
 
-    base = load_run_config(args)
-    readings = [r.strip() for r in args.readings.split(",") if r.strip()]
-    reading_configs(base, readings)
-    forces = parse_grid(args.forces, "forces")
-    check_float32_grid(forces, "forces")
-    guard_work(args, base, len(readings) * table_scenarios(base, forces.size),
-               "scenarios (estimated)")
     out = Path(args.out)
-    engine = {"slots": args.slots, "full_length": args.full_length,
-              "physics": args.physics or "auto", "cluster": args.cluster}
+    readings = [r.strip() for r in args.readings.split(",") if r.strip()]
 
     def work() -> None:
-        run_sensitivity(out, base, args.forces, readings=readings,
-                        progress=progress_enabled(args),
-                        say=logging.getLogger("mjx_balance").info, **engine)
+        api.sensitivity(load_run_config(args), out=out, forces=args.forces, readings=readings,
+                        slots=args.slots, full_length=args.full_length,
+                        physics=args.physics or "auto", cluster=args.cluster,
+                        progress=progress_enabled(args), wait=getattr(args, "wait", False),
+                        plan=planner(args))
 
-    return in_folder(out, work, wait=getattr(args, "wait", False))
+    return in_folder(out, work, lock=False)  # the API takes the folder's lock

@@ -230,7 +230,7 @@ def write_text(text: str, path: Path) -> None:
     write_atomic(path, lambda tmp: tmp.write_text(text))
 
 
-def export_tables_said(out: str | Path, fmt: str | None, say: Any) -> list[Path]:
+def export_tables_said(out: str | os.PathLike[str], fmt: str | None, say: Any) -> list[Path]:
     """:func:`export_tables`, then one line through ``say`` naming what was written (or that
     every table is already in ``fmt``); nothing said without ``fmt`` and nothing written."""
     written = export_tables(out, fmt)

@@ -238,19 +238,23 @@ def run_compare(out: str | os.PathLike[str], configs: dict[str, Config], forces:
     with folder_lock(out, wait=wait):
         cluster = engine.get("cluster")
         if not isinstance(cluster, str):
-            return _compare(out, configs, *grids, run_batches, progress, say, queue, engine)
+            return _compare(out, configs, grids, run_batches=run_batches, progress=progress,
+                            say=say, queue=queue, engine=engine)
         client, local = cluster_mod.connect(cluster, say)  # one connection for every map
         try:
-            return _compare(out, configs, *grids, run_batches, progress, say, queue,
-                            {**engine, "cluster": client})
+            return _compare(out, configs, grids, run_batches=run_batches, progress=progress,
+                            say=say, queue=queue, engine={**engine, "cluster": client})
         finally:
             cluster_mod.close(client, local, owned=True)
 
 
-def _compare(out: Path, configs: dict[str, Config], forces: np.ndarray, durations: np.ndarray,
-             table_forces: np.ndarray, run_batches: dict[str, Any] | None, progress: bool,
-             say: Callable[[str], None], queue: str, engine: dict[str, Any]) -> pd.DataFrame:
-    """:func:`run_compare`'s work, its inputs checked and the folder locked."""
+def _compare(out: Path, configs: dict[str, Config],
+             grids: tuple[np.ndarray, np.ndarray, np.ndarray], *,
+             run_batches: dict[str, Any] | None, progress: bool, say: Callable[[str], None],
+             queue: str, engine: dict[str, Any]) -> pd.DataFrame:
+    """:func:`run_compare`'s work, its inputs checked (``grids``: forces, durations, table
+    forces) and the folder locked."""
+    forces, durations, table_forces = grids
     windows = {name: config.scenario.t_end for name, config in configs.items()}
     if len(set(windows.values())) > 1:
         say("note: the configurations' windows differ ("

@@ -34,6 +34,7 @@ import re
 import textwrap
 import time
 from dataclasses import dataclass
+import os
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -42,8 +43,11 @@ import pandas as pd
 
 from . import catalog, compare as comparison
 from ..model.params import Config, ParameterError
+from ..runs.acting_time import table_scenarios
+from ..runs.chunks import Plan, PlannedWork
 from ..runs.grid import Grid, check_durations, parse_grid
 from ..store.files import REGION, TABLE, write_atomic, write_csv
+from ..store.folder import folder_lock
 from ..runs.folders import (batch_function, check_batched, check_float32_grid, run_region,
                             run_table_folder)
 from ..runs.population import check_queue, run_maps
@@ -203,20 +207,23 @@ def check_landscape(out: str | Path, base: Config, forces: Any, durations: Any,
             "durations": durations, "table_forces": table_forces, "settings": settings}
 
 
-def run_landscape(out: str | Path, base: Config, forces: Any, durations: Any, *,
+def run_landscape(out: str | os.PathLike[str], base: Config, forces: Any, durations: Any, *,
                   q_scales: Any = DEFAULT_SCALES, r_scales: Any = DEFAULT_SCALES,
                   delays: Any = DEFAULT_DELAYS, table_forces: Any = DEFAULT_TABLE_FORCES,
                   make_batch: Callable[..., Any] | None = None, progress: bool = False,
-                  log: Callable[[str], None] | None = print, **engine: Any) -> pd.DataFrame:
+                  log: Callable[[str], None] | None = print, plan: Plan | None = None,
+                  wait: bool = False, **engine: Any) -> pd.DataFrame:
     """Every setting's region map and table in ``out/<delay>/q<q>_r<r>/``, then
     landscape.csv, landscape.png and landscape.txt in ``out``; returns the landscape
     (:data:`COLUMNS`, one row per setting in run order).
 
-    Everything is checked before any work: the scales and delays, every setting's
-    configuration, the grids against its window, and every setting's folder (left by another
-    configuration or holding a map over another grid: refused, naming it). make_batch:
-    ``make_batch(config, slots=, full_length=, physics=)`` -> a batch function (default
-    ``batch_function``; tests pass a stand-in); engine: ``slots``, ``full_length``,
+    Everything is checked once, before any work (:func:`check_landscape`): the scales and
+    delays, every setting's configuration, the grids against its window, and every setting's
+    folder (left by another configuration or holding a map over another grid: refused,
+    naming it). Then ``plan`` (if given) hears the planned work (``runs.chunks.PlannedWork``)
+    and the work runs under ``out``'s lock (``wait``: for another run that holds it).
+    make_batch: ``make_batch(config, slots=, full_length=, physics=)`` -> a batch function
+    (default ``batch_function``; tests pass a stand-in); engine: ``slots``, ``full_length``,
     ``physics``, ``queue`` ("each": every setting's map its own engine run; "one": through one
     engine queue per compiled shape, ``runs.population.run_maps``, MJX only)."""
     say = log or (lambda _msg: None)
@@ -224,6 +231,18 @@ def run_landscape(out: str | Path, base: Config, forces: Any, durations: Any, *,
     queue = check_queue(engine.get("queue", "each"), engine.get("physics") or "auto")
     checked = check_landscape(out, base, forces, durations, q_scales, r_scales, delays,
                               table_forces)
+    n = len(checked["settings"])
+    if plan is not None:
+        plan(PlannedWork(base, n * checked["forces"].size * checked["durations"].size, "cells",
+                         extra=n * table_scenarios(base, checked["table_forces"].size)))
+    with folder_lock(out, wait=wait):
+        return _landscape(out, checked, queue, make_batch, engine, progress, say)
+
+
+def _landscape(out: Path, checked: dict[str, Any], queue: str,
+               make_batch: Callable[..., Any] | None, engine: dict[str, Any], progress: bool,
+               say: Callable[[str], None]) -> pd.DataFrame:
+    """:func:`run_landscape`'s work, its inputs checked and the folder locked."""
     q_scales, r_scales, delays = checked["q_scales"], checked["r_scales"], checked["delays"]
     forces, durations = checked["forces"], checked["durations"]
     table_forces, settings = checked["table_forces"], checked["settings"]

@@ -23,6 +23,7 @@ plan's table forces, :func:`write_sensitivity` on the readings' tables) into DIR
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any, Callable
 
@@ -32,7 +33,10 @@ import pandas as pd
 from ..model.params import Config, ParameterError
 from ..runs.grid import parse_grid
 from ..store.files import TABLE, write_csv, write_text
-from ..runs.folders import run_table_folder
+from ..runs.acting_time import table_scenarios
+from ..runs.chunks import Plan, PlannedWork
+from ..runs.folders import check_float32_grid, run_table_folder
+from ..store.folder import folder_lock
 from .defaults import DEFAULT_FORCES, READINGS
 from ..figures import style as figure_style
 
@@ -71,17 +75,32 @@ def reading_configs(base: Config, readings: Any = None) -> dict[str, Config]:
     return configs
 
 
-def run_sensitivity(out: str | Path, base: Config, forces: Any = DEFAULT_FORCES, *,
+def run_sensitivity(out: str | os.PathLike[str], base: Config, forces: Any = DEFAULT_FORCES, *,
                     readings: Any = None, progress: bool = False,
                     say: Callable[[str], None] = print,
-                    run_batches: dict[str, Any] | None = None,
-                    **engine: Any) -> pd.DataFrame:
+                    run_batches: dict[str, Any] | None = None, plan: Plan | None = None,
+                    wait: bool = False, **engine: Any) -> pd.DataFrame:
     """Every reading's table in OUT/<key>/, then sensitivity.csv, .png and .txt (module
-    docstring); returns sensitivity.csv's frame. engine: ``runs.folders.run_table_folder``'s options
-    (slots, full_length, physics, cluster); run_batches: a batch function per key (tests)."""
+    docstring); returns sensitivity.csv's frame. Every input is checked first; then ``plan``
+    (if given) hears the planned work (``runs.chunks.PlannedWork``) and the work runs under
+    ``out``'s lock (``wait``: for another run that holds it). engine:
+    ``runs.folders.run_table_folder``'s options (slots, full_length, physics, cluster);
+    run_batches: a batch function per key (tests)."""
     out = Path(out)
     forces = parse_grid(forces, "forces")
+    check_float32_grid(forces, "forces")
     configs = reading_configs(base, readings)  # every configuration checked before any work
+    if plan is not None:
+        plan(PlannedWork(base, len(configs) * table_scenarios(base, forces.size),
+                         "scenarios (estimated)"))
+    with folder_lock(out, wait=wait):
+        return _sensitivity(out, configs, forces, progress, say, run_batches, engine)
+
+
+def _sensitivity(out: Path, configs: dict[str, Config], forces: np.ndarray, progress: bool,
+                 say: Callable[[str], None], run_batches: dict[str, Any] | None,
+                 engine: dict[str, Any]) -> pd.DataFrame:
+    """:func:`run_sensitivity`'s work, its inputs checked and the folder locked."""
     tables = {}
     for key, config in configs.items():
         folder = out / key
