@@ -42,11 +42,10 @@ from .measures.strategy import with_strategy
 from .model.params import Config, ParameterError
 from .model.config_files import config_from_dict, load_config
 from .model.subject import Subject
-from .runs.folders import (batch_function, run_region, run_table_folder, size_value,
-                           check_reference)
+from .runs.folders import (batch_function, check_pushes, run_region, run_table_folder,
+                           size_value)
 from .runs.chunks import Plan
-from .runs.grid import Grid, Values, duration_values, grid_values
-from .runs.grid import check_durations, parse_pairs
+from .runs.grid import Grid, Values, grid_values
 from .runs.progress import wanted
 from .store.folder import folder_lock
 from .runtime import signals
@@ -128,20 +127,7 @@ def simulate(forces: Values | None = None, durations: Values | None = None,
     notebook; True: always; False: never). Raises ParameterError for a bad value before any
     work."""
     config = as_config(config)
-    if pairs is not None:
-        if forces is not None or durations is not None:
-            raise ParameterError("give either forces and durations or pairs, not both")
-        forces, durations = parse_pairs(pairs)
-        durations = check_durations(durations, config.scenario.t_end, "pairs", unique=False,
-                                    physics_dt=config.scenario.physics_dt)
-        todo = list(zip(forces.tolist(), durations.tolist()))
-    else:
-        forces = grid_values(forces, "forces")
-        durations = duration_values(durations, config)
-        todo = [(f, d) for d in durations.tolist() for f in forces.tolist()]
-    for _, duration in todo:  # every other rule, before any work
-        config.replace(scenario={"duration": float(duration)})
-    check_reference(config)
+    todo = check_pushes(config, forces, durations, pairs).todo  # before any work
     with signals.honoured():
         summary, series = reference.simulate_pairs(config, todo, progress=wanted(progress))
     return with_strategy(summary), series

@@ -76,7 +76,7 @@ def test_simulate_writes_every_file(tmp_path, short_config, capsys):
 @pytest.mark.parametrize("option,value,message", [
     ("--forces", "10,abc", "not a number"),
     ("--forces", "nan", "finite"),
-    ("--forces", "", "at least one"),
+    ("--forces", "", "empty grid"),
     ("--durations", "-0.1", ">= 0"),
     ("--durations", "inf", "finite"),
     ("--durations", "0.6", "t_end"),  # longer than the configured 0.5-s scenario
@@ -118,11 +118,12 @@ def test_full_window_reaches_the_figures(tmp_path, short_config, monkeypatch):
 ])
 def test_pairs_may_share_a_duration_and_start_with_a_minus(pairs, expected):
     from mjx_balance.cli.main import build_parser
-    from mjx_balance.cli.simulate import _pushes
     from mjx_balance.model.params import Config
+    from mjx_balance.runs.folders import check_pushes
 
     args = build_parser().parse_args(["simulate", "--pairs", pairs, "--out", "unused"])
-    forces, durations, given = _pushes(args, Config())
+    forces, durations, given, _ = check_pushes(Config(), args.forces, args.durations,
+                                               args.pairs, flag="--")
     assert given == expected and list(zip(forces, durations)) == expected
 
 

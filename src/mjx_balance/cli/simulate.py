@@ -13,9 +13,10 @@ from ..model.config_files import dumps_config
 from .common import guard_work, in_folder, load_run_config, progress_enabled
 from .options import (common_options, figure_options, format_option, write_exports, yes_option)
 
+DEFAULT_FORCES, DEFAULT_DURATIONS = "0,20,50,80,100,120", "0.1"
+
 log = logging.getLogger("mjx_balance")
 
-DEFAULT_FORCES, DEFAULT_DURATIONS = "0,20,50,80,100,120", "0.1"
 
 # The summary columns printed to the terminal (summary.csv has them all).
 PRINTED_COLUMNS = ["force", "duration", "convention", "outcome", "settle_time", "fall_time",
@@ -59,16 +60,6 @@ def parse_values(text: str, name: str, *, nonnegative: bool = False) -> list[flo
     return values
 
 
-def parse_option_grid(text: str, name: str) -> list[float]:
-    """``--name``'s values as ``sweep`` reads a grid (runs.grid.parse_grid): ``start:stop:step``
-    or a comma list, sorted, each value once; ParameterError naming ``--name`` otherwise."""
-    from ..runs.grid import parse_grid  # lazy: the runs floor loads JAX
-
-    if not any(item.strip() for item in str(text).split(",")):
-        raise ParameterError(f"--{name}: give at least one value")
-    return [float(v) for v in parse_grid(str(text), f"--{name}")]
-
-
 def sweep_folder(out: Path) -> bool:
     """Whether ``out`` holds a sweep, a table or a report (its config.toml must not be
     overwritten): a manifest other than simulate's own, or a config.toml beside chunks, a
@@ -89,31 +80,6 @@ def _simulate_manifest(path: Path) -> bool:
     return isinstance(manifest, dict) and manifest.get("kind") == "simulate"
 
 
-def _pushes(args: argparse.Namespace, config) -> tuple[list, list, list | None]:
-    """(forces, durations, pairs): the cross product's values, or the given pairs (then
-    forces and durations are the pairs' own, in order). ParameterError before any work."""
-    import numpy as np
-
-    from ..runs.grid import check_durations, parse_pairs  # lazy: the runs floor loads JAX
-
-    forces: np.ndarray | list[float]  # (the pairs' array, or the grid's values)
-    if args.pairs is not None:
-        forces, durations = parse_pairs(args.pairs, "--pairs")
-        durations = check_durations(durations, config.scenario.t_end, "--pairs", unique=False,
-                                    physics_dt=config.scenario.physics_dt)
-        if args.forces is not None or args.durations is not None:
-            raise ParameterError("--pairs gives the pushes: leave out --forces and --durations")
-        return forces.tolist(), durations.tolist(), list(zip(forces.tolist(),
-                                                             durations.tolist()))
-    forces = parse_option_grid(DEFAULT_FORCES if args.forces is None else args.forces, "forces")
-    # As ``sweep``: durations in [0, t_end] and whole physics steps (snapped to them).
-    durations = check_durations(
-        np.asarray(parse_option_grid(DEFAULT_DURATIONS if args.durations is None
-                                     else args.durations, "durations")),
-        config.scenario.t_end, "--durations", physics_dt=config.scenario.physics_dt).tolist()
-    return forces, durations, None
-
-
 def simulate_command(args: argparse.Namespace) -> int:
     """``mjx-balance simulate``: run the pushes, write tables, configuration and figures
     (each file atomically: whole or absent)."""
@@ -123,7 +89,7 @@ def simulate_command(args: argparse.Namespace) -> int:
     from ..figures.timeseries import timeseries_figures  # lazy: matplotlib
     from ..measures.strategy import with_strategy  # lazy: pandas
     from ..reference.loop import each_pair  # lazy: MuJoCo, OSQP
-    from ..runs.folders import check_reference  # lazy: the runs floor loads JAX
+    from ..runs.folders import check_pushes  # lazy: the runs floor loads JAX
     from ..store.files import (CONFIG, MANIFEST, write_csv,  # lazy: the store floor: pandas
                                write_parquet, write_text)
     from ..store.folder import (finish_simulation, read_pushes,  # lazy: pandas
@@ -131,11 +97,12 @@ def simulate_command(args: argparse.Namespace) -> int:
     from ..store.provenance import run_context  # lazy: as above
 
     config = load_run_config(args)
-    forces, durations, pairs = _pushes(args, config)
-    for duration in durations:  # fail before creating anything
-        config.replace(scenario={"duration": duration})
-    check_reference(config)  # memory, the MPC and the model build: before creating anything
-    todo = pairs if pairs is not None else [(f, d) for d in durations for f in forces]
+    # every push, its configuration and the reference's build, before creating anything
+    grid = args.pairs is None  # the cross product: the defaults for what is not given
+    forces, durations, pairs, todo = check_pushes(
+        config, DEFAULT_FORCES if grid and args.forces is None else args.forces,
+        DEFAULT_DURATIONS if grid and args.durations is None else args.durations, args.pairs,
+        flag="--")
     guard_work(args, config, len(todo), "pushes", reference=True)
     out = Path(args.out)
     if sweep_folder(out):

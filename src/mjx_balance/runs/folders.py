@@ -13,7 +13,7 @@ import logging
 import math
 import numbers
 import os
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -27,7 +27,8 @@ from ..store.folder import folder_lock
 from .acting_time import TableResult, run_table, table_batch_size
 from .batch import LazyBatch, ReferenceBatch
 from .chunks import memory_budget, scenario_bytes
-from .grid import Grid, Values, is_bool, grid_values
+from .grid import (Grid, Values, check_durations, duration_values, grid_values, is_bool,
+                   parse_pairs)
 from .region import SweepResult, run_sweep
 
 log = logging.getLogger("mjx_balance")
@@ -154,6 +155,47 @@ def check_reference(config: Config) -> None:
             f"the scalar reference cannot be built from this configuration "
             f"({type(exc).__name__}: {exc}); check controller.q_diag, r_diag, the bounds and "
             "the body") from None
+
+
+class Pushes(NamedTuple):
+    """The pushes of a scalar reference run, checked (:func:`check_pushes`)."""
+
+    forces: list[float]  # the grid's forces, or the pairs' own in order
+    durations: list[float]  # likewise
+    pairs: list[tuple[float, float]] | None  # the given pairs, or None for the cross product
+    todo: list[tuple[float, float]]  # every push in run order
+
+
+def check_pushes(config: Config, forces: Any = None, durations: Any = None, pairs: Any = None,
+                 *, flag: str = "") -> Pushes:
+    """The pushes of ``simulate`` (the command and ``mb.simulate``), every one checked before
+    any work: the cross product of ``forces`` and ``durations`` (grids; every force for the
+    first duration, then the next), or the given ``pairs`` (``"20:0.7,30:0.45"``, a CSV file or (force,
+    duration) pairs, in their order); durations whole physics steps within the window; each
+    push's configuration; and the reference's own build (:func:`check_reference`).
+    ``flag``: "--" where the values came from the command line's options (the messages name
+    them so). ParameterError naming the value and the rule."""
+    if pairs is not None:
+        f, d = parse_pairs(pairs, f"{flag}pairs")
+        d = check_durations(d, config.scenario.t_end, f"{flag}pairs", unique=False,
+                            physics_dt=config.scenario.physics_dt)
+        if forces is not None or durations is not None:
+            raise ParameterError(f"{flag}pairs gives the pushes: leave out {flag}forces and "
+                                 f"{flag}durations")
+        given = list(zip(f.tolist(), d.tolist()))
+        result = Pushes(f.tolist(), d.tolist(), given, given)
+    else:
+        for values, name in ((forces, "forces"), (durations, "durations")):
+            if values is None:
+                raise ParameterError(f"{flag}{name}: give the pushes' {name} (or {flag}pairs)")
+        f = grid_values(forces, f"{flag}forces")
+        d = duration_values(durations, config, f"{flag}durations")
+        result = Pushes(f.tolist(), d.tolist(), None,
+                        [(x, y) for y in d.tolist() for x in f.tolist()])
+    for duration in result.durations:  # every other rule of each push's configuration
+        config.replace(scenario={"duration": float(duration)})
+    check_reference(config)
+    return result
 
 
 def batch_function(config: Config, *, slots: int | None = None, full_length: bool = False,
