@@ -5,7 +5,7 @@ expensive part of the suite (~13 s on 2 cores), running it is not (8 scenarios o
 fraction of a second). Its tests run with ``jax_enable_x64`` off, as sweeps do (with x64 on,
 MJX does some internal arithmetic in float64 even on a float32 model, which would make the
 agreement with the reference look better than what users get); ``float32`` switches it off for
-one test, ``jax.enable_x64(False)`` for a module.
+one test, ``float32_module`` for a module.
 """
 
 import os
@@ -50,8 +50,41 @@ def fake_rollout(monkeypatch):
 
 
 @pytest.fixture
+def stand_in(request, monkeypatch):
+    """The command line's rollout replaced by a stand-in made per configuration; returns the list
+    of the stand-ins made, in order (each counts its calls).
+
+    What differs between modules is how a configuration's stand-in is made: the test module's
+    ``stand_in_fake(config)`` (a support.FakeThresholdBatch for that configuration), or a
+    function given as ``indirect`` parameter (``parametrize("stand_in", [make], indirect=True)``).
+    """
+    from support import DEFAULT_BATCH
+
+    fake_for = getattr(request, "param", None) or getattr(request.module, "stand_in_fake", None)
+    if fake_for is None:
+        raise pytest.UsageError(f"{request.module.__name__} uses the stand_in fixture but defines "
+                                "no stand_in_fake(config)")
+    made = []
+
+    def make(config, **_engine):
+        made.append(fake_for(config))
+        return made[-1]
+    monkeypatch.setattr(DEFAULT_BATCH, make)
+    return made
+
+
+@pytest.fixture
 def float32():
     """Run the test with jax_enable_x64 off (as sweeps run)."""
+    with jax.enable_x64(False):
+        yield
+
+
+@pytest.fixture(scope="module")
+def float32_module():
+    """Run a whole module with jax_enable_x64 off (as sweeps run), from before its own
+    module-scoped fixtures are built (pytest sets up ``usefixtures`` before a test's arguments of
+    the same scope) to its end: ``pytestmark = pytest.mark.usefixtures("float32_module")``."""
     with jax.enable_x64(False):
         yield
 

@@ -9,6 +9,8 @@ several floors use. Heavy imports (JAX, the package's floors) happen inside the 
                          a sweep and a table on the stand-in, and what they must give
     AdmmMPC              the batched path's float32 ADMM in the scalar reference's loop
     synthetic_series     three made-up runs' time series, for figures
+    fake_region, grid_cells, push_energy
+                         a made-up region frame (one row per cell), for figures and studies
     run_cli, assert_refused
                          a command's exit code and stderr, and the one-line refusal rule
 """
@@ -296,6 +298,35 @@ def synthetic_series(t_end=4.0, dt=0.01, duration=0.1) -> tuple[pd.DataFrame, pd
         summary.append({"force": force, "duration": duration, "convention": "paper",
                         "outcome": outcome})
     return pd.concat(frames, ignore_index=True), pd.DataFrame(summary)
+
+
+def push_energy(force, duration):
+    """A made-up energy of a push [J]: 1 + F T, growing with the impulse."""
+    return 1.0 + force * duration
+
+
+def grid_cells(forces, durations, rule) -> dict:
+    """Every (force, duration) pair of a grid (forces outer) as floats, with its outcome
+    ``rule(force, duration)``: the ``cells`` of :func:`fake_region`."""
+    return {(float(f), float(d)): rule(f, d) for f in forces for d in durations}
+
+
+def fake_region(cells: dict, *, convention="paper", energy_total=push_energy,
+                **columns) -> pd.DataFrame:
+    """FAKE region frame (a sweep's summary rows) for figures and studies: one row per cell of
+    ``cells`` ({(force, duration): outcome}, in its order; :func:`grid_cells` for a grid) with
+    force, duration, outcome, then ``convention`` and ``energy_total`` (None: no such column)
+    and the further ``columns``: each a function of (force, duration) or one value per cell."""
+    keys = list(cells)
+    frame = pd.DataFrame({"force": [float(f) for f, _ in keys],
+                          "duration": [float(d) for _, d in keys],
+                          "outcome": list(cells.values())})
+    if convention is not None:
+        frame["convention"] = convention
+    for name, column in {"energy_total": energy_total, **columns}.items():
+        if column is not None:
+            frame[name] = [column(f, d) for f, d in keys] if callable(column) else list(column)
+    return frame
 
 
 # -- the command line's refusals --------------------------------------------------------------------

@@ -32,7 +32,7 @@ from .model.subject import Subject  # noqa: E402
 _LAZY = {
     "simulate": "api", "sweep": "api", "table": "api", "compare": "api", "basin": "api",
     "cohort": "api", "scorecard": "api", "explore": "api", "landscape": "api",
-    "sensitivity": "api", "references": "studies.references",
+    "sensitivity": "api", "report": "api", "references": "studies.references",
     "strategy_map": "figures.strategy",
     "load_report": "report.html:load_results",
     "region_map": "figures.region", "energy_map": "figures.region",
@@ -44,7 +44,7 @@ _LAZY = {
 }
 
 __all__ = ["Config", "ParameterError", "Subject", "__version__", "basin", "cohort", "compare",
-           "landscape", "sensitivity",
+           "landscape", "report", "sensitivity",
            "conventions_figure", "explore", "energy_map", "load_config", "load_report", "region_map", "region_numbers",
            "references", "scorecard", "simulate", "strategy_map", "study", "study_reading", "sweep", "table",
            "table_figure",

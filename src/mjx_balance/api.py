@@ -30,10 +30,11 @@ options into their arguments, then writes figures and prints.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 import tempfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterator, Union
@@ -44,7 +45,7 @@ from .model.config_files import config_from_dict, load_config
 from .model.subject import Subject
 from .runs.folders import (batch_function, check_pushes, run_region, run_table_folder,
                            size_value)
-from .runs.chunks import Plan
+from .runs.chunks import PlanHook
 from .runs.grid import Grid, Values, grid_values
 from .runs.progress import wanted
 from .store.folder import folder_lock
@@ -64,14 +65,19 @@ from .studies.cohort import as_members, plan_cohort, run_plan
 from .studies.scorecard import (Reference, folder_results, read_references, reference_forces,
                                 write_scorecard)
 from .studies.scorecard import scorecard as score_results
+from .report import REPORT_JSON, build_report
 from .report.explore import Explorer
+from .report.reproduction import store_references
+from .runtime import cache
+from .studies.experiments import PLANS, read_record, run_report, selected_studies
+from .model.params import CONVENTIONS
 
 if TYPE_CHECKING:
     import pandas as pd
 
 
 __all__ = ["Config", "ParameterError", "basin", "batch_function", "cohort", "compare",
-           "explore", "landscape", "load_config", "sensitivity",
+           "explore", "landscape", "load_config", "report", "sensitivity",
            "run_region", "run_table_folder", "scorecard", "simulate", "sweep", "table"]
 
 log = logging.getLogger("mjx_balance")
@@ -276,7 +282,7 @@ def compare(configs: "Mapping[str, ConfigLike] | Sequence[str | os.PathLike[str]
             physics: str = "auto", cluster: Any = None, queue: str = "each",
             progress: bool | None = None, format: str | None = None,
             figure_format: str | None = None, figure_size: str | None = None,
-            wait: bool = False, plan: Plan | None = None) -> "pd.DataFrame":
+            wait: bool = False, plan: PlanHook | None = None) -> "pd.DataFrame":
     """Several configurations on one grid (``mjx-balance compare``): each one's region map and
     table in ``out/<name>/``, then ``out/compare.csv`` (returned: area, mean recovery energy,
     sustained-push limit, max acting times, one row per configuration) and ``out/compare.png``
@@ -393,7 +399,7 @@ def landscape(config: ConfigLike = None, *, out: str | os.PathLike[str],
               slots: int | None = None, full_length: bool = False, physics: str = "auto",
               queue: str = "each", progress: bool | None = None, wait: bool = False,
               format: str | None = None, figure_format: str | None = None,
-              figure_size: str | None = None, plan: Plan | None = None) -> "pd.DataFrame":
+              figure_size: str | None = None, plan: PlanHook | None = None) -> "pd.DataFrame":
     """The weight landscape (``mjx-balance landscape``): for every delay setting (``delays``:
     a comma list in ms, a trailing c for the delay-compensated controller) and every Q and R
     scale, the region map and table of ``config`` with those weights, in
@@ -419,7 +425,7 @@ def sensitivity(config: ConfigLike = None, *, out: str | os.PathLike[str],
                 slots: int | None = None, full_length: bool = False, physics: str = "auto",
                 cluster: Any = None, progress: bool | None = None, wait: bool = False,
                 figure_format: str | None = None, figure_size: str | None = None,
-                plan: Plan | None = None) -> "pd.DataFrame":
+                plan: PlanHook | None = None) -> "pd.DataFrame":
     """The robustness table under every reading of the study (``mjx-balance sensitivity``):
     each reading's table (``readings``: keys of ``studies.defaults.READINGS``, default all) on
     ``config`` in ``out/<reading>/`` (resumable), then sensitivity.csv (returned: the spread
@@ -432,6 +438,63 @@ def sensitivity(config: ConfigLike = None, *, out: str | os.PathLike[str],
                                progress=wanted(progress), say=log.info, slots=slots,
                                full_length=full_length, physics=physics, cluster=cluster,
                                plan=plan, wait=wait)
+
+
+def report(config: ConfigLike = None, *, out: str | os.PathLike[str], scale: str = "default",
+           backend: str | None = None, studies: str | None = "all",
+           conventions: Sequence[str] | None = None, sweeps: str | os.PathLike[str] | None = None,
+           reference: References = None, cluster: Any = None, physics: str = "auto",
+           html_only: bool = False, wait: bool = False,
+           say: Callable[[str], None] | None = None) -> Path:
+    """The HTML report (``mjx-balance report``): the study's experiments under each of
+    ``conventions`` (default: every convention) and the studies beyond it (``studies``: a
+    comma list of keys, "all" or "none") on ``config``, their tables saved in ``out``
+    (resumable), then ``out/report.html``; returns its path. ``scale``: "tiny" (2-s runs on
+    tiny grids), "default" or "dense"; ``backend``: the tables' and maps' batch function,
+    "mjx" or "reference" (default: the scale's); ``sweeps``: a folder of study sweep
+    definitions (default: the shipped ones); ``reference``: reference table(s) scored in the
+    report (kept in ``out/references/``; their forces join the table); ``html_only``: only
+    redraw the figures and the page from the tables saved in ``out``. Every input is checked
+    before the folder is made; the work runs under the folder's lock (``wait``: as
+    :func:`sweep`). ``say``: where the lines about the work go (default: the ``mjx_balance``
+    logger)."""
+    say = say or log.info
+    refs = read_references(reference)  # a bad file is refused before any work
+    chosen = PLANS.get(scale)
+    if chosen is None:
+        raise ParameterError(f"scale = {scale!r}: must be one of {', '.join(PLANS)}")
+    extra = reference_forces(refs, chosen.table_forces)  # the scorecard's force tolerance
+    if extra:
+        chosen = dataclasses.replace(chosen, table_forces=tuple(sorted(
+            {*chosen.table_forces, *extra})))
+        say(f"table: adding the reference's forces {', '.join(f'{f:g}' for f in extra)} N")
+    out = Path(out)
+    if html_only:  # the record checked before build_report creates anything
+        read_record(out / REPORT_JSON)
+    else:  # every input checked before the folder is made or locked
+        kept = tuple(CONVENTIONS if conventions is None else conventions)
+        unknown = [c for c in kept if c not in CONVENTIONS]
+        if unknown or not kept:
+            raise ParameterError(f"conventions: unknown {', '.join(unknown) or '(none)'}; "
+                                 f"known: {', '.join(CONVENTIONS)}")
+        base, study_list = as_config(config), selected_studies(studies)
+        if (backend or chosen.backend) == "mjx":
+            cache.enable()  # the batched rollout compiles: keep its executables
+    with signals.honoured(), folder_lock(out, wait=wait):
+        if not html_only:
+            # what the sweep folders' manifests record as the physics path
+            with run_context(command="python: mjx_balance.report",
+                             physics="mjx" if (backend or chosen.backend) == "mjx"
+                             else "mujoco"):
+                record = run_report(out, base, chosen, backend=backend,
+                                    study_list=study_list, conventions=kept,
+                                    sweeps=None if sweeps is None else Path(sweeps),
+                                    cluster=cluster, physics=physics)
+            say(f"tables saved in {out} ({record['seconds']:.0f} s)")
+        store_references(out, None if reference is None else
+                         [str(reference)] if isinstance(reference, (str, os.PathLike))
+                         else [str(r) for r in reference])
+        return build_report(out)
 
 
 def explore(folder: str | os.PathLike[str], *, port: int = 0, browser: bool = False,

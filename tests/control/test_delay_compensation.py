@@ -15,10 +15,7 @@ from mjx_balance.rollout import BatchRunner
 DELAY = 0.05  # s: 25 physics steps, 5 control periods
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _float32_module():
-    with jax.enable_x64(False):
-        yield
+pytestmark = pytest.mark.usefixtures("float32_module")  # x64 off (conftest)
 
 
 @pytest.mark.parametrize("delay_steps", [1, 5, 12, 25, 75])

@@ -18,7 +18,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 import pytest
-from support import REPO, cli_sweep, synthetic_series
+from support import REPO, cli_sweep, fake_region, grid_cells, synthetic_series
 
 from mjx_balance.cli.main import build_parser
 from mjx_balance.figures import animation, strategy, style, timeseries
@@ -119,7 +119,7 @@ def test_every_outcome_colour_comes_from_the_one_palette():
 
 
 def test_region_map_uses_the_palette_and_hatches_the_falls():
-    region = _region()
+    region = fake_region(CELLS, **JOINTS)
     ax = region_plots.region_map(region).axes[0]
     handles = ax.get_legend().legend_handles
     for name in style.OUTCOME_COLOURS:
@@ -136,17 +136,12 @@ def test_region_map_uses_the_palette_and_hatches_the_falls():
 # --- formats and sizes ------------------------------------------------------------------------
 
 
-def _region() -> pd.DataFrame:
-    forces, durations = np.arange(0, 130, 10.0), np.round(np.arange(0.05, 2.01, 0.05), 2)
-
-    def rule(f, d):
-        return ("recovered" if f * d < 12 else "not_settled" if f * d < 16
-                else "diverged" if f * d > 60 else "fell")
-
-    return pd.DataFrame([{"force": f, "duration": d, "convention": "paper",
-                          "outcome": rule(f, d), "energy_total": 1 + f * d,
-                          "energy_ankle": 1 + 0.7 * f * d, "energy_hip": 0.3 * f * d}
-                         for f in forces for d in durations])
+# the made-up region of these figures (support.fake_region): every outcome on a 13 x 40 grid,
+# with the energies of both joints
+CELLS = grid_cells(np.arange(0, 130, 10.0), np.round(np.arange(0.05, 2.01, 0.05), 2),
+                   lambda f, d: ("recovered" if f * d < 12 else "not_settled" if f * d < 16
+                                 else "diverged" if f * d > 60 else "fell"))
+JOINTS = {"energy_ankle": lambda f, d: 1 + 0.7 * f * d, "energy_hip": lambda f, d: 0.3 * f * d}
 
 
 def _table() -> pd.DataFrame:
@@ -165,12 +160,12 @@ def _scorecard() -> pd.DataFrame:
 
 
 FIGURES = {  # name -> a function that draws it (a new figure)
-    "region": lambda: region_plots.region_map(_region(), table=_table().assign(
+    "region": lambda: region_plots.region_map(fake_region(CELLS, **JOINTS), table=_table().assign(
         convention="paper")),
-    "energy": lambda: region_plots.energy_map(_region()),
+    "energy": lambda: region_plots.energy_map(fake_region(CELLS, **JOINTS)),
     "table": lambda: region_plots.table_figure(_table()),
-    "strategy": lambda: strategy.strategy_map(_region()),
-    "strategy_threshold": lambda: strategy.threshold_figure(_region()),
+    "strategy": lambda: strategy.strategy_map(fake_region(CELLS, **JOINTS)),
+    "strategy_threshold": lambda: strategy.threshold_figure(fake_region(CELLS, **JOINTS)),
     "timeseries": lambda: timeseries.timeseries_figure(synthetic_series()[0], "ankle_angle",
                                                         summary=synthetic_series()[1]),
     "scorecard": lambda: scorecard_plots.scorecard_figure(_scorecard()),
@@ -228,7 +223,7 @@ def test_timeseries_figures_in_pdf_at_one_column(tmp_path):
 
 
 def test_compare_figure_fits_one_column(tmp_path):
-    regions = {"base": _region(), "stiffer": _region().assign(
+    regions = {"base": fake_region(CELLS, **JOINTS), "stiffer": fake_region(CELLS, **JOINTS).assign(
         outcome=lambda r: np.where(r.force < 60, "recovered", r.outcome))}
     frame = pd.DataFrame({"name": list(regions), "area": [10.0, 20.0],
                           "sustained_push_limit": [30.0, np.nan], "t_end": 4.0})
@@ -262,8 +257,8 @@ def test_region_at_one_column_in_vector_formats(tmp_path, fmt):
     bbox_inches="tight" (the width stays the one set), so the page width is checked; the
     tolerance, 0.01 pt, covers the number's printed decimals."""
     with style.figure_style(format=fmt, size="one-column"):
-        path = region_plots.plot_region(_region(), tmp_path / "region.png")
-        fig = region_plots.region_map(_region())
+        path = region_plots.plot_region(fake_region(CELLS, **JOINTS), tmp_path / "region.png")
+        fig = region_plots.region_map(fake_region(CELLS, **JOINTS))
         style.save(fig, tmp_path / "again.png", close=False)
     assert path == tmp_path / f"region.{fmt}" and readable_figure(path)
     assert not (tmp_path / "region.png").exists()
@@ -277,7 +272,7 @@ def test_fitting_is_what_keeps_the_texts_inside(tmp_path, monkeypatch):
     """Without the fitting (the figure only resized to the column), the region map's legend
     and title reach past the figure: the check above would fail."""
     with style.figure_style(size="one-column"):
-        fig = region_plots.region_map(_region())
+        fig = region_plots.region_map(fake_region(CELLS, **JOINTS))
     fig.set_size_inches(3.5, 4.0)
     fig.draw_without_rendering()
     assert style.outside(fig)
@@ -286,7 +281,7 @@ def test_fitting_is_what_keeps_the_texts_inside(tmp_path, monkeypatch):
 def test_readable_figure_rejects_cut_vector_files(tmp_path):
     for fmt in ("pdf", "svg"):
         with style.figure_style(format=fmt):
-            path = region_plots.plot_energy(_region(), tmp_path / "energy.png")
+            path = region_plots.plot_energy(fake_region(CELLS, **JOINTS), tmp_path / "energy.png")
         assert readable_figure(path)
         data = path.read_bytes()
         path.write_bytes(data[: len(data) // 2])

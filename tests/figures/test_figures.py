@@ -18,6 +18,8 @@ from matplotlib.collections import QuadMesh
 from matplotlib.patches import Rectangle
 from support import (
     FakeThresholdBatch,
+    fake_region,
+    grid_cells,
     synthetic_series,
 )
 
@@ -32,13 +34,6 @@ from mjx_balance.model.params import Config
 def _close_figures():
     yield
     plt.close("all")
-
-
-def _region(forces, durations, rule) -> pd.DataFrame:
-    rows = [{"force": float(f), "duration": float(d), "convention": "paper",
-             "outcome": rule(f, d), "energy_total": 1.0 + f * d}
-            for f in forces for d in durations]
-    return pd.DataFrame(rows)
 
 
 def _mesh(ax) -> QuadMesh:
@@ -66,8 +61,8 @@ def test_cell_bounds():
 
 @pytest.mark.parametrize("maker", ["region_map", "energy_map"])
 def test_two_cell_grid_paints_exactly_the_sampled_cells(maker):
-    region = _region([25.0, 50.0], [0.05, 0.2],
-                     lambda f, d: "recovered" if f * d < 5 else "fell")
+    region = fake_region(grid_cells([25.0, 50.0], [0.05, 0.2],
+                                    lambda f, d: "recovered" if f * d < 5 else "fell"))
     fig = getattr(region_plots, maker)(region)
     ax = fig.axes[0]
     assert ax.get_xlim() == pytest.approx((25.0, 50.0))  # not -25..75 N
@@ -81,14 +76,15 @@ def test_two_cell_grid_paints_exactly_the_sampled_cells(maker):
 
 def test_log_duration_axis_across_a_decade():
     durations = [0.05, 0.1, 0.5, 1.0, 5.0]
-    region = _region([0, 10, 20], durations, lambda f, d: "recovered" if f * d < 5 else "fell")
+    region = fake_region(grid_cells([0, 10, 20], durations,
+                                    lambda f, d: "recovered" if f * d < 5 else "fell"))
     ax = region_plots.region_map(region).axes[0]
     assert ax.get_yscale() == "log"
     assert ax.get_ylim() == pytest.approx((0.05, 5.0))
     ys = np.unique(_mesh(ax).get_coordinates()[..., 1])
     np.testing.assert_allclose(ys, region_plots.cell_bounds(durations, log=True))
     np.testing.assert_allclose(ys[1], np.sqrt(0.05 * 0.1))  # geometric midpoints
-    narrow = _region([0, 10], [0.05, 0.1, 0.4], lambda f, d: "recovered")
+    narrow = fake_region(grid_cells([0, 10], [0.05, 0.1, 0.4], lambda f, d: "recovered"))
     assert region_plots.region_map(narrow).axes[0].get_yscale() == "linear"
 
 
@@ -99,21 +95,22 @@ def _legend_texts(ax) -> list[str]:
 def test_legend_names_every_outcome_with_its_count():
     outcomes = {(0.0, 0.1): "recovered", (0.0, 0.2): "recovered", (50.0, 0.1): "not_settled",
                 (50.0, 0.2): "fell", (100.0, 0.1): "diverged", (100.0, 0.2): "fell"}
-    region = _region([0, 50, 100], [0.1, 0.2], lambda f, d: outcomes[(f, d)])
+    region = fake_region(grid_cells([0, 50, 100], [0.1, 0.2], lambda f, d: outcomes[(f, d)]))
     texts = _legend_texts(region_plots.region_map(region).axes[0])
     for name, count in (("recovered", 2), ("not settled by t_end", 1), ("fell", 2),
                         ("diverged", 1)):
         assert f"{name} ({count})" in texts, texts
     # classes absent from the map are still listed, with 0
-    only = _region([0, 50], [0.1, 0.2], lambda f, d: "recovered")
+    only = fake_region(grid_cells([0, 50], [0.1, 0.2], lambda f, d: "recovered"))
     texts = _legend_texts(region_plots.region_map(only).axes[0])
     assert {f"{region_plots.OUTCOME_LABELS[n]} ({4 if n == 'recovered' else 0})"
             for n in OUTCOMES} <= set(texts)
 
 
 def test_table_curve_and_impulse_lines_on_the_map(tmp_path):
-    region = _region(np.arange(0, 130, 10.0), np.round(np.arange(0.05, 2.01, 0.05), 2),
-                     lambda f, d: "recovered" if f * d < 20 else "fell")
+    region = fake_region(grid_cells(np.arange(0, 130, 10.0),
+                                    np.round(np.arange(0.05, 2.01, 0.05), 2),
+                                    lambda f, d: "recovered" if f * d < 20 else "fell"))
     table = pd.DataFrame({"force": [20.0, 60.0, 100.0, 500.0],
                           "max_acting_time": [0.99, 0.33, 0.19, 0.04], "convention": "paper"})
     ax = region_plots.region_map(region, table=table).axes[0]
@@ -132,7 +129,8 @@ def test_table_curve_and_impulse_lines_on_the_map(tmp_path):
 
 
 def test_energy_map_shows_recovered_cells_only():
-    region = _region([0, 50, 100], [0.1, 0.2], lambda f, d: "recovered" if f < 60 else "fell")
+    region = fake_region(grid_cells([0, 50, 100], [0.1, 0.2],
+                                    lambda f, d: "recovered" if f < 60 else "fell"))
     ax = region_plots.energy_map(region).axes[0]
     values = _mesh(ax).get_array()
     # cells in grid order (duration rows, force columns): the 100 N column did not recover
@@ -142,7 +140,7 @@ def test_energy_map_shows_recovered_cells_only():
 
 
 def test_figure_functions_draw_on_given_axes():
-    region = _region([0, 50], [0.1, 0.2], lambda f, d: "recovered")
+    region = fake_region(grid_cells([0, 50], [0.1, 0.2], lambda f, d: "recovered"))
     fig, axes = plt.subplots(1, 2)
     assert region_plots.region_map(region, ax=axes[0]) is fig
     assert region_plots.energy_map(region, ax=axes[1]) is fig

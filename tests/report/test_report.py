@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from margins import within
+from support import fake_region
 from tiny_report import ALL, SMALL, selected, tiny_report
 
 import mjx_balance
@@ -354,22 +355,16 @@ def test_every_study_variant_changes_the_base_configuration():
             assert (config == base) == (v.file is None or st.signed), (st.key, v.key)
 
 
-def _region(cells):
-    rows = [{"force": f, "duration": d, "outcome": o, "convention": "paper"}
-            for (f, d), o in cells.items()]
-    return pd.DataFrame(rows)
-
-
 def test_region_area_and_reading():
     grid = {(f, d): "recovered" for f in (0.0, 10.0, 20.0) for d in (0.1, 0.2, 0.4)}
-    base = _region(grid)
+    base = fake_region(grid, energy_total=None)
     numbers = studies.region_numbers(base)
     assert numbers["area"] == pytest.approx(20 * 0.3)  # the full grid hull
     assert numbers["fraction"] == pytest.approx(1.0)
     assert numbers["t_ref"] == 0.1 and numbers["f_max_ref"] == 20.0
     weaker = dict(grid)
     weaker[(20.0, 0.4)] = weaker[(20.0, 0.2)] = "fell"
-    var = _region(weaker)
+    var = fake_region(weaker, energy_total=None)
     # cell of (20, 0.4): 5 N x 0.1 s; (20, 0.2): 5 N x 0.15 s
     assert studies.region_numbers(var)["area"] == pytest.approx(6.0 - 0.5 - 0.75)
     table = studies.compare({"a": base, "b": var}, {"a": "ankle–hip (base)", "b": "ankle only"})
@@ -377,7 +372,8 @@ def test_region_area_and_reading():
     text = studies.reading(studies.study("ankle_only"), table, base)
     assert "Ankle only: 4.75 N·s, 1.25 N·s smaller (-1.25 N·s, -21%)" in text
     assert "The hip adds +1.25 N·s" in text and "2 lost" in text
-    signed = _region({**{(-f, d): o for (f, d), o in weaker.items()}, **grid})
+    signed = fake_region({**{(-f, d): o for (f, d), o in weaker.items()}, **grid},
+                         energy_total=None)
     halves = studies.signed_halves(signed)
     assert list(halves.variant) == ["backward", "forward"]
     assert halves.area.tolist() == pytest.approx([4.75, 6.0])

@@ -32,10 +32,7 @@ CELLS = [(0.0, 0.1), (20.0, 0.1), (50.0, 0.3), (150.0, 0.1), (200.0, 0.1), (-150
          (80.0, 0.5), (8.0, 2.0)]
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _float32_module():
-    with jax.enable_x64(False):
-        yield
+pytestmark = pytest.mark.usefixtures("float32_module")  # x64 off (conftest)
 
 
 @pytest.fixture(scope="module")

@@ -89,10 +89,7 @@ def _c_open_loop(torques: np.ndarray, force: float, n_push: int) -> dict[str, np
     return {k: np.asarray(v) for k, v in out.items()}
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _float32_session():
-    with jax.enable_x64(False):
-        yield
+pytestmark = pytest.mark.usefixtures("float32_module")  # x64 off (conftest)
 
 
 @pytest.fixture(scope="module")

@@ -26,9 +26,9 @@ import jax
 import numpy as np
 import pandas as pd
 import pytest
+from support import tiny_config
 
 from mjx_balance.measures.outcomes import SUMMARY_COLUMNS
-from mjx_balance.model.params import Config
 from mjx_balance.runs.grid import Grid
 
 try:
@@ -44,10 +44,6 @@ FORCES, DURATIONS = "0,60,120,250", "0.1,0.2,0.5"  # recovered, not_settled and 
 CHUNK, SLOTS = 4, 8  # 12 cells: 3 chunks, so both workers of local:2 get one
 CHUNK_KEY = "mjx_balance-chunk-"
 TABLE_FORCES = "60,120"  # 26 scenarios: a coarse call of 10, one 9-section round of 16
-
-
-def tiny_config() -> Config:
-    return Config().replace(scenario={"t_end": T_END})
 
 
 class Fake:
@@ -96,7 +92,7 @@ def reference(tmp_path_factory, compile_cache) -> Path:
 def _sweep(out, cluster, **kwargs):
     from mjx_balance.runs import LazyBatch, run_sweep
 
-    config = tiny_config()
+    config = tiny_config(t_end=T_END)
     with jax.enable_x64(False):  # as sweeps run (conftest switches x64 on for the session)
         return run_sweep(out, config, Grid.of(FORCES, DURATIONS, config), chunk_size=CHUNK, progress=False,
                          run_batch=LazyBatch(config, slots=SLOTS), cluster=cluster, log=None,
@@ -180,7 +176,7 @@ def test_table_on_the_cluster_is_the_local_table(tmp_path, reference, cluster):
     from mjx_balance.runs import LazyBatch, run_table, table_batch_size
 
     local, client = cluster
-    config = tiny_config()
+    config = tiny_config(t_end=T_END)
     out = tmp_path / "cluster"
     with jax.enable_x64(False), distributed.get_task_stream(client) as stream:
         result = run_table(out, config, TABLE_FORCES, run_batch=LazyBatch(config, slots=SLOTS),
@@ -225,11 +221,11 @@ def test_worker_of_another_version_is_refused(tmp_path):
         _run_by_value(client, _other_version)
         refused = r"refusing the cluster.*worker tcp://.*: mjx_balance 0\.0\.0\+other \(driver: "
         with pytest.raises(ClusterError, match=refused):
-            run_sweep(tmp_path / "out", tiny_config(), Grid.of(FORCES, DURATIONS, tiny_config()), run_batch=Fake(),
+            run_sweep(tmp_path / "out", tiny_config(t_end=T_END), Grid.of(FORCES, DURATIONS, tiny_config(t_end=T_END)), run_batch=Fake(),
                       chunk_size=CHUNK, progress=False, log=None, cluster=client)
     assert not list((tmp_path / "out" / "chunks").glob("*.parquet"))
     # a worker that joined after the check: the task itself refuses
-    spec = ChunkSpec(tiny_config(), None, True, CHUNK, False,
+    spec = ChunkSpec(tiny_config(t_end=T_END), None, True, CHUNK, False,
                      facts={**local_facts(), "jax": "0.0.1"}, batch=Fake())
     with pytest.raises(ClusterError, match=r"jax .* \(driver: 0\.0\.1\)"):
         compute_chunk(spec, 0, np.array([0.0]), np.array([0.1]))
@@ -290,6 +286,7 @@ def test_plain_install_runs_without_dask(tmp_path):
         from mjx_balance.runs import run_sweep
         from mjx_balance.runs.cluster import ClusterError
         sys.path.insert(0, {str(Path(__file__).parent)!r})
+        sys.path.insert(0, {str(Path(__file__).parents[1])!r})  # support.py, which it imports
         from test_cluster import Fake
 
         for command in ("sweep", "table"):

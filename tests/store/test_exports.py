@@ -28,16 +28,9 @@ from mjx_balance.store.files import UNITS_KEY, units_path
 GRID = ["--forces", "0:40:10", "--durations", "0.1,0.3,0.7"]
 
 
-@pytest.fixture
-def stand_in(monkeypatch):
-    made = []
-
-    def make(config, **_engine):
-        made.append(FakeThresholdBatch(c=30.0 if config.controller.convention == "paper"
-                                       else 60.0))
-        return made[-1]
-    monkeypatch.setattr(DEFAULT_BATCH, make)
-    return made
+def stand_in_fake(config):
+    """The stand-in of a convention (conftest's ``stand_in`` makes one per configuration)."""
+    return FakeThresholdBatch(c=30.0 if config.controller.convention == "paper" else 60.0)
 
 
 class FakeBasinRunner:
@@ -72,8 +65,7 @@ def written(tmp_path_factory):
     """Every command that writes tables, run once with --format both into one tree."""
     root = tmp_path_factory.mktemp("exports")
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(DEFAULT_BATCH, lambda config, **_e: FakeThresholdBatch(
-            c=30.0 if config.controller.convention == "paper" else 60.0))
+        mp.setattr(DEFAULT_BATCH, lambda config, **_e: stand_in_fake(config))
         mp.setattr("mjx_balance.studies.basin.BatchRunner", FakeBasinRunner)
         ref = root / "ref.csv"
         ref.write_text("force,max_acting_time,energy_total_01\n10,2.9,0.3\n20,1.4,0.6\n")

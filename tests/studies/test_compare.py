@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from PIL import Image
-from support import DEFAULT_BATCH, FakeThresholdBatch, expected_area, expected_max_time
+from support import FakeThresholdBatch, expected_area, expected_max_time
 
 import mjx_balance as mb
 from mjx_balance.cli import main
@@ -19,15 +19,9 @@ FORCES, DURATIONS, TABLE_FORCES = "0:40:10", "0.5,1,2", "10,20"
 C = {"paper": 30.0, "joint": 60.0}  # the stand-in's threshold per convention
 
 
-@pytest.fixture
-def stand_in(monkeypatch):
-    made = []
-
-    def make(config, **_engine):
-        made.append(FakeThresholdBatch(c=C[config.controller.convention]))
-        return made[-1]
-    monkeypatch.setattr(DEFAULT_BATCH, make)
-    return made
+def stand_in_fake(config):
+    """The stand-in of a convention (conftest's ``stand_in`` makes one per configuration)."""
+    return FakeThresholdBatch(c=C[config.controller.convention])
 
 
 def configs(tmp_path):

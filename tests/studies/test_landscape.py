@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from PIL import Image
-from support import DEFAULT_BATCH, FakeThresholdBatch, expected_area, expected_max_time
+from support import FakeThresholdBatch, expected_area, expected_max_time
 
 from mjx_balance.cli import main
 from mjx_balance.model.params import Config, ParameterError
@@ -59,15 +59,9 @@ class WeightedFake(FakeThresholdBatch):
         return out
 
 
-@pytest.fixture
-def stand_in(monkeypatch):
-    made = []
-
-    def make(config, **_engine):
-        made.append(WeightedFake(config))
-        return made[-1]
-    monkeypatch.setattr(DEFAULT_BATCH, make)
-    return made
+def stand_in_fake(config):
+    """The stand-in of a configuration (conftest's ``stand_in`` makes one per configuration)."""
+    return WeightedFake(config)
 
 
 def calls(made) -> int:

@@ -9,6 +9,7 @@ and (slow) every one of its rows that differs from our table carries a reason.""
 import numpy as np
 import pandas as pd
 import pytest
+from support import fake_region
 
 import mjx_balance as mb
 from mjx_balance.measures.strategy import (
@@ -155,18 +156,14 @@ def test_scorecard_of_a_saved_folder_writes_csv_and_figure(tmp_path):
 # -- the strategy index ---------------------------------------------------------------------------
 
 
-def _region():
+def test_hip_share_and_strategy():
     # made-up cells: 10 N recovers as ankle at 0.1 s and with the hip at 1 s; 50 N with the hip
     # at 0.1 s and falls at 0.5 s; F = 0 did (almost) no work
-    return pd.DataFrame({
-        "force": [0.0, 10.0, 10.0, 50.0, 50.0], "duration": [0.1, 0.1, 1.0, 0.1, 0.5],
-        "outcome": ["recovered", "recovered", "recovered", "recovered", "fell"],
-        "energy_hip": [1e-8, 0.0135, 0.3, 0.4, 40.0], "energy_total": [3e-7, 0.1, 1.0, 1.0,
-                                                                       50.0]})
-
-
-def test_hip_share_and_strategy():
-    region = _region()
+    region = fake_region({(0.0, 0.1): "recovered", (10.0, 0.1): "recovered",
+                          (10.0, 1.0): "recovered", (50.0, 0.1): "recovered",
+                          (50.0, 0.5): "fell"}, convention=None,
+                         energy_hip=[1e-8, 0.0135, 0.3, 0.4, 40.0],
+                         energy_total=[3e-7, 0.1, 1.0, 1.0, 50.0])
     share = hip_share(region)
     assert np.isnan(share[0])  # below the energy floor: no share
     assert share[1:].tolist() == pytest.approx([0.135, 0.3, 0.4, 0.8])
@@ -196,7 +193,7 @@ def test_parse_pairs_keeps_the_given_order(tmp_path):
                        ("inf:0.1", "finite"), ([(1, 2, 3)], "a force and a duration")):
         with pytest.raises(ParameterError, match=words):
             parse_pairs(bad)
-    with pytest.raises(ParameterError, match="either forces and durations or pairs"):
+    with pytest.raises(ParameterError, match="pairs gives the pushes: leave out forces and durations"):
         mb.simulate([20], [0.1], pairs="20:0.1")
 
 

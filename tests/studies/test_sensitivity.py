@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
-from support import DEFAULT_BATCH, FakeThresholdBatch, expected_max_time
+from support import FakeThresholdBatch, expected_max_time
 
 from mjx_balance.cli import main
 from mjx_balance.model.params import Config, ParameterError
@@ -22,16 +22,9 @@ KEY_C = {"paper_plain": 30.7, "joint_plain": 20.3, "paper_offset_free": 45.3,
 FORCES = "20,50,80"
 
 
-@pytest.fixture
-def stand_in(monkeypatch):
-    made = []
-
-    def make(config, **_engine):
-        c = C[(config.controller.convention, config.controller.offset_free)]
-        made.append(FakeThresholdBatch(c=c))
-        return made[-1]
-    monkeypatch.setattr(DEFAULT_BATCH, make)
-    return made
+def stand_in_fake(config):
+    """The stand-in of a reading (conftest's ``stand_in`` makes one per configuration)."""
+    return FakeThresholdBatch(c=C[(config.controller.convention, config.controller.offset_free)])
 
 
 def test_the_spread_and_what_holds(tmp_path, stand_in):

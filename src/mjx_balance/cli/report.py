@@ -3,7 +3,6 @@ DIR/report.html (report.run_report, report.build_report)."""
 
 from __future__ import annotations
 
-import dataclasses
 import sys
 from pathlib import Path
 from typing import Any
@@ -59,50 +58,26 @@ def add_parser(sub: Any) -> None:
 
 def report_command(args: Any) -> int:
     """Without --html-only: run everything missing in --out and say where the tables are (on
-    stderr); then, or with --html-only alone, draw the figures and report.html."""
-    # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
-    from ..report import PLANS, REPORT_JSON, build_report, run_report, selected_studies
-    from ..runtime import cache  # lazy: as above
-    from ..store.provenance import run_context  # lazy: as above
-    from ..studies.experiments import read_record  # lazy: as above
+    stderr); then, or with --html-only alone, draw the figures and report.html:
+    ``mjx_balance.report`` with the options resolved."""
+    from .. import api  # lazy: the library (JAX, MuJoCo, pandas); not for --help
 
-    from ..report.reproduction import store_references  # lazy: as above
-    from ..studies.scorecard import read_references, reference_forces  # lazy: as above
-
-    out = Path(args.out)
-    refs = read_references(args.reference)  # a bad file is refused before any work
-    plan = PLANS[args.scale]
-    extra = reference_forces(refs, plan.table_forces)  # the scorecard's force tolerance
-    if extra:
-        plan = dataclasses.replace(plan, table_forces=tuple(sorted({*plan.table_forces,
-                                                                      *extra})))
-        print(f"table: adding the reference's forces {', '.join(f'{f:g}' for f in extra)} N",
-              file=sys.stderr)
     html_only = getattr(args, "html_only", False)
-    if not html_only:  # every input checked before the folder is made or locked
-        conventions = _conventions(args.conventions)
-        config, study_list = load_run_config(args), selected_studies(args.studies)
-        backend = args.backend or plan.backend
-        if backend == "mjx":
-            cache.enable()  # the batched rollout compiles: keep its executables
-    else:  # check the record before build_report creates anything
-        read_record(out / REPORT_JSON)
+    config = None if html_only else load_run_config(args)
+    out = Path(args.out)
     result = {}
 
-    def work() -> None:  # under the folder's lock: one report at a time in a folder
-        if not html_only:
-            # what the sweep folders' manifests record as the physics path
-            with run_context(physics="mjx" if backend == "mjx" else "mujoco"):
-                record = run_report(out, config, plan, backend=args.backend,
-                                    study_list=study_list, conventions=conventions,
-                                    sweeps=Path(args.sweeps) if args.sweeps else None,
-                                    cluster=getattr(args, "cluster", None),
-                                    physics=getattr(args, "physics", None) or "auto")
-            print(f"tables saved in {out} ({record['seconds']:.0f} s)", file=sys.stderr)
-        store_references(out, args.reference)
-        result["path"] = build_report(out)
+    def work() -> None:
+        result["path"] = api.report(
+            config, out=out, scale=args.scale, backend=args.backend, studies=args.studies,
+            conventions=None if html_only else _conventions(args.conventions),
+            sweeps=args.sweeps, reference=args.reference,
+            cluster=getattr(args, "cluster", None),
+            physics=getattr(args, "physics", None) or "auto", html_only=html_only,
+            wait=getattr(args, "wait", False),
+            say=lambda text: print(text, file=sys.stderr))  # stdout: the page's path alone
 
-    code = in_folder(out, work, wait=getattr(args, "wait", False))
+    code = in_folder(out, work, lock=False)  # the API takes the folder's lock
     if code:
         return code
     print(f"wrote {result['path']}")

@@ -181,4 +181,4 @@ class PlannedWork(NamedTuple):
     note: str = ""  # what the work gives, after a semicolon
 
 
-Plan = Callable[[PlannedWork], None]
+PlanHook = Callable[[PlannedWork], None]  # what a request calls with its planned work

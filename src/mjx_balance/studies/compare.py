@@ -37,7 +37,7 @@ from ..model.subject import Subject, with_sections
 from ..runs import cluster as cluster_mod
 from ..runs.definitions import load_sweep
 from ..runs.acting_time import table_scenarios
-from ..runs.chunks import Plan, PlannedWork
+from ..runs.chunks import PlanHook, PlannedWork
 from ..runs.folders import check_batched, run_region, run_table_folder
 from ..runs.population import check_queue, run_maps
 from ..runs.grid import Grid, check_durations, describe, parse_grid
@@ -213,7 +213,7 @@ def check_compare(out: str | Path, configs: dict[str, Config], forces: Any, dura
 def run_compare(out: str | os.PathLike[str], configs: dict[str, Config], forces: Any,
                 durations: Any, table_forces: Any, *, run_batches: dict[str, Any] | None = None,
                 progress: bool = False, log: Callable[[str], None] | None = print,
-                plan: Plan | None = None, wait: bool = False, **engine: Any) -> pd.DataFrame:
+                plan: PlanHook | None = None, wait: bool = False, **engine: Any) -> pd.DataFrame:
     """Every configuration's region map and table in ``out/<name>/``, then compare.csv and
     compare.png in ``out``; returns the comparison (one row per configuration, in order).
 

@@ -44,7 +44,7 @@ import pandas as pd
 from . import catalog, compare as comparison
 from ..model.params import Config, ParameterError
 from ..runs.acting_time import table_scenarios
-from ..runs.chunks import Plan, PlannedWork
+from ..runs.chunks import PlanHook, PlannedWork
 from ..runs.grid import Grid, check_durations, parse_grid
 from ..store.files import REGION, TABLE, write_atomic, write_csv
 from ..store.folder import folder_lock
@@ -211,7 +211,7 @@ def run_landscape(out: str | os.PathLike[str], base: Config, forces: Any, durati
                   q_scales: Any = DEFAULT_SCALES, r_scales: Any = DEFAULT_SCALES,
                   delays: Any = DEFAULT_DELAYS, table_forces: Any = DEFAULT_TABLE_FORCES,
                   make_batch: Callable[..., Any] | None = None, progress: bool = False,
-                  log: Callable[[str], None] | None = print, plan: Plan | None = None,
+                  log: Callable[[str], None] | None = print, plan: PlanHook | None = None,
                   wait: bool = False, **engine: Any) -> pd.DataFrame:
     """Every setting's region map and table in ``out/<delay>/q<q>_r<r>/``, then
     landscape.csv, landscape.png and landscape.txt in ``out``; returns the landscape

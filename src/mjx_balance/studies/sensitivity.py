@@ -34,7 +34,7 @@ from ..model.params import Config, ParameterError
 from ..runs.grid import parse_grid
 from ..store.files import TABLE, write_csv, write_text
 from ..runs.acting_time import table_scenarios
-from ..runs.chunks import Plan, PlannedWork
+from ..runs.chunks import PlanHook, PlannedWork
 from ..runs.folders import check_float32_grid, run_table_folder
 from ..store.folder import folder_lock
 from .defaults import DEFAULT_FORCES, READINGS
@@ -78,7 +78,7 @@ def reading_configs(base: Config, readings: Any = None) -> dict[str, Config]:
 def run_sensitivity(out: str | os.PathLike[str], base: Config, forces: Any = DEFAULT_FORCES, *,
                     readings: Any = None, progress: bool = False,
                     say: Callable[[str], None] = print,
-                    run_batches: dict[str, Any] | None = None, plan: Plan | None = None,
+                    run_batches: dict[str, Any] | None = None, plan: PlanHook | None = None,
                     wait: bool = False, **engine: Any) -> pd.DataFrame:
     """Every reading's table in OUT/<key>/, then sensitivity.csv, .png and .txt (module
     docstring); returns sensitivity.csv's frame. Every input is checked first; then ``plan``
