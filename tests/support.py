@@ -116,7 +116,7 @@ def sweep_fake(out, fake, chunk=8, config=None):
 
     config = config or tiny_config()
     return run_sweep(out, config, Grid.of(*GRID, config), run_batch=fake, chunk_size=chunk,
-                     progress=False, log=None)
+                     progress=False, say=None)
 
 
 def expected_max_time(force, c, t_end, resolution=0.01):

@@ -51,7 +51,7 @@ def main() -> None:
     cells = forces.size * durations.size
     for queue in ("each", "one"):  # compile both programs (and the plain sweep's)
         cohort.run_cohort(out / f"warm-{queue}", people, config, forces[:2], durations[:1],
-                          log=None, queue=queue)
+                          say=None, queue=queue)
     runs: dict[str, list[float]] = {}
     outputs: dict[str, float] = {}
     write_outputs = cohort.write_outputs
@@ -82,7 +82,7 @@ def main() -> None:
             label = f"cohort --queue {queue}"
             work[label] = 0
             t0 = time.perf_counter()
-            cohort.run_cohort(out / f"{queue}{r}", people, config, forces, durations, log=None,
+            cohort.run_cohort(out / f"{queue}{r}", people, config, forces, durations, say=None,
                               queue=queue)
             runs.setdefault(label, []).append(time.perf_counter() - t0 - outputs[queue])
         label = "plain sweep"

@@ -138,7 +138,7 @@ def main() -> None:
     label = f"cohort --queue {args.queue}"
     meter.start(label)
     t0 = time.perf_counter()
-    cohort.run_cohort(out / "cohort", people, config, forces, durations, log=None,
+    cohort.run_cohort(out / "cohort", people, config, forces, durations, say=None,
                       queue=args.queue, slots=args.slots, physics="mjx")
     results[label] = meter.summary(label, time.perf_counter() - t0)
     if not args.no_plain:

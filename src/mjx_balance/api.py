@@ -307,7 +307,7 @@ def compare(configs: "Mapping[str, ConfigLike] | Sequence[str | os.PathLike[str]
                             DEFAULT_SWEEP["forces"] if forces is None else forces,
                             DEFAULT_SWEEP["durations"] if durations is None else durations,
                             DEFAULT_SWEEP["table_forces"] if table_forces is None
-                            else table_forces, progress=wanted(progress), log=log.info,
+                            else table_forces, progress=wanted(progress), say=log.info,
                             slots=slots, full_length=full_length, physics=physics,
                             cluster=cluster, queue=queue, plan=plan, wait=wait)
         export_tables_said(out, format, log.info)
@@ -384,10 +384,10 @@ def cohort(subjects: "Sequence[Subject] | Mapping[str, Subject] | str | os.PathL
         plan = plan_cohort(out, members, base,
                            DEFAULT_SWEEP["forces"] if forces is None else forces,
                            DEFAULT_SWEEP["durations"] if durations is None else durations,
-                           table_forces=table_forces, log=log.info, slots=slots,
+                           table_forces=table_forces, say=log.info, slots=slots,
                            full_length=full_length, physics=physics, queue=queue)
         with _session("cohort"), folder_lock(plan.out, wait=wait):
-            frame = run_plan(plan, progress=wanted(progress), log=log.info)
+            frame = run_plan(plan, progress=wanted(progress), say=log.info)
             export_tables_said(plan.out, format, log.info)
             return frame
 
@@ -414,7 +414,7 @@ def landscape(config: ConfigLike = None, *, out: str | os.PathLike[str],
                               DEFAULT_SWEEP["durations"] if durations is None else durations,
                               q_scales=q_scales, r_scales=r_scales, delays=delays,
                               table_forces=table_forces, progress=wanted(progress),
-                              log=log.info, slots=slots, full_length=full_length,
+                              say=log.info, slots=slots, full_length=full_length,
                               physics=physics, queue=queue, plan=plan, wait=wait)
         export_tables_said(out, format, log.info)
         return frame

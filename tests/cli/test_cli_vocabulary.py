@@ -234,7 +234,7 @@ def test_the_table_bar_keeps_its_total(monkeypatch, batch):
     Recorder.bars = []
     config = Config().replace(scenario={"t_end": 2.0})
     result = max_acting_time("20,50,80", config, run_batch=FakeThresholdBatch(), batch=batch,
-                             progress=True, log=None)
+                             progress=True, say=None)
     (bar,) = Recorder.bars
     assert len({total for _, total in bar.log}) == 1  # fixed
     counts = [n for n, _ in bar.log]

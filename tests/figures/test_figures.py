@@ -157,7 +157,7 @@ def test_table_energies_are_those_of_recovered_runs():
     """table.csv's energy_*_01 / _max hold a recovered run's energy or NaN, never a fall's."""
     forces = [20.0, 200.0, 300.0, 4000.0]  # |F| T < 30 recovers: T = 0.1 s falls from 300 N
     result = sweep.max_acting_time(forces, Config(), run_batch=FakeThresholdBatch(),
-                                   progress=False, log=None)
+                                   progress=False, say=None)
     table = result.table.set_index("force")
     energies = [c for c in sweep.TABLE_COLUMNS if c.startswith(("energy_", "study_energy_"))]
     assert {c.rsplit("_", 1)[1] for c in energies} == {"01", "max"}

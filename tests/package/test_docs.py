@@ -68,7 +68,7 @@ def test_table_columns_are_documented():
 
     config = Config().replace(scenario={"t_end": 1.0})
     result = max_acting_time([20.0, 100.0], config, run_batch=standin_batch, progress=False,
-                             log=None)
+                             say=None)
     columns = list(result.table.columns)
     assert columns == list(TABLE_COLUMNS)
     assert missing(columns) == []

@@ -446,15 +446,15 @@ def test_interrupted_sweep_resumes_to_the_same_bytes(tmp_path):
         with pytest.raises(KeyboardInterrupt):
             run_sweep(tmp_path / "a", config, Grid.of(forces, durations, config), chunk_size=4,
                       run_batch=Interrupted(config, slots=ENGINE_SLOTS), progress=False,
-                      log=None)
+                      say=None)
         assert any((tmp_path / "a" / "chunks").glob("chunk-*.parquet"))
         resumed = run_sweep(tmp_path / "a", config, Grid.of(forces, durations, config),
                             run_batch=LazyBatch(config, slots=ENGINE_SLOTS), progress=False,
-                          log=None)
+                          say=None)
         assert resumed.reused_chunks >= 1
         whole = run_sweep(tmp_path / "b", config, Grid.of(forces, durations, config), chunk_size=16,
                           run_batch=LazyBatch(config, slots=ENGINE_SLOTS), progress=False,
-                          log=None)
+                          say=None)
     assert resumed.region_path.read_bytes() == whole.region_path.read_bytes()
     manifest = json.loads((tmp_path / "a" / "manifest.json").read_text())
     assert manifest["region"]["engine"] == {"slots": ENGINE_SLOTS, "early_stop": True,

@@ -95,7 +95,7 @@ def _sweep(out, cluster, **kwargs):
     config = tiny_config(t_end=T_END)
     with jax.enable_x64(False):  # as sweeps run (conftest switches x64 on for the session)
         return run_sweep(out, config, Grid.of(FORCES, DURATIONS, config), chunk_size=CHUNK, progress=False,
-                         run_batch=LazyBatch(config, slots=SLOTS), cluster=cluster, log=None,
+                         run_batch=LazyBatch(config, slots=SLOTS), cluster=cluster, say=None,
                          **kwargs)
 
 
@@ -180,7 +180,7 @@ def test_table_on_the_cluster_is_the_local_table(tmp_path, reference, cluster):
     out = tmp_path / "cluster"
     with jax.enable_x64(False), distributed.get_task_stream(client) as stream:
         result = run_table(out, config, TABLE_FORCES, run_batch=LazyBatch(config, slots=SLOTS),
-                           batch=table_batch_size(config, 2), progress=False, log=None,
+                           batch=table_batch_size(config, 2), progress=False, say=None,
                            cluster=client)
     expected = _local_table(reference)
     assert len(result.runs) == len(pd.read_parquet(expected / "table_runs.parquet")) > 26
@@ -222,7 +222,7 @@ def test_worker_of_another_version_is_refused(tmp_path):
         refused = r"refusing the cluster.*worker tcp://.*: mjx_balance 0\.0\.0\+other \(driver: "
         with pytest.raises(ClusterError, match=refused):
             run_sweep(tmp_path / "out", tiny_config(t_end=T_END), Grid.of(FORCES, DURATIONS, tiny_config(t_end=T_END)), run_batch=Fake(),
-                      chunk_size=CHUNK, progress=False, log=None, cluster=client)
+                      chunk_size=CHUNK, progress=False, say=None, cluster=client)
     assert not list((tmp_path / "out" / "chunks").glob("*.parquet"))
     # a worker that joined after the check: the task itself refuses
     spec = ChunkSpec(tiny_config(t_end=T_END), None, True, CHUNK, False,
@@ -297,18 +297,18 @@ def test_plain_install_runs_without_dask(tmp_path):
         config = Config().replace(scenario={{"t_end": 1.0}})
         from mjx_balance.runs.grid import Grid
         result = run_sweep({str(tmp_path / "plain")!r}, config, Grid.of("0,60", "0.1,0.5", config),
-                           run_batch=Fake(), progress=False, log=None)
+                           run_batch=Fake(), progress=False, say=None)
         assert len(result.region) == 4
         with pytest.raises(ClusterError, match="mjx_balance\\\\[cluster\\\\]"):
             run_sweep({str(tmp_path / "asked")!r}, config, Grid.of("0,60", "0.1,0.5", config),
-                      run_batch=Fake(), progress=False, log=None, cluster="local:2")
+                      run_batch=Fake(), progress=False, say=None, cluster="local:2")
         from mjx_balance.runs import run_table
         table = run_table({str(tmp_path / "plain_table")!r}, config, "0,60", run_batch=Fake(),
-                          progress=False, log=None)
+                          progress=False, say=None)
         assert len(table.table) == 2
         with pytest.raises(ClusterError, match="mjx_balance\\\\[cluster\\\\]"):
             run_table({str(tmp_path / "asked_table")!r}, config, "0,60", run_batch=Fake(),
-                      progress=False, log=None, cluster="local:2")
+                      progress=False, say=None, cluster="local:2")
         assert not [m for m in sys.modules if m.split(".")[0] in ("dask", "distributed")]
         print("ok without dask")
     """)

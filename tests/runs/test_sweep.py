@@ -71,7 +71,7 @@ def test_bad_grid_fails_before_any_work(tmp_path):
     fake = FakeThresholdBatch()
     with pytest.raises(ParameterError, match="t_end"):
         sweep.run_sweep(tmp_path / "out", tiny_config(), Grid.of("0:10:5", "0.5,3", tiny_config()), run_batch=fake,
-                        progress=False, log=None)
+                        progress=False, say=None)
     assert fake.calls == [] and not (tmp_path / "out").exists()
 
 
@@ -186,7 +186,7 @@ def test_other_configuration_or_grid_is_refused(tmp_path):
         sweep_fake(tmp_path, FakeThresholdBatch(), config=other)
     with pytest.raises(ParameterError, match="another grid"):
         sweep.run_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()), run_batch=FakeThresholdBatch(),
-                        progress=False, log=None)
+                        progress=False, say=None)
 
 
 def test_resume_keeps_the_folders_chunk_size(tmp_path):
@@ -215,7 +215,7 @@ def test_bisection_finds_the_fake_threshold_to_0_01_s():
     config = Config()  # t_end = 12 s
     forces = [1, 5, 10, 15, 20, 30, 40, 50, 60, 80, 100, 120, 4000]
     fake = FakeThresholdBatch(c=30.0)
-    result = sweep.max_acting_time(forces, config, run_batch=fake, progress=False, log=None)
+    result = sweep.max_acting_time(forces, config, run_batch=fake, progress=False, say=None)
     table = result.table.set_index("force")
     for force in forces:
         within(table.loc[force, "max_acting_time"], expected_max_time(force, 30.0, 12.0),
@@ -248,7 +248,7 @@ def test_k_section_finds_the_same_thresholds(k):
     forces = [1, 5, 20, 50, 120, 4000]
     fake = FakeThresholdBatch(c=30.0)
     result = sweep.max_acting_time(forces, Config(), run_batch=fake, points_per_round=k,
-                                   progress=False, log=None)
+                                   progress=False, say=None)
     expected = [expected_max_time(f, 30.0, 12.0) for f in forces]
     np.testing.assert_allclose(result.table["max_acting_time"], expected, atol=1e-9)
     assert all(n == len(forces) * k for n in fake.calls[1:])
@@ -259,7 +259,7 @@ def test_table_in_batches_of_one_size(batch):
     forces = [1, 5, 20, 50, 120, 4000]
     fake = FakeThresholdBatch(c=30.0)
     result = sweep.max_acting_time(forces, Config(), run_batch=fake, batch=batch, progress=False,
-                                   log=None)
+                                   say=None)
     expected = [expected_max_time(f, 30.0, 12.0) for f in forces]
     np.testing.assert_allclose(result.table["max_acting_time"], expected, atol=1e-9)
     assert set(fake.calls) == {batch}
@@ -280,7 +280,7 @@ def test_power_of_two_chunks():
 
 def test_bisection_flags_a_non_monotone_force():
     fake = FakeThresholdBatch(c=30.0, window=(3.5, 4.5))  # fails from 1.5 s, recovers again at 4 s
-    result = sweep.max_acting_time([20, 5], Config(), run_batch=fake, progress=False, log=None)
+    result = sweep.max_acting_time([20, 5], Config(), run_batch=fake, progress=False, say=None)
     table = result.table.set_index("force")
     assert not table.loc[20, "monotone"]
     assert table.loc[20, "recovered_beyond_failure"] == 4.0
@@ -291,7 +291,7 @@ def test_bisection_flags_a_non_monotone_force():
 
 def test_negative_forces_in_the_table():
     result = sweep.max_acting_time([-20, 20], Config(), run_batch=FakeThresholdBatch(),
-                                   progress=False, log=None)
+                                   progress=False, say=None)
     assert list(result.table["max_acting_time"]) == [1.49, 1.49]
 
 
@@ -343,7 +343,7 @@ def test_figures_from_fake_results(tmp_path):
     from mjx_balance.figures import region as region_plots
 
     sweep.run_sweep(tmp_path, Config(), Grid.of("-20:120:10", "0.05:2:0.05", Config()),
-                    run_batch=FakeThresholdBatch(window=(1.5, 1.6)), progress=False, log=None)
+                    run_batch=FakeThresholdBatch(window=(1.5, 1.6)), progress=False, say=None)
     region = pd.read_parquet(tmp_path / "region.parquet")
     reference = pd.DataFrame({"force": [20, 50], "duration": [1.4, 0.55]})
     for name, plot, kwargs in (("region.png", region_plots.plot_region, {"reference": reference}),
@@ -354,7 +354,7 @@ def test_figures_from_fake_results(tmp_path):
     assert boundary.loc[30, "boundary"] == 0.95 and not boundary.loc[30, "monotone"]
     assert boundary.loc[10, "boundary"] == 2.0 and boundary.loc[10, "monotone"]
     result = sweep.max_acting_time([1, 5, 20, 50, 120, 4000], Config(),
-                                   run_batch=FakeThresholdBatch(), progress=False, log=None)
+                                   run_batch=FakeThresholdBatch(), progress=False, say=None)
     region_plots.plot_table(result.table, tmp_path / "table.png", config=Config())
     assert (tmp_path / "table.png").stat().st_size > 10_000
 

@@ -51,7 +51,7 @@ class CellLog(FakeThresholdBatch):
 
 def table(out: Path, fake, forces: str = FORCES):
     return sweep.run_table(out, Config(), forces, run_batch=fake, batch=BATCH, progress=False,
-                           log=None)
+                           say=None)
 
 
 def same_files(a: Path, b: Path) -> None:
@@ -104,7 +104,7 @@ KILLED_TABLE = textwrap.dedent("""
             return super().__call__(forces, durations)
 
     sweep.run_table(sys.argv[2], Config(), sys.argv[4], run_batch=Slow(), batch=int(sys.argv[5]),
-                    progress=False, log=None)
+                    progress=False, say=None)
 """)
 
 
@@ -139,7 +139,7 @@ def test_overlapping_force_list_reuses_the_cells(tmp_path):
     """Bisection (no fixed batch): a force's cells do not depend on the other forces, so a
     table over more forces runs only the new force's cells."""
     def bisect(out, fake, forces):
-        sweep.run_table(out, Config(), forces, run_batch=fake, progress=False, log=None)
+        sweep.run_table(out, Config(), forces, run_batch=fake, progress=False, say=None)
 
     fresh = tmp_path / "fresh"
     bisect(fresh, CellLog(), "20,50,80")
@@ -198,7 +198,7 @@ def test_run_table_holds_the_folder_lock(tmp_path):
                 os.close(fd)
             return super().__call__(forces, durations)
 
-    sweep.run_table(tmp_path, Config(), "20", run_batch=Probe(), progress=False, log=None)
+    sweep.run_table(tmp_path, Config(), "20", run_batch=Probe(), progress=False, say=None)
     assert seen and set(seen) == {"held"}
 
 
@@ -224,7 +224,7 @@ def test_bad_manifest_is_one_clear_error(tmp_path, text, problem, run):
     (tmp_path / store_files.MANIFEST).write_text(text)
     with pytest.raises(ParameterError) as error:
         if run == "table":
-            sweep.run_table(tmp_path, Config(), "20", run_batch=no_run, progress=False, log=None)
+            sweep.run_table(tmp_path, Config(), "20", run_batch=no_run, progress=False, say=None)
         else:
             sweep_fake(tmp_path, no_run)
     message = str(error.value)
@@ -266,4 +266,4 @@ def test_lost_manifest_with_kept_cells_of_another_configuration_is_refused(tmp_p
     (tmp_path / store_files.MANIFEST).unlink()
     other = Config().replace(scenario={"t_end": 6.0})
     with pytest.raises(ParameterError, match="config.toml differs"):
-        sweep.run_table(tmp_path, other, FORCES, run_batch=no_run, progress=False, log=None)
+        sweep.run_table(tmp_path, other, FORCES, run_batch=no_run, progress=False, say=None)

@@ -120,7 +120,7 @@ def test_lost_manifest_is_rebuilt_from_config_and_chunks(tmp_path):
     lines: list[str] = []
     resumed = FakeThresholdBatch()
     result = sweep.run_sweep(out, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=resumed, chunk_size=100,
-                             progress=False, log=lines.append)
+                             progress=False, say=lines.append)
     assert resumed.calls == [8] * 3 and result.reused_chunks == 2  # chunk size from the files
     rebuilt = [line for line in lines if "lost its manifest.json" in line]
     assert len(rebuilt) == 1 and "config.toml matches" in rebuilt[0] and "2 of 2" in rebuilt[0]
@@ -148,13 +148,13 @@ def test_lost_manifest_is_not_rebuilt_for_other_results(tmp_path):
         sweep_fake(tmp_path, FakeThresholdBatch(), config=other)
     with pytest.raises(ParameterError, match="do not match this grid"):
         sweep.run_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()),
-                        run_batch=FakeThresholdBatch(), progress=False, log=None)
+                        run_batch=FakeThresholdBatch(), progress=False, say=None)
     assert not (tmp_path / "manifest.json").exists()  # nothing rewritten by a refused run
     shutil.rmtree(tmp_path / "chunks")  # region.parquet alone, of another grid: kept, refused
     region = (tmp_path / "region.parquet").read_bytes()
     with pytest.raises(ParameterError, match="do not match this grid"):
         sweep.run_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()),
-                        run_batch=FakeThresholdBatch(), progress=False, log=None)
+                        run_batch=FakeThresholdBatch(), progress=False, say=None)
     assert (tmp_path / "region.parquet").read_bytes() == region
     (tmp_path / "config.toml").unlink()
     with pytest.raises(ParameterError, match="no manifest.json and no config.toml"):
@@ -163,11 +163,11 @@ def test_lost_manifest_is_not_rebuilt_for_other_results(tmp_path):
 
 def test_lost_manifest_of_a_table_folder_lets_a_sweep_start(tmp_path):
     sweep.run_table(tmp_path, tiny_config(), [20, 40], run_batch=FakeThresholdBatch(),
-                    progress=False, log=None)
+                    progress=False, say=None)
     (tmp_path / "manifest.json").unlink()
     lines: list[str] = []
     sweep.run_sweep(tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=FakeThresholdBatch(), chunk_size=8,
-                    progress=False, log=lines.append)
+                    progress=False, say=lines.append)
     assert [line for line in lines if "lost its manifest.json" in line]
     assert json.loads((tmp_path / "manifest.json").read_text())["region"]["cells"] == 35
 

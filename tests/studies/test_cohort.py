@@ -42,7 +42,7 @@ def stand_ins(made: list | None = None):
 
 def run(out, members, made=None, **kwargs):
     return cohort.run_cohort(out, members, BASE, FORCES, DURATIONS,
-                             run_batches=stand_ins(made), log=None, **kwargs)
+                             run_batches=stand_ins(made), say=None, **kwargs)
 
 
 # --- subjects --------------------------------------------------------------------------------

@@ -116,7 +116,7 @@ def test_a_folder_without_results_is_taken_over_by_a_corrected_cohort(tmp_path):
     members = cohort.subject_grid([1.7], [70])
     said: list[str] = []
     frame = cohort.run_cohort(out, members, BASE, FORCES, DURATIONS, run_batches=stand_ins,
-                              log=said.append)
+                              say=said.append)
     assert list(frame["id"]) == ["s01"]
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["config"]["controller"]["horizon"] == BASE.controller.horizon
@@ -125,7 +125,7 @@ def test_a_folder_without_results_is_taken_over_by_a_corrected_cohort(tmp_path):
     # once it holds results, another configuration is refused as before
     with pytest.raises(ParameterError, match="holds a cohort with other configuration"):
         cohort.run_cohort(out, members, BASE.replace(controller={"horizon": 15}), FORCES,
-                          DURATIONS, run_batches=stand_ins, log=None)
+                          DURATIONS, run_batches=stand_ins, say=None)
 
 
 def test_the_corrected_command_takes_over_a_refused_runs_folder(tmp_path, capsys,
@@ -147,13 +147,13 @@ def test_a_folder_with_one_subjects_chunk_is_not_taken_over(tmp_path):
     cohort refused."""
     out = tmp_path / "out"
     members = cohort.subject_grid([1.7], [70])
-    cohort.run_cohort(out, members, BASE, FORCES, DURATIONS, run_batches=stand_ins, log=None)
+    cohort.run_cohort(out, members, BASE, FORCES, DURATIONS, run_batches=stand_ins, say=None)
     (out / "cohort.csv").unlink()
     (out / "subjects" / "s01" / "region.parquet").unlink()
     assert list((out / "subjects" / "s01" / "chunks").glob("*.parquet"))
     with pytest.raises(ParameterError, match="other subjects or grids"):
         cohort.run_cohort(out, cohort.subject_grid([1.8], [70]), BASE, FORCES, DURATIONS,
-                          run_batches=stand_ins, log=None)
+                          run_batches=stand_ins, say=None)
 
 
 # --- mb.cohort -------------------------------------------------------------------------------

@@ -176,7 +176,7 @@ def test_the_cohort_writes_the_probability_map_and_its_figure(tmp_path):
     members = cohort.subject_grid([1.6, 1.8], [50, 70, 95])
     said: list[str] = []
     frame = cohort.run_cohort(out, members, BASE, FORCES, DURATIONS, run_batches=stand_ins,
-                              log=said.append)
+                              say=said.append)
     written = pd.read_csv(out / "cohort_probability.csv")
     maps = {m.id: pd.read_parquet(out / "subjects" / m.id / "region.parquet") for m in members}
     for cell in written.itertuples():  # each cell counted again from the subjects' folders
@@ -237,11 +237,11 @@ def test_the_base_map_is_a_result_that_keeps_the_folder(tmp_path):
     (a subject's map would not be either): the base map was run with this cohort's base."""
     out = tmp_path / "out"
     cohort.run_cohort(out, cohort.subject_grid([1.7], [70]), BASE, FORCES, DURATIONS,
-                      run_batches=stand_ins, log=None)
+                      run_batches=stand_ins, say=None)
     (out / "cohort.csv").unlink()
     shutil.rmtree(out / "subjects")
     assert (out / "base" / "region.parquet").exists()
     with pytest.raises(ParameterError, match="holds a cohort with other configuration"):
         cohort.run_cohort(out, cohort.subject_grid([1.7], [70]),
                           BASE.replace(controller={"horizon": 15}), FORCES, DURATIONS,
-                          run_batches=stand_ins, log=None)
+                          run_batches=stand_ins, say=None)

@@ -133,7 +133,7 @@ def test_compare_on_a_local_cluster_gives_the_local_numbers(tmp_path, monkeypatc
         batches = {name: FakeThresholdBatch(c=C[c.controller.convention])
                    for name, c in configs.items()}
         frame = run_compare(out, configs, FORCES, DURATIONS, TABLE_FORCES,
-                            run_batches=batches, log=None, **engine)
+                            run_batches=batches, say=None, **engine)
         return frame, sum(len(b.calls) for b in batches.values())  # calls made here
 
     connections = []

@@ -209,11 +209,11 @@ def test_landscape_numbers_equal_a_direct_compare_with_the_real_rollout(
     grid = {"forces": "0,60", "durations": "0.1"}
     frame = landscape.run_landscape(tmp_path / "land", base, **grid, q_scales="1",
                                     r_scales="0.1,1", delays="0", table_forces="60",
-                                    make_batch=make, log=None)
+                                    make_batch=make, say=None)
     by_hand = {"r01": base.replace(controller={"r_diag": (0.01, 1e-5)}), "r1": base}
     batches = {name: make(c) for name, c in by_hand.items()}
     direct = run_compare(tmp_path / "cmp", by_hand, grid["forces"], grid["durations"], "60",
-                         run_batches=batches, log=None).set_index("name")
+                         run_batches=batches, say=None).set_index("name")
     numbers = ["area", "recovered_cells", "f_max_ref", "mean_recovery_energy",
                "sustained_push_limit", "max_acting_time_60N"]
     for name, r in (("r01", 0.1), ("r1", 1.0)):

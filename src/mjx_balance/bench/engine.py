@@ -264,7 +264,7 @@ def split(path: str, drives: list[Drive], replay: dict, lanes: int) -> dict[str,
 def measure_path(config: Config, forces: np.ndarray, durations: np.ndarray, *, physics: str,
                  slots: int | None = None, runs: int = 2, repeats: int = 3,
                  sampled: int = 10, admm_tile: int | None = None,
-                 log=print) -> dict[str, Any]:
+                 say=print) -> dict[str, Any]:
     """The split of one physics path: build and compile the engine, ``runs`` instrumented runs
     of every cell (the first records the replay's inputs), the replay."""
     t0 = time.perf_counter()
@@ -276,14 +276,14 @@ def measure_path(config: Config, forces: np.ndarray, durations: np.ndarray, *, p
         warm_up(engine)
     build_s = time.perf_counter() - t0
     lanes = engine.slots * engine.n_devices
-    log(f"  {physics}: engine ready in {build_s:.1f} s ({engine.slots} slots on each of "
+    say(f"  {physics}: engine ready in {build_s:.1f} s ({engine.slots} slots on each of "
         f"{engine.n_devices} device(s), block {engine.block}, refill {engine.refill}, "
         f"ADMM tile {engine.tile or engine.slots})")
     n_push = push_steps(durations, config.scenario.physics_dt)
     drives = []
     for i in range(max(1, runs)):
         drives.append(drive(engine, forces, n_push, record=i == 0, sampled=sampled))
-        log(f"  {physics}: run {i + 1}: {len(forces)} scenarios in {drives[-1].seconds:.2f} s "
+        say(f"  {physics}: run {i + 1}: {len(forces)} scenarios in {drives[-1].seconds:.2f} s "
             f"({drives[-1].periods} control periods, {drives[-1].calls} calls)")
     t1 = time.perf_counter()
     stages = Stages(engine, repeats)
@@ -291,7 +291,7 @@ def measure_path(config: Config, forces: np.ndarray, durations: np.ndarray, *, p
         replay = replay_mjx(engine, drives[0].records, stages, sampled)
     else:
         replay = replay_c(engine, drives[0].records, stages, sampled, drives[0].periods)
-    log(f"  {physics}: replayed {replay['sampled_periods']} control periods stage by stage in "
+    say(f"  {physics}: replayed {replay['sampled_periods']} control periods stage by stage in "
         f"{time.perf_counter() - t1:.1f} s")
     figures = split(physics, drives, replay, lanes)
     raw = drives[0].raw
@@ -315,7 +315,7 @@ def measure_path(config: Config, forces: np.ndarray, durations: np.ndarray, *, p
 def measure(config: Config, *, forces: str = DEFAULT_FORCES,
             durations: str = DEFAULT_DURATIONS, paths: tuple[str, ...] = ("mjx", "c"),
             slots: int | None = None, runs: int = 2, repeats: int = 3, sampled: int = 10,
-            admm_tile: int | None = None, log=print) -> dict[str, Any]:
+            admm_tile: int | None = None, say=print) -> dict[str, Any]:
     """:func:`measure_path` of every path on the cells of ``forces`` x ``durations`` (grid
     specifications as ``sweep`` takes them)."""
     f, d = grid_cells(parse_grid(forces, "forces"), parse_grid(durations, "durations"))
@@ -327,11 +327,11 @@ def measure(config: Config, *, forces: str = DEFAULT_FORCES,
            "load_average_start": [round(v, 2) for v in load], "paths": {}}
     for path in paths:
         if path == "c" and cpath.unsupported(config):
-            log(f"  c: skipped ({cpath.unsupported(config)})")
+            say(f"  c: skipped ({cpath.unsupported(config)})")
             continue
         out["paths"][path] = measure_path(config, f, d, physics=path, slots=slots, runs=runs,
                                           repeats=repeats, sampled=sampled,
-                                          admm_tile=admm_tile, log=log)
+                                          admm_tile=admm_tile, say=say)
     out["load_average_end"] = [round(v, 2) for v in os.getloadavg()]
     return out
 

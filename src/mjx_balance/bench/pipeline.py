@@ -328,7 +328,7 @@ def memory_child(cells: int, t_end: float, chunk: int | None, out: str) -> None:
     t0 = time.perf_counter()
     result = sweep.run_sweep(out, config, Grid.of(forces, durations, config), chunk_size=chunk,
                              progress=False,
-                             log=None)
+                             say=None)
     seconds = time.perf_counter() - t0
     import pandas as pd
 

@@ -245,9 +245,9 @@ class SolverRun(NamedTuple):
 
 
 def measure(config: Config, *, batches: list[int], n_states: int, dtype: str = "float32",
-            log: Callable[[str], None] = print) -> SolverRun:
+            say: Callable[[str], None] = print) -> SolverRun:
     """The benchmark's steps in turn on ``n_states`` states of ``config``'s controller, each
-    step's figures said through ``log`` as they come (the ADMM timed at each batch size of
+    step's figures said through ``say`` as they come (the ADMM timed at each batch size of
     ``batches``, in ``dtype``)."""
     working = admm_dtype(dtype)
     controller, body = config.controller, config.body
@@ -256,7 +256,7 @@ def measure(config: Config, *, batches: list[int], n_states: int, dtype: str = "
     t_start = time.perf_counter()
 
     trajectories, states, truth = benchmark_states(qp, body, n_states)
-    log(f"states: {len(states)} from {len(trajectories)} closed-loop pushes (F 20..120 N, T "
+    say(f"states: {len(states)} from {len(trajectories)} closed-loop pushes (F 20..120 N, T "
         f"{'/'.join(str(d) for d in PUSH_DURATIONS)} s), convention {controller.convention}: "
         f"{truth.solved.sum()} solved by OSQP at 1e-9, {truth.infeasible.sum()} infeasible, "
         f"{(~truth.solved & ~truth.infeasible).sum()} not solved in 4000 iterations, "
@@ -264,7 +264,7 @@ def measure(config: Config, *, batches: list[int], n_states: int, dtype: str = "
 
     acc = admm_accuracy(qp, trajectories, truth, settings, working)
     admm_miss = acc["misses"]
-    log(f"ADMM ({dtype}, rho {settings.rho}, alpha {settings.alpha}, sigma "
+    say(f"ADMM ({dtype}, rho {settings.rho}, alpha {settings.alpha}, sigma "
         f"{settings.sigma}, cap {settings.iteration_cap} iterations, check every "
         f"{settings.check_every}, eps_abs {settings.eps_abs:g}, eps_rel {settings.eps_rel:g}): "
         f"misses {admm_miss}/"
@@ -279,7 +279,7 @@ def measure(config: Config, *, batches: list[int], n_states: int, dtype: str = "
     for B in batches:
         r = time_admm_batch(qp, settings, working, states, acc["seq"], B)
         rows.append(r)
-        log(f"  ADMM batch {B:6d} (tile {r['tile']:5d}): compile {r['compile_s']:5.2f} s, "
+        say(f"  ADMM batch {B:6d} (tile {r['tile']:5d}): compile {r['compile_s']:5.2f} s, "
             f"{r['seconds'] * 1e3:9.3f} ms/batch, {r['solves_per_s']:11.0f} solves/s, mean "
             f"iterations {r['mean_iters']:5.1f}, {r['gflops']:6.2f} GFLOP/s")
 
@@ -287,14 +287,14 @@ def measure(config: Config, *, batches: list[int], n_states: int, dtype: str = "
     for r in osqp_search(qp, trajectories, truth, admm_miss):
         osqp_rows.append(r)
         per_solve, per_solved = r["seconds_per_solve"], r["seconds_per_solved"]
-        log(f"  OSQP eps {r['eps']:g}: misses {r['misses']}/{truth.solved.sum()}, max error "
+        say(f"  OSQP eps {r['eps']:g}: misses {r['misses']}/{truth.solved.sum()}, max error "
             f"{r['max_err']:.2e}, {per_solve * 1e6:8.1f} us/solve over all "
             f"states ({1 / per_solve:6.0f} solves/s; iterations mean {r['mean_iters']:.1f}, "
             f"median {r['median_iters']:.0f}: infeasible states run to 4000), "
             f"{per_solved * 1e6:8.1f} us/solve over the OSQP-solved states "
             f"({1 / per_solved:6.0f} solves/s)")
 
-    ipopt_per_solve = ipopt_seconds_per_solve(qp, controller, trajectories, truth, log)
+    ipopt_per_solve = ipopt_seconds_per_solve(qp, controller, trajectories, truth, say)
     figures = solver_figures(
         states=states, controller=controller, dtype=dtype, accuracy=acc, truth=truth,
         admm_rows=rows, osqp_rows=osqp_rows, ipopt_seconds_per_solve=ipopt_per_solve,
@@ -304,16 +304,16 @@ def measure(config: Config, *, batches: list[int], n_states: int, dtype: str = "
 
 def ipopt_seconds_per_solve(qp: CondensedQP, controller: ControllerParams,
                             trajectories: list[np.ndarray], truth: Truth,
-                            log: Callable[[str], None] = print) -> float:
+                            say: Callable[[str], None] = print) -> float:
     """CasADi/IPOPT's seconds per solve on the benchmark's states (:func:`time_ipopt`), said
-    through ``log``; NaN, and said, without casadi."""
+    through ``say``; NaN, and said, without casadi."""
     try:
         ip = time_ipopt(qp, controller, trajectories, truth)
     except ImportError:
-        log("  CasADi/IPOPT: casadi not installed, skipped")
+        say("  CasADi/IPOPT: casadi not installed, skipped")
         return float("nan")
     per_solve, errs = ip["seconds_per_solve"], ip["errors"]
-    log(f"  CasADi/IPOPT (multiple shooting, RK4 on Ac, Bc): {ip['solves']} solves, "
+    say(f"  CasADi/IPOPT (multiple shooting, RK4 on Ac, Bc): {ip['solves']} solves, "
         f"{per_solve * 1e3:.2f} ms/solve ({1 / per_solve:.0f} solves/s); "
         f"first control vs the ZOH QP: median {np.median(errs):.1e}, max {max(errs):.1e} "
         f"of range (RK4 on Ac differs from exact ZOH)")

@@ -417,7 +417,7 @@ def solver_command(args: argparse.Namespace) -> int:
     config = load_run_config(args)
     batches = [int(b) for b in args.batch.split(",") if b.strip()]
     run = solver.measure(config, batches=batches, n_states=args.states, dtype=args.dtype,
-                         log=lambda text: print(text, flush=True))
+                         say=lambda text: print(text, flush=True))
     figures = run.figures
     _print_solver_table(figures["admm"], figures["osqp"][-1], figures["ipopt_seconds_per_solve"],
                         figures["peak_gflops"], run.peak_note, run.flops, run.seconds)
@@ -501,7 +501,7 @@ def engine_command(args: argparse.Namespace) -> int:
                              paths=args.physics, slots=args.slots, runs=args.runs,
                              repeats=args.repeats, sampled=args.sampled,
                              admm_tile=args.admm_tile,
-                             log=lambda text: print(text, flush=True))
+                             say=lambda text: print(text, flush=True))
     for fig in figures["paths"].values():
         print()
         for line in engine_table(fig):

@@ -215,12 +215,12 @@ def cohort_command(args: Any) -> int:
         members = members_from(args)
     out = Path(args.out)
     say = logging.getLogger("mjx_balance").info
-    plan = plan_cohort(out, members, base, forces, durations, table_forces=tables, log=say,
+    plan = plan_cohort(out, members, base, forces, durations, table_forces=tables, say=say,
                        slots=args.slots, full_length=args.full_length,
                        physics=args.physics or "auto", queue=args.queue)
 
     def work() -> None:
-        run_plan(plan, progress=progress_enabled(args), log=say)
+        run_plan(plan, progress=progress_enabled(args), say=say)
         write_exports(out, args)
 
     return in_folder(out, work, wait=getattr(args, "wait", False))

@@ -104,7 +104,7 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
                     run_batch: RunBatch | None = None, resolution: float = 0.01,
                     coarse: Iterable[float] = COARSE_DURATIONS, batch: int | None = None,
                     points_per_round: int | None = None, progress: bool | None = True,
-                    log: Callable[[str], None] | None = print,
+                    say: Callable[[str], None] | None = print,
                     cells: TableCells | None = None) -> TableResult:
     """Max acting time of every force (docs/outputs.md, "mjx-balance table"): the largest T, a
     multiple of ``resolution`` in [0, t_end], such that the push (F, T) recovers and so does
@@ -137,7 +137,7 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
     (NaN otherwise: a fallen or unsettled run's energy is never reported as a recovery's; its
     outcome is outcome_01).
     """
-    say = log or (lambda _msg: None)
+    say = say or (lambda _msg: None)
     start = time.perf_counter()
     forces = parse_grid(forces, "table forces")
     t_end = config.scenario.t_end
@@ -147,7 +147,7 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
     run_batch = run_batch or LazyBatch(config)
     n_f, n_c = forces.size, steps.size
     if hasattr(run_batch, "prepare"):
-        run_batch.prepare(batch or n_f * n_c, log=log)
+        run_batch.prepare(batch or n_f * n_c, say=say)
     widest = int(np.diff(np.concatenate([[0], steps])).max())
     say(f"table: {n_f} forces; coarse scan of {n_c} durations, then "
         + ("bisection" if points_per_round == 1 else f"{points_per_round + 1}-section")
@@ -504,7 +504,7 @@ def _get(row: dict | None, key: str) -> float:
 def run_table(out: str | os.PathLike[str], config: Config,
               forces: np.ndarray | str | Sequence[float], *,
               run_batch: RunBatch | None = None, progress: bool | None = True,
-              log: Callable[[str], None] | None = print, cluster: Any = None,
+              say: Callable[[str], None] | None = print, cluster: Any = None,
               sustained: bool = True, **options: Any) -> TableResult | None:
     """``max_acting_time`` into ``out/table.csv`` (+ table_runs.parquet, every scenario run),
     under the folder's lock (``store.folder.folder_lock``).
@@ -522,12 +522,12 @@ def run_table(out: str | os.PathLike[str], config: Config,
     forces = parse_grid(forces, "table forces")
     with folder_lock(out):  # a failure below marks this run failed in the manifest
         if cluster is None:
-            result = _run_table(out, config, forces, run_batch, progress, log, options,
+            result = _run_table(out, config, forces, run_batch, progress, say, options,
                                 sustained)
         else:
             with ClusterBatch(cluster, run_batch or LazyBatch(config), config,
-                              log) as on_cluster:
-                result = _run_table(out, config, forces, on_cluster, progress, log, options,
+                              say) as on_cluster:
+                result = _run_table(out, config, forces, on_cluster, progress, say, options,
                                     sustained)
         runs = (result.runs if result is not None
                 else pd.read_parquet(Path(out) / TABLE_RUNS, columns=["outcome"]))
@@ -536,10 +536,10 @@ def run_table(out: str | os.PathLike[str], config: Config,
 
 
 def _run_table(out: str | os.PathLike[str], config: Config, forces: np.ndarray, run_batch: Any,
-               progress: bool | None, log: Callable[[str], None] | None,
+               progress: bool | None, say: Callable[[str], None] | None,
                options: dict[str, Any], sustained: bool = True) -> TableResult | None:
     # (run_batch: a batch function, None, or a cluster.ClusterBatch, found by its methods)
-    say = log or (lambda _msg: None)
+    say = say or (lambda _msg: None)
     folder = OutputFolder(out, config)
     manifest = folder.open()
     recorded = manifest.get("table")
@@ -572,7 +572,7 @@ def _run_table(out: str | os.PathLike[str], config: Config, forces: np.ndarray, 
     if cells.rows:
         say(f"table: {len(cells.rows)} scenarios already evaluated in {cells.path}; "
             "running only the others")
-    result = max_acting_time(forces, config, run_batch=run_batch, progress=progress, log=log,
+    result = max_acting_time(forces, config, run_batch=run_batch, progress=progress, say=say,
                              cells=cells, **options)
     if sustained:
         _add_sustained_limit(result, config, run_batch, cells, options.get("batch"), progress,

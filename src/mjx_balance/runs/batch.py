@@ -115,10 +115,10 @@ class LazyBatch:
         """(indices, summary columns) as scenarios are decided (``BatchRunner.stream``)."""
         return self.runner.stream(forces, durations)
 
-    def prepare(self, batch: int, log: Callable[[str], None] | None = print) -> None:
+    def prepare(self, batch: int, say: Callable[[str], None] | None = print) -> None:
         """Build the rollout and compile it for ``batch`` scenarios now (before a progress bar
         starts, so that its rate and time left are those of the runs)."""
-        say = log or (lambda _msg: None)
+        say = say or (lambda _msg: None)
         start = time.perf_counter()
         if self._run is None:
             say(f"building the rollout ({'MuJoCo C' if self.physics == 'c' else 'MJX'} "

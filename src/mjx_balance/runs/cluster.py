@@ -340,11 +340,11 @@ class ClusterBatch:
     context manager: it closes what it started."""
 
     def __init__(self, cluster: Any, inner: Any, config: Config,
-                 log: Callable[[str], None] | None = print):
+                 say: Callable[[str], None] | None = print):
         self.cluster = cluster
         self.inner = inner
         self.config = config
-        self.say = log or (lambda _msg: None)
+        self.say = say or (lambda _msg: None)
         # the engine on the workers (the default batch function), or a stand-in shipped to them
         self.engine = type(inner) is LazyBatch
         self.slots = getattr(inner, "slots", None)
@@ -409,7 +409,7 @@ class ClusterBatch:
             self.physics = record.get("physics", self.physics)
         return record
 
-    def prepare(self, batch: int, log: Callable[[str], None] | None = print) -> None:
+    def prepare(self, batch: int, say: Callable[[str], None] | None = print) -> None:
         """Connect and check the workers; fix the sweep's device (every worker's must match)."""
         client = self.client
         if self.engine:

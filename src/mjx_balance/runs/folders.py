@@ -236,7 +236,7 @@ def run_region(out: str | os.PathLike[str], config: Config, grid: Grid,
     cache.enable()
     with folder_lock(out, wait=wait):
         return run_sweep(out, config, grid, run_batch=run_batch, chunk_size=chunk,
-                         progress=progress, log=say, cluster=cluster)
+                         progress=progress, say=say, cluster=cluster)
 
 
 def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values, *,
@@ -264,4 +264,4 @@ def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values
     cache.enable()
     with folder_lock(out, wait=wait):
         return run_table(out, config, forces, run_batch=run_batch, batch=batch,
-                         progress=progress, log=say, cluster=cluster, sustained=sustained)
+                         progress=progress, say=say, cluster=cluster, sustained=sustained)

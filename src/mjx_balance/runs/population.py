@@ -188,7 +188,7 @@ class ServedBatch(LazyBatch):
                              f"{early_stop}, {physics} physics; the population ran "
                              f"{self.slots} slots, early stop {self.early_stop}, mjx")
 
-    def prepare(self, batch: int, log: Callable[[str], None] | None = print) -> None:
+    def prepare(self, batch: int, say: Callable[[str], None] | None = print) -> None:
         pass
 
     def stream(self, forces: np.ndarray, durations: np.ndarray):

@@ -65,7 +65,7 @@ def check_region(region: pd.DataFrame, grid: Grid) -> None:
 
 def run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, *,
               run_batch: RunBatch | None = None, chunk_size: int | None = None,
-              progress: bool | None = True, log: Callable[[str], None] | None = print,
+              progress: bool | None = True, say: Callable[[str], None] | None = print,
               cluster: Any = None) -> SweepResult:
     """Evaluate every cell of ``grid`` (:class:`grid.Grid`, checked for ``config``),
     resumably, into ``out/region.parquet``.
@@ -81,21 +81,21 @@ def run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, *,
     with folder_lock(out):  # a failure below marks this run failed in the manifest
         if cluster is None:
             result = _run_sweep(out, config, grid, run_batch, chunk_size,
-                                progress, log)
+                                progress, say)
         else:
             with ClusterBatch(cluster, run_batch or LazyBatch(config), config,
-                              log) as on_cluster:
+                              say) as on_cluster:
                 result = _run_sweep(out, config, grid, on_cluster, chunk_size,
-                                    progress, log)
+                                    progress, say)
         check_results(pd.read_parquet(result.region_path, columns=["outcome"])["outcome"],
                       "cells")
         return result
 
 
 def _run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, run_batch: Any, chunk_size: int | None, progress: bool | None,
-               log: Callable[[str], None] | None) -> SweepResult:
+               say: Callable[[str], None] | None) -> SweepResult:
     # (run_batch: a batch function, None, or a cluster.ClusterBatch, found by its methods)
-    say = log or (lambda _msg: None)
+    say = say or (lambda _msg: None)
     start = time.perf_counter()
     cell_f, cell_d = grid.cells
     n_cells = cell_f.size
@@ -128,7 +128,7 @@ def _run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, run_batc
     if todo:
         folder.check_numerics(manifest)  # new rows: computed as the folder's were
         if hasattr(run_batch, "prepare"):
-            run_batch.prepare(chunk_size, log=log)
+            run_batch.prepare(chunk_size, say=say)
         bar = progress_bar(n_cells, n_cells - remaining, progress)
         try:
             _compute_chunks(run_batch, folder.path, slices, todo, cell_f, cell_d, config=config,

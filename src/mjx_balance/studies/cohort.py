@@ -357,7 +357,7 @@ def run_options(engine: dict[str, Any]) -> dict[str, Any]:
 
 def plan_cohort(out: str | os.PathLike[str], members: Sequence[Member], base: Config, forces: Any,
                 durations: Any, *, table_forces: Any = None, batched: bool = True,
-                log: Callable[[str], None] | None = None, **engine: Any) -> CohortPlan:
+                say: Callable[[str], None] | None = None, **engine: Any) -> CohortPlan:
     """Check a cohort before anything is written or locked: the ids, the grids, the engine's
     options (:func:`check_engine`), every subject's configuration (``Subject.config(base)``,
     the durations on its physics steps, and with ``batched`` everything the batched closed
@@ -376,8 +376,8 @@ def plan_cohort(out: str | os.PathLike[str], members: Sequence[Member], base: Co
     grids = [(forces, "forces")] + ([] if tables is None else [(tables, "table forces")])
     for values, name in grids:
         check_float32_grid(values, name)
-    if batched and len(members) > SMALL_COHORT and log is not None:
-        log(f"cohort: checking the {len(members)} subjects' configurations")
+    if batched and len(members) > SMALL_COHORT and say is not None:
+        say(f"cohort: checking the {len(members)} subjects' configurations")
     durations = duration_values(durations, base)  # a subject changes no scenario value
     configs = {}
     for member in members:
@@ -438,7 +438,7 @@ def summary(frame: pd.DataFrame) -> pd.DataFrame:
 def run_cohort(out: str | Path, members: Sequence[Member], base: Config, forces: Any,
                durations: Any, *, table_forces: Any = None,
                run_batches: Callable[[Config], Any] | None = None, progress: bool = False,
-               log: Callable[[str], None] | None = print, **engine: Any) -> pd.DataFrame:
+               say: Callable[[str], None] | None = print, **engine: Any) -> pd.DataFrame:
     """Every subject's region map (and table, with ``table_forces``) in
     ``out/subjects/<id>/`` and the base configuration's map in ``out/base/``, then
     cohort.csv, cohort_summary.csv, the probability map's tables and the figures in ``out``;
@@ -447,15 +447,15 @@ def run_cohort(out: str | Path, members: Sequence[Member], base: Config, forces:
     ``engine``: ``slots``, ``full_length``, ``physics``, ``cluster`` for ``run_region``.
     Everything is checked before anything is written (:func:`plan_cohort`)."""
     plan = plan_cohort(out, members, base, forces, durations, table_forces=table_forces,
-                       batched=run_batches is None, log=log, **engine)
-    return run_plan(plan, run_batches=run_batches, progress=progress, log=log)
+                       batched=run_batches is None, say=say, **engine)
+    return run_plan(plan, run_batches=run_batches, progress=progress, say=say)
 
 
 def run_plan(plan: CohortPlan, *, run_batches: Callable[[Config], Any] | None = None,
              progress: bool = False,
-             log: Callable[[str], None] | None = print) -> pd.DataFrame:
+             say: Callable[[str], None] | None = print) -> pd.DataFrame:
     """Run a checked cohort (:func:`plan_cohort`; :func:`run_cohort` says what it writes)."""
-    say = log or (lambda _msg: None)
+    say = say or (lambda _msg: None)
     out, members, forces, durations = plan.out, plan.members, plan.forces, plan.durations
     out.mkdir(parents=True, exist_ok=True)
     manifest = open_manifest(out, plan.record(), plan.base, say)

@@ -212,7 +212,7 @@ def check_compare(out: str | Path, configs: dict[str, Config], forces: Any, dura
 
 def run_compare(out: str | os.PathLike[str], configs: dict[str, Config], forces: Any,
                 durations: Any, table_forces: Any, *, run_batches: dict[str, Any] | None = None,
-                progress: bool = False, log: Callable[[str], None] | None = print,
+                progress: bool = False, say: Callable[[str], None] | None = print,
                 plan: PlanHook | None = None, wait: bool = False, **engine: Any) -> pd.DataFrame:
     """Every configuration's region map and table in ``out/<name>/``, then compare.csv and
     compare.png in ``out``; returns the comparison (one row per configuration, in order).
@@ -225,7 +225,7 @@ def run_compare(out: str | os.PathLike[str], configs: dict[str, Config], forces:
     ``runs.folders.run_region`` / ``run_table_folder``, and ``queue`` ("each": every
     configuration's map its own engine run; "one": through one engine queue per compiled
     shape, ``runs.population.run_maps``, MJX only, no cluster)."""
-    say = log or (lambda _msg: None)
+    say = say or (lambda _msg: None)
     out = Path(out)
     engine = dict(engine)
     queue = check_queue(engine.pop("queue", "each"), engine.get("physics", "auto"),

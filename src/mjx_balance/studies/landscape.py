@@ -211,7 +211,7 @@ def run_landscape(out: str | os.PathLike[str], base: Config, forces: Any, durati
                   q_scales: Any = DEFAULT_SCALES, r_scales: Any = DEFAULT_SCALES,
                   delays: Any = DEFAULT_DELAYS, table_forces: Any = DEFAULT_TABLE_FORCES,
                   make_batch: Callable[..., Any] | None = None, progress: bool = False,
-                  log: Callable[[str], None] | None = print, plan: PlanHook | None = None,
+                  say: Callable[[str], None] | None = print, plan: PlanHook | None = None,
                   wait: bool = False, **engine: Any) -> pd.DataFrame:
     """Every setting's region map and table in ``out/<delay>/q<q>_r<r>/``, then
     landscape.csv, landscape.png and landscape.txt in ``out``; returns the landscape
@@ -226,7 +226,7 @@ def run_landscape(out: str | os.PathLike[str], base: Config, forces: Any, durati
     (default ``batch_function``; tests pass a stand-in); engine: ``slots``, ``full_length``,
     ``physics``, ``queue`` ("each": every setting's map its own engine run; "one": through one
     engine queue per compiled shape, ``runs.population.run_maps``, MJX only)."""
-    say = log or (lambda _msg: None)
+    say = say or (lambda _msg: None)
     out = Path(out)
     queue = check_queue(engine.get("queue", "each"), engine.get("physics") or "auto")
     checked = check_landscape(out, base, forces, durations, q_scales, r_scales, delays,
