@@ -28,7 +28,7 @@ def main() -> None:
     def call(arrays, cert, slots, cell, force, push, init, body):
         return block(arrays, r.sensors, engine.static, cert, slots, refill_cell=cell,
                      refill_force=force, refill_push=push, refill_init=init, refill_body=body,
-                     periods=engine.block, early=engine.cert is not None,
+                     periods=engine.block, early_stop=engine.cert is not None,
                      packing=engine.packing, tile=engine.tile, lanes=engine.lanes)
 
     n = engine.refill * engine.n_devices

@@ -73,8 +73,8 @@ def test_bodies_of_another_shape_cannot_share_a_queue():
     other = BatchRunner(BASE.replace(controller={"horizon": BASE.controller.horizon + 2}),
                         physics="mjx")
     with pytest.raises(ValueError, match="shapes and static settings"):
-        lane_bodies(one, [one, other], early=True)
-    arrays, cert = lane_bodies(one, [one, one, one], early=True)
+        lane_bodies(one, [one, other], early_stop=True)
+    arrays, cert = lane_bodies(one, [one, one, one], early_stop=True)
     import jax
     assert {np.shape(v)[0] for v in jax.tree.leaves(arrays)} == {4}  # padded to 4
     assert {np.shape(v)[0] for v in jax.tree.leaves(cert)} == {4}
@@ -93,7 +93,7 @@ def test_each_lane_holds_its_own_bodys_compiled_model():
     people = [Subject(1.52, 48, "female", ankle_strength=0.6), Subject(1.75, 75),
               Subject(1.95, 110, hip_strength=1.3)]
     runners = [BatchRunner(p.config(BASE), physics="mjx") for p in people]
-    stacked, _ = lane_bodies(runners[0], runners, early=True)
+    stacked, _ = lane_bodies(runners[0], runners, early_stop=True)
     lanes = lane_arrays(stacked, np.array([2, 0, 1, 3]))
     for lane, runner in zip(range(4), [runners[2], runners[0], runners[1], runners[2]]):
         mine = jax.tree.leaves(jax.tree.map(lambda v, lane=lane: v[lane], lanes))

@@ -306,13 +306,13 @@ def pack(rows: np.ndarray, last_qpos: np.ndarray, cell: np.ndarray, force: np.nd
     return floats.astype(dtype), ints
 
 
-def call(arrays, sensors, static, cert, cs: CState, floats, ints, *, early: bool):
+def call(arrays, sensors, static, cert, cs: CState, floats, ints, *, early_stop: bool):
     """One control period of one device's slots (pure JAX): fold the physics run since the
     previous call, decide and harvest, refill, solve. Inputs packed (:func:`unpack`). Returns
     the state and two arrays [slots, ...] (one transfer each, :func:`outputs`)."""
     S = static.substeps
     rows, last_qpos, refill_cell, refill_force, refill_push, p = unpack(floats, ints, S)
-    check = checker(cert if early else None)
+    check = checker(cert if early_stop else None)
     # 1. the period each busy slot ran since the previous call
     carry, k = folded(arrays, sensors, static, cs, rows, last_qpos)
     # 2. decided scenarios harvested and their slots vacated; vacant slots take new cells
@@ -409,17 +409,17 @@ class CEngine(Engine):
 
     physics = "c"
 
-    def __init__(self, runner, *, slots: int | None = None, early: bool = True,
+    def __init__(self, runner, *, slots: int | None = None, early_stop: bool = True,
                  threads: int | None = None, **options: Any):
         # Engine's other options have no meaning here: one control period a call (block), no
         # ADMM tiles of a slot group (tile), one body per engine (bodies). Refused, not dropped.
         if options:
-            raise TypeError(f"the C path's engine takes slots, early and threads; not "
+            raise TypeError(f"the C path's engine takes slots, early_stop and threads; not "
                             f"{', '.join(sorted(options))}")
         reason = unsupported(runner.config, runner.trajectories)
         if reason:
             raise ValueError(reason)
-        super().__init__(runner, slots=slots or default_slots(), early=early)
+        super().__init__(runner, slots=slots or default_slots(), early_stop=early_stop)
         self.block = 1
         self.refill = self.slots
         self.c = CPhysics(runner.config, threads)
@@ -456,13 +456,13 @@ class CEngine(Engine):
             return self._fn
         t0 = _time.perf_counter()
         r = self.runner
-        sensors, static, early = r.sensors, self.static, self.cert is not None
+        sensors, static, early_stop = r.sensors, self.static, self.cert is not None
         treedef = self._treedef
 
         def one(leaves, cs, floats, ints):
             arrays, cert = jax.tree.unflatten(treedef, leaves)
             with jax.default_matmul_precision(MATMUL_PRECISION):
-                return call(arrays, sensors, static, cert, cs, floats, ints, early=early)
+                return call(arrays, sensors, static, cert, cs, floats, ints, early_stop=early_stop)
 
         def build():
             run = one

@@ -339,7 +339,7 @@ def opened(arrays, sensors, static, slots: Slots, refill_init, packing: Packing,
 
 
 def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_force, refill_push,
-          refill_init, refill_body, periods: int, early: bool, packing: Packing,
+          refill_init, refill_body, periods: int, early_stop: bool, packing: Packing,
           tile: int | None = None, lanes: bool = False):
     """``periods`` control periods of one device's slots with refill and harvest (pure JAX).
 
@@ -364,11 +364,11 @@ def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_fo
         slots, taken, done, n_done = state
         # 1. refill; 2. one control period of every slot; 3. decide; 4. harvest and vacate
         slots, taken = take(slots, rest, taken, s, refill_cell, refill_force, refill_push,
-                            starts, gated=early and cert is not None, refill_body=refill_body,
+                            starts, gated=early_stop and cert is not None, refill_body=refill_body,
                             tile=tile if lanes else None)
         body, body_rest = ((lane_arrays(arrays, slots.body), lane_arrays(rest, slots.body))
                            if lanes else (arrays, rest))
-        check = checker(cert if early else None, periods, axis,
+        check = checker(cert if early_stop else None, periods, axis,
                         slots.body if lanes else None)
         carry = period_batch(body, sensors, static, slots.carry, slots.k, slots.force,
                              slots.n_push, tile=tile, axis=axis, tiles=qp_tiles(slots.body))[0]
@@ -510,12 +510,12 @@ class Queue:
         self.progress[cells[busy]] = periods[busy]
 
 
-def certificate(runner, early: bool):
+def certificate(runner, early_stop: bool):
     """The certificate of ``runner``'s configuration (``certificate.py``) in its dtype, or None
-    (``early`` off, or no certificate applies: then its scenarios run to t_end). Built once
+    (``early_stop`` off, or no certificate applies: then its scenarios run to t_end). Built once
     per runner (kept on it): a population asks for each body's twice."""
     config = runner.config
-    if not (early and cert_mod.applies(config)):
+    if not (early_stop and cert_mod.applies(config)):
         return None
     built = runner.__dict__.setdefault("_certificate", [])
     if built:
@@ -533,7 +533,7 @@ def certificate(runner, early: bool):
     return built[0]
 
 
-def lane_bodies(runner, bodies: Sequence[Any], early: bool) -> tuple[Arrays, Any]:
+def lane_bodies(runner, bodies: Sequence[Any], early_stop: bool) -> tuple[Arrays, Any]:
     """The arrays and certificates of ``bodies`` (runners whose compiled programs agree with
     ``runner``'s: the same shapes and static settings) stacked along a first axis, padded to a
     power of two (at least 2) with copies of the last (padding is never a cell's body).
@@ -546,7 +546,7 @@ def lane_bodies(runner, bodies: Sequence[Any], early: bool) -> tuple[Arrays, Any
         if other._shape_key(1, other.static._replace(n_control=None)) != key:
             raise ValueError("bodies must share the shapes and static settings of one compiled "
                              "program (horizon, delay, t_end, ADMM settings, thresholds)")
-    certs = [certificate(b, early) for b in bodies]
+    certs = [certificate(b, early_stop) for b in bodies]
     if len({c is None for c in certs}) > 1:
         raise ValueError("bodies: some have a certificate and some not; run them apart")
     # at least two: with one, XLA would see that every lane gathers the same body and could
@@ -604,8 +604,8 @@ class Engine:
     """Continuous batching for one :class:`runner.BatchRunner` (its model, QP and devices).
 
     slots: per device (default :func:`default_slots`); block: control periods per call;
-    early: stop certified recoveries (``--full-length`` turns it off). Falls and t_end stop a
-    scenario either way. tile: slots per ADMM loop, solved one tile after the other (default:
+    early_stop: stop certified recoveries (``--full-length`` turns it off). Falls and t_end
+    stop a scenario either way. tile: slots per ADMM loop, solved one tile after the other (default:
     one loop over the device's slots; docs/engine.md, "ADMM tiles").
 
     bodies: runners of one shape (:func:`lane_bodies`; the first is ``runner``) whose
@@ -617,7 +617,7 @@ class Engine:
     """
 
     def __init__(self, runner, *, slots: int | None = None, block: int = 100,
-                 early: bool = True, refill: int | None = None, tile: int | None = None,
+                 early_stop: bool = True, refill: int | None = None, tile: int | None = None,
                  bodies: Sequence[Any] | None = None):
         self.runner = runner
         devices: list[Any] = [None] if runner.mesh is None else list(runner.mesh.devices.flat)
@@ -645,14 +645,14 @@ class Engine:
                                      else math.gcd(self.slots, LANE_TILE))
         else:
             self.tile = int(tile) if tile is not None and tile < self.slots else None
-        self.early = bool(early)
+        self.early_stop = bool(early_stop)
         if self.lanes:
             assert bodies is not None  # (self.lanes says so)
             self.n_bodies = len(bodies)
-            self.arrays, self.cert = lane_bodies(runner, bodies, self.early)
+            self.arrays, self.cert = lane_bodies(runner, bodies, self.early_stop)
         else:
             self.n_bodies = 1
-            self.arrays, self.cert = runner.arrays, certificate(runner, self.early)
+            self.arrays, self.cert = runner.arrays, certificate(runner, self.early_stop)
         # what the compiled call bakes in: the runner's static settings without the window's
         # length, which the call reads from the traced Arrays.n_control
         self.static = runner.static._replace(n_control=None)
@@ -677,13 +677,13 @@ class Engine:
             return self._fn
         t0 = _time.perf_counter()
         r = self.runner
-        sensors, static, periods, early = r.sensors, self.static, self.block, self.cert is not None
+        sensors, static, periods, early_stop = r.sensors, self.static, self.block, self.cert is not None
         packing, tile, lanes = self.packing, self.tile, self.lanes
 
         def call(arrays, cert, slots, cell, force, push, init, body):
             return block(arrays, sensors, static, cert, slots, refill_cell=cell,
                          refill_force=force, refill_push=push, refill_init=init,
-                         refill_body=body, periods=periods, early=early, packing=packing,
+                         refill_body=body, periods=periods, early_stop=early_stop, packing=packing,
                          tile=tile, lanes=lanes)
 
         def build():

@@ -109,7 +109,7 @@ class BatchRunner:
         self._compiled_fns: dict[int, Any] = {}
         self.compile_seconds: dict[int, float] = {}
         self.last_trajectories: dict[str, np.ndarray] | None = None
-        self._engine_options = dict(slots=slots, early=early_stop)
+        self._engine_options = dict(slots=slots, early_stop=early_stop)
         if physics == "c":
             reason = unsupported(config, trajectories)
             if reason:

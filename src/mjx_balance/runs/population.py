@@ -57,7 +57,7 @@ class Population:
         self.runners = list(runners) if runners is not None else [
             BatchRunner(c, slots=slots, early_stop=early_stop, physics="mjx")
             for c in self.configs]
-        self.engine = Engine(self.runners[0], slots=slots, early=early_stop,
+        self.engine = Engine(self.runners[0], slots=slots, early_stop=early_stop,
                              bodies=self.runners)
         self.slots, self.early_stop = self.engine.slots, early_stop
         self.cell_f, self.cell_d = grid_cells(forces, durations)
@@ -117,19 +117,19 @@ def run_maps(maps: Sequence[tuple[Path, Config]], forces: np.ndarray, durations:
     writes one (``runs.folders.run_region`` with a :class:`ServedBatch`). ``update(n)``: n
     more cells decided."""
     say = say or (lambda _msg: None)
-    early = not full_length
+    early_stop = not full_length
     groups: dict[Any, list[tuple[Path, Config, Any]]] = {}
     for folder, config in maps:
         if (Path(folder) / REGION).exists():
             continue
-        runner = BatchRunner(config, slots=slots, early_stop=early, physics="mjx")
+        runner = BatchRunner(config, slots=slots, early_stop=early_stop, physics="mjx")
         key = (runner._shape_key(1, runner.static._replace(n_control=None)),
-               certificate(runner, early) is None)
+               certificate(runner, early_stop) is None)
         groups.setdefault(key, []).append((Path(folder), config, runner))
     cells = forces.size * durations.size
     for members in groups.values():
         people = Population([c for _, c, _ in members], forces, durations, slots=slots,
-                            early_stop=early, runners=[r for _, _, r in members])
+                            early_stop=early_stop, runners=[r for _, _, r in members])
         t0 = time.perf_counter()
         say(f"preparing the engine ({len(members)} bodies, each lane its own; compiled on "
             "first use, or loaded from the cache) ...")
