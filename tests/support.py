@@ -115,7 +115,7 @@ def sweep_fake(out, fake, chunk=8, config=None):
     from mjx_balance.runs.grid import Grid
 
     config = config or tiny_config()
-    return run_sweep(out, config, Grid.of(*GRID, config), run_batch=fake, chunk_size=chunk,
+    return run_sweep(out, config, Grid.of(*GRID, config), run_batch=fake, chunk=chunk,
                      progress=False, say=None)
 
 

@@ -444,7 +444,7 @@ def test_interrupted_sweep_resumes_to_the_same_bytes(tmp_path):
 
     with jax.enable_x64(False):
         with pytest.raises(KeyboardInterrupt):
-            run_sweep(tmp_path / "a", config, Grid.of(forces, durations, config), chunk_size=4,
+            run_sweep(tmp_path / "a", config, Grid.of(forces, durations, config), chunk=4,
                       run_batch=Interrupted(config, slots=ENGINE_SLOTS), progress=False,
                       say=None)
         assert any((tmp_path / "a" / "chunks").glob("chunk-*.parquet"))
@@ -452,7 +452,7 @@ def test_interrupted_sweep_resumes_to_the_same_bytes(tmp_path):
                             run_batch=LazyBatch(config, slots=ENGINE_SLOTS), progress=False,
                           say=None)
         assert resumed.reused_chunks >= 1
-        whole = run_sweep(tmp_path / "b", config, Grid.of(forces, durations, config), chunk_size=16,
+        whole = run_sweep(tmp_path / "b", config, Grid.of(forces, durations, config), chunk=16,
                           run_batch=LazyBatch(config, slots=ENGINE_SLOTS), progress=False,
                           say=None)
     assert resumed.region_path.read_bytes() == whole.region_path.read_bytes()

@@ -94,7 +94,7 @@ def _sweep(out, cluster, **kwargs):
 
     config = tiny_config(t_end=T_END)
     with jax.enable_x64(False):  # as sweeps run (conftest switches x64 on for the session)
-        return run_sweep(out, config, Grid.of(FORCES, DURATIONS, config), chunk_size=CHUNK, progress=False,
+        return run_sweep(out, config, Grid.of(FORCES, DURATIONS, config), chunk=CHUNK, progress=False,
                          run_batch=LazyBatch(config, slots=SLOTS), cluster=cluster, say=None,
                          **kwargs)
 
@@ -222,7 +222,7 @@ def test_worker_of_another_version_is_refused(tmp_path):
         refused = r"refusing the cluster.*worker tcp://.*: mjx_balance 0\.0\.0\+other \(driver: "
         with pytest.raises(ClusterError, match=refused):
             run_sweep(tmp_path / "out", tiny_config(t_end=T_END), Grid.of(FORCES, DURATIONS, tiny_config(t_end=T_END)), run_batch=Fake(),
-                      chunk_size=CHUNK, progress=False, say=None, cluster=client)
+                      chunk=CHUNK, progress=False, say=None, cluster=client)
     assert not list((tmp_path / "out" / "chunks").glob("*.parquet"))
     # a worker that joined after the check: the task itself refuses
     spec = ChunkSpec(tiny_config(t_end=T_END), None, True, CHUNK, False,

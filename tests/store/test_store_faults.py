@@ -119,7 +119,7 @@ def test_lost_manifest_is_rebuilt_from_config_and_chunks(tmp_path):
 
     lines: list[str] = []
     resumed = FakeThresholdBatch()
-    result = sweep.run_sweep(out, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=resumed, chunk_size=100,
+    result = sweep.run_sweep(out, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=resumed, chunk=100,
                              progress=False, say=lines.append)
     assert resumed.calls == [8] * 3 and result.reused_chunks == 2  # chunk size from the files
     rebuilt = [line for line in lines if "lost its manifest.json" in line]
@@ -166,7 +166,7 @@ def test_lost_manifest_of_a_table_folder_lets_a_sweep_start(tmp_path):
                     progress=False, say=None)
     (tmp_path / "manifest.json").unlink()
     lines: list[str] = []
-    sweep.run_sweep(tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=FakeThresholdBatch(), chunk_size=8,
+    sweep.run_sweep(tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=FakeThresholdBatch(), chunk=8,
                     progress=False, say=lines.append)
     assert [line for line in lines if "lost its manifest.json" in line]
     assert json.loads((tmp_path / "manifest.json").read_text())["region"]["cells"] == 35

@@ -326,7 +326,7 @@ def memory_child(cells: int, t_end: float, chunk: int | None, out: str) -> None:
     n_f = int(math.ceil(cells / n_d))
     forces = np.linspace(0.0, 150.0, n_f)
     t0 = time.perf_counter()
-    result = sweep.run_sweep(out, config, Grid.of(forces, durations, config), chunk_size=chunk,
+    result = sweep.run_sweep(out, config, Grid.of(forces, durations, config), chunk=chunk,
                              progress=False,
                              say=None)
     seconds = time.perf_counter() - t0

@@ -235,7 +235,7 @@ def run_region(out: str | os.PathLike[str], config: Config, grid: Grid,
                                    physics=physics)
     cache.enable()
     with folder_lock(out, wait=wait):
-        return run_sweep(out, config, grid, run_batch=run_batch, chunk_size=chunk,
+        return run_sweep(out, config, grid, run_batch=run_batch, chunk=chunk,
                          progress=progress, say=say, cluster=cluster)
 
 

@@ -64,35 +64,34 @@ def check_region(region: pd.DataFrame, grid: Grid) -> None:
 
 
 def run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, *,
-              run_batch: RunBatch | None = None, chunk_size: int | None = None,
+              run_batch: RunBatch | None = None, chunk: int | None = None,
               progress: bool | None = True, say: Callable[[str], None] | None = print,
               cluster: Any = None) -> SweepResult:
     """Evaluate every cell of ``grid`` (:class:`grid.Grid`, checked for ``config``),
     resumably, into ``out/region.parquet``.
 
     run_batch: batch function (default: the MJX rollout of ``config``), called with at most
-    ``chunk_size`` scenarios at a time (every call padded to exactly chunk_size).
-    chunk_size: scenarios per chunk (default: from the memory budget). A folder keeps the chunk
-    size it was started with.
+    ``chunk`` scenarios at a time (every call padded to exactly ``chunk``).
+    chunk: scenarios per chunk file and per call (default: from the memory budget; the
+    manifest records it as ``chunk_size``). A folder keeps the chunk size it was started with.
     cluster: run the chunks on a Dask cluster (``cluster.ClusterBatch``): ``"local:N"`` (N
     local worker processes), a scheduler address, or a ``distributed.Client``; None: here.
     """
     grid.fits(config)
     with folder_lock(out):  # a failure below marks this run failed in the manifest
         if cluster is None:
-            result = _run_sweep(out, config, grid, run_batch, chunk_size,
-                                progress, say)
+            result = _run_sweep(out, config, grid, run_batch, chunk, progress, say)
         else:
             with ClusterBatch(cluster, run_batch or LazyBatch(config), config,
                               say) as on_cluster:
-                result = _run_sweep(out, config, grid, on_cluster, chunk_size,
-                                    progress, say)
+                result = _run_sweep(out, config, grid, on_cluster, chunk, progress, say)
         check_results(pd.read_parquet(result.region_path, columns=["outcome"])["outcome"],
                       "cells")
         return result
 
 
-def _run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, run_batch: Any, chunk_size: int | None, progress: bool | None,
+def _run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, run_batch: Any,
+               chunk_size: int | None, progress: bool | None,
                say: Callable[[str], None] | None) -> SweepResult:
     # (run_batch: a batch function, None, or a cluster.ClusterBatch, found by its methods)
     say = say or (lambda _msg: None)
