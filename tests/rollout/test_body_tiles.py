@@ -13,7 +13,8 @@ import pytest
 from mjx_balance.control import admm
 from mjx_balance.control.qp import build_qp
 from mjx_balance.model.params import BodyParams, ControllerParams
-from mjx_balance.rollout.engine import Queue, Slots, refill_tiles
+from mjx_balance.rollout.engine import Slots, refill_tiles
+from mjx_balance.rollout.queue import Queue
 
 
 def slots_of(cell, body):

@@ -41,7 +41,7 @@ from mjx_balance.control.qp import build_qp
 from mjx_balance.measures.outcomes import OUTCOMES, SUMMARY_COLUMNS
 from mjx_balance.model.linear import zoh
 from mjx_balance.model.params import Config
-from mjx_balance.rollout import engine as engine_mod
+from mjx_balance.rollout import queue as queue_mod
 from mjx_balance.runs.grid import Grid
 
 pytestmark = pytest.mark.usefixtures("float32")
@@ -101,7 +101,7 @@ def runs(request):
     forces, durations = grid(request.param)
     out = {"window": window, "config": config}
     told = out["running"] = []  # what the engine told its queue after each call
-    heard = engine_mod.Queue.running
+    heard = queue_mod.Queue.running
 
     def running(queue, cells, periods):
         told.append((cells.copy(), periods.copy()))
@@ -111,11 +111,11 @@ def runs(request):
         for name, early in (("early", True), ("full", False)):
             runner = BatchRunner(config, slots=ENGINE_SLOTS, early_stop=early,
                                  devices=jax.local_devices()[:1])
-            engine_mod.Queue.running = running if early else heard
+            queue_mod.Queue.running = running if early else heard
             try:
                 out[name] = runner.run(forces, durations)
             finally:
-                engine_mod.Queue.running = heard
+                queue_mod.Queue.running = heard
             out[name + "_periods"] = runner.last_periods
             out[name + "_certified"] = runner.last_certified
             out[name + "_runner"] = runner

@@ -1,4 +1,4 @@
-"""The engine's work queue (rollout/engine.py ``Queue``): every cell is offered until taken and
+"""The engine's work queue (rollout/queue.py ``Queue``): every cell is offered until taken and
 taken once, and the queue starts the cells expected to run longest first.
 
 Only the schedule depends on the order (a cell's result is the same in any slot and at any
@@ -10,7 +10,7 @@ import heapq
 
 import numpy as np
 
-from mjx_balance.rollout.engine import Queue
+from mjx_balance.rollout.queue import Queue
 
 
 def simulate(queue: Queue, length: np.ndarray, slots: int, block: int) -> tuple[int, list]:

@@ -58,7 +58,8 @@ from ..control import certificate as cert_mod
 from ..measures import outcomes
 from ..model.mjcf import indices
 from ..model.params import Config
-from .engine import (NO_PROBE, Engine, Finished, Probe, Queue, Slots, broadcast, cells_of, checker,
+from .queue import Queue
+from .engine import (NO_PROBE, Engine, Finished, Probe, Slots, broadcast, cells_of, checker,
                      decide, empty_finished, retire, take)
 from ..runtime import compiled, signals
 from ..runtime.compiled import MATMUL_PRECISION
