@@ -62,8 +62,8 @@ from .figures.style import figure_style
 from .runs import DEFAULT_SWEEP
 from .studies.basin import DEFAULT_V, DEFAULT_X, run_basin
 from .studies.cohort import as_members, plan_cohort, run_plan
-from .studies.scorecard import (Reference, folder_results, read_references, reference_forces,
-                                write_scorecard)
+from .studies.reference_files import Reference, read_references, reference_forces
+from .studies.scorecard import folder_results, write_scorecard
 from .studies.scorecard import scorecard as score_results
 from .report import REPORT_JSON, build_report
 from .report.explore import Explorer

@@ -17,6 +17,7 @@ from support import assert_refused, run_cli
 
 import mjx_balance as mb
 from mjx_balance.model.params import ParameterError
+from mjx_balance.studies import reference_files as rf
 from mjx_balance.studies import scorecard as sc
 
 # Our side, made up (as tests/studies/test_scorecard.py): three forces, 100 N's 0.1-s push fell.
@@ -39,7 +40,7 @@ def _write(folder, name, text):
 def _refused(path, *words):
     """read_reference refuses ``path`` in one line naming the file and ``words``."""
     with pytest.raises(ParameterError) as info:
-        sc.read_reference(path)
+        rf.read_reference(path)
     message = str(info.value)
     assert "\n" not in message and str(path) in message, message
     for word in words:
@@ -66,7 +67,7 @@ def test_a_row_with_more_fields_than_the_header_is_refused(tmp_path, text, words
 def test_a_trailing_comma_on_every_line_is_an_empty_column(tmp_path):
     """A comma ending the header and every row too is an unnamed, empty column: read as if it
     were not there; an unnamed column that holds values is refused."""
-    ref = sc.read_reference(_write(tmp_path, "ok.csv", "force,max_acting_time,\n20,0.6,\n"))
+    ref = rf.read_reference(_write(tmp_path, "ok.csv", "force,max_acting_time,\n20,0.6,\n"))
     assert ref.frame["force"].tolist() == [20.0] and ref.measures == ["max_acting_time"]
     _refused(_write(tmp_path, "bad.csv", "force,,max_acting_time\n20,x,0.6\n"),
              "column 2 has no name", "'x'", "line 2")
@@ -112,7 +113,7 @@ def test_contradictory_duplicate_rows_are_refused_naming_both_lines(tmp_path, te
 
 
 def test_an_identical_repeated_row_is_scored_once(tmp_path):
-    ref = sc.read_reference(_write(tmp_path, "ref.csv", (
+    ref = rf.read_reference(_write(tmp_path, "ref.csv", (
         "force,max_acting_time,duration,recovered\n20,0.6,0.3,1\n20,0.60,0.3,yes\n")))
     card = sc.score(ref, OURS)
     assert card["measure"].tolist() == ["max_acting_time", "recovered"]
@@ -135,15 +136,15 @@ def test_a_header_without_force_says_what_it_found(tmp_path, text, words):
 
 def test_a_byte_order_mark_and_blank_or_indented_comment_lines_are_read(tmp_path):
     path = _write(tmp_path, "ref.csv", "\ufeffforce,max_acting_time\n  # a note\n20,0.6\n,\n")
-    assert sc.read_reference(path).frame["force"].tolist() == [20.0]
+    assert rf.read_reference(path).frame["force"].tolist() == [20.0]
 
 
 def test_an_absurd_file_is_refused_before_it_is_read(tmp_path, monkeypatch):
-    monkeypatch.setattr(sc.references, "MAX_BYTES", 100)
+    monkeypatch.setattr(rf.references, "MAX_BYTES", 100)
     path = _write(tmp_path, "ref.csv", "force,max_acting_time\n" + "20,0.6\n" * 20)
     _refused(path, "a reference file holds at most")
-    monkeypatch.setattr(sc.references, "MAX_BYTES", 10**9)
-    monkeypatch.setattr(sc, "MAX_ROWS", 5)
+    monkeypatch.setattr(rf.references, "MAX_BYTES", 10**9)
+    monkeypatch.setattr(rf, "MAX_ROWS", 5)
     path = _write(tmp_path, "rows.csv", "force,duration,recovered\n" + "".join(
         f"20,{d / 10:.1f},1\n" for d in range(1, 7)))
     _refused(path, "6 rows", "at most 5")
@@ -166,7 +167,7 @@ def test_a_large_file_is_read_and_scored_in_seconds(tmp_path):
                           "study_energy_u2_01": 0.03, "study_energy_total_max": 2.0})
     table.to_csv(tmp_path / "table.csv", index=False)
     start = time.perf_counter()
-    refs = sc.read_references([tmp_path / "trials.csv", tmp_path / "table.csv"])
+    refs = rf.read_references([tmp_path / "trials.csv", tmp_path / "table.csv"])
     card = sc.scorecard(OURS, refs, runs=RUNS)
     seconds = time.perf_counter() - start
     assert len(card) == n + 7 * n
@@ -184,7 +185,7 @@ def test_one_force_tolerance_adds_and_matches_a_reference_force(tmp_path, given,
     from mjx_balance import api
     from mjx_balance.cli.sweep import with_reference_forces
 
-    refs = sc.read_references(_write(tmp_path, "ref.csv",
+    refs = rf.read_references(_write(tmp_path, "ref.csv",
                                      f"force,max_acting_time\n{given},0.6\n"))
     table_forces = np.array([20.0, 50.0, 100.0])
     run = with_reference_forces(table_forces, refs, "table")
@@ -194,19 +195,19 @@ def test_one_force_tolerance_adds_and_matches_a_reference_force(tmp_path, given,
     row = sc.score(refs[0], ours).iloc[0]
     assert not row["status"].startswith("not computed"), row["status"]
     assert len(api._with_forces(table_forces, refs)) == 3 + added
-    assert sc.reference_forces(refs, table_forces) == ([given] if added else [])
-    assert sc.reference_forces(refs, tuple(table_forces)) == ([given] if added else [])
+    assert rf.reference_forces(refs, table_forces) == ([given] if added else [])
+    assert rf.reference_forces(refs, tuple(table_forces)) == ([given] if added else [])
 
 
 def test_a_reference_forces_within_the_tolerance_are_run_once(tmp_path):
     a = _write(tmp_path, "a.csv", "force,max_acting_time\n30,0.6\n")
     b = _write(tmp_path, "b.csv", "force,max_acting_time\n30.00001,0.6\n70,0.1\n")
-    assert sc.reference_forces(sc.read_references([a, b])) == [30.0, 70.0]
+    assert rf.reference_forces(rf.read_references([a, b])) == [30.0, 70.0]
 
 
 def test_the_scorecard_applies_the_one_row_rules_to_whole_columns(tmp_path):
     """score() (by columns) gives what our_value / our_recovered give row by row."""
-    ref = sc.read_reference(_write(tmp_path, "ref.csv", (
+    ref = rf.read_reference(_write(tmp_path, "ref.csv", (
         "force,duration,recovered,max_acting_time,energy_total_01,energy_total_max,"
         "study_energy_total_01\n"
         "20.00001,0.3,1,0.6,0.05,5.5,0.04\n50,0.185,0,0.2,0.4,3.7,\n100,0.05,1,0.1,0.9,2.2,\n"
@@ -260,7 +261,7 @@ def test_several_files_of_one_name_are_each_kept_and_scored(tmp_path):
     assert scored == {"study": 0.6, "study_2": 0.9, "lab": 1.0}
     assert set(card.loc[card["source"] == "study_2", "citation"]) == {"Paper B"}
     # the labels are those the command line read the files with (before they were stored)
-    assert [r.label for r in sc.read_references([a, b, lab])] == ["study", "study_2", "lab"]
+    assert [r.label for r in rf.read_references([a, b, lab])] == ["study", "study_2", "lab"]
 
 
 def test_reference_files_keep_the_order_they_were_given_in(tmp_path):
@@ -276,7 +277,7 @@ def test_labels_stay_unique_when_a_file_is_labelled_like_a_suffix(tmp_path):
     a = _write(tmp_path, "a.csv", "force,max_acting_time,label\n20,0.6,lab\n")
     b = _write(tmp_path, "b.csv", "force,max_acting_time,label\n20,0.6,lab_2\n")
     c = _write(tmp_path, "c.csv", "force,max_acting_time,label\n20,0.6,lab\n")
-    assert [r.label for r in sc.read_references([a, b, c])] == ["lab", "lab_2", "lab_3"]
+    assert [r.label for r in rf.read_references([a, b, c])] == ["lab", "lab_2", "lab_3"]
 
 
 # --- the API -------------------------------------------------------------------------------------
@@ -395,7 +396,7 @@ def test_the_scorecard_figure_draws_every_text_inside_it(tmp_path, measures):
 
     columns = ["max_acting_time", "energy_total_01", "energy_total_max",
                "study_energy_total_01"][:measures]
-    ref = sc.read_reference(_write(tmp_path, "r.csv", f"force,{','.join(columns)}\n"
+    ref = rf.read_reference(_write(tmp_path, "r.csv", f"force,{','.join(columns)}\n"
                                    f"20,{','.join(['0.5'] * measures)}\n"))
     fig = scorecard_figure(sc.score(ref, OURS, runs=RUNS), table=OURS)
     assert [t.get_text() for t in style.outside(fig)] == []
@@ -408,7 +409,7 @@ def test_a_dollar_in_a_label_is_drawn_as_written(tmp_path):
     """lab $5 of $10 was drawn as mathematics ("lab 5of10" in italics)."""
     from mjx_balance.figures.scorecard import scorecard_figure
 
-    ref = sc.read_reference(_write(tmp_path, "r.csv",
+    ref = rf.read_reference(_write(tmp_path, "r.csv",
                                    "force,max_acting_time,label\n20,0.6,lab $5 of $10\n"))
     fig = scorecard_figure(sc.score(ref, OURS), table=OURS)
     fig.draw_without_rendering()

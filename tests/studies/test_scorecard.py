@@ -21,6 +21,8 @@ from mjx_balance.measures.strategy import (
 )
 from mjx_balance.model.params import ParameterError
 from mjx_balance.runs.grid import parse_pairs
+from mjx_balance.studies import reference_files as rf
+from mjx_balance.studies import references
 from mjx_balance.studies import scorecard as sc
 
 # Our side, made up: a table of three forces (100 N's 0.1-s push fell: its energies are NaN, as
@@ -41,15 +43,15 @@ def _write(tmp_path, name, text):
 
 
 def test_kind_is_told_by_the_columns(tmp_path):
-    points = sc.read_reference(_write(tmp_path, "p.csv", "force,duration\n20,0.5\n"))
-    table = sc.read_reference(_write(tmp_path, "t.csv", "force,max_acting_time\n20,0.6\n"))
-    lab = sc.read_reference(_write(tmp_path, "lab.csv",
+    points = rf.read_reference(_write(tmp_path, "p.csv", "force,duration\n20,0.5\n"))
+    table = rf.read_reference(_write(tmp_path, "t.csv", "force,max_acting_time\n20,0.6\n"))
+    lab = rf.read_reference(_write(tmp_path, "lab.csv",
                                    "force,duration,recovered\n20,0.5,yes\n50,0.3,0\n"))
     assert (points.kind, table.kind, lab.kind) == ("points", "table", "table")
     assert table.forces == [20.0] and points.forces == []
     assert lab.frame["recovered"].tolist() == [1.0, 0.0]
     # points of every file with durations, labelled by the file, for the region map
-    drawn = sc.reference_points([points, table, lab])
+    drawn = rf.reference_points([points, table, lab])
     assert drawn["label"].tolist() == ["p", "lab", "lab"]
 
 
@@ -64,22 +66,22 @@ def test_kind_is_told_by_the_columns(tmp_path):
 ])
 def test_bad_reference_files_are_refused_naming_the_problem(tmp_path, text, words):
     with pytest.raises(ParameterError, match=None) as info:
-        sc.read_reference(_write(tmp_path, "bad.csv", text))
+        rf.read_reference(_write(tmp_path, "bad.csv", text))
     assert words in str(info.value) and "bad.csv" in str(info.value)
 
 
 def test_stated_resolution_from_the_printed_decimals():
-    assert sc.stated_resolution("0.45") == pytest.approx(0.01)
-    assert sc.stated_resolution("120") == 1.0
-    assert sc.stated_resolution("0.6") == pytest.approx(0.1)
-    assert sc.stated_resolution("1.2e-3") == pytest.approx(1e-4)
+    assert rf.stated_resolution("0.45") == pytest.approx(0.01)
+    assert rf.stated_resolution("120") == 1.0
+    assert rf.stated_resolution("0.6") == pytest.approx(0.1)
+    assert rf.stated_resolution("1.2e-3") == pytest.approx(1e-4)
 
 
 def test_tolerance_comes_from_the_reference_resolution_and_our_bisection_step(tmp_path):
     # the same value printed with one and with two decimals: 0.6 stands for 0.55..0.65, so
     # ours (0.58) is within 0.05 + 0.01; 0.60 stands for 0.595..0.605: 0.02 is beyond 0.015
-    coarse = sc.read_reference(_write(tmp_path, "a.csv", "force,max_acting_time\n20,0.6\n"))
-    fine = sc.read_reference(_write(tmp_path, "b.csv", "force,max_acting_time\n20,0.60\n"))
+    coarse = rf.read_reference(_write(tmp_path, "a.csv", "force,max_acting_time\n20,0.6\n"))
+    fine = rf.read_reference(_write(tmp_path, "b.csv", "force,max_acting_time\n20,0.60\n"))
     row_a = sc.score(coarse, OURS).iloc[0]
     row_b = sc.score(fine, OURS).iloc[0]
     assert row_a["tolerance"] == pytest.approx(0.05 + sc.RESOLUTION)
@@ -90,16 +92,16 @@ def test_tolerance_comes_from_the_reference_resolution_and_our_bisection_step(tm
     assert "printed resolution 0.01 s" in row_b["tolerance_basis"]
     assert "bisection step" in row_b["tolerance_basis"]
     # a stated resolution and a given tolerance replace the printed one
-    stated = sc.read_reference(_write(tmp_path, "c.csv",
+    stated = rf.read_reference(_write(tmp_path, "c.csv",
                                       "force,max_acting_time,resolution\n20,0.60,0.1\n"))
     assert sc.score(stated, OURS).iloc[0]["status"] == "agrees"
-    given = sc.read_reference(_write(tmp_path, "d.csv",
+    given = rf.read_reference(_write(tmp_path, "d.csv",
                                      "force,max_acting_time,tolerance\n20,0.6,0.001\n"))
     assert sc.score(given, OURS).iloc[0]["status"] == "differs"
 
 
 def test_no_energy_of_a_fall_is_compared_and_reasons_are_carried(tmp_path):
-    ref = sc.read_reference(_write(tmp_path, "r.csv", (
+    ref = rf.read_reference(_write(tmp_path, "r.csv", (
         "force,energy_total_01,energy_total_max,reason\n"
         "20,0.05,5.5,\n"
         "100,0.9,2.2,our 0.1-s push falls (made up)\n")))
@@ -119,7 +121,7 @@ def test_no_energy_of_a_fall_is_compared_and_reasons_are_carried(tmp_path):
 
 
 def test_recovered_pairs_from_the_map_or_the_table(tmp_path):
-    ref = sc.read_reference(_write(tmp_path, "lab.csv", (
+    ref = rf.read_reference(_write(tmp_path, "lab.csv", (
         "force,duration,recovered\n20,0.3,1\n20,0.7,1\n20,0.585,0\n50,0.1,1\n80,0.1,1\n")))
     region = pd.DataFrame({"force": [50.0], "duration": [0.1], "outcome": ["fell"]})
     card = sc.score(ref, OURS, region=region).set_index("duration")
@@ -145,7 +147,7 @@ def test_scorecard_of_a_saved_folder_writes_csv_and_figure(tmp_path):
     RUNS.to_parquet(tmp_path / "table_runs.parquet")
     ref = _write(tmp_path, "ref.csv", "force,max_acting_time,energy_total_01\n20,0.6,0.05\n"
                                       "50,0.2,0.4\n100,0.1,1.0\n")
-    card = sc.write_scorecard(tmp_path, sc.read_references([ref]))
+    card = sc.write_scorecard(tmp_path, rf.read_references([ref]))
     assert list(pd.read_csv(tmp_path / sc.SCORECARD).columns) == sc.SCORECARD_COLUMNS
     assert len(card) == 6 and (tmp_path / sc.SCORECARD_FIGURE).read_bytes()[:4] == b"\x89PNG"
     assert mb.scorecard(tmp_path, ref).equals(card)
@@ -221,8 +223,8 @@ def test_the_study_table_ships_as_printed_and_cited():
     have one printed row each); values and their printed decimals as in the study; every row
     cited; every row has a measured reason but the one the study and we agree on (80 N's max
     acting time: 0.10 and ours 0.11 s, within half its resolution plus our bisection step)."""
-    assert mb.references() == {"study": sc.references.shipped_path("study")}
-    ref = sc.read_reference("study")
+    assert mb.references() == {"study": references.shipped_path("study")}
+    ref = rf.read_reference("study")
     assert (ref.kind, ref.label) == ("table", "study")
     frame, text = ref.frame, ref.text
     assert len(frame) == 30
@@ -241,7 +243,7 @@ def test_the_study_table_ships_as_printed_and_cited():
     unreasoned = frame[frame["reason"] == ""]
     assert list(unreasoned["force"]) == [80] and unreasoned["max_acting_time"].item() == 0.10
     # the 5 N total is not its ankle + hip (0.328): kept as printed, and said so in the file
-    assert "0.356 J, is not the sum" in sc.references.shipped_path("study").read_text()
+    assert "0.356 J, is not the sum" in references.shipped_path("study").read_text()
 
 
 def test_a_shipped_reference_is_named_on_the_command_line(tmp_path, capsys):
@@ -257,7 +259,7 @@ def test_a_shipped_reference_is_named_on_the_command_line(tmp_path, capsys):
 
 @pytest.mark.slow  # the study's 11 forces bisected to 0.01 s in 12-s windows (minutes on 2 cores)
 def test_every_row_of_the_study_that_differs_carries_a_reason():
-    ref = sc.read_reference("study")
+    ref = rf.read_reference("study")
     table = mb.table(ref.forces, mb.Config(), progress=False)
     card = mb.scorecard(table, "study")
     differs = card[card["status"] == "differs"]

@@ -96,7 +96,7 @@ def with_reference_forces(forces: Any, refs: list, what: str) -> Any:
     """``forces`` (an array, or None) with the reference tables' forces added (sorted)."""
     import numpy as np
 
-    from ..studies.scorecard import reference_forces  # lazy: pandas, JAX
+    from ..studies.reference_files import reference_forces  # lazy: pandas, JAX
 
     extra = reference_forces(refs, forces)  # not already there (the scorecard's tolerance)
     if not extra:
@@ -126,7 +126,7 @@ def sweep_command(args: Any) -> int:
     from .. import api
     from ..runs import DEFAULT_SWEEP, load_sweep, parse_grid  # lazy: the runs floor: JAX
     from ..store.files import MANIFEST  # lazy: as above
-    from ..studies.scorecard import read_references, reference_points  # lazy: as above
+    from ..studies.reference_files import read_references, reference_points  # lazy: as above
     from ..runs.chunks import default_chunk_size  # lazy: as above
     from ..runs.folders import check_batched  # lazy: as above
     from ..runs.grid import Grid  # lazy: as above
@@ -201,7 +201,7 @@ def table_command(args: Any) -> int:
                         parse_grid, table_batch_size)
     from ..runs.folders import check_batched  # lazy: the runs floor: JAX
     from ..store.files import REGION, TABLE  # lazy: pandas
-    from ..studies.scorecard import read_references, reference_points  # lazy: as above
+    from ..studies.reference_files import read_references, reference_points  # lazy: as above
 
     definition = (load_sweep(args.sweep, base_config(args, overrides=False)) if args.sweep
                   else None)

@@ -38,7 +38,7 @@ from ..model.config_files import config_from_dict, with_convention
 from ..store.files import write_atomic
 from ..studies import catalog
 from ..studies.experiments import REPORT_JSON, WEIGHTS_RECOVERING, read_record
-from ..studies.scorecard import read_references
+from ..studies.reference_files import read_references
 from .blocks import embed, img
 from .extra import extra_sections
 from .reproduction import (

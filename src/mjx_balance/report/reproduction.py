@@ -25,10 +25,10 @@ from ..measures.strategy import HIP_SHARE_THRESHOLD, STRATEGIES
 from ..model.params import Config
 from ..store.files import write_atomic
 from ..studies import references
+from ..studies.reference_files import read_references
 from ..studies.scorecard import (
     SCORECARD,
     folder_results,
-    read_references,
     scorecard,
     summary,
 )
