@@ -34,7 +34,7 @@ _LAZY = {
     "cohort": "api", "scorecard": "api", "explore": "api", "landscape": "api",
     "sensitivity": "api", "report": "api", "references": "studies.references",
     "strategy_map": "figures.strategy",
-    "load_report": "report.html:load_results",
+    "load_report": "report.results:load_results",
     "region_map": "figures.region", "energy_map": "figures.region",
     "table_figure": "figures.region", "timeseries_figure": "figures.timeseries",
     "weight_figure": "figures.report", "conventions_figure": "figures.report",

@@ -25,7 +25,8 @@ finished stage is not rerun (sweeps resume chunk by chunk; see the runs floor).
 """
 
 from ..figures.report import conventions_figure, save_figure, weight_figure
-from .html import HTML, build_report, key_numbers, load_results, sections
+from .html import HTML, build_report, sections
+from .results import key_numbers, load_results
 from ..runs.batch import ReferenceBatch
 from ..runs.folders import batch_function
 from ..studies.experiments import (PLANS, Q_SCALES, R_SCALES, REPORT_JSON, Plan, plan_config,

@@ -1,6 +1,6 @@
 """The report page, drawn from a report folder's saved tables alone.
 
-:func:`load_results` reads every table of a folder (what the figures and the notebook use).
+``results.load_results`` reads every table of a folder (what the figures and the notebook use).
 :func:`build_report` draws the figures into DIR/figures and writes DIR/report.html: one section
 per experiment and convention, the conventions side by side, one section per study, then the
 sections of report/extra.py (the sensitivity of the robustness table, which the report's run
@@ -34,13 +34,14 @@ from ..figures.report import (
 from ..measures.outcomes import OUTCOMES, RECOVERED
 from ..measures.units import describe
 from ..model.params import Config
-from ..model.config_files import config_from_dict, with_convention
+from ..model.config_files import with_convention
 from ..store.files import write_atomic
 from ..studies import catalog
-from ..studies.experiments import REPORT_JSON, WEIGHTS_RECOVERING, read_record
+from ..studies.experiments import REPORT_JSON, read_record
 from ..studies.reference_files import read_references
 from .blocks import embed, img
 from .extra import extra_sections
+from .results import grid_of, key_numbers, load_results, number_list, sustained_text
 from .reproduction import (
     SCORECARD_HEADING,
     reference_files,
@@ -90,44 +91,6 @@ nav ul { columns: 2; font-size: 0.9em; }
 TITLE = "Standing balance under constrained MPC: the study reproduced, and beyond"
 
 
-# ---------------------------------------------------------------------------------------------
-# The saved tables
-
-
-def load_results(out: str | Path) -> dict[str, Any]:
-    """Every saved table of a report folder (what the figures and the notebook read).
-
-    Returns {"record": report.json, "config": the base Config, "conventions": {convention:
-    {"summary", "timeseries", "weights", "table", "region"}}, "studies": {key: {"variants"
-    (their report.json entries), "regions": {variant key: region map}, "numbers"}}}.
-    """
-    out = Path(out)
-    record = read_record(out / REPORT_JSON)
-    results: dict[str, Any] = {"record": record, "config": config_from_dict(record["config"]),
-                               "conventions": {}, "studies": {}}
-    for convention in record["conventions"]:
-        folder = out / convention
-        results["conventions"][convention] = {
-            "summary": pd.read_csv(folder / "summary.csv"),
-            "timeseries": pd.read_parquet(folder / "timeseries.parquet"),
-            "weights": pd.read_csv(folder / "weights.csv"),
-            # a report from before the recovering comparison has none
-            "weights_recovering": (pd.read_csv(folder / WEIGHTS_RECOVERING)
-                                   if (folder / WEIGHTS_RECOVERING).exists() else None),
-            "table": pd.read_csv(folder / "table" / "table.csv"),
-            "region": pd.read_parquet(folder / "region" / "region.parquet"),
-        }
-    for entry in record["studies"]:
-        folder = out / "studies" / entry["key"]
-        results["studies"][entry["key"]] = {
-            "variants": entry["variants"],
-            "regions": {v["key"]: pd.read_parquet(folder / v["key"] / "region.parquet")
-                        for v in entry["variants"]},
-            "numbers": pd.read_csv(folder / "numbers.csv"),
-        }
-    return results
-
-
 def sections(out: str | Path) -> list[tuple[str, str]]:
     """(id, heading) of every section of the report in ``out`` (what build_report writes)."""
     record = read_record(Path(out) / REPORT_JSON)
@@ -145,91 +108,6 @@ def sections(out: str | Path) -> list[tuple[str, str]]:
         ids.append((f"study-{entry['key']}", "Study: " + catalog.study(entry["key"]).title))
     ids += [(s["id"], s["heading"]) for s in extra_sections(out)]
     return ids
-
-
-# ---------------------------------------------------------------------------------------------
-# Key numbers (each states the grid it came from)
-
-
-def _grid_of(region: pd.DataFrame) -> str:
-    return "grid " + catalog.grid_text(region)
-
-
-def _study_grid(res: dict) -> str:
-    return _grid_of(next(iter(res["regions"].values())))
-
-
-def key_numbers(results: dict[str, Any]) -> list[str]:
-    """Headline numbers of a report, one line each, from the saved tables; each line names
-    the grid (or the table forces) its numbers come from."""
-    lines = _experiment_lines(results["conventions"], results.get("config"))
-    st = results["studies"]
-    if "ankle_only" in st:
-        lines += [line[:-1] + f" ({_study_grid(st['ankle_only'])})."
-                  for line in _ankle_only_lines(st["ankle_only"]["numbers"])]
-    if "delay" in st:
-        lines += [line[:-1] + f" ({_study_grid(st['delay'])})."
-                  for line in _delay_lines(st["delay"]["numbers"])]
-    for key in ("older_adult", "push_height"):
-        if key in st:
-            rows = st[key]["numbers"]
-            lines.append(f"{catalog.study(key).title}: " + ", ".join(
-                f"{label} {a:.3g} N·s" for label, a in zip(rows["label"], rows["area"]))
-                + f" ({_study_grid(st[key])}).")
-    if "backward" in st:
-        rows = st["backward"]["numbers"]
-        lines.append(f"Backward vs forward pushes: {rows['area'].iloc[0]:.3g} vs "
-                     f"{rows['area'].iloc[1]:.3g} N·s ({_study_grid(st['backward'])}).")
-    return lines
-
-
-def _experiment_lines(conventions: dict[str, dict], config: Config | None = None) -> list[str]:
-    """Max acting time per force of every convention (with the table's forces and
-    resolution), then each convention's region area (with its grid)."""
-    if not conventions:
-        return []
-    parts = []
-    forces = None
-    for convention, res in conventions.items():
-        t = res["table"].sort_values("force")
-        forces = t["force"].to_numpy()
-        pairs = ", ".join(f"{f:g} N: {m:g} s" for f, m in zip(t["force"], t["max_acting_time"]))
-        parts.append(f"{convention}: {pairs}")
-    window = f" within t_end = {config.scenario.t_end:g} s" if config is not None else ""
-    lines = [f"Max acting time (table forces {_numbers(forces)} N, bisected to 0.01 s{window})"
-             " — " + "; ".join(parts) + "."]
-    limits = [f"{c}: {_sustained(res['table'])}" for c, res in conventions.items()]
-    lines.append("Sustained-push limit (the largest force held for the whole window, to 0.1 N)"
-                 " — " + "; ".join(limits) + ".")
-    for convention, res in conventions.items():
-        n = catalog.region_numbers(res["region"])
-        lines.append(f"Recoverable region ({convention}): {n['area']:.3g} N·s, "
-                     f"{n['fraction']:.0%} of the grid ({_grid_of(res['region'])}).")
-    return lines
-
-
-def _ankle_only_lines(rows: pd.DataFrame) -> list[str]:
-    """What the hip adds to the ankle-only region, and whether upright rest is lost."""
-    added = rows["area"].iloc[0] - rows["area"].iloc[1]
-    rel = added / rows["area"].iloc[1] if rows["area"].iloc[1] > 0 else float("nan")
-    rest_lost = rows.get("rest_recovered", pd.Series([1, 1])).iloc[1] == 0
-    return [f"The hip adds {added:+.3g} N·s to the ankle-only region"
-            + (f" ({rel:+.0%})" if np.isfinite(rel) else "")
-            + ("; with the hip held by its servo and the hip motor off even upright "
-               "rest is lost." if rest_lost else ".")]
-
-
-def _delay_lines(rows: pd.DataFrame) -> list[str]:
-    """The area change of each delay, and the delays that lose upright rest."""
-    lines = ["Delay changes the area by " + ", ".join(
-        f"{c:+.3g} N·s ({r:+.0%}) at {label}" for c, r, label in
-        zip(rows["area_change"].iloc[1:], rows["relative_change"].iloc[1:],
-            rows["label"].iloc[1:])) + "."]
-    if "rest_recovered" in rows:
-        lost = rows["label"][rows["rest_recovered"] == 0].tolist()
-        if lost:
-            lines.append(f"Upright rest (F = 0) is not held with a delay of {', '.join(lost)}.")
-    return lines
 
 
 # ---------------------------------------------------------------------------------------------
@@ -342,8 +220,7 @@ def _paragraph(text: str | Markup, cls: str = "") -> dict:
     return {"kind": "paragraph", "text": text, "cls": cls}
 
 
-def _numbers(values) -> str:
-    return ", ".join(f"{v:g}" for v in values)
+
 
 
 def _config_text(config: Config) -> str:
@@ -373,7 +250,7 @@ def banner(record: dict, config: Config) -> str | None:
     return (f"Tiny-scale smoke run (plan tiny): t_end = {config.scenario.t_end:g} s, region "
             f"grids of forces {plan.get('region_forces')} N x durations "
             f"{plan.get('region_durations')} s, table forces "
-            f"{_numbers(plan.get('table_forces', []))} N, the reference solver capped at "
+            f"{number_list(plan.get('table_forces', []))} N, the reference solver capped at "
             f"{plan.get('osqp_max_iter')} iterations. It checks that every stage runs; its "
             "numbers are NOT meaningful results. Run `mjx-balance report` (default scale) for "
             "results.")
@@ -470,7 +347,7 @@ def timeseries_section(page: Page, convention: str, res: dict) -> dict:
     return page.section(
         f"timeseries-{convention}",
         _run_settings(f"Reference loop, {convention} convention, F = "
-                f"{_numbers(page.plan['timeseries_forces'])} N, "
+                f"{number_list(page.plan['timeseries_forces'])} N, "
                 f"T = {page.plan['push_duration']:g} s (shaded), t_end = "
                 f"{cfg.scenario.t_end:g} s; time axes end where the action ends; dashed red: "
                 "the MPC's bounds where they apply."),
@@ -496,8 +373,8 @@ def weights_section(page: Page, convention: str, res: dict) -> dict:
     plan = page.plan
     blocks = [_run_settings(f"Reference loop, {convention} convention, T = "
                       f"{plan['push_duration']:g} s; Q = s·I4 for s in "
-                      f"{_numbers(plan['q_scales'])} (R default); R = s·diag(1000, 1) for s in "
-                      f"{_numbers(plan['r_scales'])} (Q default).")]
+                      f"{number_list(plan['q_scales'])} (R default); R = s·diag(1000, 1) for s in "
+                      f"{number_list(plan['r_scales'])} (Q default).")]
     blocks += _weight_blocks(page, convention, res["weights"], "weights",
                              f"As the study ran it: F = {plan['weight_force']:g} N.")
     if res.get("weights_recovering") is not None:
@@ -528,14 +405,6 @@ def _weight_blocks(page: Page, convention: str, weights: pd.DataFrame, name: str
                                                                    weights))]
 
 
-def _sustained(table: pd.DataFrame) -> str:
-    """The table's sustained-push limit in words (a table from before the column: not measured)."""
-    values = table.get("sustained_push_limit")
-    if values is None or not np.isfinite(values).any():
-        return "not measured"
-    return f"{float(values.dropna().iloc[0]):g} N"
-
-
 def table_section(page: Page, convention: str, res: dict) -> dict:
     """Experiment 3: the max acting time per force."""
     cfg = with_convention(page.config, convention)
@@ -543,7 +412,7 @@ def table_section(page: Page, convention: str, res: dict) -> dict:
     return page.section(
         f"table-{convention}",
         _run_settings(f"Batch backend {page.record['backend']}, {convention} convention, table "
-                f"forces {_numbers(res['table']['force'])} N: for each force the largest T "
+                f"forces {number_list(res['table']['force'])} N: for each force the largest T "
                 f"(to 0.01 s) such that every T up to it recovers within t_end = "
                 f"{cfg.scenario.t_end:g} s (coarse scan, then bisection; "
                 f"sweep.max_acting_time). Energies at T = 0.1 s (_01) and at the max "
@@ -553,7 +422,7 @@ def table_section(page: Page, convention: str, res: dict) -> dict:
                    "absolute work" if convention == "paper" else "")
                 + f". Sustained-push limit, the largest "
                 f"force held (not fallen) when it pushes for the whole window: "
-                f"{_sustained(res['table'])}."),
+                f"{sustained_text(res['table'])}."),
         img(path, "max acting time and energies"),
         _table(_marked(res["table"], ENERGY_01, "outcome_01"),
                shown_columns("table", convention, res["table"]), note_column="note"))
@@ -634,7 +503,7 @@ def conventions_section(page: Page) -> dict:
         {"kind": "heading", "text": f"Time-series pushes (T = {page.plan['push_duration']:g} s)"},
         _table(outcomes),
         _row(*images),
-        _paragraph(_conventions_reading(tables, numbers, _grid_of(results[a]["region"])),
+        _paragraph(_conventions_reading(tables, numbers, grid_of(results[a]["region"])),
               "reading"))
 
 
