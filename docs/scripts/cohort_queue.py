@@ -28,6 +28,7 @@ from mjx_balance.rollout import engine as engine_mod
 from mjx_balance.runs.folders import run_region
 from mjx_balance.runs.grid import parse_grid
 from mjx_balance.studies import cohort
+from mjx_balance.studies import members as cohort_members
 
 PEOPLE = [mb.Subject(1.55, 50, "female"), mb.Subject(1.70, 70), mb.Subject(1.85, 90),
           mb.Subject(1.62, 58, "female"), mb.Subject(1.78, 82), mb.Subject(1.92, 100)]
@@ -45,7 +46,7 @@ def main() -> None:
     out = Path(args.out)
     shutil.rmtree(out, ignore_errors=True)
     config = mb.Config().replace(scenario={"t_end": args.t_end})
-    people = cohort.numbered(PEOPLE[:args.subjects])
+    people = cohort_members.numbered(PEOPLE[:args.subjects])
     forces = parse_grid(args.forces, "forces")
     durations = parse_grid(args.durations, "durations")
     cells = forces.size * durations.size

@@ -32,6 +32,7 @@ from mjx_balance.runs.folders import run_region
 from mjx_balance.runs import population
 from mjx_balance.runs.grid import parse_grid
 from mjx_balance.studies import cohort
+from mjx_balance.studies import members as cohort_members
 
 
 class Meter:
@@ -129,7 +130,7 @@ def main() -> None:
     out = Path(args.out)
     shutil.rmtree(out, ignore_errors=True)
     config = mb.Config()
-    people = cohort.population(args.population, args.seed)
+    people = cohort_members.population(args.population, args.seed)
     forces = parse_grid(args.forces, "forces")
     durations = parse_grid(args.durations, "durations")
     n = (len(people) + 1) * forces.size * durations.size

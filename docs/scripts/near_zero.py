@@ -113,10 +113,10 @@ def noise() -> None:
     """The closed loop standing unpushed (0 N) for the whole window, with trajectories: the
     largest V(x) = x^T P x at a control instant (the level of the rest jitter), per body (the
     default and the cohort's subjects), and the peaks the jitter reaches."""
-    from mjx_balance.studies import cohort
+    from mjx_balance.studies import members as cohort_members
 
     bodies = [("default", Config())] + [(m.id, m.subject.config(Config()))
-                                        for m in cohort.population(COHORT["n"], COHORT["seed"])]
+                                        for m in cohort_members.population(COHORT["n"], COHORT["seed"])]
     for label, config in bodies:
         sc = config.scenario
         with jax.enable_x64(False):
@@ -157,10 +157,10 @@ def cells(grid: str):
     f, d = np.repeat(forces, durations.size), np.tile(durations, forces.size)
     if grid != "cohort":
         return [("", Config(), f, d)]
-    from mjx_balance.studies import cohort
+    from mjx_balance.studies import members as cohort_members
 
     return [(m.id, m.subject.config(Config()), f, d)
-            for m in cohort.population(COHORT["n"], COHORT["seed"])]
+            for m in cohort_members.population(COHORT["n"], COHORT["seed"])]
 
 
 def run(grid: str, out: str, full_length: bool) -> None:

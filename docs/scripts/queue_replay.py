@@ -14,7 +14,7 @@ refill (one without ``Queue.running`` is not told the periods of the cells in a 
 engine did not tell it).
 
 Records (or reads from ``--record``, written the first time) the control periods of every cell
-of the study's body and ``--subjects`` subjects of ``cohort.population(100, 1)`` over the grid,
+of the study's body and ``--subjects`` subjects of ``cohort_members.population(100, 1)`` over the grid,
 MJX path, one queue. Replays (1) a cohort of ``--population`` subjects and the base body in one
 queue with body tiles, body b having the recorded lengths of recorded body b mod the count (a
 model of a population, stated as such), and (2) a plain sweep of as many cells of the study's
@@ -38,13 +38,13 @@ from mjx_balance.rollout.queue import Queue
 from mjx_balance.rollout.runner import push_steps
 from mjx_balance.runs.grid import parse_grid
 from mjx_balance.runs.population import Population
-from mjx_balance.studies import cohort
+from mjx_balance.studies import members as cohort_members
 
 
 def record(path: Path, forces, durations, subjects: int) -> dict[str, np.ndarray]:
     if path.exists():
         return dict(np.load(path))
-    configs = [mb.Config()] + [m.subject.config() for m in cohort.population(100, 1)[:subjects]]
+    configs = [mb.Config()] + [m.subject.config() for m in cohort_members.population(100, 1)[:subjects]]
     columns = Population(configs, forces, durations).run(range(len(configs)))
     lengths = np.stack([np.asarray(columns[i]["periods"], np.int64) for i in range(len(configs))])
     np.savez(path, lengths=lengths, forces=forces, durations=durations)

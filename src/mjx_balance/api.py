@@ -61,7 +61,8 @@ from .studies.sensitivity import run_sensitivity
 from .figures.style import figure_style
 from .runs import DEFAULT_SWEEP
 from .studies.basin import DEFAULT_V, DEFAULT_X, run_basin
-from .studies.cohort import as_members, plan_cohort, run_plan
+from .studies.cohort import plan_cohort, run_plan
+from .studies.members import as_members
 from .studies.reference_files import Reference, read_references, reference_forces
 from .studies.scorecard import folder_results, write_scorecard
 from .studies.scorecard import scorecard as score_results

@@ -427,14 +427,14 @@ def test_a_populations_bodies_lie_within_the_bounds():
     """A population draws height and mass independently: the mass is redrawn into the body
     mass indices a subject accepts at that height (no subject refused mid-draw)."""
     from mjx_balance.model.subject import BMI_RANGE
-    from mjx_balance.studies import cohort
+    from mjx_balance.studies import members as cohort_members
 
-    tall_light = cohort.population(40, seed=2, height_mean=2.3, height_sd=0.1,
+    tall_light = cohort_members.population(40, seed=2, height_mean=2.3, height_sd=0.1,
                                    mass_mean=45, mass_sd=10)
     bmi = np.array([m.subject.mass / m.subject.height ** 2 for m in tall_light])
     assert bmi.min() >= BMI_RANGE[0] and bmi.max() <= BMI_RANGE[1]
     # a seed's subjects are those it drew before the bound (none of them was outside it):
     # the first three of population(30, seed=7), as the code before the bound drew them
-    assert [m.subject for m in cohort.population(30, seed=7)[:3]] == [
+    assert [m.subject for m in cohort_members.population(30, seed=7)[:3]] == [
         Subject(1.7269, 66.71, "male"), Subject(1.6591, 58.1, "female"),
         Subject(1.8206, 64.09, "female")]

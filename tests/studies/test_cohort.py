@@ -22,6 +22,7 @@ from mjx_balance.measures import units
 from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.model.subject import HEIGHT_RANGE, Subject
 from mjx_balance.studies import cohort
+from mjx_balance.studies import members as cohort_members
 
 FORCES, DURATIONS = "0:40:10", "0.5,1,2"
 BASE = Config().replace(scenario={"t_end": 2.0})
@@ -49,34 +50,34 @@ def run(out, members, made=None, **kwargs):
 
 
 def test_a_grid_of_subjects_is_the_product_of_the_lists():
-    members = cohort.subject_grid([1.6, 1.8], [60, 80], ["male", "female"], [0.5, 1.0])
+    members = cohort_members.subject_grid([1.6, 1.8], [60, 80], ["male", "female"], [0.5, 1.0])
     assert len(members) == 16
     assert [m.id for m in members[:3]] == ["s01", "s02", "s03"]
     first, last = members[0].subject, members[-1].subject
     assert (first.height, first.mass, first.sex, first.ankle_strength) == (1.6, 60, "male", 0.5)
     assert (last.height, last.mass, last.sex, last.ankle_strength) == (1.8, 80, "female", 1.0)
     with pytest.raises(ParameterError, match="height"):
-        cohort.subject_grid([9.0], [60])
+        cohort_members.subject_grid([9.0], [60])
 
 
 def test_a_population_is_seeded_and_truncated():
-    a = cohort.population(30, seed=7)
-    assert a == cohort.population(30, seed=7)  # the same seed, the same subjects
-    assert a != cohort.population(30, seed=8)
+    a = cohort_members.population(30, seed=7)
+    assert a == cohort_members.population(30, seed=7)  # the same seed, the same subjects
+    assert a != cohort_members.population(30, seed=8)
     sexes = {m.subject.sex for m in a}
     assert sexes == {"male", "female"}
-    assert {m.subject.sex for m in cohort.population(20, 1, female_fraction=0.0)} == {"male"}
+    assert {m.subject.sex for m in cohort_members.population(20, 1, female_fraction=0.0)} == {"male"}
     # a mean near the top of the range: every draw redrawn into it (a truncated normal)
-    tall = cohort.population(50, seed=3, height_mean=2.45, height_sd=0.2)
+    tall = cohort_members.population(50, seed=3, height_mean=2.45, height_sd=0.2)
     heights = np.array([m.subject.height for m in tall])
     assert heights.max() <= HEIGHT_RANGE[1] and heights.min() >= HEIGHT_RANGE[0]
     assert (heights > 2.3).mean() > 0.3  # still drawn around the mean, not clipped to a value
     with pytest.raises(ParameterError, match="female_fraction"):
-        cohort.population(5, 1, female_fraction=1.5)
+        cohort_members.population(5, 1, female_fraction=1.5)
     with pytest.raises(ParameterError, match="seed = -1"):
-        cohort.population(5, -1)
+        cohort_members.population(5, -1)
     with pytest.raises(ParameterError, match="height"):
-        cohort.population(5, 1, height_mean=40.0, height_sd=0.01)
+        cohort_members.population(5, 1, height_mean=40.0, height_sd=0.01)
 
 
 def test_a_csv_of_participants_keeps_its_ids_and_refuses_bad_rows(tmp_path):
@@ -84,7 +85,7 @@ def test_a_csv_of_participants_keeps_its_ids_and_refuses_bad_rows(tmp_path):
     good.write_text("id,height,mass,sex,ankle_strength,hip_strength,note\n"
                     "P-07,1.62,58,female,0.8,,left-handed\n"
                     ",1.80,82,male,,,\n")
-    members = cohort.read_subjects(good)
+    members = cohort_members.read_subjects(good)
     assert [m.id for m in members] == ["P-07", "s02"]
     assert members[0].subject == Subject(1.62, 58, "female", 0.8)
     cases = {"1.7,abc,male": "line 3: mass = 'abc'",
@@ -94,22 +95,22 @@ def test_a_csv_of_participants_keeps_its_ids_and_refuses_bad_rows(tmp_path):
         bad = tmp_path / "bad.csv"
         bad.write_text(f"height,mass,sex\n1.6,60,male\n{row}\n")
         with pytest.raises(ParameterError, match=message):
-            cohort.read_subjects(bad)
+            cohort_members.read_subjects(bad)
     twice = tmp_path / "twice.csv"
     twice.write_text("id,height,mass\na,1.6,60\nA,1.7,70\n")
     with pytest.raises(ParameterError, match="'A' is given twice"):
-        cohort.read_subjects(twice)
+        cohort_members.read_subjects(twice)
     slash = tmp_path / "slash.csv"
     slash.write_text("id,height,mass\na/b,1.6,60\n")
     with pytest.raises(ParameterError, match="line 2: id = 'a/b'"):
-        cohort.read_subjects(slash)
+        cohort_members.read_subjects(slash)
 
 
 # --- the cohort's files ----------------------------------------------------------------------
 
 
 def test_the_cohort_writes_its_table_summary_manifest_and_figures(tmp_path):
-    members = cohort.subject_grid([1.6, 1.8], [55, 85])
+    members = cohort_members.subject_grid([1.6, 1.8], [55, 85])
     frame = run(tmp_path / "out", members)
     out = tmp_path / "out"
     written = pd.read_csv(out / "cohort.csv")
@@ -149,7 +150,7 @@ def test_the_cohort_writes_its_table_summary_manifest_and_figures(tmp_path):
 
 
 def test_the_table_forces_give_the_limit_and_acting_times(tmp_path):
-    members = cohort.subject_grid([1.7], [60, 90])
+    members = cohort_members.subject_grid([1.7], [60, 90])
     frame = run(tmp_path / "out", members, table_forces="20,40")
     assert {"max_acting_time_20N", "max_acting_time_40N"} <= set(frame.columns)
     assert frame["sustained_push_limit"].notna().all()
@@ -167,7 +168,7 @@ def test_the_chosen_subjects_span_the_area():
 
 def test_a_cohort_resumes_subject_by_subject(tmp_path):
     out = tmp_path / "out"
-    members = cohort.subject_grid([1.6, 1.8], [60])
+    members = cohort_members.subject_grid([1.6, 1.8], [60])
     run(out, members)
     first = pd.read_csv(out / "cohort.csv")
     made: list = []
@@ -184,7 +185,7 @@ def test_a_cohort_resumes_subject_by_subject(tmp_path):
     assert [len(b.calls) > 0 for b in made] == [False, True, False]
     pd.testing.assert_frame_equal(pd.read_csv(out / "cohort.csv"), first)
     with pytest.raises(ParameterError, match="other subjects or grids"):
-        run(out, cohort.subject_grid([1.6], [60]))
+        run(out, cohort_members.subject_grid([1.6], [60]))
 
 
 # --- the command line and mb.cohort ----------------------------------------------------------
@@ -284,7 +285,7 @@ def test_the_queue_by_default_is_one_on_mjx_each_elsewhere_and_a_resumed_folders
     (started / "manifest.json").write_text(json.dumps(
         {"region": {"engine": {"slots": 32, "physics": "mjx", "queue": "one"}}}))
     assert cohort.resolved_queue(out, "auto", "c", None) == "one"
-    plan = cohort.plan_cohort(tmp_path / "new", cohort.numbered([Subject(1.7, 70)]),
+    plan = cohort.plan_cohort(tmp_path / "new", cohort_members.numbered([Subject(1.7, 70)]),
                               Config(), "0,50", "0.1", physics="c")
     assert plan.engine["queue"] == "each"
 

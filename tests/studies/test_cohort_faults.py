@@ -17,6 +17,7 @@ import mjx_balance as mb
 from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.model.subject import Subject
 from mjx_balance.studies import cohort
+from mjx_balance.studies import members as cohort_members
 
 BASE = Config().replace(scenario={"t_end": 2.0})
 FORCES, DURATIONS = "0:40:20", "0.5,1"
@@ -82,16 +83,16 @@ def test_a_subjects_file_with_headers_in_any_case_and_a_bom_keeps_its_ids(tmp_pa
     people = tmp_path / "people.csv"
     people.write_text("ID,Height,Mass,Sex\nann,1.62,58,female\nbob,1.85,90,male\n",
                       encoding="utf-8-sig")
-    members = cohort.read_subjects(people)
+    members = cohort_members.read_subjects(people)
     assert [m.id for m in members] == ["ann", "bob"]
     assert members[0].subject == Subject(1.62, 58, "female")
 
 
 def test_every_id_is_bounded_however_the_subjects_come():
-    for subjects in ({LONG_ID: Subject(1.7, 70)}, [cohort.Member(LONG_ID, Subject(1.7, 70))]):
+    for subjects in ({LONG_ID: Subject(1.7, 70)}, [cohort_members.Member(LONG_ID, Subject(1.7, 70))]):
         with pytest.raises(ParameterError, match="300 characters long; an id has at most 64"):
-            cohort.as_members(subjects)
-    assert cohort.as_members({"P" * 64: Subject(1.7, 70)})[0].id == "P" * 64
+            cohort_members.as_members(subjects)
+    assert cohort_members.as_members({"P" * 64: Subject(1.7, 70)})[0].id == "P" * 64
 
 
 # --- a folder without results is taken over --------------------------------------------------
@@ -100,7 +101,7 @@ def test_every_id_is_bounded_however_the_subjects_come():
 def _leftover(out, base: Config) -> None:
     """The manifest a cohort run left when it was refused or stopped before its first result
     (as the refusals above did before they moved ahead of the folder)."""
-    record = cohort._record(cohort.subject_grid([1.7], [70]), base, np.array([0.0, 20, 40]),
+    record = cohort._record(cohort_members.subject_grid([1.7], [70]), base, np.array([0.0, 20, 40]),
                             np.array([0.5, 1.0]), None)
     out.mkdir(parents=True)
     (out / "manifest.json").write_text(json.dumps({**record, "runs": [
@@ -113,7 +114,7 @@ def test_a_folder_without_results_is_taken_over_by_a_corrected_cohort(tmp_path):
     folder none of whose subjects holds a result is started anew, its runs' records kept."""
     out = tmp_path / "out"
     _leftover(out, BASE.replace(controller={"horizon": 200}))
-    members = cohort.subject_grid([1.7], [70])
+    members = cohort_members.subject_grid([1.7], [70])
     said: list[str] = []
     frame = cohort.run_cohort(out, members, BASE, FORCES, DURATIONS, run_batches=stand_ins,
                               say=said.append)
@@ -146,13 +147,13 @@ def test_a_folder_with_one_subjects_chunk_is_not_taken_over(tmp_path):
     """A subject's partial map (a chunk, no region.parquet) is a result: kept, and another
     cohort refused."""
     out = tmp_path / "out"
-    members = cohort.subject_grid([1.7], [70])
+    members = cohort_members.subject_grid([1.7], [70])
     cohort.run_cohort(out, members, BASE, FORCES, DURATIONS, run_batches=stand_ins, say=None)
     (out / "cohort.csv").unlink()
     (out / "subjects" / "s01" / "region.parquet").unlink()
     assert list((out / "subjects" / "s01" / "chunks").glob("*.parquet"))
     with pytest.raises(ParameterError, match="other subjects or grids"):
-        cohort.run_cohort(out, cohort.subject_grid([1.8], [70]), BASE, FORCES, DURATIONS,
+        cohort.run_cohort(out, cohort_members.subject_grid([1.8], [70]), BASE, FORCES, DURATIONS,
                           run_batches=stand_ins, say=None)
 
 

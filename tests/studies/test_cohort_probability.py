@@ -24,6 +24,7 @@ from mjx_balance.measures import units
 from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.store.files import readable_png
 from mjx_balance.studies import cohort, probability
+from mjx_balance.studies import members as cohort_members
 
 FORCES, DURATIONS = "0:40:10", "0.5,1,2"
 BASE = Config().replace(scenario={"t_end": 2.0})
@@ -173,7 +174,7 @@ def test_one_subjects_boundaries_are_its_own():
 
 def test_the_cohort_writes_the_probability_map_and_its_figure(tmp_path):
     out = tmp_path / "out"
-    members = cohort.subject_grid([1.6, 1.8], [50, 70, 95])
+    members = cohort_members.subject_grid([1.6, 1.8], [50, 70, 95])
     said: list[str] = []
     frame = cohort.run_cohort(out, members, BASE, FORCES, DURATIONS, run_batches=stand_ins,
                               say=said.append)
@@ -226,7 +227,7 @@ def test_the_command_writes_the_probability_map_and_plans_its_width(tmp_path, ca
     assert (out / "cohort_probability_boundaries.parquet").exists()
     assert readable_png(out / "cohort_probability.png")
     # mb.cohort on the same folder: resumed, the probability map in the result's attrs
-    again = mb.cohort(cohort.population(2, 2), out=out, forces=FORCES, durations=DURATIONS,
+    again = mb.cohort(cohort_members.population(2, 2), out=out, forces=FORCES, durations=DURATIONS,
                       config=BASE, progress=False, queue="each")
     pd.testing.assert_frame_equal(again.attrs["probability"], cells, check_dtype=False)
     assert math.isclose(again.attrs["half_width"], probability.half_width(2))
@@ -236,12 +237,12 @@ def test_the_base_map_is_a_result_that_keeps_the_folder(tmp_path):
     """A cohort folder whose only result is its base map is not taken over by another cohort
     (a subject's map would not be either): the base map was run with this cohort's base."""
     out = tmp_path / "out"
-    cohort.run_cohort(out, cohort.subject_grid([1.7], [70]), BASE, FORCES, DURATIONS,
+    cohort.run_cohort(out, cohort_members.subject_grid([1.7], [70]), BASE, FORCES, DURATIONS,
                       run_batches=stand_ins, say=None)
     (out / "cohort.csv").unlink()
     shutil.rmtree(out / "subjects")
     assert (out / "base" / "region.parquet").exists()
     with pytest.raises(ParameterError, match="holds a cohort with other configuration"):
-        cohort.run_cohort(out, cohort.subject_grid([1.7], [70]),
+        cohort.run_cohort(out, cohort_members.subject_grid([1.7], [70]),
                           BASE.replace(controller={"horizon": 15}), FORCES, DURATIONS,
                           run_batches=stand_ins, say=None)

@@ -15,6 +15,7 @@ from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.model.subject import Subject
 from mjx_balance.runs import population
 from mjx_balance.studies import cohort
+from mjx_balance.studies import members as cohort_members
 
 BASE = Config().replace(scenario={"t_end": 1.0})
 
@@ -49,7 +50,7 @@ def test_a_queue_that_cannot_run_is_refused_before_anything_is_written(tmp_path,
                                                                        message):
     out = tmp_path / "out"
     with pytest.raises(ParameterError, match=message):
-        cohort.plan_cohort(out, cohort.numbered([Subject(1.7, 70)]), BASE, "0,50", "0.1",
+        cohort.plan_cohort(out, cohort_members.numbered([Subject(1.7, 70)]), BASE, "0,50", "0.1",
                            **options)
     assert not out.exists()
 

@@ -135,7 +135,7 @@ def chosen_source(args: argparse.Namespace) -> str:
     return source
 
 
-# --population's distributions when not given (studies.cohort.population's defaults)
+# --population's distributions when not given (studies.members.population's defaults)
 POPULATION_DEFAULTS = {"height_mean": 1.70, "height_sd": 0.09, "mass_mean": 70.0,
                        "mass_sd": 12.0, "female_fraction": 0.5}
 
@@ -164,16 +164,16 @@ def subject_count(args: argparse.Namespace) -> int | None:
 def members_from(args: argparse.Namespace) -> list:
     """The cohort's subjects from the options (``studies.cohort``)."""
     from ..runs.grid import parse_grid  # lazy: the runs floor loads JAX
-    from ..studies import cohort  # lazy: as above
+    from ..studies import members  # lazy: as above
 
     source = chosen_source(args)
     if source == "csv":
-        return cohort.read_subjects(args.subjects)
+        return members.read_subjects(args.subjects)
     if source == "population":
         given = {k: v if getattr(args, k) is None else getattr(args, k)
                  for k, v in POPULATION_DEFAULTS.items()}
-        return cohort.population(args.population, args.seed, **given)
-    return cohort.subject_grid(
+        return members.population(args.population, args.seed, **given)
+    return members.subject_grid(
         parse_grid(args.heights, "--heights"), parse_grid(args.masses, "--masses"),
         args.sexes or ["male"],
         parse_grid(args.ankle_strengths, "--ankle-strengths") if args.ankle_strengths else [1.0],
