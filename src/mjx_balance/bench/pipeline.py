@@ -38,6 +38,7 @@ import sys
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 from multiprocessing import get_context
 from typing import Any, Callable
 
@@ -45,9 +46,11 @@ import numpy as np
 
 from ..measures.outcomes import OUTCOMES
 from ..model.params import Config
+from ..model.config_files import save_config
 from .ipopt import study_mpc
 from ..reference import loop as reference
 from ..rollout import BatchRunner
+from ..rollout.cpath import PATHS, resolve, unsupported
 from .. import runs as sweep
 from ..runs.grid import Grid
 
@@ -368,3 +371,128 @@ if __name__ == "__main__":
     else:
         print("usage: mjx-balance bench [options]", file=sys.stderr)
         sys.exit(2)
+
+
+# One compile of the benchmark's engine in a fresh process, with the persistent compilation
+# cache in the folder given by MJX_BALANCE_CACHE_DIR: seconds, and JAX's compile events.
+COMPILE_SCRIPT = """
+import json, sys, time
+from mjx_balance.cli.main import use_host_cores
+use_host_cores()
+from mjx_balance.runtime import cache
+from mjx_balance.bench import pipeline
+from mjx_balance.model.config_files import load_config
+cache.enable()
+config = load_config(sys.argv[1])
+slots = None if sys.argv[2] == "none" else int(sys.argv[2])
+with cache.CompileCounter() as counter:
+    built = pipeline.build_batched(config, slots=slots, early_stop=sys.argv[3] == "1",
+                                   physics=sys.argv[4])
+print(json.dumps({"compile_s": built["compile_s"], **counter.as_dict()}))
+"""
+
+
+def compile_cache_times(config: Config, slots: int | None, early_stop: bool,
+                        timeout: float = 1800.0, physics: str = "mjx") -> dict:
+    """The engine's compile time in a first process (an empty persistent cache) and in a
+    second one (the cache the first filled), each a fresh interpreter: compile_first_s,
+    compile_cached_s, and the second's cache hits and XLA compilations (0: nothing compiled).
+    On a failure: {"compile_cache_error": the reason}."""
+    with tempfile.TemporaryDirectory(prefix="mjx_balance-bench-cache-") as tmp:
+        config_path = Path(tmp) / "config.toml"
+        save_config(config, config_path)
+        env = {**os.environ, "MJX_BALANCE_CACHE_DIR": str(Path(tmp) / "jax")}
+        argv = [sys.executable, "-c", COMPILE_SCRIPT, str(config_path),
+                "none" if slots is None else str(slots), "1" if early_stop else "0", physics]
+        runs = []
+        for _ in range(2):
+            try:
+                proc = subprocess.run(argv, env=env, capture_output=True, text=True,
+                                      timeout=timeout)
+            except subprocess.TimeoutExpired:
+                return {"compile_cache_error": f"a compile took over {timeout:.0f} s"}
+            if proc.returncode != 0:
+                last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
+                return {"compile_cache_error": last}
+            runs.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+    first, cached = runs
+    return {"compile_first_s": round(first["compile_s"], 3),
+            "compile_cached_s": round(cached["compile_s"], 3),
+            "compile_cached_hits": cached["cache_hits"],
+            "compile_cached_compiles": cached["compiles"]}
+
+
+def pool_line(result: dict, workers: int, label: str) -> str:
+    """One worker pool's figures in a line."""
+    per = result["per"]
+    return (f"  {label}: {len(per)} scenarios in {result['seconds']:.1f} s on {workers} processes "
+          f"(warm-up {result['warm_s']:.1f} s; per scenario median {np.median(per):.2f} s, "
+          f"max {per.max():.2f} s)")
+
+
+def run_pools(config: Config, ref_config: Config, forces: Any, durations: Any,
+              counts: tuple[int, int, int], workers: int,
+              say: Callable[[str], None]) -> tuple[Any, Any, Any]:
+    """The scalar reference and the study toolchain in worker processes (each skipped at a
+    count of 0; IPOPT also without casadi): (reference, ipopt, the IPOPT scenarios' indices,
+    with the reference's outcome mix when it ran)."""
+    _, n_ref, n_ipopt = counts
+    ref = ipopt = None
+    if n_ref:
+        cap = ref_config.controller.osqp_max_iter
+        ref = run_reference_pool(ref_config, forces[:n_ref], durations[:n_ref],
+                                          workers)
+        say(pool_line(ref, workers, f"reference (MuJoCo C + OSQP, max_iter {cap})"))
+    ipopt_idx = np.arange(n_ipopt)
+    if n_ipopt and ref is not None:
+        ipopt_idx = stratified_subset(ref["outcomes"], n_ipopt)
+    if n_ipopt:
+        if not casadi_available():
+            say("  CasADi/IPOPT: casadi not installed, skipped")
+        else:
+            ipopt = run_ipopt_pool(config, forces[ipopt_idx], durations[ipopt_idx],
+                                            workers)
+            say(pool_line(ipopt, workers, "study toolchain (MuJoCo C + CasADi/IPOPT)"))
+    return ref, ipopt, ipopt_idx
+
+
+PATH_NAMES = {"mjx": "MJX + ADMM", "c": "MuJoCo C + ADMM"}
+
+
+def run_physics_paths(config: Config, forces: Any, durations: Any, *, physics: str | None,
+                      slots: int | None, full_length: bool, repeats: int,
+                      say: Callable[[str], None]) -> tuple[str, dict, dict]:
+    """Every physics path on the same scenarios: the default one with continuous batching and
+    --full-length (or only --full-length), the others with continuous batching. Returns (the
+    default path, label -> (built, result) of the default path's runs, path -> its figures)."""
+
+    n_mjx = len(forces)
+    default = resolve(physics or "auto", config)
+    paths = [default] + [p for p in PATHS[1:] if p != default
+                         and not (p == "c" and unsupported(config))]
+    runs, backends = {}, {}
+    for path in paths:
+        modes = [("--full-length", False)] if path == default else []
+        if not full_length:  # both on the same scenarios, compared
+            modes.insert(0, ("continuous batching", True))
+        for label, early in modes:
+            built = build_batched(config, slots=slots, early_stop=early,
+                                           physics=path)
+            name = f"{PATH_NAMES[path]}, {label}"
+            say(f"  {name}: build {built['build_s']:.1f} s, compile {built['compile_s']:.1f} s "
+                  f"({built['slots']} slots on each of {built['devices']} {built['platform']} "
+                  "device(s))")
+            result = run_batched(built, config, forces, durations, repeats)
+            say(f"  {name}: {n_mjx} scenarios in {result['seconds']:.1f} s (median of "
+                  f"{result['repeats']}; {n_mjx / result['seconds']:.1f} scen/s; mean simulated "
+                  f"{result['simulated_s']:.2f} s per scenario, {result['certified']} certified; "
+                  f"{result['physics_steps_per_s']:,.0f} physics steps/s; mean ADMM iterations "
+                  f"per period {result['admm_iterations_per_period']:.1f})")
+            if path == default:
+                runs[label] = (built, result)
+            if early or full_length:
+                backends[path] = dict(scen_per_s=round(n_mjx / result["seconds"], 3),
+                                      seconds=round(result["seconds"], 3),
+                                      compile_s=round(built["compile_s"], 3),
+                                      slots=built["slots"], outcomes=result["outcomes"])
+    return default, runs, backends

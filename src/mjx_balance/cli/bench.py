@@ -7,14 +7,10 @@ import argparse
 import json
 import os
 import resource
-import subprocess
-import sys
-import tempfile
 from pathlib import Path
 from typing import Any
 
 from ..model.params import Config
-from ..model.config_files import save_config
 from .common import load_run_config
 from .options import (
     EPILOG,
@@ -28,25 +24,6 @@ from .options import (
     positive_int,
     positive_int_list,
 )
-
-# One compile of the benchmark's engine in a fresh process, with the persistent compilation
-# cache in the folder given by MJX_BALANCE_CACHE_DIR: seconds, and JAX's compile events.
-_COMPILE_SCRIPT = """
-import json, sys, time
-from mjx_balance.cli.main import use_host_cores
-use_host_cores()
-from mjx_balance.runtime import cache
-from mjx_balance.bench import pipeline
-from mjx_balance.model.config_files import load_config
-cache.enable()
-config = load_config(sys.argv[1])
-slots = None if sys.argv[2] == "none" else int(sys.argv[2])
-with cache.CompileCounter() as counter:
-    built = pipeline.build_batched(config, slots=slots, early_stop=sys.argv[3] == "1",
-                                   physics=sys.argv[4])
-print(json.dumps({"compile_s": built["compile_s"], **counter.as_dict()}))
-"""
-
 
 def add_parser(sub: Any) -> None:
     """``bench`` and its sub-commands ``bench solver``, ``bench physics`` and ``bench engine``
@@ -163,36 +140,6 @@ def _pipeline_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print a final JSON line with the figures")
 
 
-def compile_cache_times(config: Config, slots: int | None, early_stop: bool,
-                        timeout: float = 1800.0, physics: str = "mjx") -> dict:
-    """The engine's compile time in a first process (an empty persistent cache) and in a
-    second one (the cache the first filled), each a fresh interpreter: compile_first_s,
-    compile_cached_s, and the second's cache hits and XLA compilations (0: nothing compiled).
-    On a failure: {"compile_cache_error": the reason}."""
-    with tempfile.TemporaryDirectory(prefix="mjx_balance-bench-cache-") as tmp:
-        config_path = Path(tmp) / "config.toml"
-        save_config(config, config_path)
-        env = {**os.environ, "MJX_BALANCE_CACHE_DIR": str(Path(tmp) / "jax")}
-        argv = [sys.executable, "-c", _COMPILE_SCRIPT, str(config_path),
-                "none" if slots is None else str(slots), "1" if early_stop else "0", physics]
-        runs = []
-        for _ in range(2):
-            try:
-                proc = subprocess.run(argv, env=env, capture_output=True, text=True,
-                                      timeout=timeout)
-            except subprocess.TimeoutExpired:
-                return {"compile_cache_error": f"a compile took over {timeout:.0f} s"}
-            if proc.returncode != 0:
-                last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
-                return {"compile_cache_error": last}
-            runs.append(json.loads(proc.stdout.strip().splitlines()[-1]))
-    first, cached = runs
-    return {"compile_first_s": round(first["compile_s"], 3),
-            "compile_cached_s": round(cached["compile_s"], 3),
-            "compile_cached_hits": cached["cache_hits"],
-            "compile_cached_compiles": cached["compiles"]}
-
-
 def pipeline_command(args: argparse.Namespace) -> int:
     """``mjx-balance bench``: batched pipeline vs scalar reference vs the study's toolchain."""
     from ..bench import pipeline  # lazy: JAX and MuJoCo load when the command runs
@@ -210,9 +157,15 @@ def pipeline_command(args: argparse.Namespace) -> int:
           f"reference on {n_ref}, CasADi/IPOPT on {n_ipopt}; {args.workers} worker processes; "
           f"{os.cpu_count()} CPUs, load average {load[0]:.2f} at start", flush=True)
 
+    def say(text: str) -> None:
+        print(text, flush=True)
+
     # Worker pools first: they are spawned (not forked) anyway, and this keeps JAX idle meanwhile.
-    ref, ipopt, ipopt_idx = _run_pools(args, config, ref_config, forces, durations, counts)
-    default, runs, backends = _run_physics_paths(args, config, forces, durations)
+    ref, ipopt, ipopt_idx = pipeline.run_pools(config, ref_config, forces, durations, counts,
+                                               args.workers, say)
+    default, runs, backends = pipeline.run_physics_paths(
+        config, forces, durations, physics=args.physics, slots=args.slots,
+        full_length=args.full_length, repeats=args.repeats, say=say)
     built, batched = runs.get("continuous batching", runs["--full-length"])
     full = None
     if "continuous batching" in runs:
@@ -243,78 +196,12 @@ def pipeline_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_pools(args: argparse.Namespace, config: Config, ref_config: Config, forces: Any,
-               durations: Any, counts: tuple[int, int, int]) -> tuple[Any, Any, Any]:
-    """The scalar reference and the study toolchain in worker processes (each skipped at a
-    count of 0; IPOPT also without casadi): (reference, ipopt, the IPOPT scenarios' indices,
-    with the reference's outcome mix when it ran)."""
-    import numpy as np
-
-    from ..bench import pipeline  # lazy: JAX and MuJoCo load when the command runs
-
-    _, n_ref, n_ipopt = counts
-    ref = ipopt = None
-    if n_ref:
-        cap = ref_config.controller.osqp_max_iter
-        ref = pipeline.run_reference_pool(ref_config, forces[:n_ref], durations[:n_ref],
-                                          args.workers)
-        _print_pool(ref, args.workers, f"reference (MuJoCo C + OSQP, max_iter {cap})")
-    ipopt_idx = np.arange(n_ipopt)
-    if n_ipopt and ref is not None:
-        ipopt_idx = pipeline.stratified_subset(ref["outcomes"], n_ipopt)
-    if n_ipopt:
-        if not pipeline.casadi_available():
-            print("  CasADi/IPOPT: casadi not installed, skipped")
-        else:
-            ipopt = pipeline.run_ipopt_pool(config, forces[ipopt_idx], durations[ipopt_idx],
-                                            args.workers)
-            _print_pool(ipopt, args.workers, "study toolchain (MuJoCo C + CasADi/IPOPT)")
-    return ref, ipopt, ipopt_idx
-
-
-def _run_physics_paths(args: argparse.Namespace, config: Config, forces: Any,
-                       durations: Any) -> tuple[str, dict, dict]:
-    """Every physics path on the same scenarios: the default one with continuous batching and
-    --full-length (or only --full-length), the others with continuous batching. Returns (the
-    default path, label -> (built, result) of the default path's runs, path -> its figures)."""
-    from ..bench import pipeline  # lazy: JAX and MuJoCo load when the command runs
-    from ..rollout.cpath import PATHS, resolve, unsupported  # lazy: as above
-
-    n_mjx = len(forces)
-    default = resolve(args.physics or "auto", config)
-    paths = [default] + [p for p in PATHS[1:] if p != default
-                         and not (p == "c" and unsupported(config))]
-    runs, backends = {}, {}
-    for path in paths:
-        modes = [("--full-length", False)] if path == default else []
-        if not args.full_length:  # both on the same scenarios, compared
-            modes.insert(0, ("continuous batching", True))
-        for label, early in modes:
-            built = pipeline.build_batched(config, slots=args.slots, early_stop=early,
-                                           physics=path)
-            name = f"{_PATH_NAMES[path]}, {label}"
-            print(f"  {name}: build {built['build_s']:.1f} s, compile {built['compile_s']:.1f} s "
-                  f"({built['slots']} slots on each of {built['devices']} {built['platform']} "
-                  "device(s))", flush=True)
-            result = pipeline.run_batched(built, config, forces, durations, args.repeats)
-            print(f"  {name}: {n_mjx} scenarios in {result['seconds']:.1f} s (median of "
-                  f"{result['repeats']}; {n_mjx / result['seconds']:.1f} scen/s; mean simulated "
-                  f"{result['simulated_s']:.2f} s per scenario, {result['certified']} certified; "
-                  f"{result['physics_steps_per_s']:,.0f} physics steps/s; mean ADMM iterations "
-                  f"per period {result['admm_iterations_per_period']:.1f})", flush=True)
-            if path == default:
-                runs[label] = (built, result)
-            if early or args.full_length:
-                backends[path] = dict(scen_per_s=round(n_mjx / result["seconds"], 3),
-                                      seconds=round(result["seconds"], 3),
-                                      compile_s=round(built["compile_s"], 3),
-                                      slots=built["slots"], outcomes=result["outcomes"])
-    return default, runs, backends
-
-
 def _compile_cache_step(config: Config, args: argparse.Namespace, physics: str) -> dict:
-    """:func:`compile_cache_times` of the default path, printed as it comes."""
-    caching = compile_cache_times(config, args.slots, not args.full_length, physics=physics)
+    """``bench.pipeline.compile_cache_times`` of the default path, printed as it comes."""
+    from ..bench import pipeline  # lazy: JAX and MuJoCo load when the command runs
+
+    caching = pipeline.compile_cache_times(config, args.slots, not args.full_length,
+                                           physics=physics)
     if "compile_cache_error" in caching:
         print(f"compile, persistent cache: not measured ({caching['compile_cache_error']})")
     else:
@@ -323,9 +210,6 @@ def _compile_cache_step(config: Config, args: argparse.Namespace, physics: str) 
               f"({caching['compile_cached_hits']} cache hits, "
               f"{caching['compile_cached_compiles']} XLA compilations)", flush=True)
     return caching
-
-
-_PATH_NAMES = {"mjx": "MJX + ADMM", "c": "MuJoCo C + ADMM"}
 
 
 def _print_backends(backends: dict, default: str) -> None:
@@ -377,15 +261,6 @@ def _print_pipeline_table(counts, built, batched, ref, ipopt, cmp, rss, full=Non
 
 def _met(ok: bool) -> str:
     return "met" if ok else "NOT met"
-
-
-def _print_pool(result: dict, workers: int, label: str) -> None:
-    import numpy as np
-
-    per = result["per"]
-    print(f"  {label}: {len(per)} scenarios in {result['seconds']:.1f} s on {workers} processes "
-          f"(warm-up {result['warm_s']:.1f} s; per scenario median {np.median(per):.2f} s, "
-          f"max {per.max():.2f} s)", flush=True)
 
 
 def _memory_scaling(args: argparse.Namespace) -> list[dict]:
@@ -537,7 +412,9 @@ _HOW = {"isolated": "isolated", "in run": "in run", "remainder": "REMAINDER",
 def engine_table(fig: dict) -> list[str]:
     """One path's split as table lines: each part, how it was measured, its seconds over the
     run, per control period, per slot and period, and its share of the end-to-end time."""
-    name = _PATH_NAMES.get(fig["physics"], fig["physics"])
+    from ..bench.pipeline import PATH_NAMES  # lazy: JAX and MuJoCo load with the benchmarks
+
+    name = PATH_NAMES.get(fig["physics"], fig["physics"])
     it = fig["admm_iterations"]
     lines = [
         f"{name}: {fig['scenarios']} scenarios in {fig['seconds']:.2f} s ({fig['scen_per_s']:.1f}"
