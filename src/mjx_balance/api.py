@@ -319,7 +319,8 @@ def basin(config: ConfigLike = None, *, out: str | os.PathLike[str], x_com: Valu
           v_com: Values | None = None, posture: str = "rigid", pushes: Any = None,
           slots: int | None = None, full_length: bool = False,
           progress: bool | None = None, format: str | None = None,
-          figure_format: str | None = None, figure_size: str | None = None) -> "pd.DataFrame":
+          figure_format: str | None = None, figure_size: str | None = None,
+          wait: bool = False, plan: PlanHook | None = None) -> "pd.DataFrame":
     """The recovery basin (``mjx-balance basin``): one unpushed scenario per (x_com, v_com)
     cell from the ``posture`` family's initial state, in ``out`` (basin.parquet, basin.png;
     resumable). Returns basin.parquet's rows. ``pushes``: None or (forces, durations) whose
@@ -327,13 +328,15 @@ def basin(config: ConfigLike = None, *, out: str | os.PathLike[str], x_com: Valu
     -0.6:0.6:0.06 m/s. ``format``: as :func:`sweep` (basin.parquet and pushes.csv also as CSV,
     parquet or both). ``figure_format``: "png", "svg" or "pdf";
     ``figure_size``: "screen", "one-column" or "two-column" (docs/outputs.md, "Figures");
-    None: the style in effect (:func:`figure_style`; png at screen size unless set)."""
+    None: the style in effect (:func:`figure_style`; png at screen size unless set).
+    ``wait``, ``plan``: as :func:`compare`."""
     check_format(format)
     with _session("basin"), figure_style(figure_format, figure_size):
         frame = run_basin(out, as_config(config), DEFAULT_X if x_com is None else x_com,
                           DEFAULT_V if v_com is None else v_com, posture, pushes,
-                          progress=wanted(progress), say=log.info, slots=size_value(slots, "slots"),
-                          early_stop=not full_length)
+                          progress=wanted(progress), say=log.info,
+                          slots=size_value(slots, "slots"), early_stop=not full_length,
+                          plan=plan, wait=wait)
         export_tables_said(out, format, log.info)
         return frame
 

@@ -9,10 +9,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from .common import guard_work, in_folder, load_run_config, progress_enabled
+from .common import in_folder, load_run_config, planner, progress_enabled
 from ..studies.defaults import DEFAULT_V, DEFAULT_X, POSTURES  # light: no JAX
 from .options import (common_options, figure_options, format_option, positive_int, wait_option,
-                      write_exports, yes_option)
+                      yes_option)
 
 
 
@@ -48,8 +48,9 @@ def add_parser(sub: Any) -> None:
 
 
 def basin_command(args: Any) -> int:
-    """The basin map in --out (every input checked before the folder is touched)."""
-    from ..studies.basin import check_basin, run_basin  # lazy: JAX, MuJoCo; not for --help
+    """The basin map in --out: ``mjx_balance.basin`` with the options resolved (every input
+    checked before the folder is touched, the plan line, the lock)."""
+    from .. import api  # lazy: JAX, MuJoCo; not for --help
 
     config = load_run_config(args)
     pushes = (None if str(args.push_forces).strip().lower() == "none"
@@ -61,13 +62,11 @@ def basin_command(args: Any) -> int:
                         config.scenario.t_end, "push durations",
                         physics_dt=config.scenario.physics_dt)
     out = Path(args.out)
-    xs, vs, _ = check_basin(config, args.x_com, args.v_com, args.posture, pushes)
-    guard_work(args, config, xs.size * vs.size, "cells")
-    engine = {"slots": args.slots, "early_stop": not args.full_length}
 
     def work() -> None:
-        run_basin(out, config, args.x_com, args.v_com, args.posture, pushes,
-                  progress=progress_enabled(args), **engine)
-        write_exports(out, args)
+        api.basin(config, out=out, x_com=args.x_com, v_com=args.v_com, posture=args.posture,
+                  pushes=pushes, slots=args.slots, full_length=args.full_length,
+                  progress=progress_enabled(args), format=getattr(args, "table_format", None),
+                  wait=getattr(args, "wait", False), plan=planner(args))
 
-    return in_folder(out, work, wait=getattr(args, "wait", False))
+    return in_folder(out, work, lock=False)  # the API takes the folder's lock

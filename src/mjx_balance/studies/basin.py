@@ -43,6 +43,7 @@ from ..runs.grid import check_durations, describe, parse_grid
 from ..runs.folders import check_float32_grid
 from ..store.files import write_csv, write_parquet
 from ..store.folder import OutputFolder, folder_lock, same_values
+from ..runs.chunks import PlanHook, PlannedWork
 from ..rollout import BatchRunner
 from .defaults import DEFAULT_V, DEFAULT_X, POSTURES
 from ..figures import style as figure_style
@@ -162,12 +163,16 @@ def run_basin(out: str | os.PathLike[str], config: Config, x_com: Any = DEFAULT_
               v_com: Any = DEFAULT_V, posture: str = "rigid", pushes: Any = None, *,
               physics: str = "mjx",
               progress: bool = True, say: Callable[[str], None] = print,
+              plan: PlanHook | None = None, wait: bool = False,
               **engine: Any) -> pd.DataFrame:
     """The basin map of ``config`` in OUT (module docstring): basin.parquet, basin.png.
 
     x_com [m], v_com [m/s]: grids (``start:stop:step`` or lists); pushes: None or
     (forces, durations) grids whose cells' end-of-push states are drawn on the map
-    (pushes.csv). ``engine``: BatchRunner options (slots, devices). Returns the cells."""
+    (pushes.csv). ``engine``: BatchRunner options (slots, devices). Every input is checked
+    once (:func:`check_basin`), then ``plan`` (if given) hears the planned work
+    (``runs.chunks.PlannedWork``) and the work runs under ``out``'s lock (``wait``: for
+    another run that holds it). Returns the cells."""
     if physics not in ("mjx", "auto"):
         raise ParameterError("the basin runs on the MJX path (--physics mjx): the MuJoCo C "
                              "path starts every scenario at upright rest")
@@ -176,12 +181,22 @@ def run_basin(out: str | os.PathLike[str], config: Config, x_com: Any = DEFAULT_
     grid = cells_of(xs, vs)
     inits = np.array([plane.initial_state(posture, x, v)
                       for x, v in zip(grid.x_com, grid.v_com)])  # checks the grid first
+    if plan is not None:
+        plan(PlannedWork(config, xs.size * vs.size, "cells"))
+    with folder_lock(out, wait=wait):
+        return _basin(out, config, xs, vs, plane, grid, inits=inits, posture=posture,
+                      pushes=pushes, progress=progress, say=say, engine=engine)
+
+
+def _basin(out: Path, config: Config, xs: np.ndarray, vs: np.ndarray, plane: "Plane",
+           grid: pd.DataFrame, *, inits: np.ndarray, posture: str, pushes: Any,
+           progress: bool, say: Callable[[str], None], engine: dict[str, Any]) -> pd.DataFrame:
+    """:func:`run_basin`'s work, its inputs checked and the folder locked."""
     folder = OutputFolder(out, config)
-    with folder_lock(out):
-        manifest = folder.open()
-        _check_record(out, manifest.get("basin"), posture, xs, vs)
-        manifest["basin"] = _record(posture, xs, vs)
-        folder.write_manifest(manifest)
+    manifest = folder.open()
+    _check_record(out, manifest.get("basin"), posture, xs, vs)
+    manifest["basin"] = _record(posture, xs, vs)
+    folder.write_manifest(manifest)
     done = _done(out)
     missing = grid[~grid.cell.isin(done.cell if len(done) else [])]
     if len(missing):
