@@ -98,7 +98,8 @@ def audit(page: Path, width: int, min_font: float = 12.0, height: int = 900,
         host.write_text(HOST.format(src=copy.name, width=int(width), height=int(height)),
                         encoding="utf-8")
         argv = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-                f"--user-data-dir={tmp}/profile", f"--window-size={max(width, 500) + 40},{height + 40}",
+                f"--user-data-dir={tmp}/profile",
+                f"--window-size={max(width, 500) + 40},{height + 40}",
                 "--virtual-time-budget=10000", "--dump-dom", host.as_uri()]
         env = {**os.environ, "HOME": tmp}
         proc = subprocess.run(argv, capture_output=True, text=True, timeout=timeout,

@@ -129,7 +129,8 @@ def expected_max_time(force, c, t_end, resolution=0.01):
 
 
 def expected_area(c: float) -> float:
-    """The stand-in's recovered cells' area on the grid forces 0:40:10 x durations 0.5, 1, 2 s (cell bounds half-way, outer bounds on the ends)."""
+    """The stand-in's recovered cells' area on the grid forces 0:40:10 x durations 0.5, 1, 2 s
+    (cell bounds half-way, outer bounds on the ends)."""
     forces, durations = np.arange(0, 41, 10.0), np.array([0.5, 1.0, 2.0])
     wf = np.diff(np.concatenate([[0], (forces[1:] + forces[:-1]) / 2, [40]]))
     wd = np.diff(np.concatenate([[0.5], (durations[1:] + durations[:-1]) / 2, [2.0]]))
@@ -182,7 +183,7 @@ class AdmmMPC:
                 bool(res.status == admm_mod.SOLVED), float(res.prim_res))
 
 
-# -- figures' input ---------------------------------------------------------------------------------
+# -- figures' input -------------------------------------------------------------------------------
 
 
 def assert_cells_like_the_reference(config, frame: pd.DataFrame, cells, mpc) -> list[str]:
@@ -329,7 +330,7 @@ def fake_region(cells: dict, *, convention="paper", energy_total=push_energy,
     return frame
 
 
-# -- the command line's refusals --------------------------------------------------------------------
+# -- the command line's refusals ------------------------------------------------------------------
 
 
 def run_cli(argv: list[str], capsys) -> tuple[int, str]:

@@ -44,11 +44,10 @@ _LAZY = {
 }
 
 __all__ = ["Config", "ParameterError", "Subject", "__version__", "basin", "cohort", "compare",
-           "landscape", "report", "sensitivity",
-           "conventions_figure", "explore", "energy_map", "load_config", "load_report", "region_map", "region_numbers",
-           "references", "scorecard", "simulate", "strategy_map", "study", "study_reading", "sweep", "table",
-           "table_figure",
-           "timeseries_figure", "weight_figure", "figure_style", "save_figure"]
+           "landscape", "report", "sensitivity", "conventions_figure", "explore", "energy_map",
+           "load_config", "load_report", "region_map", "region_numbers", "references",
+           "scorecard", "simulate", "strategy_map", "study", "study_reading", "sweep", "table",
+           "table_figure", "timeseries_figure", "weight_figure", "figure_style", "save_figure"]
 
 
 def __getattr__(name: str):

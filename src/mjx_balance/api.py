@@ -167,9 +167,10 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None, *,
     figures; None: computed in a temporary folder, nothing kept. ``chunk``: scenarios per chunk
     file (default from the memory budget), ``slots``: scenarios in flight per device,
     ``full_length``: run every scenario that does not fall to t_end, ``progress``: a progress
-    bar on stderr (None: in a terminal or a notebook; True: always; False: never), ``wait``: wait for another run that holds ``out``, ``cluster``: run the
-    chunks on a Dask cluster (``"local:N"``, a scheduler address or file, or a
-    ``distributed.Client``; ``pip install "mjx_balance[cluster]"``, docs/cluster.md),
+    bar on stderr (None: in a terminal or a notebook; True: always; False: never), ``wait``:
+    wait for another run that holds ``out``, ``cluster``: run the chunks on a Dask cluster
+    (``"local:N"``, a scheduler address or file, or a ``distributed.Client``; ``pip install
+    "mjx_balance[cluster]"``, docs/cluster.md),
     ``physics``: "auto", "mjx" or "c" (MuJoCo C physics; docs/engine.md). ``reference``:
     reference CSV file(s) (:func:`scorecard`): their ``recovered`` rows are scored against
     the map's cells (a table's measures need :func:`table`), into ``out``'s scorecard.csv and

@@ -40,7 +40,7 @@ from mjx_balance.runs import load_sweep
 from mjx_balance.runs.grid import check_whole_steps
 from mjx_balance.studies.experiments import open_record, read_record
 
-# -- bad arguments and places -----------------------------------------------------------------------
+# -- bad arguments and places ---------------------------------------------------------------------
 
 
 # Each command with the least it needs; OUT is replaced by the --out path of the test.
@@ -234,7 +234,7 @@ def test_the_process_exits_2_without_a_traceback(tmp_path, argv, words):
     assert not out.exists()
 
 
-# -- configurations whose results would not be results ----------------------------------------------
+# -- configurations whose results would not be results --------------------------------------------
 
 
 BAD = [  # --set value, what the message names
@@ -406,7 +406,7 @@ def test_the_fingerprint_reads_the_environment_without_jax():
         ["x64: False -> True"], ["cpu_isa: 'AVX2' -> 'AVX'"])
 
 
-# -- damaged records and sweep definitions ----------------------------------------------------------
+# -- damaged records and sweep definitions --------------------------------------------------------
 
 
 DAMAGED = [
@@ -459,7 +459,7 @@ def test_sweep_definition_section_must_be_a_table(tmp_path):
         load_sweep(path, Config())
 
 
-# -- durations of whole physics steps; simulate's grids and folder ----------------------------------
+# -- durations of whole physics steps; simulate's grids and folder --------------------------------
 
 
 PHYSICS_DT = Config().scenario.physics_dt
@@ -515,7 +515,8 @@ def test_simulate_reads_forces_and_durations_as_sweep_does(tmp_path, capsys, mon
     for bad, words in [("0:1:0", ["--durations", "step must be > 0"]),
                        ("0.1,0.1", ["--durations", "more than once"]),
                        ("0:0.101:0.0505", ["--durations", "not a whole number of physics steps"])]:
-        code, err = run_cli(["simulate", "--durations", bad, "--out", str(tmp_path / "bad")], capsys)
+        code, err = run_cli(["simulate", "--durations", bad, "--out", str(tmp_path / "bad")],
+                            capsys)
         assert_refused(code, err, *words)
         assert not (tmp_path / "bad").exists()
 

@@ -14,7 +14,8 @@ from mjx_balance.reference.loop import simulate_scenario
 CONVENTIONS = ("paper", "joint")
 
 
-def fd_joint_jacobians(body: BodyParams, h: float = 1e-6) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def fd_joint_jacobians(body: BodyParams,
+                       h: float = 1e-6) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Central differences of mj_forward's qacc on the fixed-foot model at upright rest.
 
     Returns (dqacc/dq [2, 2], dqacc/ddq [2, 2], dqacc/dctrl [2, 2]) in joint coordinates.

@@ -84,7 +84,8 @@ def test_negative_masses_and_lengths_still_say_positive():
 
 def test_gravity_and_ankle_height_ranges():
     assert BodyParams(gravity=MAX_GRAVITY).gravity == MAX_GRAVITY
-    with pytest.raises(ParameterError, match=r"body\.gravity = 1000000\.0: must lie in \[0\.1, 100\]"):
+    with pytest.raises(ParameterError,
+                       match=r"body\.gravity = 1000000\.0: must lie in \[0\.1, 100\]"):
         BodyParams(gravity=1e6)
     assert BodyParams(gravity=MIN_GRAVITY).gravity == MIN_GRAVITY
     with pytest.raises(ParameterError, match=r"body\.gravity = 1e-300: must lie in"):

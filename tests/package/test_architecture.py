@@ -121,8 +121,10 @@ def floor(module: str, package: str) -> int:
 
 
 def upward_imports(found: list[Import], package: str) -> list[str]:
-    return [f"{i.module}:{i.line} imports {i.target} (floor "
-            f"{FLOORS[floor(i.target, package)] if floor(i.target, package) < len(FLOORS) else 'top'}"
+    def name(index: int) -> str:
+        return FLOORS[index] if index < len(FLOORS) else "top"
+
+    return [f"{i.module}:{i.line} imports {i.target} (floor {name(floor(i.target, package))}"
             f" is above its own)" for i in found
             if floor(i.target, package) > floor(i.module, package)]
 

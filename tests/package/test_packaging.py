@@ -83,7 +83,8 @@ def test_pip_install_dot_copies_the_sweeps(source, tmp_path):
     installed = target / "mjx_balance" / "sweeps"
     assert not installed.is_symlink()
     assert sorted(p.name for p in installed.glob("*.toml")) == SHIPPED
-    assert (installed / "default.toml").read_bytes() == (REPO / "sweeps" / "default.toml").read_bytes()
+    shipped = (REPO / "sweeps" / "default.toml").read_bytes()
+    assert (installed / "default.toml").read_bytes() == shipped
 
 
 def test_the_editable_install_reads_the_repository_sweeps():

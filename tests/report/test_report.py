@@ -341,7 +341,8 @@ def test_study_sweep_definition_loads_and_runs(path, tmp_path):
     config = definition.config.replace(scenario={"t_end": 0.5},
                                        controller={"osqp_max_iter": 200})
     tiny_f, tiny_d = forces[[0, -1]], durations[:1]
-    result = run_sweep(tmp_path, config, Grid.of(tiny_f, tiny_d, config), run_batch=report.ReferenceBatch(config),
+    result = run_sweep(tmp_path, config, Grid.of(tiny_f, tiny_d, config),
+                       run_batch=report.ReferenceBatch(config),
                        chunk=2, progress=False, say=None)
     assert len(result.region) == 2 and set(result.region.outcome) <= set(OUTCOMES)
     assert result.region.outcome.iloc[0] != "diverged"

@@ -311,7 +311,8 @@ def test_certificate_is_exact_for_the_linear_model():
             hi *= 2
         for _ in range(40):
             mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if cert_mod.check(np, cert, mid * direction, _Acc, True, 0)[0] else (lo, mid)
+            inside = cert_mod.check(np, cert, mid * direction, _Acc, True, 0)[0]
+            lo, hi = (mid, hi) if inside else (lo, mid)
         assert not cert_mod.check(np, cert, 1.01 * hi * direction, _Acc, True, 0)[0]
         x = lo * direction
         worst = 0.0

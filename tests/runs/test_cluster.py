@@ -80,7 +80,8 @@ def reference(tmp_path_factory, compile_cache) -> Path:
         from mjx_balance.model.params import Config
         config = Config().replace(scenario={{"t_end": {T_END}}})
         from mjx_balance.runs.grid import Grid
-        api.run_region({str(out)!r}, config, Grid.of({FORCES!r}, {DURATIONS!r}, config), chunk={CHUNK},
+        api.run_region({str(out)!r}, config, Grid.of({FORCES!r}, {DURATIONS!r}, config),
+                       chunk={CHUNK},
                        slots={SLOTS})
         api.run_table_folder({str(_local_table(out / "region.parquet"))!r}, config,
                              {TABLE_FORCES!r}, slots={SLOTS})
@@ -94,7 +95,8 @@ def _sweep(out, cluster, **kwargs):
 
     config = tiny_config(t_end=T_END)
     with jax.enable_x64(False):  # as sweeps run (conftest switches x64 on for the session)
-        return run_sweep(out, config, Grid.of(FORCES, DURATIONS, config), chunk=CHUNK, progress=False,
+        return run_sweep(out, config, Grid.of(FORCES, DURATIONS, config), chunk=CHUNK,
+                         progress=False,
                          run_batch=LazyBatch(config, slots=SLOTS), cluster=cluster, say=None,
                          **kwargs)
 
@@ -221,8 +223,9 @@ def test_worker_of_another_version_is_refused(tmp_path):
         _run_by_value(client, _other_version)
         refused = r"refusing the cluster.*worker tcp://.*: mjx_balance 0\.0\.0\+other \(driver: "
         with pytest.raises(ClusterError, match=refused):
-            run_sweep(tmp_path / "out", tiny_config(t_end=T_END), Grid.of(FORCES, DURATIONS, tiny_config(t_end=T_END)), run_batch=Fake(),
-                      chunk=CHUNK, progress=False, say=None, cluster=client)
+            config = tiny_config(t_end=T_END)
+            run_sweep(tmp_path / "out", config, Grid.of(FORCES, DURATIONS, config),
+                      run_batch=Fake(), chunk=CHUNK, progress=False, say=None, cluster=client)
     assert not list((tmp_path / "out" / "chunks").glob("*.parquet"))
     # a worker that joined after the check: the task itself refuses
     spec = ChunkSpec(tiny_config(t_end=T_END), None, True, CHUNK, False,

@@ -51,7 +51,8 @@ def test_parse_grid_ranges_include_stop_and_are_exact():
 
 @pytest.mark.parametrize("spec, message", [
     ("", "empty"), ("1:0:0.1", "empty"), ("0:1:0", "step"), ("0:1:-0.1", "step"),
-    ("0:1", "start:stop:step"), ("nan,1", "finite"), ("0:inf:1", "finite"), ("1,2,1", "more than once"),
+    ("0:1", "start:stop:step"), ("nan,1", "finite"), ("0:inf:1", "finite"),
+    ("1,2,1", "more than once"),
     ("a,b", "not a number"), ([], "empty"),
 ])
 def test_parse_grid_errors(spec, message):
@@ -70,7 +71,8 @@ def test_duration_limits():
 def test_bad_grid_fails_before_any_work(tmp_path):
     fake = FakeThresholdBatch()
     with pytest.raises(ParameterError, match="t_end"):
-        sweep.run_sweep(tmp_path / "out", tiny_config(), Grid.of("0:10:5", "0.5,3", tiny_config()), run_batch=fake,
+        sweep.run_sweep(tmp_path / "out", tiny_config(), Grid.of("0:10:5", "0.5,3", tiny_config()),
+                        run_batch=fake,
                         progress=False, say=None)
     assert fake.calls == [] and not (tmp_path / "out").exists()
 
@@ -128,7 +130,8 @@ def test_interrupted_sweep_resumes_to_the_same_region(tmp_path):
 def test_finished_sweep_rerun_does_nothing(tmp_path, capsys):
     sweep_fake(tmp_path, FakeThresholdBatch())
     idle = FakeThresholdBatch(fail_on_call=1)
-    result = sweep.run_sweep(tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=idle, progress=False)
+    result = sweep.run_sweep(tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=idle,
+                             progress=False)
     assert result.already_complete and idle.calls == []
     assert "nothing to do" in capsys.readouterr().out
 
@@ -185,7 +188,8 @@ def test_other_configuration_or_grid_is_refused(tmp_path):
     with pytest.raises(ParameterError, match="different configuration.*controller.horizon"):
         sweep_fake(tmp_path, FakeThresholdBatch(), config=other)
     with pytest.raises(ParameterError, match="another grid"):
-        sweep.run_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()), run_batch=FakeThresholdBatch(),
+        sweep.run_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()),
+                        run_batch=FakeThresholdBatch(),
                         progress=False, say=None)
 
 
@@ -385,7 +389,8 @@ def test_cli_overrides_sweep_file(tmp_path, monkeypatch):
     monkeypatch.setattr(DEFAULT_BATCH, lambda config, **engine: FakeThresholdBatch())
     definition = tmp_path / "s.toml"
     definition.write_text('[scenario]\nt_end = 3.0\n[controller]\nconvention = "joint"\n'
-                          '[sweep]\nforces = "0:40:20"\ndurations = [0.5, 1.0]\ntable_forces = [10]\n')
+                          '[sweep]\nforces = "0:40:20"\ndurations = [0.5, 1.0]\n'
+                          'table_forces = [10]\n')
     out = tmp_path / "o"
     assert main(["table", "--sweep", str(definition), "--forces", "20,40", "--out", str(out)]) == 0
     table = pd.read_csv(out / "table.csv")

@@ -1,6 +1,7 @@
 """Durations that are not whole physics steps and enormous work
 are refused at once: exit code 2, one line, nothing written; --yes lets big work through."""
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.runs import check_durations, load_sweep, parse_grid
 from mjx_balance.runs.definitions import sweeps_dir
 from mjx_balance.runs.grid import check_cell_count, check_whole_steps
+from mjx_balance.store import folder as store_folder
 from mjx_balance.studies.experiments import PLANS
 
 SWEEPS = sorted(sweeps_dir().glob("*.toml"))  # the shipped definitions (package data)
@@ -114,10 +116,17 @@ class Reached(Exception):
 def test_every_command_refuses_absurd_work_unless_yes(tmp_path, capsys, monkeypatch, command):
     from importlib import import_module
 
-    def work(out, _work, **_):
+    def reached(out, **_):
         raise Reached(out)
 
-    monkeypatch.setattr(import_module(f"mjx_balance.cli.{command}"), "in_folder", work)
+    # the work starts where the folder's lock is taken: by the command (simulate) or by the
+    # API function it stands on (basin), wherever a module imported the lock
+    import_module(f"mjx_balance.cli.{command}")
+    import_module("mjx_balance.api")
+    lock = store_folder.folder_lock
+    for name, module in list(sys.modules.items()):
+        if name.startswith("mjx_balance") and getattr(module, "folder_lock", None) is lock:
+            monkeypatch.setattr(module, "folder_lock", reached)
     out = tmp_path / "run"
     assert main([*HUGE[command], "--out", str(out)]) == 2
     said = capsys.readouterr()

@@ -76,7 +76,8 @@ def test_the_lookup_reads_the_distributions(monkeypatch):
     finally:
         version.mujoco_versions.cache_clear()
     monkeypatch.undo()
-    assert version.mujoco_versions() == (version.installed("mujoco"), version.installed("mujoco-mjx"))
+    assert version.mujoco_versions() == (version.installed("mujoco"),
+                                         version.installed("mujoco-mjx"))
 
 
 def test_the_physics_refuses_at_its_first_call(monkeypatch):

@@ -46,7 +46,7 @@ from mjx_balance.store.files import readable_png
 from mjx_balance.store.folder import FolderBusy, folder_lock
 from mjx_balance.runs.grid import Grid
 
-# -- damaged and lost work, the lock, the disk ------------------------------------------------------
+# -- damaged and lost work, the lock, the disk ----------------------------------------------------
 
 
 def error_lines(stderr: str) -> list[str]:
@@ -119,7 +119,8 @@ def test_lost_manifest_is_rebuilt_from_config_and_chunks(tmp_path):
 
     lines: list[str] = []
     resumed = FakeThresholdBatch()
-    result = sweep.run_sweep(out, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=resumed, chunk=100,
+    result = sweep.run_sweep(out, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=resumed,
+                             chunk=100,
                              progress=False, say=lines.append)
     assert resumed.calls == [8] * 3 and result.reused_chunks == 2  # chunk size from the files
     rebuilt = [line for line in lines if "lost its manifest.json" in line]
@@ -166,7 +167,8 @@ def test_lost_manifest_of_a_table_folder_lets_a_sweep_start(tmp_path):
                     progress=False, say=None)
     (tmp_path / "manifest.json").unlink()
     lines: list[str] = []
-    sweep.run_sweep(tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=FakeThresholdBatch(), chunk=8,
+    sweep.run_sweep(tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()),
+                    run_batch=FakeThresholdBatch(), chunk=8,
                     progress=False, say=lines.append)
     assert [line for line in lines if "lost its manifest.json" in line]
     assert json.loads((tmp_path / "manifest.json").read_text())["region"]["cells"] == 35
@@ -380,7 +382,7 @@ def test_leftover_temporary_files_are_removed(tmp_path):
     assert not list(tmp_path.rglob("*.tmp"))
 
 
-# -- atomic outputs; waiting for the folder's holder ------------------------------------------------
+# -- atomic outputs; waiting for the folder's holder ----------------------------------------------
 
 
 def short_config(tmp_path: Path, t_end: float = 0.2) -> Path:

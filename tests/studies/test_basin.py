@@ -1,4 +1,5 @@
-"""The recovery basin (studies/basin.py): initial states in both engines, the map's rules, resuming."""
+"""The recovery basin (studies/basin.py): initial states in both engines, the map's rules,
+resuming."""
 
 from __future__ import annotations
 

@@ -89,7 +89,8 @@ def test_a_subjects_file_with_headers_in_any_case_and_a_bom_keeps_its_ids(tmp_pa
 
 
 def test_every_id_is_bounded_however_the_subjects_come():
-    for subjects in ({LONG_ID: Subject(1.7, 70)}, [cohort_members.Member(LONG_ID, Subject(1.7, 70))]):
+    for subjects in ({LONG_ID: Subject(1.7, 70)},
+                     [cohort_members.Member(LONG_ID, Subject(1.7, 70))]):
         with pytest.raises(ParameterError, match="300 characters long; an id has at most 64"):
             cohort_members.as_members(subjects)
     assert cohort_members.as_members({"P" * 64: Subject(1.7, 70)})[0].id == "P" * 64

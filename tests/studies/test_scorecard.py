@@ -181,7 +181,7 @@ def test_hip_share_and_strategy():
     assert over.loc[50.0, "recovered_max"] == 0.1
 
 
-# -- given pairs -------------------------------------------------------------------------------------
+# -- given pairs ----------------------------------------------------------------------------------
 
 
 def test_parse_pairs_keeps_the_given_order(tmp_path):
@@ -195,7 +195,8 @@ def test_parse_pairs_keeps_the_given_order(tmp_path):
                        ("inf:0.1", "finite"), ([(1, 2, 3)], "a force and a duration")):
         with pytest.raises(ParameterError, match=words):
             parse_pairs(bad)
-    with pytest.raises(ParameterError, match="pairs gives the pushes: leave out forces and durations"):
+    with pytest.raises(ParameterError,
+                       match="pairs gives the pushes: leave out forces and durations"):
         mb.simulate([20], [0.1], pairs="20:0.1")
 
 

@@ -28,8 +28,9 @@ from .options import (
 def add_parser(sub: Any) -> None:
     """``bench`` and its sub-commands ``bench solver``, ``bench physics`` and ``bench engine``
     (``sub.add_parser`` of ``main.build_parser``)."""
-    p = sub.add_parser("bench", help="pipeline benchmark: batched MJX + ADMM vs the scalar reference "
-                                     "vs CasADi/IPOPT, scenarios per second (or: bench solver)")
+    p = sub.add_parser("bench", help="pipeline benchmark: batched MJX + ADMM vs the scalar "
+                                     "reference vs CasADi/IPOPT, scenarios per second (or: "
+                                     "bench solver)")
     _pipeline_arguments(p)
     common_options(p, out_required=False)
     p.set_defaults(target="mjx_balance.cli.bench:pipeline_command")
@@ -349,7 +350,8 @@ def physics_command(args: argparse.Namespace) -> int:
     for name, value in figures["us_per_scenario_step"].items():
         print(f"  {name:24s} {value:8.2f} us per scenario-step")
     print(f"pipeline / bare mjx.step {figures['pipeline_vs_mjx_step']:.2f}x; closed loop with "
-          f"the ADMM at its floor / bare mjx.step {figures['closed_loop_physics_vs_mjx_step']:.2f}x;"
+          "the ADMM at its floor / bare mjx.step "
+          f"{figures['closed_loop_physics_vs_mjx_step']:.2f}x;"
           f" bare mjx.step / MuJoCo C {figures['mjx_step_vs_c_step']:.2f}x; a C path's bound "
           f"{figures['c_bound_vs_pipeline']:.2f}x the pipeline (worth a second path at "
           f">= {physics.WORTH_IT}x: {'yes' if figures['c_path_worth_it'] else 'no'})")

@@ -163,7 +163,8 @@ def main(argv: list[str] | None = None, *, hold_signals_after: bool = False) -> 
         cache.disable()
     restore = _logging({-1: logging.WARNING, 0: logging.INFO, 1: logging.DEBUG}[verbosity(args)])
     try:
-        from ..store.provenance import run_context  # lazy: after use_host_cores (pandas, not --help)
+        # lazy: after use_host_cores (pandas, not --help)
+        from ..store.provenance import run_context
 
         words = sys.argv[1:] if argv is None else list(argv)
         # SIGINT and SIGTERM raise Interrupted / Terminated wherever they land, and a signal

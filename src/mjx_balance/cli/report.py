@@ -24,7 +24,8 @@ def add_parser(sub: Any) -> None:
                    help="tiny: 2 s runs on tiny grids (tests); default: the study's table and "
                         "coarse region maps; dense: dense region maps (GPU)")
     p.add_argument("--backend", choices=("mjx", "reference"), default=None,
-                   help="batch function of the table and region maps (default: mjx; tiny: reference)")
+                   help="batch function of the table and region maps (default: mjx; tiny: "
+                        "reference)")
     p.add_argument("--studies", default="all",
                    help="comma list of studies (ankle_only, backward, delay, older_adult, "
                         "recovery_definition, push_height), 'all' or 'none'")

@@ -27,7 +27,8 @@ PRINTED_COLUMNS = ["force", "duration", "convention", "outcome", "settle_time", 
 
 def add_parser(sub) -> None:
     """The ``simulate`` sub-command (``sub.add_parser`` of ``main.build_parser``)."""
-    p = sub.add_parser("simulate", help="scalar reference closed loop (MuJoCo C + OSQP) for a few pushes")
+    p = sub.add_parser("simulate",
+                       help="scalar reference closed loop (MuJoCo C + OSQP) for a few pushes")
     p.add_argument("--forces", default=None,
                    help=f"forces [N], a comma list or start:stop:step (default: {DEFAULT_FORCES})")
     p.add_argument("--durations", default=None,

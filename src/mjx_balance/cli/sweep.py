@@ -3,10 +3,11 @@
 Both are thin layers over the Python API (``api.run_region``, ``api.run_table_folder``, which
 ``mjx_balance.sweep`` and ``mjx_balance.table`` call): they resolve the options (a sweep
 definition, the built-in default sweep, the work guard) into its arguments and draw the
-figures. Each command checks its arguments, then works in the output folder under its lock (a second run
-into the same folder is refused at once, or waits for it with --wait). A write that fails there (a full disk, a file-size
-limit) ends in one line and exit code 1; finished chunks stay and the same command resumes.
-Derived figures missing or damaged (a PNG cut short) are drawn again on a rerun.
+figures. Each command checks its arguments, then works in the output folder under its lock (a
+second run into the same folder is refused at once, or waits for it with --wait). A write that
+fails there (a full disk, a file-size limit) ends in one line and exit code 1; finished chunks
+stay and the same command resumes. Derived figures missing or damaged (a PNG cut short) are
+drawn again on a rerun.
 """
 
 from __future__ import annotations
@@ -65,7 +66,8 @@ def add_parser(sub: Any) -> None:
     p = sub.add_parser("table", help="max acting time per force (robustness table) and the "
                                      "sustained-push limit")
     p.add_argument("--forces", default=None,
-                   help="comma list or start:stop:step [N] (default: the --sweep file's table_forces, "
+                   help="comma list or start:stop:step [N] (default: the --sweep file's "
+                        "table_forces, "
                         "else the study's 5,10,15,20,30,40,50,60,80,100,120)")
     p.add_argument("--sweep", type=sweep_file, default=None,
                    help="sweep definition: a TOML file or the name of a shipped one "

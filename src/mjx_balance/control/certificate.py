@@ -48,8 +48,8 @@ runs of certified scenarios; docs/engine.md gives the figures).
 After certification the remaining control periods are counted in ``control_periods`` (every QP
 is solved, no input saturates); energies and work go on as the linear prediction says for its
 2 s (up to t_end), what comes later is left out (measured: docs/engine.md); the ADMM iteration
-total counts the periods run. No certificate with a controller delay or a hip servo (the argument does not hold as
-stated): those scenarios run to t_end.
+total counts the periods run. No certificate with a controller delay or a hip servo (the
+argument does not hold as stated): those scenarios run to t_end.
 """
 
 from __future__ import annotations

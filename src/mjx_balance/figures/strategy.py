@@ -50,7 +50,8 @@ def strategy_map(region: pd.DataFrame, *, config: Config | None = None,
     handles = [Patch(facecolor="#bdbdbd", edgecolor="0.3", lw=0.5,
                      label=f"not recovered ({int((~recovered).sum())} cells)")]
     handles.append(region_plots.boundary_line(ax, region, fx, dy))
-    over = region_plots.takeover_line(ax, region, threshold, fx, dy, color=region_plots.TAKEOVER_COLOUR, lw=2.2, ls="--")
+    over = region_plots.takeover_line(ax, region, threshold, fx, dy,
+                                      color=region_plots.TAKEOVER_COLOUR, lw=2.2, ls="--")
     handles.append(over if over is not None else Line2D(
         [], [], color=region_plots.TAKEOVER_COLOUR, lw=2.2, ls="--"))
     handles[-1].set_label(f"hip takes over: share > {threshold:g} above the line"

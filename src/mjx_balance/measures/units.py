@@ -1,9 +1,9 @@
 """The unit of every column the product writes, in one place.
 
 ``UNITS`` maps a column name to ``(unit, meaning)``. Units are SI strings: ``s``, ``N``, ``J``,
-``m``, ``m/s``, ``rad``, ``rad/s``, ``N m``, ``N s``, ``ms``, ``kg``; ``1`` for a dimensionless number
-(a ratio, a fraction, a count, a 1/0 flag stored as a number); ``""`` for a label, a text or a
-True/False flag. Columns whose names carry a value (``max_acting_time_50N``, sensitivity's
+``m``, ``m/s``, ``rad``, ``rad/s``, ``N m``, ``N s``, ``ms``, ``kg``; ``1`` for a dimensionless
+number (a ratio, a fraction, a count, a 1/0 flag stored as a number); ``""`` for a label, a
+text or a True/False flag. Columns whose names carry a value (``max_acting_time_50N``, sensitivity's
 ``energy_study_paper_plain``) match :data:`PATTERNS`.
 
 The writers (``store.files.write_parquet`` / ``write_csv``) put these units in the parquet

@@ -551,7 +551,8 @@ class Engine:
             return self._fn
         t0 = _time.perf_counter()
         r = self.runner
-        sensors, static, periods, early_stop = r.sensors, self.static, self.block, self.cert is not None
+        sensors, static, periods = r.sensors, self.static, self.block
+        early_stop = self.cert is not None
         packing, tile, lanes = self.packing, self.tile, self.lanes
 
         def call(arrays, cert, slots, cell, force, push, init, body):

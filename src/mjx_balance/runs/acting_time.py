@@ -86,7 +86,8 @@ def coarse_steps(t_end: float, resolution: float,
     and t_end itself (at least one step)."""
     n_max = int(math.floor(t_end / resolution + 1e-9))
     if n_max < 1:
-        raise ParameterError(f"scenario.t_end = {t_end:g} s is shorter than the resolution {resolution:g} s")
+        raise ParameterError(f"scenario.t_end = {t_end:g} s is shorter than the resolution "
+                             f"{resolution:g} s")
     steps = {int(round(d / resolution)) for d in (*durations, 0.1) if d <= t_end + GRID_TOL}
     steps.add(n_max)
     return np.array(sorted(s for s in steps if 1 <= s <= n_max), dtype=np.int64)

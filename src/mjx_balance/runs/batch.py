@@ -191,7 +191,8 @@ def evaluate(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarray, con
         forces_in, durations_in = forces, durations
     frame = summary_frame(run_batch(forces_in, durations_in), config.controller.convention)
     if len(frame) != forces_in.size:
-        raise RuntimeError(f"batch function returned {len(frame)} rows for {forces_in.size} scenarios")
+        raise RuntimeError(f"batch function returned {len(frame)} rows for {forces_in.size} "
+                           "scenarios")
     frame = frame.iloc[:count].reset_index(drop=True)
     for column, asked in (("force", forces), ("duration", durations)):
         got = frame[column].to_numpy(dtype=np.float64)

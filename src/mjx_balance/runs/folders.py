@@ -170,9 +170,9 @@ def check_pushes(config: Config, forces: Any = None, durations: Any = None, pair
                  *, flag: str = "") -> Pushes:
     """The pushes of ``simulate`` (the command and ``mb.simulate``), every one checked before
     any work: the cross product of ``forces`` and ``durations`` (grids; every force for the
-    first duration, then the next), or the given ``pairs`` (``"20:0.7,30:0.45"``, a CSV file or (force,
-    duration) pairs, in their order); durations whole physics steps within the window; each
-    push's configuration; and the reference's own build (:func:`check_reference`).
+    first duration, then the next), or the given ``pairs`` (``"20:0.7,30:0.45"``, a CSV file
+    or (force, duration) pairs, in their order); durations whole physics steps within the
+    window; each push's configuration; and the reference's own build (:func:`check_reference`).
     ``flag``: "--" where the values came from the command line's options (the messages name
     them so). ParameterError naming the value and the rule."""
     if pairs is not None:

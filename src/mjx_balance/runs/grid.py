@@ -38,12 +38,14 @@ def parse_grid(spec: str | float | Sequence[float] | np.ndarray, name: str = "gr
     elif isinstance(spec, (list, tuple, np.ndarray)):
         values = [_number(item, name) for item in spec]
     else:
-        raise ParameterError(f"{name} = {spec!r}: must be 'start:stop:step', a comma list or numbers")
+        raise ParameterError(f"{name} = {spec!r}: must be 'start:stop:step', a comma list or "
+                             "numbers")
     values = np.asarray(values, dtype=np.float64)
     if values.size == 0:
         raise ParameterError(f"{name}: empty grid")
     if not np.all(np.isfinite(values)):
-        raise ParameterError(f"{name}: every value must be finite, got {values[~np.isfinite(values)][:3]}")
+        raise ParameterError(f"{name}: every value must be finite, got "
+                             f"{values[~np.isfinite(values)][:3]}")
     values = np.sort(values)
     repeated = values[1:][np.diff(values) == 0]
     if repeated.size:

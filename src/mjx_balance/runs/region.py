@@ -122,7 +122,8 @@ def _run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, run_batc
     remaining = sum(slices[i].stop - slices[i].start for i in todo)
     if reused:
         say(f"resuming: {reused} of {len(slices)} chunks already done, {remaining} cells to go")
-    say(f"sweep: {grid.describe()} in {len(slices)} chunks of {chunk_size}; convention {convention}; output {folder.path}")
+    say(f"sweep: {grid.describe()} in {len(slices)} chunks of {chunk_size}; convention "
+        f"{convention}; output {folder.path}")
 
     if todo:
         folder.check_numerics(manifest)  # new rows: computed as the folder's were
@@ -155,9 +156,9 @@ def _region_record(folder: OutputFolder, manifest: dict, config: Config, grid: G
     if recorded is not None:
         if not grid.matches(recorded):
             raise ParameterError(
-                f"{folder.path} holds a sweep over another grid (forces {describe(recorded['forces'])}, "
-                f"durations {describe(recorded['durations'])}); use another --out folder or the "
-                "same grid")
+                f"{folder.path} holds a sweep over another grid (forces "
+                f"{describe(recorded['forces'])}, durations {describe(recorded['durations'])}); "
+                "use another --out folder or the same grid")
         if chunk_size is not None and chunk_size != recorded["chunk_size"]:
             say(f"note: {folder.path} was started with chunks of {recorded['chunk_size']} "
                 f"scenarios; keeping that (ignoring --chunk {chunk_size})")

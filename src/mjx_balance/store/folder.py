@@ -1,17 +1,18 @@
 """The output folder of a sweep: manifest, configuration, chunk files, merged results.
 
-``DIR/manifest.json`` records the package version, the configuration and what was computed
-(the region's grid and chunk size, the table's forces), and, in ``runs``, one provenance record
-per run that worked in the folder (``provenance.py``: versions, physics path, device, git
-commit, command line, start and end times, how it ended); ``DIR/config.toml`` holds the
-configuration as TOML. Only the configuration and the grids decide whether a run may resume a
-folder; the provenance records differ between runs by design and are never compared. A folder made with another configuration is refused; a folder that lost
-its manifest is taken up again when its config.toml matches the run's (the region sweep then
-checks its chunk files against the grid before it rewrites the manifest). Every file is
-written atomically (``files.py``: a temporary file in the same folder, then ``os.replace``), so
-a file is either complete or absent, with the mode the umask gives. Region chunks live in ``DIR/chunks/chunk-NNNNN.parquet``; a chunk file
-is used only if it reads back with exactly its cells (:func:`read_chunk`), and the merge
-streams the chunks into ``DIR/region.parquet`` one at a time (:func:`merge_chunks`).
+``DIR/manifest.json`` records the package version, the configuration and what was computed (the
+region's grid and chunk size, the table's forces), and, in ``runs``, one provenance record per
+run that worked in the folder (``provenance.py``: versions, physics path, device, git commit,
+command line, start and end times, how it ended); ``DIR/config.toml`` holds the configuration as
+TOML. Only the configuration and the grids decide whether a run may resume a folder; the
+provenance records differ between runs by design and are never compared. A folder made with
+another configuration is refused; a folder that lost its manifest is taken up again when its
+config.toml matches the run's (the region sweep then checks its chunk files against the grid
+before it rewrites the manifest). Every file is written atomically (``files.py``: a temporary
+file in the same folder, then ``os.replace``), so a file is either complete or absent, with the
+mode the umask gives. Region chunks live in ``DIR/chunks/chunk-NNNNN.parquet``; a chunk file is
+used only if it reads back with exactly its cells (:func:`read_chunk`), and the merge streams
+the chunks into ``DIR/region.parquet`` one at a time (:func:`merge_chunks`).
 
 One run at a time per folder: :func:`folder_lock` holds an exclusive ``flock`` on
 ``DIR/.lock`` (which names the holder's PID and start time) and a second run is refused at once

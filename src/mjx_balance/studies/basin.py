@@ -177,21 +177,22 @@ def run_basin(out: str | os.PathLike[str], config: Config, x_com: Any = DEFAULT_
         raise ParameterError("the basin runs on the MJX path (--physics mjx): the MuJoCo C "
                              "path starts every scenario at upright rest")
     xs, vs, plane = check_basin(config, x_com, v_com, posture, pushes)
+    if plan is not None:  # before the cells' initial states are built: it may refuse them
+        plan(PlannedWork(config, xs.size * vs.size, "cells"))
     out = Path(out)
+    with folder_lock(out, wait=wait):
+        return _basin(out, config, xs, vs, plane, posture=posture, pushes=pushes,
+                      progress=progress, say=say, engine=engine)
+
+
+def _basin(out: Path, config: Config, xs: np.ndarray, vs: np.ndarray, plane: "Plane", *,
+           posture: str, pushes: Any, progress: bool, say: Callable[[str], None],
+           engine: dict[str, Any]) -> pd.DataFrame:
+    """:func:`run_basin`'s work, its inputs checked (every state reachable: ``check_basin``)
+    and the folder locked."""
     grid = cells_of(xs, vs)
     inits = np.array([plane.initial_state(posture, x, v)
-                      for x, v in zip(grid.x_com, grid.v_com)])  # checks the grid first
-    if plan is not None:
-        plan(PlannedWork(config, xs.size * vs.size, "cells"))
-    with folder_lock(out, wait=wait):
-        return _basin(out, config, xs, vs, plane, grid, inits=inits, posture=posture,
-                      pushes=pushes, progress=progress, say=say, engine=engine)
-
-
-def _basin(out: Path, config: Config, xs: np.ndarray, vs: np.ndarray, plane: "Plane",
-           grid: pd.DataFrame, *, inits: np.ndarray, posture: str, pushes: Any,
-           progress: bool, say: Callable[[str], None], engine: dict[str, Any]) -> pd.DataFrame:
-    """:func:`run_basin`'s work, its inputs checked and the folder locked."""
+                      for x, v in zip(grid.x_com, grid.v_com)])
     folder = OutputFolder(out, config)
     manifest = folder.open()
     _check_record(out, manifest.get("basin"), posture, xs, vs)
