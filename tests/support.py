@@ -110,13 +110,30 @@ def tiny_config(**scenario):
 GRID = ("-20:100:20", "0.1,0.5,1,1.5,2")  # 7 forces x 5 durations = 35 cells
 
 
-def sweep_fake(out, fake, chunk=8, config=None):
+def held_sweep(out, config, grid, **options):
+    """``runs.run_sweep`` under the folder's lock, taken once as a run's entry takes it."""
     from mjx_balance.runs import run_sweep
+    from mjx_balance.store.folder import folder_lock
+
+    with folder_lock(out):
+        return run_sweep(out, config, grid, **options)
+
+
+def held_table(out, config, forces, **options):
+    """``runs.run_table`` under the folder's lock, as :func:`held_sweep`."""
+    from mjx_balance.runs import run_table
+    from mjx_balance.store.folder import folder_lock
+
+    with folder_lock(out):
+        return run_table(out, config, forces, **options)
+
+
+def sweep_fake(out, fake, chunk=8, config=None):
     from mjx_balance.runs.grid import Grid
 
     config = config or tiny_config()
-    return run_sweep(out, config, Grid.of(*GRID, config), run_batch=fake, chunk=chunk,
-                     progress=False, say=None)
+    return held_sweep(out, config, Grid.of(*GRID, config), run_batch=fake, chunk=chunk,
+                      progress=False, say=None)
 
 
 def expected_max_time(force, c, t_end, resolution=0.01):

@@ -27,7 +27,7 @@ from mjx_balance.model.params import (BodyParams, Config, ParameterError, Parame
 from mjx_balance.model.config_files import load_config, run_config
 from mjx_balance.model.subject import Subject, parse_subject, with_sections
 from mjx_balance.runs.definitions import load_sweep
-from mjx_balance.store.folder import OutputFolder, record_simulation
+from mjx_balance.store.folder import OutputFolder, folder_lock, record_simulation
 
 SWEEPS = REPO / "sweeps"
 # The same arithmetic done in another order: a few float64 roundings apart.
@@ -174,8 +174,8 @@ def test_a_never_binding_limit_warns_and_is_in_the_manifest(tmp_path):
     with pytest.warns(ParameterWarning, match=r"cop_bounds = \[-0.2, 0.2\].*foot_length = 0.3"):
         config = Config().replace(controller={"cop_bounds": [-0.2, 0.2]})
     assert len(config_warnings(config)) == 1
-    folder = OutputFolder(tmp_path / "sweep", config)
-    manifest = folder.open()
+    with folder_lock(tmp_path / "sweep"):
+        manifest = OutputFolder(tmp_path / "sweep", config).open()
     assert manifest["config_warnings"] == config_warnings(config)
     assert json.loads((tmp_path / "sweep" / "manifest.json").read_text())["config_warnings"]
     (tmp_path / "sim").mkdir()
@@ -183,7 +183,8 @@ def test_a_never_binding_limit_warns_and_is_in_the_manifest(tmp_path):
     saved = json.loads((tmp_path / "sim" / "manifest.json").read_text())
     assert saved["config_warnings"] == config_warnings(config)
     # a configuration without one has no such key
-    assert "config_warnings" not in OutputFolder(tmp_path / "plain", Config()).open()
+    with folder_lock(tmp_path / "plain"):
+        assert "config_warnings" not in OutputFolder(tmp_path / "plain", Config()).open()
 
 
 def test_the_default_and_every_shipped_sweep_pass_the_linked_limits(recwarn):

@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from margins import within
-from support import fake_region
+from support import fake_region, held_sweep
 from tiny_report import ALL, SMALL, selected, tiny_report
 
 import mjx_balance
@@ -24,7 +24,7 @@ from mjx_balance.cli import main
 from mjx_balance.measures.outcomes import OUTCOMES
 from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.model.config_files import load_config
-from mjx_balance.runs import load_sweep, parse_grid, run_sweep
+from mjx_balance.runs import load_sweep, parse_grid
 from mjx_balance.studies import catalog as studies
 from mjx_balance.runs.grid import Grid
 
@@ -341,7 +341,7 @@ def test_study_sweep_definition_loads_and_runs(path, tmp_path):
     config = definition.config.replace(scenario={"t_end": 0.5},
                                        controller={"osqp_max_iter": 200})
     tiny_f, tiny_d = forces[[0, -1]], durations[:1]
-    result = run_sweep(tmp_path, config, Grid.of(tiny_f, tiny_d, config),
+    result = held_sweep(tmp_path, config, Grid.of(tiny_f, tiny_d, config),
                        run_batch=report.ReferenceBatch(config),
                        chunk=2, progress=False, say=None)
     assert len(result.region) == 2 and set(result.region.outcome) <= set(OUTCOMES)

@@ -431,7 +431,9 @@ def test_one_and_two_host_devices_give_the_same_bits():
 def test_interrupted_sweep_resumes_to_the_same_bytes(tmp_path):
     """A sweep killed after its first chunk file, resumed, equals an uninterrupted one with
     another chunk size, byte for byte (region.parquet)."""
-    from mjx_balance.runs import LazyBatch, run_sweep
+    from support import held_sweep
+
+    from mjx_balance.runs import LazyBatch
 
     config = Config().replace(scenario={"t_end": 2.0})
     forces, durations = np.array([0.0, 30.0, 70.0, 100.0, -50.0]), np.array([0.1, 0.2, 1.0])
@@ -445,15 +447,15 @@ def test_interrupted_sweep_resumes_to_the_same_bytes(tmp_path):
 
     with jax.enable_x64(False):
         with pytest.raises(KeyboardInterrupt):
-            run_sweep(tmp_path / "a", config, Grid.of(forces, durations, config), chunk=4,
+            held_sweep(tmp_path / "a", config, Grid.of(forces, durations, config), chunk=4,
                       run_batch=Interrupted(config, slots=ENGINE_SLOTS), progress=False,
                       say=None)
         assert any((tmp_path / "a" / "chunks").glob("chunk-*.parquet"))
-        resumed = run_sweep(tmp_path / "a", config, Grid.of(forces, durations, config),
+        resumed = held_sweep(tmp_path / "a", config, Grid.of(forces, durations, config),
                             run_batch=LazyBatch(config, slots=ENGINE_SLOTS), progress=False,
                           say=None)
         assert resumed.reused_chunks >= 1
-        whole = run_sweep(tmp_path / "b", config, Grid.of(forces, durations, config), chunk=16,
+        whole = held_sweep(tmp_path / "b", config, Grid.of(forces, durations, config), chunk=16,
                           run_batch=LazyBatch(config, slots=ENGINE_SLOTS), progress=False,
                           say=None)
     assert resumed.region_path.read_bytes() == whole.region_path.read_bytes()

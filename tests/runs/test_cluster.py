@@ -26,7 +26,7 @@ import jax
 import numpy as np
 import pandas as pd
 import pytest
-from support import tiny_config
+from support import held_sweep, held_table, tiny_config
 
 from mjx_balance.measures.outcomes import SUMMARY_COLUMNS
 from mjx_balance.runs.grid import Grid
@@ -91,11 +91,11 @@ def reference(tmp_path_factory, compile_cache) -> Path:
 
 
 def _sweep(out, cluster, **kwargs):
-    from mjx_balance.runs import LazyBatch, run_sweep
+    from mjx_balance.runs import LazyBatch
 
     config = tiny_config(t_end=T_END)
     with jax.enable_x64(False):  # as sweeps run (conftest switches x64 on for the session)
-        return run_sweep(out, config, Grid.of(FORCES, DURATIONS, config), chunk=CHUNK,
+        return held_sweep(out, config, Grid.of(FORCES, DURATIONS, config), chunk=CHUNK,
                          progress=False,
                          run_batch=LazyBatch(config, slots=SLOTS), cluster=cluster, say=None,
                          **kwargs)
@@ -175,13 +175,13 @@ def test_table_on_the_cluster_is_the_local_table(tmp_path, reference, cluster):
     """``table --cluster``: each bisection round's calls run as tasks on the workers (split
     between them) and come back in order; table.csv, table_runs.parquet, every kept part
     file of table_runs/ and the engine record are those of the plain local table."""
-    from mjx_balance.runs import LazyBatch, run_table, table_batch_size
+    from mjx_balance.runs import LazyBatch, table_batch_size
 
     local, client = cluster
     config = tiny_config(t_end=T_END)
     out = tmp_path / "cluster"
     with jax.enable_x64(False), distributed.get_task_stream(client) as stream:
-        result = run_table(out, config, TABLE_FORCES, run_batch=LazyBatch(config, slots=SLOTS),
+        result = held_table(out, config, TABLE_FORCES, run_batch=LazyBatch(config, slots=SLOTS),
                            batch=table_batch_size(config, 2), progress=False, say=None,
                            cluster=client)
     expected = _local_table(reference)
@@ -209,7 +209,6 @@ def _other_version():
 def test_worker_of_another_version_is_refused(tmp_path):
     """A worker that reports another mjx_balance version is refused at connect time, with a
     message naming it; nothing is computed. A task on such a worker refuses too."""
-    from mjx_balance.runs import run_sweep
     from mjx_balance.runs.cluster import (
         ChunkSpec,
         ClusterError,
@@ -224,7 +223,7 @@ def test_worker_of_another_version_is_refused(tmp_path):
         refused = r"refusing the cluster.*worker tcp://.*: mjx_balance 0\.0\.0\+other \(driver: "
         with pytest.raises(ClusterError, match=refused):
             config = tiny_config(t_end=T_END)
-            run_sweep(tmp_path / "out", config, Grid.of(FORCES, DURATIONS, config),
+            held_sweep(tmp_path / "out", config, Grid.of(FORCES, DURATIONS, config),
                       run_batch=Fake(), chunk=CHUNK, progress=False, say=None, cluster=client)
     assert not list((tmp_path / "out" / "chunks").glob("*.parquet"))
     # a worker that joined after the check: the task itself refuses
@@ -286,11 +285,11 @@ def test_plain_install_runs_without_dask(tmp_path):
         import pytest
         from mjx_balance.cli import main
         from mjx_balance.model.params import Config
-        from mjx_balance.runs import run_sweep
         from mjx_balance.runs.cluster import ClusterError
         sys.path.insert(0, {str(Path(__file__).parent)!r})
         sys.path.insert(0, {str(Path(__file__).parents[1])!r})  # support.py, which it imports
         from test_cluster import Fake
+        from support import held_sweep, held_table
 
         for command in ("sweep", "table"):
             try:
@@ -299,18 +298,17 @@ def test_plain_install_runs_without_dask(tmp_path):
                 assert exc.code == 0, exc.code
         config = Config().replace(scenario={{"t_end": 1.0}})
         from mjx_balance.runs.grid import Grid
-        result = run_sweep({str(tmp_path / "plain")!r}, config, Grid.of("0,60", "0.1,0.5", config),
+        result = held_sweep({str(tmp_path / "plain")!r}, config, Grid.of("0,60", "0.1,0.5", config),
                            run_batch=Fake(), progress=False, say=None)
         assert len(result.region) == 4
         with pytest.raises(ClusterError, match="mjx_balance\\\\[cluster\\\\]"):
-            run_sweep({str(tmp_path / "asked")!r}, config, Grid.of("0,60", "0.1,0.5", config),
+            held_sweep({str(tmp_path / "asked")!r}, config, Grid.of("0,60", "0.1,0.5", config),
                       run_batch=Fake(), progress=False, say=None, cluster="local:2")
-        from mjx_balance.runs import run_table
-        table = run_table({str(tmp_path / "plain_table")!r}, config, "0,60", run_batch=Fake(),
+        table = held_table({str(tmp_path / "plain_table")!r}, config, "0,60", run_batch=Fake(),
                           progress=False, say=None)
         assert len(table.table) == 2
         with pytest.raises(ClusterError, match="mjx_balance\\\\[cluster\\\\]"):
-            run_table({str(tmp_path / "asked_table")!r}, config, "0,60", run_batch=Fake(),
+            held_table({str(tmp_path / "asked_table")!r}, config, "0,60", run_batch=Fake(),
                       progress=False, say=None, cluster="local:2")
         assert not [m for m in sys.modules if m.split(".")[0] in ("dask", "distributed")]
         print("ok without dask")

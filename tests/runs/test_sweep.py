@@ -23,6 +23,8 @@ from support import (
     GRID,
     FakeThresholdBatch,
     expected_max_time,
+    held_sweep,
+    held_table,
     sweep_fake,
     tiny_config,
 )
@@ -71,7 +73,7 @@ def test_duration_limits():
 def test_bad_grid_fails_before_any_work(tmp_path):
     fake = FakeThresholdBatch()
     with pytest.raises(ParameterError, match="t_end"):
-        sweep.run_sweep(tmp_path / "out", tiny_config(), Grid.of("0:10:5", "0.5,3", tiny_config()),
+        held_sweep(tmp_path / "out", tiny_config(), Grid.of("0:10:5", "0.5,3", tiny_config()),
                         run_batch=fake,
                         progress=False, say=None)
     assert fake.calls == [] and not (tmp_path / "out").exists()
@@ -130,7 +132,7 @@ def test_interrupted_sweep_resumes_to_the_same_region(tmp_path):
 def test_finished_sweep_rerun_does_nothing(tmp_path, capsys):
     sweep_fake(tmp_path, FakeThresholdBatch())
     idle = FakeThresholdBatch(fail_on_call=1)
-    result = sweep.run_sweep(tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=idle,
+    result = held_sweep(tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=idle,
                              progress=False)
     assert result.already_complete and idle.calls == []
     assert "nothing to do" in capsys.readouterr().out
@@ -170,10 +172,11 @@ def test_a_folder_without_results_is_not_locked_to_its_configuration(tmp_path):
     """A run that failed before its first chunk (a bad value found late) leaves a
     manifest but no results; the corrected configuration takes the folder over. Once the
     folder holds results, another configuration is refused again."""
-    from mjx_balance.store.folder import OutputFolder
+    from mjx_balance.store.folder import OutputFolder, folder_lock
 
     bad = tiny_config().replace(controller={"horizon": 10})
-    OutputFolder(tmp_path, bad).open()  # what the failed run left
+    with folder_lock(tmp_path):
+        OutputFolder(tmp_path, bad).open()  # what the failed run left
     assert (tmp_path / "manifest.json").exists() and not (tmp_path / "chunks").exists()
     sweep_fake(tmp_path, FakeThresholdBatch())  # the corrected configuration
     manifest = json.loads((tmp_path / "manifest.json").read_text())
@@ -188,7 +191,7 @@ def test_other_configuration_or_grid_is_refused(tmp_path):
     with pytest.raises(ParameterError, match="different configuration.*controller.horizon"):
         sweep_fake(tmp_path, FakeThresholdBatch(), config=other)
     with pytest.raises(ParameterError, match="another grid"):
-        sweep.run_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()),
+        held_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()),
                         run_batch=FakeThresholdBatch(),
                         progress=False, say=None)
 
@@ -301,14 +304,14 @@ def test_negative_forces_in_the_table():
 
 def test_run_table_writes_and_skips_when_done(tmp_path, capsys):
     fake = FakeThresholdBatch()
-    sweep.run_table(tmp_path, Config(), "20,50", run_batch=fake, progress=False)
+    held_table(tmp_path, Config(), "20,50", run_batch=fake, progress=False)
     table = pd.read_csv(tmp_path / "table.csv")
     assert list(table["max_acting_time"]) == [1.49, 0.59]
     assert list(table["sustained_push_limit"]) == [2.4, 2.4]  # 12 F < 30 N s
     runs = pd.read_parquet(tmp_path / "table_runs.parquet")
     assert (runs["duration"] == 12.0).any()  # the sustained-push scenarios are kept too
     idle = FakeThresholdBatch(fail_on_call=1)
-    assert sweep.run_table(tmp_path, Config(), "20,50", run_batch=idle, progress=False) is None
+    assert held_table(tmp_path, Config(), "20,50", run_batch=idle, progress=False) is None
     assert "nothing to do" in capsys.readouterr().out
 
 
@@ -346,7 +349,7 @@ def test_sweep_definition_errors(tmp_path):
 def test_figures_from_fake_results(tmp_path):
     from mjx_balance.figures import region as region_plots
 
-    sweep.run_sweep(tmp_path, Config(), Grid.of("-20:120:10", "0.05:2:0.05", Config()),
+    held_sweep(tmp_path, Config(), Grid.of("-20:120:10", "0.05:2:0.05", Config()),
                     run_batch=FakeThresholdBatch(window=(1.5, 1.6)), progress=False, say=None)
     region = pd.read_parquet(tmp_path / "region.parquet")
     reference = pd.DataFrame({"force": [20, 50], "duration": [1.4, 0.55]})

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import jax
 import pytest
-from support import REPO, FakeThresholdBatch, sweep_fake
+from support import REPO, FakeThresholdBatch, held_table, sweep_fake
 
 from mjx_balance import runs as sweep
 from mjx_balance.store import files as store_files
@@ -50,7 +50,7 @@ class CellLog(FakeThresholdBatch):
 
 
 def table(out: Path, fake, forces: str = FORCES):
-    return sweep.run_table(out, Config(), forces, run_batch=fake, batch=BATCH, progress=False,
+    return held_table(out, Config(), forces, run_batch=fake, batch=BATCH, progress=False,
                            say=None)
 
 
@@ -90,8 +90,7 @@ KILLED_TABLE = textwrap.dedent("""
     import sys, time
     from pathlib import Path
     sys.path.insert(0, sys.argv[1])
-    from support import FakeThresholdBatch
-    from mjx_balance import runs as sweep
+    from support import FakeThresholdBatch, held_table
     from mjx_balance.model.params import Config
 
     log = Path(sys.argv[3])
@@ -103,7 +102,7 @@ KILLED_TABLE = textwrap.dedent("""
                 fh.write(f"{len(forces)}\\n")
             return super().__call__(forces, durations)
 
-    sweep.run_table(sys.argv[2], Config(), sys.argv[4], run_batch=Slow(), batch=int(sys.argv[5]),
+    held_table(sys.argv[2], Config(), sys.argv[4], run_batch=Slow(), batch=int(sys.argv[5]),
                     progress=False, say=None)
 """)
 
@@ -139,7 +138,7 @@ def test_overlapping_force_list_reuses_the_cells(tmp_path):
     """Bisection (no fixed batch): a force's cells do not depend on the other forces, so a
     table over more forces runs only the new force's cells."""
     def bisect(out, fake, forces):
-        sweep.run_table(out, Config(), forces, run_batch=fake, progress=False, say=None)
+        held_table(out, Config(), forces, run_batch=fake, progress=False, say=None)
 
     fresh = tmp_path / "fresh"
     bisect(fresh, CellLog(), "20,50,80")
@@ -198,7 +197,7 @@ def test_run_table_holds_the_folder_lock(tmp_path):
                 os.close(fd)
             return super().__call__(forces, durations)
 
-    sweep.run_table(tmp_path, Config(), "20", run_batch=Probe(), progress=False, say=None)
+    held_table(tmp_path, Config(), "20", run_batch=Probe(), progress=False, say=None)
     assert seen and set(seen) == {"held"}
 
 
@@ -224,7 +223,7 @@ def test_bad_manifest_is_one_clear_error(tmp_path, text, problem, run):
     (tmp_path / store_files.MANIFEST).write_text(text)
     with pytest.raises(ParameterError) as error:
         if run == "table":
-            sweep.run_table(tmp_path, Config(), "20", run_batch=no_run, progress=False, say=None)
+            held_table(tmp_path, Config(), "20", run_batch=no_run, progress=False, say=None)
         else:
             sweep_fake(tmp_path, no_run)
     message = str(error.value)
@@ -237,7 +236,7 @@ def test_rebuilt_manifest_keeps_the_table(tmp_path, capsys):
     before = json.loads((tmp_path / store_files.MANIFEST).read_text())
     (tmp_path / store_files.MANIFEST).unlink()
     idle = CellLog(fail_on_call=1)
-    assert sweep.run_table(tmp_path, Config(), "20,50", run_batch=idle, batch=BATCH,
+    assert held_table(tmp_path, Config(), "20,50", run_batch=idle, batch=BATCH,
                            progress=False) is None
     assert idle.calls == []
     assert "nothing to do" in capsys.readouterr().out
@@ -266,4 +265,4 @@ def test_lost_manifest_with_kept_cells_of_another_configuration_is_refused(tmp_p
     (tmp_path / store_files.MANIFEST).unlink()
     other = Config().replace(scenario={"t_end": 6.0})
     with pytest.raises(ParameterError, match="config.toml differs"):
-        sweep.run_table(tmp_path, other, FORCES, run_batch=no_run, progress=False, say=None)
+        held_table(tmp_path, other, FORCES, run_batch=no_run, progress=False, say=None)

@@ -31,13 +31,14 @@ from support import (
     REPO,
     FakeThresholdBatch,
     cli_sweep,
+    held_sweep,
+    held_table,
     run_cli,
     sweep_fake,
     tiny_config,
 )
 
 from mjx_balance import cli
-from mjx_balance import runs as sweep
 from mjx_balance.cli import main
 from mjx_balance.cli.main import build_parser
 from mjx_balance.model.params import ParameterError
@@ -119,7 +120,7 @@ def test_lost_manifest_is_rebuilt_from_config_and_chunks(tmp_path):
 
     lines: list[str] = []
     resumed = FakeThresholdBatch()
-    result = sweep.run_sweep(out, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=resumed,
+    result = held_sweep(out, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=resumed,
                              chunk=100,
                              progress=False, say=lines.append)
     assert resumed.calls == [8] * 3 and result.reused_chunks == 2  # chunk size from the files
@@ -148,13 +149,13 @@ def test_lost_manifest_is_not_rebuilt_for_other_results(tmp_path):
     with pytest.raises(ParameterError, match="config.toml differs.*controller.horizon"):
         sweep_fake(tmp_path, FakeThresholdBatch(), config=other)
     with pytest.raises(ParameterError, match="do not match this grid"):
-        sweep.run_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()),
+        held_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()),
                         run_batch=FakeThresholdBatch(), progress=False, say=None)
     assert not (tmp_path / "manifest.json").exists()  # nothing rewritten by a refused run
     shutil.rmtree(tmp_path / "chunks")  # region.parquet alone, of another grid: kept, refused
     region = (tmp_path / "region.parquet").read_bytes()
     with pytest.raises(ParameterError, match="do not match this grid"):
-        sweep.run_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()),
+        held_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()),
                         run_batch=FakeThresholdBatch(), progress=False, say=None)
     assert (tmp_path / "region.parquet").read_bytes() == region
     (tmp_path / "config.toml").unlink()
@@ -163,11 +164,11 @@ def test_lost_manifest_is_not_rebuilt_for_other_results(tmp_path):
 
 
 def test_lost_manifest_of_a_table_folder_lets_a_sweep_start(tmp_path):
-    sweep.run_table(tmp_path, tiny_config(), [20, 40], run_batch=FakeThresholdBatch(),
+    held_table(tmp_path, tiny_config(), [20, 40], run_batch=FakeThresholdBatch(),
                     progress=False, say=None)
     (tmp_path / "manifest.json").unlink()
     lines: list[str] = []
-    sweep.run_sweep(tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()),
+    held_sweep(tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()),
                     run_batch=FakeThresholdBatch(), chunk=8,
                     progress=False, say=lines.append)
     assert [line for line in lines if "lost its manifest.json" in line]
@@ -207,17 +208,33 @@ def test_second_run_is_refused_while_another_holds_the_folder(tmp_path, fake_rol
     assert fake.calls
 
 
-def test_one_process_may_nest_the_folder_lock(tmp_path):
+def test_a_run_takes_the_folder_lock_once(tmp_path):
+    """The run's entry takes the lock; a second take in the same run is a bug (raised), and
+    the floors that write a run's files refuse to run without it."""
+    from mjx_balance.runs import run_sweep, run_table
+    from mjx_balance.runs.grid import Grid
+
     with folder_lock(tmp_path):
-        sweep_fake(tmp_path, FakeThresholdBatch())  # takes the same lock inside
+        sweep_fake(tmp_path / "inner", FakeThresholdBatch())  # another folder: its own lock
+        with pytest.raises(RuntimeError, match="taken twice"), folder_lock(tmp_path):
+            pass
+        sweep_fake(tmp_path / "inner", FakeThresholdBatch())  # the inner lock was let go
     assert "PID" in (tmp_path / ".lock").read_text()
+    config = tiny_config()
+    with pytest.raises(RuntimeError, match="not held"):
+        run_sweep(tmp_path / "bare", config, Grid.of(*GRID, config),
+                  run_batch=FakeThresholdBatch(), progress=False, say=None)
+    with pytest.raises(RuntimeError, match="not held"):
+        run_table(tmp_path / "bare", config, [20.0], run_batch=FakeThresholdBatch(),
+                  progress=False, say=None)
+    assert not (tmp_path / "bare" / "manifest.json").exists()
 
 
 def test_another_thread_is_refused_while_one_holds_the_folder(tmp_path):
-    """the lock is re-entrant within the thread that holds it, not across threads.
-    Two threads of one process sweeping into one folder with different bodies would otherwise
-    write one body's manifest beside the other body's rows. The second thread is refused at the
-    named point (its folder_lock) while the first is inside its own."""
+    """The lock is the holding thread's, not the process's: two threads of one process
+    sweeping into one folder with different bodies would otherwise write one body's manifest
+    beside the other body's rows. The second thread is refused at the named point (its
+    folder_lock) while the first is inside its own."""
     import threading
 
     outcome = {}

@@ -53,6 +53,7 @@ from ..rollout import BatchRunner
 from ..rollout.cpath import PATHS, resolve, unsupported
 from .. import runs as sweep
 from ..runs.grid import Grid
+from ..store.folder import folder_lock
 
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 FORCE_RANGE = (0.0, 150.0)
@@ -329,9 +330,9 @@ def memory_child(cells: int, t_end: float, chunk: int | None, out: str) -> None:
     n_f = int(math.ceil(cells / n_d))
     forces = np.linspace(0.0, 150.0, n_f)
     t0 = time.perf_counter()
-    result = sweep.run_sweep(out, config, Grid.of(forces, durations, config), chunk=chunk,
-                             progress=False,
-                             say=None)
+    with folder_lock(out):  # this child's run: its entry takes the folder's lock
+        result = sweep.run_sweep(out, config, Grid.of(forces, durations, config), chunk=chunk,
+                                 progress=False, say=None)
     seconds = time.perf_counter() - t0
     import pandas as pd
 

@@ -171,15 +171,15 @@ def sweep_command(args: Any) -> int:
         # built (and compiled) only if a scenario must run
         run_batch = api.batch_function(config, slots=args.slots, full_length=args.full_length,
                                        physics=chosen_physics(args, definition))
-        result = api.run_region(out, config, grid, run_batch=run_batch,
-                                chunk=chunk, progress=progress, cluster=args.cluster)
+        result = api.run_region(out, config, grid, run_batch=run_batch, chunk=chunk,
+                                progress=progress, cluster=args.cluster, lock=False)
         _make_region_figures(out, result, config, reference)
         if table_forces is not None:
             # The table in calls of the sweep's chunk size: the rollout compiled for it already.
             chunk_used = json.loads((out / MANIFEST).read_text())["region"]["chunk_size"]
             table = api.run_table_folder(out, config, table_forces, run_batch=run_batch,
                                          batch=int(chunk_used), progress=progress,
-                                         cluster=args.cluster)
+                                         cluster=args.cluster, lock=False)
             _make_table_figure(out, config, force=table is not None)
             # region.png overlays the table's max-acting-time curve: drawn again with it
             _make_region_figures(out, result, config, reference, only="region",
@@ -228,7 +228,7 @@ def table_command(args: Any) -> int:
                                      full_length=args.full_length,
                                      physics=chosen_physics(args, definition),
                                      progress=progress_enabled(args),
-                                     cluster=getattr(args, "cluster", None))
+                                     cluster=getattr(args, "cluster", None), lock=False)
         _make_table_figure(out, config, force=table is not None)
         if (out / REGION).exists():  # a sweep's folder: its map overlays the table's curve
             path = out / figure_name("region.png")  # in --figure-format

@@ -31,7 +31,7 @@ from .cluster import ClusterBatch
 from .grid import describe, parse_grid
 from .progress import NoBar, progress_bar
 from ..store.files import TABLE, TABLE_RUNS, write_csv, write_parquet
-from ..store.folder import GRID_TOL, OutputFolder, TableCells, folder_lock, same_values
+from ..store.folder import GRID_TOL, OutputFolder, TableCells, require_lock, same_values
 
 # Coarse scan of the table: durations [s] tried for every force before bisecting. 0.1 s is
 # always included (the table reports the energies there); t_end is added.
@@ -508,7 +508,7 @@ def run_table(out: str | os.PathLike[str], config: Config,
               say: Callable[[str], None] | None = print, cluster: Any = None,
               sustained: bool = True, **options: Any) -> TableResult | None:
     """``max_acting_time`` into ``out/table.csv`` (+ table_runs.parquet, every scenario run),
-    under the folder's lock (``store.folder.folder_lock``).
+    under the folder's lock, which the run's entry holds (``store.folder.folder_lock``).
 
     Every scenario is kept in ``out/table_runs/`` as its batch call returns: an interrupted
     table resumes from them, and a table over other forces reuses the cells they share.
@@ -521,19 +521,20 @@ def run_table(out: str | os.PathLike[str], config: Config,
     (:func:`sustained_push_limit`; False: the column is NaN, as in a report's tiny plan).
     """
     forces = parse_grid(forces, "table forces")
-    with folder_lock(out):  # a failure below marks this run failed in the manifest
-        if cluster is None:
-            result = _run_table(out, config, forces, run_batch, progress, say, options,
+    # the run's entry holds the folder's lock: a failure below marks the run failed
+    require_lock(out)
+    if cluster is None:
+        result = _run_table(out, config, forces, run_batch, progress, say, options,
+                            sustained)
+    else:
+        with ClusterBatch(cluster, run_batch or LazyBatch(config), config,
+                          say) as on_cluster:
+            result = _run_table(out, config, forces, on_cluster, progress, say, options,
                                 sustained)
-        else:
-            with ClusterBatch(cluster, run_batch or LazyBatch(config), config,
-                              say) as on_cluster:
-                result = _run_table(out, config, forces, on_cluster, progress, say, options,
-                                    sustained)
-        runs = (result.runs if result is not None
-                else pd.read_parquet(Path(out) / TABLE_RUNS, columns=["outcome"]))
-        check_results(runs["outcome"], "scenarios the table ran")
-        return result
+    runs = (result.runs if result is not None
+            else pd.read_parquet(Path(out) / TABLE_RUNS, columns=["outcome"]))
+    check_results(runs["outcome"], "scenarios the table ran")
+    return result
 
 
 def _run_table(out: str | os.PathLike[str], config: Config, forces: np.ndarray, run_batch: Any,

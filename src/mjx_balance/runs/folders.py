@@ -8,6 +8,7 @@ landscape, sensitivity) all call these, so the three run a folder the same way.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
 import math
@@ -23,7 +24,7 @@ from ..model.mjcf import build_model
 from ..reference.loop import reference_mpc
 from ..rollout.runner import BatchRunner
 from ..runtime import cache
-from ..store.folder import folder_lock
+from ..store.folder import folder_lock, require_lock
 from .acting_time import TableResult, run_table, table_batch_size
 from .batch import LazyBatch, ReferenceBatch
 from .chunks import memory_budget, scenario_bytes
@@ -212,18 +213,28 @@ def batch_function(config: Config, *, slots: int | None = None, full_length: boo
         raise ParameterError(f"backend must be 'mjx' or 'reference', got {backend!r}")
     return LazyBatch(config, slots=slots, early_stop=not full_length, physics=physics)
 
+def _holding(out: str | os.PathLike[str], lock: bool, wait: bool) -> Any:
+    """The folder's lock for this run (``lock``), or a check that the caller's run holds it."""
+    if lock:
+        return folder_lock(out, wait=wait)
+    require_lock(out)
+    return contextlib.nullcontext()
+
+
 def run_region(out: str | os.PathLike[str], config: Config, grid: Grid,
                *, run_batch: Any = None, chunk: int | None = None, slots: int | None = None,
                full_length: bool = False, progress: bool | None = None,
                wait: bool = False, cluster: Any = None, physics: str = "auto",
-               say: Any = log.info) -> "SweepResult":
+               say: Any = log.info, lock: bool = True) -> "SweepResult":
     """The region sweep of ``grid`` (:class:`grid.Grid`, made for ``config``: ``Grid.of``)
     into the folder ``out`` (resumable; ``region.run_sweep``) under its lock (``wait``: wait
-    for another run that holds it). ``run_batch``: a batch function (default:
-    :func:`batch_function`); ``cluster``: run the chunks on a Dask cluster (``"local:N"``, a
-    scheduler address or file, or a ``distributed.Client``; docs/cluster.md); ``say``: where
-    the sweep's lines go (default: the ``mjx_balance`` logger; None: nowhere). Returns the
-    SweepResult (the command line draws its figures)."""
+    for another run that holds it; ``lock`` False: the caller's run holds it already, as the
+    command line's, which runs the table and draws the figures in the same hold).
+    ``run_batch``: a batch function (default: :func:`batch_function`); ``cluster``: run the
+    chunks on a Dask cluster (``"local:N"``, a scheduler address or file, or a
+    ``distributed.Client``; docs/cluster.md); ``say``: where the sweep's lines go (default:
+    the ``mjx_balance`` logger; None: nowhere). Returns the SweepResult (the command line
+    draws its figures)."""
     if not isinstance(grid, Grid):
         raise TypeError(f"run_region takes a Grid (runs.grid.Grid.of), got {type(grid).__name__}")
     grid.fits(config)
@@ -234,7 +245,7 @@ def run_region(out: str | os.PathLike[str], config: Config, grid: Grid,
         run_batch = batch_function(config, slots=slots, full_length=full_length,
                                    physics=physics)
     cache.enable()
-    with folder_lock(out, wait=wait):
+    with _holding(out, lock, wait):
         return run_sweep(out, config, grid, run_batch=run_batch, chunk=chunk,
                          progress=progress, say=say, cluster=cluster)
 
@@ -244,13 +255,14 @@ def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values
                      full_length: bool = False, progress: bool | None = None,
                      wait: bool = False, cluster: Any = None,
                      physics: str = "auto", sustained: bool = True,
-                     say: Any = log.info) -> "TableResult | None":
+                     say: Any = log.info, lock: bool = True) -> "TableResult | None":
     """The max-acting-time table into the folder ``out`` (``runs.acting_time.run_table``:
     resumable, the scenarios it ran kept) under its lock. ``batch``: scenarios per call
     (default: ``runs.acting_time.table_batch_size``; the scalar reference loop,
     :class:`ReferenceBatch`, runs scenario by scenario and bisects, one point per round);
     ``cluster``: run each round's calls on a Dask cluster (as :func:`run_region`; the same
-    table); ``sustained``: also the sustained-push limit; ``say``: as :func:`run_region`'s.
+    table); ``sustained``: also the sustained-push limit; ``say`` and ``lock``: as
+    :func:`run_region`'s.
     Returns None when the folder already held this table."""
     forces = grid_values(forces, "forces")
     batch, slots = size_value(batch, "batch"), size_value(slots, "slots")
@@ -262,6 +274,6 @@ def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values
     if batch is None and not isinstance(run_batch, ReferenceBatch):
         batch = table_batch_size(config, forces.size)
     cache.enable()
-    with folder_lock(out, wait=wait):
+    with _holding(out, lock, wait):
         return run_table(out, config, forces, run_batch=run_batch, batch=batch,
                          progress=progress, say=say, cluster=cluster, sustained=sustained)

@@ -7,7 +7,8 @@ soon as it is done (``store/folder.py``). On restart, chunk files that read back
 cells are kept and the others (damaged, partial, from another grid) are recomputed; a folder
 made with another configuration or grid is refused. A folder that lost its manifest but whose
 config.toml matches is taken up again once its chunk files (or region.parquet) check out
-against the grid. The sweep holds the folder's lock (``store.folder.folder_lock``) throughout.
+against the grid. The run's entry holds the folder's lock (``store.folder.folder_lock``)
+throughout; :func:`run_sweep` checks that it does.
 
 With ``cluster`` (``cluster.py``, docs/cluster.md) the chunks run as Dask tasks on a cluster's
 workers; everything else (the manifest, the chunk plan, the resume check, writing each chunk
@@ -33,7 +34,7 @@ from .cluster import ClusterBatch
 from .grid import Grid, describe
 from .progress import progress_bar
 from ..store.files import MANIFEST, REGION, write_atomic
-from ..store.folder import (OutputFolder, chunk_path, folder_lock, merge_chunks, read_chunk,
+from ..store.folder import (OutputFolder, chunk_path, require_lock, merge_chunks, read_chunk,
                             same_values, write_chunk)
 
 
@@ -78,16 +79,17 @@ def run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, *,
     local worker processes), a scheduler address, or a ``distributed.Client``; None: here.
     """
     grid.fits(config)
-    with folder_lock(out):  # a failure below marks this run failed in the manifest
-        if cluster is None:
-            result = _run_sweep(out, config, grid, run_batch, chunk, progress, say)
-        else:
-            with ClusterBatch(cluster, run_batch or LazyBatch(config), config,
-                              say) as on_cluster:
-                result = _run_sweep(out, config, grid, on_cluster, chunk, progress, say)
-        check_results(pd.read_parquet(result.region_path, columns=["outcome"])["outcome"],
-                      "cells")
-        return result
+    # the run's entry holds the folder's lock: a failure below marks the run failed
+    require_lock(out)
+    if cluster is None:
+        result = _run_sweep(out, config, grid, run_batch, chunk, progress, say)
+    else:
+        with ClusterBatch(cluster, run_batch or LazyBatch(config), config,
+                          say) as on_cluster:
+            result = _run_sweep(out, config, grid, on_cluster, chunk, progress, say)
+    check_results(pd.read_parquet(result.region_path, columns=["outcome"])["outcome"],
+                  "cells")
+    return result
 
 
 def _run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, run_batch: Any,

@@ -173,13 +173,28 @@ class FolderBusy(ParameterError):
     """Another run holds the output folder's lock."""
 
 
-# The folders this process holds: resolved folder -> (holding thread's id, nesting depth). The
-# lock is re-entrant within the thread that took it (compare and report nest sweeps) and
-# exclusive across threads (another thread takes a flock of its own: flock locks belong to an
-# open file description, so a second open file conflicts even in the same process), processes
-# and cluster clients.
-_HELD: dict[str, list[int]] = {}
+# The folders this process holds: resolved folder -> the holding thread's id. A run takes each
+# folder's lock once, where it enters (the command line, an API function, a study for each
+# folder it writes); the floors below check that it is held (:func:`require_lock`) instead of
+# taking it again. Another thread is refused (or waits) as another process is: it takes a flock
+# of its own, and flock locks belong to an open file description, so a second open file
+# conflicts even in the same process.
+_HELD: dict[str, int] = {}
 _HELD_LOCK = threading.Lock()
+
+
+def _key(path: str | os.PathLike[str]) -> str:
+    return str(Path(path).resolve())
+
+
+def require_lock(path: str | os.PathLike[str]) -> None:
+    """Raise RuntimeError unless this thread holds ``path``'s lock (:func:`folder_lock`): a
+    function that writes a run's files into a folder checks that the run's entry took it."""
+    with _HELD_LOCK:
+        holder = _HELD.get(_key(path))
+    if holder != threading.get_ident():
+        raise RuntimeError(f"{path}: the folder's lock is not held by this run; take it once "
+                           "where the run enters (store.folder.folder_lock)")
 
 
 @contextmanager
@@ -187,24 +202,18 @@ def folder_lock(path: str | os.PathLike[str], *, wait: bool = False) -> Iterator
     """Hold the output folder (created if missing) for this run: an exclusive ``flock`` on
     ``DIR/.lock``, which records this process's PID and start time. Another process holding it
     makes this raise :class:`FolderBusy` at once, naming that run, or with ``wait`` print one
-    line naming that run (stderr) and wait until it lets go; nested calls in one process share
-    the lock within one thread; another thread is refused (or waits) as another process is.
-    The lock goes with the process, however it ends (the file stays)."""
+    line naming that run (stderr) and wait until it lets go; another thread is refused (or
+    waits) as another process is. A run takes it once: a second take in the thread that holds
+    it raises RuntimeError (the floors below check it with :func:`require_lock`). The lock
+    goes with the process, however it ends (the file stays)."""
     folder = Path(path)
     folder.mkdir(parents=True, exist_ok=True)
-    key = str(folder.resolve())
+    key = _key(folder)
     me = threading.get_ident()
     with _HELD_LOCK:
-        mine = key in _HELD and _HELD[key][0] == me
-        if mine:
-            _HELD[key][1] += 1
-    if mine:
-        try:
-            yield
-        finally:
-            with _HELD_LOCK:
-                _HELD[key][1] -= 1
-        return
+        if _HELD.get(key) == me:
+            raise RuntimeError(f"{folder}: the folder's lock taken twice in one run; the run's "
+                               "entry takes it once and the floors below check it")
     try:
         fd = os.open(folder / LOCK, os.O_RDWR | os.O_CREAT, 0o666)
     except OSError as exc:
@@ -212,7 +221,8 @@ def folder_lock(path: str | os.PathLike[str], *, wait: bool = False) -> Iterator
             raise
         # A folder this process cannot write in (a finished sweep shared read-only): it can
         # read it, and any write it tries fails on its own, so there is nothing to guard.
-        yield
+        with _held(key, me):
+            yield
         return
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -236,19 +246,28 @@ def folder_lock(path: str | os.PathLike[str], *, wait: bool = False) -> Iterator
         started = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"PID {os.getpid()}, started {started}\n".encode(), 0)
-        with _HELD_LOCK:
-            _HELD[key] = [me, 1]
-        try:
-            yield
-            status = "completed"
-        except Exception:
-            status = "failed"
-            raise
+        with _held(key, me):
+            try:
+                yield
+                status = "completed"
+            except Exception:
+                status = "failed"
+                raise
+    finally:
+        finish_run(folder, status)
+        os.close(fd)  # releases the flock
+
+
+@contextmanager
+def _held(key: str, thread: int) -> Iterator[None]:
+    """Record ``key``'s lock as held by ``thread`` while the block runs."""
+    with _HELD_LOCK:
+        _HELD[key] = thread
+    try:
+        yield
     finally:
         with _HELD_LOCK:
             _HELD.pop(key, None)
-        finish_run(folder, status)
-        os.close(fd)  # releases the flock
 
 
 class OutputFolder:
@@ -281,10 +300,10 @@ class OutputFolder:
         return manifest
 
     def open(self) -> dict[str, Any]:
-        """Create the folder or check that it was made with this configuration (under the
-        folder's lock, which the caller may already hold: see :func:`folder_lock`)."""
-        with folder_lock(self.path):
-            return self._open()
+        """Create the folder or check that it was made with this configuration (the run's
+        entry holds the folder's lock: :func:`folder_lock`)."""
+        require_lock(self.path)
+        return self._open()
 
     def _open(self) -> dict[str, Any]:
         # Leftovers of a run that ended while writing: no other run holds the folder now.
