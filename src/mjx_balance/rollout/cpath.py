@@ -500,12 +500,7 @@ class CEngine(Engine):
                ) -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:
         """As :meth:`engine.Engine.stream`, one control period per call (from upright rest
         only: ``inits`` must be None or zero; one body: ``bodies`` None or zero)."""
-        if inits is not None and np.any(inits):
-            raise ValueError("the MuJoCo C path starts every scenario at upright rest; "
-                             "initial states need --physics mjx")
-        if bodies is not None and np.any(bodies):
-            raise ValueError("the MuJoCo C path steps one body's model; several bodies in "
-                             "one queue need --physics mjx")
+        _refuse_cells(inits, bodies)
         probe = probe or NO_PROBE
         forces, n_push, n = cells_of(forces, n_push)
         if n == 0:
@@ -570,6 +565,16 @@ class CEngine(Engine):
         finally:
             if finished:
                 self._state = cs  # every slot vacant: reusable by the next run
+
+
+def _refuse_cells(inits: np.ndarray | None, bodies: np.ndarray | None) -> None:
+    """Raise ValueError for cells the C path cannot run: off upright rest or of other bodies."""
+    if inits is not None and np.any(inits):
+        raise ValueError("the MuJoCo C path starts every scenario at upright rest; "
+                         "initial states need --physics mjx")
+    if bodies is not None and np.any(bodies):
+        raise ValueError("the MuJoCo C path steps one body's model; several bodies in "
+                         "one queue need --physics mjx")
 
 
 def default_slots() -> int:

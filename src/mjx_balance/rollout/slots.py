@@ -308,6 +308,27 @@ def opened(arrays, sensors, static, slots: Slots, refill_init, packing: Packing,
     return slots, rests, starts
 
 
+def _run_period(arrays, sensors, static, cert, slots: Slots, rest: Carry, s, *,
+                done: Finished, n_done, periods: int, early_stop: bool, tile: int | None,
+                lanes: bool) -> tuple[Finished, jax.Array, Slots]:
+    """Steps 2-4 of :func:`block`'s period ``s``: run it, decide, harvest and vacate."""
+    every = cert_mod.CHECK_EVERY
+    axis = 0 if lanes else None
+    body, body_rest = ((lane_arrays(arrays, slots.body), lane_arrays(rest, slots.body))
+                       if lanes else (arrays, rest))
+    check = checker(cert if early_stop else None, periods, axis,
+                    slots.body if lanes else None)
+    # lanes: the QPs by body tiles of ``tile`` slots (:func:`refill_tiles`)
+    carry = period_batch(body, sensors, static, slots.carry, slots.k, slots.force,
+                         slots.n_push, tile=tile, axis=axis,
+                         tiles=(arrays.qp, slots.body[::tile]) if lanes else None)[0]
+    k = slots.k + 1
+    acc, certified, decided = decide(check, static, body.n_control, carry, k,
+                                     (slots.n_push, slots.force), slots.cell >= 0,
+                                     s % every == every - 1)
+    return retire(done, n_done, decided, slots, acc, k, certified, carry=carry, rest=body_rest)
+
+
 def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_force, refill_push,
           refill_init, refill_body, periods: int, early_stop: bool, packing: Packing,
           tile: int | None = None, lanes: bool = False):
@@ -325,10 +346,6 @@ def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_fo
     S = slots.cell.shape[0]
     slots, rest, starts = opened(arrays, sensors, static, slots, refill_init, packing,
                                  refill_body if lanes else None)
-    every = cert_mod.CHECK_EVERY
-    axis = 0 if lanes else None
-    # lanes: the QPs by body tiles of ``tile`` slots (:func:`refill_tiles`)
-    qp_tiles = (lambda body: (arrays.qp, body[::tile])) if lanes else (lambda body: None)
 
     def step(state, s):
         slots, taken, done, n_done = state
@@ -336,18 +353,9 @@ def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_fo
         slots, taken = take(slots, rest, taken, s, refill_cell, refill_force, refill_push,
                             starts, gated=early_stop and cert is not None, refill_body=refill_body,
                             tile=tile if lanes else None)
-        body, body_rest = ((lane_arrays(arrays, slots.body), lane_arrays(rest, slots.body))
-                           if lanes else (arrays, rest))
-        check = checker(cert if early_stop else None, periods, axis,
-                        slots.body if lanes else None)
-        carry = period_batch(body, sensors, static, slots.carry, slots.k, slots.force,
-                             slots.n_push, tile=tile, axis=axis, tiles=qp_tiles(slots.body))[0]
-        k = slots.k + 1
-        acc, certified, decided = decide(check, static, body.n_control, carry, k,
-                                         (slots.n_push, slots.force), slots.cell >= 0,
-                                         s % every == every - 1)
-        done, n_done, slots = retire(done, n_done, decided, slots, acc, k, certified,
-                                     carry=carry, rest=body_rest)
+        done, n_done, slots = _run_period(arrays, sensors, static, cert, slots, rest, s,
+                                          done=done, n_done=n_done, periods=periods,
+                                          early_stop=early_stop, tile=tile, lanes=lanes)
         return (slots, taken, done, n_done), None
 
     done = empty_finished(S + refill_cell.shape[0], arrays.d0.qpos.dtype)
