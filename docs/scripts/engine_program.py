@@ -18,7 +18,8 @@ import jax.numpy as jnp
 
 import mjx_balance as mb
 from mjx_balance.rollout import BatchRunner
-from mjx_balance.rollout.engine import Engine, block
+from mjx_balance.rollout.engine import Engine
+from mjx_balance.rollout.slots import block
 
 
 def main() -> None:

@@ -14,7 +14,7 @@ is decided (in whole blocks of ``--block`` periods, as the engine refills after 
 the cells longest first (the engine's queue orders by expected length; here the lengths are
 known, the best case), one subject's map queued after another's as a sweep per subject would
 (``each``) or all in one queue (``one``), and all in one queue with the slots in body tiles
-of ``--tile`` (the engine's per-lane bodies, ``rollout.engine.refill_tiles``: a tile's free
+of ``--tile`` (the engine's per-lane bodies, ``rollout.slots.refill_tiles``: a tile's free
 slots take only cells of the tile's body; a tile whose slots are all free takes the body whose
 next cell is the longest left; the offer is not limited). Prints the occupancy (busy
 slot-periods / slots x periods) and the periods to finish, for each.

@@ -1,6 +1,6 @@
 """The engine's schedule replayed on many slots from recorded cell lengths: the real queue
 (``queue.Queue``: its order, its offers, its estimates from finished cells) and the real refill
-(``engine.refill`` or, for per-lane bodies, ``engine.refill_tiles``), with each slot's scenario
+(``slots.refill`` or, for per-lane bodies, ``slots.refill_tiles``), with each slot's scenario
 lasting its recorded control periods instead of being simulated. It predicts an accelerator's
 calls and slot occupancy from a CPU's recordings.
 
@@ -33,7 +33,8 @@ import numpy as np
 
 import mjx_balance as mb
 from mjx_balance.control.certificate import CHECK_EVERY
-from mjx_balance.rollout.engine import LANE_TILE, Slots, refill, refill_tiles
+from mjx_balance.rollout.engine import LANE_TILE
+from mjx_balance.rollout.slots import Slots, refill, refill_tiles
 from mjx_balance.rollout.queue import Queue
 from mjx_balance.rollout.runner import push_steps
 from mjx_balance.runs.grid import parse_grid

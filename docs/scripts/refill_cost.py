@@ -1,6 +1,7 @@
-"""What one body-tile refill (``engine.refill_tiles``) costs on this machine's default device,
-at a few slot counts, and the same for another version of the function (``--before``: an
-``engine.py`` of another commit, e.g. ``git show REV:src/mjx_balance/rollout/engine.py``).
+"""What one body-tile refill (``slots.refill_tiles``) costs on this machine's default device,
+at a few slot counts, and the same for another version of the function (``--before``: a
+``slots.py`` of another commit, e.g. ``git show REV:src/mjx_balance/rollout/slots.py``, or
+an ``engine.py`` of a commit before the slots had a module of their own).
 
     python docs/scripts/refill_cost.py [--slots 32,4096,16384] [--bodies 101] [--before FILE]
 
@@ -20,12 +21,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_balance.rollout import engine
-from mjx_balance.rollout.engine import LANE_TILE, Slots
+from mjx_balance.rollout.engine import LANE_TILE
+from mjx_balance.rollout.slots import Slots, refill_tiles
 
 
 def module_from(path: str):
-    """An engine.py of another commit, imported inside this package (its relative imports)."""
+    """A slots.py (or engine.py) of another commit, imported inside this package (its relative
+    imports)."""
     spec = importlib.util.spec_from_file_location("mjx_balance.rollout._before", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
@@ -68,7 +70,7 @@ def main() -> None:
     p.add_argument("--bodies", type=int, default=101)
     p.add_argument("--before", default=None)
     args = p.parse_args()
-    versions = {"now": engine.refill_tiles}
+    versions = {"now": refill_tiles}
     if args.before:
         versions["before"] = module_from(args.before).refill_tiles
     print(f"device: {jax.devices()[0].device_kind}; {args.bodies} bodies, tiles of {LANE_TILE}")

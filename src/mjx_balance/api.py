@@ -70,7 +70,7 @@ from .report import REPORT_JSON, build_report
 from .report.explore import Explorer
 from .report.reproduction import store_references
 from .runtime import cache
-from .studies.experiments import PLANS, read_record, run_report, selected_studies
+from .studies.experiments import PLANS, Plan, read_record, run_report, selected_studies
 from .model.params import CONVENTIONS
 
 if TYPE_CHECKING:
@@ -445,6 +445,19 @@ def sensitivity(config: ConfigLike = None, *, out: str | os.PathLike[str],
                                plan=plan, wait=wait)
 
 
+def _report_plan(scale: str, refs, say: Callable[[str], None]) -> Plan:
+    """The report's plan of ``scale``, its table's forces joined by the references' forces."""
+    chosen = PLANS.get(scale)
+    if chosen is None:
+        raise ParameterError(f"scale = {scale!r}: must be one of {', '.join(PLANS)}")
+    extra = reference_forces(refs, chosen.table_forces)  # the scorecard's force tolerance
+    if extra:
+        chosen = dataclasses.replace(chosen, table_forces=tuple(sorted(
+            {*chosen.table_forces, *extra})))
+        say(f"table: adding the reference's forces {', '.join(f'{f:g}' for f in extra)} N")
+    return chosen
+
+
 def report(config: ConfigLike = None, *, out: str | os.PathLike[str], scale: str = "default",
            backend: str | None = None, studies: str | None = "all",
            conventions: Sequence[str] | None = None, sweeps: str | os.PathLike[str] | None = None,
@@ -465,14 +478,7 @@ def report(config: ConfigLike = None, *, out: str | os.PathLike[str], scale: str
     logger)."""
     say = say or log.info
     refs = read_references(reference)  # a bad file is refused before any work
-    chosen = PLANS.get(scale)
-    if chosen is None:
-        raise ParameterError(f"scale = {scale!r}: must be one of {', '.join(PLANS)}")
-    extra = reference_forces(refs, chosen.table_forces)  # the scorecard's force tolerance
-    if extra:
-        chosen = dataclasses.replace(chosen, table_forces=tuple(sorted(
-            {*chosen.table_forces, *extra})))
-        say(f"table: adding the reference's forces {', '.join(f'{f:g}' for f in extra)} N")
+    chosen = _report_plan(scale, refs, say)
     out = Path(out)
     if html_only:  # the record checked before build_report creates anything
         read_record(out / REPORT_JSON)

@@ -1,4 +1,4 @@
-"""Per-lane bodies by body tiles (rollout/engine.py ``refill_tiles``, control/admm.py
+"""Per-lane bodies by body tiles (rollout/slots.py ``refill_tiles``, control/admm.py
 ``admm_solve_tiles``): every tile of slots holds one body at a time, so that its QPs share their
 matrix products; the queue groups the cells by body and takes back the cells a tile used, in
 whatever order it used them. Small pure-JAX cases: nothing here compiles MJX."""
@@ -13,7 +13,7 @@ import pytest
 from mjx_balance.control import admm
 from mjx_balance.control.qp import build_qp
 from mjx_balance.model.params import BodyParams, ControllerParams
-from mjx_balance.rollout.engine import Slots, refill_tiles
+from mjx_balance.rollout.slots import Slots, refill_tiles
 from mjx_balance.rollout.queue import Queue
 
 

@@ -55,10 +55,10 @@ The stages, per control period, over every slot (busy or vacant):
   ``engine.tile`` slots solved one after the other, ``--admm-tile``), which runs until its
   slowest slot stops. Iterations are counted per busy slot and per loop and period (the
   slowest slot's, what the loop costs).
-- certificate: ``engine.certify`` (the check runs every ``CHECK_EVERY`` periods).
+- certificate: ``slots.certify`` (the check runs every ``CHECK_EVERY`` periods).
 - refill, harvest, vacate: the engine's compaction (decided slots out, new cells in).
 
-The replay (bench/replay.py) times the engines' own parts, the functions ``Engine.block`` and
+The replay (bench/replay.py) times the engines' own parts, the functions ``slots.block`` and
 ``cpath.call`` are made of; its bit-for-bit checks above confirm that it ran them as the
 engine did.
 """

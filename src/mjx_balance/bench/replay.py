@@ -2,10 +2,10 @@
 function of its own, timed on the inputs the engine's own run recorded (bench/engine.py says
 what the figures mean).
 
-The stage bodies call the engines' own parts (``rollout.engine``: ``opened``, ``take``,
+The stage bodies call the engines' own parts (``rollout.slots``: ``opened``, ``take``,
 ``decide``, ``retire``; ``rollout.kernel``: ``prepare_batch``, ``solve_batch`` /
 ``solve_lanes``, ``conclude_batch``, ``physics_batch``; ``rollout.cpath``: ``folded``,
-``judged``, ``turnover``, ``outputs``), the functions ``Engine.block`` and ``cpath.call`` are
+``judged``, ``turnover``, ``outputs``), the functions ``slots.block`` and ``cpath.call`` are
 made of, so a stage timed here is the engine's code. The replay checks that it ends where the
 engine's call ended, bit for bit (:class:`Agreement`).
 """
@@ -24,7 +24,7 @@ import numpy as np
 from ..control import admm as admm_mod
 from ..control import certificate as cert_mod
 from ..rollout import cpath, kernel
-from ..rollout import engine as engine_mod
+from ..rollout import slots as slots_mod
 from ..rollout.kernel import initial_carry
 from ..rollout.physics import mjx, step
 from ..runtime.compiled import MATMUL_PRECISION
@@ -286,7 +286,7 @@ def call_cost(engine, stages: Stages, tail: tuple, repeats: int = 9) -> dict[str
 
 
 def mjx_bodies(engine) -> dict[str, Any]:
-    """The stage bodies of one MJX control period (``engine.block``'s step, in its order)."""
+    """The stage bodies of one MJX control period (``slots.block``'s step, in its order)."""
     r = engine.runner
     sensors, static, packing, S = r.sensors, engine.static, engine.packing, engine.slots
     early = engine.cert is not None
@@ -295,23 +295,23 @@ def mjx_bodies(engine) -> dict[str, Any]:
         return initial_carry(arrays, sensors, static)
 
     def unpack(arrays, cert, slots, inits):
-        slots, _, starts = engine_mod.opened(arrays, sensors, static, slots, inits, packing)
+        slots, _, starts = slots_mod.opened(arrays, sensors, static, slots, inits, packing)
         return slots, starts
 
     def refill(arrays, cert, slots, taken, s, offer):
-        slots, taken = engine_mod.take(slots, engine_mod.broadcast(rest(arrays), S), taken[0],
-                                       s[0], *offer, gated=early)
+        slots, taken = slots_mod.take(slots, slots_mod.broadcast(rest(arrays), S), taken[0],
+                                      s[0], *offer, gated=early)
         return slots, taken[None]
 
     def certify(arrays, cert, carry, due):
-        return engine_mod.decide(engine_mod.checker(cert if early else None), static,
-                                 arrays.n_control, carry, due.k + 1, (due.n_push, due.force),
-                                 due.cell >= 0, due.due[0])
+        return slots_mod.decide(slots_mod.checker(cert if early else None), static,
+                                arrays.n_control, carry, due.k + 1, (due.n_push, due.force),
+                                due.cell >= 0, due.due[0])
 
     def harvest(arrays, cert, buffer, decided, slots, acc, certified, carry):
-        done, n_done, slots = engine_mod.retire(
+        done, n_done, slots = slots_mod.retire(
             buffer[0], buffer[1][0], decided, slots, acc, slots.k + 1, certified, carry=carry,
-            rest=engine_mod.broadcast(rest(arrays), S))
+            rest=slots_mod.broadcast(rest(arrays), S))
         return done, n_done[None], slots
 
     return {
@@ -344,7 +344,7 @@ class CertifyInputs(NamedTuple):
 
 
 def mjx_period(stages: Stages, bodies: dict, held: dict, s: int, iters: Iterations) -> dict:
-    """One control period of the replay (``engine.block``'s step): ``held`` is what one period
+    """One control period of the replay (``slots.block``'s step): ``held`` is what one period
     hands the next (slots, taken, done, n_done and the block's refill arrays); returns it
     updated."""
     D = iters.devices
@@ -384,7 +384,7 @@ def replay_mjx(engine, records: list, stages: Stages, sampled: int) -> dict[str,
     for b, (packed, offer) in enumerate(records[:-1]):
         packed, offer = stages.put(packed), stages.put(offer)
         slots, starts = stages("unpack", bodies["unpack"], packed, offer[3], keep=False)
-        empty = engine_mod.empty_finished(engine.slots + engine.refill, r.dtype)
+        empty = slots_mod.empty_finished(engine.slots + engine.refill, r.dtype)
         held = dict(slots=slots, taken=stages.put(np.zeros(D, np.int32)), offer=offer[:3],
                     starts=starts, n_done=stages.put(np.zeros(D, np.int32)),
                     done=stages.put(jax.tree.map(lambda v: np.concatenate([v] * D),
@@ -419,7 +419,7 @@ def c_bodies(engine) -> dict[str, Any]:
         return carry, k, (cell, force, push), p[None]
 
     def certify(arrays, cert, cs, carry, k, p):
-        return cpath.judged(arrays, static, engine_mod.checker(cert if early else None), cs,
+        return cpath.judged(arrays, static, slots_mod.checker(cert if early else None), cs,
                             carry, k, p[0])
 
     def refill(arrays, cert, cs, carry, k, verdict, offer, p):

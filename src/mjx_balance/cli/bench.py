@@ -168,13 +168,7 @@ def pipeline_command(args: argparse.Namespace) -> int:
         config, forces, durations, physics=args.physics, slots=args.slots,
         full_length=args.full_length, repeats=args.repeats, say=say)
     built, batched = runs.get("continuous batching", runs["--full-length"])
-    full = None
-    if "continuous batching" in runs:
-        full = pipeline.early_vs_full(batched, runs["--full-length"][1])
-        print(f"  continuous vs --full-length: {full['speedup']:.2f}x faster; columns that "
-              f"must agree exactly and differ: {full['exact_columns_differ'] or 'none'}; "
-              f"energies and work within {full['energy_max_rel_diff']:.2g} (relative)",
-              flush=True)
+    full = _early_vs_full(runs, batched)
     _print_backends(backends, default)
 
     cmp = pipeline.compare(counts, batched, ref, ipopt, ipopt_idx)
@@ -195,6 +189,20 @@ def pipeline_command(args: argparse.Namespace) -> int:
                                for name, b in backends.items()}
         print(json.dumps({**figures, **caching}))
     return 0
+
+
+def _early_vs_full(runs: dict, batched) -> dict | None:
+    """Continuous batching against ``--full-length``, printed (None: no continuous run)."""
+    from ..bench import pipeline  # lazy: JAX and MuJoCo load when the command runs
+
+    full = None
+    if "continuous batching" in runs:
+        full = pipeline.early_vs_full(batched, runs["--full-length"][1])
+        print(f"  continuous vs --full-length: {full['speedup']:.2f}x faster; columns that "
+              f"must agree exactly and differ: {full['exact_columns_differ'] or 'none'}; "
+              f"energies and work within {full['energy_max_rel_diff']:.2g} (relative)",
+              flush=True)
+    return full
 
 
 def _compile_cache_step(config: Config, args: argparse.Namespace, physics: str) -> dict:

@@ -41,36 +41,7 @@ def add_parser(sub: Any) -> None:
     p = sub.add_parser("cohort", help="a population: every subject's region map, cohort.csv "
                                       "with each subject's recoverable area and the "
                                       "population's spread, and the cohort's figures")
-    source = p.add_argument_group("subjects (one source)")
-    source.add_argument("--heights", default=None, metavar="GRID",
-                        help="statures [m]: start:stop:step or a comma list (with --masses; "
-                             "every combination of the lists is a subject)")
-    source.add_argument("--masses", default=None, metavar="GRID", help="body masses [kg]")
-    source.add_argument("--sexes", type=sexes, default=None, metavar="LIST",
-                        help="male, female or male,female (default: male)")
-    source.add_argument("--ankle-strengths", default=None, metavar="GRID",
-                        help="factors on the mass-scaled ankle torque bound (default: 1)")
-    source.add_argument("--hip-strengths", default=None, metavar="GRID",
-                        help="factors on the mass-scaled hip torque bound (default: 1)")
-    source.add_argument("--subjects", type=input_file, default=None, metavar="FILE.csv",
-                        help="participants: a CSV file with columns height, mass and "
-                             "optionally id, sex, ankle_strength, hip_strength, notes (names "
-                             "in any case; lines starting with # are comments)")
-    source.add_argument("--population", type=positive_int, default=None, metavar="N",
-                        help="N subjects drawn at random (with --seed): sex, then height and "
-                             "mass from normal distributions truncated to a subject's ranges")
-    source.add_argument("--seed", type=nonnegative_int, default=None,
-                        help="the population's seed")
-    source.add_argument("--height-mean", type=finite_float, default=None,
-                        help="the population's mean stature [m] (default: 1.70)")
-    source.add_argument("--height-sd", type=nonnegative_float, default=None,
-                        help="its standard deviation [m] (default: 0.09)")
-    source.add_argument("--mass-mean", type=finite_float, default=None,
-                        help="the population's mean body mass [kg] (default: 70)")
-    source.add_argument("--mass-sd", type=nonnegative_float, default=None,
-                        help="its standard deviation [kg] (default: 12)")
-    source.add_argument("--female-fraction", type=nonnegative_float, default=None,
-                        help="probability that a subject is female (default: 0.5)")
+    _source_options(p)
     config_options(p)
     p.add_argument("--forces", default=None,
                    help=f"start:stop:step or a comma list [N] (default: the default sweep's, "
@@ -93,6 +64,45 @@ def add_parser(sub: Any) -> None:
                         "cohort_probability.csv (P(recover) per cell with its 95 %% interval), "
                         "cohort_probability_boundaries.csv, manifest.json, the figures")
     p.set_defaults(target="mjx_balance.cli.cohort:cohort_command")
+
+
+def _source_options(p: argparse.ArgumentParser) -> None:
+    """The subjects' sources: a grid of bodies, a CSV file of participants or a population."""
+    source = p.add_argument_group("subjects (one source)")
+    source.add_argument("--heights", default=None, metavar="GRID",
+                        help="statures [m]: start:stop:step or a comma list (with --masses; "
+                             "every combination of the lists is a subject)")
+    source.add_argument("--masses", default=None, metavar="GRID", help="body masses [kg]")
+    source.add_argument("--sexes", type=sexes, default=None, metavar="LIST",
+                        help="male, female or male,female (default: male)")
+    source.add_argument("--ankle-strengths", default=None, metavar="GRID",
+                        help="factors on the mass-scaled ankle torque bound (default: 1)")
+    source.add_argument("--hip-strengths", default=None, metavar="GRID",
+                        help="factors on the mass-scaled hip torque bound (default: 1)")
+    source.add_argument("--subjects", type=input_file, default=None, metavar="FILE.csv",
+                        help="participants: a CSV file with columns height, mass and "
+                             "optionally id, sex, ankle_strength, hip_strength, notes (names "
+                             "in any case; lines starting with # are comments)")
+    _population_options(source)
+
+
+def _population_options(source: Any) -> None:
+    """``--population`` and its seed and distributions (an argument group of the sources)."""
+    source.add_argument("--population", type=positive_int, default=None, metavar="N",
+                        help="N subjects drawn at random (with --seed): sex, then height and "
+                             "mass from normal distributions truncated to a subject's ranges")
+    source.add_argument("--seed", type=nonnegative_int, default=None,
+                        help="the population's seed")
+    source.add_argument("--height-mean", type=finite_float, default=None,
+                        help="the population's mean stature [m] (default: 1.70)")
+    source.add_argument("--height-sd", type=nonnegative_float, default=None,
+                        help="its standard deviation [m] (default: 0.09)")
+    source.add_argument("--mass-mean", type=finite_float, default=None,
+                        help="the population's mean body mass [kg] (default: 70)")
+    source.add_argument("--mass-sd", type=nonnegative_float, default=None,
+                        help="its standard deviation [kg] (default: 12)")
+    source.add_argument("--female-fraction", type=nonnegative_float, default=None,
+                        help="probability that a subject is female (default: 0.5)")
 
 
 def sexes(text: str) -> list[str]:

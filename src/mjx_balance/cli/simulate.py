@@ -84,8 +84,6 @@ def _simulate_manifest(path: Path) -> bool:
 def simulate_command(args: argparse.Namespace) -> int:
     """``mjx-balance simulate``: run the pushes, write tables, configuration and figures
     (each file atomically: whole or absent)."""
-    import pandas as pd
-
     # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
     from ..figures.timeseries import timeseries_figures  # lazy: matplotlib
     from ..measures.strategy import with_strategy  # lazy: pandas
@@ -133,10 +131,16 @@ def simulate_command(args: argparse.Namespace) -> int:
         code = in_folder(out, work)
     if code:
         return code
-    summary = result["summary"]
-    with pd.option_context("display.width", 200, "display.max_columns", None,
-                           "display.float_format", lambda v: f"{v:.4g}"):
-        print(summary[PRINTED_COLUMNS].to_string(index=False))
+    _print_summary(result["summary"])
     log.info(f"wrote {out / 'summary.csv'}, {out / 'timeseries.parquet'}, {out / 'config.toml'}, "
              f"{out / MANIFEST} and {len(result['figures'])} figures in {out}")
     return 0
+
+
+def _print_summary(summary) -> None:
+    """Print the summary's printed columns as a table on stdout."""
+    import pandas as pd
+
+    with pd.option_context("display.width", 200, "display.max_columns", None,
+                           "display.float_format", lambda v: f"{v:.4g}"):
+        print(summary[PRINTED_COLUMNS].to_string(index=False))

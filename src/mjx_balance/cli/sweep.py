@@ -30,7 +30,8 @@ from .options import (cluster_option, common_options, engine_options, figure_opt
 if TYPE_CHECKING:
     import pandas as pd
 
-    from ..runs import SweepResult
+    from ..runs import SweepDefinition, SweepResult
+    from ..runs.grid import Grid
 
 log = logging.getLogger("mjx_balance")
 
@@ -126,38 +127,15 @@ def sweep_command(args: Any) -> int:
     """
     # lazy: the library (JAX, MuJoCo, pandas) loads when the command runs, not for --help
     from .. import api
-    from ..runs import DEFAULT_SWEEP, load_sweep, parse_grid  # lazy: the runs floor: JAX
+    from ..runs import DEFAULT_SWEEP  # lazy: the runs floor: JAX
     from ..store.files import MANIFEST  # lazy: as above
-    from ..studies.reference_files import read_references, reference_points  # lazy: as above
-    from ..runs.chunks import default_chunk_size  # lazy: as above
-    from ..runs.folders import check_batched  # lazy: as above
+    from ..studies.reference_files import reference_points  # lazy: as above
     from ..runs.grid import Grid  # lazy: as above
 
-    use_default = args.sweep is None and args.forces is None and args.durations is None
-    definition = load_sweep(args.sweep, base_config(args, overrides=False))
-    if args.sweep is None and not use_default:
-        # A grid from the command line: the region only, chunk size from the memory budget.
-        definition.table_forces = definition.chunk = None
-    # the command line wins: --set over the sweep definition, --convention over both
-    config = with_convention(apply_overrides(definition.config, getattr(args, "set", None)),
-                             args.convention)
-    forces = args.forces if args.forces is not None else (
-        definition.forces if definition.forces is not None else DEFAULT_SWEEP["forces"])
-    durations = args.durations if args.durations is not None else (
-        definition.durations if definition.durations is not None else DEFAULT_SWEEP["durations"])
-    chunk = args.chunk if args.chunk is not None else definition.chunk
+    use_default, definition, config, forces, durations, chunk = _sweep_request(args)
     # Check everything before any work: the grid once, here, carried down.
     grid = Grid.of(forces, durations, config)
-    table_forces = (parse_grid(definition.table_forces, "table_forces")
-                    if definition.table_forces is not None else None)
-    refs = read_references(args.reference)
-    table_forces = with_reference_forces(table_forces, refs, "table")
-    guard_work(args, config, grid.n_cells, "cells",
-               chunk_size=chunk or default_chunk_size(config, grid.n_cells),
-               extra=(table_scenarios(config, table_forces.size)
-                      if table_forces is not None else 0))
-    check_batched(config, (grid.forces, "forces"), (grid.durations, "durations"),  # derived rules
-                  *([(table_forces, "table_forces")] if table_forces is not None else []))
+    table_forces, refs = _checked_table(args, config, definition, grid, chunk)
     reference = reference_points(refs)
     if use_default:
         log.info("no grid given: running the built-in default sweep "
@@ -188,6 +166,47 @@ def sweep_command(args: Any) -> int:
         write_exports(out, args)
 
     return in_folder(out, work, wait=getattr(args, "wait", False))
+
+
+def _sweep_request(args: Any) -> tuple:
+    """What the options ask for: (default sweep?, definition, config, forces, durations, chunk)."""
+    from ..runs import DEFAULT_SWEEP, load_sweep  # lazy: the runs floor: JAX
+
+    use_default = args.sweep is None and args.forces is None and args.durations is None
+    definition = load_sweep(args.sweep, base_config(args, overrides=False))
+    if args.sweep is None and not use_default:
+        # A grid from the command line: the region only, chunk size from the memory budget.
+        definition.table_forces = definition.chunk = None
+    # the command line wins: --set over the sweep definition, --convention over both
+    config = with_convention(apply_overrides(definition.config, getattr(args, "set", None)),
+                             args.convention)
+    forces = args.forces if args.forces is not None else (
+        definition.forces if definition.forces is not None else DEFAULT_SWEEP["forces"])
+    durations = args.durations if args.durations is not None else (
+        definition.durations if definition.durations is not None else DEFAULT_SWEEP["durations"])
+    chunk = args.chunk if args.chunk is not None else definition.chunk
+    return use_default, definition, config, forces, durations, chunk
+
+
+def _checked_table(args: Any, config: Config, definition: SweepDefinition, grid: Grid,
+                   chunk: int | None) -> tuple:
+    """The table's forces (None: none) and the references, once the work guard and checks pass."""
+    from ..runs import parse_grid  # lazy: the runs floor: JAX
+    from ..runs.chunks import default_chunk_size  # lazy: as above
+    from ..runs.folders import check_batched  # lazy: as above
+    from ..studies.reference_files import read_references  # lazy: as above
+
+    table_forces = (parse_grid(definition.table_forces, "table_forces")
+                    if definition.table_forces is not None else None)
+    refs = read_references(args.reference)
+    table_forces = with_reference_forces(table_forces, refs, "table")
+    guard_work(args, config, grid.n_cells, "cells",
+               chunk_size=chunk or default_chunk_size(config, grid.n_cells),
+               extra=(table_scenarios(config, table_forces.size)
+                      if table_forces is not None else 0))
+    check_batched(config, (grid.forces, "forces"), (grid.durations, "durations"),  # derived rules
+                  *([(table_forces, "table_forces")] if table_forces is not None else []))
+    return table_forces, refs
 
 
 def table_command(args: Any) -> int:

@@ -112,6 +112,21 @@ def terminal_weight(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray,
     return scipy.linalg.solve_discrete_are(A, B[:, free], Q, R[np.ix_(free, free)])
 
 
+def _prediction_matrices(A: np.ndarray, B: np.ndarray,
+                         N: int) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """The powers A^0..A^N, Phi and Gamma of the states over N steps: x = Phi x0 + Gamma z."""
+    nx, nu = B.shape
+    powers = [np.eye(nx)]
+    for _ in range(N):
+        powers.append(A @ powers[-1])
+    Phi = np.vstack(powers[1:])  # [N nx, nx], row block k-1 is A^k
+    Gamma = np.zeros((N * nx, N * nu))
+    for k in range(1, N + 1):
+        for j in range(k):
+            Gamma[(k - 1) * nx: k * nx, j * nu: (j + 1) * nu] = powers[k - 1 - j] @ B
+    return powers, Phi, Gamma
+
+
 def build_qp(controller: ControllerParams, body: BodyParams, control_dt: float) -> CondensedQP:
     """Build the condensed QP of ``controller`` for ``body`` at the control period."""
     lm = linear_model(body, controller.convention, control_dt)
@@ -122,14 +137,7 @@ def build_qp(controller: ControllerParams, body: BodyParams, control_dt: float) 
     R = np.diag(controller.r_diag)
     Qf = terminal_weight(A, B, Q, R, controller.input_bounds)
 
-    powers = [np.eye(nx)]
-    for _ in range(N):
-        powers.append(A @ powers[-1])
-    Phi = np.vstack(powers[1:])  # [N nx, nx], row block k-1 is A^k
-    Gamma = np.zeros((N * nx, N * nu))
-    for k in range(1, N + 1):
-        for j in range(k):
-            Gamma[(k - 1) * nx: k * nx, j * nu: (j + 1) * nu] = powers[k - 1 - j] @ B
+    powers, Phi, Gamma = _prediction_matrices(A, B, N)
     Qbar = scipy.linalg.block_diag(*([Q] * (N - 1) + [Qf]))
     Rbar = scipy.linalg.block_diag(*([R] * N))
     H = Gamma.T @ Qbar @ Gamma + Rbar

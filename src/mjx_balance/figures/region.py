@@ -270,17 +270,36 @@ def region_map(region: pd.DataFrame, *, config: Config | None = None,
     _hatch_outcomes(ax, fx, dy, outcome)
     ax.set_xlim(fx[0], fx[-1])
     duration_axis(ax, durations, dy, log)
-    handles: list = []
+    handles: list = _sample_dots(ax, forces, durations)
+    handles += _boundary_lines(ax, region, forces, fx, dy)
+    if table is not None and len(table):
+        handles += _table_overlay(ax, table, fx, dy)
+    if impulses:
+        handles += _impulse_legend(ax, fx, dy, log)
+    if reference is not None and len(reference):
+        handles += _reference_points(ax, reference)
+    _outcome_legend(ax, region, handles, config, forces, durations)
+    return fig
+
+
+def _sample_dots(ax, forces: np.ndarray, durations: np.ndarray) -> list:
+    """Dot the sampled (F, T) of a small grid; returns their legend handle (none if larger)."""
+    handles = []
     if forces.size * durations.size <= SAMPLE_DOTS:
         grid_f, grid_d = np.meshgrid(forces, durations)
         ax.plot(grid_f.ravel(), grid_d.ravel(), ".", color="0.1", ms=5, alpha=0.7,
                 clip_on=False, zorder=3)
         handles.append(Line2D([], [], ls="", marker=".", color="0.1", ms=5,
                               label="sampled (F, T): one cell each"))
+    return handles
 
+
+def _boundary_lines(ax, region: pd.DataFrame, forces: np.ndarray, fx: np.ndarray,
+                    dy: np.ndarray) -> list:
+    """Draw the recovery boundary, the hip's takeover and non-monotone marks; returns handles."""
     # Boundary on the grid: a step line along the top of each force's first recovered range.
     boundary = recovery_boundary(region).set_index("force").reindex(forces)
-    handles.append(boundary_line(ax, region, fx, dy))
+    handles = [boundary_line(ax, region, fx, dy)]
     if "energy_hip" in region:
         over = takeover_line(ax, region, HIP_SHARE_THRESHOLD, fx, dy, color=TAKEOVER_COLOUR,
                              lw=2.0, ls="--",
@@ -294,20 +313,31 @@ def region_map(region: pd.DataFrame, *, config: Config | None = None,
         (mark,) = ax.plot(odd, np.full(odd.size, dy[-1]), "v", color="black", ms=6,
                           clip_on=False, label="recovers again beyond a failure (not monotone)")
         handles.append(mark)
-    if table is not None and len(table):
-        handles += _table_overlay(ax, table, fx, dy)
-    if impulses:
-        drawn = _impulse_lines(ax, fx, dy, log)
-        if drawn:
-            handles.append(Line2D([], [], color="0.15", ls="--", lw=0.9,
-                                  label="constant impulse " + ("|F|·T" if fx[0] < 0 else "F·T")
-                                  + " [N·s]"))
-    if reference is not None and len(reference):
-        label = str(reference["label"].iloc[0]) if "label" in reference else "reference points"
-        (ref,) = ax.plot(reference["force"], reference["duration"], "o", mfc="white", mec="black",
-                         mew=1.5, ms=6, label=label)
-        handles.append(ref)
+    return handles
 
+
+def _impulse_legend(ax, fx: np.ndarray, dy: np.ndarray, log: bool) -> list:
+    """Draw the lines of constant impulse; returns their legend handle (none if none drawn)."""
+    handles = []
+    drawn = _impulse_lines(ax, fx, dy, log)
+    if drawn:
+        handles.append(Line2D([], [], color="0.15", ls="--", lw=0.9,
+                              label="constant impulse " + ("|F|·T" if fx[0] < 0 else "F·T")
+                              + " [N·s]"))
+    return handles
+
+
+def _reference_points(ax, reference: pd.DataFrame) -> list:
+    """Draw the reference's (F, T) points; returns their legend handle."""
+    label = str(reference["label"].iloc[0]) if "label" in reference else "reference points"
+    (ref,) = ax.plot(reference["force"], reference["duration"], "o", mfc="white", mec="black",
+                     mew=1.5, ms=6, label=label)
+    return [ref]
+
+
+def _outcome_legend(ax, region: pd.DataFrame, handles: list, config: Config | None,
+                    forces: np.ndarray, durations: np.ndarray) -> None:
+    """Label the map and draw its legend: the outcomes with their counts, then ``handles``."""
     counts = region["outcome"].value_counts()
     outcome_handles = [Patch(facecolor=OUTCOME_COLOURS[n], edgecolor="0.3", lw=0.5,
                              hatch=OUTCOME_HATCHES[n],
@@ -319,7 +349,6 @@ def region_map(region: pd.DataFrame, *, config: Config | None = None,
     ax.legend(handles=outcome_handles + handles, loc="upper center",
               bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8, frameon=False,
               title=f"{len(region)} cells by outcome (count)", title_fontsize=8)
-    return fig
 
 
 def _hatch_outcomes(ax, fx: np.ndarray, dy: np.ndarray, outcome: np.ndarray) -> None:

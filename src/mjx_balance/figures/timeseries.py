@@ -295,34 +295,13 @@ def timeseries_figure(df: pd.DataFrame, quantity: str, *, config: Config | None 
     t_end = time_limit(runs, df, full_window)
     if q.x == "time":
         _shade_push(ax, df)
-    for run in runs:
-        frame = run.frame[run.frame.time <= t_end + 1e-9] if q.x == "time" else run.frame
-        ax.plot(frame[q.x], frame[q.y], color=run.colour, lw=1.4, label=run.label)
-        if run.stopped and len(frame) == len(run.frame):
-            ax.plot(frame[q.x].iloc[-1], frame[q.y].iloc[-1], "x", color=run.colour, ms=9,
-                    mew=2.2)
+    _plot_runs(ax, runs, q, t_end)
     limit = bounds(config, convention, q.y)
     x_limit = bounds(config, convention, q.x) if q.x != "time" else None
     zoomed = _zoom(ax, runs, q.y, None if q.x == "time" else q.x, limit,
                    t_end if q.x == "time" else np.inf)
     if limit is not None:
-        fixed = zoomed
-        data = _range(runs, q.y, t_end if q.x == "time" else np.inf)
-        if not zoomed and data is not None:
-            width = max(data[1] - data[0], 1e-9)
-            if limit[1] - limit[0] > 4 * width:  # far bounds would flatten the runs
-                pad = 0.12 * width
-                ax.set_ylim(data[0] - pad, data[1] + pad)
-                fixed = True
-        low, high = ax.get_ylim()
-        hidden = fixed and (limit[0] < low or limit[1] > high)
-        for i, b in enumerate(limit):
-            ax.axhline(b, color=BOUND_COLOUR, ls="--", lw=1.1,
-                       label=(f"MPC bound [{limit[0]:g}, {limit[1]:g}]"
-                              + (" (partly outside the view)" if hidden else ""))
-                       if i == 0 else None)
-        if fixed:
-            ax.set_ylim(low, high)
+        _bound_lines(ax, runs, q, limit, zoomed, t_end)
     if x_limit is not None:
         for b in x_limit:
             ax.axvline(b, color=BOUND_COLOUR, ls="--", lw=1.1)
@@ -351,6 +330,38 @@ def timeseries_figure(df: pd.DataFrame, quantity: str, *, config: Config | None 
         ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2,
                   frameon=False)
     return fig
+
+
+def _plot_runs(ax, runs: list[Run], q: Quantity, t_end: float) -> None:
+    """Draw every run's curve (up to ``t_end`` against time), a cross where a run stopped."""
+    for run in runs:
+        frame = run.frame[run.frame.time <= t_end + 1e-9] if q.x == "time" else run.frame
+        ax.plot(frame[q.x], frame[q.y], color=run.colour, lw=1.4, label=run.label)
+        if run.stopped and len(frame) == len(run.frame):
+            ax.plot(frame[q.x].iloc[-1], frame[q.y].iloc[-1], "x", color=run.colour, ms=9,
+                    mew=2.2)
+
+
+def _bound_lines(ax, runs: list[Run], q: Quantity, limit: tuple[float, float], zoomed: bool,
+                 t_end: float) -> None:
+    """Draw the MPC bound ``limit``, the view kept on the runs if far bounds would flatten them."""
+    fixed = zoomed
+    data = _range(runs, q.y, t_end if q.x == "time" else np.inf)
+    if not zoomed and data is not None:
+        width = max(data[1] - data[0], 1e-9)
+        if limit[1] - limit[0] > 4 * width:  # far bounds would flatten the runs
+            pad = 0.12 * width
+            ax.set_ylim(data[0] - pad, data[1] + pad)
+            fixed = True
+    low, high = ax.get_ylim()
+    hidden = fixed and (limit[0] < low or limit[1] > high)
+    for i, b in enumerate(limit):
+        ax.axhline(b, color=BOUND_COLOUR, ls="--", lw=1.1,
+                   label=(f"MPC bound [{limit[0]:g}, {limit[1]:g}]"
+                          + (" (partly outside the view)" if hidden else ""))
+                   if i == 0 else None)
+    if fixed:
+        ax.set_ylim(low, high)
 
 
 INSET_CORNERS = ([0.64, 0.58, 0.34, 0.36], [0.64, 0.33, 0.34, 0.36], [0.64, 0.11, 0.34, 0.36],

@@ -167,6 +167,62 @@ def _first_fall(time: np.ndarray, q: np.ndarray, x: np.ndarray, foot_pitch: np.n
     return excess, fell, end, fall_time
 
 
+def _diverged(diverged: bool, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, x: np.ndarray,
+              u_control) -> bool:
+    """Whether the run diverged: said so (``diverged``) or a non-finite sample or input."""
+    finite = (np.isfinite(q).all(axis=-1) & np.isfinite(dq).all(axis=-1)
+              & np.isfinite(tau).all(axis=-1) & np.isfinite(x).all(axis=-1))
+    return bool(diverged or not finite.all()
+                or not np.isfinite(np.asarray(u_control, float)).all())
+
+
+def _outcome_code(completed: bool, diverged: bool, fell: bool, time: np.ndarray, q: np.ndarray,
+                  dq: np.ndarray, limits: Limits) -> int:
+    """The run's outcome code (an OUTCOMES index) from its divergence, its fall and its end."""
+    n = time.shape[0]
+    settled = bool(completed and n and outcomes.in_settle_band(np, q[-1:], dq[-1:], limits)[0])
+    return int(outcomes.classify(np, diverged, fell, settled and not fell))
+
+
+def _outcome_columns(force: float, duration: float, convention: str, code: int, settle: float,
+                     fall_time: float) -> dict[str, Any]:
+    """The row's first columns: the push, the convention, the outcome and its times."""
+    return {
+        "force": float(force),
+        "duration": float(duration),
+        "convention": convention,
+        "outcome": OUTCOMES[code],
+        "settle_time": settle,
+        "fall_time": fall_time if code == FELL else math.nan,
+    }
+
+
+def _peak_columns(q: np.ndarray, foot_pitch: np.ndarray, tau: np.ndarray, cop, com,
+                  end: int) -> dict[str, float]:
+    """The peak angles and torques and the CoP's and CoM's ranges of the samples before ``end``."""
+    sl = slice(0, end)
+    cop_min, cop_max = _finite_min_max(np.asarray(cop, float)[sl])
+    com_min, com_max = _finite_min_max(np.asarray(com, float)[sl])
+    return {
+        "peak_ankle": _nanmax_abs(q[sl, 0]),
+        "peak_hip": _nanmax_abs(q[sl, 1]),
+        "peak_foot_pitch": _nanmax_abs(foot_pitch[sl]),
+        "cop_min": cop_min,
+        "cop_max": cop_max,
+        "com_min": com_min,
+        "com_max": com_max,
+        "peak_tau_ankle": _nanmax_abs(tau[sl, 0]),
+        "peak_tau_hip": _nanmax_abs(tau[sl, 1]),
+    }
+
+
+def _max_violation(excess: np.ndarray, end: int) -> float:
+    """The largest finite bound excess of the samples before ``end`` (0: none)."""
+    excess = excess[slice(0, end)]
+    excess = excess[np.isfinite(excess)]
+    return float(excess.max()) if excess.size else 0.0
+
+
 def _control_columns(u_control: np.ndarray, converged: np.ndarray, residual: np.ndarray,
                      infeasible: np.ndarray | None, *, fell: bool, fall_time: float,
                      control_dt: float, limits: Limits
@@ -253,12 +309,7 @@ def summarize(*, force: float, duration: float, convention: str,
     q, dq, x = np.asarray(q, float), np.asarray(dq, float), np.asarray(x, float)
     tau, u = np.asarray(tau, float), np.asarray(u, float)
     foot_pitch, cell_low_z = np.asarray(foot_pitch, float), np.asarray(cell_low_z, float)
-    n = time.shape[0]
-
-    finite = (np.isfinite(q).all(axis=-1) & np.isfinite(dq).all(axis=-1)
-              & np.isfinite(tau).all(axis=-1) & np.isfinite(x).all(axis=-1))
-    diverged = bool(diverged or not finite.all()
-                    or not np.isfinite(np.asarray(u_control, float)).all())
+    diverged = _diverged(diverged, q, dq, tau, x, u_control)
 
     limits = Limits.from_params(scenario, controller)
     excess, fell, end, fall_time = _first_fall(time, q, x, foot_pitch, cell_low_z, limits)
@@ -267,38 +318,18 @@ def summarize(*, force: float, duration: float, convention: str,
         _control_columns(u_control, converged, residual, infeasible, fell=fell,
                          fall_time=fall_time, control_dt=scenario.control_dt, limits=limits))
 
-    settled = bool(completed and n and outcomes.in_settle_band(np, q[-1:], dq[-1:], limits)[0])
-    code = int(outcomes.classify(np, diverged, fell, settled and not fell))
+    code = _outcome_code(completed, diverged, fell, time, q, dq, limits)
     cause = _fall_cause(code, end, foot_pitch, cell_low_z, excess, q, limits)
     settle = settle_time(time, q, dq, limits) if code == RECOVERED else math.nan
-
-    sl = slice(0, end)
-    cop_min, cop_max = _finite_min_max(np.asarray(cop, float)[sl])
-    com_min, com_max = _finite_min_max(np.asarray(com, float)[sl])
-    excess = excess[sl]
-    excess = excess[np.isfinite(excess)]
     return {
-        "force": float(force),
-        "duration": float(duration),
-        "convention": convention,
-        "outcome": OUTCOMES[code],
-        "settle_time": settle,
-        "fall_time": fall_time if code == FELL else math.nan,
-        "peak_ankle": _nanmax_abs(q[sl, 0]),
-        "peak_hip": _nanmax_abs(q[sl, 1]),
-        "peak_foot_pitch": _nanmax_abs(foot_pitch[sl]),
-        "cop_min": cop_min,
-        "cop_max": cop_max,
-        "com_min": com_min,
-        "com_max": com_max,
-        "peak_tau_ankle": _nanmax_abs(tau[sl, 0]),
-        "peak_tau_hip": _nanmax_abs(tau[sl, 1]),
+        **_outcome_columns(force, duration, convention, code, settle, fall_time),
+        **_peak_columns(q, foot_pitch, tau, cop, com, end),
         "ankle_saturation_fraction": saturation_ankle,
         "hip_saturation_fraction": saturation_hip,
         **_energy_columns(q0, x0, q, x, tau, u, end),
         "nonconverged_solves": nonconverged,
         "max_residual": max_residual,
-        "max_bound_violation": float(excess.max()) if excess.size else 0.0,
+        "max_bound_violation": _max_violation(excess, end),
         "fall_cause": outcomes.FALL_CAUSES[cause],
         "first_infeasible_time": first_infeasible,
         **_balance_columns(time, com_vel, mos, end),

@@ -413,6 +413,13 @@ class ScenarioParams:
             fail("scenario", "duration", "must be >= 0", self.duration)
         if self.duration > self.t_end:
             fail("scenario", "duration", f"must not exceed t_end = {self.t_end}", self.duration)
+        self._check_steps()
+        if self.push_body not in ("upper", "hip"):
+            fail("scenario", "push_body", "must be 'upper' or 'hip'", self.push_body)
+        self._check_delay()
+
+    def _check_steps(self) -> None:
+        """Check the window's step counts: within int32, whole multiples of the time steps."""
         # Step counts are int32 on the device: a window of more steps cannot be indexed (and
         # 1e308 s would overflow Python's round() below).
         for name in ("t_end", "controller_delay"):
@@ -430,8 +437,9 @@ class ScenarioParams:
         if abs(steps - round(steps)) > 1e-6:
             fail("scenario", "t_end",
                   f"must be a whole multiple of control_dt = {self.control_dt}", self.t_end)
-        if self.push_body not in ("upper", "hip"):
-            fail("scenario", "push_body", "must be 'upper' or 'hip'", self.push_body)
+
+    def _check_delay(self) -> None:
+        """Check the controller's delay and its error: whole physics steps, not negative."""
         if self.controller_delay < 0:
             fail("scenario", "controller_delay", "must be >= 0", self.controller_delay)
         for name in ("controller_delay", "delay_error"):

@@ -302,22 +302,38 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
 
     sl = slice(0, n)
     xcom, mos = margin_series(model, ix, force, s.com[sl], s.com_vel[sl], s.cell_x[sl])
-    summary = metrics.summarize(
+    summary = _summary_of(s, config, force, duration, n, k_done, completed=(n == n_steps),
+                          diverged=diverged, mos=mos)
+    if not record:
+        return summary, None
+
+    frame = _frame_of(s, scenario_id, force, duration, ctrl.convention, n)
+    frame["com_vel"], frame["xcom"], frame["mos"] = s.com_vel[sl], xcom, mos
+    return summary, frame
+
+
+def _summary_of(s: _Series, config: Config, force: float, duration: float, n: int, k_done: int,
+                *, completed: bool, diverged: bool, mos: np.ndarray) -> dict[str, Any]:
+    """The run's summary row (``metrics.summarize``) of its first n samples and k_done periods."""
+    sc, ctrl = config.scenario, config.controller
+    sl = slice(0, n)
+    return metrics.summarize(
         force=force, duration=duration, convention=ctrl.convention, scenario=sc, controller=ctrl,
         time=s.time[sl], q=s.q[sl], dq=s.dq[sl], x=s.x[sl], foot_pitch=s.foot[sl, 2],
         cell_low_z=s.cell_low[sl], cop=s.cop[sl], com=s.com[sl], tau=s.tau[sl], u=s.u[sl],
         q0=s.q0, x0=s.x0, u_control=s.u_control[:k_done], converged=s.converged[:k_done],
-        residual=s.residual[:k_done], completed=(n == n_steps), diverged=diverged,
+        residual=s.residual[:k_done], completed=completed, diverged=diverged,
         infeasible=s.infeasible[:k_done], com_vel=s.com_vel[sl], mos=mos,
     )
-    if not record:
-        return summary, None
 
-    frame = timeseries_frame(scenario_id, force, duration, ctrl.convention, q0=s.q0, x0=s.x0,
-                             time=s.time[sl], q=s.q[sl], dq=s.dq[sl], x=s.x[sl], foot=s.foot[sl],
-                             u=s.u[sl], tau=s.tau[sl], cop=s.cop[sl], com=s.com[sl])
-    frame["com_vel"], frame["xcom"], frame["mos"] = s.com_vel[sl], xcom, mos
-    return summary, frame
+
+def _frame_of(s: _Series, scenario_id: int, force: float, duration: float, convention: str,
+              n: int) -> pd.DataFrame:
+    """The run's time series (:func:`timeseries_frame`) of its first ``n`` samples."""
+    sl = slice(0, n)
+    return timeseries_frame(scenario_id, force, duration, convention, q0=s.q0, x0=s.x0,
+                            time=s.time[sl], q=s.q[sl], dq=s.dq[sl], x=s.x[sl], foot=s.foot[sl],
+                            u=s.u[sl], tau=s.tau[sl], cop=s.cop[sl], com=s.com[sl])
 
 
 def margin_series(model: mujoco.MjModel, ix: Any, force: float, com: np.ndarray,

@@ -127,7 +127,20 @@ def scorecard_section(out: str | Path, conventions: Sequence[str],
     card = report_scorecard(out, conventions)
     if card is None:
         return None
-    blocks: list[dict] = []
+    blocks: list[dict] = [_agreement_block(card, conventions)]
+    blocks += _differing_rows_block(card)
+    blocks += _scorecard_figures(out, card, conventions, figures)
+    blocks.append(_scorecard_table(card))
+    blocks.append({"kind": "paragraph", "cls": "", "text": (
+        "Tolerance: half the reference's stated (or printed) resolution plus our uncertainty "
+        "(the bisection step of 0.01 s for a max acting time; an energy's change over one "
+        "step at the max acting time), never fitted to agreement (scorecard.csv's "
+        "tolerance_basis says which, row by row). Every row is in scorecard.csv.")})
+    return {"id": "scorecard", "heading": SCORECARD_HEADING, "blocks": blocks}
+
+
+def _agreement_block(card: pd.DataFrame, conventions: Sequence[str]) -> dict:
+    """The paragraph of how many rows agree per convention and source, and the sources."""
     lines = []
     for convention in conventions:
         mine = card[card["convention"] == convention]
@@ -139,17 +152,28 @@ def scorecard_section(out: str | Path, conventions: Sequence[str],
     cited = [f"{source}: {', '.join(texts)}" for source, texts in _citations(card).items()]
     if cited:
         lines.append("Sources: " + "; ".join(cited) + ".")
-    blocks.append({"kind": "paragraph", "cls": "reading", "text": "\n".join(lines)})
+    return {"kind": "paragraph", "cls": "reading", "text": "\n".join(lines)}
+
+
+def _differing_rows_block(card: pd.DataFrame) -> list[dict]:
+    """The paragraph listing every row that differs, with its reason (none: no such row)."""
     differs = card[card["status"] == "differs"]
-    if len(differs):
-        items = [f"{r.convention}, {r.source}: {r.measure} at {r.force:g} N"
-                 + (f" x {r.duration:g} s" if np.isfinite(r.duration) else "")
-                 + f": reference {_fmt(r.reference, r.unit)}, ours {_fmt(r.ours, r.unit)} — "
-                 + (str(r.reason) if isinstance(r.reason, str) and r.reason else
-                    f"no reason in the reference file; see {DIFFERENCES_DOC}")
-                 for r in differs.itertuples()]
-        blocks.append({"kind": "paragraph", "cls": "", "text": "Rows that differ:\n"
-                       + "\n".join(f"• {item}" for item in items)})
+    if not len(differs):
+        return []
+    items = [f"{r.convention}, {r.source}: {r.measure} at {r.force:g} N"
+             + (f" x {r.duration:g} s" if np.isfinite(r.duration) else "")
+             + f": reference {_fmt(r.reference, r.unit)}, ours {_fmt(r.ours, r.unit)} — "
+             + (str(r.reason) if isinstance(r.reason, str) and r.reason else
+                f"no reason in the reference file; see {DIFFERENCES_DOC}")
+             for r in differs.itertuples()]
+    return [{"kind": "paragraph", "cls": "", "text": "Rows that differ:\n"
+             + "\n".join(f"• {item}" for item in items)}]
+
+
+def _scorecard_figures(out: str | Path, card: pd.DataFrame, conventions: Sequence[str],
+                       figures: Path) -> list[dict]:
+    """Draw each convention's scorecard figure into ``figures``; returns their image blocks."""
+    blocks = []
     for convention in conventions:
         mine = card[card["convention"] == convention]
         found = folder_results(Path(out) / convention / "table")
@@ -159,6 +183,11 @@ def scorecard_section(out: str | Path, conventions: Sequence[str],
             blocks.append(img(path, f"{convention} convention: ours (black, with our "
                                     "uncertainty) and each reference (open: within "
                                     "tolerance, filled: differs, cross: not compared)"))
+    return blocks
+
+
+def _scorecard_table(card: pd.DataFrame) -> dict:
+    """The whole scorecard as a table block, its citations as numbered notes."""
     header = ["convention", "source", "force [N]", "duration [s]", "measure", "reference",
               "ours", "our ±", "difference", "tolerance", "status", "reason", "citation"]
     notes = list(dict.fromkeys(c for c in map(_text, card["citation"]) if c))  # [1], [2], ...
@@ -167,13 +196,7 @@ def scorecard_section(out: str | Path, conventions: Sequence[str],
              _fmt(r.abs_diff), _fmt(r.tolerance), r.status, _text(r.reason),
              f"[{notes.index(r.citation) + 1}]" if _text(r.citation) else ""]
             for r in card.itertuples()]
-    blocks.append({"kind": "table", "header": header, "rows": rows, "notes": notes})
-    blocks.append({"kind": "paragraph", "cls": "", "text": (
-        "Tolerance: half the reference's stated (or printed) resolution plus our uncertainty "
-        "(the bisection step of 0.01 s for a max acting time; an energy's change over one "
-        "step at the max acting time), never fitted to agreement (scorecard.csv's "
-        "tolerance_basis says which, row by row). Every row is in scorecard.csv.")})
-    return {"id": "scorecard", "heading": SCORECARD_HEADING, "blocks": blocks}
+    return {"kind": "table", "header": header, "rows": rows, "notes": notes}
 
 
 # -- the strategy map ------------------------------------------------------------------------------

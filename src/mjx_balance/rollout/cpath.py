@@ -6,14 +6,14 @@ next cell when its scenario is decided), run one control period per call:
     loop over control periods p (host):
         call(p)   jitted, vmapped over the slots, sharded over the JAX devices:
             fold the samples of the period the slots ran since call(p - 1)  (kernel.sample_update)
-            decide (fall, t_end, certificate), harvest and vacate            (engine.certify, ...)
+            decide (fall, t_end, certificate), harvest and vacate             (slots.certify, ...)
             refill vacant slots; solve every slot's MPC       (kernel.prepare, solve, conclude)
         MuJoCo C: every busy slot advances ``substeps`` steps (``mujoco.rollout`` on a
             persistent thread pool, one MjData per thread) with the held torques and the push
         decode the samples on the host (float64), for call(p + 1)
 
 The rules, the accumulators, the controller and the engine's bookkeeping are the MJX path's
-functions; only the physics and the way a sample is read differ.
+functions (``kernel.py``, ``slots.py``); only the physics and the way a sample is read differ.
 
 Samples. MuJoCo's physics here is the reference's (``reference/loop.py``: the same MJCF and
 MuJoCo's default solver options, float64; the MJX path runs float32 with a capped contact
@@ -59,8 +59,9 @@ from ..measures import outcomes
 from ..model.mjcf import indices
 from ..model.params import Config
 from .queue import Queue
-from .engine import (NO_PROBE, Engine, Finished, Probe, Slots, broadcast, cells_of, checker,
-                     decide, empty_finished, retire, take)
+from .engine import NO_PROBE, Engine, Probe, cells_of
+from .slots import (Finished, Slots, broadcast, checker, decide, empty_finished, retire,
+                    take)
 from ..runtime import compiled, signals
 from ..runtime.compiled import MATMUL_PRECISION
 from .kernel import (Carry, conclude_batch, initial_carry, limits_of, prepare_batch, remember,
@@ -340,7 +341,7 @@ def folded(arrays, sensors: Sensors, static, cs: CState, rows, last_qpos
 
 
 def judged(arrays, static, check, cs: CState, carry: Carry, k, p):
-    """The engine's :func:`engine.decide` over the slots that ran a period before call ``p``
+    """The engine's :func:`slots.decide` over the slots that ran a period before call ``p``
     (the certificate checks after every ``CHECK_EVERY``-th period, as on the MJX path)."""
     every = cert_mod.CHECK_EVERY
     return decide(check, static, arrays.n_control, carry, k,
@@ -499,12 +500,7 @@ class CEngine(Engine):
                ) -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:
         """As :meth:`engine.Engine.stream`, one control period per call (from upright rest
         only: ``inits`` must be None or zero; one body: ``bodies`` None or zero)."""
-        if inits is not None and np.any(inits):
-            raise ValueError("the MuJoCo C path starts every scenario at upright rest; "
-                             "initial states need --physics mjx")
-        if bodies is not None and np.any(bodies):
-            raise ValueError("the MuJoCo C path steps one body's model; several bodies in "
-                             "one queue need --physics mjx")
+        _refuse_cells(inits, bodies)
         probe = probe or NO_PROBE
         forces, n_push, n = cells_of(forces, n_push)
         if n == 0:
@@ -569,6 +565,16 @@ class CEngine(Engine):
         finally:
             if finished:
                 self._state = cs  # every slot vacant: reusable by the next run
+
+
+def _refuse_cells(inits: np.ndarray | None, bodies: np.ndarray | None) -> None:
+    """Raise ValueError for cells the C path cannot run: off upright rest or of other bodies."""
+    if inits is not None and np.any(inits):
+        raise ValueError("the MuJoCo C path starts every scenario at upright rest; "
+                         "initial states need --physics mjx")
+    if bodies is not None and np.any(bodies):
+        raise ValueError("the MuJoCo C path steps one body's model; several bodies in "
+                         "one queue need --physics mjx")
 
 
 def default_slots() -> int:

@@ -84,8 +84,8 @@ class Queue:
     def _grouped(self, order: np.ndarray) -> np.ndarray:
         """``order`` with the cells grouped by waves of ``wave`` bodies (bodies 0..wave-1
         first, then the next ``wave``, ...), stable within a wave. An engine whose slots hold
-        one body per tile (``refill_tiles``) is given as many bodies at a time as it has tiles:
-        each tile then finds its body's cells in the offers, and the longest cells of the
+        one body per tile (``slots.refill_tiles``) is given as many bodies at a time as it has
+        tiles: each tile then finds its body's cells in the offers, and the longest cells of the
         wave's bodies start first, instead of one body's after another's."""
         return order[np.argsort(self.bodies[order] // self.wave, kind="stable")]
 

@@ -26,10 +26,10 @@ from ..control import admm as admm_mod
 from ..measures import outcomes
 from ..control import offset_free
 from ..model.linear import S as JOINT_TO_ABS
-from ..model.linear import delay_predictor
+from ..model.linear import LinearModel, delay_predictor
 from ..measures.metrics import study_energies
 from ..measures.outcomes import FELL, RECOVERED, Limits, summary_frame
-from ..model.params import Config
+from ..model.params import Config, ControllerParams, ScenarioParams
 from ..control.qp import build_qp
 from ..runtime.compiled import get_or_compile
 from .cpath import CEngine, unsupported
@@ -48,6 +48,16 @@ def push_steps(durations: np.ndarray, physics_dt: float) -> np.ndarray:
 def _bucket(n: int, minimum: int = 8) -> int:
     """Padded batch size: the next power of two (>= minimum), so few sizes are compiled."""
     return max(minimum, 1 << max(0, math.ceil(math.log2(max(n, 1)))))
+
+
+def _delay_prediction(lm: LinearModel, ctrl: ControllerParams,
+                      sc: ScenarioParams) -> tuple[bool, np.ndarray, np.ndarray]:
+    """Whether the controller compensates its delay, and its predictor's (A, G) matrices."""
+    compensate = bool(ctrl.delay_compensation and sc.assumed_delay_steps > 0)
+    pred_A, pred_G = (delay_predictor(lm.Ac, lm.Bc, sc.physics_dt, sc.assumed_delay_steps,
+                                      sc.substeps) if compensate
+                      else (np.eye(4), np.zeros((0, 4, 2))))
+    return compensate, pred_A, pred_G
 
 
 class BatchRunner:
@@ -80,10 +90,7 @@ class BatchRunner:
         settings = admm_mod.settings_from_controller(ctrl)
         lm = qp.linear
         to_state = np.linalg.solve(lm.P, JOINT_TO_ABS)
-        compensate = bool(ctrl.delay_compensation and sc.assumed_delay_steps > 0)
-        pred_A, pred_G = (delay_predictor(lm.Ac, lm.Bc, sc.physics_dt, sc.assumed_delay_steps,
-                                          sc.substeps) if compensate
-                          else (np.eye(4), np.zeros((0, 4, 2))))
+        compensate, pred_A, pred_G = _delay_prediction(lm, ctrl, sc)
         limits, bounds = split_limits(Limits.from_params(sc, ctrl), self.dtype)
         self.arrays = Arrays(
             mx=canonical_hfield_bounds(mx, self.model), d0=d0,

@@ -150,14 +150,8 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
     if hasattr(run_batch, "prepare"):
         run_batch.prepare(batch or n_f * n_c, say=say)
     widest = int(np.diff(np.concatenate([[0], steps])).max())
-    say(f"table: {n_f} forces; coarse scan of {n_c} durations, then "
-        + ("bisection" if points_per_round == 1 else f"{points_per_round + 1}-section")
-        + f" to {resolution:g} s" + (f" in batches of {batch}" if batch else "")
-        + f"; convention {config.controller.convention}")
-    # a fixed total: the most scenarios the coarse scan and the rounds can take (the bar
-    # counts those run and those a force no longer needs once its bracket has closed)
-    bar = progress_bar(n_f * (n_c + bracket_cost(widest, points_per_round)), 0, progress,
-                       desc="table")
+    say(_plan_text(n_f, n_c, points_per_round, resolution, batch, config.controller.convention))
+    bar = _table_bar(n_f, n_c, widest, points_per_round, progress)
     try:
         brackets, runs = _bracket_rounds(run_batch, forces, steps, n_max, config, batch=batch,
                                          resolution=resolution,
@@ -165,13 +159,36 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
     finally:
         bar.close()
 
-    rows = [table_row(i, force, brackets, steps, resolution, t_end, config)
-            for i, force in enumerate(forces)]
-    table = pd.DataFrame(rows, columns=table_columns(config.controller.convention))
+    table = _table_of(forces, brackets, steps, resolution, t_end, config)
     runs_frame = pd.concat(runs, ignore_index=True)
     seconds = time.perf_counter() - start
     say(f"table: {len(runs_frame)} scenarios in {seconds:.1f} s")
     return TableResult(table, runs_frame, seconds)
+
+
+def _plan_text(n_f: int, n_c: int, points_per_round: int, resolution: float, batch: int | None,
+               convention: str) -> str:
+    """The line that says the table's planned work: forces, coarse scan, rounds, batches."""
+    return (f"table: {n_f} forces; coarse scan of {n_c} durations, then "
+            + ("bisection" if points_per_round == 1 else f"{points_per_round + 1}-section")
+            + f" to {resolution:g} s" + (f" in batches of {batch}" if batch else "")
+            + f"; convention {convention}")
+
+
+def _table_bar(n_f: int, n_c: int, widest: int, points_per_round: int, progress: bool | None):
+    """The table's progress bar, over the most scenarios its coarse scan and rounds can take."""
+    # a fixed total: the most scenarios the coarse scan and the rounds can take (the bar
+    # counts those run and those a force no longer needs once its bracket has closed)
+    return progress_bar(n_f * (n_c + bracket_cost(widest, points_per_round)), 0, progress,
+                        desc="table")
+
+
+def _table_of(forces: np.ndarray, brackets: Brackets, steps: np.ndarray, resolution: float,
+              t_end: float, config: Config) -> pd.DataFrame:
+    """The table: one row per force from its closed bracket (:func:`table_row`)."""
+    rows = [table_row(i, force, brackets, steps, resolution, t_end, config)
+            for i, force in enumerate(forces)]
+    return pd.DataFrame(rows, columns=table_columns(config.controller.convention))
 
 
 def _points_per_round(resolution: float, batch: int | None, points_per_round: int | None,

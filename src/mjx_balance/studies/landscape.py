@@ -275,12 +275,7 @@ def _landscape(out: Path, checked: dict[str, Any], queue: str,
                              progress=progress)
         del run_batch
         regions[name] = pd.read_parquet(folder / REGION)
-        row = {"delay": delay.spec, "delay_ms": delay.ms, "compensated": delay.compensated,
-               "q_scale": q, "r_scale": r, "study": q == 1.0 and r == 1.0,
-               **comparison.numbers(regions[name], pd.read_csv(folder / TABLE)),
-               # QP solves the ADMM did not report solved, over the region's cells (a check
-               # that an extreme weight's numbers are the controller's, not the solver's)
-               "nonconverged_solves": int(regions[name]["nonconverged_solves"].sum())}
+        row = _setting_row(delay, q, r, regions[name], pd.read_csv(folder / TABLE))
         rows.append(row)
         frame = _frame(rows, regions, settings)
         write_csv(frame, out / LANDSCAPE_CSV)
@@ -297,6 +292,17 @@ def _landscape(out: Path, checked: dict[str, Any], queue: str,
     say(f"wrote {out / LANDSCAPE_CSV}, {figure} and {out / LANDSCAPE_TXT} "
         f"({time.perf_counter() - start:.0f} s)")
     return frame
+
+
+def _setting_row(delay: Delay, q: float, r: float, region: pd.DataFrame,
+                 table: pd.DataFrame) -> dict[str, Any]:
+    """The landscape's row of one setting: its delay and weights, and its map's numbers."""
+    return {"delay": delay.spec, "delay_ms": delay.ms, "compensated": delay.compensated,
+            "q_scale": q, "r_scale": r, "study": q == 1.0 and r == 1.0,
+            **comparison.numbers(region, table),
+            # QP solves the ADMM did not report solved, over the region's cells (a check
+            # that an extreme weight's numbers are the controller's, not the solver's)
+            "nonconverged_solves": int(region["nonconverged_solves"].sum())}
 
 
 def _frame(rows: list[dict[str, Any]], regions: dict[str, pd.DataFrame],
