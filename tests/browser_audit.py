@@ -80,8 +80,9 @@ def chromium() -> str | None:
     return None
 
 
-def audit(page: Path, width: int, min_font: float = 12.0, height: int = 900,
-          timeout: float = 120.0) -> dict:
+def audit(
+    page: Path, width: int, min_font: float = 12.0, height: int = 900, timeout: float = 120.0
+) -> dict:
     """The layout audit of ``page`` rendered ``width`` CSS pixels wide: {"width",
     "scroll_width", "small": [...], "wide": [...], "texts", "elements"}."""
     exe = chromium()
@@ -95,17 +96,28 @@ def audit(page: Path, width: int, min_font: float = 12.0, height: int = 900,
         copy = Path(tmp) / "page.html"
         copy.write_text(source.replace("</body>", script + "</body>", 1), encoding="utf-8")
         host = Path(tmp) / "host.html"
-        host.write_text(HOST.format(src=copy.name, width=int(width), height=int(height)),
-                        encoding="utf-8")
-        argv = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-                f"--user-data-dir={tmp}/profile",
-                f"--window-size={max(width, 500) + 40},{height + 40}",
-                "--virtual-time-budget=10000", "--dump-dom", host.as_uri()]
+        host.write_text(
+            HOST.format(src=copy.name, width=int(width), height=int(height)), encoding="utf-8"
+        )
+        argv = [
+            exe,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--hide-scrollbars",
+            f"--user-data-dir={tmp}/profile",
+            f"--window-size={max(width, 500) + 40},{height + 40}",
+            "--virtual-time-budget=10000",
+            "--dump-dom",
+            host.as_uri(),
+        ]
         env = {**os.environ, "HOME": tmp}
-        proc = subprocess.run(argv, capture_output=True, text=True, timeout=timeout,
-                              check=False, env=env)
+        proc = subprocess.run(
+            argv, capture_output=True, text=True, timeout=timeout, check=False, env=env
+        )
     found = re.search(r'<pre id="mjx-audit">(.*?)</pre>', proc.stdout, re.S)
     if proc.returncode != 0 or found is None:
-        raise RuntimeError(f"chromium exited {proc.returncode} without the audit: "
-                           f"{proc.stderr[-2000:]}")
+        raise RuntimeError(
+            f"chromium exited {proc.returncode} without the audit: {proc.stderr[-2000:]}"
+        )
     return json.loads(html.unescape(found.group(1)))

@@ -62,13 +62,16 @@ def stand_in(request, monkeypatch):
 
     fake_for = getattr(request, "param", None) or getattr(request.module, "stand_in_fake", None)
     if fake_for is None:
-        raise pytest.UsageError(f"{request.module.__name__} uses the stand_in fixture but defines "
-                                "no stand_in_fake(config)")
+        raise pytest.UsageError(
+            f"{request.module.__name__} uses the stand_in fixture but defines "
+            "no stand_in_fake(config)"
+        )
     made = []
 
     def make(config, **_engine):
         made.append(fake_for(config))
         return made[-1]
+
     monkeypatch.setattr(DEFAULT_BATCH, make)
     return made
 
@@ -104,8 +107,11 @@ def batch_runner():
     from mjx_balance.model.params import Config
 
     with jax.enable_x64(False):
-        runner = rollout.BatchRunner(Config().replace(scenario={"t_end": SHARED_T_END}),
-                                     trajectories=True, devices=jax.local_devices()[:1])
+        runner = rollout.BatchRunner(
+            Config().replace(scenario={"t_end": SHARED_T_END}),
+            trajectories=True,
+            devices=jax.local_devices()[:1],
+        )
         runner.compiled(SHARED_BATCH)
     return runner
 
@@ -138,18 +144,25 @@ if os.environ.get("MJX_BALANCE_MARGIN_AUDIT"):
     def _recorded_approx_eq(self, actual):
         result = _approx_eq(self, actual)
         expected = self.expected
-        scalar = (isinstance(actual, (int, float, np.integer, np.floating))
-                  and isinstance(expected, (int, float, np.integer, np.floating))
-                  and not isinstance(actual, (bool, np.bool_))
-                  and not isinstance(expected, (bool, np.bool_)))
+        scalar = (
+            isinstance(actual, (int, float, np.integer, np.floating))
+            and isinstance(expected, (int, float, np.integer, np.floating))
+            and not isinstance(actual, (bool, np.bool_))
+            and not isinstance(expected, (bool, np.bool_))
+        )
         if scalar:  # arrays come back here element by element; the tolerance is max(abs, rel |e|)
             tolerance = float(self.tolerance)
             diff = 0.0 if actual == expected else abs(float(actual) - float(expected))
             used = 0.0 if diff == 0 else (diff / tolerance if tolerance > 0 else float("inf"))
             if diff != diff:  # NaN
                 used = 0.0 if result else float("inf")
-            rel = (self.rel if self.rel is not None
-                   else 0.0 if self.abs is not None else self.DEFAULT_RELATIVE_TOLERANCE)
+            rel = (
+                self.rel
+                if self.rel is not None
+                else 0.0
+                if self.abs is not None
+                else self.DEFAULT_RELATIVE_TOLERANCE
+            )
             absolute = self.abs if self.abs is not None else self.DEFAULT_ABSOLUTE_TOLERANCE
             margins.record(kind="approx", rtol=rel, atol=absolute, used=used, why=None)
         return result
@@ -180,8 +193,13 @@ def pytest_xdist_make_scheduler(config, log):
 
         def _assign_work_unit(self, node):
             rank = {scope: i for i, scope in enumerate(FIRST)}
-            first = min(self.workqueue, key=lambda scope: (
-                rank.get(Path(scope).name, len(rank)), -len(self.workqueue[scope])))
+            first = min(
+                self.workqueue,
+                key=lambda scope: (
+                    rank.get(Path(scope).name, len(rank)),
+                    -len(self.workqueue[scope]),
+                ),
+            )
             self.workqueue.move_to_end(first, last=False)
             super()._assign_work_unit(node)
 
@@ -225,8 +243,10 @@ def pytest_runtest_protocol(item, nextitem):
     with CompileCounter() as counter:
         yield
     _XLA.append((item.nodeid, counter.compiles, counter.cache_hits, counter.compile_seconds))
-    _BUILT.extend({"test": item.nodeid, "kind": c.kind, "seconds": c.seconds,
-                   "id": program_id(c.key)} for c in compiled.built()[before:])
+    _BUILT.extend(
+        {"test": item.nodeid, "kind": c.kind, "seconds": c.seconds, "id": program_id(c.key)}
+        for c in compiled.built()[before:]
+    )
 
 
 def pytest_testnodedown(node, error):
@@ -259,13 +279,18 @@ def pytest_terminal_summary(terminalreporter, config):
     distinct = {b["id"] for b in _BUILT}
     seconds = sum(b["seconds"] for b in _BUILT)
     xla = sum(x[1] for x in _XLA), sum(x[2] for x in _XLA), sum(x[3] for x in _XLA)
-    write(f"compiled programs: {len(distinct)} distinct, {len(_BUILT)} built, {seconds:.1f} s "
-          f"(all XLA executables: {xla[0]} compiled, {xla[1]} loaded from the cache, "
-          f"{xla[2]:.1f} s)")
+    write(
+        f"compiled programs: {len(distinct)} distinct, {len(_BUILT)} built, {seconds:.1f} s "
+        f"(all XLA executables: {xla[0]} compiled, {xla[1]} loaded from the cache, "
+        f"{xla[2]:.1f} s)"
+    )
     budget = getattr(config, "_compile_budget_exceeded", None)
     if budget is not None:
-        write(f"FAILED: the compile budget: {len(distinct)} distinct programs, more than the "
-              f"{budget} of conftest.BUDGETS; built:", red=True)
+        write(
+            f"FAILED: the compile budget: {len(distinct)} distinct programs, more than the "
+            f"{budget} of conftest.BUDGETS; built:",
+            red=True,
+        )
         for b in _BUILT:
             write(f"  {b['id']} {b['kind']:6s} {b['seconds']:6.1f} s  {b['test']}", red=True)
     path = os.environ.get("MJX_BALANCE_COMPILE_LOG")

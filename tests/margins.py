@@ -55,15 +55,17 @@ def ratio(actual, desired, rtol: float = 0.0, atol: float = 0.0) -> float:
     return float(np.nanmax(np.where(np.isnan(used), np.inf, used)))
 
 
-def within(actual, desired, *, rtol: float = 0.0, atol: float = 0.0, why: str,
-           msg: object = None) -> None:
+def within(
+    actual, desired, *, rtol: float = 0.0, atol: float = 0.0, why: str, msg: object = None
+) -> None:
     """Assert |actual - desired| <= atol + rtol |desired| elementwise (NaN equal to NaN);
     ``why``: the bound the tolerance comes from; ``msg``: context for the failure message."""
     used = ratio(actual, desired, rtol, atol)
     record(kind="within", rtol=rtol, atol=atol, used=used, why=why)
     if not used <= 1.0:
-        a, d = np.broadcast_arrays(np.asarray(actual, dtype=float),
-                                   np.asarray(desired, dtype=float))
+        a, d = np.broadcast_arrays(
+            np.asarray(actual, dtype=float), np.asarray(desired, dtype=float)
+        )
         lone_nan = int(np.sum(np.isnan(a) != np.isnan(d)))
         with np.errstate(invalid="ignore"):
             diff = np.abs(a - d)[~(np.isnan(a) | np.isnan(d))]
@@ -73,7 +75,8 @@ def within(actual, desired, *, rtol: float = 0.0, atol: float = 0.0, why: str,
             f"{worst:.3g}, {used:.3g} times the tolerance"
             + (f", {lone_nan} NaN against a number" if lone_nan else "")
             + ("" if msg is None else f"; {msg}")
-            + (f"\nactual:  {actual}\ndesired: {desired}" if np.size(a) <= 8 else ""))
+            + (f"\nactual:  {actual}\ndesired: {desired}" if np.size(a) <= 8 else "")
+        )
 
 
 def record(*, kind: str, rtol: float, atol: float, used: float, why: str | None) -> None:
@@ -85,9 +88,17 @@ def record(*, kind: str, rtol: float, atol: float, used: float, why: str | None)
     test = os.environ.get("PYTEST_CURRENT_TEST", "")
     if file == "?":  # not called from a test (pytest's own use of approx, say)
         return
-    entry = {"file": file, "line": line, "test": test.rsplit(" (", 1)[0], "kind": kind,
-             "rtol": float(np.max(rtol)), "atol": float(np.max(atol)),
-             "ratio": used if math.isfinite(used) else str(used), "why": why, "code": code}
+    entry = {
+        "file": file,
+        "line": line,
+        "test": test.rsplit(" (", 1)[0],
+        "kind": kind,
+        "rtol": float(np.max(rtol)),
+        "atol": float(np.max(atol)),
+        "ratio": used if math.isfinite(used) else str(used),
+        "why": why,
+        "code": code,
+    }
     with open(target, "a", encoding="utf-8") as out:
         out.write(json.dumps(entry) + "\n")
 
@@ -135,8 +146,18 @@ def unstable_rate(config) -> float:
     return float(np.linalg.eigvals(lm.Ac).real.max())
 
 
-SENSITIVE_COLUMNS = ("energy_ankle", "energy_hip", "energy_u1", "energy_u2", "peak_ankle",
-                     "peak_hip", "cop_min", "cop_max", "com_min", "com_max")
+SENSITIVE_COLUMNS = (
+    "energy_ankle",
+    "energy_hip",
+    "energy_u1",
+    "energy_u2",
+    "peak_ankle",
+    "peak_hip",
+    "cop_min",
+    "cop_max",
+    "com_min",
+    "com_max",
+)
 
 
 def input_gains(config, force: float, duration: float, t_end: float) -> dict[str, float]:
@@ -177,8 +198,9 @@ def input_gains(config, force: float, duration: float, t_end: float) -> dict[str
         places = np.stack([x_next @ lm.cop_x + u @ lm.cop_u, x_next @ lm.com_x], axis=1)
         low, high = np.minimum(low, places), np.maximum(high, places)
         x = x_next
-    columns = np.concatenate([energy, peak, low[:, :1], high[:, :1], low[:, 1:], high[:, 1:]],
-                             axis=1)
+    columns = np.concatenate(
+        [energy, peak, low[:, :1], high[:, :1], low[:, 1:], high[:, 1:]], axis=1
+    )
     nominal = np.abs(columns[0])
     effect = np.abs(columns[1:] - columns[0]).sum(axis=0) / h
     gains = np.divide(effect, nominal, out=np.zeros_like(effect), where=nominal > 0)
@@ -210,8 +232,19 @@ def closed_loop_rounding(config, row, force: float, duration: float) -> dict[str
         # no push: the body stays at rest, where the inputs are the ADMM's noise at its
         # absolute tolerance (eps_abs 1e-7; ~2e-7 N m seen) and two roundings give unrelated
         # noise: the runs' extremes (~1e-9 m of CoP) agree in size only
-        return {column: 1.0 for column in ("energy_ankle", "energy_hip", "energy_u1",
-                                           "energy_u2", "peak_ankle", "peak_hip", "cop", "com")}
+        return {
+            column: 1.0
+            for column in (
+                "energy_ankle",
+                "energy_hip",
+                "energy_u1",
+                "energy_u2",
+                "peak_ankle",
+                "peak_hip",
+                "cop",
+                "com",
+            )
+        }
     out = {column: base * gain * growth for column, gain in gains.items()}
     # an extreme on the side the push did not drive may stay at rest in the linear model
     # (gain 0): both extremes are points of one trajectory, whose error is relative to its
@@ -246,8 +279,10 @@ def band_excursion(config) -> dict[str, float]:
     per_angle, per_rate = lm.state_from_joints(eye, zero), lm.state_from_joints(zero, eye)
     out = {}
     for name, row in (("cop", lm.cop_x - lm.cop_u @ K), ("com", lm.com_x)):
-        out[name] = float(np.abs(per_angle @ row).sum() * sc.settle_angle_tol
-                          + np.abs(per_rate @ row).sum() * sc.settle_rate_tol)
+        out[name] = float(
+            np.abs(per_angle @ row).sum() * sc.settle_angle_tol
+            + np.abs(per_rate @ row).sum() * sc.settle_rate_tol
+        )
     return out
 
 
@@ -263,10 +298,21 @@ def summarise(path: str | os.PathLike) -> list[dict]:
         entry = json.loads(text)
         used = float(entry["ratio"])
         key = (entry["file"], entry["line"])
-        site = sites.setdefault(key, {"file": entry["file"], "line": entry["line"],
-                                      "kind": entry["kind"], "code": entry["code"],
-                                      "ratio": 0.0, "calls": 0, "tests": set(),
-                                      "rtol": set(), "atol": set(), "why": entry["why"]})
+        site = sites.setdefault(
+            key,
+            {
+                "file": entry["file"],
+                "line": entry["line"],
+                "kind": entry["kind"],
+                "code": entry["code"],
+                "ratio": 0.0,
+                "calls": 0,
+                "tests": set(),
+                "rtol": set(),
+                "atol": set(),
+                "why": entry["why"],
+            },
+        )
         site["calls"] += 1
         site["tests"].add(entry["test"].split("::", 1)[-1])
         site["rtol"].add(entry["rtol"])
@@ -284,8 +330,10 @@ def main(argv: list[str] | None = None) -> None:
     for s in rows:
         tol = "/".join(f"{r:g}" for r in sorted(s["rtol"]))
         atol = "/".join(f"{a:.3g}" for a in sorted(s["atol"]))
-        print(f"{s['ratio']:9.3g}  {s['file']}:{s['line']}  [{s['kind']}, {s['calls']} calls, "
-              f"rtol {tol}, atol {atol}]  {s['code'][:90]}")
+        print(
+            f"{s['ratio']:9.3g}  {s['file']}:{s['line']}  [{s['kind']}, {s['calls']} calls, "
+            f"rtol {tol}, atol {atol}]  {s['code'][:90]}"
+        )
     over = sum(s["ratio"] > 1 / 3 for s in rows)
     print(f"{len(rows)} call sites, {over} above 1/3 of their tolerance")
 

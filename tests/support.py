@@ -40,17 +40,34 @@ ENGINE_SLOTS = 32
 # with the certificate and without; the notebook's kernel loads it from the session's cache)
 # and the shared padded batch (conftest's batch_runner); and the tests of one tiny report.
 GROUPS = {
-    **dict.fromkeys(["test_engine.py", "test_basin.py", "test_balance_measures.py",
-                     "test_input_faults.py", "test_notebook.py"], "engine"),
-    **dict.fromkeys(["test_rollout.py", "test_cpath.py", "test_landscape.py",
-                     "test_sweep.py"], "batch"),
+    **dict.fromkeys(
+        [
+            "test_engine.py",
+            "test_basin.py",
+            "test_balance_measures.py",
+            "test_input_faults.py",
+            "test_notebook.py",
+        ],
+        "engine",
+    ),
+    **dict.fromkeys(
+        ["test_rollout.py", "test_cpath.py", "test_landscape.py", "test_sweep.py"], "batch"
+    ),
     # the tiny report (tiny_report.py) is built once per process: its readers together
     **dict.fromkeys(["test_report.py", "test_report_browser.py"], "report"),
 }
 # The units that take longest (pytest --durations), started first: the groups, then the files
 # with compiled programs of their own or many figures; the rest by their number of tests.
-FIRST = ["engine", "report", "batch", "test_offset_free.py", "test_bench_engine.py",
-         "test_hip_servo.py", "test_figure_style.py", "test_store_faults.py"]
+FIRST = [
+    "engine",
+    "report",
+    "batch",
+    "test_offset_free.py",
+    "test_bench_engine.py",
+    "test_hip_servo.py",
+    "test_figure_style.py",
+    "test_store_faults.py",
+]
 
 
 # -- a stand-in rollout ---------------------------------------------------------------------------
@@ -63,8 +80,12 @@ class FakeThresholdBatch:
     optionally also recovered for T in ``window`` (a non-monotone fake). Returns a dict of summary
     columns with integer outcome codes, like BatchRunner.run. Counts calls; can raise on call k."""
 
-    def __init__(self, c: float = 30.0, window: tuple[float, float] | None = None,
-                 fail_on_call: int | None = None):
+    def __init__(
+        self,
+        c: float = 30.0,
+        window: tuple[float, float] | None = None,
+        fail_on_call: int | None = None,
+    ):
         self.c, self.window, self.fail_on_call = c, window, fail_on_call
         self.calls: list[int] = []
 
@@ -132,8 +153,9 @@ def sweep_fake(out, fake, chunk=8, config=None):
     from mjx_balance.runs.grid import Grid
 
     config = config or tiny_config()
-    return held_sweep(out, config, Grid.of(*GRID, config), run_batch=fake, chunk=chunk,
-                      progress=False, say=None)
+    return held_sweep(
+        out, config, Grid.of(*GRID, config), run_batch=fake, chunk=chunk, progress=False, say=None
+    )
 
 
 def expected_max_time(force, c, t_end, resolution=0.01):
@@ -141,8 +163,11 @@ def expected_max_time(force, c, t_end, resolution=0.01):
     below c / |F| (0 if none), within t_end."""
     steps = np.arange(1, int(round(t_end / resolution)) + 1)
     ok = abs(force) * np.round(steps * resolution, 12) < c
-    return 0.0 if not ok[0] else float(np.round(steps[np.argmin(ok) - 1 if not ok.all() else -1]
-                                               * resolution, 12))
+    return (
+        0.0
+        if not ok[0]
+        else float(np.round(steps[np.argmin(ok) - 1 if not ok.all() else -1] * resolution, 12))
+    )
 
 
 def expected_area(c: float) -> float:
@@ -193,11 +218,16 @@ class AdmmMPC:
         from mjx_balance.control import admm as admm_mod
 
         offset = np.zeros(self.qp.m) if offset is None else offset  # zero: the plain QP
-        res = self._solve(jnp.asarray(x0, jnp.float32), self._warm,
-                          jnp.asarray(offset, jnp.float32))
+        res = self._solve(
+            jnp.asarray(x0, jnp.float32), self._warm, jnp.asarray(offset, jnp.float32)
+        )
         self._warm = admm_mod.ADMMWarm(*(w.astype(jnp.float32) for w in res.warm_next))
-        return (np.asarray(res.u0, float), np.asarray(res.z, float),
-                bool(res.status == admm_mod.SOLVED), float(res.prim_res))
+        return (
+            np.asarray(res.u0, float),
+            np.asarray(res.z, float),
+            bool(res.status == admm_mod.SOLVED),
+            float(res.prim_res),
+        )
 
 
 # -- figures' input -------------------------------------------------------------------------------
@@ -219,13 +249,24 @@ def assert_cells_like_the_reference(config, frame: pd.DataFrame, cells, mpc) -> 
         mine = frame.iloc[b]
         outcomes.append(ref["outcome"])
         assert mine.outcome == ref["outcome"], (force, duration)
-        margins.within(mine.fall_time, ref["fall_time"], atol=1e-12, msg=(force, duration),
-                       why="the same fall sample (both compute its time as k dt)")
+        margins.within(
+            mine.fall_time,
+            ref["fall_time"],
+            atol=1e-12,
+            msg=(force, duration),
+            why="the same fall sample (both compute its time as k dt)",
+        )
         tol = margins.closed_loop_rounding(config, ref, force, duration)
         for key in ("energy_ankle", "energy_hip", "energy_u1", "energy_u2"):
-            margins.within(mine[key], ref[key], rtol=tol[key], atol=1e-9, msg=(key, force),
-                           why="float32 ADMM rounding x the loop's gain, grown after an "
-                               "infeasible QP when it falls (margins.closed_loop_rounding)")
+            margins.within(
+                mine[key],
+                ref[key],
+                rtol=tol[key],
+                atol=1e-9,
+                msg=(key, force),
+                why="float32 ADMM rounding x the loop's gain, grown after an "
+                "infeasible QP when it falls (margins.closed_loop_rounding)",
+            )
     return outcomes
 
 
@@ -233,12 +274,29 @@ def assert_cells_like_the_reference(config, frame: pd.DataFrame, cells, mpc) -> 
 
 # Columns a certified stop leaves exactly as the full-length run has them (docs/engine.md,
 # "Certified recovery").
-CERTIFIED_EXACT = ("outcome", "fall_time", "settle_time", "nonconverged_solves",
-                   "ankle_saturation_fraction", "hip_saturation_fraction",
-                   "max_bound_violation")
-CERTIFIED_INTEGRALS = ("energy_ankle", "energy_hip", "energy_total", "work_ankle", "work_hip",
-                       "energy_u1", "energy_u2", "work_u1", "work_u2", "study_energy_u1",
-                       "study_energy_u2", "study_energy_total")
+CERTIFIED_EXACT = (
+    "outcome",
+    "fall_time",
+    "settle_time",
+    "nonconverged_solves",
+    "ankle_saturation_fraction",
+    "hip_saturation_fraction",
+    "max_bound_violation",
+)
+CERTIFIED_INTEGRALS = (
+    "energy_ankle",
+    "energy_hip",
+    "energy_total",
+    "work_ankle",
+    "work_hip",
+    "energy_u1",
+    "energy_u2",
+    "work_u1",
+    "work_u2",
+    "study_energy_u1",
+    "study_energy_u2",
+    "study_energy_total",
+)
 # Energies and work of a certified scenario: the linear prediction covers 2 s after the
 # certificate, what comes later (a state decayed by e^-2 or more in its slowest mode) is left
 # out; measured largest relative difference 1.1e-3 (work_hip, mjx-balance bench, 256 scenarios).
@@ -251,9 +309,13 @@ def peak_floors() -> dict[str, float]:
     from mjx_balance.control import certificate as cert
 
     pitch = cert.PITCH_FLOOR + cert.PITCH_PER_COP * cert.COP_FLOOR
-    return {"peak_ankle": cert.ANGLE_FLOOR, "peak_hip": cert.ANGLE_FLOOR,
-            "peak_tau_ankle": cert.TORQUE_FLOOR, "peak_tau_hip": cert.TORQUE_FLOOR,
-            "peak_foot_pitch": pitch}
+    return {
+        "peak_ankle": cert.ANGLE_FLOOR,
+        "peak_hip": cert.ANGLE_FLOOR,
+        "peak_tau_ankle": cert.TORQUE_FLOOR,
+        "peak_tau_hip": cert.TORQUE_FLOOR,
+        "peak_foot_pitch": pitch,
+    }
 
 
 def assert_certified_like_full_length(early, full, certified, config, jitter) -> None:
@@ -282,12 +344,17 @@ def assert_certified_like_full_length(early, full, certified, config, jitter) ->
     e, f = np.asarray(early["max_residual"])[c], np.asarray(full["max_residual"])[c]
     assert ((e == f) | ((e < f) & (f <= tol))).all(), (e, f)
     for column in CERTIFIED_INTEGRALS:
-        margins.within(np.asarray(early[column])[c], np.asarray(full[column])[c],
-                       rtol=ENERGY_RTOL, atol=2 * abs(jitter[column]) + 1e-9, msg=column,
-                       why="the linear prediction's 2 s, the decayed state left out "
-                           "(ENERGY_RTOL), and the rest jitter's energy over the skipped "
-                           "seconds: at most a 0-N run's over the window, measured in the same "
-                           "run, twice for the jitter's variation from run to run")
+        margins.within(
+            np.asarray(early[column])[c],
+            np.asarray(full[column])[c],
+            rtol=ENERGY_RTOL,
+            atol=2 * abs(jitter[column]) + 1e-9,
+            msg=column,
+            why="the linear prediction's 2 s, the decayed state left out "
+            "(ENERGY_RTOL), and the rest jitter's energy over the skipped "
+            "seconds: at most a 0-N run's over the window, measured in the same "
+            "run, twice for the jitter's variation from run to run",
+        )
 
 
 def synthetic_series(t_end=4.0, dt=0.01, duration=0.1) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -295,26 +362,48 @@ def synthetic_series(t_end=4.0, dt=0.01, duration=0.1) -> tuple[pd.DataFrame, pd
     0.9 s, its angle growing far beyond the others)."""
     frames, summary = [], []
     t = np.arange(1, int(round(t_end / dt)) + 1) * dt
-    for i, (force, outcome) in enumerate(((0.0, "recovered"), (50.0, "recovered"),
-                                          (120.0, "fell"))):
+    for i, (force, outcome) in enumerate(
+        ((0.0, "recovered"), (50.0, "recovered"), (120.0, "fell"))
+    ):
         if outcome == "fell":
             tt = t[t <= 0.9]
             q = 0.05 * np.exp(4 * tt)
         else:
             tt = t
             q = force * 1e-3 * tt * np.exp(-6 * tt)
-        frame = pd.DataFrame({"scenario": i, "force": force, "duration": duration,
-                              "convention": "paper", "time": tt, "q_a": q, "q_h": -q,
-                              "dq_a": np.gradient(q, dt), "dq_h": -np.gradient(q, dt),
-                              "x1": q, "x2": 0.5 * q, "x3": 0.0, "x4": 0.0,
-                              "foot_x": 0.0, "foot_z": 0.0, "foot_pitch": 0.0,
-                              "u1": -400 * q, "u2": 50 * q, "tau_ankle": -600 * q,
-                              "tau_hip": 50 * q, "cop": 0.5 * q, "com": 0.3 * q,
-                              "energy_ankle": np.cumsum(np.abs(q)), "energy_hip": 0.0,
-                              "energy_total": np.cumsum(np.abs(q))})
+        frame = pd.DataFrame(
+            {
+                "scenario": i,
+                "force": force,
+                "duration": duration,
+                "convention": "paper",
+                "time": tt,
+                "q_a": q,
+                "q_h": -q,
+                "dq_a": np.gradient(q, dt),
+                "dq_h": -np.gradient(q, dt),
+                "x1": q,
+                "x2": 0.5 * q,
+                "x3": 0.0,
+                "x4": 0.0,
+                "foot_x": 0.0,
+                "foot_z": 0.0,
+                "foot_pitch": 0.0,
+                "u1": -400 * q,
+                "u2": 50 * q,
+                "tau_ankle": -600 * q,
+                "tau_hip": 50 * q,
+                "cop": 0.5 * q,
+                "com": 0.3 * q,
+                "energy_ankle": np.cumsum(np.abs(q)),
+                "energy_hip": 0.0,
+                "energy_total": np.cumsum(np.abs(q)),
+            }
+        )
         frames.append(frame)
-        summary.append({"force": force, "duration": duration, "convention": "paper",
-                        "outcome": outcome})
+        summary.append(
+            {"force": force, "duration": duration, "convention": "paper", "outcome": outcome}
+        )
     return pd.concat(frames, ignore_index=True), pd.DataFrame(summary)
 
 
@@ -329,16 +418,21 @@ def grid_cells(forces, durations, rule) -> dict:
     return {(float(f), float(d)): rule(f, d) for f in forces for d in durations}
 
 
-def fake_region(cells: dict, *, convention="paper", energy_total=push_energy,
-                **columns) -> pd.DataFrame:
+def fake_region(
+    cells: dict, *, convention="paper", energy_total=push_energy, **columns
+) -> pd.DataFrame:
     """FAKE region frame (a sweep's summary rows) for figures and studies: one row per cell of
     ``cells`` ({(force, duration): outcome}, in its order; :func:`grid_cells` for a grid) with
     force, duration, outcome, then ``convention`` and ``energy_total`` (None: no such column)
     and the further ``columns``: each a function of (force, duration) or one value per cell."""
     keys = list(cells)
-    frame = pd.DataFrame({"force": [float(f) for f, _ in keys],
-                          "duration": [float(d) for _, d in keys],
-                          "outcome": list(cells.values())})
+    frame = pd.DataFrame(
+        {
+            "force": [float(f) for f, _ in keys],
+            "duration": [float(d) for _, d in keys],
+            "outcome": list(cells.values()),
+        }
+    )
     if convention is not None:
         frame["convention"] = convention
     for name, column in {"energy_total": energy_total, **columns}.items():
@@ -386,20 +480,26 @@ def signal_where_exceptions_are_dropped(where: str, signum: int) -> None:
             pass
 
     if where == "gc":
+
         def once(phase, _info):
             if phase == "start":
                 gc.callbacks.remove(once)
                 deliver()
+
         gc.callbacks.append(once)
         gc.collect()
     elif where == "del":
+
         class Dying:
             def __del__(self):
                 deliver()
+
         Dying()
     else:
+
         class Target:
             pass
+
         target = Target()
         ref = weakref.ref(target, deliver)
         del target

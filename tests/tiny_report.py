@@ -46,8 +46,22 @@ def tiny_report(tmp_path_factory, which: str = ALL) -> Path:
         reference.write_text(REFERENCE)
         stdout, stderr = io.StringIO(), io.StringIO()
         with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
-            assert main(["report", "--scale", "tiny", "--studies", which, "--out", str(out),
-                         "--reference", str(reference)]) == 0
+            assert (
+                main(
+                    [
+                        "report",
+                        "--scale",
+                        "tiny",
+                        "--studies",
+                        which,
+                        "--out",
+                        str(out),
+                        "--reference",
+                        str(reference),
+                    ]
+                )
+                == 0
+            )
         # both conventions (time series, two weight studies, table, region), every variant,
         # the sensitivity
         stages = 5 * 2 + sum(len(s.variants) for s in selected(which)) + 1

@@ -45,16 +45,30 @@ class Browser:
     def __init__(self, chromium: str, profile: Path, *, width: int = 1400, height: int = 1000):
         port = free_port()
         self.base = f"http://127.0.0.1:{port}"
-        self.proc = subprocess.Popen([chromedriver() or "chromedriver", f"--port={port}"],
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self.proc = subprocess.Popen(
+            [chromedriver() or "chromedriver", f"--port={port}"],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         self.session = None
         try:
             self._wait_ready()
-            args = ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                    f"--window-size={width},{height}", f"--user-data-dir={profile}"]
-            caps = {"capabilities": {"alwaysMatch": {
-                "browserName": "chrome", "goog:chromeOptions": {"binary": chromium,
-                                                                "args": args}}}}
+            args = [
+                "--headless=new",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--disable-dev-shm-usage",
+                f"--window-size={width},{height}",
+                f"--user-data-dir={profile}",
+            ]
+            caps = {
+                "capabilities": {
+                    "alwaysMatch": {
+                        "browserName": "chrome",
+                        "goog:chromeOptions": {"binary": chromium, "args": args},
+                    }
+                }
+            }
             self.session = self._call("POST", "/session", caps)["sessionId"]
         except BaseException:
             self.quit()
@@ -73,16 +87,18 @@ class Browser:
 
     def _call(self, method: str, path: str, body: Any = None, timeout: float = 120.0) -> Any:
         data = None if body is None else json.dumps(body).encode()
-        request = urllib.request.Request(self.base + path, data=data, method=method,
-                                         headers={"Content-Type": "application/json"})
+        request = urllib.request.Request(
+            self.base + path, data=data, method=method, headers={"Content-Type": "application/json"}
+        )
         try:
             with urllib.request.urlopen(request, timeout=timeout) as response:
                 answer = json.loads(response.read() or b"{}")
         except urllib.error.HTTPError as exc:
             answer = json.loads(exc.read() or b"{}")
             value = answer.get("value", {})
-            raise WebDriverError(f"{method} {path}: {value.get('error')}: "
-                                 f"{str(value.get('message', ''))[:300]}") from None
+            raise WebDriverError(
+                f"{method} {path}: {value.get('error')}: {str(value.get('message', ''))[:300]}"
+            ) from None
         return answer.get("value")
 
     def cmd(self, method: str, path: str, body: Any = None) -> Any:
@@ -106,20 +122,47 @@ class Browser:
 
     def hover(self, element: dict) -> None:
         """Move the pointer to the element's centre (the page's mousemove fires there)."""
-        move = {"type": "pointerMove", "duration": 0, "x": 0, "y": 0,
-                "origin": {ELEMENT: element[ELEMENT]}}
-        self.cmd("POST", "/actions", {"actions": [{"type": "pointer", "id": "mouse",
-                                                   "parameters": {"pointerType": "mouse"},
-                                                   "actions": [move]}]})
+        move = {
+            "type": "pointerMove",
+            "duration": 0,
+            "x": 0,
+            "y": 0,
+            "origin": {ELEMENT: element[ELEMENT]},
+        }
+        self.cmd(
+            "POST",
+            "/actions",
+            {
+                "actions": [
+                    {
+                        "type": "pointer",
+                        "id": "mouse",
+                        "parameters": {"pointerType": "mouse"},
+                        "actions": [move],
+                    }
+                ]
+            },
+        )
 
     def click(self, element: dict) -> None:
         """A pointer click at the element's centre (as a person clicks; the page's own
         handlers run)."""
         self.hover(element)
         down_up = [{"type": "pointerDown", "button": 0}, {"type": "pointerUp", "button": 0}]
-        self.cmd("POST", "/actions", {"actions": [{"type": "pointer", "id": "mouse",
-                                                   "parameters": {"pointerType": "mouse"},
-                                                   "actions": down_up}]})
+        self.cmd(
+            "POST",
+            "/actions",
+            {
+                "actions": [
+                    {
+                        "type": "pointer",
+                        "id": "mouse",
+                        "parameters": {"pointerType": "mouse"},
+                        "actions": down_up,
+                    }
+                ]
+            },
+        )
 
     def wait(self, check: Callable[[], Any], timeout: float = 60.0, what: str = "") -> Any:
         """``check()``'s first truthy value, polled until ``timeout`` seconds."""

@@ -43,8 +43,7 @@ from .measures.strategy import with_strategy
 from .model.params import Config, ParameterError
 from .model.config_files import config_from_dict, load_config
 from .model.subject import Subject
-from .runs.folders import (batch_function, check_pushes, run_region, run_table_folder,
-                           size_value)
+from .runs.folders import batch_function, check_pushes, run_region, run_table_folder, size_value
 from .runs.chunks import PlanHook
 from .runs.grid import Grid, Values, grid_values
 from .runs.progress import wanted
@@ -77,9 +76,25 @@ if TYPE_CHECKING:
     import pandas as pd
 
 
-__all__ = ["Config", "ParameterError", "basin", "batch_function", "cohort", "compare",
-           "explore", "landscape", "load_config", "report", "sensitivity",
-           "run_region", "run_table_folder", "scorecard", "simulate", "sweep", "table"]
+__all__ = [
+    "Config",
+    "ParameterError",
+    "basin",
+    "batch_function",
+    "cohort",
+    "compare",
+    "explore",
+    "landscape",
+    "load_config",
+    "report",
+    "sensitivity",
+    "run_region",
+    "run_table_folder",
+    "scorecard",
+    "simulate",
+    "sweep",
+    "table",
+]
 
 log = logging.getLogger("mjx_balance")
 
@@ -100,8 +115,10 @@ def as_config(config: ConfigLike = None) -> Config:
         return load_config(config)
     if isinstance(config, Mapping):
         return config_from_dict(dict(config))
-    raise ParameterError(f"config must be a Config, a Subject, a TOML file's path, a dict or "
-                         f"None; got {type(config).__name__}")
+    raise ParameterError(
+        f"config must be a Config, a Subject, a TOML file's path, a dict or "
+        f"None; got {type(config).__name__}"
+    )
 
 
 @contextmanager
@@ -117,9 +134,14 @@ def _session(call: str, physics: str = "mjx") -> Iterator[None]:
 # simulate: the scalar reference
 
 
-def simulate(forces: Values | None = None, durations: Values | None = None,
-             config: ConfigLike = None, *, pairs: Any = None,
-             progress: bool | None = None) -> "tuple[pd.DataFrame, pd.DataFrame]":
+def simulate(
+    forces: Values | None = None,
+    durations: Values | None = None,
+    config: ConfigLike = None,
+    *,
+    pairs: Any = None,
+    progress: bool | None = None,
+) -> "tuple[pd.DataFrame, pd.DataFrame]":
     """Every (force, duration) push through the scalar reference closed loop (MuJoCo C physics,
     the MPC solved by OSQP), one scenario at a time: the cross product of ``forces`` and
     ``durations`` (every force for the first duration, then the next), or the given ``pairs``
@@ -154,11 +176,22 @@ def _folder(out: str | os.PathLike[str] | None, what: str) -> Iterator[Path]:
         yield Path(tmp)
 
 
-def sweep(forces: Values, durations: Values, config: ConfigLike = None, *,
-          out: str | os.PathLike[str] | None = None, chunk: int | None = None,
-          slots: int | None = None, full_length: bool = False, progress: bool | None = None,
-          wait: bool = False, cluster: Any = None, physics: str = "auto",
-          reference: References = None, format: str | None = None) -> "pd.DataFrame":
+def sweep(
+    forces: Values,
+    durations: Values,
+    config: ConfigLike = None,
+    *,
+    out: str | os.PathLike[str] | None = None,
+    chunk: int | None = None,
+    slots: int | None = None,
+    full_length: bool = False,
+    progress: bool | None = None,
+    wait: bool = False,
+    cluster: Any = None,
+    physics: str = "auto",
+    reference: References = None,
+    format: str | None = None,
+) -> "pd.DataFrame":
     """The recoverable region: one summary row per (force, duration) cell, force-major (all
     durations of the first force, then the next), as region.parquet holds it.
 
@@ -188,9 +221,18 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None, *,
     check_format(format)
     refs = read_references(reference)
     with _session("sweep"), _folder(out, "sweep") as folder:
-        result = run_region(folder, config, grid, chunk=chunk, slots=slots,
-                            full_length=full_length, progress=wanted(progress), wait=wait,
-                            cluster=cluster, physics=physics)
+        result = run_region(
+            folder,
+            config,
+            grid,
+            chunk=chunk,
+            slots=slots,
+            full_length=full_length,
+            progress=wanted(progress),
+            wait=wait,
+            cluster=cluster,
+            physics=physics,
+        )
         region = with_strategy(pd.read_parquet(result.region_path))
         card = write_scorecard(folder, refs, figure=False)
         if card is not None:
@@ -199,12 +241,22 @@ def sweep(forces: Values, durations: Values, config: ConfigLike = None, *,
         return region
 
 
-def table(forces: Values, config: ConfigLike = None, *,
-          out: str | os.PathLike[str] | None = None, slots: int | None = None,
-          full_length: bool = False, progress: bool | None = None,
-          wait: bool = False, cluster: Any = None, physics: str = "auto",
-          reference: References = None, format: str | None = None,
-          figure_format: str | None = None, figure_size: str | None = None) -> "pd.DataFrame":
+def table(
+    forces: Values,
+    config: ConfigLike = None,
+    *,
+    out: str | os.PathLike[str] | None = None,
+    slots: int | None = None,
+    full_length: bool = False,
+    progress: bool | None = None,
+    wait: bool = False,
+    cluster: Any = None,
+    physics: str = "auto",
+    reference: References = None,
+    format: str | None = None,
+    figure_format: str | None = None,
+    figure_size: str | None = None,
+) -> "pd.DataFrame":
     """The robustness table: for each force, the max acting time (the largest duration, to
     0.01 s, such that every push up to it recovers) and the energies (``TABLE_COLUMNS``), as
     ``mjx-balance table`` writes table.csv (read back from it). ``out``: the output folder
@@ -223,10 +275,22 @@ def table(forces: Values, config: ConfigLike = None, *,
     check_format(format)
     refs = read_references(reference)
     forces = _with_forces(grid_values(forces, "forces"), refs)
-    with (_session("table"), figure_style(figure_format, figure_size),
-          _folder(out, "table") as folder):
-        run_table_folder(folder, config, forces, slots=slots, full_length=full_length,
-                         progress=wanted(progress), wait=wait, cluster=cluster, physics=physics)
+    with (
+        _session("table"),
+        figure_style(figure_format, figure_size),
+        _folder(out, "table") as folder,
+    ):
+        run_table_folder(
+            folder,
+            config,
+            forces,
+            slots=slots,
+            full_length=full_length,
+            progress=wanted(progress),
+            wait=wait,
+            cluster=cluster,
+            physics=physics,
+        )
         result = read_table(folder / TABLE)
         card = write_scorecard(folder, refs)
         if card is not None:
@@ -246,8 +310,9 @@ def _with_forces(forces: "Any", refs: "list[Reference]") -> "Any":
     return merged[np.concatenate([[True], np.diff(merged) > 1e-9])]
 
 
-def scorecard(ours: "str | os.PathLike[str] | pd.DataFrame",
-              reference: References) -> "pd.DataFrame":
+def scorecard(
+    ours: "str | os.PathLike[str] | pd.DataFrame", reference: References
+) -> "pd.DataFrame":
     """The reproduction scorecard (``studies.scorecard``): every row and measure of the
     reference file(s) beside ours, with our uncertainty, the differences, the tolerance (the
     reference's stated or printed resolution plus our bisection step, never fitted) and whether
@@ -265,8 +330,10 @@ def scorecard(ours: "str | os.PathLike[str] | pd.DataFrame",
     if isinstance(ours, pd.DataFrame):
         check_ours(ours, "ours")
     elif not isinstance(ours, (str, os.PathLike)):
-        raise TypeError(f"ours: expected a sweep or table folder (a path) or a table DataFrame "
-                        f"(as mjx_balance.table returns it); got {type(ours).__name__}")
+        raise TypeError(
+            f"ours: expected a sweep or table folder (a path) or a table DataFrame "
+            f"(as mjx_balance.table returns it); got {type(ours).__name__}"
+        )
     refs = [r for r in read_references(reference) if r.kind == "table"]
     if isinstance(ours, pd.DataFrame):
         return score_results(ours, refs)
@@ -277,14 +344,25 @@ def scorecard(ours: "str | os.PathLike[str] | pd.DataFrame",
     return score_results(found["table"], refs, runs=found["runs"], region=found["region"])
 
 
-def compare(configs: "Mapping[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
-            *, out: str | os.PathLike[str], forces: Values | None = None,
-            durations: Values | None = None, table_forces: Values | None = None,
-            slots: int | None = None, full_length: bool = False,
-            physics: str = "auto", cluster: Any = None, queue: str = "each",
-            progress: bool | None = None, format: str | None = None,
-            figure_format: str | None = None, figure_size: str | None = None,
-            wait: bool = False, plan: PlanHook | None = None) -> "pd.DataFrame":
+def compare(
+    configs: "Mapping[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
+    *,
+    out: str | os.PathLike[str],
+    forces: Values | None = None,
+    durations: Values | None = None,
+    table_forces: Values | None = None,
+    slots: int | None = None,
+    full_length: bool = False,
+    physics: str = "auto",
+    cluster: Any = None,
+    queue: str = "each",
+    progress: bool | None = None,
+    format: str | None = None,
+    figure_format: str | None = None,
+    figure_size: str | None = None,
+    wait: bool = False,
+    plan: PlanHook | None = None,
+) -> "pd.DataFrame":
     """Several configurations on one grid (``mjx-balance compare``): each one's region map and
     table in ``out/<name>/``, then ``out/compare.csv`` (returned: area, mean recovery energy,
     sustained-push limit, max acting times, one row per configuration) and ``out/compare.png``
@@ -305,23 +383,43 @@ def compare(configs: "Mapping[str, ConfigLike] | Sequence[str | os.PathLike[str]
     else:
         named = load_configs([str(p) for p in configs])
     with _session("compare"), figure_style(figure_format, figure_size):
-        frame = run_compare(out, named,
-                            DEFAULT_SWEEP["forces"] if forces is None else forces,
-                            DEFAULT_SWEEP["durations"] if durations is None else durations,
-                            DEFAULT_SWEEP["table_forces"] if table_forces is None
-                            else table_forces, progress=wanted(progress), say=log.info,
-                            slots=slots, full_length=full_length, physics=physics,
-                            cluster=cluster, queue=queue, plan=plan, wait=wait)
+        frame = run_compare(
+            out,
+            named,
+            DEFAULT_SWEEP["forces"] if forces is None else forces,
+            DEFAULT_SWEEP["durations"] if durations is None else durations,
+            DEFAULT_SWEEP["table_forces"] if table_forces is None else table_forces,
+            progress=wanted(progress),
+            say=log.info,
+            slots=slots,
+            full_length=full_length,
+            physics=physics,
+            cluster=cluster,
+            queue=queue,
+            plan=plan,
+            wait=wait,
+        )
         export_tables_said(out, format, log.info)
         return frame
 
 
-def basin(config: ConfigLike = None, *, out: str | os.PathLike[str], x_com: Values | None = None,
-          v_com: Values | None = None, posture: str = "rigid", pushes: Any = None,
-          slots: int | None = None, full_length: bool = False,
-          progress: bool | None = None, format: str | None = None,
-          figure_format: str | None = None, figure_size: str | None = None,
-          wait: bool = False, plan: PlanHook | None = None) -> "pd.DataFrame":
+def basin(
+    config: ConfigLike = None,
+    *,
+    out: str | os.PathLike[str],
+    x_com: Values | None = None,
+    v_com: Values | None = None,
+    posture: str = "rigid",
+    pushes: Any = None,
+    slots: int | None = None,
+    full_length: bool = False,
+    progress: bool | None = None,
+    format: str | None = None,
+    figure_format: str | None = None,
+    figure_size: str | None = None,
+    wait: bool = False,
+    plan: PlanHook | None = None,
+) -> "pd.DataFrame":
     """The recovery basin (``mjx-balance basin``): one unpushed scenario per (x_com, v_com)
     cell from the ``posture`` family's initial state, in ``out`` (basin.parquet, basin.png;
     resumable). Returns basin.parquet's rows. ``pushes``: None or (forces, durations) whose
@@ -333,23 +431,42 @@ def basin(config: ConfigLike = None, *, out: str | os.PathLike[str], x_com: Valu
     ``wait``, ``plan``: as :func:`compare`."""
     check_format(format)
     with _session("basin"), figure_style(figure_format, figure_size):
-        frame = run_basin(out, as_config(config), DEFAULT_X if x_com is None else x_com,
-                          DEFAULT_V if v_com is None else v_com, posture, pushes,
-                          progress=wanted(progress), say=log.info,
-                          slots=size_value(slots, "slots"), early_stop=not full_length,
-                          plan=plan, wait=wait)
+        frame = run_basin(
+            out,
+            as_config(config),
+            DEFAULT_X if x_com is None else x_com,
+            DEFAULT_V if v_com is None else v_com,
+            posture,
+            pushes,
+            progress=wanted(progress),
+            say=log.info,
+            slots=size_value(slots, "slots"),
+            early_stop=not full_length,
+            plan=plan,
+            wait=wait,
+        )
         export_tables_said(out, format, log.info)
         return frame
 
 
-def cohort(subjects: "Sequence[Subject] | Mapping[str, Subject] | str | os.PathLike[str]", *,
-           out: str | os.PathLike[str],
-           forces: Values | None = None, durations: Values | None = None,
-           config: ConfigLike = None, table_forces: Values | None = None,
-           slots: int | None = None, full_length: bool = False,
-           physics: str = "auto", queue: str = "auto", progress: bool | None = None,
-           wait: bool = False, format: str | None = None, figure_format: str | None = None,
-           figure_size: str | None = None) -> "pd.DataFrame":
+def cohort(
+    subjects: "Sequence[Subject] | Mapping[str, Subject] | str | os.PathLike[str]",
+    *,
+    out: str | os.PathLike[str],
+    forces: Values | None = None,
+    durations: Values | None = None,
+    config: ConfigLike = None,
+    table_forces: Values | None = None,
+    slots: int | None = None,
+    full_length: bool = False,
+    physics: str = "auto",
+    queue: str = "auto",
+    progress: bool | None = None,
+    wait: bool = False,
+    format: str | None = None,
+    figure_format: str | None = None,
+    figure_size: str | None = None,
+) -> "pd.DataFrame":
     """A cohort (``mjx-balance cohort``): each subject's region map (its body from
     :class:`Subject` on ``config``, default the study's configuration) in
     ``out/subjects/<id>/``, then ``out/cohort.csv`` (returned: one row per subject, its body,
@@ -382,29 +499,55 @@ def cohort(subjects: "Sequence[Subject] | Mapping[str, Subject] | str | os.PathL
         raise TypeError(f"wait = {wait!r}: must be True or False")
     if not isinstance(out, (str, os.PathLike)):
         raise TypeError(f"out = {out!r}: must be a folder's path (str or os.PathLike)")
-    members = as_members(Path(subjects) if isinstance(subjects, os.PathLike)
-                         else dict(subjects) if isinstance(subjects, Mapping) else subjects)
+    members = as_members(
+        Path(subjects)
+        if isinstance(subjects, os.PathLike)
+        else dict(subjects)
+        if isinstance(subjects, Mapping)
+        else subjects
+    )
     base = as_config(config)
     with figure_style(figure_format, figure_size):  # checks both, first
-        plan = plan_cohort(out, members, base,
-                           DEFAULT_SWEEP["forces"] if forces is None else forces,
-                           DEFAULT_SWEEP["durations"] if durations is None else durations,
-                           table_forces=table_forces, say=log.info, slots=slots,
-                           full_length=full_length, physics=physics, queue=queue)
+        plan = plan_cohort(
+            out,
+            members,
+            base,
+            DEFAULT_SWEEP["forces"] if forces is None else forces,
+            DEFAULT_SWEEP["durations"] if durations is None else durations,
+            table_forces=table_forces,
+            say=log.info,
+            slots=slots,
+            full_length=full_length,
+            physics=physics,
+            queue=queue,
+        )
         with _session("cohort"), folder_lock(plan.out, wait=wait):
             frame = run_plan(plan, progress=wanted(progress), say=log.info)
             export_tables_said(plan.out, format, log.info)
             return frame
 
 
-def landscape(config: ConfigLike = None, *, out: str | os.PathLike[str],
-              forces: Values | None = None, durations: Values | None = None,
-              q_scales: Values = DEFAULT_SCALES, r_scales: Values = DEFAULT_SCALES,
-              delays: str = DEFAULT_DELAYS, table_forces: Values = DEFAULT_TABLE_FORCES,
-              slots: int | None = None, full_length: bool = False, physics: str = "auto",
-              queue: str = "each", progress: bool | None = None, wait: bool = False,
-              format: str | None = None, figure_format: str | None = None,
-              figure_size: str | None = None, plan: PlanHook | None = None) -> "pd.DataFrame":
+def landscape(
+    config: ConfigLike = None,
+    *,
+    out: str | os.PathLike[str],
+    forces: Values | None = None,
+    durations: Values | None = None,
+    q_scales: Values = DEFAULT_SCALES,
+    r_scales: Values = DEFAULT_SCALES,
+    delays: str = DEFAULT_DELAYS,
+    table_forces: Values = DEFAULT_TABLE_FORCES,
+    slots: int | None = None,
+    full_length: bool = False,
+    physics: str = "auto",
+    queue: str = "each",
+    progress: bool | None = None,
+    wait: bool = False,
+    format: str | None = None,
+    figure_format: str | None = None,
+    figure_size: str | None = None,
+    plan: PlanHook | None = None,
+) -> "pd.DataFrame":
     """The weight landscape (``mjx-balance landscape``): for every delay setting (``delays``:
     a comma list in ms, a trailing c for the delay-compensated controller) and every Q and R
     scale, the region map and table of ``config`` with those weights, in
@@ -414,23 +557,44 @@ def landscape(config: ConfigLike = None, *, out: str | os.PathLike[str],
     ``wait``, ``format``, ``figure_format``, ``figure_size``, ``plan``: as :func:`compare`."""
     check_format(format)
     with _session("landscape"), figure_style(figure_format, figure_size):
-        frame = run_landscape(out, as_config(config),
-                              DEFAULT_SWEEP["forces"] if forces is None else forces,
-                              DEFAULT_SWEEP["durations"] if durations is None else durations,
-                              q_scales=q_scales, r_scales=r_scales, delays=delays,
-                              table_forces=table_forces, progress=wanted(progress),
-                              say=log.info, slots=slots, full_length=full_length,
-                              physics=physics, queue=queue, plan=plan, wait=wait)
+        frame = run_landscape(
+            out,
+            as_config(config),
+            DEFAULT_SWEEP["forces"] if forces is None else forces,
+            DEFAULT_SWEEP["durations"] if durations is None else durations,
+            q_scales=q_scales,
+            r_scales=r_scales,
+            delays=delays,
+            table_forces=table_forces,
+            progress=wanted(progress),
+            say=log.info,
+            slots=slots,
+            full_length=full_length,
+            physics=physics,
+            queue=queue,
+            plan=plan,
+            wait=wait,
+        )
         export_tables_said(out, format, log.info)
         return frame
 
 
-def sensitivity(config: ConfigLike = None, *, out: str | os.PathLike[str],
-                forces: Values = STUDY_TABLE_FORCES, readings: Sequence[str] | None = None,
-                slots: int | None = None, full_length: bool = False, physics: str = "auto",
-                cluster: Any = None, progress: bool | None = None, wait: bool = False,
-                figure_format: str | None = None, figure_size: str | None = None,
-                plan: PlanHook | None = None) -> "pd.DataFrame":
+def sensitivity(
+    config: ConfigLike = None,
+    *,
+    out: str | os.PathLike[str],
+    forces: Values = STUDY_TABLE_FORCES,
+    readings: Sequence[str] | None = None,
+    slots: int | None = None,
+    full_length: bool = False,
+    physics: str = "auto",
+    cluster: Any = None,
+    progress: bool | None = None,
+    wait: bool = False,
+    figure_format: str | None = None,
+    figure_size: str | None = None,
+    plan: PlanHook | None = None,
+) -> "pd.DataFrame":
     """The robustness table under every reading of the study (``mjx-balance sensitivity``):
     each reading's table (``readings``: keys of ``studies.defaults.READINGS``, default all) on
     ``config`` in ``out/<reading>/`` (resumable), then sensitivity.csv (returned: the spread
@@ -438,11 +602,20 @@ def sensitivity(config: ConfigLike = None, *, out: str | os.PathLike[str],
     ``slots``, ``full_length``, ``physics``, ``cluster``, ``progress``, ``wait``,
     ``figure_format``, ``figure_size``, ``plan``: as :func:`compare`."""
     with _session("sensitivity"), figure_style(figure_format, figure_size):
-        return run_sensitivity(out, as_config(config), forces,
-                               readings=list(READINGS) if readings is None else list(readings),
-                               progress=wanted(progress), say=log.info, slots=slots,
-                               full_length=full_length, physics=physics, cluster=cluster,
-                               plan=plan, wait=wait)
+        return run_sensitivity(
+            out,
+            as_config(config),
+            forces,
+            readings=list(READINGS) if readings is None else list(readings),
+            progress=wanted(progress),
+            say=log.info,
+            slots=slots,
+            full_length=full_length,
+            physics=physics,
+            cluster=cluster,
+            plan=plan,
+            wait=wait,
+        )
 
 
 def _report_plan(scale: str, refs, say: Callable[[str], None]) -> Plan:
@@ -452,18 +625,29 @@ def _report_plan(scale: str, refs, say: Callable[[str], None]) -> Plan:
         raise ParameterError(f"scale = {scale!r}: must be one of {', '.join(PLANS)}")
     extra = reference_forces(refs, chosen.table_forces)  # the scorecard's force tolerance
     if extra:
-        chosen = dataclasses.replace(chosen, table_forces=tuple(sorted(
-            {*chosen.table_forces, *extra})))
+        chosen = dataclasses.replace(
+            chosen, table_forces=tuple(sorted({*chosen.table_forces, *extra}))
+        )
         say(f"table: adding the reference's forces {', '.join(f'{f:g}' for f in extra)} N")
     return chosen
 
 
-def report(config: ConfigLike = None, *, out: str | os.PathLike[str], scale: str = "default",
-           backend: str | None = None, studies: str | None = "all",
-           conventions: Sequence[str] | None = None, sweeps: str | os.PathLike[str] | None = None,
-           reference: References = None, cluster: Any = None, physics: str = "auto",
-           html_only: bool = False, wait: bool = False,
-           say: Callable[[str], None] | None = None) -> Path:
+def report(
+    config: ConfigLike = None,
+    *,
+    out: str | os.PathLike[str],
+    scale: str = "default",
+    backend: str | None = None,
+    studies: str | None = "all",
+    conventions: Sequence[str] | None = None,
+    sweeps: str | os.PathLike[str] | None = None,
+    reference: References = None,
+    cluster: Any = None,
+    physics: str = "auto",
+    html_only: bool = False,
+    wait: bool = False,
+    say: Callable[[str], None] | None = None,
+) -> Path:
     """The HTML report (``mjx-balance report``): the study's experiments under each of
     ``conventions`` (default: every convention) and the studies beyond it (``studies``: a
     comma list of keys, "all" or "none") on ``config``, their tables saved in ``out``
@@ -486,30 +670,46 @@ def report(config: ConfigLike = None, *, out: str | os.PathLike[str], scale: str
         kept = tuple(CONVENTIONS if conventions is None else conventions)
         unknown = [c for c in kept if c not in CONVENTIONS]
         if unknown or not kept:
-            raise ParameterError(f"conventions: unknown {', '.join(unknown) or '(none)'}; "
-                                 f"known: {', '.join(CONVENTIONS)}")
+            raise ParameterError(
+                f"conventions: unknown {', '.join(unknown) or '(none)'}; "
+                f"known: {', '.join(CONVENTIONS)}"
+            )
         base, study_list = as_config(config), selected_studies(studies)
         if (backend or chosen.backend) == "mjx":
             cache.enable()  # the batched rollout compiles: keep its executables
     with signals.honoured(), folder_lock(out, wait=wait):
         if not html_only:
             # what the sweep folders' manifests record as the physics path
-            with run_context(command="python: mjx_balance.report",
-                             physics="mjx" if (backend or chosen.backend) == "mjx"
-                             else "mujoco"):
-                record = run_report(out, base, chosen, backend=backend,
-                                    study_list=study_list, conventions=kept,
-                                    sweeps=None if sweeps is None else Path(sweeps),
-                                    cluster=cluster, physics=physics)
+            with run_context(
+                command="python: mjx_balance.report",
+                physics="mjx" if (backend or chosen.backend) == "mjx" else "mujoco",
+            ):
+                record = run_report(
+                    out,
+                    base,
+                    chosen,
+                    backend=backend,
+                    study_list=study_list,
+                    conventions=kept,
+                    sweeps=None if sweeps is None else Path(sweeps),
+                    cluster=cluster,
+                    physics=physics,
+                )
             say(f"tables saved in {out} ({record['seconds']:.0f} s)")
-        store_references(out, None if reference is None else
-                         [str(reference)] if isinstance(reference, (str, os.PathLike))
-                         else [str(r) for r in reference])
+        store_references(
+            out,
+            None
+            if reference is None
+            else [str(reference)]
+            if isinstance(reference, (str, os.PathLike))
+            else [str(r) for r in reference],
+        )
         return build_report(out)
 
 
-def explore(folder: str | os.PathLike[str], *, port: int = 0, browser: bool = False,
-            wait: bool = False) -> Explorer:
+def explore(
+    folder: str | os.PathLike[str], *, port: int = 0, browser: bool = False, wait: bool = False
+) -> Explorer:
     """A page on this machine (``http://127.0.0.1:PORT/``, port 0: a free one) that draws the
     maps of a sweep, compare or cohort folder and opens any cell's run: computed on demand by
     the scalar reference in the map's own configuration and kept in the folder
@@ -522,13 +722,18 @@ def explore(folder: str | os.PathLike[str], *, port: int = 0, browser: bool = Fa
     ``mjx-balance explore`` does, instead of in a background thread. Raises ParameterError for
     a folder without a region map or a port that cannot be bound."""
     explorer = Explorer(folder, port=port)
-    log.info(f"explore: {explorer.folder.shown} at {explorer.url}"
-             + (" (Ctrl-C stops it)" if wait else " (.stop() ends it)"))
+    log.info(
+        f"explore: {explorer.folder.shown} at {explorer.url}"
+        + (" (Ctrl-C stops it)" if wait else " (.stop() ends it)")
+    )
     import sys
 
     # on Linux without a display, webbrowser would start a text browser in this terminal
-    if browser and (not sys.platform.startswith("linux") or os.environ.get("DISPLAY")
-                    or os.environ.get("WAYLAND_DISPLAY")):
+    if browser and (
+        not sys.platform.startswith("linux")
+        or os.environ.get("DISPLAY")
+        or os.environ.get("WAYLAND_DISPLAY")
+    ):
         import webbrowser
 
         webbrowser.open(explorer.url)

@@ -32,6 +32,7 @@ def fake(monkeypatch):
     def make(config, **_engine):
         built.append(FakeThresholdBatch())
         return built[-1]
+
     monkeypatch.setattr(DEFAULT_BATCH, make)
     return built
 
@@ -40,13 +41,20 @@ def test_the_package_exports_the_api_and_stays_light():
     assert set(mb.__all__) >= {"simulate", "sweep", "table", "load_config", "Config"}
     for name in mb.__all__:
         assert getattr(mb, name) is not None
-    code = ("import os, sys, json\n"
-            "import mjx_balance as mb\n"
-            "print(json.dumps({'heavy': sorted(m for m in ('jax', 'mujoco', 'pandas', 'numpy')"
-            " if m in sys.modules), 'flags': os.environ.get('XLA_FLAGS', ''),"
-            " 'callable': [callable(getattr(mb, n)) for n in ('simulate', 'sweep', 'table')]}))\n")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=120, env={"PATH": "/usr/bin:/bin"})
+    code = (
+        "import os, sys, json\n"
+        "import mjx_balance as mb\n"
+        "print(json.dumps({'heavy': sorted(m for m in ('jax', 'mujoco', 'pandas', 'numpy')"
+        " if m in sys.modules), 'flags': os.environ.get('XLA_FLAGS', ''),"
+        " 'callable': [callable(getattr(mb, n)) for n in ('simulate', 'sweep', 'table')]}))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={"PATH": "/usr/bin:/bin"},
+    )
     assert done.returncode == 0, done.stderr
     found = json.loads(done.stdout)
     assert found["heavy"] == []  # import mjx_balance imports neither JAX nor MuJoCo
@@ -62,8 +70,12 @@ def test_sweep_is_the_function():
     from mjx_balance import api, runs
 
     assert mb.sweep is api.sweep and mb.sweep is not runs and callable(mb.sweep)
-    assert list(inspect.signature(mb.sweep).parameters)[:4] == ["forces", "durations", "config",
-                                                                "out"]
+    assert list(inspect.signature(mb.sweep).parameters)[:4] == [
+        "forces",
+        "durations",
+        "config",
+        "out",
+    ]
 
 
 def test_simulate_returns_the_frames_the_cli_writes(tmp_path):
@@ -73,8 +85,23 @@ def test_simulate_returns_the_frames_the_cli_writes(tmp_path):
     assert series["scenario"].nunique() == 2 and series["time"].max() == pytest.approx(0.3)
 
     out = tmp_path / "cli"
-    assert main(["-q", "simulate", "--forces", "0,30", "--durations", "0.1", "--set",
-                 "scenario.t_end=0.3", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "-q",
+                "simulate",
+                "--forces",
+                "0,30",
+                "--durations",
+                "0.1",
+                "--set",
+                "scenario.t_end=0.3",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     pd.testing.assert_frame_equal(series, pd.read_parquet(out / "timeseries.parquet"))
     # summary.csv: the numbers as written (CSV reads an empty string back as a missing value)
     written = pd.read_csv(out / "summary.csv")
@@ -110,8 +137,23 @@ def test_config_may_be_a_config_a_path_a_dict_or_none(tmp_path):
 
 def test_sweep_and_table_return_the_frames_the_cli_writes(tmp_path, fake):
     cli_out = tmp_path / "cli"
-    assert main(["-q", "sweep", "--forces", "0:40:10", "--durations", "0.5,1,1.5",
-                 "--set", "scenario.t_end=2", "--out", str(cli_out)]) == 0
+    assert (
+        main(
+            [
+                "-q",
+                "sweep",
+                "--forces",
+                "0:40:10",
+                "--durations",
+                "0.5,1,1.5",
+                "--set",
+                "scenario.t_end=2",
+                "--out",
+                str(cli_out),
+            ]
+        )
+        == 0
+    )
     config = mb.Config().replace(scenario={"t_end": 2.0})
     region = mb.sweep("0:40:10", [0.5, 1.0, 1.5], config)  # in memory: nothing kept
     pd.testing.assert_frame_equal(region, pd.read_parquet(cli_out / "region.parquet"))
@@ -128,11 +170,14 @@ def test_sweep_and_table_return_the_frames_the_cli_writes(tmp_path, fake):
     manifest = json.loads((api_out / "manifest.json").read_text())
     assert manifest["runs"][0]["command"] == "python: mjx_balance.sweep"
     with pytest.raises(ParameterError, match="different configuration"):
-        mb.sweep("0:40:10", "0.5,1,1.5", config.replace(body={"upper_mass": 40.0}),
-                 out=api_out)
+        mb.sweep("0:40:10", "0.5,1,1.5", config.replace(body={"upper_mass": 40.0}), out=api_out)
 
-    assert main(["-q", "table", "--forces", "10,20", "--set", "scenario.t_end=2",
-                 "--out", str(cli_out)]) == 0
+    assert (
+        main(
+            ["-q", "table", "--forces", "10,20", "--set", "scenario.t_end=2", "--out", str(cli_out)]
+        )
+        == 0
+    )
     table = mb.table([10, 20], config)
     pd.testing.assert_frame_equal(table, pd.read_csv(cli_out / "table.csv"))
     assert list(table["force"]) == [10.0, 20.0]
@@ -143,13 +188,31 @@ def test_sweep_and_table_return_the_frames_the_cli_writes(tmp_path, fake):
 @pytest.mark.slow
 def test_the_real_rollout_through_the_api_equals_the_cli_file(tmp_path):
     out = tmp_path / "cli"
-    assert main(["-q", "sweep", "--forces", "20,150", "--durations", "0.1,0.2", "--set",
-                 "scenario.t_end=1", "--slots", "4", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "-q",
+                "sweep",
+                "--forces",
+                "20,150",
+                "--durations",
+                "0.1,0.2",
+                "--set",
+                "scenario.t_end=1",
+                "--slots",
+                "4",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     region = mb.sweep([20, 150], [0.1, 0.2], {"scenario": {"t_end": 1.0}}, slots=4)
     pd.testing.assert_frame_equal(region, pd.read_parquet(out / "region.parquet"))
 
 
 # -- bad arguments: a ValueError naming the argument, nothing written ------------
+
 
 @pytest.mark.parametrize("forces", [True, [True, 20.0], ["abc"], None, {"a": 1}])
 def test_forces_that_are_not_numbers_are_refused(forces, tmp_path):
@@ -161,8 +224,10 @@ def test_forces_that_are_not_numbers_are_refused(forces, tmp_path):
     assert not (tmp_path / "out").exists()
 
 
-@pytest.mark.parametrize("name, value", [("chunk", 2.5), ("chunk", 0), ("chunk", "4"),
-                                         ("slots", 0), ("slots", True), ("slots", -3)])
+@pytest.mark.parametrize(
+    "name, value",
+    [("chunk", 2.5), ("chunk", 0), ("chunk", "4"), ("slots", 0), ("slots", True), ("slots", -3)],
+)
 def test_sizes_that_are_not_whole_positive_numbers_are_refused(name, value, tmp_path):
     with pytest.raises(ValueError, match=f"{name} = .*must be a whole number >= 1"):
         mb.sweep([10.0], [0.1], out=tmp_path / "out", **{name: value})
@@ -170,10 +235,13 @@ def test_sizes_that_are_not_whole_positive_numbers_are_refused(name, value, tmp_
 
 
 def test_numpy_numbers_are_accepted(fake, tmp_path):
-    config = mb.Config().replace(body={"upper_mass": np.int64(40)},
-                                 controller={"horizon": np.int64(20)},
-                                 scenario={"t_end": np.float32(2.0)})
+    config = mb.Config().replace(
+        body={"upper_mass": np.int64(40)},
+        controller={"horizon": np.int64(20)},
+        scenario={"t_end": np.float32(2.0)},
+    )
     assert config.body.upper_mass == 40.0 and type(config.controller.horizon) is int
-    region = mb.sweep(np.array([10.0, 60.0]), [np.float64(0.1)], config, chunk=np.int64(2),
-                      slots=np.int32(4))
+    region = mb.sweep(
+        np.array([10.0, 60.0]), [np.float64(0.1)], config, chunk=np.int64(2), slots=np.int32(4)
+    )
     assert len(region) == 2

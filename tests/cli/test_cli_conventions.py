@@ -29,15 +29,23 @@ def fake(monkeypatch):
 
 
 def test_python_m_prints_the_versions():
-    done = subprocess.run([sys.executable, "-m", "mjx_balance", "--version"],
-                          capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-m", "mjx_balance", "--version"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 0, done.stderr
     line = done.stdout.strip()
     for name in ("jax", "jaxlib", "mujoco"):
         assert f"{name} {version(name)}" in line
     assert line.startswith(f"mjx-balance {version('mjx_balance')} (")
-    usage = subprocess.run([sys.executable, "-m", "mjx_balance", "sweep", "--no-such-option"],
-                           capture_output=True, text=True, timeout=120)
+    usage = subprocess.run(
+        [sys.executable, "-m", "mjx_balance", "sweep", "--no-such-option"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert usage.returncode == 2 and "usage: mjx-balance sweep" in usage.stderr
 
 
@@ -46,8 +54,10 @@ def test_help_shows_defaults_and_exit_codes():
     text = parser.format_help()
     assert "exit codes: 0 success; 1 failure" in text and "2 bad usage" in text
     commands = parser._subparsers._group_actions[0].choices
-    assert {"simulate", "sweep", "table", "bench", "animate", "report", "model",
-            "view"} <= set(commands)
+    assert {"simulate", "sweep", "table", "bench", "animate", "report", "model", "view"} <= set(
+        commands
+    )
+
     def words(name: str) -> str:  # the help text without its line breaks
         return " ".join(commands[name].format_help().split())
 
@@ -59,13 +69,18 @@ def test_help_shows_defaults_and_exit_codes():
     assert "--set SECTION.KEY=VALUE" in sweep and "--no-cache" in sweep
 
 
-@pytest.mark.parametrize("name", ["simulate", "bench", "sweep", "table", "animate", "report",
-                                  "model", "view"])
+@pytest.mark.parametrize(
+    "name", ["simulate", "bench", "sweep", "table", "animate", "report", "model", "view"]
+)
 def test_every_command_with_config_takes_set(name):
-    extra = {"animate": ["--force", "1", "--out", "a.gif"], "view": ["--force", "1"],
-             "model": ["--out", "m.xml"]}.get(name, ["--out", "x"])
-    args = build_parser().parse_args([name, "--set", "controller.horizon=30", "--set",
-                                      "scenario.t_end=6", *extra])
+    extra = {
+        "animate": ["--force", "1", "--out", "a.gif"],
+        "view": ["--force", "1"],
+        "model": ["--out", "m.xml"],
+    }.get(name, ["--out", "x"])
+    args = build_parser().parse_args(
+        [name, "--set", "controller.horizon=30", "--set", "scenario.t_end=6", *extra]
+    )
     config = load_run_config(args)
     assert config.controller.horizon == 30 and config.scenario.t_end == 6.0
     assert config.replace(controller={"horizon": 20}, scenario={"t_end": 12.0}) == Config()
@@ -73,16 +88,20 @@ def test_every_command_with_config_takes_set(name):
 
 def test_set_is_checked_as_a_toml_file_is(tmp_path, capsys):
     """The same rule and message for a value from --set as from the file (exit 2, one line)."""
-    for section, key, toml, option in [("controller", "horizon", '"abc"', "abc"),
-                                       ("scenario", "t_end", "-1.0", "-1"),
-                                       ("body", "upper_mass", "1e9", "1e9"),
-                                       ("body", "no_such_key", "1", "1")]:
+    for section, key, toml, option in [
+        ("controller", "horizon", '"abc"', "abc"),
+        ("scenario", "t_end", "-1.0", "-1"),
+        ("body", "upper_mass", "1e9", "1e9"),
+        ("body", "no_such_key", "1", "1"),
+    ]:
         path = tmp_path / f"{key}.toml"
         path.write_text(f"[{section}]\n{key} = {toml}\n")
         assert main(["model", "--config", str(path), "--out", str(tmp_path / "a.xml")]) == 2
         from_file = capsys.readouterr().err.strip()
-        assert main(["model", "--set", f"{section}.{key}={option}",
-                     "--out", str(tmp_path / "b.xml")]) == 2
+        assert (
+            main(["model", "--set", f"{section}.{key}={option}", "--out", str(tmp_path / "b.xml")])
+            == 2
+        )
         from_set = capsys.readouterr().err.strip()
         assert len(from_set.splitlines()) == 1
         rule = from_file.removeprefix(f"mjx-balance: error: {path}: ")
@@ -97,17 +116,33 @@ def test_set_is_checked_as_a_toml_file_is(tmp_path, capsys):
     # --set wins over the file; a bare word is a string
     path = tmp_path / "joint.toml"
     path.write_text('[controller]\nconvention = "joint"\nhorizon = 10\n')
-    args = build_parser().parse_args(["sweep", "--config", str(path), "--set",
-                                      "controller.convention=paper", "--out", "x"])
+    args = build_parser().parse_args(
+        ["sweep", "--config", str(path), "--set", "controller.convention=paper", "--out", "x"]
+    )
     assert load_run_config(args).controller.convention == "paper"
     assert load_run_config(args).controller.horizon == 10
 
 
 def test_model_writes_the_configured_body(tmp_path, capsys):
     out = tmp_path / "body.xml"
-    assert main(["model", "--set", "body.upper_mass=40", "--set", "body.lower_length=0.9",
-                 "--set", "body.foot_length=0.26", "--set", "scenario.physics_dt=0.001",
-                 "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "model",
+                "--set",
+                "body.upper_mass=40",
+                "--set",
+                "body.lower_length=0.9",
+                "--set",
+                "body.foot_length=0.26",
+                "--set",
+                "scenario.physics_dt=0.001",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert f"wrote {out}" in capsys.readouterr().out
     model = mujoco.MjModel.from_xml_path(str(out))
     body = Config().body
@@ -158,16 +193,24 @@ def test_manifest_records_provenance_and_a_resume_is_not_refused_for_it(tmp_path
     assert run["status"] == "completed" and run["physics"] == "mjx"
     started, ended = (datetime.fromisoformat(run[k]) for k in ("started", "ended"))
     assert started <= ended and ended >= before.replace(microsecond=0)
-    for name, dist in [("package", "mjx_balance"), ("jax", "jax"), ("jaxlib", "jaxlib"),
-                       ("mujoco", "mujoco")]:
+    for name, dist in [
+        ("package", "mjx_balance"),
+        ("jax", "jax"),
+        ("jaxlib", "jaxlib"),
+        ("mujoco", "mujoco"),
+    ]:
         assert run[name] == version(dist)
     assert set(run["device"]) == {"platform", "kind", "count"}
     git = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True)
     if git.returncode == 0:
         assert run["git_commit"] == git.stdout.strip()
     # A second process: its own record, appended; the resume compares only the configuration.
-    done = subprocess.run([sys.executable, "-m", "mjx_balance", "-q", "sweep", *GRID,
-                           "--out", str(out)], capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, "-m", "mjx_balance", "-q", "sweep", *GRID, "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr  # complete: nothing to run, no rollout built
     runs = json.loads((out / "manifest.json").read_text())["runs"]
     assert len(runs) == 2 and runs[0] == run and runs[1]["run_id"] != run["run_id"]
@@ -186,8 +229,18 @@ def test_provenance_without_git(monkeypatch):
 
 def test_simulate_folder_has_a_manifest_and_can_be_run_again(tmp_path, monkeypatch):
     out = tmp_path / "sim"
-    argv = ["-q", "simulate", "--forces", "10", "--durations", "0.1", "--set",
-            "scenario.t_end=0.1", "--out", str(out)]
+    argv = [
+        "-q",
+        "simulate",
+        "--forces",
+        "10",
+        "--durations",
+        "0.1",
+        "--set",
+        "scenario.t_end=0.1",
+        "--out",
+        str(out),
+    ]
     assert main(argv) == 0
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["kind"] == "simulate" and manifest["simulate"]["forces"] == [10.0]

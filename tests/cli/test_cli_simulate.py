@@ -14,8 +14,20 @@ from mjx_balance.model.params import ParameterError
 from mjx_balance.model.config_files import load_config
 from mjx_balance.reference.loop import TIMESERIES_COLUMNS
 
-FIGURES = ["ankle_angle", "hip_angle", "phase_ankle", "phase_hip", "cop", "com", "ankle_torque",
-           "hip_torque", "states", "inputs", "energy", "balance"]
+FIGURES = [
+    "ankle_angle",
+    "hip_angle",
+    "phase_ankle",
+    "phase_hip",
+    "cop",
+    "com",
+    "ankle_torque",
+    "hip_torque",
+    "states",
+    "inputs",
+    "energy",
+    "balance",
+]
 
 
 @pytest.fixture
@@ -27,14 +39,31 @@ def short_config(tmp_path):
 
 # Every (duration, force) pair, durations outermost; the joint convention over 0.5 s: no push
 # stays upright, 30 N for 0.1 s never leaves the settle band, 30 N for 0.2 s still sways at 0.5 s.
-EXPECTED_ROWS = [(0.0, 0.1, "recovered"), (30.0, 0.1, "recovered"), (0.0, 0.2, "recovered"),
-                 (30.0, 0.2, "not_settled")]
+EXPECTED_ROWS = [
+    (0.0, 0.1, "recovered"),
+    (30.0, 0.1, "recovered"),
+    (0.0, 0.2, "recovered"),
+    (30.0, 0.2, "not_settled"),
+]
 
 
 def test_simulate_writes_every_file(tmp_path, short_config, capsys):
     out = tmp_path / "run"
-    code = cli.main(["simulate", "--forces", "0,30", "--durations", "0.1,0.2", "--convention",
-                     "joint", "--config", str(short_config), "--out", str(out)])
+    code = cli.main(
+        [
+            "simulate",
+            "--forces",
+            "0,30",
+            "--durations",
+            "0.1,0.2",
+            "--convention",
+            "joint",
+            "--config",
+            str(short_config),
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     summary = pd.read_csv(out / "summary.csv")
     assert list(summary.columns) == SUMMARY_COLUMNS + STRATEGY_COLUMNS
@@ -51,9 +80,14 @@ def test_simulate_writes_every_file(tmp_path, short_config, capsys):
         assert len(run) == 250
         np.testing.assert_allclose(run.time.to_numpy(), 0.002 * np.arange(1, 251))
         assert (run.force == row.force).all() and (run.duration == row.duration).all()
-        within(run.energy_total.iloc[-1], row.energy_total, rtol=1e-9, atol=1e-12,
-               why="the same float64 number, once through summary.csv (pandas reads a "
-                   "written float back to within an ulp, 1.1e-16)")
+        within(
+            run.energy_total.iloc[-1],
+            row.energy_total,
+            rtol=1e-9,
+            atol=1e-12,
+            why="the same float64 number, once through summary.csv (pandas reads a "
+            "written float back to within an ulp, 1.1e-16)",
+        )
 
     config = load_config(out / "config.toml")
     assert config.scenario.t_end == 0.5 and config.controller.convention == "joint"
@@ -74,17 +108,29 @@ def test_simulate_writes_every_file(tmp_path, short_config, capsys):
     assert f"{len(FIGURES)} figures" in lines[-1]
 
 
-@pytest.mark.parametrize("option,value,message", [
-    ("--forces", "10,abc", "not a number"),
-    ("--forces", "nan", "finite"),
-    ("--forces", "", "empty grid"),
-    ("--durations", "-0.1", ">= 0"),
-    ("--durations", "inf", "finite"),
-    ("--durations", "0.6", "t_end"),  # longer than the configured 0.5-s scenario
-])
+@pytest.mark.parametrize(
+    "option,value,message",
+    [
+        ("--forces", "10,abc", "not a number"),
+        ("--forces", "nan", "finite"),
+        ("--forces", "", "empty grid"),
+        ("--durations", "-0.1", ">= 0"),
+        ("--durations", "inf", "finite"),
+        ("--durations", "0.6", "t_end"),  # longer than the configured 0.5-s scenario
+    ],
+)
 def test_simulate_rejects_bad_values(tmp_path, short_config, capsys, option, value, message):
-    args = ["simulate", "--forces", "10", "--durations", "0.1", "--config", str(short_config),
-            "--out", str(tmp_path / "bad")]
+    args = [
+        "simulate",
+        "--forces",
+        "10",
+        "--durations",
+        "0.1",
+        "--config",
+        str(short_config),
+        "--out",
+        str(tmp_path / "bad"),
+    ]
     args[args.index(option) + 1] = value
     assert cli.main(args) == 2
     assert message in capsys.readouterr().err
@@ -102,29 +148,47 @@ def test_full_window_reaches_the_figures(tmp_path, short_config, monkeypatch):
     """--full-window asks the figures for time axes up to t_end; they get the run's
     configuration and summary (bounds and outcomes) either way."""
     seen = []
-    monkeypatch.setattr("mjx_balance.figures.timeseries.timeseries_figures",
-                        lambda series, out, **kw: seen.append(kw) or [])
+    monkeypatch.setattr(
+        "mjx_balance.figures.timeseries.timeseries_figures",
+        lambda series, out, **kw: seen.append(kw) or [],
+    )
     for flag in ([], ["--full-window"]):
-        code = cli.main(["simulate", "--forces", "30", "--durations", "0.1", "--config",
-                         str(short_config), "--out", str(tmp_path / f"run{len(flag)}"), *flag])
+        code = cli.main(
+            [
+                "simulate",
+                "--forces",
+                "30",
+                "--durations",
+                "0.1",
+                "--config",
+                str(short_config),
+                "--out",
+                str(tmp_path / f"run{len(flag)}"),
+                *flag,
+            ]
+        )
         assert code == 0
     assert [kw["full_window"] for kw in seen] == [False, True]
     assert all(kw["config"].scenario.t_end == 0.5 and len(kw["summary"]) == 1 for kw in seen)
 
 
-@pytest.mark.parametrize("pairs, expected", [
-    ("20:0.1,50:0.1", [(20.0, 0.1), (50.0, 0.1)]),  # several forces at one duration
-    ("-20:0.1", [(-20.0, 0.1)]),  # a value that starts with a minus is not an option
-    ("-20:0.1,-40:0.2,-20:0.1", [(-20.0, 0.1), (-40.0, 0.2), (-20.0, 0.1)]),
-])
+@pytest.mark.parametrize(
+    "pairs, expected",
+    [
+        ("20:0.1,50:0.1", [(20.0, 0.1), (50.0, 0.1)]),  # several forces at one duration
+        ("-20:0.1", [(-20.0, 0.1)]),  # a value that starts with a minus is not an option
+        ("-20:0.1,-40:0.2,-20:0.1", [(-20.0, 0.1), (-40.0, 0.2), (-20.0, 0.1)]),
+    ],
+)
 def test_pairs_may_share_a_duration_and_start_with_a_minus(pairs, expected):
     from mjx_balance.cli.main import build_parser
     from mjx_balance.model.params import Config
     from mjx_balance.runs.folders import check_pushes
 
     args = build_parser().parse_args(["simulate", "--pairs", pairs, "--out", "unused"])
-    forces, durations, given, _ = check_pushes(Config(), args.forces, args.durations,
-                                               args.pairs, flag="--")
+    forces, durations, given, _ = check_pushes(
+        Config(), args.forces, args.durations, args.pairs, flag="--"
+    )
     assert given == expected and list(zip(forces, durations)) == expected
 
 
@@ -136,6 +200,7 @@ def test_pairs_from_a_data_frame_and_a_file_alike(tmp_path):
     for spec in (frame, tmp_path / "pairs.csv"):
         forces, durations = parse_pairs(spec)
         assert forces.tolist() == [20.0, 50.0] and durations.tolist() == [0.1, 0.1]
-    with pytest.raises(ParameterError, match="pairs: needs columns force and duration.*got "
-                                             "columns f, d"):
+    with pytest.raises(
+        ParameterError, match="pairs: needs columns force and duration.*got columns f, d"
+    ):
         parse_pairs(pd.DataFrame({"f": [1.0], "d": [0.1]}))

@@ -56,8 +56,11 @@ def files(tmp_path):
 
 
 def argv(name, files, *extra):
-    return [name, *[files.get(w, w.replace("OUT", files["OUT"])) for w in MODEL_COMMANDS[name]],
-            *extra]
+    return [
+        name,
+        *[files.get(w, w.replace("OUT", files["OUT"])) for w in MODEL_COMMANDS[name]],
+        *extra,
+    ]
 
 
 def test_every_command_is_listed():
@@ -67,23 +70,38 @@ def test_every_command_is_listed():
 
 @pytest.mark.parametrize("name", sorted(MODEL_COMMANDS))
 def test_every_model_command_takes_config_set_and_convention(name, files):
-    args = build_parser().parse_args(argv(name, files, "--config", files["BASE"],
-                                          "--set", "controller.horizon=30",
-                                          "--convention", "joint"))
+    args = build_parser().parse_args(
+        argv(
+            name,
+            files,
+            "--config",
+            files["BASE"],
+            "--set",
+            "controller.horizon=30",
+            "--convention",
+            "joint",
+        )
+    )
     assert args.convention == "joint" and args.set == ["controller.horizon=30"]
     assert args.config in (files["BASE"], [files["BASE"]])  # compare: a list (refused past one)
     if name != "compare":  # compare's base goes under each variant (test below)
         config = load_run_config(args)
-        assert (config.controller.horizon, config.scenario.t_end,
-                config.controller.convention) == (30, 6.0, "joint")
+        assert (config.controller.horizon, config.scenario.t_end, config.controller.convention) == (
+            30,
+            6.0,
+            "joint",
+        )
 
 
-@pytest.mark.parametrize("name,old,new,dest,value", [
-    ("simulate", "--force", "--forces", "forces", "10,20"),
-    ("simulate", "--duration", "--durations", "durations", "0.1"),
-    ("landscape", "--delay", "--delays", "delays", "0,100c"),
-    ("bench", "--reference", "--reference-runs", "reference", "4"),
-])
+@pytest.mark.parametrize(
+    "name,old,new,dest,value",
+    [
+        ("simulate", "--force", "--forces", "forces", "10,20"),
+        ("simulate", "--duration", "--durations", "durations", "0.1"),
+        ("landscape", "--delay", "--delays", "delays", "0,100c"),
+        ("bench", "--reference", "--reference-runs", "reference", "4"),
+    ],
+)
 def test_old_names_and_prefixes_are_refused(name, old, new, dest, value, files, capsys):
     """The names of an unreleased version, which are also prefixes of today's, are not taken
     as abbreviations (one spelling per option: the parser has allow_abbrev off)."""
@@ -109,8 +127,7 @@ def test_help_uses_the_plural_names_only():
 
 
 def test_simulate_pairs_conflict_names_the_new_flags(tmp_path, capsys):
-    code = main(["simulate", "--pairs", "20:0.1", "--forces", "20", "--out",
-                 str(tmp_path / "out")])
+    code = main(["simulate", "--pairs", "20:0.1", "--forces", "20", "--out", str(tmp_path / "out")])
     assert code == 2 and "leave out --forces and --durations" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
 
@@ -122,9 +139,11 @@ def test_sweep_help_shows_the_default_grid():
         assert DEFAULT_SWEEP[key] in text, key
     assert "(default: the --sweep file's, else the default sweep's 0:150:10)" in text
     # the light copy --help is built from is the runs floor's grid
-    assert (defaults.DEFAULT_SWEEP_FORCES, defaults.DEFAULT_SWEEP_DURATIONS,
-            defaults.DEFAULT_SWEEP_TABLE_FORCES) == (
-        DEFAULT_SWEEP["forces"], DEFAULT_SWEEP["durations"], DEFAULT_SWEEP["table_forces"])
+    assert (
+        defaults.DEFAULT_SWEEP_FORCES,
+        defaults.DEFAULT_SWEEP_DURATIONS,
+        defaults.DEFAULT_SWEEP_TABLE_FORCES,
+    ) == (DEFAULT_SWEEP["forces"], DEFAULT_SWEEP["durations"], DEFAULT_SWEEP["table_forces"])
     for name in ("compare", "landscape"):
         assert DEFAULT_SWEEP["durations"] in " ".join(commands[name].format_help().split())
 
@@ -136,8 +155,9 @@ def test_report_conventions_and_convention(files, capsys):
     assert "--convention (one, as in every other command): the studies" in text
     args = build_parser().parse_args(["report", "--out", files["OUT"]])
     assert args.conventions == "paper,joint" and args.convention is None
-    args = build_parser().parse_args(["report", "--conventions", "joint", "--convention",
-                                      "paper", "--out", files["OUT"]])
+    args = build_parser().parse_args(
+        ["report", "--conventions", "joint", "--convention", "paper", "--out", files["OUT"]]
+    )
     assert (args.conventions, args.convention) == ("joint", "paper")
     with pytest.raises(SystemExit):
         build_parser().parse_args(["report", "--conventions", "paper,sideways", "--out", "x"])
@@ -146,6 +166,7 @@ def test_report_conventions_and_convention(files, capsys):
 
 # --- compare: variants and base --------------------------------------------------------------
 
+
 @pytest.fixture
 def ran(monkeypatch):
     """run_compare (as the API calls it) replaced: records the configurations it was handed."""
@@ -153,13 +174,27 @@ def ran(monkeypatch):
 
     def record(out, configs, *_args, **_kwargs):
         seen.update(configs)
+
     monkeypatch.setattr("mjx_balance.api.run_compare", record)  # what mb.compare calls
     return seen
 
 
 def test_compare_variants_go_on_top_of_the_base(files, ran, capsys):
-    code = main(["-q", "compare", files["A"], "--variant", f"other={files['B']}", "--config",
-                 files["BASE"], "--set", "scenario.t_end=8", "--out", files["OUT"]])
+    code = main(
+        [
+            "-q",
+            "compare",
+            files["A"],
+            "--variant",
+            f"other={files['B']}",
+            "--config",
+            files["BASE"],
+            "--set",
+            "scenario.t_end=8",
+            "--out",
+            files["OUT"],
+        ]
+    )
     assert code == 0 and capsys.readouterr().err == ""
     assert list(ran) == ["a", "other"]
     # a: its horizon over the base's; both: the base's other values, then --set on top
@@ -167,26 +202,45 @@ def test_compare_variants_go_on_top_of_the_base(files, ran, capsys):
     assert ran["other"].controller.convention == "joint"
     assert {c.scenario.t_end for c in ran.values()} == {8.0}
     ran.clear()
-    assert main(["-q", "compare", files["A"], files["B"], "--convention", "joint",
-                 "--out", files["OUT"]]) == 0
+    assert (
+        main(
+            [
+                "-q",
+                "compare",
+                files["A"],
+                files["B"],
+                "--convention",
+                "joint",
+                "--out",
+                files["OUT"],
+            ]
+        )
+        == 0
+    )
     assert [c.controller.convention for c in ran.values()] == ["joint", "joint"]
-    assert ran["a"].controller.horizon == 25 and ran["b"].controller.horizon == Config(
-    ).controller.horizon
+    assert (
+        ran["a"].controller.horizon == 25
+        and ran["b"].controller.horizon == Config().controller.horizon
+    )
 
 
 def test_compare_without_a_variant_is_refused(files, ran, capsys):
     """--config names the base; the configurations to compare are FILEs or --variant."""
-    code = main(["-q", "compare", "--config", files["A"], "--config", files["B"], "--out",
-                 files["OUT"]])
+    code = main(
+        ["-q", "compare", "--config", files["A"], "--config", files["B"], "--out", files["OUT"]]
+    )
     assert code == 2 and not ran
     assert "compare FILE ... or --variant NAME=FILE" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("extra,message", [
-    ([], "needs at least one configuration"),
-    (["A", "--config", "A", "--config", "B"], "give one base configuration"),
-    (["--variant", "x=A", "--variant", "x=B"], "'x' is given twice"),
-])
+@pytest.mark.parametrize(
+    "extra,message",
+    [
+        ([], "needs at least one configuration"),
+        (["A", "--config", "A", "--config", "B"], "give one base configuration"),
+        (["--variant", "x=A", "--variant", "x=B"], "'x' is given twice"),
+    ],
+)
 def test_compare_refuses_unclear_variants(files, ran, capsys, extra, message):
     words = [files.get(w, w) for w in extra]
     words = [w.replace("=A", "=" + files["A"]).replace("=B", "=" + files["B"]) for w in words]
@@ -202,6 +256,7 @@ def test_compare_variant_must_be_name_equals_file(files, capsys):
 
 # --- planned work and progress ----------------------------------------------------------------
 
+
 def test_planned_work_of_a_tiny_run_is_honest():
     line = planned_work(2, 2.0, 64)
     assert "0 s to 0 s" not in line and "under 1 s" in line and "1 chunk of 64" in line
@@ -214,6 +269,7 @@ def test_planned_work_of_a_tiny_run_is_honest():
 
 class Recorder:
     """A stand-in tqdm: records (n, total) after every update."""
+
     bars: list = []
 
     def __init__(self, total, initial, **_kwargs):
@@ -233,8 +289,9 @@ def test_the_table_bar_keeps_its_total(monkeypatch, batch):
     monkeypatch.setattr("tqdm.auto.tqdm", Recorder)
     Recorder.bars = []
     config = Config().replace(scenario={"t_end": 2.0})
-    result = max_acting_time("20,50,80", config, run_batch=FakeThresholdBatch(), batch=batch,
-                             progress=True, say=None)
+    result = max_acting_time(
+        "20,50,80", config, run_batch=FakeThresholdBatch(), batch=batch, progress=True, say=None
+    )
     (bar,) = Recorder.bars
     assert len({total for _, total in bar.log}) == 1  # fixed
     counts = [n for n, _ in bar.log]
@@ -250,6 +307,7 @@ def test_bracket_cost_bounds_the_k_section():
         split = split[(split > 0) & (split < width)]
         gaps = np.diff(np.concatenate([[0], split, [width]]))
         return split.size + max(worst(int(g), k) for g in gaps)
+
     for k in (1, 3, 7):
         for width in range(1, 80):
             assert worst(width, k) <= bracket_cost(width, k)
@@ -280,6 +338,7 @@ def test_api_progress_default_is_on_where_someone_watches(monkeypatch):
         @staticmethod
         def get_ipython():
             return Kernel()
+
     monkeypatch.setitem(sys.modules, "IPython", IPython)  # a notebook: no TTY, still shown
     assert wanted(None)
     closed = Stream(True)

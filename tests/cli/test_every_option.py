@@ -34,12 +34,31 @@ BASE = {
     "simulate": ["simulate", "--forces", "10", "--durations", "0.1"],
     "sweep": ["sweep", "--forces", "10", "--durations", "0.1"],
     "table": ["table", "--forces", "10"],
-    "compare": ["compare", "{tmp}/a.toml", "{tmp}/b.toml", "--forces", "10", "--durations",
-                "0.1"],
-    "cohort": ["cohort", "--heights", "1.7", "--masses", "70", "--forces", "10",
-               "--durations", "0.1"],
-    "landscape": ["landscape", "--q-scales", "1", "--r-scales", "1", "--delays", "0",
-                  "--forces", "10", "--durations", "0.1"],
+    "compare": ["compare", "{tmp}/a.toml", "{tmp}/b.toml", "--forces", "10", "--durations", "0.1"],
+    "cohort": [
+        "cohort",
+        "--heights",
+        "1.7",
+        "--masses",
+        "70",
+        "--forces",
+        "10",
+        "--durations",
+        "0.1",
+    ],
+    "landscape": [
+        "landscape",
+        "--q-scales",
+        "1",
+        "--r-scales",
+        "1",
+        "--delays",
+        "0",
+        "--forces",
+        "10",
+        "--durations",
+        "0.1",
+    ],
     "basin": ["basin", "--x-com", "0", "--v-com", "0", "--push-forces", "none"],
     "sensitivity": ["sensitivity", "--forces", "10"],
     "animate": ["animate", "--force", "10"],
@@ -110,36 +129,46 @@ def options() -> list[tuple[str, str]]:
     found = []
     for command in BASE:
         for action in sub.choices[command]._actions:
-            if (action.option_strings and action.nargs != 0 and not action.choices
-                    and not isinstance(action, argparse._HelpAction)):
+            if (
+                action.option_strings
+                and action.nargs != 0
+                and not action.choices
+                and not isinstance(action, argparse._HelpAction)
+            ):
                 found.append((command, action.option_strings[-1]))
     return found
 
 
 def values(tmp: Path) -> dict[str, str]:
     (tmp / "file.txt").write_text("not a configuration\n")
-    return {**{v: v for v in NUMBERS}, "file": str(tmp / "file.txt"), "dir": str(tmp),
-            "missing": str(tmp / "missing" / "x"),
-            "under-a-file": str(tmp / "file.txt" / "x")}  # no one can write there
+    return {
+        **{v: v for v in NUMBERS},
+        "file": str(tmp / "file.txt"),
+        "dir": str(tmp),
+        "missing": str(tmp / "missing" / "x"),
+        "under-a-file": str(tmp / "file.txt" / "x"),
+    }  # no one can write there
 
 
 def argv_for(command: str, option: str, value: str, tmp: Path, out: Path) -> list[str]:
     argv = [a.format(tmp=tmp) for a in BASE[command]]
     if option in argv:
         i = argv.index(option)
-        del argv[i:i + 2]
+        del argv[i : i + 2]
     if option == "--out":
         return [*argv, "--out", value]
     return [*argv, option, value, "--out", str(out)]
 
 
 @pytest.mark.parametrize("command", sorted(BASE))
-def test_every_option_refuses_a_hostile_value_or_means_it(command, tmp_path, monkeypatch,
-                                                         stand_in_work):
+def test_every_option_refuses_a_hostile_value_or_means_it(
+    command, tmp_path, monkeypatch, stand_in_work
+):
     monkeypatch.chdir(tmp_path)  # a relative --out lands here
     (tmp_path / "a.toml").write_text("[scenario]\nt_end = 1.0\n")
-    (tmp_path / "b.toml").write_text("[scenario]\nt_end = 1.0\n[controller]\n"
-                                     "r_diag = [2e-3, 2e-3]\n")
+    (tmp_path / "b.toml").write_text(
+        "[scenario]\nt_end = 1.0\n[controller]\nr_diag = [2e-3, 2e-3]\n"
+    )
     given = values(tmp_path)
     problems, tried = [], 0
     for cmd, option in options():
@@ -167,8 +196,7 @@ def test_every_option_refuses_a_hostile_value_or_means_it(command, tmp_path, mon
                 if label not in accepted(command, option):
                     problems.append(f"{case}: taken without a check")
             elif code in (1, 2):
-                if not (lines and lines[-1].startswith("mjx-balance")
-                        and "error:" in lines[-1]):
+                if not (lines and lines[-1].startswith("mjx-balance") and "error:" in lines[-1]):
                     problems.append(f"{case}: exit {code} without an error line: {lines[-1:]}")
                 if (tmp_path / "runs" / f"{tried}").exists():
                     problems.append(f"{case}: refused, but wrote its --out")

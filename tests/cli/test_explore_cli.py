@@ -31,9 +31,14 @@ def test_a_missing_folder_or_one_without_a_map_is_refused(tmp_path, capsys):
     assert_refused(code, err, "holds no region map")
 
 
-@pytest.mark.parametrize("port, words", [("70000", "must be in [0, 65535]"),
-                                         ("-1", "must be in [0, 65535]"),
-                                         ("http", "is not a whole number")])
+@pytest.mark.parametrize(
+    "port, words",
+    [
+        ("70000", "must be in [0, 65535]"),
+        ("-1", "must be in [0, 65535]"),
+        ("http", "is not a whole number"),
+    ],
+)
 def test_a_bad_port_is_refused(sweep, capsys, port, words):
     code, err = run_cli(["explore", str(sweep), "--port", port, "--no-browser"], capsys)
     assert_refused(code, err, "--port", words)
@@ -50,9 +55,13 @@ def test_a_port_in_use_is_refused_in_one_line(sweep, capsys):
 
 def test_ctrl_c_stops_the_server_with_exit_130_and_nothing_half_written(sweep):
     env = {**os.environ, "PYTHONPATH": str(TESTS)}
-    proc = subprocess.Popen([sys.executable, "-m", "mjx_balance", "explore", str(sweep),
-                             "--no-browser"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "mjx_balance", "explore", str(sweep), "--no-browser"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
     try:
         line = proc.stdout.readline()  # the address, once the port is bound
         url = re.search(r"http://127\.0\.0\.1:\d+/", line)

@@ -33,22 +33,23 @@ from mjx_balance.model.params import (
     ScenarioParams,
 )
 
-PROPERTY = settings(derandomize=True, database=None, deadline=None,
-                    suppress_health_check=[HealthCheck.too_slow])
+PROPERTY = settings(
+    derandomize=True, database=None, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
 SECTIONS = {"body": BodyParams, "controller": ControllerParams, "scenario": ScenarioParams}
-FIELDS = [(section, f.name) for section, cls in SECTIONS.items()
-          for f in dataclasses.fields(cls)]
+FIELDS = [(section, f.name) for section, cls in SECTIONS.items() for f in dataclasses.fields(cls)]
 
 # Values from the ordinary to the absurd, of every type a user may hand over.
 NUMBERS = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True),
     st.sampled_from([0.0, -0.0, 1e-300, -1e-300, 1e300, -1e300, 0.01, 0.5, 2.0, 20.0, 100.0]),
-    st.integers(min_value=-10**30, max_value=10**30),
+    st.integers(min_value=-(10**30), max_value=10**30),
     st.builds(np.float32, st.floats(width=32, allow_nan=False, allow_infinity=False)),
-    st.builds(np.int64, st.integers(min_value=-2**40, max_value=2**40)),
+    st.builds(np.int64, st.integers(min_value=-(2**40), max_value=2**40)),
 )
-VALUES = st.one_of(NUMBERS, st.booleans(), st.text(max_size=5), st.none(),
-                   st.lists(NUMBERS, max_size=5))
+VALUES = st.one_of(
+    NUMBERS, st.booleans(), st.text(max_size=5), st.none(), st.lists(NUMBERS, max_size=5)
+)
 
 
 def fake_batch(config, **_engine):
@@ -69,30 +70,81 @@ def test_a_configuration_is_built_or_refused_with_a_parameter_error(field, value
 
 
 SET_VALUES = st.one_of(
-    st.sampled_from(["0", "-1", "1e-300", "1e300", "nan", "inf", "true", "abc", "[0, 0]",
-                     "[1e300, 1e300]", "2.5", "200", "0.002", "1e-9"]),
+    st.sampled_from(
+        [
+            "0",
+            "-1",
+            "1e-300",
+            "1e300",
+            "nan",
+            "inf",
+            "true",
+            "abc",
+            "[0, 0]",
+            "[1e300, 1e300]",
+            "2.5",
+            "200",
+            "0.002",
+            "1e-9",
+        ]
+    ),
     st.floats(allow_nan=False, allow_infinity=False, width=32).map(repr),
 )
 GRIDS = st.one_of(
-    st.sampled_from(["0,60", "0:120:20", "10", "-10,10", "abc", "", "5:1:1", "0:1:0", "1e300",
-                     "nan", "0,0", "1,2,x"]),
-    st.lists(st.floats(min_value=-500, max_value=500, allow_nan=False), min_size=1,
-             max_size=4).map(lambda xs: ",".join(repr(x) for x in xs)),
+    st.sampled_from(
+        [
+            "0,60",
+            "0:120:20",
+            "10",
+            "-10,10",
+            "abc",
+            "",
+            "5:1:1",
+            "0:1:0",
+            "1e300",
+            "nan",
+            "0,0",
+            "1,2,x",
+        ]
+    ),
+    st.lists(st.floats(min_value=-500, max_value=500, allow_nan=False), min_size=1, max_size=4).map(
+        lambda xs: ",".join(repr(x) for x in xs)
+    ),
 )
 
 
 @settings(PROPERTY, max_examples=12)
-@given(field=st.sampled_from(FIELDS), value=SET_VALUES, forces=GRIDS,
-       durations=st.sampled_from(["0.1", "0.1,0.5", "0:1:0.25", "-1", "100", "0.0031"]))
+@given(
+    field=st.sampled_from(FIELDS),
+    value=SET_VALUES,
+    forces=GRIDS,
+    durations=st.sampled_from(["0.1", "0.1,0.5", "0:1:0.25", "-1", "100", "0.0031"]),
+)
 def test_the_command_line_runs_or_refuses_with_one_line(field, value, forces, durations):
     section, name = field
-    with tempfile.TemporaryDirectory() as tmp, mock.patch(DEFAULT_BATCH, fake_batch), \
-            mock.patch("sys.stderr") as stderr:
+    with (
+        tempfile.TemporaryDirectory() as tmp,
+        mock.patch(DEFAULT_BATCH, fake_batch),
+        mock.patch("sys.stderr") as stderr,
+    ):
         out = Path(tmp) / "out"
         try:
-            code = main(["-q", "sweep", "--forces", forces, "--durations", durations, "--set",
-                         f"{section}.{name}={value}", "--set", "scenario.t_end=2", "--out",
-                         str(out)])
+            code = main(
+                [
+                    "-q",
+                    "sweep",
+                    "--forces",
+                    forces,
+                    "--durations",
+                    durations,
+                    "--set",
+                    f"{section}.{name}={value}",
+                    "--set",
+                    "scenario.t_end=2",
+                    "--out",
+                    str(out),
+                ]
+            )
         except SystemExit as exc:  # argparse's refusal of a value it parses itself
             code = exc.code
         written = "".join(str(call.args[0]) for call in stderr.write.call_args_list)
@@ -106,11 +158,19 @@ def test_the_command_line_runs_or_refuses_with_one_line(field, value, forces, du
             assert (out / "region.parquet").exists()
 
 
-ARGUMENTS = st.one_of(VALUES, st.sampled_from(["0:60:20", "10,20", "abc"]),
-                      st.builds(np.array, st.lists(NUMBERS, min_size=1, max_size=3)))
-SIZES = st.one_of(st.none(), st.integers(min_value=-3, max_value=70), st.booleans(),
-                  st.floats(allow_nan=True), st.text(max_size=3),
-                  st.builds(np.int32, st.integers(min_value=-3, max_value=70)))
+ARGUMENTS = st.one_of(
+    VALUES,
+    st.sampled_from(["0:60:20", "10,20", "abc"]),
+    st.builds(np.array, st.lists(NUMBERS, min_size=1, max_size=3)),
+)
+SIZES = st.one_of(
+    st.none(),
+    st.integers(min_value=-3, max_value=70),
+    st.booleans(),
+    st.floats(allow_nan=True),
+    st.text(max_size=3),
+    st.builds(np.int32, st.integers(min_value=-3, max_value=70)),
+)
 
 
 @settings(PROPERTY, max_examples=15)
@@ -127,8 +187,11 @@ def test_the_api_runs_or_refuses_with_a_value_error(forces, chunk, slots):
     values = [forces] if np.ndim(forces) == 0 and not isinstance(forces, str) else forces
     assert not isinstance(forces, bool)
     for size in (chunk, slots):
-        assert size is None or (not isinstance(size, bool) and float(size) >= 1
-                                and float(size) == math.floor(float(size)))
+        assert size is None or (
+            not isinstance(size, bool)
+            and float(size) >= 1
+            and float(size) == math.floor(float(size))
+        )
     assert len(region) == 2 * len(set(region["force"])) and len(values) >= 1
 
 

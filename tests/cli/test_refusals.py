@@ -64,31 +64,39 @@ def command(name: str, out, *extra: str) -> list[str]:
 @pytest.fixture
 def files(tmp_path):
     """Bad inputs: a folder, a non-UTF-8 file, configurations that break a rule, a plain file."""
-    made = {"folder": tmp_path / "a_folder", "binary": tmp_path / "binary.toml",
-            "file": tmp_path / "a_file"}
+    made = {
+        "folder": tmp_path / "a_folder",
+        "binary": tmp_path / "binary.toml",
+        "file": tmp_path / "a_file",
+    }
     made["folder"].mkdir()
     made["binary"].write_bytes(b"\xff\xfe[body]\nfoot_mass = 1.0\n")
     made["file"].write_text("not a folder\n")
-    for name, text in {"nested": "[controller]\ninput1_bounds = [[1, 2], 3]\n",
-                       "q_text": '[controller]\nq_diag = ["a", 1, 1, 1]\n',
-                       "q_bool": "[controller]\nq_diag = [true, 1, 1, 1]\n",
-                       "physics_dt": "[scenario]\nphysics_dt = 1.0\ncontrol_dt = 1.0\n",
-                       "mass": "[body]\nupper_mass = 1e308\n"}.items():
+    for name, text in {
+        "nested": "[controller]\ninput1_bounds = [[1, 2], 3]\n",
+        "q_text": '[controller]\nq_diag = ["a", 1, 1, 1]\n',
+        "q_bool": "[controller]\nq_diag = [true, 1, 1, 1]\n",
+        "physics_dt": "[scenario]\nphysics_dt = 1.0\ncontrol_dt = 1.0\n",
+        "mass": "[body]\nupper_mass = 1e308\n",
+    }.items():
         made[name] = tmp_path / f"{name}.toml"
         made[name].write_text(text)
     return made
 
 
 @pytest.mark.parametrize("name", COMMANDS)
-@pytest.mark.parametrize("config,words", [
-    ("folder", ["--config", "is not a file"]),
-    ("binary", ["--config", "not UTF-8"]),
-    ("nested", ["controller.input1_bounds", "list of numbers"]),
-    ("q_text", ["controller.q_diag", "list of numbers"]),
-    ("q_bool", ["controller.q_diag", "list of numbers"]),
-    ("physics_dt", ["scenario.physics_dt", "<= 0.01"]),
-    ("mass", ["body.upper_mass", "[0.001, 10000] kg"]),
-])
+@pytest.mark.parametrize(
+    "config,words",
+    [
+        ("folder", ["--config", "is not a file"]),
+        ("binary", ["--config", "not UTF-8"]),
+        ("nested", ["controller.input1_bounds", "list of numbers"]),
+        ("q_text", ["controller.q_diag", "list of numbers"]),
+        ("q_bool", ["controller.q_diag", "list of numbers"]),
+        ("physics_dt", ["scenario.physics_dt", "<= 0.01"]),
+        ("mass", ["body.upper_mass", "[0.001, 10000] kg"]),
+    ],
+)
 def test_every_command_refuses_a_bad_config(tmp_path, files, capsys, name, config, words):
     out = tmp_path / "out"
     code, err = run_cli(command(name, out, "--config", str(files[config])), capsys)
@@ -97,11 +105,14 @@ def test_every_command_refuses_a_bad_config(tmp_path, files, capsys, name, confi
 
 
 @pytest.mark.parametrize("name", COMMANDS)
-@pytest.mark.parametrize("where,words", [
-    ("", ["--out", "give a"]),
-    ("file", ["--out", "a_file' exists and is not a folder"]),  # animate: see below
-    ("file/sub", ["--out", "a_file' is not a folder"]),  # its parent is a file: cannot be made
-])
+@pytest.mark.parametrize(
+    "where,words",
+    [
+        ("", ["--out", "give a"]),
+        ("file", ["--out", "a_file' exists and is not a folder"]),  # animate: see below
+        ("file/sub", ["--out", "a_file' is not a folder"]),  # its parent is a file: cannot be made
+    ],
+)
 def test_every_command_refuses_an_unusable_out(tmp_path, files, capsys, name, where, words):
     out = "" if not where else str(tmp_path / where.replace("file", "a_file"))
     if name == "animate" and where == "file":  # a GIF may be overwritten, a name must be .gif
@@ -123,8 +134,11 @@ def test_an_unwritable_place_is_refused(tmp_path, capsys, monkeypatch, name):
     parent = tmp_path / "read_only"
     parent.mkdir()
     real_access = os.access
-    monkeypatch.setattr(os, "access", lambda path, mode: (
-        False if str(path) == str(parent) else real_access(path, mode)))
+    monkeypatch.setattr(
+        os,
+        "access",
+        lambda path, mode: False if str(path) == str(parent) else real_access(path, mode),
+    )
     out = parent / "new" / "deeper"
     code, err = run_cli(command(name, out), capsys)
     assert_refused(code, err, "--out", "read_only' is not writable")
@@ -192,8 +206,11 @@ BAD_VALUES = [
 ]
 
 
-@pytest.mark.parametrize("name,extra,words", BAD_VALUES,
-                         ids=[f"{name} {' '.join(extra)}" for name, extra, _ in BAD_VALUES])
+@pytest.mark.parametrize(
+    "name,extra,words",
+    BAD_VALUES,
+    ids=[f"{name} {' '.join(extra)}" for name, extra, _ in BAD_VALUES],
+)
 def test_bad_values_are_refused(tmp_path, capsys, name, extra, words):
     out = tmp_path / "out"
     code, err = run_cli(command(name, out, *extra), capsys)
@@ -201,12 +218,15 @@ def test_bad_values_are_refused(tmp_path, capsys, name, extra, words):
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("where,words", [
-    ("movie", ["--out", "must end in .gif"]),  # no extension
-    ("movie.mp4", ["--out", "must end in .gif"]),
-    ("a_folder", ["--out", "is a folder"]),
-    ("a_folder.gif", ["--out", "is a folder"]),
-])
+@pytest.mark.parametrize(
+    "where,words",
+    [
+        ("movie", ["--out", "must end in .gif"]),  # no extension
+        ("movie.mp4", ["--out", "must end in .gif"]),
+        ("a_folder", ["--out", "is a folder"]),
+        ("a_folder.gif", ["--out", "is a folder"]),
+    ],
+)
 def test_animate_out_must_be_a_gif_file(tmp_path, capsys, where, words):
     (tmp_path / "a_folder").mkdir()
     (tmp_path / "a_folder.gif").mkdir()
@@ -216,19 +236,31 @@ def test_animate_out_must_be_a_gif_file(tmp_path, capsys, where, words):
     assert not any((tmp_path / "a_folder").iterdir())
 
 
-@pytest.mark.parametrize("argv,words", [
-    (["sweep", "--forces", "0", "--durations", "0.1", "--chunk", "-3"], ["--chunk"]),
-    (["animate", "--force", "10", "--fps", "nan"], ["--fps", "finite"]),
-    (["simulate", "--forces", "10", "--config", "CONFIG"], ["controller.input1_bounds"]),
-])
+@pytest.mark.parametrize(
+    "argv,words",
+    [
+        (["sweep", "--forces", "0", "--durations", "0.1", "--chunk", "-3"], ["--chunk"]),
+        (["animate", "--force", "10", "--fps", "nan"], ["--fps", "finite"]),
+        (["simulate", "--forces", "10", "--config", "CONFIG"], ["controller.input1_bounds"]),
+    ],
+)
 def test_the_process_exits_2_without_a_traceback(tmp_path, argv, words):
     """The installed entry point, in its own process: exit status 2, one error line."""
     config = tmp_path / "nested.toml"
     config.write_text("[controller]\ninput1_bounds = [[1, 2], 3]\n")
     out = tmp_path / ("out.gif" if argv[0] == "animate" else "out")
     argv = [a.replace("CONFIG", str(config)) for a in argv] + ["--out", str(out)]
-    done = subprocess.run([sys.executable, "-c", "import sys; from mjx_balance.cli import main; "
-                           "sys.exit(main())", *argv], capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from mjx_balance.cli import main; sys.exit(main())",
+            *argv,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.stdout == ""
     assert_refused(done.returncode, done.stderr, *words)
     assert not out.exists()
@@ -242,7 +274,7 @@ BAD = [  # --set value, what the message names
     ("scenario.control_dt=2", "too ill-conditioned"),
     ("controller.admm_rho=1e-300", "controller.admm_rho = 1e-300"),
     ("controller.admm_eps_abs=1e-300", "controller.admm_eps_abs"),
-    (f"controller.horizon={2 ** 70}", "more than the memory budget"),
+    (f"controller.horizon={2**70}", "more than the memory budget"),
     ("controller.q_diag=[1e300,1e300,1e300,1e300]", "QP cannot be built"),
     ("body.hip_servo_stiffness=1e300", "cannot be built"),
     ("body.gravity=1e-300", "body.gravity = 1e-300: must lie in"),
@@ -264,8 +296,23 @@ def test_the_command_refuses_before_writing(tmp_path, capsys, setting, message, 
 @pytest.mark.parametrize("setting, message", [BAD[4], BAD[6], BAD[7]])
 def test_simulate_refuses_before_writing(tmp_path, capsys, setting, message):
     out = tmp_path / "out"
-    assert main(["-q", "simulate", "--forces", "20", "--durations", "0.1", "--set", setting,
-                 "--out", str(out)]) == 2
+    assert (
+        main(
+            [
+                "-q",
+                "simulate",
+                "--forces",
+                "20",
+                "--durations",
+                "0.1",
+                "--set",
+                setting,
+                "--out",
+                str(out),
+            ]
+        )
+        == 2
+    )
     assert message.split(":")[0] in capsys.readouterr().err
     assert not out.exists()
 
@@ -275,7 +322,7 @@ def test_the_api_refuses_with_a_value_error(tmp_path):
     with pytest.raises(ValueError, match="ill-conditioned"):
         mb.sweep([10.0], [0.1], config, out=tmp_path / "out")
     with pytest.raises(ParameterError, match="memory budget"):
-        mb.table([10.0], Config().replace(controller={"horizon": 2 ** 70}))
+        mb.table([10.0], Config().replace(controller={"horizon": 2**70}))
     assert not (tmp_path / "out").exists()
 
 
@@ -288,11 +335,12 @@ def test_the_conditioning_rule_on_known_horizons():
         qp = build_qp(controller, Config().body, 0.01)
         ratios[horizon] = float32_conditioning(qp)
     assert ratios[20] < 1e-3 < ratios[60] < 1.0 <= ratios[80]
-    assert FLOAT32_EPS == 2.0 ** -23
-    assert qp_bytes(20) == 2 * 16 * 40 * 40 * 8 and qp_bytes(2 ** 70) > 2 ** 140
+    assert FLOAT32_EPS == 2.0**-23
+    assert qp_bytes(20) == 2 * 16 * 40 * 40 * 8 and qp_bytes(2**70) > 2**140
 
 
 # -- a run that is not a result: half or more of its scenarios diverged ---------
+
 
 class DivergingBatch:
     """A stand-in rollout whose scenarios diverge where F > ``above`` (else recover), as a
@@ -316,8 +364,10 @@ class DivergingBatch:
 @pytest.fixture
 def diverging(monkeypatch):
     def use(above):
-        monkeypatch.setattr("mjx_balance.runs.batch.default_batch",
-                            lambda config, **_engine: DivergingBatch(above))
+        monkeypatch.setattr(
+            "mjx_balance.runs.batch.default_batch", lambda config, **_engine: DivergingBatch(above)
+        )
+
     return use
 
 
@@ -325,8 +375,7 @@ def diverging(monkeypatch):
 def test_a_mostly_diverged_run_fails_with_one_line(tmp_path, capsys, diverging, command):
     diverging(above=15.0)  # forces 20, 40, 60 of 10..60 diverge: 75 % of the cells
     out = tmp_path / "out"
-    grid = ["--forces", "10,20,40,60"] + (["--durations", "0.1,0.2"] if command == "sweep"
-                                          else [])
+    grid = ["--forces", "10,20,40,60"] + (["--durations", "0.1,0.2"] if command == "sweep" else [])
     assert main(["-q", command, *grid, "--set", "scenario.t_end=2", "--out", str(out)]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "diverged" in err[0] and "not results" in err[0], err
@@ -340,8 +389,23 @@ def test_a_mostly_diverged_run_fails_with_one_line(tmp_path, capsys, diverging, 
 def test_a_few_diverged_cells_are_results(tmp_path, diverging):
     diverging(above=50.0)  # one force of four: 25 % diverged
     out = tmp_path / "out"
-    assert main(["-q", "sweep", "--forces", "10,20,40,60", "--durations", "0.1,0.2", "--set",
-                 "scenario.t_end=2", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "-q",
+                "sweep",
+                "--forces",
+                "10,20,40,60",
+                "--durations",
+                "0.1,0.2",
+                "--set",
+                "scenario.t_end=2",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert (out / "region.png").exists()
     with pytest.raises(NotAResult):  # the API raises it
         diverging(above=0.0)
@@ -352,8 +416,23 @@ def test_an_absurd_push_gives_its_outcome_row_and_figures(tmp_path, capsys):
     """1e12 N diverges at the first step; the run still writes its summary row and
     figures that say there is nothing to draw, instead of a traceback."""
     out = tmp_path / "out"
-    assert main(["-q", "simulate", "--forces", "1e12", "--durations", "0.1", "--set",
-                 "scenario.t_end=0.2", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "-q",
+                "simulate",
+                "--forces",
+                "1e12",
+                "--durations",
+                "0.1",
+                "--set",
+                "scenario.t_end=0.2",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     summary = pd.read_csv(out / "summary.csv")
     assert list(summary["outcome"]) == ["diverged"]
     assert (out / "ankle_angle.png").exists() and (out / "energy.png").exists()
@@ -361,6 +440,7 @@ def test_an_absurd_push_gives_its_outcome_row_and_figures(tmp_path, capsys):
 
 
 # -- numerics on resume -------------------------------------------------------------
+
 
 def test_the_numerics_fingerprint_is_recorded_and_a_mismatch_refused(tmp_path, caplog):
     from support import FakeThresholdBatch, sweep_fake
@@ -399,11 +479,13 @@ def test_the_fingerprint_reads_the_environment_without_jax():
     from mjx_balance.runtime import fingerprint
 
     assert fingerprint.result_flags("--xla_force_host_platform_device_count=2 --b=1 --a=2") == [
-        "--a=2", "--b=1"]
+        "--a=2",
+        "--b=1",
+    ]
     assert fingerprint.cpu_isa("--xla_cpu_max_isa=avx") == "AVX"
-    assert fingerprint.differences({"x64": False, "cpu_isa": "AVX2"},
-                                   {"x64": True, "cpu_isa": "AVX"}) == (
-        ["x64: False -> True"], ["cpu_isa: 'AVX2' -> 'AVX'"])
+    assert fingerprint.differences(
+        {"x64": False, "cpu_isa": "AVX2"}, {"x64": True, "cpu_isa": "AVX"}
+    ) == (["x64: False -> True"], ["cpu_isa: 'AVX2' -> 'AVX'"])
 
 
 # -- damaged records and sweep definitions --------------------------------------------------------
@@ -475,18 +557,18 @@ def whole_steps_message(duration: float, name: str = "--duration") -> str:
     return str(exc.value)
 
 
-
-
 @pytest.mark.parametrize("name", ["simulate", "animate"])
 def test_durations_off_the_physics_steps_are_refused(tmp_path, capsys, monkeypatch, name):
     def refuse(*args, **kwargs):
         raise Called
+
     monkeypatch.setattr("mjx_balance.reference.loop.simulate_many", refuse)
     monkeypatch.setattr("mjx_balance.reference.loop.simulate_scenario", refuse)
     out = tmp_path / ("push.gif" if name == "animate" else "out")
     # simulate takes lists (--forces, --durations), animate one push (--force, --duration)
-    force, duration = ("--force", "--duration") if name == "animate" else ("--forces",
-                                                                           "--durations")
+    force, duration = (
+        ("--force", "--duration") if name == "animate" else ("--forces", "--durations")
+    )
     code, err = run_cli([name, force, "10", duration, "0.1005", "--out", str(out)], capsys)
     assert_refused(code, err, whole_steps_message(0.1005, duration))
     assert list(tmp_path.iterdir()) == []
@@ -500,23 +582,39 @@ def test_simulate_reads_forces_and_durations_as_sweep_does(tmp_path, capsys, mon
     asked = {}
 
     def record(config, pairs, **_options):  # the cross product, every force per duration
-        asked.update(forces=list(dict.fromkeys(f for f, _ in pairs)),
-                     durations=list(dict.fromkeys(d for _, d in pairs)))
+        asked.update(
+            forces=list(dict.fromkeys(f for f, _ in pairs)),
+            durations=list(dict.fromkeys(d for _, d in pairs)),
+        )
         raise Called
+
     monkeypatch.setattr("mjx_balance.reference.loop.each_pair", record)
     with pytest.raises(Called):
-        cli.main(["simulate", "--forces", "0:40:20", "--durations", "0.05:0.1:0.05",
-                  "--out", str(tmp_path / "out")])
+        cli.main(
+            [
+                "simulate",
+                "--forces",
+                "0:40:20",
+                "--durations",
+                "0.05:0.1:0.05",
+                "--out",
+                str(tmp_path / "out"),
+            ]
+        )
     assert asked == {"forces": [0.0, 20.0, 40.0], "durations": [0.05, 0.1]}
     with pytest.raises(Called):
-        cli.main(["simulate", "--forces=-20,10", "--durations", "0,0.1",
-                  "--out", str(tmp_path / "out")])
+        cli.main(
+            ["simulate", "--forces=-20,10", "--durations", "0,0.1", "--out", str(tmp_path / "out")]
+        )
     assert asked == {"forces": [-20.0, 10.0], "durations": [0.0, 0.1]}
-    for bad, words in [("0:1:0", ["--durations", "step must be > 0"]),
-                       ("0.1,0.1", ["--durations", "more than once"]),
-                       ("0:0.101:0.0505", ["--durations", "not a whole number of physics steps"])]:
-        code, err = run_cli(["simulate", "--durations", bad, "--out", str(tmp_path / "bad")],
-                            capsys)
+    for bad, words in [
+        ("0:1:0", ["--durations", "step must be > 0"]),
+        ("0.1,0.1", ["--durations", "more than once"]),
+        ("0:0.101:0.0505", ["--durations", "not a whole number of physics steps"]),
+    ]:
+        code, err = run_cli(
+            ["simulate", "--durations", bad, "--out", str(tmp_path / "bad")], capsys
+        )
         assert_refused(code, err, *words)
         assert not (tmp_path / "bad").exists()
 
@@ -524,12 +622,19 @@ def test_simulate_reads_forces_and_durations_as_sweep_does(tmp_path, capsys, mon
 # --- simulate does not write into a sweep folder --------------------------------------
 
 
-@pytest.mark.parametrize("holds", [["manifest.json", "config.toml"], ["config.toml", "chunks/"],
-                                   ["config.toml", "region.parquet"],
-                                   ["config.toml", "report.json"]])
+@pytest.mark.parametrize(
+    "holds",
+    [
+        ["manifest.json", "config.toml"],
+        ["config.toml", "chunks/"],
+        ["config.toml", "region.parquet"],
+        ["config.toml", "report.json"],
+    ],
+)
 def test_simulate_refuses_a_sweep_folder(tmp_path, capsys, monkeypatch, holds):
     def refuse(*args, **kwargs):
         raise Called
+
     monkeypatch.setattr("mjx_balance.reference.loop.simulate_many", refuse)
     out = tmp_path / "sweep"
     out.mkdir()

@@ -21,8 +21,17 @@ from support import DEFAULT_BATCH, TESTS, FakeThresholdBatch, signal_where_excep
 
 from mjx_balance.cli import main
 
-ARGS = ["sweep", "--forces", "0,20,40,60", "--durations", "0.5,1", "--chunk", "2", "--set",
-        "scenario.t_end=2"]
+ARGS = [
+    "sweep",
+    "--forces",
+    "0,20,40,60",
+    "--durations",
+    "0.5,1",
+    "--chunk",
+    "2",
+    "--set",
+    "scenario.t_end=2",
+]
 
 
 class SignalOnCall(FakeThresholdBatch):
@@ -40,16 +49,20 @@ class SignalOnCall(FakeThresholdBatch):
         return super().__call__(forces, durations)
 
 
-@pytest.mark.parametrize("signum, code, name", [(signal.SIGINT, 130, "SIGINT"),
-                                                (signal.SIGTERM, 143, "SIGTERM")])
-def test_a_signal_ends_with_one_line_and_the_run_resumes(tmp_path, capsys, monkeypatch,
-                                                         signum, code, name):
+@pytest.mark.parametrize(
+    "signum, code, name", [(signal.SIGINT, 130, "SIGINT"), (signal.SIGTERM, 143, "SIGTERM")]
+)
+def test_a_signal_ends_with_one_line_and_the_run_resumes(
+    tmp_path, capsys, monkeypatch, signum, code, name
+):
     out = tmp_path / "out"
     monkeypatch.setattr(DEFAULT_BATCH, lambda config, **_: SignalOnCall(signum))
     assert main(["-q", *ARGS, "--out", str(out)]) == code
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"mjx-balance: error: interrupted ({name}); what finished is kept: run the "
-                   "same command to resume"]
+    assert err == [
+        f"mjx-balance: error: interrupted ({name}); what finished is kept: run the "
+        "same command to resume"
+    ]
     run = json.loads((out / "manifest.json").read_text())["runs"][-1]
     assert run["status"] == "interrupted" and run["ended"]
     kept = sorted((out / "chunks").glob("chunk-*.parquet"))
@@ -76,16 +89,20 @@ class SignalDropped(FakeThresholdBatch):
 
 
 @pytest.mark.parametrize("where", ["gc", "del", "weakref"])
-@pytest.mark.parametrize("signum, code, name", [(signal.SIGINT, 130, "SIGINT"),
-                                                (signal.SIGTERM, 143, "SIGTERM")])
+@pytest.mark.parametrize(
+    "signum, code, name", [(signal.SIGINT, 130, "SIGINT"), (signal.SIGTERM, 143, "SIGTERM")]
+)
 def test_a_signal_in_a_callback_whose_exceptions_are_dropped_still_ends_the_run(
-        tmp_path, capsys, monkeypatch, where, signum, code, name):
+    tmp_path, capsys, monkeypatch, where, signum, code, name
+):
     out = tmp_path / "out"
     monkeypatch.setattr(DEFAULT_BATCH, lambda config, **_: SignalDropped(where, signum))
     assert main(["-q", *ARGS, "--out", str(out)]) == code
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"mjx-balance: error: interrupted ({name}); what finished is kept: run the "
-                   "same command to resume"]  # and no "Exception ignored in ..."
+    assert err == [
+        f"mjx-balance: error: interrupted ({name}); what finished is kept: run the "
+        "same command to resume"
+    ]  # and no "Exception ignored in ..."
     run = json.loads((out / "manifest.json").read_text())["runs"][-1]
     assert run["status"] == "interrupted" and run["ended"]
     assert not (out / "region.parquet").exists()
@@ -123,8 +140,11 @@ SCRIPT = textwrap.dedent("""
 
 
 def run_script(mode: str, out: Path, **streams) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", SCRIPT, str(TESTS), mode,
-                           *ARGS, "--out", str(out)], timeout=300, **streams)
+    return subprocess.run(
+        [sys.executable, "-c", SCRIPT, str(TESTS), mode, *ARGS, "--out", str(out)],
+        timeout=300,
+        **streams,
+    )
 
 
 def test_a_closed_stderr_does_not_fail_the_run(tmp_path):
@@ -139,8 +159,7 @@ def test_a_closed_stderr_does_not_fail_the_run(tmp_path):
 def test_a_full_stdout_does_not_fail_the_run(tmp_path):
     # the log's lines (stdout) on a full disk: dropped, the results are in files
     with open("/dev/full", "w") as full:
-        done = run_script("plain", tmp_path / "out", stdout=full, stderr=subprocess.PIPE,
-                          text=True)
+        done = run_script("plain", tmp_path / "out", stdout=full, stderr=subprocess.PIPE, text=True)
     assert done.returncode == 0, done.stderr
     assert "Traceback" not in done.stderr and "Logging error" not in done.stderr
     assert (tmp_path / "out" / "region.parquet").exists()
@@ -156,14 +175,24 @@ def test_a_dangling_symlink_as_out_is_refused(tmp_path, capsys):
     assert "symbolic link to a missing target" in err and "Traceback" not in err
 
 
-SIMULATE = ["-q", "simulate", "--forces", "0,20,50", "--durations", "0.1,0.2",
-            "--set", "scenario.t_end=0.3"]
+SIMULATE = [
+    "-q",
+    "simulate",
+    "--forces",
+    "0,20,50",
+    "--durations",
+    "0.1,0.2",
+    "--set",
+    "scenario.t_end=0.3",
+]
 
 
 # SIGINT in the slow run only: both signals take the same path through the command line,
 # which the sweep's signal tests above check in the default run for each.
-@pytest.mark.parametrize("signum, code", [
-    (signal.SIGTERM, 143), pytest.param(signal.SIGINT, 130, marks=pytest.mark.slow)])
+@pytest.mark.parametrize(
+    "signum, code",
+    [(signal.SIGTERM, 143), pytest.param(signal.SIGINT, 130, marks=pytest.mark.slow)],
+)
 def test_simulate_keeps_each_finished_push_and_resumes(tmp_path, monkeypatch, signum, code):
     """simulate stopped after 2 of its 6 pushes keeps them (DIR/pushes/), records the run as
     interrupted, and the same command runs only the other 4; its tables are those of a run

@@ -39,14 +39,24 @@ def case(request):
     truth = truth_solutions(qp, states, eps=1e-9)
     settings = admm.settings_from_controller(controller)
     seq32 = admm_along_trajectories(qp, trajectories, settings, jnp.float32)
-    return dict(convention=request.param, controller=controller, qp=qp, settings=settings,
-                trajectories=trajectories, states=states, truth=truth, seq32=seq32)
+    return dict(
+        convention=request.param,
+        controller=controller,
+        qp=qp,
+        settings=settings,
+        trajectories=trajectories,
+        states=states,
+        truth=truth,
+        seq32=seq32,
+    )
 
 
 def test_states_include_saturated_and_infeasible(case):
     truth = case["truth"]
-    print(f"\n{case['convention']}: {len(case['states'])} states, {truth.solved.sum()} solved, "
-          f"{truth.infeasible.sum()} infeasible, {truth.saturated.sum()} saturated first input")
+    print(
+        f"\n{case['convention']}: {len(case['states'])} states, {truth.solved.sum()} solved, "
+        f"{truth.infeasible.sum()} infeasible, {truth.saturated.sum()} saturated first input"
+    )
     assert len(case["states"]) >= 1000
     assert truth.saturated.sum() > 0
     assert truth.infeasible.sum() > 0
@@ -57,13 +67,19 @@ def test_first_control_matches_osqp(case):
     err = first_control_error(qp, seq["u0"], truth)
     both = truth.solved & (seq["status"] == admm.SOLVED)
     n_miss = misses(err, truth)
-    print(f"\n{case['convention']} float32, cap {case['settings'].iteration_cap}: "
-          f"{n_miss}/{truth.solved.sum()} misses ({100 * n_miss / truth.solved.sum():.2f}%), "
-          f"max error {np.max(err[truth.solved]):.2e} (both solved: {np.max(err[both]):.2e}, "
-          f"{both.sum()} solves), mean iterations {seq['iters'].mean():.1f}")
-    within(err[both], 0.0, atol=ACCURACY,
-           why="the batched controller's accuracy requirement: 1e-3 of each input's range of "
-               "OSQP at 1e-9 (bench.states.ACCURACY)")
+    print(
+        f"\n{case['convention']} float32, cap {case['settings'].iteration_cap}: "
+        f"{n_miss}/{truth.solved.sum()} misses ({100 * n_miss / truth.solved.sum():.2f}%), "
+        f"max error {np.max(err[truth.solved]):.2e} (both solved: {np.max(err[both]):.2e}, "
+        f"{both.sum()} solves), mean iterations {seq['iters'].mean():.1f}"
+    )
+    within(
+        err[both],
+        0.0,
+        atol=ACCURACY,
+        why="the batched controller's accuracy requirement: 1e-3 of each input's range of "
+        "OSQP at 1e-9 (bench.states.ACCURACY)",
+    )
     assert n_miss < 0.01 * truth.solved.sum()
     assert np.all(np.isfinite(seq["z"])) and np.all(np.isfinite(seq["u0"]))
 
@@ -76,29 +92,37 @@ def test_float32_agrees_with_float64(case):
     the residual tolerance (eps 1e-7 abs, 3e-6 rel). Measured on a 2-core AMD EPYC: 3.7e-5 of
     the range (0.37 of the former, measured tolerance 1e-4)."""
     seq32 = case["seq32"]
-    seq64 = admm_along_trajectories(case["qp"], case["trajectories"], case["settings"],
-                                    jnp.float64)
+    seq64 = admm_along_trajectories(case["qp"], case["trajectories"], case["settings"], jnp.float64)
     both = (seq32["status"] == admm.SOLVED) & (seq64["status"] == admm.SOLVED)
     span = case["qp"].input_upper - case["qp"].input_lower
     diff = np.max(np.abs(seq32["u0"] - seq64["u0"]) / span, axis=-1)
-    print(f"\n{case['convention']}: float32 vs float64 max |du0| {diff[both].max():.2e} of range "
-          f"over {both.sum()} solves both solved")
+    print(
+        f"\n{case['convention']}: float32 vs float64 max |du0| {diff[both].max():.2e} of range "
+        f"over {both.sum()} solves both solved"
+    )
     assert both.sum() >= 0.95 * np.sum(seq64["status"] == admm.SOLVED)
-    within(diff[both], 0.0, atol=admm_rounding(case["controller"]) / 2,
-           why="float32 rounding of the ADMM's iterations (margins.admm_rounding) on inputs "
-               "of at most half their range")
+    within(
+        diff[both],
+        0.0,
+        atol=admm_rounding(case["controller"]) / 2,
+        why="float32 rounding of the ADMM's iterations (margins.admm_rounding) on inputs "
+        "of at most half their range",
+    )
 
 
 def test_warm_start_reduces_iterations(case):
-    cold = admm_along_trajectories(case["qp"], case["trajectories"], case["settings"],
-                                   jnp.float32, warm=False)
+    cold = admm_along_trajectories(
+        case["qp"], case["trajectories"], case["settings"], jnp.float32, warm=False
+    )
     # Infeasible states run to the cap either way; compare on the feasible (OSQP-solved) ones.
     feasible = case["truth"].solved
     warm_total = case["seq32"]["iters"][feasible].sum()
     cold_total = cold["iters"][feasible].sum()
-    print(f"\n{case['convention']}: iterations over the {feasible.sum()} feasible states along "
-          f"the trajectories: warm {warm_total}, cold {cold_total} "
-          f"({100 * (1 - warm_total / cold_total):.0f}% fewer)")
+    print(
+        f"\n{case['convention']}: iterations over the {feasible.sum()} feasible states along "
+        f"the trajectories: warm {warm_total}, cold {cold_total} "
+        f"({100 * (1 - warm_total / cold_total):.0f}% fewer)"
+    )
     assert warm_total < 0.95 * cold_total
 
 
@@ -111,8 +135,10 @@ def test_vmap_equals_loop(case):
     infeasible = np.flatnonzero(case["truth"].infeasible)[:8]
     idx = np.concatenate([idx, infeasible])
     x0 = jnp.asarray(states[idx], jnp.float64)
-    warm = admm.ADMMWarm(z=jnp.asarray(case["seq32"]["warm_z"][idx], jnp.float64),
-                         y=jnp.asarray(case["seq32"]["warm_y"][idx], jnp.float64))
+    warm = admm.ADMMWarm(
+        z=jnp.asarray(case["seq32"]["warm_z"][idx], jnp.float64),
+        y=jnp.asarray(case["seq32"]["warm_y"][idx], jnp.float64),
+    )
     batched = jax.jit(admm.admm_solve_batch, static_argnums=(3, 4))(data, x0, warm, settings, 8)
     single = jax.jit(admm.admm_solve, static_argnums=3)
     for i in range(len(idx)):
@@ -131,15 +157,22 @@ def test_tiles_and_offsets_solve_each_lane_as_alone(case, tile):
     order): a lane's iterations do not depend on its tile's other lanes."""
     qp, settings, states = case["qp"], case["settings"], case["states"]
     data = admm.build_admm(qp, settings, jnp.float64)
-    idx = np.concatenate([np.linspace(0, len(states) - 1, 24).astype(int),
-                          np.flatnonzero(case["truth"].infeasible)[:8]])[:32]
+    idx = np.concatenate(
+        [
+            np.linspace(0, len(states) - 1, 24).astype(int),
+            np.flatnonzero(case["truth"].infeasible)[:8],
+        ]
+    )[:32]
     x0 = jnp.asarray(states[idx], jnp.float64)
-    warm = admm.ADMMWarm(z=jnp.asarray(case["seq32"]["warm_z"][idx], jnp.float64),
-                         y=jnp.asarray(case["seq32"]["warm_y"][idx], jnp.float64))
+    warm = admm.ADMMWarm(
+        z=jnp.asarray(case["seq32"]["warm_z"][idx], jnp.float64),
+        y=jnp.asarray(case["seq32"]["warm_y"][idx], jnp.float64),
+    )
     m = data.l0.shape[0]
     offset = jnp.asarray(np.random.default_rng(5).normal(0, 1e-3, (idx.size, m)), jnp.float64)
-    batched = jax.jit(admm.admm_solve_batch, static_argnums=(3, 4))(data, x0, warm, settings,
-                                                                  tile, offset)
+    batched = jax.jit(admm.admm_solve_batch, static_argnums=(3, 4))(
+        data, x0, warm, settings, tile, offset
+    )
     single = jax.jit(admm.admm_solve, static_argnums=3)
     for i in range(idx.size):
         r = single(data, x0[i], admm.ADMMWarm(warm.z[i], warm.y[i]), settings, offset[i])
@@ -157,14 +190,23 @@ def test_infeasible_states_report_status_and_stay_finite(dtype):
     data = admm.build_admm(qp, settings, dtype)
     # Far beyond the state bounds and moving away: no input sequence within the torque limits
     # can bring the tilts back inside, so the QP is infeasible.
-    x0 = np.array([[0.7, 0.7, 2.0, 2.0], [-0.5, -0.6, -3.0, -3.0], [0.45, 1.5, 1.0, 4.0],
-                   [0.0, 0.0, 10.0, -10.0]])
+    x0 = np.array(
+        [
+            [0.7, 0.7, 2.0, 2.0],
+            [-0.5, -0.6, -3.0, -3.0],
+            [0.45, 1.5, 1.0, 4.0],
+            [0.0, 0.0, 10.0, -10.0],
+        ]
+    )
     solver = osqp_solver(qp, 1e-6, detect_infeasible=True)
     for x in x0:
         assert "infeasible" in osqp_solve(solver, qp, x).info.status
-    res = admm.admm_solve_batch(data, jnp.asarray(x0, dtype),
-                                admm.ADMMWarm(z=jnp.zeros((4, qp.n), dtype),
-                                              y=jnp.zeros((4, qp.m), dtype)), settings)
+    res = admm.admm_solve_batch(
+        data,
+        jnp.asarray(x0, dtype),
+        admm.ADMMWarm(z=jnp.zeros((4, qp.n), dtype), y=jnp.zeros((4, qp.m), dtype)),
+        settings,
+    )
     status = np.asarray(res.status)
     print(f"\ninfeasible states ({jnp.dtype(dtype).name}): status {status.tolist()}")
     assert np.all((status == admm.PRIMAL_INFEASIBLE) | (status == admm.MAX_ITER))

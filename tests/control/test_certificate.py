@@ -32,8 +32,15 @@ def _settled_acc():
     """Running accumulators of a scenario whose recorded peaks are far above anything the
     prediction reaches: only the band (and the QP's level set) can refuse it."""
     big = 1e9
-    return SimpleNamespace(peak_ankle=big, peak_hip=big, peak_tau_ankle=big, peak_tau_hip=big,
-                           peak_foot_pitch=big, alive=np.bool_(True), in_band=np.bool_(True))
+    return SimpleNamespace(
+        peak_ankle=big,
+        peak_hip=big,
+        peak_tau_ankle=big,
+        peak_tau_hip=big,
+        peak_foot_pitch=big,
+        alive=np.bool_(True),
+        in_band=np.bool_(True),
+    )
 
 
 def _band_use(cert, x):
@@ -45,8 +52,9 @@ def _band_use(cert, x):
     return float((size[:4] / cert.band).max())
 
 
-@pytest.mark.parametrize("direction", [[1.0, 0.0, 0.0, 0.0], [0.3, -1.0, 0.0, 0.0],
-                                       [-1.0, -1.0, 0.0, 0.0]])
+@pytest.mark.parametrize(
+    "direction", [[1.0, 0.0, 0.0, 0.0], [0.3, -1.0, 0.0, 0.0], [-1.0, -1.0, 0.0, 0.0]]
+)
 def test_the_margin_is_half_the_settle_band(cert, direction):
     """A state whose predicted joint angles and rates use 49 % of the settle band is certified
     and one that uses 51 % is not (the documented margin, 0.5, from both sides): loosening the

@@ -74,10 +74,12 @@ def test_batched_and_reference_compensate_alike():
     """The C path (the reference's physics) and the reference with the same ADMM controller,
     both compensating a 50-ms delay: the same outcomes and fall samples, summaries as close as
     without compensation (tests/rollout/test_cpath.py)."""
-    config = Config().replace(scenario={"t_end": 2.0, "controller_delay": DELAY},
-                              controller={"delay_compensation": True})
-    runner = BatchRunner(config, physics="c", slots=4, early_stop=False,
-                         devices=jax.local_devices()[:1])
+    config = Config().replace(
+        scenario={"t_end": 2.0, "controller_delay": DELAY}, controller={"delay_compensation": True}
+    )
+    runner = BatchRunner(
+        config, physics="c", slots=4, early_stop=False, devices=jax.local_devices()[:1]
+    )
     forces, durations = np.array(CELLS).T
     frame = runner.run_frame(forces, durations)
     mpc = AdmmMPC(runner)
@@ -93,6 +95,8 @@ def test_batched_and_reference_compensate_alike():
     # and compensation is what made the difference: without it the same pushes end otherwise
     # (the reference's plain loop, cheaper than a second compile: 20 N for 0.1 s falls)
     plain = config.replace(controller={"delay_compensation": False})
-    outcomes = [reference.simulate_scenario(plain, force, duration, record=False,
-                                            mpc=mpc)[0]["outcome"] for force, duration in CELLS]
+    outcomes = [
+        reference.simulate_scenario(plain, force, duration, record=False, mpc=mpc)[0]["outcome"]
+        for force, duration in CELLS
+    ]
     assert outcomes != list(frame.outcome)

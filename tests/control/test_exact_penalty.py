@@ -41,11 +41,14 @@ def test_the_default_is_capped_and_unchanged():
     assert admm.ADMMSettings().penalty is None
 
 
-@pytest.mark.parametrize("change,words", [
-    ({"infeasible": "soft"}, "infeasible"),
-    ({"penalty_weights": (1.0, 0.0, 1.0)}, "penalty_weights"),
-    ({"penalty_weights": (1.0, 1.0)}, "penalty_weights"),
-])
+@pytest.mark.parametrize(
+    "change,words",
+    [
+        ({"infeasible": "soft"}, "infeasible"),
+        ({"penalty_weights": (1.0, 0.0, 1.0)}, "penalty_weights"),
+        ({"penalty_weights": (1.0, 1.0)}, "penalty_weights"),
+    ],
+)
 def test_bad_settings_are_refused(change, words):
     with pytest.raises(ParameterError, match=words):
         Config().replace(controller=change)
@@ -63,8 +66,12 @@ def test_solvable_qps_keep_their_hard_solution(case):
     error = np.abs(soft["u0"][ok] - truth.u0[ok]) / span
     # the ADMM's accuracy on solvable states (admm.py: 1e-3 of each input's range against
     # OSQP at 1e-9), the same bound the capped solver is held to
-    within(error.max(), 0.0, atol=1e-3, why="the ADMM's accuracy target (admm.py): 1e-3 of "
-           "each input's range")
+    within(
+        error.max(),
+        0.0,
+        atol=1e-3,
+        why="the ADMM's accuracy target (admm.py): 1e-3 of each input's range",
+    )
     assert not (soft["status"][ok] == admm.PRIMAL_INFEASIBLE).any()
     # and no solvable state takes more iterations than it did capped, in the mean
     assert soft["iters"][ok].mean() <= capped["iters"][ok].mean() + 1

@@ -49,8 +49,11 @@ def test_servo_parameters_validated_and_default_model_unchanged():
     # the batched rollout's model keeps exactly the servo's flags on, the default's off
     servo_flags = rollout.mj_model(STUDY).opt.disableflags
     default_flags = rollout.mj_model(Config()).opt.disableflags
-    keep = (mujoco.mjtDisableBit.mjDSBL_EULERDAMP | mujoco.mjtDisableBit.mjDSBL_SPRING
-            | mujoco.mjtDisableBit.mjDSBL_DAMPER)
+    keep = (
+        mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+        | mujoco.mjtDisableBit.mjDSBL_SPRING
+        | mujoco.mjtDisableBit.mjDSBL_DAMPER
+    )
     assert servo_flags & keep == 0 and default_flags & keep == keep
     assert servo_flags | keep == default_flags
 
@@ -64,8 +67,12 @@ def test_reference_hip_held_by_the_servo_while_the_ankle_works(convention):
     summary, series = reference.simulate_scenario(config, 30.0, 0.1)
     first = series[series.time <= 1.5]
     assert np.abs(series["tau_hip"]).max() == 0.0 and summary["energy_hip"] == 0.0
-    within(first["q_h"], 0.0, atol=HIP_LOAD_BOUND / K,
-           why="the servo's static deflection: the hip load bound over the stiffness")
+    within(
+        first["q_h"],
+        0.0,
+        atol=HIP_LOAD_BOUND / K,
+        why="the servo's static deflection: the hip load bound over the stiffness",
+    )
     assert np.abs(first["q_a"]).max() > 5e-3  # the push does lean the body
     assert np.abs(first["tau_ankle"]).max() > 5.0  # and the ankle works against it
     if convention == "joint":
@@ -91,8 +98,13 @@ def test_batched_matches_reference_on_servo_body(float32):
         q = runner.last_trajectories["qpos"][b, :n][:, [ix.ankle_qpos, ix.hip_qpos]]
         diff = np.abs(q - series[["q_a", "q_h"]].to_numpy()).max(axis=0)
         print(f"\nservo body, F = {force} N: {ref['outcome']}, max |q_a, q_h diff| {diff} rad")
-        within(q, series[["q_a", "q_h"]].to_numpy(), atol=5e-3, msg=force,
-               why="the closed loop's agreement with the reference (test_rollout.ANGLE_TOL)")
+        within(
+            q,
+            series[["q_a", "q_h"]].to_numpy(),
+            atol=5e-3,
+            msg=force,
+            why="the closed loop's agreement with the reference (test_rollout.ANGLE_TOL)",
+        )
 
 
 @pytest.mark.parametrize("convention", ["paper", "joint"])
@@ -107,12 +119,14 @@ def test_terminal_weight_uses_only_inputs_that_can_act(convention):
 
     servo = Config().replace(
         body={"hip_servo_stiffness": 2e4, "hip_servo_damping": 580.0},
-        controller={"convention": convention, "input2_bounds": [0.0, 0.0]})
+        controller={"convention": convention, "input2_bounds": [0.0, 0.0]},
+    )
     qp = build_qp(servo.controller, servo.body, servo.scenario.control_dt)
     lm = qp.linear
     Q, R = np.diag(servo.controller.q_diag), np.diag(servo.controller.r_diag)
     np.testing.assert_allclose(
-        qp.Qf, scipy.linalg.solve_discrete_are(lm.A, lm.B[:, :1], Q, R[:1, :1]), rtol=1e-10)
+        qp.Qf, scipy.linalg.solve_discrete_are(lm.A, lm.B[:, :1], Q, R[:1, :1]), rtol=1e-10
+    )
     ankle = np.arange(0, qp.n, 2)
     gain = -np.linalg.solve(qp.H[np.ix_(ankle, ankle)], qp.F[ankle])[0]
     closed = lm.A + lm.B[:, :1] @ gain[None]
@@ -121,5 +135,7 @@ def test_terminal_weight_uses_only_inputs_that_can_act(convention):
     both = Config().replace(controller={"convention": convention})
     qp_both = build_qp(both.controller, both.body, both.scenario.control_dt)
     np.testing.assert_allclose(
-        qp_both.Qf, scipy.linalg.solve_discrete_are(qp_both.linear.A, qp_both.linear.B, Q, R),
-        rtol=1e-10)
+        qp_both.Qf,
+        scipy.linalg.solve_discrete_are(qp_both.linear.A, qp_both.linear.B, Q, R),
+        rtol=1e-10,
+    )

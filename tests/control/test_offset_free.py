@@ -39,9 +39,18 @@ def osqp_target(of, d):
     """The target QP min yᵀWy s.t. a·y <= b(d) by OSQP at high accuracy: (y, solved)."""
     b = of.b0 + of.bd @ d
     solver = osqp.OSQP()
-    solver.setup(P=sp.csc_matrix(2 * of.W), q=np.zeros(2), A=sp.csc_matrix(of.normals),
-                 l=np.full(len(b), -np.inf), u=b, eps_abs=1e-12, eps_rel=1e-12,
-                 max_iter=200000, polishing=True, verbose=False)
+    solver.setup(
+        P=sp.csc_matrix(2 * of.W),
+        q=np.zeros(2),
+        A=sp.csc_matrix(of.normals),
+        l=np.full(len(b), -np.inf),
+        u=b,
+        eps_abs=1e-12,
+        eps_rel=1e-12,
+        max_iter=200000,
+        polishing=True,
+        verbose=False,
+    )
     result = solver.solve(raise_error=False)
     return result.x, result.info.status_val == osqp.SolverStatus.OSQP_SOLVED
 
@@ -51,8 +60,13 @@ def test_the_target_is_the_qp_minimiser(built):
     any posture holds; the float32 jax version (the kernel's) agrees too."""
     config, _, of = built
     rng = np.random.default_rng(0)
-    ds = np.concatenate([random_disturbances(rng, 40, 15.0), random_disturbances(rng, 80, 80.0),
-                         random_disturbances(rng, 40, 300.0)])
+    ds = np.concatenate(
+        [
+            random_disturbances(rng, 40, 15.0),
+            random_disturbances(rng, 80, 80.0),
+            random_disturbances(rng, 40, 300.0),
+        ]
+    )
     of32 = ofm.cast(of, jnp, jnp.float32)
     target32 = jax.jit(lambda d: ofm.target(jnp, of32, d))
     kinds = {"upright": 0, "lean": 0, "not held": 0}
@@ -93,8 +107,13 @@ def test_the_target_holds_what_a_steady_posture_can(built):
         # one input at a bound (np.isclose's tolerances): the bound nearest in those terms
         bounds = np.concatenate([lo, hi])
         near = np.argmin(np.abs(np.concatenate([u, u]) - bounds) / (1e-8 + 1e-5 * np.abs(bounds)))
-        within(np.concatenate([u, u])[near], bounds[near], rtol=1e-5, atol=1e-8,
-               why="an input at its bound less the margin, to float64 round-off")
+        within(
+            np.concatenate([u, u])[near],
+            bounds[near],
+            rtol=1e-5,
+            atol=1e-8,
+            why="an input at its bound less the margin, to float64 round-off",
+        )
         x_s = np.concatenate([y, np.zeros(2)])
         offsets = ofm.row_offsets(np, of, x_s, u, d)
         cop = offsets[qp.rows["cop"]][0]
@@ -142,8 +161,13 @@ def test_the_observer_converges_and_the_loop_settles_upright(built):
     # the pole, to round-off (the model is exact here)
     ratios = errors[2:30] / errors[1:29]
     np.testing.assert_allclose(ratios, config.controller.observer_pole, rtol=1e-6)
-    within(settles_at_the_target(of, xs, us, d), 0.0, rtol=1e-5, atol=1e-8,
-           why="the upright target is exact (np.allclose's tolerances)")
+    within(
+        settles_at_the_target(of, xs, us, d),
+        0.0,
+        rtol=1e-5,
+        atol=1e-8,
+        why="the upright target is exact (np.allclose's tolerances)",
+    )
 
 
 def test_the_loop_settles_in_the_targets_lean(built):
@@ -157,9 +181,13 @@ def test_the_loop_settles_in_the_targets_lean(built):
     d = np.array([-45.0, -10.0])
     ramp = 1500  # periods
     xs, us, ds = linear_loop(config, qp, of, lambda k: d * min(k / ramp, 1.0), periods=3000)
-    within(ds[-1], d, atol=1e-9,
-           why="the estimate's error shrinks by the pole 0.8 each period: 0.8^1500 after the "
-               "ramp, float64 round-off on ~45 N m")
+    within(
+        ds[-1],
+        d,
+        atol=1e-9,
+        why="the estimate's error shrinks by the pole 0.8 each period: 0.8^1500 after the "
+        "ramp, float64 round-off on ~45 N m",
+    )
     assert np.abs(settles_at_the_target(of, xs, us, d)).max() > 1e-2  # a real lean
 
 
@@ -193,8 +221,9 @@ def test_batched_and_reference_offset_free_alike():
     solve and conclude: the observer, the target and the ADMM the MJX engine runs); the slow
     test_the_mjx_path_runs_offset_free_alike runs it with MJX physics too."""
     config = CONFIG.replace(scenario={"t_end": 2.0})
-    runner = BatchRunner(config, physics="c", slots=4, early_stop=False,
-                         devices=jax.local_devices()[:1])
+    runner = BatchRunner(
+        config, physics="c", slots=4, early_stop=False, devices=jax.local_devices()[:1]
+    )
     assert runner.static.offset_free
     forces, durations = np.array(CELLS).T
     frame = runner.run_frame(forces, durations)
@@ -217,12 +246,15 @@ def test_the_mjx_path_runs_offset_free_alike():
     config = CONFIG.replace(scenario={"t_end": 2.0})
     forces, durations = np.array(CELLS).T
     with jax.enable_x64(False):  # as sweeps run
-        mjx = BatchRunner(config, physics="mjx", slots=ENGINE_SLOTS,
-                          devices=jax.local_devices()[:1])
+        mjx = BatchRunner(
+            config, physics="mjx", slots=ENGINE_SLOTS, devices=jax.local_devices()[:1]
+        )
         outcomes = list(mjx.run_frame(forces, durations).outcome)
         mpc = AdmmMPC(mjx)
-    expected = [reference.simulate_scenario(config, f, d, record=False, mpc=mpc)[0]["outcome"]
-                for f, d in CELLS]
+    expected = [
+        reference.simulate_scenario(config, f, d, record=False, mpc=mpc)[0]["outcome"]
+        for f, d in CELLS
+    ]
     assert outcomes == expected
 
 

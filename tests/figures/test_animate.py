@@ -41,16 +41,18 @@ def test_frames_fast_forward_after_settling():
     hold = 1.5 + animate.SETTLED_HOLD_S
     np.testing.assert_allclose(steps[times[1:] <= hold], 1 / 25)  # real time up to then
     assert steps[times[:-1] > hold + 1e-9].max() == pytest.approx(animate.FAST_FORWARD / 25)
-    np.testing.assert_allclose(animate.frame_times(12.0, 25.0, settled_at=1.5, fast_forward=1),
-                               regular)
+    np.testing.assert_allclose(
+        animate.frame_times(12.0, 25.0, settled_at=1.5, fast_forward=1), regular
+    )
 
 
 def _gif(tmp_path, force, t_end=0.4, fps=20.0, dpi=40):
     config = Config().replace(scenario={"t_end": t_end})
     summary, ts = simulate_scenario(config, force, 0.1)
     path = tmp_path / f"push_{force:g}.gif"
-    frames = animate.animate_timeseries(ts, path, config.body, fps=fps, dpi=dpi, summary=summary,
-                                        scenario=config.scenario)
+    frames = animate.animate_timeseries(
+        ts, path, config.body, fps=fps, dpi=dpi, summary=summary, scenario=config.scenario
+    )
     return ts, path, frames
 
 
@@ -66,10 +68,14 @@ def test_animation_has_the_expected_frames(tmp_path):
         orange = []
         for frame in ImageSequence.Iterator(gif):
             assert frame.size == size
-            within(frame.info.get("duration"), 1000 / fps, atol=1,
-                   why="a GIF stores a frame's duration in whole hundredths of a second "
-                       "(Pillow reads it back in ms): 1000 / fps = 50 ms exactly, 1 ms for "
-                       "a rounding")
+            within(
+                frame.info.get("duration"),
+                1000 / fps,
+                atol=1,
+                why="a GIF stores a frame's duration in whole hundredths of a second "
+                "(Pillow reads it back in ms): 1000 / fps = 50 ms exactly, 1 ms for "
+                "a rounding",
+            )
             orange.append(orange_pixels(frame))
     # the push arrow is drawn on every frame while the push acts (t < 0.1 s), not after
     pushing = expected < 0.1 - 1e-9
@@ -92,8 +98,9 @@ def test_animate_command(tmp_path, capsys):
     from mjx_balance.cli import main
 
     path = tmp_path / "cmd.gif"
-    assert main(["animate", "--force", "40", "--t-end", "0.2", "--fps", "10", "--out",
-                 str(path)]) == 0
+    assert (
+        main(["animate", "--force", "40", "--t-end", "0.2", "--fps", "10", "--out", str(path)]) == 0
+    )
     with Image.open(path) as gif:
         assert gif.n_frames == 5  # t = 0, 1/30, 1/15 (the push), 0.1, 0.2
         assert gif.size == (768, 432)  # the default 80 dpi: at least 720 px wide

@@ -43,15 +43,24 @@ def _close_figures():
 # Machado, Oliveira & Fernandes (2009), "A physiologically-based model for simulation of color
 # vision deficiency", IEEE TVCG 15(6), severity 1.0; applied to linear RGB.
 MACHADO = {
-    "protanopia": np.array([[0.152286, 1.052583, -0.204868],
-                            [0.114503, 0.786281, 0.099216],
-                            [-0.003882, -0.048116, 1.051998]]),
-    "deuteranopia": np.array([[0.367322, 0.860646, -0.227968],
-                              [0.280085, 0.672501, 0.047413],
-                              [-0.011820, 0.042940, 0.968881]]),
+    "protanopia": np.array(
+        [
+            [0.152286, 1.052583, -0.204868],
+            [0.114503, 0.786281, 0.099216],
+            [-0.003882, -0.048116, 1.051998],
+        ]
+    ),
+    "deuteranopia": np.array(
+        [
+            [0.367322, 0.860646, -0.227968],
+            [0.280085, 0.672501, 0.047413],
+            [-0.011820, 0.042940, 0.968881],
+        ]
+    ),
 }
-SRGB_TO_XYZ = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722],
-                        [0.0193, 0.1192, 0.9505]])
+SRGB_TO_XYZ = np.array(
+    [[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]]
+)
 D65 = np.array([0.95047, 1.0, 1.08883])
 
 
@@ -99,8 +108,18 @@ def test_old_red_green_palette_fails_the_check():
     assert delta_e(green, red, MACHADO["deuteranopia"]) < MIN_DELTA_E
 
 
-OLD_OUTCOME_HEX = ("#4daf4a", "#ffd92f", "#e41a1c", "#1a9850", "#b8860b", "#d73027",
-                   "#e8b4a8", "#9fd0a4", "#1b5e20", "#b71c1c")
+OLD_OUTCOME_HEX = (
+    "#4daf4a",
+    "#ffd92f",
+    "#e41a1c",
+    "#1a9850",
+    "#b8860b",
+    "#d73027",
+    "#e8b4a8",
+    "#9fd0a4",
+    "#1b5e20",
+    "#b71c1c",
+)
 
 
 def test_every_outcome_colour_comes_from_the_one_palette():
@@ -111,8 +130,9 @@ def test_every_outcome_colour_comes_from_the_one_palette():
         found = [h for h in OLD_OUTCOME_HEX if h in text]
         assert not found, f"{path.relative_to(SRC)}: old outcome colours {found}"
         if path.name != "style.py":
-            assert not re.search(r"outcome_colou?rs\s*=\s*\{", text), \
+            assert not re.search(r"outcome_colou?rs\s*=\s*\{", text), (
                 f"{path.relative_to(SRC)} defines its own outcome colours"
+            )
     for path in SRC.rglob("*.html"):  # the report's templates
         text = path.read_text().lower()
         assert not [h for h in OLD_OUTCOME_HEX if h in text], path
@@ -123,14 +143,17 @@ def test_region_map_uses_the_palette_and_hatches_the_falls():
     ax = region_plots.region_map(region).axes[0]
     handles = ax.get_legend().legend_handles
     for name in style.OUTCOME_COLOURS:
-        (patch,) = [h for h in handles if h.get_label().startswith(
-            region_plots.OUTCOME_LABELS[name] + " (")]
-        assert matplotlib.colors.to_hex(patch.get_facecolor()) == \
-            style.OUTCOME_COLOURS[name].lower()
+        (patch,) = [
+            h for h in handles if h.get_label().startswith(region_plots.OUTCOME_LABELS[name] + " (")
+        ]
+        assert (
+            matplotlib.colors.to_hex(patch.get_facecolor()) == style.OUTCOME_COLOURS[name].lower()
+        )
         assert (patch.get_hatch() or "") == style.OUTCOME_HATCHES[name]
     hatched = [c for c in ax.collections if c.get_hatch()]
     assert len(hatched) == 1 and len(hatched[0].get_paths()) == int(
-        (region["outcome"] == "fell").sum())
+        (region["outcome"] == "fell").sum()
+    )
 
 
 # --- formats and sizes ------------------------------------------------------------------------
@@ -138,36 +161,65 @@ def test_region_map_uses_the_palette_and_hatches_the_falls():
 
 # the made-up region of these figures (support.fake_region): every outcome on a 13 x 40 grid,
 # with the energies of both joints
-CELLS = grid_cells(np.arange(0, 130, 10.0), np.round(np.arange(0.05, 2.01, 0.05), 2),
-                   lambda f, d: ("recovered" if f * d < 12 else "not_settled" if f * d < 16
-                                 else "diverged" if f * d > 60 else "fell"))
+CELLS = grid_cells(
+    np.arange(0, 130, 10.0),
+    np.round(np.arange(0.05, 2.01, 0.05), 2),
+    lambda f, d: (
+        "recovered"
+        if f * d < 12
+        else "not_settled"
+        if f * d < 16
+        else "diverged"
+        if f * d > 60
+        else "fell"
+    ),
+)
 JOINTS = {"energy_ankle": lambda f, d: 1 + 0.7 * f * d, "energy_hip": lambda f, d: 0.3 * f * d}
 
 
 def _table() -> pd.DataFrame:
     force = np.array([20.0, 60.0, 100.0])
-    return pd.DataFrame({"force": force, "max_acting_time": [0.6, 0.2, 0.12],
-                         "monotone": True, "ending_outcome": "fell", "outcome_01": "recovered",
-                         "convention": "joint", "energy_total_01": 2.0, "energy_total_max": 5.0,
-                         "energy_ankle_max": 4.0, "energy_hip_max": 1.0})
+    return pd.DataFrame(
+        {
+            "force": force,
+            "max_acting_time": [0.6, 0.2, 0.12],
+            "monotone": True,
+            "ending_outcome": "fell",
+            "outcome_01": "recovered",
+            "convention": "joint",
+            "energy_total_01": 2.0,
+            "energy_total_max": 5.0,
+            "energy_ankle_max": 4.0,
+            "energy_hip_max": 1.0,
+        }
+    )
 
 
 def _scorecard() -> pd.DataFrame:
-    return pd.DataFrame({"measure": "max_acting_time", "source": "paper",
-                         "force": [20.0, 60.0], "reference": [0.55, 0.21],
-                         "ours": [0.6, 0.2], "our_uncertainty": 0.01,
-                         "status": ["agrees", "differs"]})
+    return pd.DataFrame(
+        {
+            "measure": "max_acting_time",
+            "source": "paper",
+            "force": [20.0, 60.0],
+            "reference": [0.55, 0.21],
+            "ours": [0.6, 0.2],
+            "our_uncertainty": 0.01,
+            "status": ["agrees", "differs"],
+        }
+    )
 
 
 FIGURES = {  # name -> a function that draws it (a new figure)
-    "region": lambda: region_plots.region_map(fake_region(CELLS, **JOINTS), table=_table().assign(
-        convention="paper")),
+    "region": lambda: region_plots.region_map(
+        fake_region(CELLS, **JOINTS), table=_table().assign(convention="paper")
+    ),
     "energy": lambda: region_plots.energy_map(fake_region(CELLS, **JOINTS)),
     "table": lambda: region_plots.table_figure(_table()),
     "strategy": lambda: strategy.strategy_map(fake_region(CELLS, **JOINTS)),
     "strategy_threshold": lambda: strategy.threshold_figure(fake_region(CELLS, **JOINTS)),
-    "timeseries": lambda: timeseries.timeseries_figure(synthetic_series()[0], "ankle_angle",
-                                                        summary=synthetic_series()[1]),
+    "timeseries": lambda: timeseries.timeseries_figure(
+        synthetic_series()[0], "ankle_angle", summary=synthetic_series()[1]
+    ),
     "scorecard": lambda: scorecard_plots.scorecard_figure(_scorecard()),
 }
 
@@ -188,8 +240,12 @@ def assert_fits(fig, width: float) -> None:
     assert texts
     for text in texts:
         ext = text.get_window_extent(renderer)
-        assert (ext.x0 >= box.x0 - 1 and ext.x1 <= box.x1 + 1 and ext.y0 >= box.y0 - 1
-                and ext.y1 <= box.y1 + 1), (text.get_text(), ext.bounds, box.bounds)
+        assert (
+            ext.x0 >= box.x0 - 1
+            and ext.x1 <= box.x1 + 1
+            and ext.y0 >= box.y0 - 1
+            and ext.y1 <= box.y1 + 1
+        ), (text.get_text(), ext.bounds, box.bounds)
         assert text.get_fontsize() >= style.MIN_FONT_PT, (text.get_text(), text.get_fontsize())
     tight = fig.get_tightbbox(renderer)  # inches
     assert tight.x0 >= -0.02 and tight.x1 <= width + 0.02, tight.bounds
@@ -205,8 +261,10 @@ def test_column_figures_fit_their_width_with_every_text_inside(tmp_path, name, s
     assert path == tmp_path / f"{name}.png" and readable_figure(path)
     assert_fits(fig, style.FIGURE_SIZES[size])
     panels = [ax for ax in fig.axes if ax.get_label() != "<colorbar>" and ax.get_visible()]
-    assert min(ax.get_position().height for ax in panels) * fig.get_figheight() >= \
-        min(style.MIN_PANEL_HEIGHT[size], 0.5 * style.MAX_HEIGHT) - 0.05
+    assert (
+        min(ax.get_position().height for ax in panels) * fig.get_figheight()
+        >= min(style.MIN_PANEL_HEIGHT[size], 0.5 * style.MAX_HEIGHT) - 0.05
+    )
 
 
 def test_timeseries_figures_in_pdf_at_one_column(tmp_path):
@@ -223,10 +281,20 @@ def test_timeseries_figures_in_pdf_at_one_column(tmp_path):
 
 
 def test_compare_figure_fits_one_column(tmp_path):
-    regions = {"base": fake_region(CELLS, **JOINTS), "stiffer": fake_region(CELLS, **JOINTS).assign(
-        outcome=lambda r: np.where(r.force < 60, "recovered", r.outcome))}
-    frame = pd.DataFrame({"name": list(regions), "area": [10.0, 20.0],
-                          "sustained_push_limit": [30.0, np.nan], "t_end": 4.0})
+    regions = {
+        "base": fake_region(CELLS, **JOINTS),
+        "stiffer": fake_region(CELLS, **JOINTS).assign(
+            outcome=lambda r: np.where(r.force < 60, "recovered", r.outcome)
+        ),
+    }
+    frame = pd.DataFrame(
+        {
+            "name": list(regions),
+            "area": [10.0, 20.0],
+            "sustained_push_limit": [30.0, np.nan],
+            "t_end": 4.0,
+        }
+    )
     with style.figure_style(format="svg", size="one-column"):
         path = compare.plot_compare(regions, tmp_path / compare.COMPARE_PNG, frame)
     assert path == tmp_path / "compare.svg" and readable_figure(path)
@@ -235,8 +303,9 @@ def test_compare_figure_fits_one_column(tmp_path):
 
 def _pdf_width(path: Path) -> float:
     """The width [pt] of a PDF's first page (its MediaBox)."""
-    box = re.search(rb"/MediaBox\s*\[\s*([-\d.]+)\s+([-\d.]+)\s+([-\d.]+)\s+([-\d.]+)\s*\]",
-                    path.read_bytes())
+    box = re.search(
+        rb"/MediaBox\s*\[\s*([-\d.]+)\s+([-\d.]+)\s+([-\d.]+)\s+([-\d.]+)\s*\]", path.read_bytes()
+    )
     assert box, "no MediaBox"
     return float(box.group(3)) - float(box.group(1))
 

@@ -57,13 +57,19 @@ class Namespace:
         """rule(xp, *arrays, **static) on the arrays cast to this dtype, as numpy."""
         context = contextlib.nullcontext() if self.x64 else jax.enable_x64(False)
         with context:
-            args = [self.xp.asarray(np.asarray(a, self.dtype)) if np.asarray(a).dtype != bool
-                    else self.xp.asarray(a) for a in arrays]
+            args = [
+                self.xp.asarray(np.asarray(a, self.dtype))
+                if np.asarray(a).dtype != bool
+                else self.xp.asarray(a)
+                for a in arrays
+            ]
             for a in args:
                 if a.dtype != bool:
                     assert a.dtype == self.dtype  # no silent promotion of the samples
+
             def fn(*a):
                 return rule(self.xp, *a, **static)
+
             if self.jit:
                 fn = jax.jit(fn)
             return np.asarray(fn(*args))
@@ -84,16 +90,32 @@ def ns(request) -> Namespace:
 
 
 def test_limits_from_params_maps_every_field():
-    scenario = ScenarioParams(foot_pitch_limit=0.06, foot_lift_limit=0.004,
-                              bound_violation_limit=0.07, lower_tilt_limit=0.45,
-                              settle_angle_tol=0.02, settle_rate_tol=0.03)
-    controller = ControllerParams(state1_bounds=(-0.2, 0.4), state2_bounds=(-0.3, 1.2),
-                                  input1_bounds=(-15.0, 25.0), input2_bounds=(-90.0, 80.0))
+    scenario = ScenarioParams(
+        foot_pitch_limit=0.06,
+        foot_lift_limit=0.004,
+        bound_violation_limit=0.07,
+        lower_tilt_limit=0.45,
+        settle_angle_tol=0.02,
+        settle_rate_tol=0.03,
+    )
+    controller = ControllerParams(
+        state1_bounds=(-0.2, 0.4),
+        state2_bounds=(-0.3, 1.2),
+        input1_bounds=(-15.0, 25.0),
+        input2_bounds=(-90.0, 80.0),
+    )
     assert Limits.from_params(scenario, controller) == Limits(
-        foot_pitch_limit=0.06, foot_lift_limit=0.004, bound_violation_limit=0.07,
-        lower_tilt_limit=0.45, settle_angle_tol=0.02, settle_rate_tol=0.03,
-        state_lower=(-0.2, -0.3), state_upper=(0.4, 1.2),
-        input_lower=(-15.0, -90.0), input_upper=(25.0, 80.0))
+        foot_pitch_limit=0.06,
+        foot_lift_limit=0.004,
+        bound_violation_limit=0.07,
+        lower_tilt_limit=0.45,
+        settle_angle_tol=0.02,
+        settle_rate_tol=0.03,
+        state_lower=(-0.2, -0.3),
+        state_upper=(0.4, 1.2),
+        input_lower=(-15.0, -90.0),
+        input_upper=(25.0, 80.0),
+    )
     hash(LIMITS)  # static under jit
 
 
@@ -119,8 +141,12 @@ def test_bound_excess(ns):
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-6)
     one = ns.call(outcomes.bound_excess, x[6], limits=LIMITS)  # one sample: [4] -> []
     assert one.shape == ()
-    within(float(one), 0.07, atol=1e-6,
-           why="a difference of ~0.5-rad numbers, rounded in float32 at most (6e-8)")
+    within(
+        float(one),
+        0.07,
+        atol=1e-6,
+        why="a difference of ~0.5-rad numbers, rounded in float32 at most (6e-8)",
+    )
 
 
 # --- the fall test ---------------------------------------------------------------------------
@@ -181,12 +207,20 @@ def test_falls_on_one_sample(ns):
 
 def test_falls_follows_the_limits():
     """Other limits move the thresholds (not constants in the rule)."""
-    strict = LIMITS._replace(foot_pitch_limit=0.01, foot_lift_limit=0.001,
-                             bound_violation_limit=0.01, lower_tilt_limit=0.2)
-    got = outcomes.falls(np, np.array([0.02, 0.0, 0.0, 0.0]),
-                         np.array([[0.0] * 4, [0.002, 0, 0, 0], [0.0] * 4, [0.0] * 4]),
-                         np.array([0.0, 0.0, 0.02, 0.0]), np.array([0.0, 0.0, 0.0, 0.25]),
-                         strict)
+    strict = LIMITS._replace(
+        foot_pitch_limit=0.01,
+        foot_lift_limit=0.001,
+        bound_violation_limit=0.01,
+        lower_tilt_limit=0.2,
+    )
+    got = outcomes.falls(
+        np,
+        np.array([0.02, 0.0, 0.0, 0.0]),
+        np.array([[0.0] * 4, [0.002, 0, 0, 0], [0.0] * 4, [0.0] * 4]),
+        np.array([0.0, 0.0, 0.02, 0.0]),
+        np.array([0.0, 0.0, 0.0, 0.25]),
+        strict,
+    )
     np.testing.assert_array_equal(got, [True, True, True, True])
 
 
@@ -202,13 +236,22 @@ def test_fall_cause_names_the_first_rule_in_order(xp):
     cells[6] = lift
     excess = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0])
     ankle = np.array([-0.5, 0.0, 0.0, 0.0, 3.0, 0.0, 3.0])  # pitch + ankle = 0 in row 0
-    got = np.asarray(outcomes.fall_cause(xp, *(xp.asarray(a) for a in (pitch, cells, excess,
-                                                                       ankle)), LIMITS))
+    got = np.asarray(
+        outcomes.fall_cause(xp, *(xp.asarray(a) for a in (pitch, cells, excess, ankle)), LIMITS)
+    )
     names = [outcomes.FALL_CAUSES[c] for c in got]
-    assert names == ["foot_pitch", "heel_lift", "toe_lift", "state_bound", "lower_tilt", "",
-                     "foot_pitch"]
+    assert names == [
+        "foot_pitch",
+        "heel_lift",
+        "toe_lift",
+        "state_bound",
+        "lower_tilt",
+        "",
+        "foot_pitch",
+    ]
     np.testing.assert_array_equal(
-        outcomes.falls(np, pitch, cells, excess, ankle, LIMITS), got != outcomes.NO_CAUSE)
+        outcomes.falls(np, pitch, cells, excess, ankle, LIMITS), got != outcomes.NO_CAUSE
+    )
 
 
 # --- the settle band -------------------------------------------------------------------------
@@ -287,7 +330,11 @@ def test_classify_precedence(ns):
     got = ns.call(outcomes.classify, flags[:, 0], flags[:, 1], flags[:, 2])
     np.testing.assert_array_equal(got, [_expected_code(*f) for f in flags])
     assert [OUTCOMES[c] for c in (RECOVERED, NOT_SETTLED, FELL, DIVERGED)] == [
-        "recovered", "not_settled", "fell", "diverged"]
+        "recovered",
+        "not_settled",
+        "fell",
+        "diverged",
+    ]
 
 
 def test_classify_python_scalars():
@@ -315,8 +362,9 @@ def test_summary_frame_codes_to_strings_in_column_order():
     assert (frame["convention"] == "joint").all()
     np.testing.assert_array_equal(frame["admm_iterations"], np.arange(5))
     np.testing.assert_array_equal(frame["force"], np.arange(5) + 0.5)
-    lean = outcomes.summary_frame(_summary(codes, admm_iterations=np.arange(5)), "joint",
-                                  extra=False)
+    lean = outcomes.summary_frame(
+        _summary(codes, admm_iterations=np.arange(5)), "joint", extra=False
+    )
     assert list(lean.columns) == SUMMARY_COLUMNS
 
 
@@ -336,8 +384,11 @@ def test_summary_frame_missing_column_raises():
         outcomes.summary_frame(summary, "paper")
 
 
-@pytest.mark.parametrize("outcome", [np.array([0, 4]), np.array([-1, 0]), ["fell", "fallen"]],
-                         ids=["code-too-large", "negative-code", "unknown-string"])
+@pytest.mark.parametrize(
+    "outcome",
+    [np.array([0, 4]), np.array([-1, 0]), ["fell", "fallen"]],
+    ids=["code-too-large", "negative-code", "unknown-string"],
+)
 def test_summary_frame_unknown_outcome_raises(outcome):
     with pytest.raises(RuntimeError, match="outcome"):
         outcomes.summary_frame(_summary(outcome), "paper")

@@ -14,8 +14,9 @@ from mjx_balance.reference.loop import simulate_scenario
 CONVENTIONS = ("paper", "joint")
 
 
-def fd_joint_jacobians(body: BodyParams,
-                       h: float = 1e-6) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def fd_joint_jacobians(
+    body: BodyParams, h: float = 1e-6
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Central differences of mj_forward's qacc on the fixed-foot model at upright rest.
 
     Returns (dqacc/dq [2, 2], dqacc/ddq [2, 2], dqacc/dctrl [2, 2]) in joint coordinates.
@@ -49,10 +50,15 @@ def rel_err(a: np.ndarray, b: np.ndarray) -> float:
 
 
 @pytest.mark.parametrize("convention", CONVENTIONS)
-@pytest.mark.parametrize("body", [BodyParams(), BodyParams(lower_mass=40.0, upper_length=0.8,
-                                                           upper_com=0.35),
-                                  BodyParams(hip_servo_stiffness=2.0e4, hip_servo_damping=580.0)],
-                         ids=["default", "scaled", "hip_servo"])
+@pytest.mark.parametrize(
+    "body",
+    [
+        BodyParams(),
+        BodyParams(lower_mass=40.0, upper_length=0.8, upper_com=0.35),
+        BodyParams(hip_servo_stiffness=2.0e4, hip_servo_damping=580.0),
+    ],
+    ids=["default", "scaled", "hip_servo"],
+)
 def test_linearisation_matches_finite_differences(convention, body):
     """mj_forward's qacc includes the joint spring and damper (passive forces), so the servo
     body checks the stiffness and the velocity (damping) block of Ac as well."""
@@ -61,11 +67,12 @@ def test_linearisation_matches_finite_differences(convention, body):
     # convention coordinates y = T q with T = P^-1 S; inputs ctrl = torque_map u
     T = np.linalg.solve(lm.P, S)
     Tinv = np.linalg.inv(T)
-    Ac_fd = np.block([[np.zeros((2, 2)), np.eye(2)],
-                      [T @ d_q @ Tinv, T @ d_dq @ Tinv]])
+    Ac_fd = np.block([[np.zeros((2, 2)), np.eye(2)], [T @ d_q @ Tinv, T @ d_dq @ Tinv]])
     Bc_fd = np.vstack([np.zeros((2, 2)), T @ d_ctrl @ lm.torque_map])
-    why = ("central differences, h = 1e-6: truncation h^2 |third derivative| / 6 and "
-           "cancellation eps_float64 |qacc| / h, both below 1e-9 relative")
+    why = (
+        "central differences, h = 1e-6: truncation h^2 |third derivative| / 6 and "
+        "cancellation eps_float64 |qacc| / h, both below 1e-9 relative"
+    )
     within(rel_err(lm.Ac[2:], Ac_fd[2:]), 0.0, atol=1e-5, why=why)
     within(rel_err(lm.Bc[2:], Bc_fd[2:]), 0.0, atol=1e-5, why=why)
     np.testing.assert_array_equal(lm.Ac[:2], Ac_fd[:2])
@@ -75,8 +82,9 @@ def test_linearisation_matches_finite_differences(convention, body):
 @pytest.mark.parametrize("convention", CONVENTIONS)
 def test_zoh_matches_scipy(convention):
     lm = linear_model(BodyParams(), convention, 0.01)
-    A, B, *_ = scipy.signal.cont2discrete((lm.Ac, lm.Bc, np.eye(4), np.zeros((4, 2))), 0.01,
-                                          method="zoh")
+    A, B, *_ = scipy.signal.cont2discrete(
+        (lm.Ac, lm.Bc, np.eye(4), np.zeros((4, 2))), 0.01, method="zoh"
+    )
     np.testing.assert_allclose(lm.A, A, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(lm.B, B, rtol=1e-12, atol=1e-12)
 
@@ -126,6 +134,10 @@ def test_linear_cop_map_matches_load_cells(convention, push):
     u = last[["u1", "u2"]].to_numpy(float)
     cop_linear = lm.cop_x @ x + lm.cop_u @ u
     assert abs(last.cop) > 0.015  # the lean moves the CoP measurably
-    within(last.cop - last.foot_x, cop_linear, atol=1e-5,
-           why="the map is exact in statics; the compliant contacts' geometry (sole sinking "
-               "~0.3 mm, pitching ~2e-4 rad) moves the CoP by ~1 um")
+    within(
+        last.cop - last.foot_x,
+        cop_linear,
+        atol=1e-5,
+        why="the map is exact in statics; the compliant contacts' geometry (sole sinking "
+        "~0.3 mm, pitching ~2e-4 rad) moves the CoP by ~1 um",
+    )

@@ -6,9 +6,19 @@ import math
 import numpy as np
 import pytest
 
-from mjx_balance.model.params import (LENGTH_RANGE, MASS_RANGE, MAX_FRICTION, MAX_GRAVITY,
-                                      MAX_PHYSICS_DT, MIN_GRAVITY, BodyParams, Config,
-                                      ControllerParams, ParameterError, ScenarioParams)
+from mjx_balance.model.params import (
+    LENGTH_RANGE,
+    MASS_RANGE,
+    MAX_FRICTION,
+    MAX_GRAVITY,
+    MAX_PHYSICS_DT,
+    MIN_GRAVITY,
+    BodyParams,
+    Config,
+    ControllerParams,
+    ParameterError,
+    ScenarioParams,
+)
 from mjx_balance.model.config_files import load_config
 from mjx_balance.reference.loop import simulate_scenario
 from mjx_balance.runs import load_sweep
@@ -16,8 +26,14 @@ from mjx_balance.runs.definitions import sweeps_dir
 
 SWEEPS = sorted(sweeps_dir().glob("*.toml"))  # the shipped definitions (package data)
 MASSES = ("foot_mass", "lower_mass", "upper_mass")
-LENGTHS = ("foot_length", "foot_width", "foot_thickness", "lower_length", "upper_length",
-           "contact_radius")
+LENGTHS = (
+    "foot_length",
+    "foot_width",
+    "foot_thickness",
+    "lower_length",
+    "upper_length",
+    "contact_radius",
+)
 
 
 def body(**values) -> BodyParams:
@@ -45,6 +61,7 @@ def test_the_defaults_lie_inside_every_range():
 
 # ---- time steps ----------------------------------------------------------------------------
 
+
 def test_physics_dt_is_at_most_half_the_contact_time_constant():
     assert ScenarioParams(physics_dt=MAX_PHYSICS_DT, control_dt=0.01).physics_dt == 0.01
     for dt in (0.02, 1.0):  # physics_dt = control_dt = 1.0
@@ -66,9 +83,14 @@ def test_control_dt_is_a_whole_multiple_of_physics_dt():
 
 # ---- masses, lengths, gravity --------------------------------------------------------------
 
-@pytest.mark.parametrize("name, limits, rule", [
-    *((name, MASS_RANGE, r"\[0\.001, 10000\] kg") for name in MASSES),
-    *((name, LENGTH_RANGE, r"\[0\.001, 10\] m") for name in LENGTHS)])
+
+@pytest.mark.parametrize(
+    "name, limits, rule",
+    [
+        *((name, MASS_RANGE, r"\[0\.001, 10000\] kg") for name in MASSES),
+        *((name, LENGTH_RANGE, r"\[0\.001, 10\] m") for name in LENGTHS),
+    ],
+)
 def test_masses_and_lengths_lie_in_the_plausible_range(name, limits, rule):
     for value in limits:
         assert getattr(body(**{name: value}), name) == value
@@ -84,8 +106,9 @@ def test_negative_masses_and_lengths_still_say_positive():
 
 def test_gravity_and_ankle_height_ranges():
     assert BodyParams(gravity=MAX_GRAVITY).gravity == MAX_GRAVITY
-    with pytest.raises(ParameterError,
-                       match=r"body\.gravity = 1000000\.0: must lie in \[0\.1, 100\]"):
+    with pytest.raises(
+        ParameterError, match=r"body\.gravity = 1000000\.0: must lie in \[0\.1, 100\]"
+    ):
         BodyParams(gravity=1e6)
     assert BodyParams(gravity=MIN_GRAVITY).gravity == MIN_GRAVITY
     with pytest.raises(ParameterError, match=r"body\.gravity = 1e-300: must lie in"):
@@ -104,34 +127,48 @@ def test_a_huge_mass_in_a_file_is_refused(tmp_path):
 
 # ---- booleans are not numbers, lists hold numbers ------------------------------------------
 
-@pytest.mark.parametrize("make,field,rule", [
-    (lambda: ControllerParams(q_diag=(True, 1, 1, 1)), "q_diag", "a list of numbers"),
-    (lambda: ControllerParams(r_diag=(0.1, False)), "r_diag", "a list of numbers"),
-    (lambda: ControllerParams(input1_bounds=(False, True)), "input1_bounds", "a list of numbers"),
-    (lambda: ControllerParams(q_diag=("a", 1, 1, 1)), "q_diag", "a list of numbers"),
-    (lambda: ControllerParams(input1_bounds=([1, 2], 3)), "input1_bounds", "a list of numbers"),
-    (lambda: ControllerParams(q_diag=1e3), "q_diag", "a list of numbers"),
-    (lambda: ControllerParams(horizon=True), "horizon", "a number"),
-    (lambda: ControllerParams(osqp_eps="1e-8"), "osqp_eps", "a number"),
-    (lambda: ControllerParams(admm_stop_on_infeasible=1), "admm_stop_on_infeasible",
-     "true or false"),
-    (lambda: ControllerParams(convention=1), "convention", "a string"),
-    (lambda: BodyParams(foot_mass=True), "foot_mass", "a number"),
-    (lambda: ScenarioParams(force=True), "force", "a number"),
-    (lambda: ScenarioParams(push_body=None), "push_body", "a string"),
-])
+
+@pytest.mark.parametrize(
+    "make,field,rule",
+    [
+        (lambda: ControllerParams(q_diag=(True, 1, 1, 1)), "q_diag", "a list of numbers"),
+        (lambda: ControllerParams(r_diag=(0.1, False)), "r_diag", "a list of numbers"),
+        (
+            lambda: ControllerParams(input1_bounds=(False, True)),
+            "input1_bounds",
+            "a list of numbers",
+        ),
+        (lambda: ControllerParams(q_diag=("a", 1, 1, 1)), "q_diag", "a list of numbers"),
+        (lambda: ControllerParams(input1_bounds=([1, 2], 3)), "input1_bounds", "a list of numbers"),
+        (lambda: ControllerParams(q_diag=1e3), "q_diag", "a list of numbers"),
+        (lambda: ControllerParams(horizon=True), "horizon", "a number"),
+        (lambda: ControllerParams(osqp_eps="1e-8"), "osqp_eps", "a number"),
+        (
+            lambda: ControllerParams(admm_stop_on_infeasible=1),
+            "admm_stop_on_infeasible",
+            "true or false",
+        ),
+        (lambda: ControllerParams(convention=1), "convention", "a string"),
+        (lambda: BodyParams(foot_mass=True), "foot_mass", "a number"),
+        (lambda: ScenarioParams(force=True), "force", "a number"),
+        (lambda: ScenarioParams(push_body=None), "push_body", "a string"),
+    ],
+)
 def test_types_are_checked_on_construction(make, field, rule):
     with pytest.raises(ParameterError, match=rf"\.{field} = .*: must be .*{rule}"):
         make()
 
 
-@pytest.mark.parametrize("text,field", [
-    ("[controller]\nq_diag = [true, 1, 1, 1]\n", "q_diag"),
-    ("[controller]\nq_diag = [\"a\", 1, 1, 1]\n", "q_diag"),
-    ("[controller]\ninput1_bounds = [[1, 2], 3]\n", "input1_bounds"),
-    ("[controller]\ncop_bounds = [[-0.1], [0.1]]\n", "cop_bounds"),
-    ("[controller]\nr_diag = [0.1, false]\n", "r_diag"),
-])
+@pytest.mark.parametrize(
+    "text,field",
+    [
+        ("[controller]\nq_diag = [true, 1, 1, 1]\n", "q_diag"),
+        ('[controller]\nq_diag = ["a", 1, 1, 1]\n', "q_diag"),
+        ("[controller]\ninput1_bounds = [[1, 2], 3]\n", "input1_bounds"),
+        ("[controller]\ncop_bounds = [[-0.1], [0.1]]\n", "cop_bounds"),
+        ("[controller]\nr_diag = [0.1, false]\n", "r_diag"),
+    ],
+)
 def test_lists_in_a_file_hold_numbers(tmp_path, text, field):
     path = tmp_path / "bad.toml"
     path.write_text(text)
@@ -148,6 +185,7 @@ def test_numpy_numbers_are_numbers():
 
 
 # ---- the file itself -----------------------------------------------------------------------
+
 
 def test_a_folder_or_binary_file_is_not_a_configuration(tmp_path):
     with pytest.raises(ParameterError, match="a folder, not a configuration file"):

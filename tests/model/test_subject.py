@@ -22,8 +22,13 @@ from mjx_balance import cli
 from mjx_balance.cli.main import build_parser
 from mjx_balance.model.linear import linear_model
 from mjx_balance.model.mjcf import mjcf
-from mjx_balance.model.params import (BodyParams, Config, ParameterError, ParameterWarning,
-                                      config_warnings)
+from mjx_balance.model.params import (
+    BodyParams,
+    Config,
+    ParameterError,
+    ParameterWarning,
+    config_warnings,
+)
 from mjx_balance.model.config_files import load_config, run_config
 from mjx_balance.model.subject import Subject, parse_subject, with_sections
 from mjx_balance.runs.definitions import load_sweep
@@ -51,33 +56,46 @@ def _male_175_70() -> dict[str, float]:
     z_th = lower_length - 0.4095 * thigh
     lower_mass = m_sh + m_th
     lower_com = (m_sh * z_sh + m_th * z_th) / lower_mass
-    lower_inertia = (m_sh * (0.255 * shank) ** 2 + m_th * (0.329 * thigh) ** 2
-                     + m_sh * (z_sh - lower_com) ** 2 + m_th * (z_th - lower_com) ** 2)
+    lower_inertia = (
+        m_sh * (0.255 * shank) ** 2
+        + m_th * (0.329 * thigh) ** 2
+        + m_sh * (z_sh - lower_com) ** 2
+        + m_th * (z_th - lower_com) ** 2
+    )
     # upper body above the hip: trunk (SUPR-MIDH 531.9 mm, 43.46 %, CoM 44.86 % from SUPR,
     # r 37.2 %), head (VERT-MIDG 203.3 mm, 6.94 %, CoM 59.76 % from the vertex, r 36.2 %) at
     # the top, arms hanging from the trunk's top: upper arm (281.7 mm, 2.71 %, 57.72 %,
     # r 28.5 %), forearm (268.9 mm, 1.62 %, 45.74 %, r 27.6 %), hand (86.2 mm, 0.61 %,
     # 79.00 %, r 62.8 %), two of each
     upper_length = 1.75 - lower_length
-    trunk, head, arm, forearm, hand = (0.5319 * s, 0.2033 * s, 0.2817 * s, 0.2689 * s,
-                                       0.0862 * s)
+    trunk, head, arm, forearm, hand = (0.5319 * s, 0.2033 * s, 0.2817 * s, 0.2689 * s, 0.0862 * s)
     parts = [  # (mass, height above the hip, own pitch inertia)
         (0.4346 * 70, trunk * (1 - 0.4486), 0.4346 * 70 * (0.372 * trunk) ** 2),
         (0.0694 * 70, upper_length - 0.5976 * head, 0.0694 * 70 * (0.362 * head) ** 2),
         (2 * 0.0271 * 70, trunk - 0.5772 * arm, 2 * 0.0271 * 70 * (0.285 * arm) ** 2),
-        (2 * 0.0162 * 70, trunk - arm - 0.4574 * forearm,
-         2 * 0.0162 * 70 * (0.276 * forearm) ** 2),
-        (2 * 0.0061 * 70, trunk - arm - forearm - 0.79 * hand,
-         2 * 0.0061 * 70 * (0.628 * hand) ** 2),
+        (2 * 0.0162 * 70, trunk - arm - 0.4574 * forearm, 2 * 0.0162 * 70 * (0.276 * forearm) ** 2),
+        (
+            2 * 0.0061 * 70,
+            trunk - arm - forearm - 0.79 * hand,
+            2 * 0.0061 * 70 * (0.628 * hand) ** 2,
+        ),
     ]
     upper_mass = sum(m for m, _, _ in parts)
     upper_com = sum(m * z for m, z, _ in parts) / upper_mass
     upper_inertia = sum(i + m * (z - upper_com) ** 2 for m, z, i in parts)
-    return {"foot_mass": foot_mass, "foot_length": foot_length, "foot_inertia": foot_inertia,
-            "lower_mass": lower_mass, "lower_length": lower_length, "lower_com": lower_com,
-            "lower_inertia": lower_inertia, "upper_mass": upper_mass,
-            "upper_length": upper_length, "upper_com": upper_com,
-            "upper_inertia": upper_inertia}
+    return {
+        "foot_mass": foot_mass,
+        "foot_length": foot_length,
+        "foot_inertia": foot_inertia,
+        "lower_mass": lower_mass,
+        "lower_length": lower_length,
+        "lower_com": lower_com,
+        "lower_inertia": lower_inertia,
+        "upper_mass": upper_mass,
+        "upper_length": upper_length,
+        "upper_com": upper_com,
+        "upper_inertia": upper_inertia,
+    }
 
 
 def test_a_subject_worked_by_hand_from_the_table():
@@ -98,10 +116,12 @@ def test_a_subjects_bounds():
     assert ctrl.cop_bounds == pytest.approx((-foot / 2, foot / 2), rel=REL)
     assert ctrl.com_bounds == pytest.approx((-foot / 2, foot / 2), rel=REL)
     # the study's +-20 / +-100 N m on its 66.3-kg body, times 70 / 66.3 and the strengths
-    assert ctrl.input1_bounds == pytest.approx((-20 * 70 / 66.3 * 0.6, 20 * 70 / 66.3 * 0.6),
-                                               rel=REL)
-    assert ctrl.input2_bounds == pytest.approx((-100 * 70 / 66.3 * 0.8, 100 * 70 / 66.3 * 0.8),
-                                               rel=REL)
+    assert ctrl.input1_bounds == pytest.approx(
+        (-20 * 70 / 66.3 * 0.6, 20 * 70 / 66.3 * 0.6), rel=REL
+    )
+    assert ctrl.input2_bounds == pytest.approx(
+        (-100 * 70 / 66.3 * 0.8, 100 * 70 / 66.3 * 0.8), rel=REL
+    )
     # a female subject uses the female columns (foot 228.3 mm at 1.735 m, 1.29 %)
     female = Subject(1.60, 55, "female").config().body
     assert female.foot_length == pytest.approx(0.2283 * 1.60 / 1.735, rel=REL)
@@ -119,11 +139,17 @@ def test_the_default_body_is_unchanged():
     # is the one computed with the package before this change
     text = json.dumps(Config().to_dict(), sort_keys=True)
     assert hashlib.sha256(text.encode()).hexdigest() == (
-        "c3c4c7f3f16787cc4af28fe08f527936c926b38aee308c5dcf663d8eb0a72934")
+        "c3c4c7f3f16787cc4af28fe08f527936c926b38aee308c5dcf663d8eb0a72934"
+    )
     assert "inertia" not in text
     # the same numbers given explicitly build the same MJCF and the same linear model, bitwise
-    given = Config().replace(body={"lower_inertia": 30.0 / 12.0, "upper_inertia": 35 * 0.36 / 12,
-                                   "foot_inertia": body.foot_pitch_inertia})
+    given = Config().replace(
+        body={
+            "lower_inertia": 30.0 / 12.0,
+            "upper_inertia": 35 * 0.36 / 12,
+            "foot_inertia": body.foot_pitch_inertia,
+        }
+    )
     assert mjcf(given.body) == mjcf(body)
     for convention in ("paper", "joint"):
         a = linear_model(body, convention, 0.01)
@@ -135,8 +161,9 @@ def test_a_given_inertia_reaches_the_models():
     config = Config().replace(body={"upper_inertia": 2.0})
     assert 'diaginertia="2 2 0.002"' in mjcf(config.body)
     # M_abs[1, 1] = I2 + m2 c2^2 in the linear model: a larger I2 slows the upper body
-    assert not np.array_equal(linear_model(config.body, "paper", 0.01).A,
-                              linear_model(BodyParams(), "paper", 0.01).A)
+    assert not np.array_equal(
+        linear_model(config.body, "paper", 0.01).A, linear_model(BodyParams(), "paper", 0.01).A
+    )
     with pytest.raises(ParameterError, match=r"body.upper_inertia = -1"):
         Config().replace(body={"upper_inertia": -1.0})
     with pytest.raises(ParameterError, match=r"body.lower_inertia = 'big'"):
@@ -200,11 +227,13 @@ def test_the_default_and_every_shipped_sweep_pass_the_linked_limits(recwarn):
 
 def test_a_subject_table_in_a_config_file(tmp_path):
     path = tmp_path / "me.toml"
-    path.write_text('[subject]\nheight = 1.6\nmass = 55\nsex = "female"\n\n'
-                    "[body]\nfriction = 0.8\n")
+    path.write_text(
+        '[subject]\nheight = 1.6\nmass = 55\nsex = "female"\n\n[body]\nfriction = 0.8\n'
+    )
     config = load_config(path)
-    assert config.body == dataclasses.replace(Subject(1.6, 55, "female").config().body,
-                                              friction=0.8)
+    assert config.body == dataclasses.replace(
+        Subject(1.6, 55, "female").config().body, friction=0.8
+    )
     # --subject replaces the file's [subject]; --set goes on top of the subject's values
     other = run_config(path, None, ["body.lower_mass=20"], Subject(1.8, 80))
     assert other.body.foot_length == Subject(1.8, 80).config().body.foot_length
@@ -234,15 +263,18 @@ def test_subject_to_config_and_the_api():
     assert subject.config(base).scenario.t_end == 6.0
 
 
-@pytest.mark.parametrize("text, words", [
-    ("height=abc,mass=58", "height='abc' is not a number"),
-    ("height=1.62", "give mass"),
-    ("height=-1.62,mass=58", "subject.height = -1.62"),
-    ("height=1.62,mass=58,sex=other", "subject.sex = 'other'"),
-    ("height=1.62,mass=58,age=80", "unknown key(s) age"),
-    ("height:1.62,mass=58", "is not KEY=VALUE"),
-    ("height=1.62,mass=58,ankle_strength=0", "subject.ankle_strength = 0"),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("height=abc,mass=58", "height='abc' is not a number"),
+        ("height=1.62", "give mass"),
+        ("height=-1.62,mass=58", "subject.height = -1.62"),
+        ("height=1.62,mass=58,sex=other", "subject.sex = 'other'"),
+        ("height=1.62,mass=58,age=80", "unknown key(s) age"),
+        ("height:1.62,mass=58", "is not KEY=VALUE"),
+        ("height=1.62,mass=58,ankle_strength=0", "subject.ankle_strength = 0"),
+    ],
+)
 def test_bad_subjects_are_refused(text, words):
     with pytest.raises(ParameterError) as err:
         parse_subject(text)
@@ -267,12 +299,12 @@ def test_the_subject_flag_on_every_command_with_set(capsys, tmp_path):
     for name, p in sub.choices.items():
         walk(p, name)
     assert {"simulate", "sweep", "table", "compare"} <= set(with_set)
-    args = parser.parse_args(["sweep", "--subject", "height=1.62,mass=58,sex=female",
-                              "--out", str(tmp_path / "o")])
+    args = parser.parse_args(
+        ["sweep", "--subject", "height=1.62,mass=58,sex=female", "--out", str(tmp_path / "o")]
+    )
     assert args.subject == Subject(1.62, 58, "female")
     try:
-        code = cli.main(["sweep", "--subject", "height=abc,mass=58", "--out",
-                         str(tmp_path / "o")])
+        code = cli.main(["sweep", "--subject", "height=abc,mass=58", "--out", str(tmp_path / "o")])
     except SystemExit as exc:
         code = exc.code
     err = capsys.readouterr().err
@@ -309,8 +341,9 @@ def test_the_layers_over_a_subject(tmp_path):
 
 
 def test_a_command_says_a_never_binding_limit_once(tmp_path, capsys):
-    code = cli.main(["model", "--set", "controller.cop_bounds=[-0.2, 0.2]", "--out",
-                     str(tmp_path / "body.xml")])
+    code = cli.main(
+        ["model", "--set", "controller.cop_bounds=[-0.2, 0.2]", "--out", str(tmp_path / "body.xml")]
+    )
     err = capsys.readouterr().err
     assert code == 0
     assert err.count("cop_bounds = [-0.2, 0.2]") == 1, err
@@ -330,13 +363,19 @@ def test_csv_headers_match_ignoring_case_spaces_and_an_excel_bom(tmp_path):
     ids lost) and a BOM before `height` ("give height") are read as their columns."""
     from mjx_balance.model.subject import subject_rows
 
-    rows = subject_rows(_csv(tmp_path, "ID, Height ,MASS,Sex,Ankle_Strength\n"
-                                       "P1,1.6,55,Female,0.8\n"))
+    rows = subject_rows(
+        _csv(tmp_path, "ID, Height ,MASS,Sex,Ankle_Strength\nP1,1.6,55,Female,0.8\n")
+    )
     assert [(r.line, r.id) for r in rows] == [(2, "P1")]
     assert rows[0].subject == Subject(1.6, 55, "female", 0.8)
     for header in ("id,height,mass,sex", "height,mass,sex"):  # the BOM before either column
-        rows = subject_rows(_csv(tmp_path, f"{header}\n" + ("P1," if "id" in header else "")
-                                 + "1.6,55,female\n", encoding="utf-8-sig"))
+        rows = subject_rows(
+            _csv(
+                tmp_path,
+                f"{header}\n" + ("P1," if "id" in header else "") + "1.6,55,female\n",
+                encoding="utf-8-sig",
+            )
+        )
         assert rows[0].subject == Subject(1.6, 55, "female")
         assert rows[0].id == ("P1" if "id" in header else "")
 
@@ -346,22 +385,33 @@ def test_csv_comment_and_blank_lines_are_skipped_and_lines_keep_their_numbers(tm
     rows is a comment; errors still name the file's own line number."""
     from mjx_balance.model.subject import subject_rows
 
-    path = _csv(tmp_path, "# participants of the pilot, 2024\nid,height,mass\n\n"
-                          "a,1.6,55\n  # b withdrew\nc,1.8,abc\n")
+    path = _csv(
+        tmp_path,
+        "# participants of the pilot, 2024\nid,height,mass\n\n"
+        "a,1.6,55\n  # b withdrew\nc,1.8,abc\n",
+    )
     with pytest.raises(ParameterError, match=r"line 6: mass = 'abc'"):
         subject_rows(path)
     path.write_text("# pilot\nid,height,mass\na,1.6,55\n# b withdrew\nc,1.8,80\n")
     assert [(r.line, r.id) for r in subject_rows(path)] == [(3, "a"), (5, "c")]
 
 
-@pytest.mark.parametrize("header, words", [
-    ("id,height,mass,ankle_strenght", ["unknown column(s) 'ankle_strenght'",
-                                       "known columns: id, height, mass, sex, ankle_strength"]),
-    ("id,height,mass,weight", ["'weight'"]),
-    ("id;height;mass", ["'id;height;mass'", "separated by commas"]),
-    ("id,height,Height,mass", ["column 'height' is given twice"]),
-    ("id,mass", ["line 1: the header has no column height"]),
-])
+@pytest.mark.parametrize(
+    "header, words",
+    [
+        (
+            "id,height,mass,ankle_strenght",
+            [
+                "unknown column(s) 'ankle_strenght'",
+                "known columns: id, height, mass, sex, ankle_strength",
+            ],
+        ),
+        ("id,height,mass,weight", ["'weight'"]),
+        ("id;height;mass", ["'id;height;mass'", "separated by commas"]),
+        ("id,height,Height,mass", ["column 'height' is given twice"]),
+        ("id,mass", ["line 1: the header has no column height"]),
+    ],
+)
 def test_csv_an_unknown_repeated_or_missing_column_is_refused_by_name(tmp_path, header, words):
     """A misspelt column was ignored (every strength stayed 1): any column that is not a
     subject's field, the id or a free-text note is refused, naming it and the known ones."""
@@ -379,20 +429,27 @@ def test_csv_an_unknown_repeated_or_missing_column_is_refused_by_name(tmp_path, 
 def test_csv_notes_columns_are_read_and_ignored(tmp_path):
     from mjx_balance.model.subject import subjects_from_csv
 
-    path = _csv(tmp_path, "id,height,mass,Notes\na,1.6,55,\"tall, left-handed\"\n")
+    path = _csv(tmp_path, 'id,height,mass,Notes\na,1.6,55,"tall, left-handed"\n')
     assert subjects_from_csv(path) == [Subject(1.6, 55)]
 
 
-@pytest.mark.parametrize("text, words", [
-    ("id,height,mass\nP1,1,6,55\n", ["line 2: 4 values for the header's 3 columns",
-                                     "decimal comma"]),
-    ("id,height,mass\nP1,\"1,6\",55\n", ["line 2: height = '1,6' is not a number",
-                                         "decimal comma"]),
-    ("id,height,mass,sex\nP1,1,6,55\n", ["line 2", "subject.sex = '55'"]),
-    ("id,height,mass,,\nP1,1.6,55,,x\n", ["line 2: 'x' is in a column without a name"]),
-    ("id,height,mass\n", ["holds a header and no subject"]),
-    ("", ["empty"]),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        (
+            "id,height,mass\nP1,1,6,55\n",
+            ["line 2: 4 values for the header's 3 columns", "decimal comma"],
+        ),
+        (
+            'id,height,mass\nP1,"1,6",55\n',
+            ["line 2: height = '1,6' is not a number", "decimal comma"],
+        ),
+        ("id,height,mass,sex\nP1,1,6,55\n", ["line 2", "subject.sex = '55'"]),
+        ("id,height,mass,,\nP1,1.6,55,,x\n", ["line 2: 'x' is in a column without a name"]),
+        ("id,height,mass\n", ["holds a header and no subject"]),
+        ("", ["empty"]),
+    ],
+)
 def test_csv_a_decimal_comma_or_a_ragged_row_is_refused(tmp_path, text, words):
     """`P1,1,6,55` (height 1,6 m with a decimal comma) was read as a 1-m, 6-kg subject (the
     55 dropped): a row with more values than columns is refused naming its line."""
@@ -411,17 +468,19 @@ def test_a_body_no_one_has_is_refused_on_every_path(tmp_path, height, mass):
     check, so --subject, a [subject] table, a CSV row and mb.Subject refuse it alike."""
     from mjx_balance.model.subject import BMI_RANGE, subjects_from_csv
 
-    bmi = mass / height ** 2
+    bmi = mass / height**2
     assert not BMI_RANGE[0] <= bmi <= BMI_RANGE[1]
-    for make in (lambda: Subject(height, mass),
-                 lambda: parse_subject(f"height={height},mass={mass}"),
-                 lambda: with_sections(Config(), {"subject": {"height": height, "mass": mass}}),
-                 lambda: subjects_from_csv(_csv(tmp_path, f"height,mass\n{height},{mass}\n"))):
+    for make in (
+        lambda: Subject(height, mass),
+        lambda: parse_subject(f"height={height},mass={mass}"),
+        lambda: with_sections(Config(), {"subject": {"height": height, "mass": mass}}),
+        lambda: subjects_from_csv(_csv(tmp_path, f"height,mass\n{height},{mass}\n")),
+    ):
         with pytest.raises(ParameterError, match=r"body mass index .* outside the plausible"):
             make()
     # the bounds' own edges are bodies
     for bmi in BMI_RANGE:
-        assert Subject(1.7, bmi * 1.7 ** 2).mass == pytest.approx(bmi * 2.89)
+        assert Subject(1.7, bmi * 1.7**2).mass == pytest.approx(bmi * 2.89)
 
 
 def test_a_populations_bodies_lie_within_the_bounds():
@@ -430,12 +489,15 @@ def test_a_populations_bodies_lie_within_the_bounds():
     from mjx_balance.model.subject import BMI_RANGE
     from mjx_balance.studies import members as cohort_members
 
-    tall_light = cohort_members.population(40, seed=2, height_mean=2.3, height_sd=0.1,
-                                   mass_mean=45, mass_sd=10)
-    bmi = np.array([m.subject.mass / m.subject.height ** 2 for m in tall_light])
+    tall_light = cohort_members.population(
+        40, seed=2, height_mean=2.3, height_sd=0.1, mass_mean=45, mass_sd=10
+    )
+    bmi = np.array([m.subject.mass / m.subject.height**2 for m in tall_light])
     assert bmi.min() >= BMI_RANGE[0] and bmi.max() <= BMI_RANGE[1]
     # a seed's subjects are those it drew before the bound (none of them was outside it):
     # the first three of population(30, seed=7), as the code before the bound drew them
     assert [m.subject for m in cohort_members.population(30, seed=7)[:3]] == [
-        Subject(1.7269, 66.71, "male"), Subject(1.6591, 58.1, "female"),
-        Subject(1.8206, 64.09, "female")]
+        Subject(1.7269, 66.71, "male"),
+        Subject(1.6591, 58.1, "female"),
+        Subject(1.8206, 64.09, "female"),
+    ]

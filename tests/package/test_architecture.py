@@ -32,8 +32,22 @@ import mjx_balance
 PACKAGE = Path(mjx_balance.__file__).resolve().parent
 
 # Bottom up: each floor may import from itself and from the floors before it.
-FLOORS = ("runtime", "model", "measures", "control", "reference", "rollout", "store", "runs",
-          "figures", "studies", "report", "bench", "api", "cli")
+FLOORS = (
+    "runtime",
+    "model",
+    "measures",
+    "control",
+    "reference",
+    "rollout",
+    "store",
+    "runs",
+    "figures",
+    "studies",
+    "report",
+    "bench",
+    "api",
+    "cli",
+)
 TOP = ("", "__main__")  # the package root and ``python -m mjx_balance``: above every floor
 MAX_LINES = 80
 MAX_POSITIONAL = 8
@@ -41,12 +55,12 @@ MAX_POSITIONAL = 8
 
 @dataclass(frozen=True)
 class Import:
-    module: str      # the importing module
-    target: str      # the imported module (a submodule when ``from pkg import sub``)
-    names: tuple     # the names imported from it (empty for ``import x``)
+    module: str  # the importing module
+    target: str  # the imported module (a submodule when ``from pkg import sub``)
+    names: tuple  # the names imported from it (empty for ``import x``)
     line: int
     in_function: bool
-    lazy: bool       # marked with a ``lazy:`` comment
+    lazy: bool  # marked with a ``lazy:`` comment
 
 
 def _modules(root: Path, package: str) -> dict[str, Path]:
@@ -63,7 +77,7 @@ def _absolute(module: str, is_package: bool, node: ast.ImportFrom) -> str:
     if not node.level:
         return node.module or ""
     base = module.split(".") if is_package else module.split(".")[:-1]
-    base = base[:len(base) - node.level + 1]
+    base = base[: len(base) - node.level + 1]
     return ".".join(base + ([node.module] if node.module else []))
 
 
@@ -77,15 +91,15 @@ def imports(root: Path, package: str) -> list[Import]:
         is_package = path.name == "__init__.py"
 
         def lazy(node: ast.stmt) -> bool:
-            here = lines[node.lineno - 1: node.end_lineno]  # noqa: B023 - called in the same iteration
+            here = lines[node.lineno - 1 : node.end_lineno]  # noqa: B023 - called in the same iteration
             above = lines[node.lineno - 2] if node.lineno > 1 else ""  # noqa: B023 - called in the same iteration
-            return any("lazy:" in text for text in here) or above.strip().startswith(
-                "# lazy:")
+            return any("lazy:" in text for text in here) or above.strip().startswith("# lazy:")
 
         def visit(node: ast.AST, in_function: bool) -> None:
             for child in ast.iter_child_nodes(node):
-                inner = in_function or isinstance(child, (ast.FunctionDef,
-                                                          ast.AsyncFunctionDef, ast.Lambda))
+                inner = in_function or isinstance(
+                    child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)
+                )
                 if isinstance(child, ast.ImportFrom):
                     target = _absolute(module, is_package, child)  # noqa: B023 - called in the same iteration
                     if target == package or target.startswith(package + "."):
@@ -93,18 +107,42 @@ def imports(root: Path, package: str) -> list[Import]:
                         for alias in child.names:
                             sub = f"{target}.{alias.name}"
                             if sub in modules:
-                                found.append(Import(module, sub, (), child.lineno, in_function,  # noqa: B023 - called in the same iteration
-                                                    lazy(child)))
+                                found.append(
+                                    Import(
+                                        module,  # noqa: B023 - called in the same iteration
+                                        sub,
+                                        (),
+                                        child.lineno,
+                                        in_function,
+                                        lazy(child),
+                                    )
+                                )
                             else:
                                 plain.append(alias.name)
                         if plain:
-                            found.append(Import(module, target, tuple(plain), child.lineno,  # noqa: B023 - called in the same iteration
-                                                in_function, lazy(child)))
+                            found.append(
+                                Import(
+                                    module,  # noqa: B023 - called in the same iteration
+                                    target,
+                                    tuple(plain),
+                                    child.lineno,
+                                    in_function,
+                                    lazy(child),
+                                )
+                            )
                 elif isinstance(child, ast.Import):
                     for alias in child.names:
                         if alias.name == package or alias.name.startswith(package + "."):
-                            found.append(Import(module, alias.name, (), child.lineno,  # noqa: B023 - called in the same iteration
-                                                in_function, lazy(child)))
+                            found.append(
+                                Import(
+                                    module,  # noqa: B023 - called in the same iteration
+                                    alias.name,
+                                    (),
+                                    child.lineno,
+                                    in_function,
+                                    lazy(child),
+                                )
+                            )
                 visit(child, inner)
 
         visit(ast.parse(source), False)
@@ -113,7 +151,7 @@ def imports(root: Path, package: str) -> list[Import]:
 
 def floor(module: str, package: str) -> int:
     """The floor's index in :data:`FLOORS` (the root and ``__main__``: above all)."""
-    rest = module[len(package) + 1:] if module != package else ""
+    rest = module[len(package) + 1 :] if module != package else ""
     head = rest.split(".")[0]
     if head in TOP:
         return len(FLOORS)
@@ -124,9 +162,12 @@ def upward_imports(found: list[Import], package: str) -> list[str]:
     def name(index: int) -> str:
         return FLOORS[index] if index < len(FLOORS) else "top"
 
-    return [f"{i.module}:{i.line} imports {i.target} (floor {name(floor(i.target, package))}"
-            f" is above its own)" for i in found
-            if floor(i.target, package) > floor(i.module, package)]
+    return [
+        f"{i.module}:{i.line} imports {i.target} (floor {name(floor(i.target, package))}"
+        f" is above its own)"
+        for i in found
+        if floor(i.target, package) > floor(i.module, package)
+    ]
 
 
 def cycles(found: list[Import], package: str) -> list[str]:
@@ -173,14 +214,20 @@ def cycles(found: list[Import], package: str) -> list[str]:
 
 
 def private_imports(found: list[Import]) -> list[str]:
-    return [f"{i.module}:{i.line} imports {name} from {i.target}" for i in found
-            for name in i.names
-            if name.startswith("_") and not name.startswith("__") and i.target != i.module]
+    return [
+        f"{i.module}:{i.line} imports {name} from {i.target}"
+        for i in found
+        for name in i.names
+        if name.startswith("_") and not name.startswith("__") and i.target != i.module
+    ]
 
 
 def unmarked_function_imports(found: list[Import]) -> list[str]:
-    return [f"{i.module}:{i.line} imports {i.target} inside a function without a 'lazy:' "
-            f"comment" for i in found if i.in_function and not i.lazy]
+    return [
+        f"{i.module}:{i.line} imports {i.target} inside a function without a 'lazy:' comment"
+        for i in found
+        if i.in_function and not i.lazy
+    ]
 
 
 def long_functions(root: Path, package: str) -> list[str]:
@@ -195,17 +242,21 @@ def long_functions(root: Path, package: str) -> list[str]:
             args = node.args.posonlyargs + node.args.args
             positional = len(args) - (1 if args and args[0].arg in ("self", "cls") else 0)
             if positional > MAX_POSITIONAL:
-                bad.append(f"{module}:{node.lineno} {node.name} has {positional} positional "
-                           f"parameters")
+                bad.append(
+                    f"{module}:{node.lineno} {node.name} has {positional} positional parameters"
+                )
     return bad
 
 
 def violations(root: Path, package: str) -> dict[str, list[str]]:
     found = imports(root, package)
-    return {"upward": upward_imports(found, package), "cycles": cycles(found, package),
-            "private": private_imports(found),
-            "function-level": unmarked_function_imports(found),
-            "size": long_functions(root, package)}
+    return {
+        "upward": upward_imports(found, package),
+        "cycles": cycles(found, package),
+        "private": private_imports(found),
+        "function-level": unmarked_function_imports(found),
+        "size": long_functions(root, package),
+    }
 
 
 # -- the package ------------------------------------------------------------------------------
@@ -218,7 +269,12 @@ def test_every_module_is_on_a_floor():
 
 def test_the_package_keeps_the_import_rule():
     assert violations(PACKAGE, "mjx_balance") == {
-        "upward": [], "cycles": [], "private": [], "function-level": [], "size": []}
+        "upward": [],
+        "cycles": [],
+        "private": [],
+        "function-level": [],
+        "size": [],
+    }
 
 
 # -- the rules can fail -------------------------------------------------------------------------
@@ -232,14 +288,18 @@ BAD = {
     # private: a private name of another module; cycle: qp <-> admm (one inside a function,
     # marked lazy, still a cycle)
     "control/qp.py": "from .admm import _step\n\n\ndef build():\n    return _step\n",
-    "control/admm.py": ("def _step():\n    # lazy: for the test\n    from .qp import build\n"
-                        "    return build\n\n\ndef solve():\n    from . import qp\n"
-                        "    return qp\n"),
+    "control/admm.py": (
+        "def _step():\n    # lazy: for the test\n    from .qp import build\n"
+        "    return build\n\n\ndef solve():\n    from . import qp\n"
+        "    return qp\n"
+    ),
     # size: 81 lines; positional: 9 parameters
     "runs/__init__.py": "",
-    "runs/grid.py": ("def long():\n" + "    x = 1\n" * 79 + "    return x\n\n\n"
-                     "def many(a, b, c, d, e, f, g, h, i):\n    return a\n\n\n"
-                     "def fine(a, b, c, d, e, f, g, h, *, i=1):\n    return a\n"),
+    "runs/grid.py": (
+        "def long():\n" + "    x = 1\n" * 79 + "    return x\n\n\n"
+        "def many(a, b, c, d, e, f, g, h, i):\n    return a\n\n\n"
+        "def fine(a, b, c, d, e, f, g, h, *, i=1):\n    return a\n"
+    ),
 }
 
 
@@ -249,14 +309,18 @@ def test_each_rule_fails_on_a_broken_fixture(tmp_path):
         (root / name).parent.mkdir(parents=True, exist_ok=True)
         (root / name).write_text(text)
     found = violations(root, "fake")
-    assert found["upward"] == ["fake.model.params:1 imports fake.control.qp (floor control is "
-                               "above its own)"]
+    assert found["upward"] == [
+        "fake.model.params:1 imports fake.control.qp (floor control is above its own)"
+    ]
     assert found["cycles"] == ["fake.control.admm <-> fake.control.qp"]
     assert found["private"] == ["fake.control.qp:1 imports _step from fake.control.admm"]
-    assert found["function-level"] == ["fake.control.admm:8 imports fake.control.qp inside a "
-                                       "function without a 'lazy:' comment"]
-    assert found["size"] == ["fake.runs.grid:1 long has 81 lines",
-                             "fake.runs.grid:84 many has 9 positional parameters"]
+    assert found["function-level"] == [
+        "fake.control.admm:8 imports fake.control.qp inside a function without a 'lazy:' comment"
+    ]
+    assert found["size"] == [
+        "fake.runs.grid:1 long has 81 lines",
+        "fake.runs.grid:84 many has 9 positional parameters",
+    ]
 
 
 # -- the library never imports the command line; import mjx_balance stays light -----------------
@@ -269,9 +333,14 @@ def _library_modules() -> list[str]:
 
 def test_library_modules_exist():
     names = _library_modules()
-    for expected in ("mjx_balance.measures.outcomes", "mjx_balance.rollout.kernel",
-                     "mjx_balance.store.folder", "mjx_balance.report.html",
-                     "mjx_balance.bench.pipeline", "mjx_balance.runtime.compiled"):
+    for expected in (
+        "mjx_balance.measures.outcomes",
+        "mjx_balance.rollout.kernel",
+        "mjx_balance.store.folder",
+        "mjx_balance.report.html",
+        "mjx_balance.bench.pipeline",
+        "mjx_balance.runtime.compiled",
+    ):
         assert expected in names
 
 
@@ -283,18 +352,22 @@ def test_no_library_module_imports_the_command_line():
         "    importlib.import_module(name)\n"
         "print(sorted(m for m in sys.modules if m.startswith('mjx_balance.cli')))\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True, timeout=300)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=300
+    )
     assert out.stdout.strip().splitlines()[-1] == "[]", out.stdout
 
 
 def test_import_and_help_stay_light():
     # Neither JAX nor MuJoCo loads for ``import mjx_balance`` or for building the parser.
-    code = ("import sys, mjx_balance\nfrom mjx_balance.cli.main import build_parser\n"
-            "build_parser()\n"
-            "print(sorted(m for m in ('jax', 'mujoco', 'pandas') if m in sys.modules))\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True, timeout=300)
+    code = (
+        "import sys, mjx_balance\nfrom mjx_balance.cli.main import build_parser\n"
+        "build_parser()\n"
+        "print(sorted(m for m in ('jax', 'mujoco', 'pandas') if m in sys.modules))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=300
+    )
     assert out.stdout.strip().splitlines()[-1] == "[]", out.stdout
 
 
@@ -328,6 +401,12 @@ def test_no_library_module_switches_the_matplotlib_backend():
         "print(matplotlib.get_backend())\n"
     )
     env = {**os.environ, "MPLBACKEND": "svg"}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True, timeout=300, env=env)
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=300,
+        env=env,
+    )
     assert out.stdout.strip().splitlines()[-1] == "svg", out.stdout

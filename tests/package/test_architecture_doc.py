@@ -17,8 +17,11 @@ DOC = REPO / "docs" / "architecture.md"
 
 def modules(root: Path) -> list[str]:
     """Every module under ``root``, as its path relative to it (``runtime/xla.py``)."""
-    return sorted(path.relative_to(root).as_posix() for path in root.rglob("*.py")
-                  if "__pycache__" not in path.parts)
+    return sorted(
+        path.relative_to(root).as_posix()
+        for path in root.rglob("*.py")
+        if "__pycache__" not in path.parts
+    )
 
 
 def listed(text: str) -> list[str]:
@@ -44,7 +47,9 @@ def test_the_check_finds_a_module_left_out(tmp_path):
     for name in ("__init__.py", "runtime/__init__.py", "runtime/xla.py", "runtime/new.py"):
         (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / name).write_text("")
-    doc = ("| module | holds |\n|---|---|\n| `__init__.py` | the root |\n"
-           "| `runtime/__init__.py` | the floor |\n| `runtime/xla.py` | the flags |\n"
-           "named in prose only: `runtime/new.py`\n| `runtime/new.py` | |\n")
+    doc = (
+        "| module | holds |\n|---|---|\n| `__init__.py` | the root |\n"
+        "| `runtime/__init__.py` | the floor |\n| `runtime/xla.py` | the flags |\n"
+        "named in prose only: `runtime/new.py`\n| `runtime/new.py` | |\n"
+    )
     assert unlisted(tmp_path, doc) == ["runtime/new.py"]

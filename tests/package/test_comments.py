@@ -20,14 +20,20 @@ CITED = re.compile(r"\bissues?\s*#?\s*\d+", re.IGNORECASE)
 
 def comments_and_docstrings(text: str) -> list[tuple[int, str]]:
     """(line, text) of every comment and docstring of a module's source."""
-    found = [(tok.start[0], tok.string)
-             for tok in tokenize.generate_tokens(io.StringIO(text).readline)
-             if tok.type == tokenize.COMMENT]
+    found = [
+        (tok.start[0], tok.string)
+        for tok in tokenize.generate_tokens(io.StringIO(text).readline)
+        if tok.type == tokenize.COMMENT
+    ]
     for node in ast.walk(ast.parse(text)):
         if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
             body = node.body
-            if (body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant)
-                    and isinstance(body[0].value.value, str)):
+            if (
+                body
+                and isinstance(body[0], ast.Expr)
+                and isinstance(body[0].value, ast.Constant)
+                and isinstance(body[0].value.value, str)
+            ):
                 found.append((body[0].lineno, body[0].value.value))
     return sorted(found)
 
@@ -58,9 +64,11 @@ def test_the_check_finds_a_cited_number(tmp_path):
         f'    """Fixed under {word.upper()} #7."""\n\n'
         "    def f(self):\n"
         f'        """Done ({word.lower()}s 3 and 4)."""\n'
-        f'        return "{word} 5 in a message is not a comment"\n')
+        f'        return "{word} 5 in a message is not a comment"\n'
+    )
     (tmp_path / "pkg" / "clean.py").write_text(
-        '"""The issue\'s case, without a number, and an issue of numbers."""\n# tissue 3\n')
+        '"""The issue\'s case, without a number, and an issue of numbers."""\n# tissue 3\n'
+    )
     assert cited_numbers(tmp_path) == [
         "pkg/mod.py:1: 'issue 11'",
         "pkg/mod.py:3: 'Issue 28'",

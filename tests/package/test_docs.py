@@ -67,14 +67,20 @@ def test_table_columns_are_documented():
     from mjx_balance.runs.acting_time import TABLE_COLUMNS, max_acting_time
 
     config = Config().replace(scenario={"t_end": 1.0})
-    result = max_acting_time([20.0, 100.0], config, run_batch=standin_batch, progress=False,
-                             say=None)
+    result = max_acting_time(
+        [20.0, 100.0], config, run_batch=standin_batch, progress=False, say=None
+    )
     columns = list(result.table.columns)
     assert columns == list(TABLE_COLUMNS)
     assert missing(columns) == []
     # the suffixed energies of the table
-    assert {"energy_total_01", "energy_total_max", "ending_outcome", "monotone",
-            "evaluations"} <= set(columns)
+    assert {
+        "energy_total_01",
+        "energy_total_max",
+        "ending_outcome",
+        "monotone",
+        "evaluations",
+    } <= set(columns)
     # the table's kept scenarios are summary rows
     assert missing(result.runs.columns) == []
 
@@ -94,8 +100,9 @@ def test_report_json_keys_are_documented(tmp_path):
     from mjx_balance.studies import experiments as run
 
     plan = run.PLANS["tiny"]
-    record = run.open_record(tmp_path, run.plan_config(Config(), plan), plan, "reference",
-                             CONVENTIONS)
+    record = run.open_record(
+        tmp_path, run.plan_config(Config(), plan), plan, "reference", CONVENTIONS
+    )
     keys = set(record)
     # keys the report adds to the record after it is opened (run_report, run_stage, run_study)
     source = Path(run.__file__).read_text(encoding="utf-8")
@@ -112,8 +119,7 @@ def test_manifest_records_are_documented():
 
     names = {key for keys in store.MANIFEST_KEYS.values() for key in keys}
     names |= set(store.MANIFEST_KEYS) | {"region.engine", "table_engine", "slots", "early_stop"}
-    names |= {files.MANIFEST, files.CONFIG, files.REGION, files.TABLE, files.TABLE_RUNS,
-              files.LOCK}
+    names |= {files.MANIFEST, files.CONFIG, files.REGION, files.TABLE, files.TABLE_RUNS, files.LOCK}
     assert missing(sorted(names)) == []
 
 
@@ -129,8 +135,7 @@ def test_model_doc_cites_the_study_and_names_the_outcomes():
     assert "Human-like Balance Recovery Based on Numerical Model Predictive Control" in text
     for name in (*outcomes.OUTCOMES, *CONVENTIONS):
         assert f"`{name}`" in text
-    for name in ("energy_ankle", "energy_hip", "work_ankle", "work_hip", "energy_u1",
-                 "energy_u2"):
+    for name in ("energy_ankle", "energy_hip", "work_ankle", "work_hip", "energy_u1", "energy_u2"):
         assert f"`{name}`" in text
 
 
@@ -173,8 +178,10 @@ PATTERN = "*<{[$"  # a path followed by one of these is a pattern (tests/test_*.
 FLOOR_FILE = re.compile(rf"(?<![\w/.~$-])((?:{'|'.join(FLOORS)})(?:/\w+)*/\w+\.py)\b")
 TEST_FILE = re.compile(r"(?<![\w/.-])(test_\w+\.py)\b")
 # a test: FILE::name, or `::name` after a FILE::name on the same line (a test of that file)
-TEST_NAME = re.compile(r"(?:(?<![\w/.-])((?:tests/[\w/]+/)?test_\w+\.py)|(?<=[\s`(,;]))::(\w+)"
-                       r"(\.\.\.|…)?")
+TEST_NAME = re.compile(
+    r"(?:(?<![\w/.-])((?:tests/[\w/]+/)?test_\w+\.py)|(?<=[\s`(,;]))::(\w+)"
+    r"(\.\.\.|…)?"
+)
 DOTTED = re.compile(r"(?<![\w.])mjx_balance((?:\.\w+)+)")
 SECTION = re.compile(r"((?:docs/)?[\w-]+\.md)[,:]?\s+[\"“]([^\"”]+)[\"”]")
 SPEC = re.compile(r"SPEC\s*§")
@@ -218,8 +225,9 @@ def package_strings() -> frozenset[str]:
     modules (``b"mjx_balance.units"``, the parquet metadata's key)."""
     found = set()
     for path in PACKAGE.rglob("*.py"):
-        found |= set(re.findall(r"""b?["'](mjx_balance\.[\w.]+)""",
-                                path.read_text(encoding="utf-8")))
+        found |= set(
+            re.findall(r"""b?["'](mjx_balance\.[\w.]+)""", path.read_text(encoding="utf-8"))
+        )
     return frozenset(found)
 
 
@@ -264,8 +272,11 @@ def stale(line: str) -> list[str]:
     for match in REPO_PATH.finditer(line):
         path = match.group(1).rstrip("./-")
         parts = path.split("/")
-        if (len(parts) < 2 or line[match.end():match.end() + 1] in set(PATTERN)
-                or any(part.split(".")[0].isupper() for part in parts)):
+        if (
+            len(parts) < 2
+            or line[match.end() : match.end() + 1] in set(PATTERN)
+            or any(part.split(".")[0].isupper() for part in parts)
+        ):
             continue  # a bare folder, a pattern or a placeholder (tests/PATH.py)
         root = PACKAGE if parts[0] == "mjx_balance" else REPO / parts[0]
         if not root.joinpath(*parts[1:]).exists():
@@ -281,11 +292,13 @@ def stale(line: str) -> list[str]:
             continue  # a name cut short (test_...), or a file already reported
         if name not in defined(last[1]):
             bad.append(f"{last[0]}::{name}")
-    bad += [f"mjx_balance{m.group(1)}" for m in DOTTED.finditer(line)
-            if not module_exists(m.group(1))]
+    bad += [
+        f"mjx_balance{m.group(1)}" for m in DOTTED.finditer(line) if not module_exists(m.group(1))
+    ]
     for match in SECTION.finditer(line):
-        doc = next((d for d in (REPO / match.group(1), REPO / "docs" / match.group(1))
-                    if d.exists()), None)
+        doc = next(
+            (d for d in (REPO / match.group(1), REPO / "docs" / match.group(1)) if d.exists()), None
+        )
         title = match.group(2).replace("`", "").lower()
         if doc is not None and not any(title in t for t in sections(doc)):
             bad.append(f'{match.group(1)}, "{match.group(2)}"')
@@ -296,19 +309,26 @@ def stale(line: str) -> list[str]:
 def comments_and_docstrings(text: str) -> list[tuple[int, str]]:
     """(line number, line) of every comment and every line of every docstring (the module's,
     a class's, a function's) of a module's source."""
-    found = [(tok.start[0], tok.string)
-             for tok in tokenize.generate_tokens(io.StringIO(text).readline)
-             if tok.type == tokenize.COMMENT]
+    found = [
+        (tok.start[0], tok.string)
+        for tok in tokenize.generate_tokens(io.StringIO(text).readline)
+        if tok.type == tokenize.COMMENT
+    ]
     nodes = [ast.parse(text)]
     while nodes:  # the statements only: a docstring is never inside an expression
         node = nodes.pop()
         body = node.body
-        if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
-                and body and isinstance(body[0], ast.Expr)
-                and isinstance(body[0].value, ast.Constant)
-                and isinstance(body[0].value.value, str)):
-            found += [(body[0].lineno + k, line)
-                      for k, line in enumerate(body[0].value.value.splitlines())]
+        if (
+            isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+            and body
+            and isinstance(body[0], ast.Expr)
+            and isinstance(body[0].value, ast.Constant)
+            and isinstance(body[0].value.value, str)
+        ):
+            found += [
+                (body[0].lineno + k, line)
+                for k, line in enumerate(body[0].value.value.splitlines())
+            ]
         for field in ("body", "orelse", "finalbody", "handlers", "cases"):
             nodes += [n for n in getattr(node, field, ()) if hasattr(n, "body")]
     return sorted(found)
@@ -317,8 +337,14 @@ def comments_and_docstrings(text: str) -> list[tuple[int, str]]:
 def pointed_texts() -> list[tuple[str, list[tuple[int, str]]]]:
     """(file, its (line number, line) pairs) of every text the check reads."""
     texts = []
-    whole = [*REPO.glob("*.md"), *(REPO / "docs").glob("*.md"), *(REPO / "sweeps").glob("*.toml"),
-             REPO / "pyproject.toml", REPO / "CITATION.cff", REPO / ".ci" / "run"]
+    whole = [
+        *REPO.glob("*.md"),
+        *(REPO / "docs").glob("*.md"),
+        *(REPO / "sweeps").glob("*.toml"),
+        REPO / "pyproject.toml",
+        REPO / "CITATION.cff",
+        REPO / ".ci" / "run",
+    ]
     for path in sorted(whole):
         lines = path.read_text(encoding="utf-8").splitlines()
         texts.append((path.relative_to(REPO).as_posix(), list(enumerate(lines, 1))))
@@ -361,35 +387,57 @@ def test_every_pointer_in_the_docs_and_comments_exists():
     are read like prose: a command or an import in an example must work. Only comments and
     docstrings of the package are read (not its other strings); CHANGELOG.md is read whole,
     so its entries name files as they are now."""
-    bad = [f"{name}:{number}: {pointer}"
-           for name, lines in pointed_texts() for number, line in lines
-           for pointer in stale(line)]
+    bad = [
+        f"{name}:{number}: {pointer}"
+        for name, lines in pointed_texts()
+        for number, line in lines
+        for pointer in stale(line)
+    ]
     assert not bad, "pointers that lead nowhere (file:line: pointer):\n" + "\n".join(bad)
 
 
-@pytest.mark.parametrize("line, pointers", [
-    ("checked by tests/test_engine.py", ["tests/test_engine.py"]),
-    ("see docs/models.md and docs/model.md.", ["docs/models.md"]),
-    ("`tests/rollout/test_engine.py::test_no_such_test`, `::test_another_missing`",
-     ["tests/rollout/test_engine.py::test_no_such_test",
-      "tests/rollout/test_engine.py::test_another_missing"]),
-    ("test_engine.py::test_no_such_test and test_nowhere.py",
-     ["test_nowhere.py", "test_engine.py::test_no_such_test"]),
-    ("the old ``mjx_balance.sweep.store`` and mjx_balance.params.Config",
-     ["mjx_balance.sweep.store", "mjx_balance.params.Config"]),
-    ("(report/run.py, runs/grid.py)", ["report/run.py"]),
-    ('docs/model.md, "The push protocol"; docs/engine.md, "Per-lane bodies"; '
-     'docs/model.md, "Push physics"', ['docs/model.md, "Push physics"']),
-    ("the experiments of SPEC §6", ["SPEC §"]),
-    # what is not a pointer, or a pointer that leads somewhere
-    ("tests/test_*.py, tests/<floor>/test_*.py, tests/PATH.py::test_name, out/docs/x.md, "
-     "/tmp/tests/a.py, DIR/src/b.py, cli/<command>.py, test_report.py::test_side_by_side...",
-     []),
-    ("mjx_balance.runs.grid.parse_grid, mjx_balance.cli.MODULE:FUNCTION, "
-     "`mjx_balance.units`, mjx_balance.Config.replace, mjx_balance.sweep, "
-     "src/mjx_balance/sweeps/default.toml, mjx_balance/report/templates, "
-     "`tests/store/test_exports.py::test_point_three_is_point_three`, "
-     'model.md "Which strategy", BENCHMARKS.md, "Longest first"', []),
-])
+@pytest.mark.parametrize(
+    "line, pointers",
+    [
+        ("checked by tests/test_engine.py", ["tests/test_engine.py"]),
+        ("see docs/models.md and docs/model.md.", ["docs/models.md"]),
+        (
+            "`tests/rollout/test_engine.py::test_no_such_test`, `::test_another_missing`",
+            [
+                "tests/rollout/test_engine.py::test_no_such_test",
+                "tests/rollout/test_engine.py::test_another_missing",
+            ],
+        ),
+        (
+            "test_engine.py::test_no_such_test and test_nowhere.py",
+            ["test_nowhere.py", "test_engine.py::test_no_such_test"],
+        ),
+        (
+            "the old ``mjx_balance.sweep.store`` and mjx_balance.params.Config",
+            ["mjx_balance.sweep.store", "mjx_balance.params.Config"],
+        ),
+        ("(report/run.py, runs/grid.py)", ["report/run.py"]),
+        (
+            'docs/model.md, "The push protocol"; docs/engine.md, "Per-lane bodies"; '
+            'docs/model.md, "Push physics"',
+            ['docs/model.md, "Push physics"'],
+        ),
+        ("the experiments of SPEC §6", ["SPEC §"]),
+        # what is not a pointer, or a pointer that leads somewhere
+        (
+            "tests/test_*.py, tests/<floor>/test_*.py, tests/PATH.py::test_name, out/docs/x.md, "
+            "/tmp/tests/a.py, DIR/src/b.py, cli/<command>.py, test_report.py::test_side_by_side...",
+            [],
+        ),
+        (
+            "mjx_balance.runs.grid.parse_grid, mjx_balance.cli.MODULE:FUNCTION, "
+            "`mjx_balance.units`, mjx_balance.Config.replace, mjx_balance.sweep, "
+            "src/mjx_balance/sweeps/default.toml, mjx_balance/report/templates, "
+            "`tests/store/test_exports.py::test_point_three_is_point_three`, "
+            'model.md "Which strategy", BENCHMARKS.md, "Longest first"',
+            [],
+        ),
+    ],
+)
 def test_the_pointer_check_finds_each_kind(line, pointers):
     assert stale(line) == pointers

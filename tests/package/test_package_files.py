@@ -44,20 +44,27 @@ def test_the_readme_lists_the_api_as_the_code_exports_it():
 
 
 def test_the_api_list_parser_reads_bullets_only():
-    text = ("## Python API\n\nexports\n\n- `simulate`: pushes\n  `sweep` on a continuation\n"
-            "- `table`: tables\n* `basin`: other bullet\n\n## Layout\n\n- `cli`: not API\n")
+    text = (
+        "## Python API\n\nexports\n\n- `simulate`: pushes\n  `sweep` on a continuation\n"
+        "- `table`: tables\n* `basin`: other bullet\n\n## Layout\n\n- `cli`: not API\n"
+    )
     assert readme_api_names(text) == ["simulate", "table"]
 
 
 def test_the_license_is_apache_2_0_as_pyproject_says():
     text = (REPO / "LICENSE").read_text(encoding="utf-8")
-    assert text.lstrip().startswith("Apache License\n                           Version 2.0, "
-                                    "January 2004")
-    for part in ("TERMS AND CONDITIONS FOR USE, REPRODUCTION, AND DISTRIBUTION",
-                 "END OF TERMS AND CONDITIONS", "APPENDIX: How to apply the Apache License"):
+    assert text.lstrip().startswith(
+        "Apache License\n                           Version 2.0, January 2004"
+    )
+    for part in (
+        "TERMS AND CONDITIONS FOR USE, REPRODUCTION, AND DISTRIBUTION",
+        "END OF TERMS AND CONDITIONS",
+        "APPENDIX: How to apply the Apache License",
+    ):
         assert part in text
-    assert hashlib.sha256((REPO / "LICENSE").read_bytes()).hexdigest() == APACHE_2_0_SHA256, \
+    assert hashlib.sha256((REPO / "LICENSE").read_bytes()).hexdigest() == APACHE_2_0_SHA256, (
         "LICENSE differs from the Apache License 2.0's text"
+    )
     assert PYPROJECT["license"] == "Apache-2.0"  # the SPDX identifier of that text
     assert PYPROJECT["license-files"] == ["LICENSE"]  # shipped in the wheel and the sdist
 
@@ -70,8 +77,9 @@ def read_cff(text: str) -> dict:
     except ImportError:
         found: dict = {}
         for key, value in re.findall(r"^([A-Za-z][A-Za-z0-9-]*):[ \t]*(.*)$", text, re.M):
-            found[key] = value.strip().strip("'\"") if value.strip() not in ("", ">-", "|") \
-                else True
+            found[key] = (
+                value.strip().strip("'\"") if value.strip() not in ("", ">-", "|") else True
+            )
         return found
     return yaml.safe_load(text)
 
@@ -87,8 +95,7 @@ def test_the_citation_file_cites_this_version_and_the_study():
         assert str(cff["version"]) == mjx_balance.__version__
     assert cff["license"] == PYPROJECT["license"]
     if isinstance(cff["authors"], list):  # parsed by PyYAML: the whole structure
-        assert [a.get("name") for a in cff["authors"]] == [
-            a["name"] for a in PYPROJECT["authors"]]
+        assert [a.get("name") for a in cff["authors"]] == [a["name"] for a in PYPROJECT["authors"]]
         (study,) = cff["references"]
         assert study["type"] == "article" and study["title"] == STUDY
         assert study["journal"] == "IEEE Access"
@@ -96,6 +103,7 @@ def test_the_citation_file_cites_this_version_and_the_study():
 
 
 def test_the_changelog_starts_with_unreleased_then_this_version():
-    headings = re.findall(r"^## \[([^\]]+)\]", (REPO / "CHANGELOG.md").read_text(encoding="utf-8"),
-                          re.M)
+    headings = re.findall(
+        r"^## \[([^\]]+)\]", (REPO / "CHANGELOG.md").read_text(encoding="utf-8"), re.M
+    )
     assert headings[:2] == ["Unreleased", PYPROJECT["version"]]

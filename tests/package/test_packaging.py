@@ -32,8 +32,12 @@ def source(tmp_path_factory) -> Path:
     """A copy of the repository as a clone has it: src/ (the package's sweeps a link), sweeps/,
     pyproject.toml, README.md and LICENSE."""
     work = tmp_path_factory.mktemp("source")
-    shutil.copytree(REPO / "src", work / "src", symlinks=True,
-                    ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+    shutil.copytree(
+        REPO / "src",
+        work / "src",
+        symlinks=True,
+        ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"),
+    )
     shutil.copytree(REPO / "sweeps", work / "sweeps")
     for name in ("pyproject.toml", "README.md", "LICENSE"):
         shutil.copy(REPO / name, work / name)
@@ -44,8 +48,12 @@ def source(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def wheel(source, tmp_path_factory) -> Path:
     dist = tmp_path_factory.mktemp("dist")
-    done = subprocess.run([*PIP, "wheel", str(source), *OFFLINE, "-w", str(dist)],
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [*PIP, "wheel", str(source), *OFFLINE, "-w", str(dist)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stdout + done.stderr
     (found,) = dist.glob("mjx_balance-*.whl")
     return found
@@ -77,8 +85,12 @@ def test_the_wheel_holds_the_sweeps_py_typed_and_the_model(wheel):
 
 def test_pip_install_dot_copies_the_sweeps(source, tmp_path):
     target = tmp_path / "site"
-    done = subprocess.run([*PIP, "install", *OFFLINE, "--target", str(target), str(source)],
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [*PIP, "install", *OFFLINE, "--target", str(target), str(source)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stdout + done.stderr
     installed = target / "mjx_balance" / "sweeps"
     assert not installed.is_symlink()
@@ -120,13 +132,33 @@ print(json.dumps({"package": mjx_balance.__file__, "sweeps": str(sweeps_dir()),
 
 def test_an_installed_wheel_finds_its_sweeps_without_the_source_tree(wheel, tmp_path):
     target = tmp_path / "site"
-    done = subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "--no-index",
-                           "-q", "--target", str(target), str(wheel)],
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "install",
+            "--no-deps",
+            "--no-index",
+            "-q",
+            "--target",
+            str(target),
+            str(wheel),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr
     env = {"PYTHONPATH": str(target), "PATH": "/usr/bin:/bin", "MJX_BALANCE_CACHE_DIR": "off"}
-    run = subprocess.run([sys.executable, "-c", INSTALLED], cwd=tmp_path, env=env,
-                         capture_output=True, text=True, timeout=300)
+    run = subprocess.run(
+        [sys.executable, "-c", INSTALLED],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert run.returncode == 0, run.stderr
     found = json.loads(run.stdout.strip().splitlines()[-1])
     package = Path(found["package"]).parent
@@ -134,6 +166,7 @@ def test_an_installed_wheel_finds_its_sweeps_without_the_source_tree(wheel, tmp_
     assert Path(found["sweeps"]) == package / "sweeps"
     assert [f"{name}.toml" for name in found["shipped"]] == SHIPPED
     assert found["loaded"] >= 10
-    assert all(Path(p).parent == package / "sweeps" and Path(p).is_file()
-               for p in found["study_files"])
+    assert all(
+        Path(p).parent == package / "sweeps" and Path(p).is_file() for p in found["study_files"]
+    )
     assert Path(found["dense"]) == package / "sweeps" / "region_dense_paper.toml"

@@ -19,8 +19,9 @@ CONVENTIONS = ("paper", "joint")
 
 
 def short(convention: str, t_end: float, **controller) -> Config:
-    return Config().replace(controller={"convention": convention, **controller},
-                            scenario={"t_end": t_end})
+    return Config().replace(
+        controller={"convention": convention, **controller}, scenario={"t_end": t_end}
+    )
 
 
 @pytest.mark.parametrize("convention", CONVENTIONS)
@@ -31,16 +32,29 @@ def test_zero_push_stays_upright(convention):
     assert summary["settle_time"] == 0.0
     assert math.isnan(summary["fall_time"])
     for key in ("energy_ankle", "energy_hip", "energy_total", "energy_u1", "energy_u2"):
-        within(summary[key], 0.0, atol=1e-12, msg=key,
-               why="upright rest: zero torques but for the contact solver's float64 round-off")
-    within([summary["peak_ankle"], summary["peak_hip"]], 0.0, atol=1e-12,
-           why="upright rest: zero angles but for float64 round-off")
+        within(
+            summary[key],
+            0.0,
+            atol=1e-12,
+            msg=key,
+            why="upright rest: zero torques but for the contact solver's float64 round-off",
+        )
+    within(
+        [summary["peak_ankle"], summary["peak_hip"]],
+        0.0,
+        atol=1e-12,
+        why="upright rest: zero angles but for float64 round-off",
+    )
     assert summary["nonconverged_solves"] == 0
     assert list(frame.columns) == TIMESERIES_COLUMNS
     assert len(frame) == 500  # one row per physics step
     np.testing.assert_allclose(frame.time.to_numpy(), 0.002 * np.arange(1, 501))
-    within([frame.cop.abs().max(), frame.com.abs().max()], 0.0, atol=1e-9,
-           why="upright rest, symmetric contacts: float64 round-off of the contact forces")
+    within(
+        [frame.cop.abs().max(), frame.com.abs().max()],
+        0.0,
+        atol=1e-9,
+        why="upright rest, symmetric contacts: float64 round-off of the contact forces",
+    )
 
 
 @pytest.mark.parametrize("convention", CONVENTIONS)
@@ -109,10 +123,14 @@ def test_infeasible_solves_are_counted_in_the_closed_loop():
     assert frame.u1.abs().max() <= 20.0 and frame.u2.abs().max() <= 100.0
 
 
-@pytest.mark.parametrize("x0, ankle_at_lower_bound", [
-    ([0.02, 0.03, 0.1, 0.1], True),  # the ankle input rides its lower bound over the horizon
-    ([0.002, 0.001, 0.0, 0.0], False),  # every constraint inactive
-], ids=["active_bounds", "interior"])
+@pytest.mark.parametrize(
+    "x0, ankle_at_lower_bound",
+    [
+        ([0.02, 0.03, 0.1, 0.1], True),  # the ankle input rides its lower bound over the horizon
+        ([0.002, 0.001, 0.0, 0.0], False),  # every constraint inactive
+    ],
+    ids=["active_bounds", "interior"],
+)
 def test_feasible_solve_satisfies_kkt(x0, ankle_at_lower_bound):
     """KKT conditions of the reference's solve, with OSQP's multipliers y (OSQP's sign
     convention: y < 0 on an active lower bound, y > 0 on an active upper one, 0 otherwise):
@@ -127,8 +145,12 @@ def test_feasible_solve_satisfies_kkt(x0, ankle_at_lower_bound):
     x0 = np.array(x0)
     u, z, ok, prim_res = ReferenceMPC(qp, controller).solve(x0)
     assert ok
-    within(prim_res, 0.0, atol=1e-6, why="OSQP's eps 1e-8 (absolute and relative) on bounds "
-                                         "of ~100 N m")
+    within(
+        prim_res,
+        0.0,
+        atol=1e-6,
+        why="OSQP's eps 1e-8 (absolute and relative) on bounds of ~100 N m",
+    )
     result = osqp_solve(osqp_solver(qp, controller.osqp_eps, controller.osqp_max_iter), qp, x0)
     np.testing.assert_array_equal(result.x, z)
     y = result.y
@@ -139,21 +161,34 @@ def test_feasible_solve_satisfies_kkt(x0, ankle_at_lower_bound):
     ankle_rows = np.arange(qp.rows["inputs"].start, qp.rows["inputs"].stop, 2)
     if ankle_at_lower_bound:
         assert at_lower[ankle_rows].all()
-        within(u[0], qp.input_lower[0], atol=1e-6,
-               why="an active bound, met to OSQP's primal residual (eps 1e-8 x ~100 N m)")
+        within(
+            u[0],
+            qp.input_lower[0],
+            atol=1e-6,
+            why="an active bound, met to OSQP's primal residual (eps 1e-8 x ~100 N m)",
+        )
     else:
         assert not (at_lower | at_upper).any()
     gradient = qp.H @ z + qp.linear_term(x0)
-    within(gradient + qp.C.T @ y, 0.0, atol=1e-6,  # stationarity
-           why="the dual residual of an eps 1e-8 solve at a cost gradient of ~10 (docstring)")
+    within(
+        gradient + qp.C.T @ y,
+        0.0,
+        atol=1e-6,  # stationarity
+        why="the dual residual of an eps 1e-8 solve at a cost gradient of ~10 (docstring)",
+    )
     assert (y[at_lower] < 0).all() and (y[at_upper] > 0).all()  # the multipliers push inwards
-    within(y[~(at_lower | at_upper)], 0.0, atol=1e-9,  # and vanish off the active set
-           why="the multipliers of an eps 1e-8 solve off its active set")
+    within(
+        y[~(at_lower | at_upper)],
+        0.0,
+        atol=1e-9,  # and vanish off the active set
+        why="the multipliers of an eps 1e-8 solve off its active set",
+    )
     if ankle_at_lower_bound:  # the active bounds carry the cost gradient
         assert np.abs(gradient).max() > 1.0
 
 
 # --- metrics -------------------------------------------------------------------------------
+
 
 def test_load_cell_cop_at_rest():
     model = build_model()
@@ -164,8 +199,12 @@ def test_load_cell_cop_at_rest():
     cop, load = metrics.load_cell_cop(model, data, ix.cell_geoms)
     body = Config().body
     within(cop, 0.0, atol=1e-9, why="symmetric contacts at rest: float64 round-off")
-    within(load, body.total_mass * body.gravity, rtol=1e-6,
-           why="200 steps from rest settle the contact to MuJoCo's solver tolerance (1e-8)")
+    within(
+        load,
+        body.total_mass * body.gravity,
+        rtol=1e-6,
+        why="200 steps from rest settle the contact to MuJoCo's solver tolerance (1e-8)",
+    )
     heights = metrics.cell_heights(model, data, ix.cell_geoms)
     assert np.all(heights < 0) and np.all(heights > -1e-3)  # resting, slightly sunk
 
@@ -192,8 +231,11 @@ def test_settle_time_and_saturation_fractions():
 EXPECTED_VARIANT_OUTCOME = {"push_body": "recovered", "controller_delay": "not_settled"}
 
 
-@pytest.mark.parametrize("scenario", [{"push_body": "hip"}, {"controller_delay": 0.02}],
-                         ids=["push_at_hip", "controller_delay"])
+@pytest.mark.parametrize(
+    "scenario",
+    [{"push_body": "hip"}, {"controller_delay": 0.02}],
+    ids=["push_at_hip", "controller_delay"],
+)
 def test_scenario_variants_run(scenario):
     config = Config().replace(scenario={"t_end": 1.0, **scenario})
     base, _ = simulate_scenario(Config().replace(scenario={"t_end": 1.0}), 40.0, 0.1)

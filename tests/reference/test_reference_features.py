@@ -26,8 +26,10 @@ def _run(force=40.0, duration=0.1, **scenario):
 def test_zero_delay_is_the_undelayed_loop():
     base_summary, base = _run()
     summary, frame = _run(controller_delay=0.0)
-    np.testing.assert_array_equal(frame[["q_a", "q_h", "tau_ankle", "tau_hip"]].to_numpy(),
-                                  base[["q_a", "q_h", "tau_ankle", "tau_hip"]].to_numpy())
+    np.testing.assert_array_equal(
+        frame[["q_a", "q_h", "tau_ankle", "tau_hip"]].to_numpy(),
+        base[["q_a", "q_h", "tau_ankle", "tau_hip"]].to_numpy(),
+    )
     assert summary["energy_total"] == base_summary["energy_total"]
 
 
@@ -87,8 +89,9 @@ def test_push_wrench_acts_at_the_chosen_point():
 
     def generalised(wrench):  # what MuJoCo does with xfrc_applied (at xipos)
         out = np.zeros(model.nv)
-        mujoco.mj_applyFT(model, data, wrench[:3], wrench[3:], data.xipos[ix.upper_body],
-                          ix.upper_body, out)
+        mujoco.mj_applyFT(
+            model, data, wrench[:3], wrench[3:], data.xipos[ix.upper_body], ix.upper_body, out
+        )
         return out
 
     def at_point(point, body):
@@ -102,9 +105,12 @@ def test_push_wrench_acts_at_the_chosen_point():
     np.testing.assert_allclose(hip[:3], force)
     np.testing.assert_allclose(generalised(hip), at_point(hip_point, ix.upper_body), atol=1e-9)
     np.testing.assert_allclose(generalised(hip), at_point(hip_point, ix.lower_body), atol=1e-9)
-    within(generalised(hip)[ix.hip_dof], 0.0, atol=1e-9,
-           why="a force through the hip joint has no hip moment: float64 round-off of "
-               "75 N x ~1 m")
+    within(
+        generalised(hip)[ix.hip_dof],
+        0.0,
+        atol=1e-9,
+        why="a force through the hip joint has no hip moment: float64 round-off of 75 N x ~1 m",
+    )
     assert abs(generalised(upper)[ix.hip_dof]) > 1.0  # at the CoM it does turn the hip
     with pytest.raises(ValueError):
         push_wrench(data, ix.upper_body, F, "head")

@@ -65,6 +65,7 @@ def get(server: Explorer, path: str, *, method: str = "GET", host: str | None = 
 
 # -- what a folder holds -------------------------------------------------------------------------
 
+
 def test_a_sweep_folder_is_one_map_with_its_table_and_boundary(sweep):
     folder = open_folder(sweep)
     assert folder.kind == "sweep" and [m.key for m in folder.maps] == [""]
@@ -125,6 +126,7 @@ def test_a_folder_being_written_shows_what_is_there_and_refreshes(sweep, tmp_pat
 
 # -- the server: endpoints, methods, hosts -------------------------------------------------------
 
+
 def test_the_endpoints_answer_and_anything_else_is_refused(server):
     status, page = get(server, "/")
     assert status == 200 and b"/static/explore.js" in page
@@ -132,11 +134,17 @@ def test_the_endpoints_answer_and_anything_else_is_refused(server):
     status, folder = get(server, "/api/folder")
     assert status == 200 and folder["kind"] == "sweep"
     assert get(server, f"/api/folder?stamp={folder['stamp']}")[1] == {
-        "stamp": folder["stamp"], "unchanged": True}
+        "stamp": folder["stamp"],
+        "unchanged": True,
+    }
     assert get(server, "/api/map?map=")[1]["total"] == 15
     assert get(server, "/files/region.png")[0] == 200
-    for path, status in (("/api/nothing", 404), ("/static/server.py", 404),
-                         ("/static/..%2Fserver.py", 404), ("/files/chunks", 404)):
+    for path, status in (
+        ("/api/nothing", 404),
+        ("/static/server.py", 404),
+        ("/static/..%2Fserver.py", 404),
+        ("/files/chunks", 404),
+    ):
         assert get(server, path)[0] == status, path
     for method in ("POST", "PUT", "DELETE", "HEAD", "OPTIONS"):
         status, _ = get(server, "/api/folder", method=method)
@@ -146,9 +154,21 @@ def test_the_endpoints_answer_and_anything_else_is_refused(server):
     assert get(server, "/api/folder", host=f"localhost:{server.port}")[0] == 200
 
 
-@pytest.mark.parametrize("path", [
-    "../secret.txt", "..%2F..%2Fsecret.txt", "%2e%2e/%2e%2e/secret.txt", "chunks/../../x",
-    ".lock", "chunks/%2E%2E/.lock", "a%00b", "..%5Csecret.txt", "%ff%fe", ""])
+@pytest.mark.parametrize(
+    "path",
+    [
+        "../secret.txt",
+        "..%2F..%2Fsecret.txt",
+        "%2e%2e/%2e%2e/secret.txt",
+        "chunks/../../x",
+        ".lock",
+        "chunks/%2E%2E/.lock",
+        "a%00b",
+        "..%5Csecret.txt",
+        "%ff%fe",
+        "",
+    ],
+)
 def test_no_path_leads_outside_the_folder_or_to_a_hidden_file(server, path):
     status, body = get(server, "/files/" + path)
     assert status in (400, 403) and "error" in body
@@ -172,18 +192,22 @@ def test_a_symbolic_link_out_of_the_folder_is_refused(server, sweep, secret, tmp
 
 # -- a cell's request ----------------------------------------------------------------------------
 
-@pytest.mark.parametrize("query, words", [
-    ("force=abc&duration=0.1", "force: 'abc' is not a number"),
-    ("force=nan&duration=0.1", "force: must be a finite number"),
-    ("force=inf&duration=0.1", "force: must be a finite number"),
-    ("force=20&force=30&duration=0.1", "force: give one value (got 2)"),
-    ("duration=0.1", "force: give one value (got 0)"),
-    ("force=20&duration=-0.1", "push durations must be >= 0"),
-    ("force=20&duration=5", "must not exceed scenario.t_end = 1 s"),
-    ("force=20&duration=0.101", "not a whole number of physics steps"),
-    ("force=25&duration=0.1", "not a cell of this map"),
-    ("force=40&duration=0.75", "not a cell of this map"),
-])
+
+@pytest.mark.parametrize(
+    "query, words",
+    [
+        ("force=abc&duration=0.1", "force: 'abc' is not a number"),
+        ("force=nan&duration=0.1", "force: must be a finite number"),
+        ("force=inf&duration=0.1", "force: must be a finite number"),
+        ("force=20&force=30&duration=0.1", "force: give one value (got 2)"),
+        ("duration=0.1", "force: give one value (got 0)"),
+        ("force=20&duration=-0.1", "push durations must be >= 0"),
+        ("force=20&duration=5", "must not exceed scenario.t_end = 1 s"),
+        ("force=20&duration=0.101", "not a whole number of physics steps"),
+        ("force=25&duration=0.1", "not a cell of this map"),
+        ("force=40&duration=0.75", "not a cell of this map"),
+    ],
+)
 def test_a_bad_cell_is_answered_with_its_message(server, query, words):
     status, body = get(server, "/api/run?map=&" + query)
     assert status == 400 and words in body["error"], body
@@ -250,7 +274,8 @@ def test_a_refused_write_still_answers_and_a_stopped_server_writes_nothing(sweep
     explorer = Explorer(sweep)
     explorer.runs.simulate = lambda config, f, d, record=True: (
         {"force": f, "duration": d, "outcome": "recovered"},
-        pd.read_parquet(sweep / "explore" / "20.0_0.1.parquet").assign(force=f, duration=d))
+        pd.read_parquet(sweep / "explore" / "20.0_0.1.parquet").assign(force=f, duration=d),
+    )
     found = explorer.folder.maps[0]
     config = explore_folder.map_config(found)
     frame, note = explorer.runs._compute(found, config, 30.0, 0.5)
@@ -281,11 +306,15 @@ def test_the_page_ships_as_package_data():
     import fnmatch
 
     globs = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"][
-        "package-data"]["mjx_balance"]
+        "package-data"
+    ]["mjx_balance"]
     static = REPO / "src" / "mjx_balance" / "report" / "explore" / "static"
     names = sorted(p.relative_to(static.parents[2]).as_posix() for p in static.iterdir())
-    assert names == ["report/explore/static/explore.css", "report/explore/static/explore.js",
-                     "report/explore/static/index.html"]
+    assert names == [
+        "report/explore/static/explore.css",
+        "report/explore/static/explore.js",
+        "report/explore/static/index.html",
+    ]
     assert all(any(fnmatch.fnmatch(n, g) for g in globs) for n in names), (names, globs)
 
 

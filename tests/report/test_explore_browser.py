@@ -22,18 +22,35 @@ from webdriver import Browser, chromedriver
 
 from mjx_balance.report.explore import Explorer
 
-TOOLTIP = ["force", "20 N", "duration", "0.5 s", "outcome", "recovered", "settle time",
-           "energy, motors' work", "J", "energy, the study's (eq. 20)", "hip share",
-           "min. margin of stability", "first infeasible QP"]
+TOOLTIP = [
+    "force",
+    "20 N",
+    "duration",
+    "0.5 s",
+    "outcome",
+    "recovered",
+    "settle time",
+    "energy, motors' work",
+    "J",
+    "energy, the study's (eq. 20)",
+    "hip share",
+    "min. margin of stability",
+    "first infeasible QP",
+]
 
 
 @pytest.fixture(scope="module")
 def browser(tmp_path_factory):
-    missing = [name for name, found in (("chromium", chromium()),
-                                        ("chromedriver", chromedriver())) if found is None]
+    missing = [
+        name
+        for name, found in (("chromium", chromium()), ("chromedriver", chromedriver()))
+        if found is None
+    ]
     if missing:
-        reason = (f"{' and '.join(missing)} not installed (Debian: apt-get install chromium "
-                  "chromium-driver; .ci/run does)")
+        reason = (
+            f"{' and '.join(missing)} not installed (Debian: apt-get install chromium "
+            "chromium-driver; .ci/run does)"
+        )
         if os.environ.get("CI", "").lower() == "true":
             pytest.fail(reason + ", and CI=true: the browser test must run in CI")
         pytest.skip(reason)
@@ -84,8 +101,11 @@ def test_hover_click_and_a_second_click_served_from_the_folder(browser, page, fo
     assert not kept.exists()
     started = time.perf_counter()
     b.click(cell(b, "20", "0.5"))
-    status = b.wait(lambda: "kept in the folder" in text(b, "#run-status")
-                    and text(b, "#run-status"), 120, "the run")
+    status = b.wait(
+        lambda: "kept in the folder" in text(b, "#run-status") and text(b, "#run-status"),
+        120,
+        "the run",
+    )
     computed = time.perf_counter() - started
     assert kept.is_file() and "computed now in" in status
     assert text(b, "#run-title").startswith("20 N for 0.5 s: ")
@@ -98,13 +118,18 @@ def test_hover_click_and_a_second_click_served_from_the_folder(browser, page, fo
     b.wait(lambda: len(b.find_all("#map-svg circle.explored")) == 1, 30, "the kept run's dot")
     started = time.perf_counter()
     b.click(cell(b, "20", "0.5"))
-    status = b.wait(lambda: "served from the folder" in text(b, "#run-status")
-                    and text(b, "#run-status"), 30, "the kept run")
+    status = b.wait(
+        lambda: "served from the folder" in text(b, "#run-status") and text(b, "#run-status"),
+        30,
+        "the kept run",
+    )
     second = time.perf_counter() - started
     assert second < computed
     b.screenshot(tmp_path / "explore.png")
-    print(f"page load {loaded:.2f} s, a click computed in {computed:.2f} s, "
-          f"the second click in {second:.2f} s")
+    print(
+        f"page load {loaded:.2f} s, a click computed in {computed:.2f} s, "
+        f"the second click in {second:.2f} s"
+    )
 
 
 def test_a_bad_request_shows_its_message(browser, page):

@@ -36,32 +36,43 @@ def test_notebook_executes(tmp_path_factory, tmp_path, monkeypatch):
     assert len(images) == 7
 
     # What the cells print and display, against the saved tables read back here.
-    assert _text(code[0]) == (f"results in {out}: plan tiny, batch backend reference, "
-                              "conventions paper, joint, t_end = 2 s\n")
+    assert _text(code[0]) == (
+        f"results in {out}: plan tiny, batch backend reference, "
+        "conventions paper, joint, t_end = 2 s\n"
+    )
     tables = {c: pd.read_csv(out / c / "table" / "table.csv") for c in ("paper", "joint")}
     shown = _html_rows(code[3])
-    expected = np.column_stack([tables["paper"].force] + [
-        tables[c][k] for c in ("paper", "joint")
-        for k in ("max_acting_time", "energy_total_01", "energy_total_max")])
+    expected = np.column_stack(
+        [tables["paper"].force]
+        + [
+            tables[c][k]
+            for c in ("paper", "joint")
+            for k in ("max_acting_time", "energy_total_01", "energy_total_max")
+        ]
+    )
     np.testing.assert_allclose(np.array(shown, dtype=float), expected, rtol=1e-5, atol=1e-6)
 
     lines = []
     for convention in ("paper", "joint"):
         n = studies.region_numbers(pd.read_parquet(out / convention / "region" / "region.parquet"))
-        lines.append(f"{convention}: recovered area {n['area']:.3g} N s "
-                     f"({n['fraction']:.0%} of the grid)\n")
+        lines.append(
+            f"{convention}: recovered area {n['area']:.3g} N s ({n['fraction']:.0%} of the grid)\n"
+        )
     assert _text(code[4]) == "".join(lines)
 
     record = json.loads((out / "report.json").read_text())
-    markdown = [o["data"]["text/markdown"] for o in code[5].outputs
-                if "text/markdown" in o.get("data", {})]
+    markdown = [
+        o["data"]["text/markdown"] for o in code[5].outputs if "text/markdown" in o.get("data", {})
+    ]
     expected = []
     for entry in record["studies"]:
         st = studies.study(entry["key"])
         folder = out / "studies" / st.key
         first = pd.read_parquet(folder / entry["variants"][0]["key"] / "region.parquet")
-        expected += [f"### {st.title}\n{st.question}",
-                     "> " + studies.reading(st, pd.read_csv(folder / "numbers.csv"), first)]
+        expected += [
+            f"### {st.title}\n{st.question}",
+            "> " + studies.reading(st, pd.read_csv(folder / "numbers.csv"), first),
+        ]
     assert markdown == expected
 
 
@@ -72,17 +83,23 @@ def test_the_notebooks_calls_fit_the_public_api():
     import mjx_balance as mb
 
     nbformat = pytest.importorskip("nbformat")
-    cells = [c.source for c in nbformat.read(NOTEBOOK, as_version=4).cells
-             if c.cell_type == "code"]
+    cells = [c.source for c in nbformat.read(NOTEBOOK, as_version=4).cells if c.cell_type == "code"]
     used, calls = set(), []
     for source in cells:
         code = "\n".join(line for line in source.splitlines() if not line.startswith("%"))
         for node in ast.walk(ast.parse(code)):
-            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
-                    and node.value.id == "mb"):
+            if (
+                isinstance(node, ast.Attribute)
+                and isinstance(node.value, ast.Name)
+                and node.value.id == "mb"
+            ):
                 used.add(node.attr)
-            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
-                    and isinstance(node.func.value, ast.Name) and node.func.value.id == "mb"):
+            if (
+                isinstance(node, ast.Call)
+                and isinstance(node.func, ast.Attribute)
+                and isinstance(node.func.value, ast.Name)
+                and node.func.value.id == "mb"
+            ):
                 calls.append(node)
     assert {"simulate", "sweep", "table", "load_report", "region_map"} <= used
     for name in used:
@@ -115,15 +132,22 @@ def _execute(results: Path, tmp_path: Path, monkeypatch) -> list:
     # A kernel spec for this interpreter (the venv the tests run in), found first on JUPYTER_PATH.
     spec = tmp_path / "jupyter" / "kernels" / KERNEL
     spec.mkdir(parents=True)
-    (spec / "kernel.json").write_text(json.dumps({
-        "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
-        "display_name": "mjx_balance tests", "language": "python"}))
+    (spec / "kernel.json").write_text(
+        json.dumps(
+            {
+                "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
+                "display_name": "mjx_balance tests",
+                "language": "python",
+            }
+        )
+    )
     monkeypatch.setenv("JUPYTER_PATH", str(tmp_path / "jupyter"))
     monkeypatch.setenv("MJX_BALANCE_RESULTS", str(results))
     monkeypatch.setenv("MPLBACKEND", "module://matplotlib_inline.backend_inline")
     nb = nbformat.read(NOTEBOOK, as_version=4)
-    nbclient.NotebookClient(nb, kernel_name=KERNEL, timeout=600,
-                            resources={"metadata": {"path": str(tmp_path)}}).execute()
+    nbclient.NotebookClient(
+        nb, kernel_name=KERNEL, timeout=600, resources={"metadata": {"path": str(tmp_path)}}
+    ).execute()
     return [c for c in nb.cells if c.cell_type == "code"]
 
 
@@ -136,5 +160,7 @@ def _html_rows(cell) -> list[list[str]]:
     """The body rows (index column dropped) of the one table a cell displayed."""
     (table,) = [o["data"]["text/html"] for o in cell.outputs if "text/html" in o.get("data", {})]
     body = table.split("<tbody>", 1)[1]
-    return [re.findall(r"<td>(.*?)</td>", row, re.S)
-            for row in re.findall(r"<tr>(.*?)</tr>", body, re.S)]
+    return [
+        re.findall(r"<td>(.*?)</td>", row, re.S)
+        for row in re.findall(r"<tr>(.*?)</tr>", body, re.S)
+    ]

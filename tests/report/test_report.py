@@ -31,8 +31,11 @@ from mjx_balance.runs.grid import Grid
 CONVENTIONS = ("paper", "joint")
 
 
-@pytest.fixture(scope="module", params=[SMALL, pytest.param(ALL, marks=pytest.mark.slow)],
-                ids=["two_studies", "all_studies"])
+@pytest.fixture(
+    scope="module",
+    params=[SMALL, pytest.param(ALL, marks=pytest.mark.slow)],
+    ids=["two_studies", "all_studies"],
+)
 def out(request, tmp_path_factory):
     """A tiny report: with two studies in the default run, with every study in the slow one
     (the same code; the other studies' sections)."""
@@ -61,11 +64,15 @@ def _tables(fragment: str) -> list[tuple[list[str], list[list[str]]]]:
     tables = []
     for table in re.findall(r"<table[^>]*>(.*?)</table>", fragment, re.S):
         # a heading is the column's name and its unit in brackets, where it has one
-        header = [re.sub(r" \[[^\]]+\]$", "", html.unescape(h))
-                  for h in re.findall(r"<th>(.*?)</th>", table)]
+        header = [
+            re.sub(r" \[[^\]]+\]$", "", html.unescape(h))
+            for h in re.findall(r"<th>(.*?)</th>", table)
+        ]
         body = table.split("<tbody>", 1)[1]
-        rows = [[html.unescape(c) for c in re.findall(r"<td>(.*?)</td>", row, re.S)]
-                for row in re.findall(r"<tr>(.*?)</tr>", body, re.S)]
+        rows = [
+            [html.unescape(c) for c in re.findall(r"<td>(.*?)</td>", row, re.S)]
+            for row in re.findall(r"<tr>(.*?)</tr>", body, re.S)
+        ]
         tables.append((header, rows))
     return tables
 
@@ -79,8 +86,11 @@ def _assert_shows(table: tuple[list[str], list[list[str]]], frame: pd.DataFrame)
         for cell, column in zip(row, frame.columns):
             value = expected[column]
             if column == "note":  # long notes are footnotes: a marker [k] in the cell
-                assert (re.fullmatch(r"\[\d+\]", cell) if isinstance(value, str) and value
-                        else cell == ""), (column, cell)
+                assert (
+                    re.fullmatch(r"\[\d+\]", cell)
+                    if isinstance(value, str) and value
+                    else cell == ""
+                ), (column, cell)
                 continue
             # an energy of a run that did not recover is left out, its outcome shown: "– [fell]"
             marked = re.fullmatch(r"(.*) \[(?:not_settled|fell|diverged)\]", cell)
@@ -96,16 +106,25 @@ def _assert_shows(table: tuple[list[str], list[list[str]]], frame: pd.DataFrame)
                 top = np.nanmax(np.abs(frame[column].to_numpy(dtype=float)))
                 assert abs(value) < top * report.html.NOISE_FRACTION, (column, value)
             else:
-                within(float(cell), float(value), rtol=1e-3, msg=column,
-                       why="shown to 4 significant digits: at most 5e-4 relative off")
+                within(
+                    float(cell),
+                    float(value),
+                    rtol=1e-3,
+                    msg=column,
+                    why="shown to 4 significant digits: at most 5e-4 relative off",
+                )
 
 
 def test_report_has_every_section_and_embedded_figures(out, page):
     ids = [key for key, _ in report.sections(out)]
     expected = ["overview", "conventions"]
     for convention in CONVENTIONS:
-        expected += [f"timeseries-{convention}", f"weights-{convention}", f"table-{convention}",
-                     f"region-{convention}"]
+        expected += [
+            f"timeseries-{convention}",
+            f"weights-{convention}",
+            f"table-{convention}",
+            f"region-{convention}",
+        ]
     expected += [f"study-{s.key}" for s in ran(out)] + ["sensitivity"]
     assert ids[0] == "scorecard"  # the tiny report ran with a reference table: it leads
     assert sorted(ids) == sorted(expected + ["scorecard"])
@@ -137,8 +156,14 @@ def test_experiment_sections_show_the_saved_tables(out, page):
         recovered = int((weights.outcome == "recovered").sum())
         assert f"{recovered} of 6 settings recover" in text
         shown, recovering = _tables(text)  # the study's push, then one every setting recovers
-        assert [r[:2] for r in shown[1]] == [["Q", "1000"], ["Q", "1e+05"], ["Q", "1e+07"],
-                                             ["R", "0.0001"], ["R", "1e-06"], ["R", "1e-08"]]
+        assert [r[:2] for r in shown[1]] == [
+            ["Q", "1000"],
+            ["Q", "1e+05"],
+            ["Q", "1e+07"],
+            ["R", "0.0001"],
+            ["R", "1e-06"],
+            ["R", "1e-08"],
+        ]
         _assert_shows(shown, weights[report.html.shown_columns("weights", convention)])
 
         table = pd.read_csv(folder / "table" / "table.csv")
@@ -149,8 +174,10 @@ def test_experiment_sections_show_the_saved_tables(out, page):
         region = pd.read_parquet(folder / "region" / "region.parquet")
         n = studies.region_numbers(region)
         assert n["recovered_cells"] == (region.outcome == "recovered").sum()
-        assert (f"<p>Recovered area {n['area']:.3g} N·s ({n['fraction']:.0%} of the grid, "
-                f"{n['recovered_cells']} of 6 cells)") in _section(page, f"region-{convention}")
+        assert (
+            f"<p>Recovered area {n['area']:.3g} N·s ({n['fraction']:.0%} of the grid, "
+            f"{n['recovered_cells']} of 6 cells)"
+        ) in _section(page, f"region-{convention}")
 
 
 def test_side_by_side_shows_both_conventions(out, page):
@@ -177,30 +204,41 @@ def test_overview_states_the_run_and_the_key_numbers(out, page):
     assert "plan <b>tiny</b>, batch backend <b>reference</b>" in text
     assert "recovery within t_end = 2 s" in text
     scenario = config.scenario
-    assert (f"every angle within {scenario.settle_angle_tol:g} rad and rate within "
-            f"{scenario.settle_rate_tol:g} rad/s") in text
+    assert (
+        f"every angle within {scenario.settle_angle_tol:g} rad and rate within "
+        f"{scenario.settle_rate_tol:g} rad/s"
+    ) in text
     keys = [html.unescape(k) for k in re.findall(r"<li>([^<]*)</li>", text)]
     parts = []
     for convention in CONVENTIONS:
         table = pd.read_csv(out / convention / "table" / "table.csv")
-        parts.append(f"{convention}: " + ", ".join(
-            f"{f:g} N: {m:g} s" for f, m in zip(table.force, table.max_acting_time)))
-    assert keys[0] == ("Max acting time (table forces 20, 100 N, bisected to 0.01 s within "
-                       "t_end = 2 s) — " + "; ".join(parts) + ".")
+        parts.append(
+            f"{convention}: "
+            + ", ".join(f"{f:g} N: {m:g} s" for f, m in zip(table.force, table.max_acting_time))
+        )
+    assert keys[0] == (
+        "Max acting time (table forces 20, 100 N, bisected to 0.01 s within "
+        "t_end = 2 s) — " + "; ".join(parts) + "."
+    )
     # the tiny plan does not measure it (report.PLANS["tiny"].sustained)
     assert pd.read_csv(out / "paper" / "table" / "table.csv").sustained_push_limit.isna().all()
     limits = [f"{c}: not measured" for c in CONVENTIONS]
-    assert keys[1] == ("Sustained-push limit (the largest force held for the whole window, to "
-                       "0.1 N) — " + "; ".join(limits) + ".")
+    assert keys[1] == (
+        "Sustained-push limit (the largest force held for the whole window, to "
+        "0.1 N) — " + "; ".join(limits) + "."
+    )
     for key in keys[2:]:  # every key number names the grid it came from
         assert re.search(r"\(grid \d+ forces \(.* N\) x \d+ durations \(.* s\)\)", key), key
     backward = pd.read_csv(out / "studies" / "backward" / "numbers.csv")
     signed = pd.read_parquet(out / "studies" / "backward" / "signed" / "region.parquet")
-    assert (f"Backward vs forward pushes: {backward.area[0]:.3g} vs {backward.area[1]:.3g} N·s "
-            f"(grid {studies.grid_text(signed)})." in keys)
+    assert (
+        f"Backward vs forward pushes: {backward.area[0]:.3g} vs {backward.area[1]:.3g} N·s "
+        f"(grid {studies.grid_text(signed)})." in keys
+    )
     delay = pd.read_csv(out / "studies" / "delay" / "numbers.csv")
     assert f"{delay.area_change[1]:+.3g} N·s ({delay.relative_change[1]:+.0%}) at 10 ms" in (
-        next(k for k in keys if k.startswith("Delay changes the area by")))
+        next(k for k in keys if k.startswith("Delay changes the area by"))
+    )
     links = re.findall(r'<li><a href="#([^"]+)">', text)
     assert links == [key for key, _ in report.sections(out) if key != "overview"]
 
@@ -235,9 +273,17 @@ def test_report_saves_its_tables(out):
         assert len(region) == 3 * 2
         assert (region.convention == convention).all()
     delay = pd.read_csv(out / "studies" / "delay" / "numbers.csv")
-    assert list(delay.variant) == ["delay_000ms", "delay_010ms", "delay_020ms", "delay_050ms",
-                                   "delay_100ms", "delay_150ms", "delay_comp_050ms",
-                                   "delay_comp_100ms", "delay_comp_150ms"]
+    assert list(delay.variant) == [
+        "delay_000ms",
+        "delay_010ms",
+        "delay_020ms",
+        "delay_050ms",
+        "delay_100ms",
+        "delay_150ms",
+        "delay_comp_050ms",
+        "delay_comp_100ms",
+        "delay_comp_150ms",
+    ]
     signed = pd.read_parquet(out / "studies" / "backward" / "signed" / "region.parquet")
     assert signed.force.min() < 0 < signed.force.max()
 
@@ -253,16 +299,22 @@ def test_sensitivity_section_runs_every_reading_and_reuses_the_experiments_table
         plain = pd.read_csv(folder / f"{convention}_plain" / "table.csv")
         pd.testing.assert_frame_equal(plain, pd.read_csv(out / convention / "table" / "table.csv"))
         for name in ("table.csv", "table_runs.parquet"):  # copied (times kept), not rewritten
-            assert ((folder / f"{convention}_plain" / name).stat().st_mtime_ns
-                    == (out / convention / "table" / name).stat().st_mtime_ns), name
+            assert (folder / f"{convention}_plain" / name).stat().st_mtime_ns == (
+                out / convention / "table" / name
+            ).stat().st_mtime_ns, name
         free = pd.read_csv(folder / f"{convention}_offset_free" / "table.csv")
         assert list(free.force) == [20.0, 100.0] and free.sustained_push_limit.isna().all()
         assert list(frame[f"max_acting_time_{convention}_offset_free"]) == list(
-            free.max_acting_time)
+            free.max_acting_time
+        )
     (shown,) = _tables(_section(page, "sensitivity"))
     assert [row[0] for row in shown[1]] == ["20", "100"]
-    within([float(row[1]) for row in shown[1]], list(frame.max_acting_time_paper_plain),
-           atol=5e-3, why="shown with 2 decimals: at most 5e-3 off")
+    within(
+        [float(row[1]) for row in shown[1]],
+        list(frame.max_acting_time_paper_plain),
+        atol=5e-3,
+        why="shown with 2 decimals: at most 5e-3 off",
+    )
 
 
 def test_report_json_records_plan_configuration_and_timings(out):
@@ -273,11 +325,15 @@ def test_report_json_records_plan_configuration_and_timings(out):
     assert record["config"] == load_config(out / "config.toml").to_dict()
     assert record["config"]["scenario"]["t_end"] == 2.0  # the plan's override
     stages = record["stages"]
-    assert set(stages) == {f"{c}/{s}" for c in CONVENTIONS
-                           for s in ("timeseries", "weights", "weights_recovering")}
+    assert set(stages) == {
+        f"{c}/{s}" for c in CONVENTIONS for s in ("timeseries", "weights", "weights_recovering")
+    }
     assert stages["paper/timeseries"]["params"] == {"forces": [0, 50, 120], "duration": 0.1}
-    assert stages["joint/weights"]["params"] == {"force": 100.0, "q": [1e3, 1e5, 1e7],
-                                                 "r": [1e-4, 1e-6, 1e-8]}
+    assert stages["joint/weights"]["params"] == {
+        "force": 100.0,
+        "q": [1e3, 1e5, 1e7],
+        "r": [1e-4, 1e-6, 1e-8],
+    }
     seconds = [s["seconds"] for s in stages.values()]
     assert all(s > 0 for s in seconds)
     assert record["seconds"] >= sum(seconds)
@@ -302,15 +358,15 @@ def test_html_is_rebuilt_from_saved_tables(out, page, tmp_path, capsys):
     no_images = re.compile(r"base64,[A-Za-z0-9+/=]+")
     assert no_images.sub("", rebuilt) == no_images.sub("", page)
     assert len(no_images.findall(rebuilt)) == len(no_images.findall(page))
-    assert (sorted(p.relative_to(copy) for p in (copy / "figures").rglob("*.png"))
-            == sorted(p.relative_to(out) for p in (out / "figures").rglob("*.png")))
+    assert sorted(p.relative_to(copy) for p in (copy / "figures").rglob("*.png")) == sorted(
+        p.relative_to(out) for p in (out / "figures").rglob("*.png")
+    )
 
 
 def test_report_command_errors(tmp_path, capsys):
     target = tmp_path / "never"
     with pytest.raises(SystemExit) as exited:  # checked when parsed, as every option's type
-        main(["report", "--scale", "tiny", "--conventions", "paper,sideways",
-              "--out", str(target)])
+        main(["report", "--scale", "tiny", "--conventions", "paper,sideways", "--out", str(target)])
     assert exited.value.code == 2
     assert "--conventions: unknown sideways" in capsys.readouterr().err
     assert not target.exists()  # checked before any work
@@ -320,15 +376,21 @@ def test_report_command_errors(tmp_path, capsys):
 
 def test_report_refuses_another_configuration(out):
     with pytest.raises(ParameterError, match="another configuration"):
-        report.run_report(out, Config().replace(body={"upper_mass": 40.0}), report.PLANS["tiny"],
-                          study_list=[], quiet=True)
+        report.run_report(
+            out,
+            Config().replace(body={"upper_mass": 40.0}),
+            report.PLANS["tiny"],
+            study_list=[],
+            quiet=True,
+        )
 
 
 def test_library_does_not_import_the_command_line():
-    code = ("import sys, mjx_balance.report, mjx_balance.studies.catalog; "
-            "print(sorted(m for m in sys.modules if m.startswith('mjx_balance.cli')))")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          check=True)
+    code = (
+        "import sys, mjx_balance.report, mjx_balance.studies.catalog; "
+        "print(sorted(m for m in sys.modules if m.startswith('mjx_balance.cli')))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "[]"
 
 
@@ -338,12 +400,17 @@ def test_study_sweep_definition_loads_and_runs(path, tmp_path):
     forces = parse_grid(definition.forces, "forces")
     durations = parse_grid(definition.durations, "durations")
     assert forces.size >= 10 and durations.size >= 5
-    config = definition.config.replace(scenario={"t_end": 0.5},
-                                       controller={"osqp_max_iter": 200})
+    config = definition.config.replace(scenario={"t_end": 0.5}, controller={"osqp_max_iter": 200})
     tiny_f, tiny_d = forces[[0, -1]], durations[:1]
-    result = held_sweep(tmp_path, config, Grid.of(tiny_f, tiny_d, config),
-                       run_batch=report.ReferenceBatch(config),
-                       chunk=2, progress=False, say=None)
+    result = held_sweep(
+        tmp_path,
+        config,
+        Grid.of(tiny_f, tiny_d, config),
+        run_batch=report.ReferenceBatch(config),
+        chunk=2,
+        progress=False,
+        say=None,
+    )
     assert len(result.region) == 2 and set(result.region.outcome) <= set(OUTCOMES)
     assert result.region.outcome.iloc[0] != "diverged"
 
@@ -373,13 +440,15 @@ def test_region_area_and_reading():
     text = studies.reading(studies.study("ankle_only"), table, base)
     assert "Ankle only: 4.75 N·s, 1.25 N·s smaller (-1.25 N·s, -21%)" in text
     assert "The hip adds +1.25 N·s" in text and "2 lost" in text
-    signed = fake_region({**{(-f, d): o for (f, d), o in weaker.items()}, **grid},
-                         energy_total=None)
+    signed = fake_region(
+        {**{(-f, d): o for (f, d), o in weaker.items()}, **grid}, energy_total=None
+    )
     halves = studies.signed_halves(signed)
     assert list(halves.variant) == ["backward", "forward"]
     assert halves.area.tolist() == pytest.approx([4.75, 6.0])
-    assert "backward pushes recover 4.75 N·s" in studies.reading(studies.study("backward"),
-                                                                 halves, signed)
+    assert "backward pushes recover 4.75 N·s" in studies.reading(
+        studies.study("backward"), halves, signed
+    )
 
 
 def test_cell_widths():
@@ -400,10 +469,18 @@ def test_tiny_report_carries_a_banner(out, page):
 
 
 def test_page_is_rendered_from_the_template_with_autoescaping(out):
-    sections_ = [{"id": "overview", "heading": "A <b>heading</b>",
-                  "blocks": [{"kind": "paragraph", "text": "x < y & <script>", "cls": ""},
-                             report.html._table(pd.DataFrame({"a<": ["<i>"], "note": ["n"]}),
-                                                note_column="note")]}]
+    sections_ = [
+        {
+            "id": "overview",
+            "heading": "A <b>heading</b>",
+            "blocks": [
+                {"kind": "paragraph", "text": "x < y & <script>", "cls": ""},
+                report.html._table(
+                    pd.DataFrame({"a<": ["<i>"], "note": ["n"]}), note_column="note"
+                ),
+            ],
+        }
+    ]
     text = report.html.page_html(sections_, "banner <b>")
     assert "<script>" not in text and "&lt;script&gt;" in text
     assert "A &lt;b&gt;heading&lt;/b&gt;" in text and "banner &lt;b&gt;" in text
@@ -428,10 +505,13 @@ def test_infeasibility_numbers_count_falls_after_an_infeasible_qp():
     infeasible QP and a fall without one are not counted as preceded."""
     from mjx_balance.studies import catalog as studies
 
-    region = pd.DataFrame({
-        "outcome": ["fell", "fell", "fell", "recovered"],
-        "fall_time": [1.0, 2.0, 0.5, np.nan],
-        "first_infeasible_time": [0.97, 1.95, np.nan, 0.3]})
+    region = pd.DataFrame(
+        {
+            "outcome": ["fell", "fell", "fell", "recovered"],
+            "fall_time": [1.0, 2.0, 0.5, np.nan],
+            "first_infeasible_time": [0.97, 1.95, np.nan, 0.3],
+        }
+    )
     n = studies.infeasibility_numbers(region)
     assert (n["falls"], n["preceded"]) == (3, 2)
     assert n["lead_min"] == pytest.approx(0.03) and n["lead_max"] == pytest.approx(0.05)
@@ -468,12 +548,23 @@ def test_scorecard_section_leads_and_carries_the_reasons(out, page):
 def test_table_headings_carry_units_and_noise_shows_as_zero():
     from mjx_balance.report.html import _table
 
-    frame = pd.DataFrame({"force": [0.0, 50.0], "outcome": ["recovered", "recovered"],
-                          "fraction": [0.5, 0.25], "energy_total": [1.6e-11, 0.31],
-                          "max_acting_time": [0.35, 5e-7]})
+    frame = pd.DataFrame(
+        {
+            "force": [0.0, 50.0],
+            "outcome": ["recovered", "recovered"],
+            "fraction": [0.5, 0.25],
+            "energy_total": [1.6e-11, 0.31],
+            "max_acting_time": [0.35, 5e-7],
+        }
+    )
     block = _table(frame)
-    assert block["header"] == ["force [N]", "outcome", "fraction", "energy_total [J]",
-                               "max_acting_time [s]"]
+    assert block["header"] == [
+        "force [N]",
+        "outcome",
+        "fraction",
+        "energy_total [J]",
+        "max_acting_time [s]",
+    ]
     # 1.6e-11 J beside 0.31 J is under a millionth of the column: float noise, shown as 0;
     # 5e-7 s beside 0.35 s is above it (3.5e-7) and shown
     assert [row[3] for row in block["rows"]] == ["0", "0.31"]

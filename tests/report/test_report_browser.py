@@ -24,8 +24,11 @@ def browser():
         pytest.skip(reason)
 
 
-@pytest.fixture(scope="module", params=[SMALL, pytest.param(ALL, marks=pytest.mark.slow)],
-                ids=["two_studies", "all_studies"])
+@pytest.fixture(
+    scope="module",
+    params=[SMALL, pytest.param(ALL, marks=pytest.mark.slow)],
+    ids=["two_studies", "all_studies"],
+)
 def out(request, tmp_path_factory):
     """The tiny report with two studies (default run) and with every study (slow run: the
     page whose size MAX_BYTES bounds)."""
@@ -41,7 +44,9 @@ def test_the_audit_finds_small_text_and_overflow(tmp_path, browser):
         "</head><body><p>fine text</p><p style='font-size:12px'>just large enough</p>"
         "<p style='font-size:10px'>too small</p><div style='width:2000px'>too wide</div>"
         "<div class='table-wrap' style='overflow-x:auto'><table style='width:3000px'>"
-        "<tr><td>wide table</td></tr></table></div></body></html>", encoding="utf-8")
+        "<tr><td>wide table</td></tr></table></div></body></html>",
+        encoding="utf-8",
+    )
     found = audit(page, WIDTHS["phone"], MIN_FONT_PX)
     assert found["width"] == WIDTHS["phone"]
     assert [s["text"] for s in found["small"]] == ["too small"]

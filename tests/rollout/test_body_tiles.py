@@ -22,9 +22,14 @@ def slots_of(cell, body):
     start, 100 + c: cell c's start)."""
     cell, body = np.asarray(cell, np.int32), np.asarray(body, np.int32)
     S = cell.size
-    return Slots(carry={"x": jnp.asarray(np.where(cell >= 0, 100 + cell, body), jnp.float32)},
-                 cell=jnp.asarray(cell), force=jnp.zeros(S), n_push=jnp.zeros(S, jnp.int32),
-                 k=jnp.ones(S, jnp.int32), body=jnp.asarray(body))
+    return Slots(
+        carry={"x": jnp.asarray(np.where(cell >= 0, 100 + cell, body), jnp.float32)},
+        cell=jnp.asarray(cell),
+        force=jnp.zeros(S),
+        n_push=jnp.zeros(S, jnp.int32),
+        k=jnp.ones(S, jnp.int32),
+        body=jnp.asarray(body),
+    )
 
 
 def refill_of(slots, offer_body, used=None, tile=2):
@@ -33,9 +38,18 @@ def refill_of(slots, offer_body, used=None, tile=2):
     starts = {"x": 100.0 + jnp.arange(R, dtype=jnp.float32)}
     rests = {"x": jnp.arange(4, dtype=jnp.float32)}  # body b's rest: b
     used = jnp.zeros(R, bool) if used is None else jnp.asarray(used)
-    return refill_tiles(slots, rests, used, slots.cell < 0, cells, jnp.ones(R), jnp.ones(R,
-                        jnp.int32), starts=starts, refill_body=jnp.asarray(offer_body, jnp.int32),
-                        tile=tile)
+    return refill_tiles(
+        slots,
+        rests,
+        used,
+        slots.cell < 0,
+        cells,
+        jnp.ones(R),
+        jnp.ones(R, jnp.int32),
+        starts=starts,
+        refill_body=jnp.asarray(offer_body, jnp.int32),
+        tile=tile,
+    )
 
 
 def test_a_tile_takes_only_cells_of_its_body_and_an_empty_tile_takes_the_next_body():
@@ -75,10 +89,10 @@ def test_no_cell_is_taken_twice_and_unused_offers_stay_for_later():
         taken = new_cell[(cell < 0) & (new_cell >= 0)]
         assert sorted(taken.tolist()) == np.flatnonzero(np.asarray(used)).tolist()
         for t in range(4):  # one body per tile, and the offers it took are that body's
-            assert len(set(new_body[2 * t: 2 * t + 2])) == 1
-            took = new_cell[2 * t: 2 * t + 2][cell[2 * t: 2 * t + 2] < 0]
+            assert len(set(new_body[2 * t : 2 * t + 2])) == 1
+            took = new_cell[2 * t : 2 * t + 2][cell[2 * t : 2 * t + 2] < 0]
             assert all(offer[c] == new_body[2 * t] for c in took if c >= 0)
-            if (cell[2 * t: 2 * t + 2] >= 0).any():  # a busy tile keeps its body
+            if (cell[2 * t : 2 * t + 2] >= 0).any():  # a busy tile keeps its body
                 assert new_body[2 * t] == body[2 * t]
 
 
@@ -88,7 +102,7 @@ def rule(cell, body, vacant, offer_body, used, tile):
     next group of up to ``tile`` cells of one body (groups in the order of their first cells)."""
     cell, body, avail = list(cell), list(body), [not u for u in used]
     T = len(cell) // tile
-    empty = [all(c < 0 for c in cell[t * tile:(t + 1) * tile]) for t in range(T)]
+    empty = [all(c < 0 for c in cell[t * tile : (t + 1) * tile]) for t in range(T)]
     for s in range(len(cell)):
         if vacant[s] and not empty[s // tile]:
             mine = [c for c in range(len(avail)) if avail[c] and offer_body[c] == body[s]]
@@ -97,7 +111,7 @@ def rule(cell, body, vacant, offer_body, used, tile):
     groups = []
     for b in sorted(set(offer_body)):
         mine = [c for c in range(len(avail)) if avail[c] and offer_body[c] == b]
-        groups += [mine[i:i + tile] for i in range(0, len(mine), tile)]
+        groups += [mine[i : i + tile] for i in range(0, len(mine), tile)]
     groups.sort(key=lambda g: g[0])
     for t in range(T):
         seats = [s for s in range(t * tile, (t + 1) * tile) if vacant[s]]
@@ -126,24 +140,34 @@ def test_the_refill_follows_its_rule_on_random_slots(tile):
         slots = slots_of(cell, body)
         R = offer.size
         new, took = refill_tiles(
-            slots, {"x": jnp.arange(4, dtype=jnp.float32)}, jnp.asarray(used),
-            (slots.cell < 0) & (not gated), jnp.arange(R, dtype=jnp.int32), jnp.ones(R),
-            jnp.ones(R, jnp.int32), starts={"x": 100.0 + jnp.arange(R, dtype=jnp.float32)},
-            refill_body=jnp.asarray(offer, jnp.int32), tile=tile)
-        want_cell, want_body, want_used = rule(cell, body, (cell < 0) & (not gated),
-                                               offer.tolist(), used, tile)
+            slots,
+            {"x": jnp.arange(4, dtype=jnp.float32)},
+            jnp.asarray(used),
+            (slots.cell < 0) & (not gated),
+            jnp.arange(R, dtype=jnp.int32),
+            jnp.ones(R),
+            jnp.ones(R, jnp.int32),
+            starts={"x": 100.0 + jnp.arange(R, dtype=jnp.float32)},
+            refill_body=jnp.asarray(offer, jnp.int32),
+            tile=tile,
+        )
+        want_cell, want_body, want_used = rule(
+            cell, body, (cell < 0) & (not gated), offer.tolist(), used, tile
+        )
         assert np.asarray(new.cell).tolist() == want_cell
         assert np.asarray(new.body).tolist() == want_body
         assert np.asarray(took).tolist() == want_used
-        want_x = np.where(np.asarray(want_cell) >= 0, 100 + np.asarray(want_cell),
-                          np.where(cell >= 0, 100 + cell, want_body))
+        want_x = np.where(
+            np.asarray(want_cell) >= 0,
+            100 + np.asarray(want_cell),
+            np.where(cell >= 0, 100 + cell, want_body),
+        )
         assert np.asarray(new.carry["x"]).tolist() == want_x.tolist()
 
 
 def test_the_queue_groups_by_body_and_takes_back_a_mask():
     forces = np.array([30.0, 10.0, 20.0, 0.0, 5.0])
-    q = Queue(forces, np.ones(5, np.int32), devices=2, refill=2,
-              bodies=np.array([1, 0, 1, 0, 2]))
+    q = Queue(forces, np.ones(5, np.int32), devices=2, refill=2, bodies=np.array([1, 0, 1, 0, 2]))
     assert q.pending.tolist() == [3, 1, 2, 0, 4]  # body by body, smaller |force| first
     cells, *_ = q.offer()
     assert cells.tolist() == [3, 2, 1, 0]  # device 0 gets offer[0::2], device 1 offer[1::2]
@@ -163,23 +187,25 @@ def test_a_body_tile_solves_each_lane_as_its_own_body_would(tile):
     controller = ControllerParams()
     settings = admm.settings_from_controller(controller)
     bodies = [BodyParams(), BodyParams(lower_mass=40.0, upper_mass=45.0, upper_length=0.7)]
-    datas = [admm.build_admm(build_qp(controller, b, 0.01), settings, jnp.float64)
-             for b in bodies]
+    datas = [admm.build_admm(build_qp(controller, b, 0.01), settings, jnp.float64) for b in bodies]
     stacked = jax.tree.map(lambda *v: jnp.stack(v), *datas)
     rng = np.random.default_rng(1)
     B = 8
     x0 = jnp.asarray(rng.normal(0, 0.02, (B, 4)))
     warm = jax.vmap(lambda _: admm.initial_warm(datas[0]))(jnp.arange(B))
     tile_body = jnp.asarray(np.arange(B // tile) % 2, jnp.int32)
-    got = jax.jit(admm.admm_solve_tiles, static_argnums=(4, 5))(stacked, tile_body, x0, warm,
-                                                               settings, tile)
+    got = jax.jit(admm.admm_solve_tiles, static_argnums=(4, 5))(
+        stacked, tile_body, x0, warm, settings, tile
+    )
     lane_body = np.repeat(np.asarray(tile_body), tile)
     for b, data in enumerate(datas):
         alone = admm.admm_solve_batch(data, x0, warm, settings)
         mine = lane_body == b
-        np.testing.assert_allclose(np.asarray(got.z)[mine], np.asarray(alone.z)[mine],
-                                   rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(
+            np.asarray(got.z)[mine], np.asarray(alone.z)[mine], rtol=1e-9, atol=1e-12
+        )
         assert np.asarray(got.iters)[mine].tolist() == np.asarray(alone.iters)[mine].tolist()
-    assert not np.allclose(np.asarray(got.z)[lane_body == 0][0],  # two bodies, not one twice
-                           np.asarray(admm.admm_solve_batch(datas[1], x0, warm, settings).z)[
-                               lane_body == 0][0])
+    assert not np.allclose(
+        np.asarray(got.z)[lane_body == 0][0],  # two bodies, not one twice
+        np.asarray(admm.admm_solve_batch(datas[1], x0, warm, settings).z)[lane_body == 0][0],
+    )

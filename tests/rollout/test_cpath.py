@@ -28,8 +28,16 @@ CONFIG = Config().replace(scenario={"t_end": 2.0})
 # recovered (0, 20 N), falls by several rules (heel/toe lift, state bound), and not settled (a
 # push that ends at t_end): every outcome but divergence, which
 # test_a_reset_simulation_is_divergence covers
-CELLS = [(0.0, 0.1), (20.0, 0.1), (50.0, 0.3), (150.0, 0.1), (200.0, 0.1), (-150.0, 0.3),
-         (80.0, 0.5), (8.0, 2.0)]
+CELLS = [
+    (0.0, 0.1),
+    (20.0, 0.1),
+    (50.0, 0.3),
+    (150.0, 0.1),
+    (200.0, 0.1),
+    (-150.0, 0.3),
+    (80.0, 0.5),
+    (8.0, 2.0),
+]
 
 
 pytestmark = pytest.mark.usefixtures("float32_module")  # x64 off (conftest)
@@ -38,8 +46,9 @@ pytestmark = pytest.mark.usefixtures("float32_module")  # x64 off (conftest)
 @pytest.fixture(scope="module")
 def c_runner():
     """The C path for CONFIG on one JAX device, 4 slots, 2 MuJoCo threads (compiled once)."""
-    runner = BatchRunner(CONFIG, physics="c", slots=4, threads=2, early_stop=False,
-                         devices=jax.local_devices()[:1])
+    runner = BatchRunner(
+        CONFIG, physics="c", slots=4, threads=2, early_stop=False, devices=jax.local_devices()[:1]
+    )
     runner.prepare()
     return runner
 
@@ -76,25 +85,50 @@ def test_sensors_and_warm_start_reproduce_mj_step():
             q = data.qpos[[ix.ankle_qpos, ix.hip_qpos]]
             worst = max(worst, np.abs(rows[0, j, cpath.Q] - q).max())
             cop = metrics.load_cell_cop(model, data, ix.cell_geoms)[0]
-            within(rows[0, j, cpath.COP], cop, rtol=1e-6, atol=1e-9, msg=(k, j),
-                   why="the same contact solve from warm starts that differ by round-off, "
-                       "each converged to MuJoCo's solver tolerance (1e-8)")
+            within(
+                rows[0, j, cpath.COP],
+                cop,
+                rtol=1e-6,
+                atol=1e-9,
+                msg=(k, j),
+                why="the same contact solve from warm starts that differ by round-off, "
+                "each converged to MuJoCo's solver tolerance (1e-8)",
+            )
             if j < S - 1:  # the last sample's positions come from the next call's kinematics
-                np.testing.assert_allclose(rows[0, j, cpath.CELLS],
-                                           metrics.cell_heights(model, data, ix.cell_geoms),
-                                           atol=1e-9)
-                within(rows[0, j, cpath.COM], metrics.whole_body_com(data, ix.foot_body),
-                       atol=1e-9, why="the same float64 kinematics of states equal to ~1e-9")
-                within(rows[0, j, cpath.VCOM], metrics.com_velocity(model, data, ix.foot_body),
-                       atol=1e-8, msg=(k, j),
-                       why="the same float64 CoM velocity (subtree momentum vs CoM Jacobian "
-                           "x qvel) of states equal to ~1e-9, rates through the contact "
-                           "solve's tolerance (1e-8)")
+                np.testing.assert_allclose(
+                    rows[0, j, cpath.CELLS],
+                    metrics.cell_heights(model, data, ix.cell_geoms),
+                    atol=1e-9,
+                )
+                within(
+                    rows[0, j, cpath.COM],
+                    metrics.whole_body_com(data, ix.foot_body),
+                    atol=1e-9,
+                    why="the same float64 kinematics of states equal to ~1e-9",
+                )
+                within(
+                    rows[0, j, cpath.VCOM],
+                    metrics.com_velocity(model, data, ix.foot_body),
+                    atol=1e-8,
+                    msg=(k, j),
+                    why="the same float64 CoM velocity (subtree momentum vs CoM Jacobian "
+                    "x qvel) of states equal to ~1e-9, rates through the contact "
+                    "solve's tolerance (1e-8)",
+                )
                 heel, toe = outcomes.support_edges(np, metrics.cell_x(data, ix.cell_geoms))
-                within(rows[0, j, [cpath.HEEL, cpath.TOE]], [heel, toe], atol=1e-9,
-                       why="the same float64 kinematics of states equal to ~1e-9")
-            within(rows[0, j, cpath.QVEL], data.qvel, atol=1e-8, msg=(k, j),
-                   why="the same physics; rates through the contact solve's tolerance (1e-8)")
+                within(
+                    rows[0, j, [cpath.HEEL, cpath.TOE]],
+                    [heel, toe],
+                    atol=1e-9,
+                    why="the same float64 kinematics of states equal to ~1e-9",
+                )
+            within(
+                rows[0, j, cpath.QVEL],
+                data.qvel,
+                atol=1e-8,
+                msg=(k, j),
+                why="the same physics; rates through the contact solve's tolerance (1e-8)",
+            )
             assert rows[0, j, cpath.OK] == 1
         np.testing.assert_allclose(last_q[0], data.qpos, atol=1e-9)
         warm = c.next_warm(state, states)
@@ -102,21 +136,27 @@ def test_sensors_and_warm_start_reproduce_mj_step():
         state[:, 0] = cpath.TIME0
     # the same physics from the same states: only the warm start differs (by round-off), and
     # the contact solver converges to its tolerance from either
-    within(worst, 0.0, atol=1e-9,
-           why="the same float64 physics; the contact solver's tolerance (1e-8 on forces) "
-               "moves positions by far less in 60 periods")
+    within(
+        worst,
+        0.0,
+        atol=1e-9,
+        why="the same float64 physics; the contact solver's tolerance (1e-8 on forces) "
+        "moves positions by far less in 60 periods",
+    )
 
 
 def test_a_reset_simulation_is_divergence():
     """MuJoCo resets a simulation that meets a huge value; every sample from there is marked
     not OK (the kernel then reports divergence, as the reference does on MuJoCo's warning)."""
     c = cpath.CPhysics(CONFIG, threads=1)
-    states, sens = c.advance(c.rest[None], c.rest_warm[None], np.zeros((1, 2)),
-                             np.full((1, c.substeps), 1e30))
+    states, sens = c.advance(
+        c.rest[None], c.rest_warm[None], np.zeros((1, 2)), np.full((1, c.substeps), 1e30)
+    )
     rows, _ = c.samples(states, sens)
     assert not rows[0, :, cpath.OK].any()
-    ok_states, ok_sens = c.advance(c.rest[None], c.rest_warm[None], np.zeros((1, 2)),
-                                   np.full((1, c.substeps), 100.0))
+    ok_states, ok_sens = c.advance(
+        c.rest[None], c.rest_warm[None], np.zeros((1, 2)), np.full((1, c.substeps), 100.0)
+    )
     assert c.samples(ok_states, ok_sens)[0][0, :, cpath.OK].all()
 
 
@@ -143,24 +183,48 @@ def test_c_path_matches_the_reference(c_runner, c_frame):
         assert mine.outcome == ref["outcome"], (force, duration)
         assert mine.fall_cause == ref["fall_cause"]
         for key in ("fall_time", "settle_time"):
-            within(mine[key], ref[key], atol=1e-12, msg=(key, force),
-                   why="the same sample (both compute its time as k dt)")
+            within(
+                mine[key],
+                ref[key],
+                atol=1e-12,
+                msg=(key, force),
+                why="the same sample (both compute its time as k dt)",
+            )
         tol = margins.closed_loop_rounding(CONFIG, ref, force, duration)
-        why = ("float32 ADMM rounding x the loop's gain, grown after an infeasible QP when it "
-               "falls (margins.closed_loop_rounding)")
-        for key in ("peak_ankle", "peak_hip", "energy_ankle", "energy_hip", "energy_u1",
-                    "energy_u2"):
+        why = (
+            "float32 ADMM rounding x the loop's gain, grown after an infeasible QP when it "
+            "falls (margins.closed_loop_rounding)"
+        )
+        for key in (
+            "peak_ankle",
+            "peak_hip",
+            "energy_ankle",
+            "energy_hip",
+            "energy_u1",
+            "energy_u2",
+        ):
             within(mine[key], ref[key], rtol=tol[key], atol=1e-9, msg=(key, force), why=why)
-        excursion = {place: max(abs(ref[f"{place}_min"]), abs(ref[f"{place}_max"]))
-                     for place in ("cop", "com")}
+        excursion = {
+            place: max(abs(ref[f"{place}_min"]), abs(ref[f"{place}_max"]))
+            for place in ("cop", "com")
+        }
         for key in ("cop_min", "cop_max"):
-            within(mine[key], ref[key], atol=tol["cop"] * excursion["cop"] + 1e-9,
-                   msg=(key, force), why=why + ", of the CoP's largest excursion")
+            within(
+                mine[key],
+                ref[key],
+                atol=tol["cop"] * excursion["cop"] + 1e-9,
+                msg=(key, force),
+                why=why + ", of the CoP's largest excursion",
+            )
         for key in ("com_min", "com_max"):
-            within(mine[key], ref[key],
-                   atol=tol["com"] * excursion["com"] + margins.kinematics_rounding(CONFIG),
-                   msg=(key, force), why=why + ", of the CoM's largest excursion, plus float32 "
-                                             "kinematics (margins.kinematics_rounding)")
+            within(
+                mine[key],
+                ref[key],
+                atol=tol["com"] * excursion["com"] + margins.kinematics_rounding(CONFIG),
+                msg=(key, force),
+                why=why + ", of the CoM's largest excursion, plus float32 "
+                "kinematics (margins.kinematics_rounding)",
+            )
         # CoM velocity and margin of stability (docs/model.md): points of the same trajectory,
         # so their error is the loop's relative rounding of their largest excursion from rest
         # (the margin's rest value is the cells' half span, foot_length / 2); the C path's
@@ -169,42 +233,71 @@ def test_c_path_matches_the_reference(c_runner, c_frame):
         # toe edge), far below tol["com"] (>= admm_rounding 1.9e-3 x gain)
         vel = max(abs(ref["com_vel_min"]), abs(ref["com_vel_max"]))
         for key in ("com_vel_min", "com_vel_max"):
-            within(mine[key], ref[key], atol=tol["com"] * vel + 1e-9, msg=(key, force),
-                   why=why + ", of the CoM velocity's largest excursion")
+            within(
+                mine[key],
+                ref[key],
+                atol=tol["com"] * vel + 1e-9,
+                msg=(key, force),
+                why=why + ", of the CoM velocity's largest excursion",
+            )
         dip = abs(CONFIG.body.foot_length / 2 - ref["mos_min"])
-        within(mine.mos_min, ref["mos_min"],
-               atol=tol["com"] * dip + 2 * margins.kinematics_rounding(CONFIG) + 1e-9,
-               msg=("mos_min", force),
-               why=why + ", of the margin's dip from rest, plus float32 kinematics of the "
-                         "CoM and the toe edge (margins.kinematics_rounding)")
+        within(
+            mine.mos_min,
+            ref["mos_min"],
+            atol=tol["com"] * dip + 2 * margins.kinematics_rounding(CONFIG) + 1e-9,
+            msg=("mos_min", force),
+            why=why + ", of the margin's dip from rest, plus float32 kinematics of the "
+            "CoM and the toe edge (margins.kinematics_rounding)",
+        )
         if dip > 1e-3:  # a margin that dips (not F = 0, where its minimum is rest's jitter)
-            within(mine.mos_min_time, ref["mos_min_time"], atol=0.01, msg=force,
-                   why="the first sample at the minimum: an error d <= 1e-5 m in the margin "
-                       "(above) moves it by d / slope where the margin still falls at the "
-                       "fall sample or t_end (slope >= 1.2e-3 m/s on these pushes: <= 8 ms), "
-                       "by sqrt(2 d / |MoS''|) at a turning point (51 m/s^2 after 20 N: 0.6 ms)")
-        print(f"{force:6.1f} N {duration} s: mos_min {mine.mos_min:.6f} vs {ref['mos_min']:.6f}"
-              f" at {mine.mos_min_time:.3f} vs {ref['mos_min_time']:.3f} s; com_vel "
-              f"[{mine.com_vel_min:.5f}, {mine.com_vel_max:.5f}] vs "
-              f"[{ref['com_vel_min']:.5f}, {ref['com_vel_max']:.5f}]")
+            within(
+                mine.mos_min_time,
+                ref["mos_min_time"],
+                atol=0.01,
+                msg=force,
+                why="the first sample at the minimum: an error d <= 1e-5 m in the margin "
+                "(above) moves it by d / slope where the margin still falls at the "
+                "fall sample or t_end (slope >= 1.2e-3 m/s on these pushes: <= 8 ms), "
+                "by sqrt(2 d / |MoS''|) at a turning point (51 m/s^2 after 20 N: 0.6 ms)",
+            )
+        print(
+            f"{force:6.1f} N {duration} s: mos_min {mine.mos_min:.6f} vs {ref['mos_min']:.6f}"
+            f" at {mine.mos_min_time:.3f} vs {ref['mos_min_time']:.3f} s; com_vel "
+            f"[{mine.com_vel_min:.5f}, {mine.com_vel_max:.5f}] vs "
+            f"[{ref['com_vel_min']:.5f}, {ref['com_vel_max']:.5f}]"
+        )
         # the foot is not in the linear model: while it rests on its sole its pitch follows the
         # CoP (certificate.py: |pitch| <= PITCH_PER_COP |CoP - rest| + PITCH_FLOOR), and so does
         # its error; when it tips at a fall it moves with the body, whose error is relative
-        pitch_error = max(PITCH_PER_COP * tol["cop"] * excursion["cop"],
-                          max(tol["cop"], tol["peak_ankle"], tol["peak_hip"])
-                          * abs(ref["peak_foot_pitch"]))
-        within(mine.peak_foot_pitch, ref["peak_foot_pitch"], atol=pitch_error + 1e-9,
-               msg=("peak_foot_pitch", force),
-               why=why + ", through the pitch-CoP relation or the body's relative error")
+        pitch_error = max(
+            PITCH_PER_COP * tol["cop"] * excursion["cop"],
+            max(tol["cop"], tol["peak_ankle"], tol["peak_hip"]) * abs(ref["peak_foot_pitch"]),
+        )
+        within(
+            mine.peak_foot_pitch,
+            ref["peak_foot_pitch"],
+            atol=pitch_error + 1e-9,
+            msg=("peak_foot_pitch", force),
+            why=why + ", through the pitch-CoP relation or the body's relative error",
+        )
         # signed sums (and their magnitudes, the study's energy) cancel: their round-off is
         # relative to the absolute work of the same pair, not to their own size
-        scale = {"work_u1": ("energy_u1",), "work_u2": ("energy_u2",),
-                 "study_energy_u1": ("energy_u1",), "study_energy_u2": ("energy_u2",),
-                 "study_energy_total": ("energy_u1", "energy_u2")}
+        scale = {
+            "work_u1": ("energy_u1",),
+            "work_u2": ("energy_u2",),
+            "study_energy_u1": ("energy_u1",),
+            "study_energy_u2": ("energy_u2",),
+            "study_energy_total": ("energy_u1", "energy_u2"),
+        }
         for key, pairs in scale.items():
             allowed = sum(tol[pair] * ref[pair] for pair in pairs) + 1e-9
-            within(mine[key], ref[key], atol=allowed, msg=(key, force),
-                   why=why + ", of the pair's absolute work")
+            within(
+                mine[key],
+                ref[key],
+                atol=allowed,
+                msg=(key, force),
+                why=why + ", of the pair's absolute work",
+            )
         assert mine.nonconverged_solves == ref["nonconverged_solves"]
 
 
@@ -231,30 +324,41 @@ def test_near_zero_pushes_are_certified_on_the_c_path(c_runner):
     forces, durations = np.array([(0.0, 0.1), (0.0, 1.5), (3.0, 0.05), (20.0, 0.1)]).T
     out = {}
     for name, early in (("early", True), ("full", False)):
-        runner = BatchRunner(config, physics="c", slots=4, threads=2, early_stop=early,
-                             devices=jax.local_devices()[:1])
+        runner = BatchRunner(
+            config,
+            physics="c",
+            slots=4,
+            threads=2,
+            early_stop=early,
+            devices=jax.local_devices()[:1],
+        )
         out[name] = runner.run(forces, durations)
-        out[name + "_periods"], out[name + "_certified"] = (runner.last_periods,
-                                                            runner.last_certified)
+        out[name + "_periods"], out[name + "_certified"] = (
+            runner.last_periods,
+            runner.last_certified,
+        )
     assert out["early_certified"][:3].all()
     assert (out["early_periods"][:2] == CHECK_EVERY).all()
     assert out["early_periods"][2] < config.scenario.n_control
     jitter = {c: abs(float(out["full"][c][0])) for c in CERTIFIED_INTEGRALS}
-    assert_certified_like_full_length(out["early"], out["full"], out["early_certified"], config,
-                                      jitter)
+    assert_certified_like_full_length(
+        out["early"], out["full"], out["early_certified"], config, jitter
+    )
 
 
 def test_threads_slots_and_order_change_nothing(c_runner, c_frame):
     """A cell's row does not depend on MuJoCo's thread count, its slot or the other cells."""
     forces, durations = np.array(CELLS).T
     order = np.array([6, 1, 7, 3])
-    one_thread = BatchRunner(CONFIG, physics="c", slots=4, threads=1, early_stop=False,
-                             devices=jax.local_devices()[:1])
+    one_thread = BatchRunner(
+        CONFIG, physics="c", slots=4, threads=1, early_stop=False, devices=jax.local_devices()[:1]
+    )
     again = one_thread.run_frame(forces[order], durations[order])
     expected = c_frame.iloc[order].reset_index(drop=True)
     for column in expected.columns:
-        np.testing.assert_array_equal(again[column].to_numpy(), expected[column].to_numpy(),
-                                      err_msg=column)
+        np.testing.assert_array_equal(
+            again[column].to_numpy(), expected[column].to_numpy(), err_msg=column
+        )
 
 
 def test_the_c_engine_refuses_what_it_cannot_honour():

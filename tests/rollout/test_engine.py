@@ -66,19 +66,22 @@ def grid(window: str):
     region. "12s": pushes up to 10 s around the sustained-push limit (about 10.8 N), 95 cells;
     "3s": pushes up to 2.5 s (the longest end 0.5 s before t_end), 65 cells."""
     if window == "3s":
-        forces = np.array([0.0, 3.0, 8.0, 20.0, 40.0, 60.0, 90.0, 120.0, 150.0, -10.0, -40.0,
-                           -80.0])
+        forces = np.array(
+            [0.0, 3.0, 8.0, 20.0, 40.0, 60.0, 90.0, 120.0, 150.0, -10.0, -40.0, -80.0]
+        )
         durations = np.array([0.05, 0.1, 0.25, 1.0, 2.5])
         edge_f = np.linspace(84.0, 100.0, 5)  # around the 0.1-s boundary
         f, d = np.repeat(forces, durations.size), np.tile(durations, forces.size)
         return np.concatenate([f, edge_f]), np.concatenate([d, np.full(edge_f.size, 0.1)])
-    forces = np.array([0.0, 3.0, 8.0, 10.5, 11.0, 20.0, 40.0, 60.0, 90.0, 120.0, 150.0,
-                       -10.0, -40.0, -80.0])
+    forces = np.array(
+        [0.0, 3.0, 8.0, 10.5, 11.0, 20.0, 40.0, 60.0, 90.0, 120.0, 150.0, -10.0, -40.0, -80.0]
+    )
     durations = np.array([0.05, 0.1, 0.25, 1.0, 3.0, 10.0])
     f, d = np.repeat(forces, durations.size), np.tile(durations, forces.size)
     edge_f = np.linspace(84.0, 100.0, 9)  # around the 0.1-s boundary
     return np.concatenate([f, edge_f, [10.7, 10.6]]), np.concatenate(
-        [d, np.full(edge_f.size, 0.1), [10.0, 11.0]])
+        [d, np.full(edge_f.size, 0.1), [10.0, 11.0]]
+    )
 
 
 # Per window: t_end, and how much the certificate must be seen to save. A certified scenario
@@ -86,8 +89,10 @@ def grid(window: str):
 # periods), so what it saves is the window's rest: most of a 12-s window (measured on the
 # 12-s grid: 47 certified, 0.33 of the full run's periods), about a second of a 3-s one
 # (measured on the 3-s grid: 26 certified, 0.76).
-WINDOWS = {"3s": dict(t_end=3.0, min_certified=15, max_share=0.95),
-           "12s": dict(t_end=12.0, min_certified=20, max_share=0.6)}
+WINDOWS = {
+    "3s": dict(t_end=3.0, min_certified=15, max_share=0.95),
+    "12s": dict(t_end=12.0, min_certified=20, max_share=0.6),
+}
 
 
 @pytest.fixture(scope="module", params=["3s", pytest.param("12s", marks=pytest.mark.slow)])
@@ -109,8 +114,9 @@ def runs(request):
 
     with jax.enable_x64(False):
         for name, early in (("early", True), ("full", False)):
-            runner = BatchRunner(config, slots=ENGINE_SLOTS, early_stop=early,
-                                 devices=jax.local_devices()[:1])
+            runner = BatchRunner(
+                config, slots=ENGINE_SLOTS, early_stop=early, devices=jax.local_devices()[:1]
+            )
             queue_mod.Queue.running = running if early else heard
             try:
                 out[name] = runner.run(forces, durations)
@@ -143,25 +149,39 @@ def test_early_stopping_changes_no_decided_column(runs):
     early, full, window = runs["early"], runs["full"], runs["window"]
     assert runs["early_certified"].sum() >= window["min_certified"]  # the certificate is used
     assert runs["early_periods"].sum() < window["max_share"] * runs["full_periods"].sum()
-    assert_certified_like_full_length(early, full, runs["early_certified"], runs["config"],
-                                      _jitter(runs["forces"], full))
+    assert_certified_like_full_length(
+        early, full, runs["early_certified"], runs["config"], _jitter(runs["forces"], full)
+    )
     # CoP and CoM extremes: on the side the push drove them they are final; on the other the
     # full run's value is rest plus the contact solver's jitter (EXTREME_ATOL)
     for column in ("cop_min", "cop_max", "com_min", "com_max"):
         diff = np.nanmax(np.abs(early[column] - full[column]))
         print(f"{column}: largest difference {diff:.3g} m")
-        within(early[column], full[column], atol=EXTREME_ATOL[column[:3]], msg=column,
-               why="the settle band's reach through the CoP/CoM map (margins.band_excursion)")
+        within(
+            early[column],
+            full[column],
+            atol=EXTREME_ATOL[column[:3]],
+            msg=column,
+            why="the settle band's reach through the CoP/CoM map (margins.band_excursion)",
+        )
     # CoM velocity and margin of stability (docs/model.md): in the band the CoM moves at most
     # at (ankle lever + hip lever) x settle_rate_tol, the levers the CoM's velocity per unit
     # joint rate at rest; the XcoM reaches the CoM's band plus that velocity / omega0
     vel_band, omega0 = _band_velocity(runs["config"])
-    for column, atol in (("com_vel_min", vel_band), ("com_vel_max", vel_band),
-                         ("mos_min", EXTREME_ATOL["com"] + vel_band / omega0)):
+    for column, atol in (
+        ("com_vel_min", vel_band),
+        ("com_vel_max", vel_band),
+        ("mos_min", EXTREME_ATOL["com"] + vel_band / omega0),
+    ):
         diff = np.nanmax(np.abs(early[column] - full[column]))
         print(f"{column}: largest difference {diff:.3g}")
-        within(early[column], full[column], atol=atol, msg=column,
-               why="the settle band's reach in CoM velocity and XcoM (comment)")
+        within(
+            early[column],
+            full[column],
+            atol=atol,
+            msg=column,
+            why="the settle band's reach in CoM velocity and XcoM (comment)",
+        )
 
 
 def _jitter(forces, full) -> dict[str, float]:
@@ -169,8 +189,7 @@ def _jitter(forces, full) -> dict[str, float]:
     full-length run (the rest jitter's)."""
     zero = np.asarray(forces) == 0
     assert zero.any(), "the grid needs a 0-N cell"
-    return {column: float(np.abs(np.asarray(full[column])[zero]).max())
-            for column in INTEGRALS}
+    return {column: float(np.abs(np.asarray(full[column])[zero]).max()) for column in INTEGRALS}
 
 
 def test_near_zero_pushes_are_certified(runs):
@@ -208,17 +227,29 @@ def _band_velocity(config) -> tuple[float, float]:
         data.qvel[:] = 0.0
         data.qvel[dof] = 1.0
         levers.append(abs(metrics.com_velocity(model, data, ix.foot_body)))
-    return (sum(levers) * config.scenario.settle_rate_tol,
-            metrics.pendulum_frequency(model, ix.foot_body, ix.ankle_dof))
+    return (
+        sum(levers) * config.scenario.settle_rate_tol,
+        metrics.pendulum_frequency(model, ix.foot_body, ix.ankle_dof),
+    )
 
 
 def test_uncertified_scenarios_are_bit_identical_to_full_length(runs):
     """Falls and scenarios run to t_end go through the same steps in both modes."""
     plain = ~runs["early_certified"]
-    for column in (*EXACT, *INTEGRALS, "admm_iterations", "cop_min", "com_min", "com_vel_min",
-                   "com_vel_max", "mos_min", "mos_min_time"):
-        assert np.array_equal(runs["early"][column][plain], runs["full"][column][plain],
-                              equal_nan=True), column
+    for column in (
+        *EXACT,
+        *INTEGRALS,
+        "admm_iterations",
+        "cop_min",
+        "com_min",
+        "com_vel_min",
+        "com_vel_max",
+        "mos_min",
+        "mos_min_time",
+    ):
+        assert np.array_equal(
+            runs["early"][column][plain], runs["full"][column][plain], equal_nan=True
+        ), column
 
 
 def test_same_bits_in_any_order_and_split(runs):
@@ -273,10 +304,12 @@ def test_certified_trajectories_stay_in_the_band(runs):
         step = k * sc.substeps  # first sample not run
         q = series["qpos"][row][:, sn.joints_q]
         dq = series["qvel"][row][:, sn.joints_v]
-        assert (np.abs(q[step - 1:]) <= sc.settle_angle_tol).all()
-        assert (np.abs(dq[step - 1:]) <= sc.settle_rate_tol).all()
-        assert (np.abs(q[step:]).max(axis=0)
-                <= np.maximum(np.abs(q[:step]).max(axis=0), cert_mod.ANGLE_FLOOR)).all()
+        assert (np.abs(q[step - 1 :]) <= sc.settle_angle_tol).all()
+        assert (np.abs(dq[step - 1 :]) <= sc.settle_rate_tol).all()
+        assert (
+            np.abs(q[step:]).max(axis=0)
+            <= np.maximum(np.abs(q[:step]).max(axis=0), cert_mod.ANGLE_FLOOR)
+        ).all()
         assert k >= cert_mod.CHECK_EVERY and k % cert_mod.CHECK_EVERY == 0
 
 
@@ -290,6 +323,7 @@ def linear_setup():
 
 class _Acc:
     """Running peaks large enough not to matter (the band and QP tests alone)."""
+
     alive = in_band = True
     peak_ankle = peak_hip = peak_tau_ankle = peak_tau_hip = peak_foot_pitch = np.inf
 
@@ -320,8 +354,12 @@ def test_certificate_is_exact_for_the_linear_model():
             u = -K @ x
             for Aj, Bj in substeps:
                 xj = Aj @ x + Bj @ u
-                use = np.concatenate([np.abs(to_q @ xj[:2]) / sc.settle_angle_tol,
-                                      np.abs(to_q @ xj[2:]) / sc.settle_rate_tol])
+                use = np.concatenate(
+                    [
+                        np.abs(to_q @ xj[:2]) / sc.settle_angle_tol,
+                        np.abs(to_q @ xj[2:]) / sc.settle_rate_tol,
+                    ]
+                )
                 worst = max(worst, use.max())
             assert (u >= qp.input_lower).all() and (u <= qp.input_upper).all()
             x = lm.A @ x + lm.B @ u
@@ -340,9 +378,9 @@ def test_certificate_needs_the_push_over_and_a_live_scenario():
     assert not cert_mod.check(np, cert, x, Dead, True, 0)[0]
 
 
-
 class _Still(_Acc):
     """Running peaks of a push that moved nothing beyond the rest jitter."""
+
     peak_ankle = peak_hip = 1e-6  # rad
     peak_tau_ankle = peak_tau_hip = 0.01  # N m
     peak_foot_pitch = 3e-7  # rad
@@ -366,12 +404,16 @@ def test_near_zero_pushes_are_certified_under_the_noise_floors():
     is not certified whatever the peaks."""
     _, _, cert = linear_setup()
     assert cert_mod.check(np, cert, np.zeros(4), _Still, True, 0)[0]
-    floors = {0: cert_mod.ANGLE_FLOOR, 1: cert_mod.ANGLE_FLOOR, 4: cert_mod.TORQUE_FLOOR,
-              5: cert_mod.TORQUE_FLOOR, 6: cert_mod.COP_FLOOR}
+    floors = {
+        0: cert_mod.ANGLE_FLOOR,
+        1: cert_mod.ANGLE_FLOOR,
+        4: cert_mod.TORQUE_FLOOR,
+        5: cert_mod.TORQUE_FLOOR,
+        6: cert_mod.COP_FLOOR,
+    }
     for direction in np.random.default_rng(1).normal(size=(6, 4)):
         # the state at which the first bound reaches its floor
-        first = min(floors, key=lambda c: np.linalg.norm(
-            _scaled_to(cert, direction, c, floors[c])))
+        first = min(floors, key=lambda c: np.linalg.norm(_scaled_to(cert, direction, c, floors[c])))
         x = _scaled_to(cert, direction, first, floors[first])
         assert cert_mod.check(np, cert, 0.99 * x, _Still, True, 0)[0]
         assert not cert_mod.check(np, cert, 1.01 * x, _Still, True, 0)[0], first
@@ -390,8 +432,9 @@ def test_a_push_of_zero_newtons_is_over_from_its_start():
 def test_no_certificate_with_a_delay_or_a_hip_servo():
     assert cert_mod.applies(Config())
     assert not cert_mod.applies(Config().replace(scenario={"controller_delay": 0.01}))
-    assert not cert_mod.applies(Config().replace(body={"hip_servo_stiffness": 100.0,
-                                                       "hip_servo_damping": 10.0}))
+    assert not cert_mod.applies(
+        Config().replace(body={"hip_servo_stiffness": 100.0, "hip_servo_damping": 10.0})
+    )
 
 
 TWO_DEVICES = textwrap.dedent("""
@@ -412,8 +455,14 @@ TWO_DEVICES = textwrap.dedent("""
 def _run_child(env_flags, forces, durations):
     env = dict(os.environ, XLA_FLAGS=env_flags, MJX_BALANCE_HOST_DEVICES="1")
     arg = json.dumps([forces.tolist(), durations.tolist()])
-    proc = subprocess.run([sys.executable, "-c", TWO_DEVICES, arg], env=env, text=True,
-                          capture_output=True, timeout=600, check=True)
+    proc = subprocess.run(
+        [sys.executable, "-c", TWO_DEVICES, arg],
+        env=env,
+        text=True,
+        capture_output=True,
+        timeout=600,
+        check=True,
+    )
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
@@ -447,21 +496,41 @@ def test_interrupted_sweep_resumes_to_the_same_bytes(tmp_path):
 
     with jax.enable_x64(False):
         with pytest.raises(KeyboardInterrupt):
-            held_sweep(tmp_path / "a", config, Grid.of(forces, durations, config), chunk=4,
-                      run_batch=Interrupted(config, slots=ENGINE_SLOTS), progress=False,
-                      say=None)
+            held_sweep(
+                tmp_path / "a",
+                config,
+                Grid.of(forces, durations, config),
+                chunk=4,
+                run_batch=Interrupted(config, slots=ENGINE_SLOTS),
+                progress=False,
+                say=None,
+            )
         assert any((tmp_path / "a" / "chunks").glob("chunk-*.parquet"))
-        resumed = held_sweep(tmp_path / "a", config, Grid.of(forces, durations, config),
-                            run_batch=LazyBatch(config, slots=ENGINE_SLOTS), progress=False,
-                          say=None)
+        resumed = held_sweep(
+            tmp_path / "a",
+            config,
+            Grid.of(forces, durations, config),
+            run_batch=LazyBatch(config, slots=ENGINE_SLOTS),
+            progress=False,
+            say=None,
+        )
         assert resumed.reused_chunks >= 1
-        whole = held_sweep(tmp_path / "b", config, Grid.of(forces, durations, config), chunk=16,
-                          run_batch=LazyBatch(config, slots=ENGINE_SLOTS), progress=False,
-                          say=None)
+        whole = held_sweep(
+            tmp_path / "b",
+            config,
+            Grid.of(forces, durations, config),
+            chunk=16,
+            run_batch=LazyBatch(config, slots=ENGINE_SLOTS),
+            progress=False,
+            say=None,
+        )
     assert resumed.region_path.read_bytes() == whole.region_path.read_bytes()
     manifest = json.loads((tmp_path / "a" / "manifest.json").read_text())
-    assert manifest["region"]["engine"] == {"slots": ENGINE_SLOTS, "early_stop": True,
-                                          "physics": "mjx"}
+    assert manifest["region"]["engine"] == {
+        "slots": ENGINE_SLOTS,
+        "early_stop": True,
+        "physics": "mjx",
+    }
     assert len(pd.read_parquet(whole.region_path)) == forces.size * durations.size
 
 
@@ -483,26 +552,38 @@ def test_early_stopping_on_a_larger_grid():
             out[name + "_certified"] = runner.last_certified
     plain = ~out["early_certified"]
     for column in (*EXACT, *INTEGRALS):
-        assert np.array_equal(out["early"][column][plain], out["full"][column][plain],
-                              equal_nan=True), column
-    assert_certified_like_full_length(out["early"], out["full"], out["early_certified"],
-                                      Config(), _jitter(f, out["full"]))
+        assert np.array_equal(
+            out["early"][column][plain], out["full"][column][plain], equal_nan=True
+        ), column
+    assert_certified_like_full_length(
+        out["early"], out["full"], out["early_certified"], Config(), _jitter(f, out["full"])
+    )
     for column in ("cop_min", "cop_max", "com_min", "com_max"):
-        within(out["early"][column], out["full"][column], atol=EXTREME_ATOL[column[:3]],
-               msg=column,
-               why="the settle band's reach through the CoP/CoM map (margins.band_excursion)")
+        within(
+            out["early"][column],
+            out["full"][column],
+            atol=EXTREME_ATOL[column[:3]],
+            msg=column,
+            why="the settle band's reach through the CoP/CoM map (margins.band_excursion)",
+        )
 
 
 def test_a_damaged_engine_record_is_a_bad_manifest():
     from mjx_balance.store.folder import manifest_problem
 
     region = {"forces": [0.0], "durations": [0.1], "chunk_size": 8, "cells": 1}
-    good = {"region": {**region, "engine": {"slots": 8, "early_stop": True, "physics": "c"}},
-            "table_engine": {"slots": 32, "early_stop": False}}
+    good = {
+        "region": {**region, "engine": {"slots": 8, "early_stop": True, "physics": "c"}},
+        "table_engine": {"slots": 32, "early_stop": False},
+    }
     assert manifest_problem(good) == ""
-    for bad in ({"slots": "8", "early_stop": True}, {"slots": 0, "early_stop": True},
-                {"slots": 8, "early_stop": 1}, [8, True],
-                {"slots": 8, "early_stop": True, "physics": "gpu"}):
+    for bad in (
+        {"slots": "8", "early_stop": True},
+        {"slots": 0, "early_stop": True},
+        {"slots": 8, "early_stop": 1},
+        [8, True],
+        {"slots": 8, "early_stop": True, "physics": "gpu"},
+    ):
         assert "engine" in manifest_problem({"region": {**region, "engine": bad}})
         assert "table_engine" in manifest_problem({"table_engine": bad})
 
@@ -529,7 +610,8 @@ def test_huge_values_diverge_the_batched_path():
     config = Config().replace(scenario={"t_end": 1.0})
     with jax.enable_x64(False):
         result = BatchRunner(config, slots=ENGINE_SLOTS, devices=jax.local_devices()[:1]).run(
-            np.array([1e12, 50.0]), np.array([0.1, 0.1]))
+            np.array([1e12, 50.0]), np.array([0.1, 0.1])
+        )
     outcomes = [OUTCOMES[int(code)] for code in result["outcome"]]
     reference, _ = simulate_scenario(config, 1e12, 0.1, record=False)
     assert reference["outcome"] == "diverged"

@@ -25,7 +25,7 @@ def simulate(queue: Queue, length: np.ndarray, slots: int, block: int) -> tuple[
     taken_order, t, left = [], 0, length.size
     while left:
         cells, *_ = queue.offer()
-        parts = [cells[d * queue.R:(d + 1) * queue.R] for d in range(D)]
+        parts = [cells[d * queue.R : (d + 1) * queue.R] for d in range(D)]
         took = np.zeros(D, int)
         for d in range(D):
             part = parts[d][parts[d] >= 0]
@@ -55,8 +55,9 @@ def workload(n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     n_push = np.round(np.exp(rng.uniform(np.log(25), np.log(5000), n))).astype(np.int32)
     steps = n_push / 5  # control periods the push lasts
     recovers = forces * steps < 400
-    length = np.where(forces < 2, 1200,
-                      np.where(recovers, np.minimum(1200, steps + 250), 40 + steps // 4))
+    length = np.where(
+        forces < 2, 1200, np.where(recovers, np.minimum(1200, steps + 250), 40 + steps // 4)
+    )
     return forces, n_push, length.astype(np.int64)
 
 
@@ -73,8 +74,7 @@ def test_cells_alike_keep_their_order():
     """Cells with one force, one push and one initial state (repeats of a scenario; no push
     from rest): nothing to rank by, the given order stays."""
     for n_push, inits in ((0, None), (3, None), (0, np.ones((7, 4)))):
-        queue = Queue(np.zeros(7), np.full(7, n_push, np.int32), devices=1, refill=2,
-                      inits=inits)
+        queue = Queue(np.zeros(7), np.full(7, n_push, np.int32), devices=1, refill=2, inits=inits)
         _, order = simulate(queue, np.arange(7, 0, -1), slots=2, block=1)
         assert order == list(range(7))
 

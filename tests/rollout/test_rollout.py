@@ -62,8 +62,9 @@ ANGLE_TOL = 5e-3  # rad
 def _open_loop_inputs(n: int = 500) -> tuple[np.ndarray, float, int]:
     """1 s of smooth motor torques and an 80 N, 0.1 s push: the foot rocks (pitch ~0.016)."""
     t = np.arange(n) * DT
-    torques = np.stack([-15 + 25 * np.sin(2 * np.pi * 1.3 * t),
-                        -5 + 8 * np.sin(2 * np.pi * 2.1 * t)], axis=1)
+    torques = np.stack(
+        [-15 + 25 * np.sin(2 * np.pi * 1.3 * t), -5 + 8 * np.sin(2 * np.pi * 2.1 * t)], axis=1
+    )
     return torques, 80.0, int(rollout.push_steps(np.array([0.1]), DT)[0])
 
 
@@ -123,8 +124,10 @@ def test_mjx_physics_matches_mj_step(physics):
     qpos = np.asarray(out["qpos"])
     assert qpos.dtype == np.float32
     err = np.abs(qpos - c["qpos"]).max(axis=0)
-    print(f"\nMJX vs mj_step, 1 s open loop: max |qpos error| per coordinate {err}; "
-          f"C solver iterations max {max(c['solver_iterations'])}")
+    print(
+        f"\nMJX vs mj_step, 1 s open loop: max |qpos error| per coordinate {err}; "
+        f"C solver iterations max {max(c['solver_iterations'])}"
+    )
     within(qpos, c["qpos"], atol=PHYSICS_TOL, why="PHYSICS_TOL: measured, x2 (comment)")
     assert max(c["solver_iterations"]) <= rollout.MJX_OPTIONS["iterations"]
 
@@ -148,9 +151,11 @@ def test_cop_and_com_match_c_side(physics):
             # on d0's device, committed like d0's arrays: an uncommitted array would make
             # jit compile the open loop a second time
             put = functools.partial(jax.device_put, device=d0.qpos.sharding)
-            d = d0.replace(qpos=put(np.asarray(data.qpos, np.float32)),
-                           qvel=put(np.asarray(data.qvel, np.float32)),
-                           qacc_warmstart=put(np.asarray(data.qacc_warmstart, np.float32)))
+            d = d0.replace(
+                qpos=put(np.asarray(data.qpos, np.float32)),
+                qvel=put(np.asarray(data.qvel, np.float32)),
+                qacc_warmstart=put(np.asarray(data.qacc_warmstart, np.float32)),
+            )
             seq = np.roll(torques, -i, axis=0)
             out = run(mx, d, jnp.asarray(seq, jnp.float32), jnp.float32(push), jnp.int32(1))
         data.ctrl[:] = tau
@@ -165,8 +170,10 @@ def test_cop_and_com_match_c_side(physics):
             low_c = metrics.cell_heights(ref_model, data, ix.cell_geoms)
             cop_j, com_j = float(out["cop"][0]), float(out["com"][0])
             low_j = np.asarray(out["cell_low"][0])
-            print(f"step {i}: cop C {cop_c:+.6f} MJX {cop_j:+.6f}, "
-                  f"com C {com_c:+.7f} MJX {com_j:+.7f}, load {load_c:.1f} N")
+            print(
+                f"step {i}: cop C {cop_c:+.6f} MJX {cop_j:+.6f}, "
+                f"com C {com_c:+.7f} MJX {com_j:+.7f}, load {load_c:.1f} N"
+            )
             within(cop_j, cop_c, atol=1e-4, msg=i, why="float32 contact solve (m)")
             within(com_j, com_c, atol=1e-6, msg=i, why="float32 kinematics (m)")
             np.testing.assert_allclose(low_j, low_c, atol=1e-6)
@@ -233,15 +240,26 @@ def test_closed_loop_matches_reference(closed_loop, runner):
         # count: compare up to that control instant.
         bad = np.flatnonzero(~converged)
         n_cmp = n if not bad.size else min(n, int(bad[0]) * S)
-        print(f"\nF = {force:5.1f} N: {outcome} (reference {ref['outcome']}), "
-              f"max |angle diff| {np.nanmax(diff[:n_cmp]):.2e} rad over {n_cmp * DT:.2f} s"
-              + (f" (first non-converged reference solve at {bad[0] * S * DT:.2f} s; "
-                 f"max over the whole run {np.nanmax(diff):.2e})" if bad.size else "")
-              + f"; settle {summary['settle_time'][b]:.3f} vs {ref['settle_time']:.3f}, "
-              f"fall {summary['fall_time'][b]:.3f} vs {ref['fall_time']:.3f}")
+        print(
+            f"\nF = {force:5.1f} N: {outcome} (reference {ref['outcome']}), "
+            f"max |angle diff| {np.nanmax(diff[:n_cmp]):.2e} rad over {n_cmp * DT:.2f} s"
+            + (
+                f" (first non-converged reference solve at {bad[0] * S * DT:.2f} s; "
+                f"max over the whole run {np.nanmax(diff):.2e})"
+                if bad.size
+                else ""
+            )
+            + f"; settle {summary['settle_time'][b]:.3f} vs {ref['settle_time']:.3f}, "
+            f"fall {summary['fall_time'][b]:.3f} vs {ref['fall_time']:.3f}"
+        )
         assert n_cmp > 0.5 / DT
-        within(np.nanmax(diff[:n_cmp]), 0.0, atol=ANGLE_TOL, msg=force,
-               why="the closed loop's agreement with the reference (ANGLE_TOL)")
+        within(
+            np.nanmax(diff[:n_cmp]),
+            0.0,
+            atol=ANGLE_TOL,
+            msg=force,
+            why="the closed loop's agreement with the reference (ANGLE_TOL)",
+        )
         # the fall sample is the last one (both stop / mask there)
         if ref["outcome"] == "fell":
             assert np.isnan(series["qpos"][b, int(round(summary["fall_time"][b] / DT))]).all()
@@ -255,25 +273,57 @@ def test_summary_matches_reference_for_recovered_runs(closed_loop):
         # 5 % or an absolute floor: the ADMM stops at eps 1e-4 (scaled), which leaves inputs
         # ~0.01 N m away from OSQP's 1e-8 solution even at rest (F = 0); at rest the float32
         # contact solve splits the weight between heel and toe cells to ~1e-4 m of CoP.
-        floors = {"peak_ankle": 1e-4, "peak_hip": 1e-4, "com_max": 1e-4, "cop_max": 5e-4,
-                  "peak_tau_ankle": 0.05, "energy_total": 1e-3, "energy_u1": 1e-3,
-                  "energy_u2": 1e-3, "work_u1": 1e-3, "work_u2": 1e-3, "study_energy_u1": 1e-3,
-                  "study_energy_u2": 1e-3, "study_energy_total": 1e-3}
+        floors = {
+            "peak_ankle": 1e-4,
+            "peak_hip": 1e-4,
+            "com_max": 1e-4,
+            "cop_max": 5e-4,
+            "peak_tau_ankle": 0.05,
+            "energy_total": 1e-3,
+            "energy_u1": 1e-3,
+            "energy_u2": 1e-3,
+            "work_u1": 1e-3,
+            "work_u2": 1e-3,
+            "study_energy_u1": 1e-3,
+            "study_energy_u2": 1e-3,
+            "study_energy_total": 1e-3,
+        }
         for name, floor in floors.items():
-            within(summary[name][b], ref[name], rtol=0.05, atol=floor, msg=(forces[b], name),
-                   why="ADMM (eps 1e-4 scaled) vs OSQP (1e-8) and float32 contacts (comment)")
+            within(
+                summary[name][b],
+                ref[name],
+                rtol=0.05,
+                atol=floor,
+                msg=(forces[b], name),
+                why="ADMM (eps 1e-4 scaled) vs OSQP (1e-8) and float32 contacts (comment)",
+            )
         # CoM velocity and the margin of stability's dip below its rest value (the cells' half
         # span): the same rule, on the velocity and on the dip (docs/model.md)
         rest = CONFIG.body.foot_length / 2
-        within(summary["com_vel_max"][b], ref["com_vel_max"], rtol=0.05, atol=1e-4,
-               msg=(forces[b], "com_vel_max"),
-               why="ADMM (eps 1e-4 scaled) vs OSQP (1e-8) and float32 contacts (comment)")
-        within(rest - summary["mos_min"][b], rest - ref["mos_min"], rtol=0.05, atol=1e-4,
-               msg=(forces[b], "mos_min"),
-               why="ADMM (eps 1e-4 scaled) vs OSQP (1e-8) and float32 contacts (comment)")
+        within(
+            summary["com_vel_max"][b],
+            ref["com_vel_max"],
+            rtol=0.05,
+            atol=1e-4,
+            msg=(forces[b], "com_vel_max"),
+            why="ADMM (eps 1e-4 scaled) vs OSQP (1e-8) and float32 contacts (comment)",
+        )
+        within(
+            rest - summary["mos_min"][b],
+            rest - ref["mos_min"],
+            rtol=0.05,
+            atol=1e-4,
+            msg=(forces[b], "mos_min"),
+            why="ADMM (eps 1e-4 scaled) vs OSQP (1e-8) and float32 contacts (comment)",
+        )
         assert summary["nonconverged_solves"][b] == ref["nonconverged_solves"] == 0
-        within(summary["settle_time"][b], ref["settle_time"], atol=0.1, msg=forces[b],
-               why="the settle band is crossed at a shallow slope: 0.1 s")
+        within(
+            summary["settle_time"][b],
+            ref["settle_time"],
+            atol=0.1,
+            msg=forces[b],
+            why="the settle band is crossed at a shallow slope: 0.1 s",
+        )
 
 
 def test_run_frame_columns_and_padding(runner):
@@ -283,8 +333,12 @@ def test_run_frame_columns_and_padding(runner):
     assert (frame["convention"] == CONFIG.controller.convention).all()
     # a backward push mirrors a forward one only approximately (the model is symmetric, the
     # float32 solver path is not exactly); the peak angles agree closely
-    within(frame["peak_ankle"][0], frame["peak_ankle"][1], rtol=1e-2,
-           why="a mirrored push, computed in another float32 order (comment)")
+    within(
+        frame["peak_ankle"][0],
+        frame["peak_ankle"][1],
+        rtol=1e-2,
+        why="a mirrored push, computed in another float32 order (comment)",
+    )
     sc = runner.config.scenario
     assert runner.last_trajectories["qpos"].shape[:2] == (2, sc.n_control * sc.substeps)
 
@@ -301,8 +355,16 @@ def test_bad_inputs_raise(runner):
 # Cells near the recovery boundary (found with the batched runner: at T = 0.1 s pushes start
 # failing between 85 and 90 N, at T = 0.2 s between 45 and 50 N). Eight cells, so the runner's
 # compiled batch of 8 is reused.
-BOUNDARY_GRID = [(80.0, 0.1), (85.0, 0.1), (90.0, 0.1), (95.0, 0.1),
-                 (40.0, 0.2), (45.0, 0.2), (50.0, 0.2), (55.0, 0.2)]
+BOUNDARY_GRID = [
+    (80.0, 0.1),
+    (85.0, 0.1),
+    (90.0, 0.1),
+    (95.0, 0.1),
+    (40.0, 0.2),
+    (45.0, 0.2),
+    (50.0, 0.2),
+    (55.0, 0.2),
+]
 # A cell whose reference outcome changes when its force moves by 2 % or its duration by
 # 0.01 s lies within this tolerance of the reference's own threshold; a disagreement there is
 # reported, not failed.
@@ -321,21 +383,31 @@ def test_outcomes_agree_on_grid_across_recovery_boundary(runner_12):
     durations = np.array([t for _, t in BOUNDARY_GRID])
     batched = runner_12.run(forces, durations)
     outcomes = [OUTCOMES[c] for c in batched["outcome"]]
-    ref = [reference.simulate_scenario(CONFIG, f, t, record=False)[0]["outcome"]
-           for f, t in BOUNDARY_GRID]
+    ref = [
+        reference.simulate_scenario(CONFIG, f, t, record=False)[0]["outcome"]
+        for f, t in BOUNDARY_GRID
+    ]
     assert {"recovered", "fell"} <= set(ref)  # the grid does span the boundary
     borderline, failures = [], []
     for (f, t), mine, theirs in zip(BOUNDARY_GRID, outcomes, ref):
         if mine == theirs:
             continue
-        neighbours = [(f * (1 - FORCE_MARGIN), t), (f * (1 + FORCE_MARGIN), t),
-                      (f, max(t - DURATION_MARGIN, 0.0)), (f, t + DURATION_MARGIN)]
-        flips = {reference.simulate_scenario(CONFIG, nf, nt, record=False)[0]["outcome"]
-                 for nf, nt in neighbours} - {theirs}
+        neighbours = [
+            (f * (1 - FORCE_MARGIN), t),
+            (f * (1 + FORCE_MARGIN), t),
+            (f, max(t - DURATION_MARGIN, 0.0)),
+            (f, t + DURATION_MARGIN),
+        ]
+        flips = {
+            reference.simulate_scenario(CONFIG, nf, nt, record=False)[0]["outcome"]
+            for nf, nt in neighbours
+        } - {theirs}
         (borderline if flips else failures).append((f, t, mine, theirs))
-    print(f"\n{len(BOUNDARY_GRID)} cells: reference {ref}\nbatched {outcomes}\n"
-          f"{len(borderline)} disagreeing cell(s) within the margin of the reference's "
-          f"threshold: {borderline}")
+    print(
+        f"\n{len(BOUNDARY_GRID)} cells: reference {ref}\nbatched {outcomes}\n"
+        f"{len(borderline)} disagreeing cell(s) within the margin of the reference's "
+        f"threshold: {borderline}"
+    )
     assert not failures, failures
 
 
@@ -379,16 +451,31 @@ def assert_angles_match_reference(runner, config, forces, durations, summary, la
         diff = np.abs(q - series[["q_a", "q_h"]].to_numpy()).max(axis=1)
         bad = np.flatnonzero(~converged)
         n_cmp = n if not bad.size else min(n, int(bad[0]) * S)
-        print(f"\n{label}, F = {force} N: {ref['outcome']}, max |angle diff| "
-              f"{np.nanmax(diff[:n_cmp]):.2e} rad over {n_cmp * DT:.2f} s")
+        print(
+            f"\n{label}, F = {force} N: {ref['outcome']}, max |angle diff| "
+            f"{np.nanmax(diff[:n_cmp]):.2e} rad over {n_cmp * DT:.2f} s"
+        )
         assert n_cmp > 0.5 / DT
-        within(np.nanmax(diff[:n_cmp]), 0.0, atol=ANGLE_TOL, msg=force,
-               why="the closed loop's agreement with the reference (ANGLE_TOL)")
+        within(
+            np.nanmax(diff[:n_cmp]),
+            0.0,
+            atol=ANGLE_TOL,
+            msg=force,
+            why="the closed loop's agreement with the reference (ANGLE_TOL)",
+        )
 
 
 # Cells of every outcome the 2-s window allows, and falls of each kind of rule.
-LEAN_GRID = [(0.0, 0.1), (50.0, 0.1), (100.0, 0.1), (200.0, 0.1), (-150.0, 0.3),
-             (30.0, 1.0), (60.0, 0.3), (15.0, 1.9)]
+LEAN_GRID = [
+    (0.0, 0.1),
+    (50.0, 0.1),
+    (100.0, 0.1),
+    (200.0, 0.1),
+    (-150.0, 0.3),
+    (30.0, 1.0),
+    (60.0, 0.3),
+    (15.0, 1.9),
+]
 
 
 @pytest.mark.slow  # tens of seconds on 2 cores: .ci/run runs it after the default suite
@@ -399,8 +486,9 @@ def test_lean_physics_is_the_step_plus_kinematics_loop(runner, float32):
     test in this module checks against the reference."""
     forces = np.array([f for f, _ in LEAN_GRID])
     durations = np.array([t for _, t in LEAN_GRID])
-    lean = rollout.BatchRunner(runner.config, slots=8, early_stop=False,
-                               devices=jax.local_devices()[:1]).run(forces, durations)
+    lean = rollout.BatchRunner(
+        runner.config, slots=8, early_stop=False, devices=jax.local_devices()[:1]
+    ).run(forces, durations)
     full = runner.run(forces, durations)
     assert {"recovered", "fell"} <= {OUTCOMES[c] for c in full["outcome"]}
     for name, values in full.items():
@@ -422,21 +510,32 @@ def test_fall_cause_and_first_infeasible_qp_match_the_reference(runner, float32)
     batched = runner.run_frame(forces, durations)
     mpc = AdmmMPC(runner)
     for b, (force, duration) in enumerate(FALL_GRID):
-        ref = reference.simulate_scenario(runner.config, force, duration, record=False,
-                                          mpc=mpc)[0]
+        ref = reference.simulate_scenario(runner.config, force, duration, record=False, mpc=mpc)[0]
         mine = batched.iloc[b]
-        print(f"F = {force:6.1f} N, T = {duration} s: batched {mine.outcome} by "
-              f"{mine.fall_cause} at {mine.fall_time:.3f} s, first infeasible QP at "
-              f"{mine.first_infeasible_time:.2f} s; reference (ADMM) {ref['outcome']} by "
-              f"{ref['fall_cause']} at {ref['fall_time']:.3f} s, first infeasible QP at "
-              f"{ref['first_infeasible_time']:.2f} s")
+        print(
+            f"F = {force:6.1f} N, T = {duration} s: batched {mine.outcome} by "
+            f"{mine.fall_cause} at {mine.fall_time:.3f} s, first infeasible QP at "
+            f"{mine.first_infeasible_time:.2f} s; reference (ADMM) {ref['outcome']} by "
+            f"{ref['fall_cause']} at {ref['fall_time']:.3f} s, first infeasible QP at "
+            f"{ref['first_infeasible_time']:.2f} s"
+        )
         assert mine.outcome == ref["outcome"] == "fell"
         assert mine.fall_cause == ref["fall_cause"]
-        within(mine.fall_time, ref["fall_time"], atol=0.05, msg=force,
-               why="the same closed loop in float32 physics: the same rule within 0.05 s")
+        within(
+            mine.fall_time,
+            ref["fall_time"],
+            atol=0.05,
+            msg=force,
+            why="the same closed loop in float32 physics: the same rule within 0.05 s",
+        )
         # The reference tests feasibility exactly (an LP), the batched path by the ADMM's
         # certificate after its iteration cap, which can lag by a few control periods.
         assert mine.first_infeasible_time <= mine.fall_time
         assert ref["first_infeasible_time"] <= ref["fall_time"]
-        within(mine.first_infeasible_time, ref["first_infeasible_time"], atol=0.1, msg=force,
-               why="the ADMM's certificate lags an exact LP by a few periods (comment)")
+        within(
+            mine.first_infeasible_time,
+            ref["first_infeasible_time"],
+            atol=0.1,
+            msg=force,
+            why="the ADMM's certificate lags an exact LP by a few periods (comment)",
+        )

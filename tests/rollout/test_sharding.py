@@ -74,12 +74,18 @@ print(json.dumps({"devices": len(jax.devices()),
 
 def _start(devices: int) -> subprocess.Popen:
     env = dict(os.environ)
-    env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "")
-                        + f" --xla_force_host_platform_device_count={devices}").strip()
+    env["XLA_FLAGS"] = (
+        env.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={devices}"
+    ).strip()
     env["JAX_PLATFORMS"] = "cpu"
     env.pop("JAX_ENABLE_X64", None)
-    return subprocess.Popen([sys.executable, "-c", SCRIPT], env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-c", SCRIPT],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def _result(proc: subprocess.Popen) -> dict:
@@ -124,10 +130,15 @@ def test_two_devices_match_one():
         # every period is counted (no scenario falls within 0.15 s)
         flags[name] = outcomes.at_input_bound(np, u.astype(np.float32), limits)
         for i, column in enumerate(("ankle_saturation_fraction", "hip_saturation_fraction")):
-            np.testing.assert_allclose(run["summary"][column], flags[name][..., i].mean(axis=1),
-                                       rtol=1e-12, err_msg=f"{name}: {column}")
-    print(f"periods counted as saturated in one run only: "
-          f"{int((flags['two'] != flags['one']).sum())}")
+            np.testing.assert_allclose(
+                run["summary"][column],
+                flags[name][..., i].mean(axis=1),
+                rtol=1e-12,
+                err_msg=f"{name}: {column}",
+            )
+    print(
+        f"periods counted as saturated in one run only: {int((flags['two'] != flags['one']).sum())}"
+    )
     # the comparison is not vacuous: the scenarios differ, and some inputs sit on a bound
     assert len(set(one["summary"]["outcome"])) >= 2
     assert flags["one"].any()
@@ -147,18 +158,31 @@ sys.exit(cli.main(sys.argv[1:]))
 """
 
 
-@pytest.mark.parametrize("argv", [["sweep", "--forces", "0,50"],
-                                  ["sweep", "--sweep", "region_dense_paper"],
-                                  ["table", "--sweep", "study_table_paper"]])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["sweep", "--forces", "0,50"],
+        ["sweep", "--sweep", "region_dense_paper"],
+        ["table", "--sweep", "study_table_paper"],
+    ],
+)
 def test_the_command_line_uses_every_core_whatever_its_arguments(argv, tmp_path):
     """The command line gives XLA one host device per core before JAX starts, also when an
     argument's check imports JAX (a shipped sweep's name is looked up in the runs floor: such
     a sweep once ran on one core of two)."""
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("XLA_FLAGS", "MJX_BALANCE_HOST_DEVICES", "JAX_ENABLE_X64")}
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("XLA_FLAGS", "MJX_BALANCE_HOST_DEVICES", "JAX_ENABLE_X64")
+    }
     env["JAX_PLATFORMS"] = "cpu"
-    proc = subprocess.run([sys.executable, "-c", PROBE, *argv, "--out", str(tmp_path / "out")],
-                          env=env, capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-c", PROBE, *argv, "--out", str(tmp_path / "out")],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     cores = min(len(os.sched_getaffinity(0)), 8)
     expected = 1 << (cores.bit_length() - 1)  # a power of two, as cli.main.use_host_cores

@@ -36,8 +36,11 @@ try:
 except ImportError:  # the plain install: only the test without Dask runs
     distributed = None
 
-needs_dask = pytest.mark.skipif(distributed is None, reason='Dask distributed is not installed '
-                                '(pip install "mjx_balance[cluster]"; the test extra has it)')
+needs_dask = pytest.mark.skipif(
+    distributed is None,
+    reason="Dask distributed is not installed "
+    '(pip install "mjx_balance[cluster]"; the test extra has it)',
+)
 
 T_END = 1.0
 FORCES, DURATIONS = "0,60,120,250", "0.1,0.2,0.5"  # recovered, not_settled and fell
@@ -95,10 +98,17 @@ def _sweep(out, cluster, **kwargs):
 
     config = tiny_config(t_end=T_END)
     with jax.enable_x64(False):  # as sweeps run (conftest switches x64 on for the session)
-        return held_sweep(out, config, Grid.of(FORCES, DURATIONS, config), chunk=CHUNK,
-                         progress=False,
-                         run_batch=LazyBatch(config, slots=SLOTS), cluster=cluster, say=None,
-                         **kwargs)
+        return held_sweep(
+            out,
+            config,
+            Grid.of(FORCES, DURATIONS, config),
+            chunk=CHUNK,
+            progress=False,
+            run_batch=LazyBatch(config, slots=SLOTS),
+            cluster=cluster,
+            say=None,
+            **kwargs,
+        )
 
 
 @pytest.mark.slow  # a local Dask cluster: .ci/run runs it after the default suite
@@ -123,8 +133,9 @@ def _local_table(reference: Path) -> Path:
 def cluster(compile_cache):
     """A local cluster of 2 worker processes for the module (nannies restart a killed
     worker; a later test reuses the runners the workers built)."""
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as local:
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as local:
         with distributed.Client(local) as client:
             yield local, client
 
@@ -181,9 +192,16 @@ def test_table_on_the_cluster_is_the_local_table(tmp_path, reference, cluster):
     config = tiny_config(t_end=T_END)
     out = tmp_path / "cluster"
     with jax.enable_x64(False), distributed.get_task_stream(client) as stream:
-        result = held_table(out, config, TABLE_FORCES, run_batch=LazyBatch(config, slots=SLOTS),
-                           batch=table_batch_size(config, 2), progress=False, say=None,
-                           cluster=client)
+        result = held_table(
+            out,
+            config,
+            TABLE_FORCES,
+            run_batch=LazyBatch(config, slots=SLOTS),
+            batch=table_batch_size(config, 2),
+            progress=False,
+            say=None,
+            cluster=client,
+        )
     expected = _local_table(reference)
     assert len(result.runs) == len(pd.read_parquet(expected / "table_runs.parquet")) > 26
     for name in ("table.csv", "table_runs.parquet"):
@@ -191,12 +209,14 @@ def test_table_on_the_cluster_is_the_local_table(tmp_path, reference, cluster):
     parts = sorted(p.name for p in (expected / "table_runs").glob("*.parquet"))
     assert parts and sorted(p.name for p in (out / "table_runs").glob("*.parquet")) == parts
     for name in parts:
-        assert (out / "table_runs" / name).read_bytes() == \
-            (expected / "table_runs" / name).read_bytes(), name
+        assert (out / "table_runs" / name).read_bytes() == (
+            expected / "table_runs" / name
+        ).read_bytes(), name
     manifests = [json.loads((d / "manifest.json").read_text()) for d in (out, expected)]
     assert manifests[0]["table_engine"] == manifests[1]["table_engine"]
-    assert len({t["key"] for t in stream.data
-                if str(t["key"]).startswith("mjx_balance-cells-")}) >= 2
+    assert (
+        len({t["key"] for t in stream.data if str(t["key"]).startswith("mjx_balance-cells-")}) >= 2
+    )
 
 
 def _other_version():
@@ -216,19 +236,37 @@ def test_worker_of_another_version_is_refused(tmp_path):
         local_facts,
     )
 
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as local, \
-            distributed.Client(local) as client:
+    with (
+        distributed.LocalCluster(
+            n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as local,
+        distributed.Client(local) as client,
+    ):
         _run_by_value(client, _other_version)
         refused = r"refusing the cluster.*worker tcp://.*: mjx_balance 0\.0\.0\+other \(driver: "
         with pytest.raises(ClusterError, match=refused):
             config = tiny_config(t_end=T_END)
-            held_sweep(tmp_path / "out", config, Grid.of(FORCES, DURATIONS, config),
-                      run_batch=Fake(), chunk=CHUNK, progress=False, say=None, cluster=client)
+            held_sweep(
+                tmp_path / "out",
+                config,
+                Grid.of(FORCES, DURATIONS, config),
+                run_batch=Fake(),
+                chunk=CHUNK,
+                progress=False,
+                say=None,
+                cluster=client,
+            )
     assert not list((tmp_path / "out" / "chunks").glob("*.parquet"))
     # a worker that joined after the check: the task itself refuses
-    spec = ChunkSpec(tiny_config(t_end=T_END), None, True, CHUNK, False,
-                     facts={**local_facts(), "jax": "0.0.1"}, batch=Fake())
+    spec = ChunkSpec(
+        tiny_config(t_end=T_END),
+        None,
+        True,
+        CHUNK,
+        False,
+        facts={**local_facts(), "jax": "0.0.1"},
+        batch=Fake(),
+    )
     with pytest.raises(ClusterError, match=r"jax .* \(driver: 0\.0\.1\)"):
         compute_chunk(spec, 0, np.array([0.0]), np.array([0.1]))
 
@@ -262,8 +300,19 @@ def test_cluster_option_is_checked_before_any_work(tmp_path, capsys):
     from mjx_balance import cli
 
     with pytest.raises(SystemExit) as exc:
-        cli.main(["sweep", "--forces", "0,50", "--durations", "0.1", "--cluster", "local:0",
-                  "--out", str(tmp_path / "out")])
+        cli.main(
+            [
+                "sweep",
+                "--forces",
+                "0,50",
+                "--durations",
+                "0.1",
+                "--cluster",
+                "local:0",
+                "--out",
+                str(tmp_path / "out"),
+            ]
+        )
     assert exc.value.code == 2
     assert "argument --cluster" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
@@ -313,7 +362,6 @@ def test_plain_install_runs_without_dask(tmp_path):
         assert not [m for m in sys.modules if m.split(".")[0] in ("dask", "distributed")]
         print("ok without dask")
     """)
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         timeout=300)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-3000:]
     assert "ok without dask" in out.stdout

@@ -51,12 +51,21 @@ def test_parse_grid_ranges_include_stop_and_are_exact():
     np.testing.assert_array_equal(sweep.parse_grid(7), [7.0])
 
 
-@pytest.mark.parametrize("spec, message", [
-    ("", "empty"), ("1:0:0.1", "empty"), ("0:1:0", "step"), ("0:1:-0.1", "step"),
-    ("0:1", "start:stop:step"), ("nan,1", "finite"), ("0:inf:1", "finite"),
-    ("1,2,1", "more than once"),
-    ("a,b", "not a number"), ([], "empty"),
-])
+@pytest.mark.parametrize(
+    "spec, message",
+    [
+        ("", "empty"),
+        ("1:0:0.1", "empty"),
+        ("0:1:0", "step"),
+        ("0:1:-0.1", "step"),
+        ("0:1", "start:stop:step"),
+        ("nan,1", "finite"),
+        ("0:inf:1", "finite"),
+        ("1,2,1", "more than once"),
+        ("a,b", "not a number"),
+        ([], "empty"),
+    ],
+)
 def test_parse_grid_errors(spec, message):
     with pytest.raises(ParameterError, match=message):
         sweep.parse_grid(spec, "forces")
@@ -73,9 +82,14 @@ def test_duration_limits():
 def test_bad_grid_fails_before_any_work(tmp_path):
     fake = FakeThresholdBatch()
     with pytest.raises(ParameterError, match="t_end"):
-        held_sweep(tmp_path / "out", tiny_config(), Grid.of("0:10:5", "0.5,3", tiny_config()),
-                        run_batch=fake,
-                        progress=False, say=None)
+        held_sweep(
+            tmp_path / "out",
+            tiny_config(),
+            Grid.of("0:10:5", "0.5,3", tiny_config()),
+            run_batch=fake,
+            progress=False,
+            say=None,
+        )
     assert fake.calls == [] and not (tmp_path / "out").exists()
 
 
@@ -101,11 +115,14 @@ def test_sweep_every_cell_once_with_known_outcomes(tmp_path):
     fake = FakeThresholdBatch()
     result = sweep_fake(tmp_path, fake)
     region = pd.read_parquet(tmp_path / "region.parquet")
-    assert list(region.columns[:len(SUMMARY_COLUMNS)]) == SUMMARY_COLUMNS
+    assert list(region.columns[: len(SUMMARY_COLUMNS)]) == SUMMARY_COLUMNS
     assert len(region) == 35 and not region.duplicated(["force", "duration"]).any()
     assert fake.calls == [8] * 5  # every call padded to the chunk size
-    expected = np.where(fake.recovered(region["force"].to_numpy(), region["duration"].to_numpy()),
-                        "recovered", "fell")
+    expected = np.where(
+        fake.recovered(region["force"].to_numpy(), region["duration"].to_numpy()),
+        "recovered",
+        "fell",
+    )
     np.testing.assert_array_equal(region["outcome"].to_numpy(), expected)
     assert set(region["duration"]) == {0.1, 0.5, 1.0, 1.5, 2.0}  # exact values, not float32
     assert (region["convention"] == "paper").all()
@@ -125,15 +142,18 @@ def test_interrupted_sweep_resumes_to_the_same_region(tmp_path):
     resumed = FakeThresholdBatch()
     result = sweep_fake(tmp_path / "cut", resumed)
     assert resumed.calls == [8] * 3 and result.reused_chunks == 2
-    pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "cut" / "region.parquet"),
-                                  pd.read_parquet(tmp_path / "whole" / "region.parquet"))
+    pd.testing.assert_frame_equal(
+        pd.read_parquet(tmp_path / "cut" / "region.parquet"),
+        pd.read_parquet(tmp_path / "whole" / "region.parquet"),
+    )
 
 
 def test_finished_sweep_rerun_does_nothing(tmp_path, capsys):
     sweep_fake(tmp_path, FakeThresholdBatch())
     idle = FakeThresholdBatch(fail_on_call=1)
-    result = held_sweep(tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=idle,
-                             progress=False)
+    result = held_sweep(
+        tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=idle, progress=False
+    )
     assert result.already_complete and idle.calls == []
     assert "nothing to do" in capsys.readouterr().out
 
@@ -191,9 +211,14 @@ def test_other_configuration_or_grid_is_refused(tmp_path):
     with pytest.raises(ParameterError, match="different configuration.*controller.horizon"):
         sweep_fake(tmp_path, FakeThresholdBatch(), config=other)
     with pytest.raises(ParameterError, match="another grid"):
-        held_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()),
-                        run_batch=FakeThresholdBatch(),
-                        progress=False, say=None)
+        held_sweep(
+            tmp_path,
+            tiny_config(),
+            Grid.of("0:100:20", GRID[1], tiny_config()),
+            run_batch=FakeThresholdBatch(),
+            progress=False,
+            say=None,
+        )
 
 
 def test_resume_keeps_the_folders_chunk_size(tmp_path):
@@ -207,9 +232,15 @@ def test_resume_keeps_the_folders_chunk_size(tmp_path):
 # --- max acting time -------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("c, limit, note", [(30.0, 2.4, ""), (0.5, 0.0, ""),
-                                            (0.0, 0.0, "the body falls at 0 N"),
-                                            (1e5, 200.0, "holds every force tried")])
+@pytest.mark.parametrize(
+    "c, limit, note",
+    [
+        (30.0, 2.4, ""),
+        (0.5, 0.0, ""),
+        (0.0, 0.0, "the body falls at 0 N"),
+        (1e5, 200.0, "holds every force tried"),
+    ],
+)
 def test_sustained_push_limit_finds_the_fake_threshold_to_0_1_n(c, limit, note):
     """Held for the whole 12-s window iff 12 F < c: the largest such multiple of 0.1 N."""
     fake = FakeThresholdBatch(c=c)
@@ -225,9 +256,13 @@ def test_bisection_finds_the_fake_threshold_to_0_01_s():
     result = sweep.max_acting_time(forces, config, run_batch=fake, progress=False, say=None)
     table = result.table.set_index("force")
     for force in forces:
-        within(table.loc[force, "max_acting_time"], expected_max_time(force, 30.0, 12.0),
-               atol=1e-9, msg=force,
-               why="whole steps of 0.01 s, rounded to 12 decimals (np.round) on both sides")
+        within(
+            table.loc[force, "max_acting_time"],
+            expected_max_time(force, 30.0, 12.0),
+            atol=1e-9,
+            msg=force,
+            why="whole steps of 0.01 s, rounded to 12 decimals (np.round) on both sides",
+        )
     assert table["monotone"].all()
     # Every call after the coarse scan is one batch of one midpoint per force.
     n_coarse = sweep.coarse_steps(12.0, 0.01).size
@@ -241,10 +276,18 @@ def test_bisection_finds_the_fake_threshold_to_0_01_s():
     assert math.isnan(table.loc[4000, "energy_total_max"])
     row = table.loc[20]  # 20 N: 20 T < 30 -> T <= 1.49
     assert row["max_acting_time"] == 1.49 and row["ending_outcome"] == "fell"
-    within(row["energy_total_01"], 3 * 20 * 0.1, rtol=1e-6,
-           why="the stand-in computes 3 |F| T from float32 F and T: three roundings, <= 1.8e-7")
-    within(row["energy_total_max"], 3 * 20 * 1.49, rtol=1e-6,
-           why="the stand-in computes 3 |F| T from float32 F and T: three roundings, <= 1.8e-7")
+    within(
+        row["energy_total_01"],
+        3 * 20 * 0.1,
+        rtol=1e-6,
+        why="the stand-in computes 3 |F| T from float32 F and T: three roundings, <= 1.8e-7",
+    )
+    within(
+        row["energy_total_max"],
+        3 * 20 * 1.49,
+        rtol=1e-6,
+        why="the stand-in computes 3 |F| T from float32 F and T: three roundings, <= 1.8e-7",
+    )
     assert row["outcome_01"] == "recovered"
     assert list(result.table.columns) == sweep.TABLE_COLUMNS
     assert len(result.runs) == result.table["evaluations"].sum()  # padding dropped
@@ -254,8 +297,9 @@ def test_bisection_finds_the_fake_threshold_to_0_01_s():
 def test_k_section_finds_the_same_thresholds(k):
     forces = [1, 5, 20, 50, 120, 4000]
     fake = FakeThresholdBatch(c=30.0)
-    result = sweep.max_acting_time(forces, Config(), run_batch=fake, points_per_round=k,
-                                   progress=False, say=None)
+    result = sweep.max_acting_time(
+        forces, Config(), run_batch=fake, points_per_round=k, progress=False, say=None
+    )
     expected = [expected_max_time(f, 30.0, 12.0) for f in forces]
     np.testing.assert_allclose(result.table["max_acting_time"], expected, atol=1e-9)
     assert all(n == len(forces) * k for n in fake.calls[1:])
@@ -265,8 +309,9 @@ def test_k_section_finds_the_same_thresholds(k):
 def test_table_in_batches_of_one_size(batch):
     forces = [1, 5, 20, 50, 120, 4000]
     fake = FakeThresholdBatch(c=30.0)
-    result = sweep.max_acting_time(forces, Config(), run_batch=fake, batch=batch, progress=False,
-                                   say=None)
+    result = sweep.max_acting_time(
+        forces, Config(), run_batch=fake, batch=batch, progress=False, say=None
+    )
     expected = [expected_max_time(f, 30.0, 12.0) for f in forces]
     np.testing.assert_allclose(result.table["max_acting_time"], expected, atol=1e-9)
     assert set(fake.calls) == {batch}
@@ -297,8 +342,9 @@ def test_bisection_flags_a_non_monotone_force():
 
 
 def test_negative_forces_in_the_table():
-    result = sweep.max_acting_time([-20, 20], Config(), run_batch=FakeThresholdBatch(),
-                                   progress=False, say=None)
+    result = sweep.max_acting_time(
+        [-20, 20], Config(), run_batch=FakeThresholdBatch(), progress=False, say=None
+    )
     assert list(result.table["max_acting_time"]) == [1.49, 1.49]
 
 
@@ -326,12 +372,16 @@ def test_sweep_definitions_load_and_default_matches_builtin():
             if grid is not None:
                 sweep.parse_grid(grid)
         if definition.durations is not None:
-            sweep.check_durations(sweep.parse_grid(definition.durations),
-                                  definition.config.scenario.t_end)
+            sweep.check_durations(
+                sweep.parse_grid(definition.durations), definition.config.scenario.t_end
+            )
     default = sweep.load_sweep(sweeps_dir() / "default.toml", Config())
     assert (default.forces, default.durations, default.table_forces, default.chunk) == (
-        sweep.DEFAULT_SWEEP["forces"], sweep.DEFAULT_SWEEP["durations"],
-        sweep.DEFAULT_SWEEP["table_forces"], sweep.DEFAULT_SWEEP["chunk"])
+        sweep.DEFAULT_SWEEP["forces"],
+        sweep.DEFAULT_SWEEP["durations"],
+        sweep.DEFAULT_SWEEP["table_forces"],
+        sweep.DEFAULT_SWEEP["chunk"],
+    )
     joint = sweep.load_sweep(sweeps_dir() / "study_table_joint.toml", Config())
     assert joint.config.controller.convention == "joint"
 
@@ -341,7 +391,7 @@ def test_sweep_definition_errors(tmp_path):
     bad.write_text('[sweep]\nforce = "0:10:1"\n')
     with pytest.raises(ParameterError, match="unknown key"):
         sweep.load_sweep(bad, Config())
-    bad.write_text('[controller]\nhorizont = 3\n')
+    bad.write_text("[controller]\nhorizont = 3\n")
     with pytest.raises(ParameterError, match="horizont"):
         sweep.load_sweep(bad, Config())
 
@@ -349,19 +399,32 @@ def test_sweep_definition_errors(tmp_path):
 def test_figures_from_fake_results(tmp_path):
     from mjx_balance.figures import region as region_plots
 
-    held_sweep(tmp_path, Config(), Grid.of("-20:120:10", "0.05:2:0.05", Config()),
-                    run_batch=FakeThresholdBatch(window=(1.5, 1.6)), progress=False, say=None)
+    held_sweep(
+        tmp_path,
+        Config(),
+        Grid.of("-20:120:10", "0.05:2:0.05", Config()),
+        run_batch=FakeThresholdBatch(window=(1.5, 1.6)),
+        progress=False,
+        say=None,
+    )
     region = pd.read_parquet(tmp_path / "region.parquet")
     reference = pd.DataFrame({"force": [20, 50], "duration": [1.4, 0.55]})
-    for name, plot, kwargs in (("region.png", region_plots.plot_region, {"reference": reference}),
-                               ("energy.png", region_plots.plot_energy, {})):
+    for name, plot, kwargs in (
+        ("region.png", region_plots.plot_region, {"reference": reference}),
+        ("energy.png", region_plots.plot_energy, {}),
+    ):
         plot(region, tmp_path / name, config=Config(), **kwargs)
         assert (tmp_path / name).stat().st_size > 10_000
     boundary = region_plots.recovery_boundary(region).set_index("force")
     assert boundary.loc[30, "boundary"] == 0.95 and not boundary.loc[30, "monotone"]
     assert boundary.loc[10, "boundary"] == 2.0 and boundary.loc[10, "monotone"]
-    result = sweep.max_acting_time([1, 5, 20, 50, 120, 4000], Config(),
-                                   run_batch=FakeThresholdBatch(), progress=False, say=None)
+    result = sweep.max_acting_time(
+        [1, 5, 20, 50, 120, 4000],
+        Config(),
+        run_batch=FakeThresholdBatch(),
+        progress=False,
+        say=None,
+    )
     region_plots.plot_table(result.table, tmp_path / "table.png", config=Config())
     assert (tmp_path / "table.png").stat().st_size > 10_000
 
@@ -372,17 +435,30 @@ def test_default_sweep_command_writes_region_and_table(tmp_path, monkeypatch):
     monkeypatch.setattr(DEFAULT_BATCH, lambda config, **engine: FakeThresholdBatch())
     out = tmp_path / "default"
     assert main(["sweep", "--out", str(out)]) == 0
-    for name in ("region.parquet", "region.png", "energy.png", "table.csv", "table.png",
-                 "manifest.json", "config.toml"):
+    for name in (
+        "region.parquet",
+        "region.png",
+        "energy.png",
+        "table.csv",
+        "table.png",
+        "manifest.json",
+        "config.toml",
+    ):
         assert (out / name).exists(), name
     region = pd.read_parquet(out / "region.parquet")
-    assert len(region) == (sweep.parse_grid(sweep.DEFAULT_SWEEP["forces"]).size
-                           * sweep.parse_grid(sweep.DEFAULT_SWEEP["durations"]).size)
+    assert len(region) == (
+        sweep.parse_grid(sweep.DEFAULT_SWEEP["forces"]).size
+        * sweep.parse_grid(sweep.DEFAULT_SWEEP["durations"]).size
+    )
     monkeypatch.setattr(DEFAULT_BATCH, lambda config, **engine: FakeThresholdBatch(fail_on_call=1))
     assert main(["sweep", "--out", str(out)]) == 0  # finished: nothing to do, no batch called
     assert main(["sweep", "--out", str(out), "--convention", "joint"]) == 2  # other configuration
-    assert main(["sweep", "--forces", "0:10:5", "--durations", "0.1,20", "--out",
-                 str(tmp_path / "bad")]) == 2
+    assert (
+        main(
+            ["sweep", "--forces", "0:10:5", "--durations", "0.1,20", "--out", str(tmp_path / "bad")]
+        )
+        == 2
+    )
     assert not (tmp_path / "bad").exists()
 
 
@@ -391,9 +467,11 @@ def test_cli_overrides_sweep_file(tmp_path, monkeypatch):
 
     monkeypatch.setattr(DEFAULT_BATCH, lambda config, **engine: FakeThresholdBatch())
     definition = tmp_path / "s.toml"
-    definition.write_text('[scenario]\nt_end = 3.0\n[controller]\nconvention = "joint"\n'
-                          '[sweep]\nforces = "0:40:20"\ndurations = [0.5, 1.0]\n'
-                          'table_forces = [10]\n')
+    definition.write_text(
+        '[scenario]\nt_end = 3.0\n[controller]\nconvention = "joint"\n'
+        '[sweep]\nforces = "0:40:20"\ndurations = [0.5, 1.0]\n'
+        "table_forces = [10]\n"
+    )
     out = tmp_path / "o"
     assert main(["table", "--sweep", str(definition), "--forces", "20,40", "--out", str(out)]) == 0
     table = pd.read_csv(out / "table.csv")
@@ -401,8 +479,24 @@ def test_cli_overrides_sweep_file(tmp_path, monkeypatch):
     assert json.loads((out / "manifest.json").read_text())["config"]["scenario"]["t_end"] == 3.0
     points = tmp_path / "points.csv"
     points.write_text("force,duration\n20,0.25\n")
-    assert main(["sweep", "--sweep", str(definition), "--durations", "0.25", "--out",
-                 str(tmp_path / "o2"), "--convention", "paper", "--reference", str(points)]) == 0
+    assert (
+        main(
+            [
+                "sweep",
+                "--sweep",
+                str(definition),
+                "--durations",
+                "0.25",
+                "--out",
+                str(tmp_path / "o2"),
+                "--convention",
+                "paper",
+                "--reference",
+                str(points),
+            ]
+        )
+        == 0
+    )
     region = pd.read_parquet(tmp_path / "o2" / "region.parquet")
     assert list(region["duration"].unique()) == [0.25] and (region["convention"] == "paper").all()
     assert (tmp_path / "o2" / "table.csv").exists()  # the sweep file's table_forces
@@ -415,12 +509,28 @@ def test_set_is_checked_on_top_of_the_sweep_file(tmp_path, monkeypatch):
 
     monkeypatch.setattr(DEFAULT_BATCH, lambda config, **engine: FakeThresholdBatch())
     definition = tmp_path / "s.toml"
-    definition.write_text('[scenario]\nt_end = 1.0\ncontroller_delay = 0.1\n'
-                          '[sweep]\nforces = "0,20"\ndurations = [0.5]\n')
+    definition.write_text(
+        "[scenario]\nt_end = 1.0\ncontroller_delay = 0.1\n"
+        '[sweep]\nforces = "0,20"\ndurations = [0.5]\n'
+    )
     for command in ("sweep", "table"):
         out = tmp_path / command
-        assert main([command, "--sweep", str(definition), "--set", "scenario.delay_error=-0.02",
-                     "--forces", "0,20", "--out", str(out)]) == 0
+        assert (
+            main(
+                [
+                    command,
+                    "--sweep",
+                    str(definition),
+                    "--set",
+                    "scenario.delay_error=-0.02",
+                    "--forces",
+                    "0,20",
+                    "--out",
+                    str(out),
+                ]
+            )
+            == 0
+        )
         saved = json.loads((out / "manifest.json").read_text())["config"]["scenario"]
         assert (saved["controller_delay"], saved["delay_error"]) == (0.1, -0.02)
 
@@ -447,8 +557,10 @@ def test_cli_end_to_end_with_the_mjx_rollout(tmp_path, monkeypatch, batch_runner
 
     monkeypatch.setattr(DEFAULT_BATCH, shared_batch)
     definition = tmp_path / "tiny.toml"
-    definition.write_text(f'[scenario]\nt_end = {t_end}\n[sweep]\nforces = "0,300"\n'
-                          'durations = [0.1, 0.3]\ntable_forces = [0, 300]\n')
+    definition.write_text(
+        f'[scenario]\nt_end = {t_end}\n[sweep]\nforces = "0,300"\n'
+        "durations = [0.1, 0.3]\ntable_forces = [0, 300]\n"
+    )
     out = tmp_path / "e2e"
     assert main(["sweep", "--sweep", str(definition), "--out", str(out)]) == 0
     assert len(asked) == 1  # one rollout for the region and the table
@@ -470,9 +582,12 @@ def test_cli_end_to_end_with_the_mjx_rollout(tmp_path, monkeypatch, batch_runner
     durations = np.round(np.arange(1, 9) * 0.01, 12)
     direct = batch_runner.run_frame(np.full(8, 300.0), durations)
     first_failure = int(np.flatnonzero(direct["outcome"] != "recovered")[0])
-    within(table.loc[300, "max_acting_time"],
-           durations[first_failure - 1] if first_failure else 0.0, atol=1e-9,
-           why="whole steps of 0.01 s, rounded to 12 decimals (np.round) on both sides")
+    within(
+        table.loc[300, "max_acting_time"],
+        durations[first_failure - 1] if first_failure else 0.0,
+        atol=1e-9,
+        why="whole steps of 0.01 s, rounded to 12 decimals (np.round) on both sides",
+    )
     assert table.loc[300, "ending_outcome"] == direct["outcome"][first_failure]
     for name in ("region.png", "energy.png", "table.png"):
         data = (out / name).read_bytes()

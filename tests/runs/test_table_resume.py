@@ -41,8 +41,9 @@ class CellLog(FakeThresholdBatch):
 
     def __call__(self, forces, durations):
         out = super().__call__(forces, durations)
-        self.cells.append({(round(float(f), 6), round(float(d), 6))
-                           for f, d in zip(forces, durations)})
+        self.cells.append(
+            {(round(float(f), 6), round(float(d), 6)) for f, d in zip(forces, durations)}
+        )
         return out
 
     def all_cells(self) -> set[tuple[float, float]]:
@@ -50,8 +51,7 @@ class CellLog(FakeThresholdBatch):
 
 
 def table(out: Path, fake, forces: str = FORCES):
-    return held_table(out, Config(), forces, run_batch=fake, batch=BATCH, progress=False,
-                           say=None)
+    return held_table(out, Config(), forces, run_batch=fake, batch=BATCH, progress=False, say=None)
 
 
 def same_files(a: Path, b: Path) -> None:
@@ -110,8 +110,18 @@ KILLED_TABLE = textwrap.dedent("""
 def test_table_killed_by_sigkill_resumes(tmp_path, whole):
     whole_out, whole_fake = whole
     out, calls = tmp_path / "out", tmp_path / "calls.log"
-    proc = subprocess.Popen([sys.executable, "-c", KILLED_TABLE, str(REPO / "tests"), str(out),
-                             str(calls), FORCES, str(BATCH)])
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            KILLED_TABLE,
+            str(REPO / "tests"),
+            str(out),
+            str(calls),
+            FORCES,
+            str(BATCH),
+        ]
+    )
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:
         if calls.exists() and len(calls.read_text().splitlines()) >= 10:
@@ -137,6 +147,7 @@ def test_table_killed_by_sigkill_resumes(tmp_path, whole):
 def test_overlapping_force_list_reuses_the_cells(tmp_path):
     """Bisection (no fixed batch): a force's cells do not depend on the other forces, so a
     table over more forces runs only the new force's cells."""
+
     def bisect(out, fake, forces):
         held_table(out, Config(), forces, run_batch=fake, progress=False, say=None)
 
@@ -208,16 +219,21 @@ def no_run(forces, durations):
 # --- the manifest ------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("text, problem", [
-    ("[1, 2]", "a JSON list, not an object"),
-    ('{"config": {}, "region": {"forces": [0], "durations": [1]}}', "lacks 'chunk_size'"),
-    ('{"config": {}, "region": [1]}', "'region' is not an object"),
-    ('{"config": {}, "table": {}}', "'table' lacks 'forces'"),
-    ('{"config": {}, "table": {"forces": "1,2"}}', "'table.forces' is not a list of numbers"),
-    ('{"config": [], "table": {"forces": [1]}}', "'config' is not an object"),
-    ('{"config": {}, "region": {"forces": [0], "durations": [1], "chunk_size": 0}}',
-     "'region.chunk_size' is not a whole number"),
-])
+@pytest.mark.parametrize(
+    "text, problem",
+    [
+        ("[1, 2]", "a JSON list, not an object"),
+        ('{"config": {}, "region": {"forces": [0], "durations": [1]}}', "lacks 'chunk_size'"),
+        ('{"config": {}, "region": [1]}', "'region' is not an object"),
+        ('{"config": {}, "table": {}}', "'table' lacks 'forces'"),
+        ('{"config": {}, "table": {"forces": "1,2"}}', "'table.forces' is not a list of numbers"),
+        ('{"config": [], "table": {"forces": [1]}}', "'config' is not an object"),
+        (
+            '{"config": {}, "region": {"forces": [0], "durations": [1], "chunk_size": 0}}',
+            "'region.chunk_size' is not a whole number",
+        ),
+    ],
+)
 @pytest.mark.parametrize("run", ["table", "sweep"])
 def test_bad_manifest_is_one_clear_error(tmp_path, text, problem, run):
     (tmp_path / store_files.MANIFEST).write_text(text)
@@ -236,8 +252,9 @@ def test_rebuilt_manifest_keeps_the_table(tmp_path, capsys):
     before = json.loads((tmp_path / store_files.MANIFEST).read_text())
     (tmp_path / store_files.MANIFEST).unlink()
     idle = CellLog(fail_on_call=1)
-    assert held_table(tmp_path, Config(), "20,50", run_batch=idle, batch=BATCH,
-                           progress=False) is None
+    assert (
+        held_table(tmp_path, Config(), "20,50", run_batch=idle, batch=BATCH, progress=False) is None
+    )
     assert idle.calls == []
     assert "nothing to do" in capsys.readouterr().out
     after = json.loads((tmp_path / store_files.MANIFEST).read_text())

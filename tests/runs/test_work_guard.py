@@ -46,8 +46,9 @@ def test_durations_between_physics_steps_are_refused_with_the_nearest_valid_valu
 
 def test_sweep_refuses_a_duration_between_steps(tmp_path, capsys):
     out = tmp_path / "run"
-    err = refused(capsys, ["sweep", "--forces", "10", "--durations", "0.1,0.101",
-                           "--out", str(out)], out)
+    err = refused(
+        capsys, ["sweep", "--forces", "10", "--durations", "0.1,0.101", "--out", str(out)], out
+    )
     assert "0.101" in err and "physics steps" in err
 
 
@@ -75,18 +76,43 @@ def test_a_grid_too_large_to_hold_is_refused_from_its_counts():
 
 def test_enormous_sweep_is_refused_before_any_array_or_folder(tmp_path, capsys):
     out = tmp_path / "run"
-    err = refused(capsys, ["sweep", "--forces", "0:150:0.0001", "--durations", "0.05:10:0.05",
-                           "--out", str(out)], out)
+    err = refused(
+        capsys,
+        ["sweep", "--forces", "0:150:0.0001", "--durations", "0.05:10:0.05", "--out", str(out)],
+        out,
+    )
     assert "300,000,200 cells" in err
-    err = refused(capsys, ["sweep", "--forces", "0:150:0.01", "--durations", "0.05:10:0.01",
-                           "--out", str(out), "--chunk", "128"], out)
+    err = refused(
+        capsys,
+        [
+            "sweep",
+            "--forces",
+            "0:150:0.01",
+            "--durations",
+            "0.05:10:0.01",
+            "--out",
+            str(out),
+            "--chunk",
+            "128",
+        ],
+        out,
+    )
     assert "14,940,996 cells" in err and "--yes" in err
 
 
 def test_yes_lets_big_work_through(tmp_path, capsys, ran):
     out = tmp_path / "run"
-    argv = ["sweep", "--forces", "0:150:0.01", "--durations", "0.05:10:0.01", "--chunk", "128",
-            "--out", str(out)]
+    argv = [
+        "sweep",
+        "--forces",
+        "0:150:0.01",
+        "--durations",
+        "0.05:10:0.01",
+        "--chunk",
+        "128",
+        "--out",
+        str(out),
+    ]
     assert main(argv + ["--yes"]) == 0 and ran == [out]
     printed = capsys.readouterr().out
     assert "planned work: 14,940,996 cells in 116,727 chunks of 128" in printed
@@ -103,8 +129,15 @@ def test_table_is_guarded_too(tmp_path, capsys, ran):
 # Every command that runs work plans it first: absurd work refused, --yes lets it through.
 HUGE = {
     "simulate": ["simulate", "--forces", "0:200:0.01", "--durations", "0.1:1:0.1"],
-    "basin": ["basin", "--x-com", "0:0.05:0.00001", "--v-com", "-0.3:0.3:0.0005",
-              "--push-forces", "none"],
+    "basin": [
+        "basin",
+        "--x-com",
+        "0:0.05:0.00001",
+        "--v-com",
+        "-0.3:0.3:0.0005",
+        "--push-forces",
+        "none",
+    ],
 }
 
 

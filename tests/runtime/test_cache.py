@@ -51,8 +51,13 @@ def run_tiny(env_cache: str | None, *overrides: str) -> tuple[str | None, dict]:
     env = {k: v for k, v in os.environ.items() if k != cache.ENV}
     if env_cache is not None:
         env[cache.ENV] = env_cache
-    done = subprocess.run([sys.executable, "-c", TINY, *overrides], env=env,
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, "-c", TINY, *overrides],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr
     lines = [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
     return lines[0]["cache_dir"], lines[-1]
@@ -70,8 +75,9 @@ def test_a_second_process_compiles_nothing(tmp_path):
     assert second["compiles"] == 0 and second["cache_hits"] == first["requests"]
 
     # Another configuration of the same shapes (other weights and body): the same executable.
-    _, other = run_tiny(str(folder), "controller.q_diag=[10.0, 10.0, 1.0, 1.0]",
-                        "body.upper_mass=40.0")
+    _, other = run_tiny(
+        str(folder), "controller.q_diag=[10.0, 10.0, 1.0, 1.0]", "body.upper_mass=40.0"
+    )
     assert other["compiles"] == 0 and other["cache_hits"] == first["requests"]
 
 
@@ -117,21 +123,41 @@ def test_the_rollout_of_another_body_is_loaded_not_compiled(tmp_path):
     cache. Only the engine's initial slot state (``_vacant``, a fraction of a second), which
     bakes the configuration's arrays in as constants, is compiled again."""
     env = {**os.environ, cache.ENV: str(tmp_path / "jax-cache")}
-    script = ("import sys, json\n"
-              "from mjx_balance.cli.main import main, use_host_cores\n"
-              "use_host_cores()  # as the command does, before JAX starts\n"
-              "from mjx_balance.runtime import cache\n"
-              "with cache.CompileCounter() as c:\n"
-              "    code = main(sys.argv[1:])\n"
-              "print(json.dumps(c.as_dict()))\n"
-              "sys.exit(code)\n")
+    script = (
+        "import sys, json\n"
+        "from mjx_balance.cli.main import main, use_host_cores\n"
+        "use_host_cores()  # as the command does, before JAX starts\n"
+        "from mjx_balance.runtime import cache\n"
+        "with cache.CompileCounter() as c:\n"
+        "    code = main(sys.argv[1:])\n"
+        "print(json.dumps(c.as_dict()))\n"
+        "sys.exit(code)\n"
+    )
     counts = []
     for k, mass in enumerate(("35.0", "40.0")):
         done = subprocess.run(
-            [sys.executable, "-c", script, "-q", "sweep", "--forces", "10,200", "--durations",
-             "0.1", "--set", "scenario.t_end=1", "--set", f"body.upper_mass={mass}",
-             "--out", str(tmp_path / f"run{k}")],
-            env=env, capture_output=True, text=True, timeout=900)
+            [
+                sys.executable,
+                "-c",
+                script,
+                "-q",
+                "sweep",
+                "--forces",
+                "10,200",
+                "--durations",
+                "0.1",
+                "--set",
+                "scenario.t_end=1",
+                "--set",
+                f"body.upper_mass={mass}",
+                "--out",
+                str(tmp_path / f"run{k}"),
+            ],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=900,
+        )
         assert done.returncode == 0, done.stderr
         counts.append(json.loads(done.stdout.strip().splitlines()[-1]))
     first, second = counts
@@ -157,8 +183,9 @@ print(json.dumps(counter.as_dict()))
 
 def run_heal(folder: Path) -> tuple[dict, str]:
     env = {**os.environ, cache.ENV: str(folder)}
-    done = subprocess.run([sys.executable, "-c", HEAL], env=env, capture_output=True,
-                          text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, "-c", HEAL], env=env, capture_output=True, text=True, timeout=300
+    )
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout.strip().splitlines()[-1]), done.stderr
 
@@ -173,10 +200,10 @@ def test_a_damaged_cache_entry_is_removed_and_compiled_once_again(tmp_path, dama
     for entry in entries:  # as a full disk or a killed writer leaves it, or a bad sector
         data = entry.read_bytes()
         if damage == "cut short":
-            entry.write_bytes(data[:len(data) // 2])
+            entry.write_bytes(data[: len(data) // 2])
         else:
             middle = len(data) // 2
-            entry.write_bytes(data[:middle] + bytes([data[middle] ^ 0xFF]) + data[middle + 1:])
+            entry.write_bytes(data[:middle] + bytes([data[middle] ^ 0xFF]) + data[middle + 1 :])
     second, said = run_heal(folder)
     assert f"removed {len(entries)} damaged entr" in said  # one line
     assert said.count("compilation cache:") == 1
@@ -194,7 +221,6 @@ def test_healing_checks_each_entry_once_and_leaves_other_files(tmp_path):
     (tmp_path / "b-atime").write_bytes(b"12345678")
     (tmp_path / "notes.txt").write_text("not an entry")
     assert cache.heal(tmp_path) == ["b-cache"]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["a-cache", "notes.txt",
-                                                          cache.VERIFIED]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a-cache", "notes.txt", cache.VERIFIED]
     assert json.loads((tmp_path / cache.VERIFIED).read_text()).keys() == {"a-cache"}
     assert cache.heal(tmp_path) == []

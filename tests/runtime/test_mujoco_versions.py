@@ -76,8 +76,10 @@ def test_the_lookup_reads_the_distributions(monkeypatch):
     finally:
         version.mujoco_versions.cache_clear()
     monkeypatch.undo()
-    assert version.mujoco_versions() == (version.installed("mujoco"),
-                                         version.installed("mujoco-mjx"))
+    assert version.mujoco_versions() == (
+        version.installed("mujoco"),
+        version.installed("mujoco-mjx"),
+    )
 
 
 def test_the_physics_refuses_at_its_first_call(monkeypatch):
@@ -142,9 +144,14 @@ print(json.dumps({"code": code, "light": light, "refused": refused}))
 
 
 def test_import_and_version_work_under_a_mismatched_pair(tmp_path):
-    done = subprocess.run([sys.executable, "-c", MISMATCHED], cwd=tmp_path, capture_output=True,
-                          text=True, timeout=120, env={"PATH": "/usr/bin:/bin",
-                                                       "MJX_BALANCE_CACHE_DIR": "off"})
+    done = subprocess.run(
+        [sys.executable, "-c", MISMATCHED],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={"PATH": "/usr/bin:/bin", "MJX_BALANCE_CACHE_DIR": "off"},
+    )
     assert done.returncode == 0, done.stderr
     lines = done.stdout.strip().splitlines()
     assert lines[0].startswith("mjx-balance ") and "mujoco 4.0.0" in lines[0]

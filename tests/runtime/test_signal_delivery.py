@@ -79,8 +79,12 @@ def test_a_signal_after_the_console_scripts_work_changes_nothing(tmp_path):
         time.sleep(0.2)
         sys.exit(code)
     """)
-    done = subprocess.run([sys.executable, "-c", script, str(tmp_path / "body.xml")],
-                          capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-c", script, str(tmp_path / "body.xml")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 0 and done.stderr == "", done.stderr
     assert (tmp_path / "body.xml").exists()
 
@@ -94,10 +98,12 @@ def test_a_ctrl_c_that_osqp_caught_is_delivered():
 
     from mjx_balance.control.osqp_mpc import checked
 
-    caught = types.SimpleNamespace(info=types.SimpleNamespace(
-        status_val=osqp.SolverStatus.OSQP_SIGINT))
-    solved = types.SimpleNamespace(info=types.SimpleNamespace(
-        status_val=osqp.SolverStatus.OSQP_SOLVED))
+    caught = types.SimpleNamespace(
+        info=types.SimpleNamespace(status_val=osqp.SolverStatus.OSQP_SIGINT)
+    )
+    solved = types.SimpleNamespace(
+        info=types.SimpleNamespace(status_val=osqp.SolverStatus.OSQP_SOLVED)
+    )
     assert checked(solved) is solved
     with pytest.raises(signals.Interrupted):
         with signals.honoured():
@@ -113,9 +119,25 @@ def test_ctrl_c_during_simulate_ends_it(tmp_path):
 
     out = tmp_path / "sim"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "mjx_balance", "-q", "simulate", "--forces", "60,80,100",
-         "--durations", "0.2", "--set", "scenario.t_end=4", "--out", str(out)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        [
+            sys.executable,
+            "-m",
+            "mjx_balance",
+            "-q",
+            "simulate",
+            "--forces",
+            "60,80,100",
+            "--durations",
+            "0.2",
+            "--set",
+            "scenario.t_end=4",
+            "--out",
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     deadline = time.monotonic() + 120
     while not (out / "pushes" / "request.json").exists() and time.monotonic() < deadline:
         time.sleep(0.01)
@@ -123,5 +145,7 @@ def test_ctrl_c_during_simulate_ends_it(tmp_path):
     os.kill(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
-    assert err.strip().splitlines() == ["mjx-balance: error: interrupted (SIGINT); what "
-                                        "finished is kept: run the same command to resume"]
+    assert err.strip().splitlines() == [
+        "mjx-balance: error: interrupted (SIGINT); what "
+        "finished is kept: run the same command to resume"
+    ]

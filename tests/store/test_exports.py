@@ -51,13 +51,19 @@ class FakeBasinRunner:
 def tables(folder: Path) -> list[Path]:
     """Every table under ``folder``: CSV and parquet files (chunks and parts too), not the
     units sidecars."""
-    return sorted(p for p in folder.rglob("*") if p.suffix in (".csv", ".parquet")
-                  and not p.name.endswith(".units.csv"))
+    return sorted(
+        p
+        for p in folder.rglob("*")
+        if p.suffix in (".csv", ".parquet") and not p.name.endswith(".units.csv")
+    )
 
 
 def columns(path: Path) -> list[str]:
-    return (pq.read_schema(path).names if path.suffix == ".parquet"
-            else list(pd.read_csv(path, nrows=0).columns))
+    return (
+        pq.read_schema(path).names
+        if path.suffix == ".parquet"
+        else list(pd.read_csv(path, nrows=0).columns)
+    )
 
 
 @pytest.fixture(scope="module")
@@ -70,55 +76,162 @@ def written(tmp_path_factory):
         ref = root / "ref.csv"
         ref.write_text("force,max_acting_time,energy_total_01\n10,2.9,0.3\n20,1.4,0.6\n")
         sweep = root / "sweep"
-        assert main(["sweep", *GRID, "--chunk", "8", "--format", "both", "--out",
-                     str(sweep)]) == 0
-        assert main(["table", "--forces", "10,20", "--reference", str(ref), "--format", "both",
-                     "--out", str(sweep)]) == 0
+        assert main(["sweep", *GRID, "--chunk", "8", "--format", "both", "--out", str(sweep)]) == 0
+        assert (
+            main(
+                [
+                    "table",
+                    "--forces",
+                    "10,20",
+                    "--reference",
+                    str(ref),
+                    "--format",
+                    "both",
+                    "--out",
+                    str(sweep),
+                ]
+            )
+            == 0
+        )
         (root / "a.toml").write_text('[controller]\nconvention = "paper"\n')
         (root / "b.toml").write_text('[controller]\nconvention = "joint"\n')
-        assert main(["compare", str(root / "a.toml"), str(root / "b.toml"), *GRID,
-                     "--table-forces", "10,20", "--format", "both",
-                     "--out", str(root / "compare")]) == 0
-        assert main(["landscape", "--q-scales", "1,10", "--r-scales", "1", "--delays", "0",
-                     *GRID, "--table-forces", "10", "--format", "both",
-                     "--out", str(root / "landscape")]) == 0
-        assert main(["sensitivity", "--forces", "10,20", "--readings",
-                     "paper_plain,joint_plain", "--out", str(root / "sensitivity")]) == 0
-        assert main(["basin", "--x-com=-0.02,0,0.02", "--v-com", "0,0.1",
-                     "--push-forces", "none", "--format", "both",
-                     "--out", str(root / "basin")]) == 0
+        assert (
+            main(
+                [
+                    "compare",
+                    str(root / "a.toml"),
+                    str(root / "b.toml"),
+                    *GRID,
+                    "--table-forces",
+                    "10,20",
+                    "--format",
+                    "both",
+                    "--out",
+                    str(root / "compare"),
+                ]
+            )
+            == 0
+        )
+        assert (
+            main(
+                [
+                    "landscape",
+                    "--q-scales",
+                    "1,10",
+                    "--r-scales",
+                    "1",
+                    "--delays",
+                    "0",
+                    *GRID,
+                    "--table-forces",
+                    "10",
+                    "--format",
+                    "both",
+                    "--out",
+                    str(root / "landscape"),
+                ]
+            )
+            == 0
+        )
+        assert (
+            main(
+                [
+                    "sensitivity",
+                    "--forces",
+                    "10,20",
+                    "--readings",
+                    "paper_plain,joint_plain",
+                    "--out",
+                    str(root / "sensitivity"),
+                ]
+            )
+            == 0
+        )
+        assert (
+            main(
+                [
+                    "basin",
+                    "--x-com=-0.02,0,0.02",
+                    "--v-com",
+                    "0,0.1",
+                    "--push-forces",
+                    "none",
+                    "--format",
+                    "both",
+                    "--out",
+                    str(root / "basin"),
+                ]
+            )
+            == 0
+        )
         short = root / "short.toml"
         short.write_text("[scenario]\nt_end = 0.5\n")
-        assert main(["simulate", "--forces", "0,30", "--durations", "0.1", "--config",
-                     str(short), "--format", "both", "--out", str(root / "simulate")]) == 0
+        assert (
+            main(
+                [
+                    "simulate",
+                    "--forces",
+                    "0,30",
+                    "--durations",
+                    "0.1",
+                    "--config",
+                    str(short),
+                    "--format",
+                    "both",
+                    "--out",
+                    str(root / "simulate"),
+                ]
+            )
+            == 0
+        )
     return root
 
 
 def test_every_column_of_every_table_has_a_unit(written):
     found = tables(written)
     names = {p.name for p in found}
-    for name in ("region.parquet", "region.csv", "table.csv", "table.parquet",
-                 "table_runs.parquet", "table_runs.csv", "scorecard.csv", "compare.csv",
-                 "landscape.csv", "sensitivity.csv", "basin.parquet", "basin.csv",
-                 "summary.csv", "summary.parquet", "timeseries.parquet", "timeseries.csv"):
+    for name in (
+        "region.parquet",
+        "region.csv",
+        "table.csv",
+        "table.parquet",
+        "table_runs.parquet",
+        "table_runs.csv",
+        "scorecard.csv",
+        "compare.csv",
+        "landscape.csv",
+        "sensitivity.csv",
+        "basin.parquet",
+        "basin.csv",
+        "summary.csv",
+        "summary.parquet",
+        "timeseries.parquet",
+        "timeseries.csv",
+    ):
         assert name in names, name
-    missing = {str(p.relative_to(written)): units.unknown(columns(p)) for p in found
-               if p.name != "ref.csv"}
+    missing = {
+        str(p.relative_to(written)): units.unknown(columns(p)) for p in found if p.name != "ref.csv"
+    }
     assert not {k: v for k, v in missing.items() if v}, (
-        "columns without a unit in measures/units.py")
+        "columns without a unit in measures/units.py"
+    )
 
 
 def test_the_registry_fails_on_a_new_column():
-    assert units.unknown(["force", "max_acting_time_12.5N", "energy_study_01_paper_plain",
-                          "a_new_column"]) == ["a_new_column"]
+    assert units.unknown(
+        ["force", "max_acting_time_12.5N", "energy_study_01_paper_plain", "a_new_column"]
+    ) == ["a_new_column"]
     with pytest.raises(KeyError, match="a_new_column"):
         units.unit("a_new_column")
 
 
 def test_parquet_files_carry_their_units(written):
-    for path in (written / "sweep" / "region.parquet", written / "simulate" / "timeseries.parquet",
-                 written / "sweep" / "table.parquet", next((written / "sweep" / "chunks")
-                                                           .glob("*.parquet"))):
+    for path in (
+        written / "sweep" / "region.parquet",
+        written / "simulate" / "timeseries.parquet",
+        written / "sweep" / "table.parquet",
+        next((written / "sweep" / "chunks").glob("*.parquet")),
+    ):
         schema = pq.read_schema(path)
         table_units = json.loads(schema.metadata[UNITS_KEY])
         for field in schema:
@@ -141,13 +254,16 @@ def test_every_csv_has_its_units_beside_it(written):
 
 def _same_bits(a: pd.Series, b: pd.Series) -> bool:
     a, b = a.to_numpy(np.float64), b.to_numpy(np.float64)
-    return bool(np.array_equal(np.isnan(a), np.isnan(b))
-                and np.array_equal(a[~np.isnan(a)].view(np.int64),
-                                   b[~np.isnan(b)].view(np.int64)))
+    return bool(
+        np.array_equal(np.isnan(a), np.isnan(b))
+        and np.array_equal(a[~np.isnan(a)].view(np.int64), b[~np.isnan(b)].view(np.int64))
+    )
 
 
-@pytest.mark.parametrize("folder,name", [("sweep", "region"), ("simulate", "timeseries"),
-                                         ("sweep", "table_runs"), ("basin", "basin")])
+@pytest.mark.parametrize(
+    "folder,name",
+    [("sweep", "region"), ("simulate", "timeseries"), ("sweep", "table_runs"), ("basin", "basin")],
+)
 def test_a_csv_reads_back_to_the_parquet_bit_for_bit(written, folder, name):
     parquet = pd.read_parquet(written / folder / f"{name}.parquet")
     csv = pd.read_csv(written / folder / f"{name}.csv")
@@ -218,9 +334,18 @@ def test_chunks_from_before_units_resume_and_merge_unchanged(tmp_path, stand_in)
 # -- grid values exact at the parser ---------------------------------------------------------
 
 
-@pytest.mark.parametrize("text", ["0.05:1.5:0.05", "0.002:1.5:0.002", "-100:100:0.1",
-                                  "0:300:2.5", "1e-3:2e-2:1e-3", "1e-15:1e-14:1e-15",
-                                  "123456789.123456:123456789.2:0.000001"])
+@pytest.mark.parametrize(
+    "text",
+    [
+        "0.05:1.5:0.05",
+        "0.002:1.5:0.002",
+        "-100:100:0.1",
+        "0:300:2.5",
+        "1e-3:2e-2:1e-3",
+        "1e-15:1e-14:1e-15",
+        "123456789.123456:123456789.2:0.000001",
+    ],
+)
 def test_a_range_gives_the_decimal_values_as_written(text):
     start, stop, step = (Decimal(p) for p in text.split(":"))
     values = parse_grid(text)
@@ -249,15 +374,26 @@ def test_the_units_table_in_the_docs_is_the_registry():
     documented = {name: unit.strip() for name, unit in rows}
     shown = {"(label)": ""}
     registry = {name: shown.get(unit, unit) for name, (unit, _) in units.UNITS.items()}
-    registry.update({"max_acting_time_<F>N": "s", "max_acting_time_<reading>": "s",
-                     "energy_study_<reading>": "J", "energy_motors_<reading>": "J",
-                     "energy_study_01_<reading>": "J", "energy_motors_01_<reading>": "J",
-                     "energy_<definition>_min": "J", "energy_<definition>_max": "J"})
+    registry.update(
+        {
+            "max_acting_time_<F>N": "s",
+            "max_acting_time_<reading>": "s",
+            "energy_study_<reading>": "J",
+            "energy_motors_<reading>": "J",
+            "energy_study_01_<reading>": "J",
+            "energy_motors_01_<reading>": "J",
+            "energy_<definition>_min": "J",
+            "energy_<definition>_max": "J",
+        }
+    )
     documented = {k: ("" if v == "–" else v) for k, v in documented.items()}
     assert documented == registry
     for name in documented:  # every documented pattern is one the registry matches
-        example = (name.replace("<F>", "50").replace("<reading>", "paper_plain")
-                   .replace("<definition>", "study"))
+        example = (
+            name.replace("<F>", "50")
+            .replace("<reading>", "paper_plain")
+            .replace("<definition>", "study")
+        )
         assert units.describe(example) is not None, name
 
 
@@ -267,8 +403,13 @@ def test_the_declared_columns_are_in_the_registry():
     from mjx_balance.studies.landscape import COLUMNS
     from mjx_balance.studies.scorecard import SCORECARD_COLUMNS
 
-    for declared in (SUMMARY_COLUMNS, TIMESERIES_COLUMNS, TABLE_COLUMNS, COLUMNS,
-                     SCORECARD_COLUMNS):
+    for declared in (
+        SUMMARY_COLUMNS,
+        TIMESERIES_COLUMNS,
+        TABLE_COLUMNS,
+        COLUMNS,
+        SCORECARD_COLUMNS,
+    ):
         assert units.unknown(declared) == []
     assert units.unit("outcome") == "" and units.unit("energy_total") == "J"
 

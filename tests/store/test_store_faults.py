@@ -97,8 +97,13 @@ def test_readable_png_rejects_cut_and_corrupt_files(tmp_path, fake_rollout):
     assert cli_sweep(tmp_path) == 0
     whole = (tmp_path / "region.png").read_bytes()
     bad = tmp_path / "bad.png"
-    for damaged in (b"", whole[:8], whole[:-1], whole[:1000] + whole[-12:],
-                    whole[:200] + bytes(100) + whole[300:]):
+    for damaged in (
+        b"",
+        whole[:8],
+        whole[:-1],
+        whole[:1000] + whole[-12:],
+        whole[:200] + bytes(100) + whole[300:],
+    ):
         bad.write_bytes(damaged)
         assert not readable_png(bad)
     assert not readable_png(tmp_path / "missing.png")
@@ -120,15 +125,22 @@ def test_lost_manifest_is_rebuilt_from_config_and_chunks(tmp_path):
 
     lines: list[str] = []
     resumed = FakeThresholdBatch()
-    result = held_sweep(out, tiny_config(), Grid.of(*GRID, tiny_config()), run_batch=resumed,
-                             chunk=100,
-                             progress=False, say=lines.append)
+    result = held_sweep(
+        out,
+        tiny_config(),
+        Grid.of(*GRID, tiny_config()),
+        run_batch=resumed,
+        chunk=100,
+        progress=False,
+        say=lines.append,
+    )
     assert resumed.calls == [8] * 3 and result.reused_chunks == 2  # chunk size from the files
     rebuilt = [line for line in lines if "lost its manifest.json" in line]
     assert len(rebuilt) == 1 and "config.toml matches" in rebuilt[0] and "2 of 2" in rebuilt[0]
     assert without_runs(json.loads((out / "manifest.json").read_text())) == recorded
-    pd.testing.assert_frame_equal(pd.read_parquet(out / "region.parquet"),
-                                  pd.read_parquet(whole / "region.parquet"))
+    pd.testing.assert_frame_equal(
+        pd.read_parquet(out / "region.parquet"), pd.read_parquet(whole / "region.parquet")
+    )
 
     # A finished folder without its manifest: nothing to compute.
     (out / "manifest.json").unlink()
@@ -149,14 +161,26 @@ def test_lost_manifest_is_not_rebuilt_for_other_results(tmp_path):
     with pytest.raises(ParameterError, match="config.toml differs.*controller.horizon"):
         sweep_fake(tmp_path, FakeThresholdBatch(), config=other)
     with pytest.raises(ParameterError, match="do not match this grid"):
-        held_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()),
-                        run_batch=FakeThresholdBatch(), progress=False, say=None)
+        held_sweep(
+            tmp_path,
+            tiny_config(),
+            Grid.of("0:100:20", GRID[1], tiny_config()),
+            run_batch=FakeThresholdBatch(),
+            progress=False,
+            say=None,
+        )
     assert not (tmp_path / "manifest.json").exists()  # nothing rewritten by a refused run
     shutil.rmtree(tmp_path / "chunks")  # region.parquet alone, of another grid: kept, refused
     region = (tmp_path / "region.parquet").read_bytes()
     with pytest.raises(ParameterError, match="do not match this grid"):
-        held_sweep(tmp_path, tiny_config(), Grid.of("0:100:20", GRID[1], tiny_config()),
-                        run_batch=FakeThresholdBatch(), progress=False, say=None)
+        held_sweep(
+            tmp_path,
+            tiny_config(),
+            Grid.of("0:100:20", GRID[1], tiny_config()),
+            run_batch=FakeThresholdBatch(),
+            progress=False,
+            say=None,
+        )
     assert (tmp_path / "region.parquet").read_bytes() == region
     (tmp_path / "config.toml").unlink()
     with pytest.raises(ParameterError, match="no manifest.json and no config.toml"):
@@ -164,13 +188,20 @@ def test_lost_manifest_is_not_rebuilt_for_other_results(tmp_path):
 
 
 def test_lost_manifest_of_a_table_folder_lets_a_sweep_start(tmp_path):
-    held_table(tmp_path, tiny_config(), [20, 40], run_batch=FakeThresholdBatch(),
-                    progress=False, say=None)
+    held_table(
+        tmp_path, tiny_config(), [20, 40], run_batch=FakeThresholdBatch(), progress=False, say=None
+    )
     (tmp_path / "manifest.json").unlink()
     lines: list[str] = []
-    held_sweep(tmp_path, tiny_config(), Grid.of(*GRID, tiny_config()),
-                    run_batch=FakeThresholdBatch(), chunk=8,
-                    progress=False, say=lines.append)
+    held_sweep(
+        tmp_path,
+        tiny_config(),
+        Grid.of(*GRID, tiny_config()),
+        run_batch=FakeThresholdBatch(),
+        chunk=8,
+        progress=False,
+        say=lines.append,
+    )
     assert [line for line in lines if "lost its manifest.json" in line]
     assert json.loads((tmp_path / "manifest.json").read_text())["region"]["cells"] == 35
 
@@ -189,8 +220,12 @@ HOLD_LOCK = textwrap.dedent("""
 
 def test_second_run_is_refused_while_another_holds_the_folder(tmp_path, fake_rollout, capsys):
     out = tmp_path / "shared"
-    holder = subprocess.Popen([sys.executable, "-c", HOLD_LOCK, str(out)], stdin=subprocess.PIPE,
-                              stdout=subprocess.PIPE, text=True)
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLD_LOCK, str(out)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert holder.stdout.readline().strip() == "locked"
         fake = fake_rollout(FakeThresholdBatch())
@@ -222,11 +257,23 @@ def test_a_run_takes_the_folder_lock_once(tmp_path):
     assert "PID" in (tmp_path / ".lock").read_text()
     config = tiny_config()
     with pytest.raises(RuntimeError, match="not held"):
-        run_sweep(tmp_path / "bare", config, Grid.of(*GRID, config),
-                  run_batch=FakeThresholdBatch(), progress=False, say=None)
+        run_sweep(
+            tmp_path / "bare",
+            config,
+            Grid.of(*GRID, config),
+            run_batch=FakeThresholdBatch(),
+            progress=False,
+            say=None,
+        )
     with pytest.raises(RuntimeError, match="not held"):
-        run_table(tmp_path / "bare", config, [20.0], run_batch=FakeThresholdBatch(),
-                  progress=False, say=None)
+        run_table(
+            tmp_path / "bare",
+            config,
+            [20.0],
+            run_batch=FakeThresholdBatch(),
+            progress=False,
+            say=None,
+        )
     assert not (tmp_path / "bare" / "manifest.json").exists()
 
 
@@ -293,8 +340,9 @@ def test_a_folder_that_cannot_hold_a_lock_file_is_still_read(tmp_path, monkeypat
 # --- write errors ----------------------------------------------------------------------
 
 
-def test_full_disk_mid_sweep_is_one_line_and_the_rerun_resumes(tmp_path, fake_rollout, capsys,
-                                                               monkeypatch):
+def test_full_disk_mid_sweep_is_one_line_and_the_rerun_resumes(
+    tmp_path, fake_rollout, capsys, monkeypatch
+):
     whole = tmp_path / "whole"
     assert cli_sweep(whole) == 0
     out = tmp_path / "full"
@@ -322,8 +370,9 @@ def test_full_disk_mid_sweep_is_one_line_and_the_rerun_resumes(tmp_path, fake_ro
     resumed = fake_rollout(FakeThresholdBatch())
     assert cli_sweep(out) == 0
     assert resumed.calls == [4, 4]  # chunks 2 and 3 of 0..3
-    pd.testing.assert_frame_equal(pd.read_parquet(out / "region.parquet"),
-                                  pd.read_parquet(whole / "region.parquet"))
+    pd.testing.assert_frame_equal(
+        pd.read_parquet(out / "region.parquet"), pd.read_parquet(whole / "region.parquet")
+    )
 
 
 FAKE_SWEEP = textwrap.dedent("""
@@ -341,8 +390,20 @@ FAKE_SWEEP = textwrap.dedent("""
 
 
 def run_fake_sweep(out: Path, file_limit: int) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", FAKE_SWEEP, str(REPO / "tests"), str(file_limit),
-                           str(out), *CLI_GRID], capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            FAKE_SWEEP,
+            str(REPO / "tests"),
+            str(file_limit),
+            str(out),
+            *CLI_GRID,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 def test_file_size_limit_leaves_no_damaged_figure(tmp_path, fake_rollout, capsys):
@@ -380,18 +441,30 @@ def test_files_get_the_mode_the_umask_gives(tmp_path, fake_rollout, umask, mode)
         os.umask(old)
     files = [p for p in tmp_path.rglob("*") if p.is_file()]
     names = {p.name for p in files}
-    assert {"region.parquet", "manifest.json", "config.toml", "region.png", "energy.png",
-            "chunk-00000.parquet", ".lock"} <= names
-    wrong = {p.name: oct(stat.S_IMODE(p.stat().st_mode)) for p in files
-             if stat.S_IMODE(p.stat().st_mode) != mode}
+    assert {
+        "region.parquet",
+        "manifest.json",
+        "config.toml",
+        "region.png",
+        "energy.png",
+        "chunk-00000.parquet",
+        ".lock",
+    } <= names
+    wrong = {
+        p.name: oct(stat.S_IMODE(p.stat().st_mode))
+        for p in files
+        if stat.S_IMODE(p.stat().st_mode) != mode
+    }
     assert wrong == {}
 
 
 def test_leftover_temporary_files_are_removed(tmp_path):
     with pytest.raises(KeyboardInterrupt):
         sweep_fake(tmp_path, FakeThresholdBatch(fail_on_call=2))
-    leftovers = [tmp_path / ".region.parquet.x1y2.tmp",
-                 tmp_path / "chunks" / ".chunk-00001.parquet.a1b2.tmp"]
+    leftovers = [
+        tmp_path / ".region.parquet.x1y2.tmp",
+        tmp_path / "chunks" / ".chunk-00001.parquet.a1b2.tmp",
+    ]
     for path in leftovers:
         path.write_bytes(b"half a file")
     sweep_fake(tmp_path, FakeThresholdBatch())
@@ -410,15 +483,16 @@ def short_config(tmp_path: Path, t_end: float = 0.2) -> Path:
 
 def half_then_fail(write_partial):
     """A writer that writes half a file at the path it is given, then fails (a full disk)."""
+
     def fail(path):
         write_partial(path)
         raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
     return fail
 
 
 def leftovers(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.rglob("*.tmp"))
-
 
 
 def test_outputs_are_whole_or_old_after_a_failed_write(tmp_path, capsys, monkeypatch):
@@ -432,21 +506,48 @@ def test_outputs_are_whole_or_old_after_a_failed_write(tmp_path, capsys, monkeyp
 
     # simulate: a first run, then reruns in which one kind of write fails half-way.
     out = tmp_path / "sim"
-    argv = ["simulate", "--forces", "10", "--durations", "0.1", "--config",
-            str(short_config(tmp_path)), "--out", str(out)]
+    argv = [
+        "simulate",
+        "--forces",
+        "10",
+        "--durations",
+        "0.1",
+        "--config",
+        str(short_config(tmp_path)),
+        "--out",
+        str(out),
+    ]
     assert cli.main(argv) == 0
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     assert {"summary.csv", "timeseries.parquet", "config.toml", "energy.png"} <= set(before)
     failing = [  # summary.csv, timeseries.parquet, config.toml, the figures
-        (pd.DataFrame, "to_csv", lambda self, path, **kw: half_then_fail(
-            lambda p: open(p, "w").write("force,dura"))(path)),
+        (
+            pd.DataFrame,
+            "to_csv",
+            lambda self, path, **kw: half_then_fail(lambda p: open(p, "w").write("force,dura"))(
+                path
+            ),
+        ),
         # parquet files are written by pyarrow (store.files.write_parquet: units in the schema)
-        (pq, "write_table", lambda table, path, **kw: half_then_fail(
-            lambda p: open(p, "wb").write(b"PAR1\x00"))(path)),
-        (Path, "write_text", lambda self, text, **kw: half_then_fail(
-            lambda p: open(p, "w").write(text[:10]))(self)),
-        (matplotlib.figure.Figure, "savefig", lambda self, path, **kw: half_then_fail(
-            lambda p: open(p, "wb").write(b"\x89PNG\r\n"))(path)),
+        (
+            pq,
+            "write_table",
+            lambda table, path, **kw: half_then_fail(lambda p: open(p, "wb").write(b"PAR1\x00"))(
+                path
+            ),
+        ),
+        (
+            Path,
+            "write_text",
+            lambda self, text, **kw: half_then_fail(lambda p: open(p, "w").write(text[:10]))(self),
+        ),
+        (
+            matplotlib.figure.Figure,
+            "savefig",
+            lambda self, path, **kw: half_then_fail(lambda p: open(p, "wb").write(b"\x89PNG\r\n"))(
+                path
+            ),
+        ),
     ]
     for owner, name, fail in failing:
         with monkeypatch.context() as m:
@@ -458,7 +559,8 @@ def test_outputs_are_whole_or_old_after_a_failed_write(tmp_path, capsys, monkeyp
         after = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
         records = ("manifest.json", ".lock")  # the runs' records (the lock names its holder)
         assert {k: v for k, v in after.items() if k not in records} == {
-            k: v for k, v in before.items() if k not in records}, name
+            k: v for k, v in before.items() if k not in records
+        }, name
         manifest = json.loads(after["manifest.json"])
         old = json.loads(before["manifest.json"])
         assert (manifest["config"], manifest["simulate"]) == (old["config"], old["simulate"])
@@ -469,15 +571,20 @@ def test_outputs_are_whole_or_old_after_a_failed_write(tmp_path, capsys, monkeyp
     gif = tmp_path / "push.gif"
     gif.write_bytes(b"an older GIF")
     with monkeypatch.context() as m:
-        m.setattr(Image.Image, "save", lambda self, fp, *a, **kw: half_then_fail(
-            lambda p: Path(p).write_bytes(b"GIF89a"))(fp))
-        code, err = run_cli(["animate", "--force", "10", "--t-end", "0.1", "--fps", "50",
-                         "--out", str(gif)], capsys)
+        m.setattr(
+            Image.Image,
+            "save",
+            lambda self, fp, *a, **kw: half_then_fail(lambda p: Path(p).write_bytes(b"GIF89a"))(fp),
+        )
+        code, err = run_cli(
+            ["animate", "--force", "10", "--t-end", "0.1", "--fps", "50", "--out", str(gif)], capsys
+        )
         assert code == 1 and "Traceback" not in err
     assert gif.read_bytes() == b"an older GIF"
     assert leftovers(tmp_path) == []
-    code, _ = run_cli(["animate", "--force", "10", "--t-end", "0.1", "--fps", "50",
-                   "--out", str(gif)], capsys)
+    code, _ = run_cli(
+        ["animate", "--force", "10", "--t-end", "0.1", "--fps", "50", "--out", str(gif)], capsys
+    )
     assert code == 0
     with Image.open(gif) as image:
         assert image.format == "GIF" and image.n_frames == 6
@@ -485,11 +592,17 @@ def test_outputs_are_whole_or_old_after_a_failed_write(tmp_path, capsys, monkeyp
     # report: report.html, its figures and its tables.
     rep = tmp_path / "report"
     rep.mkdir()
-    monkeypatch.setattr(html, "load_results", lambda out: {"conventions": {}, "studies": {},
-                                                          "record": {}, "config": None})
+    monkeypatch.setattr(
+        html,
+        "load_results",
+        lambda out: {"conventions": {}, "studies": {}, "record": {}, "config": None},
+    )
     monkeypatch.setattr(html, "sections", lambda out: [])
-    monkeypatch.setattr(html, "overview_section", lambda page: {
-        "id": "overview", "heading": "overview", "blocks": []})
+    monkeypatch.setattr(
+        html,
+        "overview_section",
+        lambda page: {"id": "overview", "heading": "overview", "blocks": []},
+    )
     monkeypatch.setattr(html, "banner", lambda record, config: None)
     page = html.build_report(rep)
     assert "overview" in page.read_text()
@@ -498,12 +611,25 @@ def test_outputs_are_whole_or_old_after_a_failed_write(tmp_path, capsys, monkeyp
     report_run.write_json(rep / "report.json", {"a": 1})
     before = {p.relative_to(rep): p.read_bytes() for p in rep.rglob("*") if p.is_file()}
     with monkeypatch.context() as m:
-        m.setattr(Path, "write_text", lambda self, text, **kw: half_then_fail(
-            lambda p: p.write_bytes(text[:10].encode()))(self))
-        m.setattr(pd.DataFrame, "to_csv", lambda self, path, **kw: half_then_fail(
-            lambda p: open(p, "w").write("a,"))(path))
-        m.setattr(matplotlib.figure.Figure, "savefig", lambda self, path, **kw: half_then_fail(
-            lambda p: open(p, "wb").write(b"\x89PNG"))(path))
+        m.setattr(
+            Path,
+            "write_text",
+            lambda self, text, **kw: half_then_fail(lambda p: p.write_bytes(text[:10].encode()))(
+                self
+            ),
+        )
+        m.setattr(
+            pd.DataFrame,
+            "to_csv",
+            lambda self, path, **kw: half_then_fail(lambda p: open(p, "w").write("a,"))(path),
+        )
+        m.setattr(
+            matplotlib.figure.Figure,
+            "savefig",
+            lambda self, path, **kw: half_then_fail(lambda p: open(p, "wb").write(b"\x89PNG"))(
+                path
+            ),
+        )
         with pytest.raises(OSError):
             html.build_report(rep)
         with pytest.raises(OSError):
@@ -511,6 +637,7 @@ def test_outputs_are_whole_or_old_after_a_failed_write(tmp_path, capsys, monkeyp
         with pytest.raises(OSError):
             report_run.write_csv(pd.DataFrame({"b": [2]}), rep / "numbers.csv")
         import matplotlib.pyplot as plt
+
         with pytest.raises(OSError):
             html.save_figure(plt.figure(), rep / "figures" / "f.png")
     assert {p.relative_to(rep): p.read_bytes() for p in rep.rglob("*") if p.is_file()} == before
@@ -524,8 +651,12 @@ def test_wait_for_the_run_that_holds_the_folder(tmp_path, fake_rollout, capsys):
     assert build_parser().parse_args(["table", "--wait", "--out", "x"]).wait is True
     assert build_parser().parse_args(["sweep", "--out", "x"]).wait is False
     out = tmp_path / "shared"
-    holder = subprocess.Popen([sys.executable, "-c", HOLD_LOCK, str(out)], stdin=subprocess.PIPE,
-                              stdout=subprocess.PIPE, text=True)
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLD_LOCK, str(out)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     release = threading.Timer(3.0, holder.stdin.close)
     try:
         assert holder.stdout.readline().strip() == "locked"
@@ -545,7 +676,8 @@ def test_wait_for_the_run_that_holds_the_folder(tmp_path, fake_rollout, capsys):
     waiting = [line for line in lines if line.startswith("waiting")]
     assert len(waiting) == 1, lines
     assert waiting[0].startswith(
-        f"waiting for {out}: in use by another run (PID {holder.pid}, started "), waiting
+        f"waiting for {out}: in use by another run (PID {holder.pid}, started "
+    ), waiting
     assert (out / "region.parquet").exists()
 
 
@@ -558,7 +690,9 @@ def test_a_sweep_refuses_a_folder_of_another_kind(tmp_path, capsys, fake_rollout
     (out / "manifest.json").write_text(json.dumps(manifest))
     assert main(["-q", "sweep", "--forces", "10", "--durations", "0.1", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"mjx-balance: error: {out} holds another kind of output (a {kind} run's); "
-                   "use another --out folder"]
+    assert err == [
+        f"mjx-balance: error: {out} holds another kind of output (a {kind} run's); "
+        "use another --out folder"
+    ]
     assert sorted(p.name for p in out.iterdir()) == [".lock", "manifest.json"]
     assert json.loads((out / "manifest.json").read_text()) == manifest

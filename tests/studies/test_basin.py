@@ -34,22 +34,39 @@ def test_the_posture_realises_the_cell(plane):
     """The lean found puts the CoM at x_com, and the rate gives v_com (finite difference)."""
     for posture in basin.POSTURES:
         init = plane.initial_state(posture, 0.06, -0.2)
-        within(plane.com_x(posture, init[0]), 0.06, atol=1e-10,
-               why="brentq's xtol 1e-12 rad on the lean, x the CoM's ~1 m/rad")
+        within(
+            plane.com_x(posture, init[0]),
+            0.06,
+            atol=1e-10,
+            why="brentq's xtol 1e-12 rad on the lean, x the CoM's ~1 m/rad",
+        )
         h = 1e-5
-        v = (plane.com_x(posture, init[0] + h * init[2])
-             - plane.com_x(posture, init[0] - h * init[2])) / (2 * h)
-        within(v, -0.2, rtol=1e-6,
-               why="central difference with h = 1e-5: error ~h^2 x the curvature (~1e-10)"
-                   " plus float64 cancellation eps/h ~ 2e-11")
+        v = (
+            plane.com_x(posture, init[0] + h * init[2])
+            - plane.com_x(posture, init[0] - h * init[2])
+        ) / (2 * h)
+        within(
+            v,
+            -0.2,
+            rtol=1e-6,
+            why="central difference with h = 1e-5: error ~h^2 x the curvature (~1e-10)"
+            " plus float64 cancellation eps/h ~ 2e-11",
+        )
         assert init[1] == (0.0 if posture == "rigid" else -init[0])
     assert plane.heel == pytest.approx(-0.15) and plane.toe == pytest.approx(0.15)
     with pytest.raises(ParameterError, match="beyond any lean"):
         plane.initial_state("rigid", 3.0, 0.0)
 
 
-INITS = np.array([[0.0, 0, 0, 0], [0.03, 0, 0, 0], [0.05, 0, 0.3, 0],
-                  [-0.04, 0.04, -0.2, 0.2], [0.0, 0, -0.15, 0]])
+INITS = np.array(
+    [
+        [0.0, 0, 0, 0],
+        [0.03, 0, 0, 0],
+        [0.05, 0, 0.3, 0],
+        [-0.04, 0.04, -0.2, 0.2],
+        [0.0, 0, -0.15, 0],
+    ]
+)
 
 
 def test_an_all_zero_initial_state_is_upright_rest(runner):
@@ -78,17 +95,27 @@ def test_initial_states_in_both_engines_alike():
     mpc = AdmmMPC(runner)
     outcomes = []
     for b, init in enumerate(INITS):
-        ref = reference.simulate_scenario(CONFIG, 0.0, 0.0, record=False, mpc=mpc,
-                                          initial=init)[0]
+        ref = reference.simulate_scenario(CONFIG, 0.0, 0.0, record=False, mpc=mpc, initial=init)[0]
         mine = frame.iloc[b]
         outcomes.append(ref["outcome"])
         assert mine.outcome == ref["outcome"], init
-        within(mine.fall_time, ref["fall_time"], atol=1e-12, msg=init,
-               why="the same fall sample (both compute its time as k dt)")
+        within(
+            mine.fall_time,
+            ref["fall_time"],
+            atol=1e-12,
+            msg=init,
+            why="the same fall sample (both compute its time as k dt)",
+        )
         tol = 1e-2 if ref["outcome"] == "fell" else 1e-3
-        within(mine.energy_total, ref["energy_total"], rtol=tol, atol=1e-6, msg=init,
-               why="float32 MJX physics against float64 C; a fall's rounding grows "
-                   "(test_delay_compensation)")
+        within(
+            mine.energy_total,
+            ref["energy_total"],
+            rtol=tol,
+            atol=1e-6,
+            msg=init,
+            why="float32 MJX physics against float64 C; a fall's rounding grows "
+            "(test_delay_compensation)",
+        )
     assert {"recovered", "fell"} <= set(outcomes)
 
 
@@ -96,8 +123,16 @@ def test_the_map_rest_recovers_beyond_the_capture_point_falls(tmp_path, plane, f
     """Upright rest recovers; a state whose capture point lies beyond the toe, moving that
     way, falls; the map is resumable and refuses another grid with nothing lost."""
     out = tmp_path / "basin"
-    frame = basin.run_basin(out, CONFIG, "0,0.1", "0,0.5", progress=False, say=lambda s: None,
-                            devices=jax.local_devices()[:1], slots=ENGINE_SLOTS)
+    frame = basin.run_basin(
+        out,
+        CONFIG,
+        "0,0.1",
+        "0,0.5",
+        progress=False,
+        say=lambda s: None,
+        devices=jax.local_devices()[:1],
+        slots=ENGINE_SLOTS,
+    )
     cell = frame.set_index(["x_com", "v_com"])
     assert cell.loc[(0.0, 0.0), "outcome"] == "recovered"
     assert cell.loc[(0.0, 0.0), "capture_inside"]
@@ -113,7 +148,10 @@ def test_the_map_rest_recovers_beyond_the_capture_point_falls(tmp_path, plane, f
 
     section = basin_section(out)
     assert section["id"] == "basin" and [b["kind"] for b in section["blocks"]] == [
-        "paragraph", "figure", "paragraph"]
+        "paragraph",
+        "figure",
+        "paragraph",
+    ]
     parts = sorted((out / basin.CELLS_DIR).iterdir())
     said = []
     again = basin.run_basin(out, CONFIG, "0,0.1", "0,0.5", progress=False, say=said.append)
@@ -121,6 +159,7 @@ def test_the_map_rest_recovers_beyond_the_capture_point_falls(tmp_path, plane, f
     assert sorted((out / basin.CELLS_DIR).iterdir()) == parts
     pd.testing.assert_frame_equal(again, frame)
     import mjx_balance as mb  # the Python API on the same folder: nothing to run either
+
     pd.testing.assert_frame_equal(mb.basin(CONFIG, out=out, x_com="0,0.1", v_com="0,0.5"), frame)
     with pytest.raises(ParameterError, match="another --out folder"):
         basin.run_basin(out, CONFIG, "0,0.1", "0,0.4", progress=False, say=lambda s: None)

@@ -38,12 +38,14 @@ def stand_ins(made: list | None = None):
         if made is not None:
             made.append(batch)
         return batch
+
     return make
 
 
 def run(out, members, made=None, **kwargs):
-    return cohort.run_cohort(out, members, BASE, FORCES, DURATIONS,
-                             run_batches=stand_ins(made), say=None, **kwargs)
+    return cohort.run_cohort(
+        out, members, BASE, FORCES, DURATIONS, run_batches=stand_ins(made), say=None, **kwargs
+    )
 
 
 # --- subjects --------------------------------------------------------------------------------
@@ -83,15 +85,19 @@ def test_a_population_is_seeded_and_truncated():
 
 def test_a_csv_of_participants_keeps_its_ids_and_refuses_bad_rows(tmp_path):
     good = tmp_path / "people.csv"
-    good.write_text("id,height,mass,sex,ankle_strength,hip_strength,note\n"
-                    "P-07,1.62,58,female,0.8,,left-handed\n"
-                    ",1.80,82,male,,,\n")
+    good.write_text(
+        "id,height,mass,sex,ankle_strength,hip_strength,note\n"
+        "P-07,1.62,58,female,0.8,,left-handed\n"
+        ",1.80,82,male,,,\n"
+    )
     members = cohort_members.read_subjects(good)
     assert [m.id for m in members] == ["P-07", "s02"]
     assert members[0].subject == Subject(1.62, 58, "female", 0.8)
-    cases = {"1.7,abc,male": "line 3: mass = 'abc'",
-             "1.7,70,other": "line 3.*sex.*'other'",
-             "7.5,70,male": "line 3.*height.*7.5"}
+    cases = {
+        "1.7,abc,male": "line 3: mass = 'abc'",
+        "1.7,70,other": "line 3.*sex.*'other'",
+        "7.5,70,male": "line 3.*height.*7.5",
+    }
     for row, message in cases.items():
         bad = tmp_path / "bad.csv"
         bad.write_text(f"height,mass,sex\n1.6,60,male\n{row}\n")
@@ -137,8 +143,7 @@ def test_the_cohort_writes_its_table_summary_manifest_and_figures(tmp_path):
     for name in ("cohort.csv", "cohort_summary.csv"):  # every column has a unit, sidecar too
         columns = pd.read_csv(out / name).columns
         assert units.unknown(columns) == []
-        sidecar = pd.read_csv(out / name.replace(".csv", ".units.csv"),
-                              keep_default_na=False)
+        sidecar = pd.read_csv(out / name.replace(".csv", ".units.csv"), keep_default_na=False)
         assert list(sidecar["column"]) == list(columns)
     assert units.unit("mass") == "kg" and units.unit("area") == "N s"
     manifest = json.loads((out / "manifest.json").read_text())
@@ -159,8 +164,7 @@ def test_the_table_forces_give_the_limit_and_acting_times(tmp_path):
 
 
 def test_the_chosen_subjects_span_the_area():
-    frame = pd.DataFrame({"id": [f"s{i:02d}" for i in range(20)],
-                          "area": np.arange(20.0)[::-1]})
+    frame = pd.DataFrame({"id": [f"s{i:02d}" for i in range(20)], "area": np.arange(20.0)[::-1]})
     picks = cohort.chosen(frame, 5)
     assert picks[0] == "s19" and picks[-1] == "s00"  # the smallest and the largest area
     assert len(picks) == 5 and "s10" in picks or "s09" in picks  # the median among them
@@ -192,17 +196,24 @@ def test_a_cohort_resumes_subject_by_subject(tmp_path):
 # --- the command line and mb.cohort ----------------------------------------------------------
 
 
-@pytest.mark.parametrize("argv, message", [
-    ([], "give one source of subjects"),
-    (["--heights", "1.6", "--masses", "60", "--population", "3", "--seed", "1"],
-     "got grid, population"),
-    (["--heights", "1.6"], "--heights and --masses go together"),
-    (["--population", "3"], "--population needs --seed"),
-    (["--population", "3", "--seed", "1", "--sexes", "female"], "--sexes goes with"),
-    (["--heights", "1.6", "--masses", "60", "--subject", "height=1.7,mass=70"],
-     "--subject is one person"),
-    (["--heights", "1.6:1.2:0.1", "--masses", "60"], "--heights"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        ([], "give one source of subjects"),
+        (
+            ["--heights", "1.6", "--masses", "60", "--population", "3", "--seed", "1"],
+            "got grid, population",
+        ),
+        (["--heights", "1.6"], "--heights and --masses go together"),
+        (["--population", "3"], "--population needs --seed"),
+        (["--population", "3", "--seed", "1", "--sexes", "female"], "--sexes goes with"),
+        (
+            ["--heights", "1.6", "--masses", "60", "--subject", "height=1.7,mass=70"],
+            "--subject is one person",
+        ),
+        (["--heights", "1.6:1.2:0.1", "--masses", "60"], "--heights"),
+    ],
+)
 def test_the_command_refuses_an_unclear_source(tmp_path, capsys, argv, message):
     assert main(["cohort", *argv, "--out", str(tmp_path / "out")]) == 2
     assert message in capsys.readouterr().err
@@ -211,8 +222,19 @@ def test_the_command_refuses_an_unclear_source(tmp_path, capsys, argv, message):
 
 def test_the_command_parses_its_lists(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:  # argparse's own error: exit code 2
-        main(["cohort", "--heights", "1.6", "--masses", "60", "--sexes", "males",
-              "--out", str(tmp_path / "o")])
+        main(
+            [
+                "cohort",
+                "--heights",
+                "1.6",
+                "--masses",
+                "60",
+                "--sexes",
+                "males",
+                "--out",
+                str(tmp_path / "o"),
+            ]
+        )
     assert exc.value.code == 2
     assert "male, female or male,female" in capsys.readouterr().err
     bad = tmp_path / "bad.csv"
@@ -227,20 +249,47 @@ def test_the_command_runs_a_cohort_from_a_csv(tmp_path, monkeypatch):
     def make(config, **_engine):
         made.append(FakeThresholdBatch(c=threshold(config)))
         return made[-1]
+
     monkeypatch.setattr(DEFAULT_BATCH, make)
     people = tmp_path / "people.csv"
     people.write_text("id,height,mass,sex\nann,1.62,58,female\nbob,1.85,90,male\n")
     out = tmp_path / "out"
-    assert main(["cohort", "--subjects", str(people), "--forces", FORCES, "--durations",
-                 DURATIONS, "--set", "scenario.t_end=2", "--format", "parquet", "-q",
-                 "--queue", "each", "--out", str(out)]) == 0  # each: the fake rollout
+    assert (
+        main(
+            [
+                "cohort",
+                "--subjects",
+                str(people),
+                "--forces",
+                FORCES,
+                "--durations",
+                DURATIONS,
+                "--set",
+                "scenario.t_end=2",
+                "--format",
+                "parquet",
+                "-q",
+                "--queue",
+                "each",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )  # each: the fake rollout
     frame = pd.read_csv(out / "cohort.csv")
     assert list(frame["id"]) == ["ann", "bob"] and list(frame["sex"]) == ["female", "male"]
     assert frame.loc[0, "area"] < frame.loc[1, "area"]
     assert (out / "cohort.parquet").exists()  # --format: the tables also as parquet
     # mb.cohort on the same folder and subjects: resumed, the same table
-    again = mb.cohort({"ann": Subject(1.62, 58, "female"), "bob": Subject(1.85, 90)}, out=out,
-                      forces=FORCES, durations=DURATIONS, config=BASE, queue="each")
+    again = mb.cohort(
+        {"ann": Subject(1.62, 58, "female"), "bob": Subject(1.85, 90)},
+        out=out,
+        forces=FORCES,
+        durations=DURATIONS,
+        config=BASE,
+        queue="each",
+    )
     pd.testing.assert_frame_equal(again, frame, check_dtype=False)
 
 
@@ -257,8 +306,21 @@ def test_a_cohort_of_one_is_the_plain_sweep_of_that_body(tmp_path):
     assert main(["sweep", "--subject", person, *grid, "--out", str(tmp_path / "plain")]) == 0
     people = tmp_path / "one.csv"
     people.write_text("id,height,mass,sex,ankle_strength\nmona,1.58,52,female,0.7\n")
-    assert main(["cohort", "--subjects", str(people), *grid, "--queue", "each", "--out",
-                 str(tmp_path / "cohort")]) == 0
+    assert (
+        main(
+            [
+                "cohort",
+                "--subjects",
+                str(people),
+                *grid,
+                "--queue",
+                "each",
+                "--out",
+                str(tmp_path / "cohort"),
+            ]
+        )
+        == 0
+    )
     plain = pd.read_parquet(tmp_path / "plain" / "region.parquet")
     one = pd.read_parquet(tmp_path / "cohort" / "subjects" / "mona" / "region.parquet")
     pd.testing.assert_frame_equal(one, plain, check_exact=True)
@@ -280,14 +342,22 @@ def test_the_queue_by_default_is_one_on_mjx_each_elsewhere_and_a_resumed_folders
     started = out / "subjects" / "s02"
     started.mkdir(parents=True)
     (out / "subjects" / "s01").mkdir()  # a folder with no manifest yet: nothing to resume
-    (started / "manifest.json").write_text(json.dumps(
-        {"region": {"engine": {"slots": 32, "early_stop": True, "physics": "mjx"}}}))
+    (started / "manifest.json").write_text(
+        json.dumps({"region": {"engine": {"slots": 32, "early_stop": True, "physics": "mjx"}}})
+    )
     assert cohort.resolved_queue(out, "auto", "auto", None) == "each"  # before queues: each
-    (started / "manifest.json").write_text(json.dumps(
-        {"region": {"engine": {"slots": 32, "physics": "mjx", "queue": "one"}}}))
+    (started / "manifest.json").write_text(
+        json.dumps({"region": {"engine": {"slots": 32, "physics": "mjx", "queue": "one"}}})
+    )
     assert cohort.resolved_queue(out, "auto", "c", None) == "one"
-    plan = cohort.plan_cohort(tmp_path / "new", cohort_members.numbered([Subject(1.7, 70)]),
-                              Config(), "0,50", "0.1", physics="c")
+    plan = cohort.plan_cohort(
+        tmp_path / "new",
+        cohort_members.numbered([Subject(1.7, 70)]),
+        Config(),
+        "0,50",
+        "0.1",
+        physics="c",
+    )
     assert plan.engine["queue"] == "each"
 
 

@@ -43,26 +43,34 @@ def region(forces, durations, recovered) -> pd.DataFrame:
     """A hand-made region map: ``recovered[i][j]`` for force i and duration j (else fell)."""
     f, d = np.meshgrid(forces, durations, indexing="ij")
     ok = np.asarray(recovered, dtype=bool)
-    return pd.DataFrame({"force": f.ravel().astype(float), "duration": d.ravel().astype(float),
-                         "outcome": np.where(ok.ravel(), "recovered", "fell")})
+    return pd.DataFrame(
+        {
+            "force": f.ravel().astype(float),
+            "duration": d.ravel().astype(float),
+            "outcome": np.where(ok.ravel(), "recovered", "fell"),
+        }
+    )
 
 
 # --- the interval ----------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("k, n, low, high", [
-    # Newcombe (1998), Statistics in Medicine 17:857-872, Table II, method 3 (score, no
-    # continuity correction)
-    (81, 263, 0.2553, 0.3662),
-    (15, 148, 0.0624, 0.1605),
-    (0, 20, 0.0, 0.1611),
-    (1, 29, 0.0061, 0.1718),
-    # the closed forms at 0/n, n/n and n/2 (z = 1.959964): z^2 / (n + z^2) = 0.2775 for n = 10,
-    # and 1/2 -+ z / (2 sqrt(n + z^2)) = 0.5 -+ 0.2634
-    (0, 10, 0.0, 0.2775),
-    (10, 10, 0.7225, 1.0),
-    (5, 10, 0.2366, 0.7634),
-])
+@pytest.mark.parametrize(
+    "k, n, low, high",
+    [
+        # Newcombe (1998), Statistics in Medicine 17:857-872, Table II, method 3 (score, no
+        # continuity correction)
+        (81, 263, 0.2553, 0.3662),
+        (15, 148, 0.0624, 0.1605),
+        (0, 20, 0.0, 0.1611),
+        (1, 29, 0.0061, 0.1718),
+        # the closed forms at 0/n, n/n and n/2 (z = 1.959964): z^2 / (n + z^2) = 0.2775 for n = 10,
+        # and 1/2 -+ z / (2 sqrt(n + z^2)) = 0.5 -+ 0.2634
+        (0, 10, 0.0, 0.2775),
+        (10, 10, 0.7225, 1.0),
+        (5, 10, 0.2366, 0.7634),
+    ],
+)
 def test_the_wilson_interval_gives_the_published_limits(k, n, low, high):
     lo, hi = probability.wilson(k, n)
     assert float(lo) == pytest.approx(low, abs=TABLE_DIGITS)
@@ -90,8 +98,11 @@ def test_the_worst_half_width_and_the_subjects_a_width_needs():
     # the smallest n whose half-width at P = 1/2 is within the width, found by scanning the
     # interval itself (k = n / 2 as a real count, so odd n are scanned too)
     for width, expected in [(0.10, 93), (0.05, 381)]:
-        scanned = next(n for n in range(1, 2000)
-                       if np.subtract(*probability.wilson(n / 2, n)[::-1]) / 2 <= width)
+        scanned = next(
+            n
+            for n in range(1, 2000)
+            if np.subtract(*probability.wilson(n / 2, n)[::-1]) / 2 <= width
+        )
         assert probability.subjects_for(width) == scanned == expected
     assert "±22.0 %" in probability.interval_text(16)  # 1.96 / (2 sqrt(16 + 1.96^2)) = 0.2200
     assert "±10 % needs 93, ±5 % needs 381" in probability.interval_text(16)
@@ -106,15 +117,18 @@ def test_the_worst_half_width_and_the_subjects_a_width_needs():
 
 def test_p_per_cell_is_the_count_over_the_subjects_maps():
     forces, durations = [0, 10, 20], [0.1, 0.2]
-    maps = {"a": region(forces, durations, [[1, 1], [1, 0], [0, 0]]),
-            "b": region(forces, durations, [[1, 1], [1, 1], [1, 0]]),
-            "c": region(forces, durations, [[1, 0], [0, 0], [0, 0]])}
+    maps = {
+        "a": region(forces, durations, [[1, 1], [1, 0], [0, 0]]),
+        "b": region(forces, durations, [[1, 1], [1, 1], [1, 0]]),
+        "c": region(forces, durations, [[1, 0], [0, 0], [0, 0]]),
+    }
     maps["c"].loc[1, "outcome"] = "not_settled"  # counts as not recovered, as on a map
     maps["b"] = maps["b"].iloc[::-1]  # the rows' order does not matter
     cells = probability.cells(maps)
     assert list(cells.columns) == probability.CELL_COLUMNS
     assert cells[["force", "duration"]].to_numpy().tolist() == [
-        [f, d] for f in forces for d in durations]
+        [f, d] for f in forces for d in durations
+    ]
     expected = [3, 2, 2, 1, 1, 0]  # counted by hand from the three maps above
     assert cells["recovered_subjects"].tolist() == expected
     assert cells["subjects"].tolist() == [3] * 6
@@ -129,8 +143,12 @@ def test_p_per_cell_is_the_count_over_the_subjects_maps():
 
 def cells_of(counts: dict[tuple[float, float], int], n: int) -> pd.DataFrame:
     """A probability map from recovered counts per (force, duration) over n subjects."""
-    frame = pd.DataFrame([{"force": f, "duration": d, "subjects": n, "recovered_subjects": k}
-                          for (f, d), k in counts.items()])
+    frame = pd.DataFrame(
+        [
+            {"force": f, "duration": d, "subjects": n, "recovered_subjects": k}
+            for (f, d), k in counts.items()
+        ]
+    )
     frame["p_recover"] = frame["recovered_subjects"] / n
     return frame
 
@@ -138,22 +156,27 @@ def cells_of(counts: dict[tuple[float, float], int], n: int) -> pd.DataFrame:
 def test_the_boundaries_of_a_hand_made_map():
     durations = [0.1, 0.2, 0.3, 0.5]
     counts = {  # recovered subjects of 20, per force over the durations
-        0.0: [20, 20, 20, 20],   # every level: the longest duration
-        10.0: [20, 19, 12, 1],   # 19/20 is exactly 0.95: at the 95 % level
-        20.0: [18, 10, 0, 0],    # 18/20 = 0.9: not 95 %; 10/20 is 50 %
-        30.0: [1, 0, 20, 20],    # recovers again beyond a gap: the boundary stops at the gap
-        40.0: [0, 0, 0, 0],      # no level: 0
+        0.0: [20, 20, 20, 20],  # every level: the longest duration
+        10.0: [20, 19, 12, 1],  # 19/20 is exactly 0.95: at the 95 % level
+        20.0: [18, 10, 0, 0],  # 18/20 = 0.9: not 95 %; 10/20 is 50 %
+        30.0: [1, 0, 20, 20],  # recovers again beyond a gap: the boundary stops at the gap
+        40.0: [0, 0, 0, 0],  # no level: 0
     }
-    cells = cells_of({(f, d): k for f, row in counts.items() for d, k in zip(durations, row)},
-                     20)
-    base = region(list(counts), durations, [[1, 1, 1, 1], [1, 1, 0, 0], [1, 0, 0, 0],
-                                            [0, 1, 1, 1], [0, 0, 0, 0]])
+    cells = cells_of({(f, d): k for f, row in counts.items() for d, k in zip(durations, row)}, 20)
+    base = region(
+        list(counts),
+        durations,
+        [[1, 1, 1, 1], [1, 1, 0, 0], [1, 0, 0, 0], [0, 1, 1, 1], [0, 0, 0, 0]],
+    )
     found = probability.boundaries(cells, base).set_index("force")
-    assert list(found.columns) == ["boundary_p95", "boundary_p50", "boundary_p5",
-                                   "boundary_base"]
-    expected = {0.0: [0.5, 0.5, 0.5, 0.5], 10.0: [0.2, 0.3, 0.5, 0.2],
-                20.0: [0.0, 0.2, 0.2, 0.1], 30.0: [0.0, 0.0, 0.1, 0.0],
-                40.0: [0.0, 0.0, 0.0, 0.0]}
+    assert list(found.columns) == ["boundary_p95", "boundary_p50", "boundary_p5", "boundary_base"]
+    expected = {
+        0.0: [0.5, 0.5, 0.5, 0.5],
+        10.0: [0.2, 0.3, 0.5, 0.2],
+        20.0: [0.0, 0.2, 0.2, 0.1],
+        30.0: [0.0, 0.0, 0.1, 0.0],
+        40.0: [0.0, 0.0, 0.0, 0.0],
+    }
     for force, row in expected.items():
         assert found.loc[force].tolist() == row, force
     assert probability.boundaries(cells).columns.tolist()[-1] == "boundary_p5"  # no base
@@ -176,13 +199,16 @@ def test_the_cohort_writes_the_probability_map_and_its_figure(tmp_path):
     out = tmp_path / "out"
     members = cohort_members.subject_grid([1.6, 1.8], [50, 70, 95])
     said: list[str] = []
-    frame = cohort.run_cohort(out, members, BASE, FORCES, DURATIONS, run_batches=stand_ins,
-                              say=said.append)
+    frame = cohort.run_cohort(
+        out, members, BASE, FORCES, DURATIONS, run_batches=stand_ins, say=said.append
+    )
     written = pd.read_csv(out / "cohort_probability.csv")
     maps = {m.id: pd.read_parquet(out / "subjects" / m.id / "region.parquet") for m in members}
     for cell in written.itertuples():  # each cell counted again from the subjects' folders
-        outcomes = [m.loc[(m["force"] == cell.force) & (m["duration"] == cell.duration),
-                          "outcome"].item() for m in maps.values()]
+        outcomes = [
+            m.loc[(m["force"] == cell.force) & (m["duration"] == cell.duration), "outcome"].item()
+            for m in maps.values()
+        ]
         assert cell.subjects == len(members)
         assert cell.recovered_subjects == outcomes.count("recovered")
         assert cell.p_recover == cell.recovered_subjects / len(members)
@@ -193,8 +219,7 @@ def test_the_cohort_writes_the_probability_map_and_its_figure(tmp_path):
     ok = base["force"] * base["duration"] < threshold(BASE)
     assert (base["outcome"] == "recovered").tolist() == ok.tolist()
     lines = pd.read_csv(out / "cohort_probability_boundaries.csv")
-    pd.testing.assert_frame_equal(lines, frame.attrs["probability_boundaries"],
-                                  check_dtype=False)
+    pd.testing.assert_frame_equal(lines, frame.attrs["probability_boundaries"], check_dtype=False)
     assert lines["boundary_base"].tolist() == recovery_boundary(base)["boundary"].tolist()
     assert (lines["boundary_p95"] <= lines["boundary_p50"]).all()
     assert (lines["boundary_p50"] <= lines["boundary_p5"]).all()
@@ -210,13 +235,33 @@ def test_the_cohort_writes_the_probability_map_and_its_figure(tmp_path):
     assert readable_png(out / "cohort_probability.png")
 
 
-def test_the_command_writes_the_probability_map_and_plans_its_width(tmp_path, capsys,
-                                                                    monkeypatch):
+def test_the_command_writes_the_probability_map_and_plans_its_width(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(DEFAULT_BATCH, lambda config, **_engine: stand_ins(config))
     out = tmp_path / "out"
-    assert main(["cohort", "--population", "2", "--seed", "2", "--forces", FORCES,
-                 "--durations", DURATIONS, "--set", "scenario.t_end=2", "--format", "parquet",
-                 "--queue", "each", "--out", str(out)]) == 0  # each: the fake rollout
+    assert (
+        main(
+            [
+                "cohort",
+                "--population",
+                "2",
+                "--seed",
+                "2",
+                "--forces",
+                FORCES,
+                "--durations",
+                DURATIONS,
+                "--set",
+                "scenario.t_end=2",
+                "--format",
+                "parquet",
+                "--queue",
+                "each",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )  # each: the fake rollout
     printed = capsys.readouterr().out
     planned = next(line for line in printed.splitlines() if line.startswith("planned work"))
     assert planned.startswith("planned work: 45 cells")  # 2 subjects and the base, 15 each
@@ -227,8 +272,15 @@ def test_the_command_writes_the_probability_map_and_plans_its_width(tmp_path, ca
     assert (out / "cohort_probability_boundaries.parquet").exists()
     assert readable_png(out / "cohort_probability.png")
     # mb.cohort on the same folder: resumed, the probability map in the result's attrs
-    again = mb.cohort(cohort_members.population(2, 2), out=out, forces=FORCES, durations=DURATIONS,
-                      config=BASE, progress=False, queue="each")
+    again = mb.cohort(
+        cohort_members.population(2, 2),
+        out=out,
+        forces=FORCES,
+        durations=DURATIONS,
+        config=BASE,
+        progress=False,
+        queue="each",
+    )
     pd.testing.assert_frame_equal(again.attrs["probability"], cells, check_dtype=False)
     assert math.isclose(again.attrs["half_width"], probability.half_width(2))
 
@@ -237,12 +289,25 @@ def test_the_base_map_is_a_result_that_keeps_the_folder(tmp_path):
     """A cohort folder whose only result is its base map is not taken over by another cohort
     (a subject's map would not be either): the base map was run with this cohort's base."""
     out = tmp_path / "out"
-    cohort.run_cohort(out, cohort_members.subject_grid([1.7], [70]), BASE, FORCES, DURATIONS,
-                      run_batches=stand_ins, say=None)
+    cohort.run_cohort(
+        out,
+        cohort_members.subject_grid([1.7], [70]),
+        BASE,
+        FORCES,
+        DURATIONS,
+        run_batches=stand_ins,
+        say=None,
+    )
     (out / "cohort.csv").unlink()
     shutil.rmtree(out / "subjects")
     assert (out / "base" / "region.parquet").exists()
     with pytest.raises(ParameterError, match="holds a cohort with other configuration"):
-        cohort.run_cohort(out, cohort_members.subject_grid([1.7], [70]),
-                          BASE.replace(controller={"horizon": 15}), FORCES, DURATIONS,
-                          run_batches=stand_ins, say=None)
+        cohort.run_cohort(
+            out,
+            cohort_members.subject_grid([1.7], [70]),
+            BASE.replace(controller={"horizon": 15}),
+            FORCES,
+            DURATIONS,
+            run_batches=stand_ins,
+            say=None,
+        )

@@ -27,12 +27,19 @@ def test_queues_split_the_bodies_by_cells():
 
 
 def test_a_served_batch_hands_back_the_rows_asked_for():
-    columns = {"force": np.array([0.0, 0.0, 10.0, 10.0]),
-               "duration": np.array([0.1, 0.2, 0.1, 0.2]),
-               "outcome": np.array([0, 0, 0, 1], np.int32), "settle_time": np.arange(4.0)}
+    columns = {
+        "force": np.array([0.0, 0.0, 10.0, 10.0]),
+        "duration": np.array([0.1, 0.2, 0.1, 0.2]),
+        "outcome": np.array([0, 0, 0, 1], np.int32),
+        "settle_time": np.arange(4.0),
+    }
     batch = population.ServedBatch(BASE, columns, slots=8, early_stop=True)
     assert batch.can_stream() and batch.engine_record() == {
-        "slots": 8, "early_stop": True, "physics": "mjx", "queue": "one"}
+        "slots": 8,
+        "early_stop": True,
+        "physics": "mjx",
+        "queue": "one",
+    }
     index, got = next(batch.stream(np.array([10.0, 0.0]), np.array([0.2, 0.1])))
     assert index.tolist() == [0, 1]
     assert got["settle_time"].tolist() == [3.0, 0.0] and got["outcome"].tolist() == [1, 0]
@@ -41,23 +48,31 @@ def test_a_served_batch_hands_back_the_rows_asked_for():
     batch.use_engine(8, True, "mjx")  # the same settings: nothing to say
 
 
-@pytest.mark.parametrize("options, message", [
-    ({"queue": "all"}, "queue = 'all'"),
-    ({"queue": "one", "physics": "c"}, "not with physics 'c'"),
-    ({"queue": "one", "cluster": "local:2"}, "or a cluster"),
-])
-def test_a_queue_that_cannot_run_is_refused_before_anything_is_written(tmp_path, options,
-                                                                       message):
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"queue": "all"}, "queue = 'all'"),
+        ({"queue": "one", "physics": "c"}, "not with physics 'c'"),
+        ({"queue": "one", "cluster": "local:2"}, "or a cluster"),
+    ],
+)
+def test_a_queue_that_cannot_run_is_refused_before_anything_is_written(tmp_path, options, message):
     out = tmp_path / "out"
     with pytest.raises(ParameterError, match=message):
-        cohort.plan_cohort(out, cohort_members.numbered([Subject(1.7, 70)]), BASE, "0,50", "0.1",
-                           **options)
+        cohort.plan_cohort(
+            out, cohort_members.numbered([Subject(1.7, 70)]), BASE, "0,50", "0.1", **options
+        )
     assert not out.exists()
 
 
-@pytest.mark.parametrize("args, message", [
-    (("all",), "queue = 'all'"), (("one", "c"), "not with physics 'c'"),
-    (("one", "mjx", "local:2"), "or a cluster")])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (("all",), "queue = 'all'"),
+        (("one", "c"), "not with physics 'c'"),
+        (("one", "mjx", "local:2"), "or a cluster"),
+    ],
+)
 def test_every_command_checks_its_queue_alike(args, message):
     with pytest.raises(ParameterError, match=message):
         population.check_queue(*args)
@@ -71,12 +86,14 @@ def test_bodies_of_another_shape_cannot_share_a_queue():
     from mjx_balance.rollout.engine import lane_bodies
 
     one = BatchRunner(BASE, physics="mjx")
-    other = BatchRunner(BASE.replace(controller={"horizon": BASE.controller.horizon + 2}),
-                        physics="mjx")
+    other = BatchRunner(
+        BASE.replace(controller={"horizon": BASE.controller.horizon + 2}), physics="mjx"
+    )
     with pytest.raises(ValueError, match="shapes and static settings"):
         lane_bodies(one, [one, other], early_stop=True)
     arrays, cert = lane_bodies(one, [one, one, one], early_stop=True)
     import jax
+
     assert {np.shape(v)[0] for v in jax.tree.leaves(arrays)} == {4}  # padded to 4
     assert {np.shape(v)[0] for v in jax.tree.leaves(cert)} == {4}
 
@@ -91,8 +108,11 @@ def test_each_lane_holds_its_own_bodys_compiled_model():
     from mjx_balance.rollout.engine import lane_bodies
     from mjx_balance.rollout.kernel import lane_arrays
 
-    people = [Subject(1.52, 48, "female", ankle_strength=0.6), Subject(1.75, 75),
-              Subject(1.95, 110, hip_strength=1.3)]
+    people = [
+        Subject(1.52, 48, "female", ankle_strength=0.6),
+        Subject(1.75, 75),
+        Subject(1.95, 110, hip_strength=1.3),
+    ]
     runners = [BatchRunner(p.config(BASE), physics="mjx") for p in people]
     stacked, _ = lane_bodies(runners[0], runners, early_stop=True)
     lanes = lane_arrays(stacked, np.array([2, 0, 1, 3]))
@@ -113,27 +133,46 @@ def test_a_subject_in_one_queue_is_the_same_among_any_others(tmp_path):
     the others and their order, and compare's one queue maps that subject's configuration to
     the same bytes."""
     people = tmp_path / "people.csv"
-    people.write_text("id,height,mass,sex\nann,1.55,50,female\nbob,1.75,75,male\n"
-                      "cy,1.92,100,male\n")
-    grid = ["--forces", "20,60,100", "--durations", "0.1,0.3", "--set", "scenario.t_end=2",
-            "--slots", "4", "--queue", "one", "-q"]
-    assert main(["cohort", "--subjects", str(people), *grid, "--out",
-                 str(tmp_path / "three")]) == 0
+    people.write_text(
+        "id,height,mass,sex\nann,1.55,50,female\nbob,1.75,75,male\ncy,1.92,100,male\n"
+    )
+    grid = [
+        "--forces",
+        "20,60,100",
+        "--durations",
+        "0.1,0.3",
+        "--set",
+        "scenario.t_end=2",
+        "--slots",
+        "4",
+        "--queue",
+        "one",
+        "-q",
+    ]
+    assert main(["cohort", "--subjects", str(people), *grid, "--out", str(tmp_path / "three")]) == 0
     for name, row in (("bob", "bob,1.75,75,male"), ("cy", "cy,1.92,100,male")):
         alone = tmp_path / f"{name}.csv"
         alone.write_text(f"id,height,mass,sex\n{row}\n")
-        assert main(["cohort", "--subjects", str(alone), *grid, "--out",
-                     str(tmp_path / name)]) == 0
+        assert main(["cohort", "--subjects", str(alone), *grid, "--out", str(tmp_path / name)]) == 0
         mine = pd.read_parquet(tmp_path / name / "subjects" / name / "region.parquet")
         among = pd.read_parquet(tmp_path / "three" / "subjects" / name / "region.parquet")
         pd.testing.assert_frame_equal(mine, among, check_exact=True)
-    maps = [pd.read_parquet(tmp_path / "three" / "subjects" / i / "region.parquet")
-            for i in ("ann", "bob", "cy")]
+    maps = [
+        pd.read_parquet(tmp_path / "three" / "subjects" / i / "region.parquet")
+        for i in ("ann", "bob", "cy")
+    ]
     assert (maps[0]["outcome"] != maps[2]["outcome"]).any()  # the bodies do differ
     # compare's one queue is the same queue: its map of cy's configuration is the cohort's
     base = Config().replace(scenario={"t_end": 2.0})
-    mb.compare({"plain": base, "cy": Subject(1.92, 100, "male").config(base)},
-               out=tmp_path / "compare", forces="20,60,100", durations="0.1,0.3", table_forces="60",
-               slots=4, queue="one")
-    pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "compare" / "cy" / "region.parquet"),
-                                  maps[2], check_exact=True)
+    mb.compare(
+        {"plain": base, "cy": Subject(1.92, 100, "male").config(base)},
+        out=tmp_path / "compare",
+        forces="20,60,100",
+        durations="0.1,0.3",
+        table_forces="60",
+        slots=4,
+        queue="one",
+    )
+    pd.testing.assert_frame_equal(
+        pd.read_parquet(tmp_path / "compare" / "cy" / "region.parquet"), maps[2], check_exact=True
+    )

@@ -34,9 +34,24 @@ def configs(tmp_path):
 def test_compare_writes_its_figure_and_table(tmp_path, stand_in):
     a, b = configs(tmp_path)
     out = tmp_path / "out"
-    assert main(["compare", str(a), str(b), "--forces", FORCES,
-                 "--durations", DURATIONS, "--table-forces", TABLE_FORCES, "--out",
-                 str(out)]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                str(a),
+                str(b),
+                "--forces",
+                FORCES,
+                "--durations",
+                DURATIONS,
+                "--table-forces",
+                TABLE_FORCES,
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     frame = pd.read_csv(out / "compare.csv").set_index("name")
     assert list(frame.index) == ["plain", "joint"]
     for name, convention in (("plain", "paper"), ("joint", "joint")):
@@ -58,16 +73,38 @@ def test_compare_writes_its_figure_and_table(tmp_path, stand_in):
     assert shade.mean() > 0.05
     # a rerun finds everything done: no batch function is even called
     calls = sum(len(f.calls) for f in stand_in)
-    assert main(["compare", str(a), str(b), "--forces", FORCES,
-                 "--durations", DURATIONS, "--table-forces", TABLE_FORCES, "--out",
-                 str(out)]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                str(a),
+                str(b),
+                "--forces",
+                FORCES,
+                "--durations",
+                DURATIONS,
+                "--table-forces",
+                TABLE_FORCES,
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert sum(len(f.calls) for f in stand_in) == calls
 
 
 def test_the_api_compares_named_configurations(tmp_path, stand_in):
-    frame = mb.compare({"paper": {"controller": {"convention": "paper"}},
-                        "joint": {"controller": {"convention": "joint"}}}, out=tmp_path,
-                       forces=FORCES, durations=DURATIONS, table_forces=TABLE_FORCES)
+    frame = mb.compare(
+        {
+            "paper": {"controller": {"convention": "paper"}},
+            "joint": {"controller": {"convention": "joint"}},
+        },
+        out=tmp_path,
+        forces=FORCES,
+        durations=DURATIONS,
+        table_forces=TABLE_FORCES,
+    )
     assert list(frame["name"]) == ["paper", "joint"]
     assert frame["area"].iloc[1] > frame["area"].iloc[0]  # c = 60 recovers more than 30
     manifest = json.loads((tmp_path / "joint" / "manifest.json").read_text())
@@ -91,8 +128,11 @@ def test_bad_input_is_refused_before_any_work(tmp_path, stand_in, capsys):
         mb.compare([bad], out=out)
     with pytest.raises(ParameterError, match="plain.toml: this configuration file is given twice"):
         mb.compare([a, tmp_path / "." / "plain.toml"], out=out)
-    for name, message in (("../up", "not a folder name"), ("compare.csv", "taken by"),
-                          ("", "not a folder name")):
+    for name, message in (
+        ("../up", "not a folder name"),
+        ("compare.csv", "taken by"),
+        ("", "not a folder name"),
+    ):
         with pytest.raises(ParameterError, match=message):
             mb.compare({name: {}}, out=out)
     mb.compare({"b": {}}, out=out, forces=FORCES, durations="0.5,1", table_forces="10")
@@ -100,16 +140,25 @@ def test_bad_input_is_refused_before_any_work(tmp_path, stand_in, capsys):
         mb.compare({"a": {}, "b": {}}, out=out, forces=FORCES, durations=DURATIONS)
     assert not (out / "a").exists()
     with pytest.raises(ParameterError, match="'b'.*different configuration"):
-        mb.compare({"b": {"controller": {"convention": "joint"}}}, out=out, forces=FORCES,
-                   durations="0.5,1")
+        mb.compare(
+            {"b": {"controller": {"convention": "joint"}}},
+            out=out,
+            forces=FORCES,
+            durations="0.5,1",
+        )
 
 
 def test_names_and_boundaries():
     assert names_for(["a/x.toml", "b/x.toml", "c d.toml"]) == ["x", "x-2", "c_d"]
     assert names_for(["compare.png.toml", "..toml"]) == ["compare.png-2", "config"]
     # one recovered cell in a 2 x 2 grid: its outline is 4 edges (2 inner + 2 on the border)
-    region = pd.DataFrame({"force": [0.0, 0.0, 10.0, 10.0], "duration": [0.5, 1.0, 0.5, 1.0],
-                           "outcome": ["recovered", "fell", "fell", "fell"]})
+    region = pd.DataFrame(
+        {
+            "force": [0.0, 0.0, 10.0, 10.0],
+            "duration": [0.5, 1.0, 0.5, 1.0],
+            "outcome": ["recovered", "fell", "fell", "fell"],
+        }
+    )
     segments = boundary_segments(region, log=False)
     assert len(segments) == 4
     xs = sorted({x for seg in segments for x, _ in seg})
@@ -130,16 +179,19 @@ def test_compare_on_a_local_cluster_gives_the_local_numbers(tmp_path, monkeypatc
     configs = {"paper": Config(), "joint": Config().replace(controller={"convention": "joint"})}
 
     def run(out, **engine):
-        batches = {name: FakeThresholdBatch(c=C[c.controller.convention])
-                   for name, c in configs.items()}
-        frame = run_compare(out, configs, FORCES, DURATIONS, TABLE_FORCES,
-                            run_batches=batches, say=None, **engine)
+        batches = {
+            name: FakeThresholdBatch(c=C[c.controller.convention]) for name, c in configs.items()
+        }
+        frame = run_compare(
+            out, configs, FORCES, DURATIONS, TABLE_FORCES, run_batches=batches, say=None, **engine
+        )
         return frame, sum(len(b.calls) for b in batches.values())  # calls made here
 
     connections = []
     connect = cluster_mod.connect
-    monkeypatch.setattr(cluster_mod, "connect",
-                        lambda *a, **k: connections.append(a[0]) or connect(*a, **k))
+    monkeypatch.setattr(
+        cluster_mod, "connect", lambda *a, **k: connections.append(a[0]) or connect(*a, **k)
+    )
     cloudpickle.register_pickle_by_value(support)
     try:
         on_cluster, here = run(tmp_path / "cluster", cluster="local:1")
@@ -147,14 +199,14 @@ def test_compare_on_a_local_cluster_gives_the_local_numbers(tmp_path, monkeypatc
         cloudpickle.unregister_pickle_by_value(support)
     # one cluster started; each configuration's map and table reuse its client
     assert connections[0] == "local:1" and len(connections) == 1 + 2 * len(configs)
-    assert all(c is connections[1] and isinstance(c, distributed.Client)
-               for c in connections[1:])
+    assert all(c is connections[1] and isinstance(c, distributed.Client) for c in connections[1:])
     plain, plain_here = run(tmp_path / "plain")
     assert here == 0 < plain_here  # on the cluster, every scenario ran on the worker
     pd.testing.assert_frame_equal(on_cluster, plain)
     for name in configs:
-        assert ((tmp_path / "cluster" / name / "region.parquet").read_bytes()
-                == (tmp_path / "plain" / name / "region.parquet").read_bytes())
+        assert (tmp_path / "cluster" / name / "region.parquet").read_bytes() == (
+            tmp_path / "plain" / name / "region.parquet"
+        ).read_bytes()
 
 
 def test_sweep_definitions_are_configurations_too(tmp_path, stand_in):
@@ -163,9 +215,24 @@ def test_sweep_definitions_are_configurations_too(tmp_path, stand_in):
     plain = tmp_path / "plain.toml"
     plain.write_text('[controller]\nconvention = "paper"\n')
     out = tmp_path / "out"
-    assert main(["compare", str(plain), "study_offset_free", "--forces",
-                 FORCES, "--durations", DURATIONS, "--table-forces", TABLE_FORCES, "--out",
-                 str(out)]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                str(plain),
+                "study_offset_free",
+                "--forces",
+                FORCES,
+                "--durations",
+                DURATIONS,
+                "--table-forces",
+                TABLE_FORCES,
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     made = json.loads((out / "study_offset_free" / "manifest.json").read_text())
     assert made["config"]["controller"]["offset_free"] is True
     region = pd.read_parquet(out / "study_offset_free" / "region.parquet")

@@ -27,8 +27,10 @@ QS, RS = "1,10", "0.1,1"
 def weights(config: Config) -> tuple[float, float]:
     """The (Q, R) scales of a configuration relative to the defaults."""
     base = Config().controller
-    return (config.controller.q_diag[0] / base.q_diag[0],
-            config.controller.r_diag[1] / base.r_diag[1])
+    return (
+        config.controller.q_diag[0] / base.q_diag[0],
+        config.controller.r_diag[1] / base.r_diag[1],
+    )
 
 
 def threshold(config: Config) -> float:
@@ -69,9 +71,26 @@ def calls(made) -> int:
 
 
 def cli(out, *extra):
-    return main(["landscape", "--q-scales", QS, "--r-scales", RS, "--delays", "0,100c",
-                 "--forces", FORCES, "--durations", DURATIONS, "--table-forces", TABLE_FORCES,
-                 "--out", str(out), *extra])
+    return main(
+        [
+            "landscape",
+            "--q-scales",
+            QS,
+            "--r-scales",
+            RS,
+            "--delays",
+            "0,100c",
+            "--forces",
+            FORCES,
+            "--durations",
+            DURATIONS,
+            "--table-forces",
+            TABLE_FORCES,
+            "--out",
+            str(out),
+            *extra,
+        ]
+    )
 
 
 def test_landscape_writes_its_numbers_figure_and_reading(tmp_path, stand_in):
@@ -81,9 +100,12 @@ def test_landscape_writes_its_numbers_figure_and_reading(tmp_path, stand_in):
     assert len(frame) == 8 and list(frame.columns[:5]) == landscape.KEY_COLUMNS
     assert list(frame["delay"].unique()) == ["0", "100c"]
     for _, row in frame.iterrows():
-        config = landscape.setting_config(Config(), landscape.Delay(row["delay_ms"],
-                                                                    row["compensated"]),
-                                          row["q_scale"], row["r_scale"])
+        config = landscape.setting_config(
+            Config(),
+            landscape.Delay(row["delay_ms"], row["compensated"]),
+            row["q_scale"],
+            row["r_scale"],
+        )
         assert weights(config) == pytest.approx((row["q_scale"], row["r_scale"]))
         c = threshold(config)
         assert row["area"] == pytest.approx(expected_area(c))
@@ -93,10 +115,10 @@ def test_landscape_writes_its_numbers_figure_and_reading(tmp_path, stand_in):
         assert row["nonconverged_solves"] == 0
         # the same pushes recovered x the energy factor: exactly the factors' ratio when this
         # setting recovers at least the base's cells
-        base = landscape.setting_config(Config(), landscape.Delay(row["delay_ms"],
-                                                                  row["compensated"]), 1, 1)
-        assert row["energy_vs_study"] == pytest.approx(energy_factor(config)
-                                                       / energy_factor(base))
+        base = landscape.setting_config(
+            Config(), landscape.Delay(row["delay_ms"], row["compensated"]), 1, 1
+        )
+        assert row["energy_vs_study"] == pytest.approx(energy_factor(config) / energy_factor(base))
     base = frame[(frame["delay"] == "0") & frame["study"]].iloc[0]
     assert base["area"] == pytest.approx(expected_area(20.0))
     with Image.open(out / "landscape.png") as image:
@@ -131,29 +153,53 @@ def test_a_rerun_computes_nothing_and_resumes_a_partial_landscape(tmp_path, stan
 
 def test_bad_input_is_refused_before_any_work_and_nothing_is_lost(tmp_path, stand_in, capsys):
     out = tmp_path / "land"
-    for flag, value, message in (("--q-scales", "0,1", "must be > 0"),
-                                 ("--r-scales", "1,x", "not a number"),
-                                 ("--delays", "0,5x", "not a delay setting"),
-                                 ("--delays", "0c", "needs a delay > 0"),
-                                 ("--delays", "10,10", "given twice"),
-                                 ("--delays", "0.3", "whole multiple of physics_dt"),
-                                 ("--durations", "0.5,13", "t_end")):
-        args = {"--q-scales": QS, "--r-scales": RS, "--delays": "0", "--forces": FORCES,
-                "--durations": DURATIONS, flag: value}
-        code = main(["landscape", *[w for k, v in args.items() for w in (k, v)],
-                     "--out", str(out)])
+    for flag, value, message in (
+        ("--q-scales", "0,1", "must be > 0"),
+        ("--r-scales", "1,x", "not a number"),
+        ("--delays", "0,5x", "not a delay setting"),
+        ("--delays", "0c", "needs a delay > 0"),
+        ("--delays", "10,10", "given twice"),
+        ("--delays", "0.3", "whole multiple of physics_dt"),
+        ("--durations", "0.5,13", "t_end"),
+    ):
+        args = {
+            "--q-scales": QS,
+            "--r-scales": RS,
+            "--delays": "0",
+            "--forces": FORCES,
+            "--durations": DURATIONS,
+            flag: value,
+        }
+        code = main(["landscape", *[w for k, v in args.items() for w in (k, v)], "--out", str(out)])
         assert code == 2, flag
         err = capsys.readouterr().err
         assert message in err, (flag, value, err)
     assert not out.exists() and not stand_in  # nothing ran, nothing was written
     assert cli(out) == 0
-    kept = {p: p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()
-            and p.name != ".lock"}
+    kept = {p: p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file() and p.name != ".lock"}
     done = calls(stand_in)
     # another grid, or another base configuration, over a finished landscape: refused,
     # naming the setting, before any scenario runs or any file changes
-    assert main(["landscape", "--q-scales", QS, "--r-scales", RS, "--delays", "0,100c",
-                 "--forces", "0:40:20", "--durations", DURATIONS, "--out", str(out)]) == 2
+    assert (
+        main(
+            [
+                "landscape",
+                "--q-scales",
+                QS,
+                "--r-scales",
+                RS,
+                "--delays",
+                "0,100c",
+                "--forces",
+                "0:40:20",
+                "--durations",
+                DURATIONS,
+                "--out",
+                str(out),
+            ]
+        )
+        == 2
+    )
     assert "delay_000ms/q1_r0.1" in capsys.readouterr().err
     assert cli(out, "--set", "controller.horizon=10") == 2
     assert "different configuration" in capsys.readouterr().err
@@ -163,10 +209,13 @@ def test_bad_input_is_refused_before_any_work_and_nothing_is_lost(tmp_path, stan
 
 def test_delay_settings_and_names():
     delays = landscape.parse_delays("0, 10,100c,12.5ms c")
-    assert [d.key for d in delays] == ["delay_000ms", "delay_010ms", "delay_100ms_comp",
-                                       "delay_012.5ms_comp"]
-    assert [d.label for d in delays[:3]] == ["no delay", "10 ms, plain",
-                                             "100 ms, compensated"]
+    assert [d.key for d in delays] == [
+        "delay_000ms",
+        "delay_010ms",
+        "delay_100ms_comp",
+        "delay_012.5ms_comp",
+    ]
+    assert [d.label for d in delays[:3]] == ["no delay", "10 ms, plain", "100 ms, compensated"]
     config = landscape.setting_config(Config(), delays[2], 0.1, 1000)
     assert config.scenario.controller_delay == 0.1 and config.controller.delay_compensation
     assert config.controller.q_diag == pytest.approx((100.0,) * 4)
@@ -180,10 +229,12 @@ def test_delay_settings_and_names():
 
 def test_paired_energy_compares_the_same_pushes():
     keys = {"force": [10.0, 20.0, 30.0], "duration": [0.1, 0.1, 0.1]}
-    base = pd.DataFrame({**keys, "outcome": ["recovered", "recovered", "fell"],
-                         "energy_total": [1.0, 3.0, np.nan]})
-    other = pd.DataFrame({**keys, "outcome": ["recovered", "fell", "recovered"],
-                          "energy_total": [0.5, np.nan, 50.0]})
+    base = pd.DataFrame(
+        {**keys, "outcome": ["recovered", "recovered", "fell"], "energy_total": [1.0, 3.0, np.nan]}
+    )
+    other = pd.DataFrame(
+        {**keys, "outcome": ["recovered", "fell", "recovered"], "energy_total": [0.5, np.nan, 50.0]}
+    )
     assert landscape.paired_energy(other, base) == (1, pytest.approx(0.5))  # the 10-N push
     none = other.assign(outcome="fell")
     n, value = landscape.paired_energy(none, base)
@@ -191,7 +242,8 @@ def test_paired_energy_compares_the_same_pushes():
 
 
 def test_landscape_numbers_equal_a_direct_compare_with_the_real_rollout(
-        tmp_path, batch_runner, float32):
+    tmp_path, batch_runner, float32
+):
     """The real closed loop (the session's compiled function: a BatchRunner of scaled weights
     shares it), t_end = 2 s, 2 pushes and one table force: each setting's landscape row equals
     compare.csv's row of the same configuration written out by hand, and the two R scales give
@@ -207,15 +259,36 @@ def test_landscape_numbers_equal_a_direct_compare_with_the_real_rollout(
 
     base = batch_runner.config
     grid = {"forces": "0,60", "durations": "0.1"}
-    frame = landscape.run_landscape(tmp_path / "land", base, **grid, q_scales="1",
-                                    r_scales="0.1,1", delays="0", table_forces="60",
-                                    make_batch=make, say=None)
+    frame = landscape.run_landscape(
+        tmp_path / "land",
+        base,
+        **grid,
+        q_scales="1",
+        r_scales="0.1,1",
+        delays="0",
+        table_forces="60",
+        make_batch=make,
+        say=None,
+    )
     by_hand = {"r01": base.replace(controller={"r_diag": (0.01, 1e-5)}), "r1": base}
     batches = {name: make(c) for name, c in by_hand.items()}
-    direct = run_compare(tmp_path / "cmp", by_hand, grid["forces"], grid["durations"], "60",
-                         run_batches=batches, say=None).set_index("name")
-    numbers = ["area", "recovered_cells", "f_max_ref", "mean_recovery_energy",
-               "sustained_push_limit", "max_acting_time_60N"]
+    direct = run_compare(
+        tmp_path / "cmp",
+        by_hand,
+        grid["forces"],
+        grid["durations"],
+        "60",
+        run_batches=batches,
+        say=None,
+    ).set_index("name")
+    numbers = [
+        "area",
+        "recovered_cells",
+        "f_max_ref",
+        "mean_recovery_energy",
+        "sustained_push_limit",
+        "max_acting_time_60N",
+    ]
     for name, r in (("r01", 0.1), ("r1", 1.0)):
         row = frame[frame["r_scale"] == r].iloc[0]
         for column in numbers:
@@ -223,7 +296,9 @@ def test_landscape_numbers_equal_a_direct_compare_with_the_real_rollout(
     assert frame["recovered_cells"].min() >= 1  # the unpushed body recovers
     a, b = (frame[frame["r_scale"] == r].iloc[0] for r in (0.1, 1.0))
     assert (a["sustained_push_limit"], a["mean_recovery_energy"]) != (
-        b["sustained_push_limit"], b["mean_recovery_energy"])
+        b["sustained_push_limit"],
+        b["mean_recovery_energy"],
+    )
 
 
 def test_the_report_section_is_read_from_the_folder(tmp_path, stand_in):
@@ -239,8 +314,11 @@ def test_the_report_section_is_read_from_the_folder(tmp_path, stand_in):
     assert figure["path"] == str(out / "landscape.png")  # embedded when the page is rendered
     table = section["blocks"][2]
     rows = [dict(zip(table["header"], r)) for r in table["rows"]]
-    assert [r["which"] for r in rows] == ["base weights (1, 1)", "largest area",
-                                          "largest sustained limit"] * 2
+    assert [r["which"] for r in rows] == [
+        "base weights (1, 1)",
+        "largest area",
+        "largest sustained limit",
+    ] * 2
     frame = pd.read_csv(out / "landscape.csv", dtype={"delay": str})
     base = frame[(frame["delay"] == "100c") & frame["study"]].iloc[0]
     assert rows[3]["delay"] == "100 ms, compensated"

@@ -37,7 +37,7 @@ def test_the_people_reference_holds_the_printed_values():
     for measure, (mean, sd, unit) in PRINTED.items():
         row = frame.loc[measure]
         assert row["mean"] == mean and row["unit"] == unit, measure
-        assert (pd.isna(row["sd"]) if sd is None else row["sd"] == sd), measure
+        assert pd.isna(row["sd"]) if sd is None else row["sd"] == sd, measure
 
 
 def test_each_value_is_in_the_quoted_sentence_with_its_source():

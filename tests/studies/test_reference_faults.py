@@ -21,13 +21,24 @@ from mjx_balance.studies import reference_files as rf
 from mjx_balance.studies import scorecard as sc
 
 # Our side, made up (as tests/studies/test_scorecard.py): three forces, 100 N's 0.1-s push fell.
-OURS = pd.DataFrame({
-    "force": [20.0, 50.0, 100.0], "max_acting_time": [0.58, 0.18, 0.08],
-    "energy_total_01": [0.054, 0.357, np.nan], "energy_total_max": [5.5, 3.8, 2.2],
-    "study_energy_total_01": [0.039, 0.247, np.nan], "monotone": [True, True, False]})
-RUNS = pd.DataFrame({
-    "force": [20.0, 20.0, 20.0, 50.0, 50.0], "duration": [0.5, 0.57, 0.58, 0.17, 0.18],
-    "outcome": ["recovered"] * 5, "energy_total": [3.0, 5.3, 5.5, 3.6, 3.8]})
+OURS = pd.DataFrame(
+    {
+        "force": [20.0, 50.0, 100.0],
+        "max_acting_time": [0.58, 0.18, 0.08],
+        "energy_total_01": [0.054, 0.357, np.nan],
+        "energy_total_max": [5.5, 3.8, 2.2],
+        "study_energy_total_01": [0.039, 0.247, np.nan],
+        "monotone": [True, True, False],
+    }
+)
+RUNS = pd.DataFrame(
+    {
+        "force": [20.0, 20.0, 20.0, 50.0, 50.0],
+        "duration": [0.5, 0.57, 0.58, 0.17, 0.18],
+        "outcome": ["recovered"] * 5,
+        "energy_total": [3.0, 5.3, 5.5, 3.6, 3.8],
+    }
+)
 
 
 def _write(folder, name, text):
@@ -51,15 +62,22 @@ def _refused(path, *words):
 # --- a file's rows and values ------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("text, words", [
-    # a trailing comma on the data rows: pandas took the first column as the index, the force
-    # became 0.35 and the scorecard was empty
-    ("force,max_acting_time\n20,0.35,\n50,0.18,\n",
-     ["line 2", "3 fields where the header has 2", "trailing comma"]),
-    ("# a comment\nforce,max_acting_time\n20,0.35\n\n50,0.18,0.1\n",
-     ["line 5", "3 fields where the header has 2"]),
-    ("force,duration,recovered\n20,0.3,1\n20,0.4,0,\n", ["line 3", "4 fields"]),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        # a trailing comma on the data rows: pandas took the first column as the index, the force
+        # became 0.35 and the scorecard was empty
+        (
+            "force,max_acting_time\n20,0.35,\n50,0.18,\n",
+            ["line 2", "3 fields where the header has 2", "trailing comma"],
+        ),
+        (
+            "# a comment\nforce,max_acting_time\n20,0.35\n\n50,0.18,0.1\n",
+            ["line 5", "3 fields where the header has 2"],
+        ),
+        ("force,duration,recovered\n20,0.3,1\n20,0.4,0,\n", ["line 3", "4 fields"]),
+    ],
+)
 def test_a_row_with_more_fields_than_the_header_is_refused(tmp_path, text, words):
     _refused(_write(tmp_path, "ref.csv", text), *words)
 
@@ -69,16 +87,28 @@ def test_a_trailing_comma_on_every_line_is_an_empty_column(tmp_path):
     were not there; an unnamed column that holds values is refused."""
     ref = rf.read_reference(_write(tmp_path, "ok.csv", "force,max_acting_time,\n20,0.6,\n"))
     assert ref.frame["force"].tolist() == [20.0] and ref.measures == ["max_acting_time"]
-    _refused(_write(tmp_path, "bad.csv", "force,,max_acting_time\n20,x,0.6\n"),
-             "column 2 has no name", "'x'", "line 2")
+    _refused(
+        _write(tmp_path, "bad.csv", "force,,max_acting_time\n20,x,0.6\n"),
+        "column 2 has no name",
+        "'x'",
+        "line 2",
+    )
 
 
-@pytest.mark.parametrize("column", ["force", "duration", "max_acting_time",
-                                    "study_energy_total_max", "energy_hip_01", "resolution",
-                                    "tolerance"])
+@pytest.mark.parametrize(
+    "column",
+    [
+        "force",
+        "duration",
+        "max_acting_time",
+        "study_energy_total_max",
+        "energy_hip_01",
+        "resolution",
+        "tolerance",
+    ],
+)
 @pytest.mark.parametrize("value", ["inf", "-inf", "1e309", "nan", "abc"])
-def test_every_numeric_column_refuses_a_value_that_is_not_a_finite_number(tmp_path, column,
-                                                                          value):
+def test_every_numeric_column_refuses_a_value_that_is_not_a_finite_number(tmp_path, column, value):
     """inf and 1e309 in a measure dropped the row silently (nan was refused); inf as a force
     was refused later without naming the file. Now every numeric column the same way: file,
     line, column and the value."""
@@ -90,8 +120,12 @@ def test_every_numeric_column_refuses_a_value_that_is_not_a_finite_number(tmp_pa
 
 
 def test_a_negative_value_names_its_line(tmp_path):
-    _refused(_write(tmp_path, "ref.csv", "force,max_acting_time\n20,0.6\n50,-0.1\n"),
-             "line 3", "max_acting_time must not be negative", "'-0.1'")
+    _refused(
+        _write(tmp_path, "ref.csv", "force,max_acting_time\n20,0.6\n50,-0.1\n"),
+        "line 3",
+        "max_acting_time must not be negative",
+        "'-0.1'",
+    )
 
 
 def test_a_file_where_every_value_was_dropped_is_refused_not_scored_empty(tmp_path):
@@ -100,35 +134,56 @@ def test_a_file_where_every_value_was_dropped_is_refused_not_scored_empty(tmp_pa
     _refused(path, "line 2", "'inf'")
 
 
-@pytest.mark.parametrize("text, words", [
-    ("force,max_acting_time\n20,0.35\n50,0.2\n20.0,0.36\n",
-     ["lines 2 and 4", "two different max_acting_time", "force 20 N", "0.35 and 0.36"]),
-    ("force,energy_total_01,energy_total_max\n20,0.05,5.5\n20,0.05,6.0\n",
-     ["lines 2 and 3", "two different energy_total_max", "5.5 and 6"]),
-    ("force,duration,recovered\n20,0.3,yes\n20,0.30,no\n",
-     ["lines 2 and 3", "two different recovered", "push 20 N x 0.3 s"]),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        (
+            "force,max_acting_time\n20,0.35\n50,0.2\n20.0,0.36\n",
+            ["lines 2 and 4", "two different max_acting_time", "force 20 N", "0.35 and 0.36"],
+        ),
+        (
+            "force,energy_total_01,energy_total_max\n20,0.05,5.5\n20,0.05,6.0\n",
+            ["lines 2 and 3", "two different energy_total_max", "5.5 and 6"],
+        ),
+        (
+            "force,duration,recovered\n20,0.3,yes\n20,0.30,no\n",
+            ["lines 2 and 3", "two different recovered", "push 20 N x 0.3 s"],
+        ),
+    ],
+)
 def test_contradictory_duplicate_rows_are_refused_naming_both_lines(tmp_path, text, words):
     _refused(_write(tmp_path, "ref.csv", text), *words)
 
 
 def test_an_identical_repeated_row_is_scored_once(tmp_path):
-    ref = rf.read_reference(_write(tmp_path, "ref.csv", (
-        "force,max_acting_time,duration,recovered\n20,0.6,0.3,1\n20,0.60,0.3,yes\n")))
+    ref = rf.read_reference(
+        _write(
+            tmp_path,
+            "ref.csv",
+            ("force,max_acting_time,duration,recovered\n20,0.6,0.3,1\n20,0.60,0.3,yes\n"),
+        )
+    )
     card = sc.score(ref, OURS)
     assert card["measure"].tolist() == ["max_acting_time", "recovered"]
 
 
-@pytest.mark.parametrize("text, words", [
-    ("force;max_acting_time\n20;0.35\n", ["'force;max_acting_time'",
-                                          "the separator must be a comma"]),
-    ("force;max_acting_time\n20;0,35\n", ["the separator must be a comma"]),  # decimal comma
-    ("force\tmax_acting_time\n20\t0.35\n", ["the separator must be a comma"]),
-    ("Kraft,max_acting_time\n20,0.35\n", ["needs a column force",
-                                          "found column(s) 'kraft', 'max_acting_time'"]),
-    ("force,force\n20,30\n", ["force given more than once"]),
-    ("", ["empty"]),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        (
+            "force;max_acting_time\n20;0.35\n",
+            ["'force;max_acting_time'", "the separator must be a comma"],
+        ),
+        ("force;max_acting_time\n20;0,35\n", ["the separator must be a comma"]),  # decimal comma
+        ("force\tmax_acting_time\n20\t0.35\n", ["the separator must be a comma"]),
+        (
+            "Kraft,max_acting_time\n20,0.35\n",
+            ["needs a column force", "found column(s) 'kraft', 'max_acting_time'"],
+        ),
+        ("force,force\n20,30\n", ["force given more than once"]),
+        ("", ["empty"]),
+    ],
+)
 def test_a_header_without_force_says_what_it_found(tmp_path, text, words):
     """A semicolon-separated file said "needs a column force" with no hint."""
     _refused(_write(tmp_path, "ref.csv", text), *words)
@@ -145,8 +200,11 @@ def test_an_absurd_file_is_refused_before_it_is_read(tmp_path, monkeypatch):
     _refused(path, "a reference file holds at most")
     monkeypatch.setattr(rf.references, "MAX_BYTES", 10**9)
     monkeypatch.setattr(rf, "MAX_ROWS", 5)
-    path = _write(tmp_path, "rows.csv", "force,duration,recovered\n" + "".join(
-        f"20,{d / 10:.1f},1\n" for d in range(1, 7)))
+    path = _write(
+        tmp_path,
+        "rows.csv",
+        "force,duration,recovered\n" + "".join(f"20,{d / 10:.1f},1\n" for d in range(1, 7)),
+    )
     _refused(path, "6 rows", "at most 5")
 
 
@@ -158,13 +216,26 @@ def test_a_large_file_is_read_and_scored_in_seconds(tmp_path):
     n = 20_000
     forces = np.repeat(OURS["force"].to_numpy(), n // 3 + 1)[:n]
     durations = np.tile(np.arange(n // 3 + 1), 3)[:n] * 1e-4
-    trials = pd.DataFrame({"force": forces, "duration": durations.round(4),
-                           "recovered": (durations < 0.3).astype(int)})
+    trials = pd.DataFrame(
+        {
+            "force": forces,
+            "duration": durations.round(4),
+            "recovered": (durations < 0.3).astype(int),
+        }
+    )
     trials.to_csv(tmp_path / "trials.csv", index=False)
-    table = pd.DataFrame({"force": np.linspace(1, 200, n).round(4), "max_acting_time": 0.45,
-                          "energy_total_01": 0.12, "energy_total_max": 3.5,
-                          "study_energy_total_01": 0.1, "study_energy_u1_01": 0.07,
-                          "study_energy_u2_01": 0.03, "study_energy_total_max": 2.0})
+    table = pd.DataFrame(
+        {
+            "force": np.linspace(1, 200, n).round(4),
+            "max_acting_time": 0.45,
+            "energy_total_01": 0.12,
+            "energy_total_max": 3.5,
+            "study_energy_total_01": 0.1,
+            "study_energy_u1_01": 0.07,
+            "study_energy_u2_01": 0.03,
+            "study_energy_total_max": 2.0,
+        }
+    )
     table.to_csv(tmp_path / "table.csv", index=False)
     start = time.perf_counter()
     refs = rf.read_references([tmp_path / "trials.csv", tmp_path / "table.csv"])
@@ -185,8 +256,7 @@ def test_one_force_tolerance_adds_and_matches_a_reference_force(tmp_path, given,
     from mjx_balance import api
     from mjx_balance.cli.sweep import with_reference_forces
 
-    refs = rf.read_references(_write(tmp_path, "ref.csv",
-                                     f"force,max_acting_time\n{given},0.6\n"))
+    refs = rf.read_references(_write(tmp_path, "ref.csv", f"force,max_acting_time\n{given},0.6\n"))
     table_forces = np.array([20.0, 50.0, 100.0])
     run = with_reference_forces(table_forces, refs, "table")
     assert (given in run) == added and len(run) == 3 + added
@@ -207,13 +277,21 @@ def test_a_reference_forces_within_the_tolerance_are_run_once(tmp_path):
 
 def test_the_scorecard_applies_the_one_row_rules_to_whole_columns(tmp_path):
     """score() (by columns) gives what our_value / our_recovered give row by row."""
-    ref = rf.read_reference(_write(tmp_path, "ref.csv", (
-        "force,duration,recovered,max_acting_time,energy_total_01,energy_total_max,"
-        "study_energy_total_01\n"
-        "20.00001,0.3,1,0.6,0.05,5.5,0.04\n50,0.185,0,0.2,0.4,3.7,\n100,0.05,1,0.1,0.9,2.2,\n"
-        "80,0.1,1,0.1,,,\n20,0.7,0,,,,\n")))
-    region = pd.DataFrame({"force": [50.0, 100.0], "duration": [0.185, 0.05],
-                           "outcome": ["fell", "recovered"]})
+    ref = rf.read_reference(
+        _write(
+            tmp_path,
+            "ref.csv",
+            (
+                "force,duration,recovered,max_acting_time,energy_total_01,energy_total_max,"
+                "study_energy_total_01\n"
+                "20.00001,0.3,1,0.6,0.05,5.5,0.04\n50,0.185,0,0.2,0.4,3.7,\n100,0.05,1,0.1,0.9,2.2,\n"
+                "80,0.1,1,0.1,,,\n20,0.7,0,,,,\n"
+            ),
+        )
+    )
+    region = pd.DataFrame(
+        {"force": [50.0, 100.0], "duration": [0.185, 0.05], "outcome": ["fell", "recovered"]}
+    )
     card = sc.score(ref, OURS, runs=RUNS, region=region)
     for row in card.itertuples():
         if row.measure == "recovered":
@@ -267,8 +345,9 @@ def test_several_files_of_one_name_are_each_kept_and_scored(tmp_path):
 def test_reference_files_keep_the_order_they_were_given_in(tmp_path):
     from mjx_balance.report.reproduction import reference_files, store_references
 
-    paths = [_write(tmp_path, f"{i}/r.csv", f"force,max_acting_time\n20,0.{i}\n")
-             for i in range(1, 12)]
+    paths = [
+        _write(tmp_path, f"{i}/r.csv", f"force,max_acting_time\n20,0.{i}\n") for i in range(1, 12)
+    ]
     stored = store_references(tmp_path / "out", paths)
     assert reference_files(tmp_path / "out") == stored
 
@@ -283,12 +362,17 @@ def test_labels_stay_unique_when_a_file_is_labelled_like_a_suffix(tmp_path):
 # --- the API -------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("ours, words", [
-    (pd.DataFrame(), ["ours", "needs the column force", "its columns: none"]),
-    (pd.DataFrame({"F": [20.0], "max_acting_time": [0.5]}), ["ours", "force", "F"]),
-    (pd.DataFrame({"force": ["twenty"], "max_acting_time": [0.5]}),
-     ["ours", "force must hold numbers"]),
-])
+@pytest.mark.parametrize(
+    "ours, words",
+    [
+        (pd.DataFrame(), ["ours", "needs the column force", "its columns: none"]),
+        (pd.DataFrame({"F": [20.0], "max_acting_time": [0.5]}), ["ours", "force", "F"]),
+        (
+            pd.DataFrame({"force": ["twenty"], "max_acting_time": [0.5]}),
+            ["ours", "force must hold numbers"],
+        ),
+    ],
+)
 def test_the_api_refuses_a_table_without_a_force_column(tmp_path, ours, words):
     """mb.scorecard(pd.DataFrame(), f) raised KeyError 'force' from inside."""
     ref = _write(tmp_path, "ref.csv", "force,max_acting_time\n20,0.6\n")
@@ -301,16 +385,18 @@ def test_the_api_refuses_a_table_without_a_force_column(tmp_path, ours, words):
 def test_a_table_without_max_acting_time_scores_what_it_has(tmp_path):
     ref = _write(tmp_path, "ref.csv", "force,duration,recovered,energy_total_01\n20,0.3,1,0.05\n")
     card = mb.scorecard(OURS[["force", "energy_total_01"]], ref)
-    assert card["status"].tolist() == ["agrees",
-                                       "not computed: our table has no max_acting_time"]
+    assert card["status"].tolist() == ["agrees", "not computed: our table has no max_acting_time"]
 
 
-@pytest.mark.parametrize("reference, words", [
-    (123, ["reference", "int 123", "a CSV path"]),
-    ([None], ["reference", "NoneType"]),
-    (b"ref.csv", ["reference", "bytes"]),
-    ({"a": 1}, ["reference", "dict"]),
-])
+@pytest.mark.parametrize(
+    "reference, words",
+    [
+        (123, ["reference", "int 123", "a CSV path"]),
+        ([None], ["reference", "NoneType"]),
+        (b"ref.csv", ["reference", "bytes"]),
+        ({"a": 1}, ["reference", "dict"]),
+    ],
+)
 def test_the_api_refuses_a_reference_of_another_type(tmp_path, reference, words):
     """mb.scorecard(folder, 123) raised a TypeError from inside pathlib."""
     OURS.to_csv(tmp_path / "table.csv", index=False)
@@ -337,36 +423,40 @@ def test_a_folder_whose_table_lost_its_force_column_is_named(tmp_path):
 # --- the command line --------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("text, words", [
-    ("force,max_acting_time\n20,0.35,\n", ["line 2", "3 fields"]),
-    ("force,max_acting_time\ninf,0.35\n", ["line 2", "force must be a finite number", "'inf'"]),
-    ("force;max_acting_time\n20;0.35\n", ["separator must be a comma"]),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("force,max_acting_time\n20,0.35,\n", ["line 2", "3 fields"]),
+        ("force,max_acting_time\ninf,0.35\n", ["line 2", "force must be a finite number", "'inf'"]),
+        ("force;max_acting_time\n20;0.35\n", ["separator must be a comma"]),
+    ],
+)
 def test_the_command_line_refuses_a_bad_reference_before_anything_is_written(
-        tmp_path, capsys, fake_rollout, text, words):
+    tmp_path, capsys, fake_rollout, text, words
+):
     ref = _write(tmp_path, "ref.csv", text)
     out = tmp_path / "out"
-    for command in (["table", "--forces", "20"], ["sweep", "--forces", "20",
-                                                  "--durations", "0.5"],
-                    ["report", "--scale", "tiny"]):
+    for command in (
+        ["table", "--forces", "20"],
+        ["sweep", "--forces", "20", "--durations", "0.5"],
+        ["report", "--scale", "tiny"],
+    ):
         code, err = run_cli([*command, "--reference", str(ref), "--out", str(out)], capsys)
         assert_refused(code, err, str(ref), *words)
         assert not out.exists()
 
 
-def test_the_command_line_refuses_a_huge_reference_file_by_its_size(tmp_path, capsys,
-                                                                    monkeypatch):
+def test_the_command_line_refuses_a_huge_reference_file_by_its_size(tmp_path, capsys, monkeypatch):
     from mjx_balance.studies import references
 
     monkeypatch.setattr(references, "MAX_BYTES", 10)
     ref = _write(tmp_path, "ref.csv", "force,max_acting_time\n20,0.6\n")
-    code, err = run_cli(["table", "--reference", str(ref), "--out", str(tmp_path / "o")],
-                        capsys)
+    code, err = run_cli(["table", "--reference", str(ref), "--out", str(tmp_path / "o")], capsys)
     assert_refused(code, err, "--reference", "at most")
 
 
 def test_table_says_only_what_it_wrote(tmp_path, capsys, fake_rollout):
-    """"wrote scorecard.csv and scorecard.png" when a reference of recovered pushes only gave
+    """ "wrote scorecard.csv and scorecard.png" when a reference of recovered pushes only gave
     no panel (and no PNG); the figure an earlier reference left is removed with it."""
     from mjx_balance.cli import main
 
@@ -394,10 +484,12 @@ def test_the_scorecard_figure_draws_every_text_inside_it(tmp_path, measures):
     from mjx_balance.figures import style
     from mjx_balance.figures.scorecard import scorecard_figure
 
-    columns = ["max_acting_time", "energy_total_01", "energy_total_max",
-               "study_energy_total_01"][:measures]
-    ref = rf.read_reference(_write(tmp_path, "r.csv", f"force,{','.join(columns)}\n"
-                                   f"20,{','.join(['0.5'] * measures)}\n"))
+    columns = ["max_acting_time", "energy_total_01", "energy_total_max", "study_energy_total_01"][
+        :measures
+    ]
+    ref = rf.read_reference(
+        _write(tmp_path, "r.csv", f"force,{','.join(columns)}\n20,{','.join(['0.5'] * measures)}\n")
+    )
     fig = scorecard_figure(sc.score(ref, OURS, runs=RUNS), table=OURS)
     assert [t.get_text() for t in style.outside(fig)] == []
     import matplotlib.pyplot as plt
@@ -409,8 +501,9 @@ def test_a_dollar_in_a_label_is_drawn_as_written(tmp_path):
     """lab $5 of $10 was drawn as mathematics ("lab 5of10" in italics)."""
     from mjx_balance.figures.scorecard import scorecard_figure
 
-    ref = rf.read_reference(_write(tmp_path, "r.csv",
-                                   "force,max_acting_time,label\n20,0.6,lab $5 of $10\n"))
+    ref = rf.read_reference(
+        _write(tmp_path, "r.csv", "force,max_acting_time,label\n20,0.6,lab $5 of $10\n")
+    )
     fig = scorecard_figure(sc.score(ref, OURS), table=OURS)
     fig.draw_without_rendering()
     legend = next(t for t in fig.axes[0].get_legend().get_texts() if "lab" in t.get_text())
@@ -427,8 +520,11 @@ def test_the_report_scorecard_table_carries_the_citation(tmp_path):
 
     out = tmp_path / "report"
     _report_folder(out, "joint")
-    ref = _write(tmp_path, "lab.csv", "force,max_acting_time,source\n"
-                                      "20,0.6,\"Doe & Roe, J. Made Up 2026\"\n50,0.2,\n")
+    ref = _write(
+        tmp_path,
+        "lab.csv",
+        'force,max_acting_time,source\n20,0.6,"Doe & Roe, J. Made Up 2026"\n50,0.2,\n',
+    )
     store_references(out, [ref])
     (tmp_path / "figures").mkdir()
     section = scorecard_section(out, ["joint"], tmp_path / "figures")

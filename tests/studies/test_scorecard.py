@@ -27,13 +27,24 @@ from mjx_balance.studies import scorecard as sc
 
 # Our side, made up: a table of three forces (100 N's 0.1-s push fell: its energies are NaN, as
 # the table writes them) and the runs of its bisection.
-OURS = pd.DataFrame({
-    "force": [20.0, 50.0, 100.0], "max_acting_time": [0.58, 0.18, 0.08],
-    "energy_total_01": [0.054, 0.357, np.nan], "energy_total_max": [5.5, 3.8, 2.2],
-    "study_energy_total_01": [0.039, 0.247, np.nan], "monotone": [True, True, True]})
-RUNS = pd.DataFrame({
-    "force": [20.0, 20.0, 20.0], "duration": [0.5, 0.57, 0.58],
-    "outcome": ["recovered", "recovered", "recovered"], "energy_total": [3.0, 5.3, 5.5]})
+OURS = pd.DataFrame(
+    {
+        "force": [20.0, 50.0, 100.0],
+        "max_acting_time": [0.58, 0.18, 0.08],
+        "energy_total_01": [0.054, 0.357, np.nan],
+        "energy_total_max": [5.5, 3.8, 2.2],
+        "study_energy_total_01": [0.039, 0.247, np.nan],
+        "monotone": [True, True, True],
+    }
+)
+RUNS = pd.DataFrame(
+    {
+        "force": [20.0, 20.0, 20.0],
+        "duration": [0.5, 0.57, 0.58],
+        "outcome": ["recovered", "recovered", "recovered"],
+        "energy_total": [3.0, 5.3, 5.5],
+    }
+)
 
 
 def _write(tmp_path, name, text):
@@ -45,8 +56,9 @@ def _write(tmp_path, name, text):
 def test_kind_is_told_by_the_columns(tmp_path):
     points = rf.read_reference(_write(tmp_path, "p.csv", "force,duration\n20,0.5\n"))
     table = rf.read_reference(_write(tmp_path, "t.csv", "force,max_acting_time\n20,0.6\n"))
-    lab = rf.read_reference(_write(tmp_path, "lab.csv",
-                                   "force,duration,recovered\n20,0.5,yes\n50,0.3,0\n"))
+    lab = rf.read_reference(
+        _write(tmp_path, "lab.csv", "force,duration,recovered\n20,0.5,yes\n50,0.3,0\n")
+    )
     assert (points.kind, table.kind, lab.kind) == ("points", "table", "table")
     assert table.forces == [20.0] and points.forces == []
     assert lab.frame["recovered"].tolist() == [1.0, 0.0]
@@ -55,15 +67,18 @@ def test_kind_is_told_by_the_columns(tmp_path):
     assert drawn["label"].tolist() == ["p", "lab", "lab"]
 
 
-@pytest.mark.parametrize("text,words", [
-    ("duration\n0.5\n", "needs a column force"),
-    ("force,max_time\n20,0.6\n", "unknown column(s) max_time"),
-    ("force,max_acting_time\n20,abc\n", "line 2: max_acting_time must be a finite number"),
-    ("force,max_acting_time\n20,-1\n", "must not be negative"),
-    ("force,duration,recovered\n20,0.5,maybe\n", "recovered must be"),
-    ("force,recovered\n20,1\n", "needs the push's duration"),
-    ("force\n20\n", "needs either duration"),
-])
+@pytest.mark.parametrize(
+    "text,words",
+    [
+        ("duration\n0.5\n", "needs a column force"),
+        ("force,max_time\n20,0.6\n", "unknown column(s) max_time"),
+        ("force,max_acting_time\n20,abc\n", "line 2: max_acting_time must be a finite number"),
+        ("force,max_acting_time\n20,-1\n", "must not be negative"),
+        ("force,duration,recovered\n20,0.5,maybe\n", "recovered must be"),
+        ("force,recovered\n20,1\n", "needs the push's duration"),
+        ("force\n20\n", "needs either duration"),
+    ],
+)
 def test_bad_reference_files_are_refused_naming_the_problem(tmp_path, text, words):
     with pytest.raises(ParameterError, match=None) as info:
         rf.read_reference(_write(tmp_path, "bad.csv", text))
@@ -92,19 +107,28 @@ def test_tolerance_comes_from_the_reference_resolution_and_our_bisection_step(tm
     assert "printed resolution 0.01 s" in row_b["tolerance_basis"]
     assert "bisection step" in row_b["tolerance_basis"]
     # a stated resolution and a given tolerance replace the printed one
-    stated = rf.read_reference(_write(tmp_path, "c.csv",
-                                      "force,max_acting_time,resolution\n20,0.60,0.1\n"))
+    stated = rf.read_reference(
+        _write(tmp_path, "c.csv", "force,max_acting_time,resolution\n20,0.60,0.1\n")
+    )
     assert sc.score(stated, OURS).iloc[0]["status"] == "agrees"
-    given = rf.read_reference(_write(tmp_path, "d.csv",
-                                     "force,max_acting_time,tolerance\n20,0.6,0.001\n"))
+    given = rf.read_reference(
+        _write(tmp_path, "d.csv", "force,max_acting_time,tolerance\n20,0.6,0.001\n")
+    )
     assert sc.score(given, OURS).iloc[0]["status"] == "differs"
 
 
 def test_no_energy_of_a_fall_is_compared_and_reasons_are_carried(tmp_path):
-    ref = rf.read_reference(_write(tmp_path, "r.csv", (
-        "force,energy_total_01,energy_total_max,reason\n"
-        "20,0.05,5.5,\n"
-        "100,0.9,2.2,our 0.1-s push falls (made up)\n")))
+    ref = rf.read_reference(
+        _write(
+            tmp_path,
+            "r.csv",
+            (
+                "force,energy_total_01,energy_total_max,reason\n"
+                "20,0.05,5.5,\n"
+                "100,0.9,2.2,our 0.1-s push falls (made up)\n"
+            ),
+        )
+    )
     card = sc.score(ref, OURS, runs=RUNS)
     at_100 = card[(card["force"] == 100) & (card["measure"] == "energy_total_01")].iloc[0]
     assert at_100["status"].startswith("not comparable") and np.isnan(at_100["ours"])
@@ -121,8 +145,13 @@ def test_no_energy_of_a_fall_is_compared_and_reasons_are_carried(tmp_path):
 
 
 def test_recovered_pairs_from_the_map_or_the_table(tmp_path):
-    ref = rf.read_reference(_write(tmp_path, "lab.csv", (
-        "force,duration,recovered\n20,0.3,1\n20,0.7,1\n20,0.585,0\n50,0.1,1\n80,0.1,1\n")))
+    ref = rf.read_reference(
+        _write(
+            tmp_path,
+            "lab.csv",
+            ("force,duration,recovered\n20,0.3,1\n20,0.7,1\n20,0.585,0\n50,0.1,1\n80,0.1,1\n"),
+        )
+    )
     region = pd.DataFrame({"force": [50.0], "duration": [0.1], "outcome": ["fell"]})
     card = sc.score(ref, OURS, region=region).set_index("duration")
     assert card.loc[0.3, "status"] == "agrees"  # 0.3 <= 0.58: recovered
@@ -145,8 +174,11 @@ def test_several_references_each_keep_their_own_rows(tmp_path):
 def test_scorecard_of_a_saved_folder_writes_csv_and_figure(tmp_path):
     OURS.to_csv(tmp_path / "table.csv", index=False)
     RUNS.to_parquet(tmp_path / "table_runs.parquet")
-    ref = _write(tmp_path, "ref.csv", "force,max_acting_time,energy_total_01\n20,0.6,0.05\n"
-                                      "50,0.2,0.4\n100,0.1,1.0\n")
+    ref = _write(
+        tmp_path,
+        "ref.csv",
+        "force,max_acting_time,energy_total_01\n20,0.6,0.05\n50,0.2,0.4\n100,0.1,1.0\n",
+    )
     card = sc.write_scorecard(tmp_path, rf.read_references([ref]))
     assert list(pd.read_csv(tmp_path / sc.SCORECARD).columns) == sc.SCORECARD_COLUMNS
     assert len(card) == 6 and (tmp_path / sc.SCORECARD_FIGURE).read_bytes()[:4] == b"\x89PNG"
@@ -161,11 +193,18 @@ def test_scorecard_of_a_saved_folder_writes_csv_and_figure(tmp_path):
 def test_hip_share_and_strategy():
     # made-up cells: 10 N recovers as ankle at 0.1 s and with the hip at 1 s; 50 N with the hip
     # at 0.1 s and falls at 0.5 s; F = 0 did (almost) no work
-    region = fake_region({(0.0, 0.1): "recovered", (10.0, 0.1): "recovered",
-                          (10.0, 1.0): "recovered", (50.0, 0.1): "recovered",
-                          (50.0, 0.5): "fell"}, convention=None,
-                         energy_hip=[1e-8, 0.0135, 0.3, 0.4, 40.0],
-                         energy_total=[3e-7, 0.1, 1.0, 1.0, 50.0])
+    region = fake_region(
+        {
+            (0.0, 0.1): "recovered",
+            (10.0, 0.1): "recovered",
+            (10.0, 1.0): "recovered",
+            (50.0, 0.1): "recovered",
+            (50.0, 0.5): "fell",
+        },
+        convention=None,
+        energy_hip=[1e-8, 0.0135, 0.3, 0.4, 40.0],
+        energy_total=[3e-7, 0.1, 1.0, 1.0, 50.0],
+    )
     share = hip_share(region)
     assert np.isnan(share[0])  # below the energy floor: no share
     assert share[1:].tolist() == pytest.approx([0.135, 0.3, 0.4, 0.8])
@@ -191,12 +230,18 @@ def test_parse_pairs_keeps_the_given_order(tmp_path):
     forces, durations = parse_pairs(str(path))
     assert forces.tolist() == [120.0, 5.0] and durations.tolist() == [0.1, 2.0]
     assert parse_pairs([(1, 0.1)])[0].tolist() == [1.0]
-    for bad, words in (("20", "FORCE:DURATION"), ("20:x", "not a number"), ("", "at least one"),
-                       ("inf:0.1", "finite"), ([(1, 2, 3)], "a force and a duration")):
+    for bad, words in (
+        ("20", "FORCE:DURATION"),
+        ("20:x", "not a number"),
+        ("", "at least one"),
+        ("inf:0.1", "finite"),
+        ([(1, 2, 3)], "a force and a duration"),
+    ):
         with pytest.raises(ParameterError, match=words):
             parse_pairs(bad)
-    with pytest.raises(ParameterError,
-                       match="pairs gives the pushes: leave out forces and durations"):
+    with pytest.raises(
+        ParameterError, match="pairs gives the pushes: leave out forces and durations"
+    ):
         mb.simulate([20], [0.1], pairs="20:0.1")
 
 
@@ -214,9 +259,13 @@ def test_simulate_runs_the_given_pairs_in_order_not_their_product():
 
 # The study's Table 2 as printed (K. Shen, A. Chemori, M. Hayashibe, IEEE Access 2020): force,
 # force time, ankle, hip and total energy; the longer time of a force is its max acting time.
-STUDY_ROWS = [(5, "0.10", "0.286", "0.042", "0.356"), (5, "8.00", "0.340", "0.227", "0.567"),
-              (20, "0.70", "4.018", "8.016", "12.034"), (60, "0.10", "1.074", "1.358", "2.432"),
-              (120, "0.10", "4.762", "9.395", "14.157")]
+STUDY_ROWS = [
+    (5, "0.10", "0.286", "0.042", "0.356"),
+    (5, "8.00", "0.340", "0.227", "0.567"),
+    (20, "0.70", "4.018", "8.016", "12.034"),
+    (60, "0.10", "1.074", "1.358", "2.432"),
+    (120, "0.10", "4.762", "9.395", "14.157"),
+]
 
 
 def test_the_study_table_ships_as_printed_and_cited():
@@ -232,13 +281,27 @@ def test_the_study_table_ships_as_printed_and_cited():
     acting = frame[frame["max_acting_time"].notna()]
     assert list(acting["force"]) == [5, 10, 15, 20, 30, 40, 50, 60, 80, 100, 120]
     assert list(text.loc[acting.index, "max_acting_time"]) == [
-        "8.00", "7.00", "6.00", "0.70", "0.45", "0.30", "0.25", "0.20", "0.10", "0.10", "0.10"]
+        "8.00",
+        "7.00",
+        "6.00",
+        "0.70",
+        "0.45",
+        "0.30",
+        "0.25",
+        "0.20",
+        "0.10",
+        "0.10",
+        "0.10",
+    ]
     for force, time, ankle, hip, total in STUDY_ROWS:
         when = "01" if time == "0.10" else "max"
         row = text[(frame["force"] == force) & (text[f"study_energy_u1_{when}"] != "")]
         assert len(row) == 1, (force, time)
         assert [row[f"study_energy_{j}_{when}"].item() for j in ("u1", "u2", "total")] == [
-            ankle, hip, total]
+            ankle,
+            hip,
+            total,
+        ]
         assert row["duration"].item() == time
     assert (frame["source"] == "Shen, Chemori, Hayashibe, IEEE Access 2020, Table 2").all()
     unreasoned = frame[frame["reason"] == ""]

@@ -15,10 +15,13 @@ from mjx_balance.studies import sensitivity
 
 # the stand-in's threshold c [N s] per reading: recovered iff F T < c
 # (no F T = c on the 0.01-s grid of the bisection, where the fake's rounding would decide)
-C = {("paper", False): 30.7, ("joint", False): 20.3, ("paper", True): 45.3,
-     ("joint", True): 40.7}
-KEY_C = {"paper_plain": 30.7, "joint_plain": 20.3, "paper_offset_free": 45.3,
-         "joint_offset_free": 40.7}
+C = {("paper", False): 30.7, ("joint", False): 20.3, ("paper", True): 45.3, ("joint", True): 40.7}
+KEY_C = {
+    "paper_plain": 30.7,
+    "joint_plain": 20.3,
+    "paper_offset_free": 45.3,
+    "joint_offset_free": 40.7,
+}
 FORCES = "20,50,80"
 
 
@@ -43,11 +46,14 @@ def test_the_spread_and_what_holds(tmp_path, stand_in):
     for key, c in KEY_C.items():
         # the stand-in's motors' energy is 3 F T (float32), its study energy 0; the 0.1-s
         # push's energy is NaN where F 0.1 >= c (not recovered)
-        np.testing.assert_allclose(frame[f"energy_motors_{key}"],
-                                   3 * forces * frame[f"max_acting_time_{key}"], rtol=1e-6)
-        np.testing.assert_allclose(frame[f"energy_motors_01_{key}"],
-                                   np.where(forces * 0.1 < c, 3 * forces * 0.1, np.nan),
-                                   rtol=1e-6)
+        np.testing.assert_allclose(
+            frame[f"energy_motors_{key}"], 3 * forces * frame[f"max_acting_time_{key}"], rtol=1e-6
+        )
+        np.testing.assert_allclose(
+            frame[f"energy_motors_01_{key}"],
+            np.where(forces * 0.1 < c, 3 * forces * 0.1, np.nan),
+            rtol=1e-6,
+        )
         assert (frame[f"energy_study_{key}"] == 0).all()
     for name in ("study", "motors", "study_01", "motors_01"):
         energies = frame[[f"energy_{name}_{k}" for k in KEY_C]].to_numpy()
@@ -76,39 +82,67 @@ def test_the_spread_and_what_holds(tmp_path, stand_in):
 def test_a_conclusion_that_depends_on_the_reading_is_named():
     """An offset-free reading shorter than its plain one at some force: the conclusion is
     reported as holding only where it does."""
+
     def table(times, study, motors, study_01, motors_01):
-        return pd.DataFrame({"force": [20.0, 50.0, 80.0], "max_acting_time": times,
-                             "study_energy_total_max": study, "energy_total_max": motors,
-                             "study_energy_total_01": study_01, "energy_total_01": motors_01})
+        return pd.DataFrame(
+            {
+                "force": [20.0, 50.0, 80.0],
+                "max_acting_time": times,
+                "study_energy_total_max": study,
+                "energy_total_max": motors,
+                "study_energy_total_01": study_01,
+                "energy_total_01": motors_01,
+            }
+        )
 
     # the 0.1-s push: recovered at 20 and 50 N (the plain reading's study energy known at
     # 20 N only)
-    tables = {"paper_plain": table([1.0, 0.5, 0.5], [1.0, 2.0, 2.0], [1.0, 2.0, 3.0],
-                                   [0.1, np.nan, np.nan], [0.2, 0.4, np.nan]),
-              "paper_offset_free": table([2.0, 0.4, 0.6], [1.0, 0.5, 0.6], [1.0, 3.0, 2.0],
-                                         [0.1, 0.3, np.nan], [0.2, 0.2, np.nan])}
+    tables = {
+        "paper_plain": table(
+            [1.0, 0.5, 0.5],
+            [1.0, 2.0, 2.0],
+            [1.0, 2.0, 3.0],
+            [0.1, np.nan, np.nan],
+            [0.2, 0.4, np.nan],
+        ),
+        "paper_offset_free": table(
+            [2.0, 0.4, 0.6],
+            [1.0, 0.5, 0.6],
+            [1.0, 3.0, 2.0],
+            [0.1, 0.3, np.nan],
+            [0.2, 0.2, np.nan],
+        ),
+    }
     frame = sensitivity.spread(tables)
     assert list(frame.max_acting_time_ratio) == [2.0, 1.25, 1.2]
     assert list(frame.energy_motors_max) == [1.0, 3.0, 3.0]
     np.testing.assert_array_equal(frame.energy_study_01_min, [0.1, 0.3, np.nan])
     found = dict(sensitivity.conclusions(frame, ["paper_plain", "paper_offset_free"]))
     assert found["the max acting time falls (or stays) as the force grows"] == ["paper_plain"]
-    assert found["the study's energy (eq. 20) of the longest recovered push rises with the "
-                 "force"] == ["paper_plain"]
-    assert found["the motors' energy of the longest recovered push rises with the "
-                 "force"] == ["paper_plain"]
+    assert found[
+        "the study's energy (eq. 20) of the longest recovered push rises with the force"
+    ] == ["paper_plain"]
+    assert found["the motors' energy of the longest recovered push rises with the force"] == [
+        "paper_plain"
+    ]
     # one recovered 0.1-s push decides nothing: it needs two forces
-    assert found["the study's energy (eq. 20) of the 0.1-s push rises with the force (where it "
-                 "recovers)"] == ["paper_offset_free"]
+    assert found[
+        "the study's energy (eq. 20) of the 0.1-s push rises with the force (where it recovers)"
+    ] == ["paper_offset_free"]
     # study 0.3 J > motors 0.2 J at 50 N (offset-free)
     assert found["the study's energy is at most the motors' (every force, both pushes)"] == [
-        "paper_plain"]
-    assert found["the offset-free MPC's max acting time is at least the plain MPC's at every "
-                 "force (same convention)"] == []
+        "paper_plain"
+    ]
+    assert (
+        found[
+            "the offset-free MPC's max acting time is at least the plain MPC's at every "
+            "force (same convention)"
+        ]
+        == []
+    )
     text = sensitivity.reading_text(frame, tables)
     assert "Under every reading: the motors' energy of the 0.1-s push rises" in text
-    assert ("the max acting time falls (or stays) as the force grows (only paper, plain MPC)"
-            in text)
+    assert "the max acting time falls (or stays) as the force grows (only paper, plain MPC)" in text
     assert "not: the offset-free MPC's max acting time is at least" in text
 
 
@@ -124,9 +158,22 @@ def test_plain_readings_are_plain_on_an_offset_free_base(tmp_path, stand_in):
 
 def test_command_line_writes_says_and_resumes(tmp_path, stand_in, capsys):
     out = tmp_path / "cli"
-    assert main(["sensitivity", "--forces", "20,50", "--readings",
-                 "paper_plain,paper_offset_free", "--set", "scenario.t_end=6", "--out",
-                 str(out)]) == 0
+    assert (
+        main(
+            [
+                "sensitivity",
+                "--forces",
+                "20,50",
+                "--readings",
+                "paper_plain,paper_offset_free",
+                "--set",
+                "scenario.t_end=6",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     said = capsys.readouterr().out
     assert f"sensitivity: paper, offset-free MPC -> {out / 'paper_offset_free'}" in said
     assert "Under the 2 readings" in said and "xnan" not in said  # zero study energies
@@ -134,17 +181,33 @@ def test_command_line_writes_says_and_resumes(tmp_path, stand_in, capsys):
         assert (out / name).exists(), name
     assert not (out / "joint_plain").exists()
     frame = pd.read_csv(out / "sensitivity.csv")
-    assert list(frame.max_acting_time_paper_plain) == [expected_max_time(f, 30.7, 6.0)
-                                                       for f in (20, 50)]
+    assert list(frame.max_acting_time_paper_plain) == [
+        expected_max_time(f, 30.7, 6.0) for f in (20, 50)
+    ]
     calls = sum(len(f.calls) for f in stand_in)
-    assert main(["sensitivity", "--forces", "20,50", "--readings",
-                 "paper_plain,paper_offset_free", "--set", "scenario.t_end=6", "--out",
-                 str(out)]) == 0
+    assert (
+        main(
+            [
+                "sensitivity",
+                "--forces",
+                "20,50",
+                "--readings",
+                "paper_plain,paper_offset_free",
+                "--set",
+                "scenario.t_end=6",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert sum(len(f.calls) for f in stand_in) == calls  # resumed: nothing run again
     # the folder holds another configuration's tables: refused, nothing changed
     before = (out / "sensitivity.csv").read_bytes()
-    assert main(["sensitivity", "--forces", "20,50", "--readings", "paper_plain",
-                 "--out", str(out)]) == 2
+    assert (
+        main(["sensitivity", "--forces", "20,50", "--readings", "paper_plain", "--out", str(out)])
+        == 2
+    )
     assert (out / "sensitivity.csv").read_bytes() == before
 
 
@@ -156,27 +219,34 @@ def test_refused_readings(tmp_path, stand_in):
     delayed = Config().replace(scenario={"controller_delay": 0.1})
     with pytest.raises(ParameterError, match="reading 'paper_offset_free'"):
         sensitivity.reading_configs(delayed)
-    assert main(["sensitivity", "--set", "scenario.controller_delay=0.1", "--out",
-                 str(tmp_path / "d")]) == 2
+    assert (
+        main(
+            ["sensitivity", "--set", "scenario.controller_delay=0.1", "--out", str(tmp_path / "d")]
+        )
+        == 2
+    )
     assert not (tmp_path / "d").exists()
-    assert list(sensitivity_readings(delayed, ("paper", "joint"))) == ["paper_plain",
-                                                                       "joint_plain"]
-    assert list(sensitivity_readings(Config(), ("joint",))) == ["joint_plain",
-                                                                "joint_offset_free"]
+    assert list(sensitivity_readings(delayed, ("paper", "joint"))) == ["paper_plain", "joint_plain"]
+    assert list(sensitivity_readings(Config(), ("joint",))) == ["joint_plain", "joint_offset_free"]
     with pytest.raises(ParameterError, match="unknown reading"):
         sensitivity.write_sensitivity(tmp_path, {"paper_bent": pd.DataFrame()})
     with pytest.raises(ParameterError, match="share no force"):
-        sensitivity.write_sensitivity(tmp_path, {
-            "paper_plain": pd.DataFrame({"force": [20.0]}),
-            "joint_plain": pd.DataFrame({"force": [50.0]})})
+        sensitivity.write_sensitivity(
+            tmp_path,
+            {
+                "paper_plain": pd.DataFrame({"force": [20.0]}),
+                "joint_plain": pd.DataFrame({"force": [50.0]}),
+            },
+        )
     assert not stand_in
 
 
 def test_bad_input_is_refused_before_any_work(tmp_path, stand_in):
     with pytest.raises(ParameterError, match="unknown reading"):
         sensitivity.run_sensitivity(tmp_path / "x", Config(), FORCES, readings=["paper_bent"])
-    assert main(["sensitivity", "--readings", "paper_plain,nope", "--out",
-                 str(tmp_path / "y")]) == 2
+    assert (
+        main(["sensitivity", "--readings", "paper_plain,nope", "--out", str(tmp_path / "y")]) == 2
+    )
     assert main(["sensitivity", "--forces", "a,b", "--out", str(tmp_path / "z")]) == 2
     assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
     assert not (tmp_path / "z").exists()
@@ -190,8 +260,9 @@ def test_the_report_shows_a_sensitivity_folder_inside_it(tmp_path, stand_in):
 
     report = tmp_path / "report"
     assert extra_sections(report) == []
-    frame = sensitivity.run_sensitivity(report / "sensitivity", Config(), FORCES,
-                                        say=lambda s: None)
+    frame = sensitivity.run_sensitivity(
+        report / "sensitivity", Config(), FORCES, say=lambda s: None
+    )
     (section,) = extra_sections(report)
     assert section["id"] == "sensitivity"
     table = next(b for b in section["blocks"] if b["kind"] == "table")

@@ -23,17 +23,27 @@ from ..control import admm
 from ..control.qp import build_qp, float32_conditioning
 from ..model.params import Config
 
-SETTINGS = ([{"controller": {"horizon": n}} for n in (20, 40, 60, 80, 100)]
-            + [{"scenario": {"control_dt": dt}} for dt in (0.02, 0.03, 0.05)])
+SETTINGS = [{"controller": {"horizon": n}} for n in (20, 40, 60, 80, 100)] + [
+    {"scenario": {"control_dt": dt}} for dt in (0.02, 0.03, 0.05)
+]
 
 
 def osqp_first_input(qp, x0: np.ndarray) -> np.ndarray | None:
     """OSQP's first input at ``x0`` (eps 1e-7, no polishing), None if it does not solve."""
     lower, upper = qp.bounds(x0)
     solver = osqp.OSQP()
-    solver.setup(sp.csc_matrix(np.triu(qp.H)), qp.linear_term(x0), sp.csc_matrix(qp.C), lower,
-                 upper, eps_abs=1e-7, eps_rel=1e-7, verbose=False, polishing=False,
-                 max_iter=20000)
+    solver.setup(
+        sp.csc_matrix(np.triu(qp.H)),
+        qp.linear_term(x0),
+        sp.csc_matrix(qp.C),
+        lower,
+        upper,
+        eps_abs=1e-7,
+        eps_rel=1e-7,
+        verbose=False,
+        polishing=False,
+        max_iter=20000,
+    )
     result = solver.solve()
     return np.asarray(result.x[:2]) if result.info.status == "solved" else None
 
@@ -48,8 +58,9 @@ def measure(changes: dict, states: int = 4, seed: int = 0) -> dict:
     x0 = np.zeros((states, 4))
     x0[:, 0] = rng.uniform(-0.03, 0.03, states)
     x0[:, 2] = rng.uniform(-0.2, 0.2, states)
-    warm = jax.tree_util.tree_map(lambda w: jnp.broadcast_to(w, (states, *w.shape)),
-                                  admm.initial_warm(data))
+    warm = jax.tree_util.tree_map(
+        lambda w: jnp.broadcast_to(w, (states, *w.shape)), admm.initial_warm(data)
+    )
     solve = jax.jit(admm.admm_solve_batch, static_argnums=(3,))
     out = solve(data, jnp.asarray(x0, jnp.float32), warm, settings)
     z = np.asarray(out[0] if isinstance(out, tuple) else out.z)
@@ -61,8 +72,12 @@ def measure(changes: dict, states: int = 4, seed: int = 0) -> dict:
             failed += 1
         else:
             errors.append(float(np.abs(z[i][:2] - truth).max()) / span)
-    return {"changes": changes, "cond_x_eps": float32_conditioning(qp),
-            "worst_error_of_range": max(errors) if errors else None, "osqp_failed": failed}
+    return {
+        "changes": changes,
+        "cond_x_eps": float32_conditioning(qp),
+        "worst_error_of_range": max(errors) if errors else None,
+        "osqp_failed": failed,
+    }
 
 
 if __name__ == "__main__":

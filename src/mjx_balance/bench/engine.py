@@ -106,7 +106,6 @@ INFO = {  # timed, not parts of the sum
 }
 
 
-
 # --------------------------------------------------------------------------------------------
 # The instrumented runs: the engines' own loop, with a probe
 
@@ -186,16 +185,22 @@ def drive(engine, forces, n_push, *, record: bool = False, sampled: int = 10) ->
     if record and not probe.c_path:
         with probe.paused():
             probe.records.append((jax.device_get(engine._state), None))
-    return Drive(out, probe.total(), probe.seconds, probe.calls * engine.block, probe.calls,
-                 probe.records)
+    return Drive(
+        out, probe.total(), probe.seconds, probe.calls * engine.block, probe.calls, probe.records
+    )
 
 
 def warm_up(engine) -> None:
     """One call of the MJX engine's compiled block on vacant slots with nothing to refill
     (its first execution, outside the runs: vacant slots idle at rest, as after any run)."""
     n = engine.refill * engine.n_devices
-    args = engine.offer_args(np.full(n, -1, np.int32), np.zeros(n), np.zeros(n, np.int32),
-                             np.zeros((n, 4)), np.zeros(n, np.int32))
+    args = engine.offer_args(
+        np.full(n, -1, np.int32),
+        np.zeros(n),
+        np.zeros(n, np.int32),
+        np.zeros((n, 4)),
+        np.zeros(n, np.int32),
+    )
     state = engine._take_state()
     state, *_ = engine.block_fn()(engine.arrays, engine.cert, state, *args)
     engine._state = jax.block_until_ready(state)
@@ -207,35 +212,57 @@ def warm_up(engine) -> None:
 
 # The isolated stages in each part (seconds of the replay), per path
 ISOLATED = {
-    "mjx": {"physics": ("physics",), "qp_build": ("prepare", "conclude"), "admm": ("solve",),
-            "certificate": ("certify",), "refill": ("refill", "harvest"), "call": ("call",)},
-    "c": {"samples": ("fold",), "qp_build": ("prepare", "conclude"), "admm": ("solve",),
-          "certificate": ("certify",), "refill": ("refill",), "call": ("call",)},
+    "mjx": {
+        "physics": ("physics",),
+        "qp_build": ("prepare", "conclude"),
+        "admm": ("solve",),
+        "certificate": ("certify",),
+        "refill": ("refill", "harvest"),
+        "call": ("call",),
+    },
+    "c": {
+        "samples": ("fold",),
+        "qp_build": ("prepare", "conclude"),
+        "admm": ("solve",),
+        "certificate": ("certify",),
+        "refill": ("refill",),
+        "call": ("call",),
+    },
 }
-IN_RUN = {"mjx": ("transfers", "python"),
-          "c": ("physics", "samples_host", "transfers", "python")}
+IN_RUN = {"mjx": ("transfers", "python"), "c": ("physics", "samples_host", "transfers", "python")}
 
 
 def _row(seconds: float, how: str, label: str, unit: tuple[float, int], total: float) -> dict:
     periods, lanes = unit
-    return {"label": label, "how": how, "seconds": round(seconds, 4),
-            "ms_per_period": round(1e3 * seconds / periods, 4),
-            "us_per_slot_period": round(1e6 * seconds / (periods * lanes), 4),
-            "share": round(seconds / total, 4)}
+    return {
+        "label": label,
+        "how": how,
+        "seconds": round(seconds, 4),
+        "ms_per_period": round(1e3 * seconds / periods, 4),
+        "us_per_slot_period": round(1e6 * seconds / (periods * lanes), 4),
+        "share": round(seconds / total, 4),
+    }
 
 
 def split(path: str, drives: list[Drive], replay: dict, lanes: int) -> dict[str, Any]:
     """The parts (in run: the mean over ``drives``; isolated: the replay), the remainder (end to
     end minus their sum; also split into its device and host sides) and the information rows."""
     total = float(np.mean([d.seconds for d in drives]))
-    in_run = {k: float(np.mean([d.parts.get(k, 0.0) for d in drives]))
-              for k in set().union(*(d.parts for d in drives))}
+    in_run = {
+        k: float(np.mean([d.parts.get(k, 0.0) for d in drives]))
+        for k in set().union(*(d.parts for d in drives))
+    }
     unit = (drives[0].periods, lanes)
     # an isolated part below the resolution of its no-op correction counts as 0 (listed)
-    iso = {key: max(0.0, sum(replay["seconds"].get(n, 0.0) for n in names))
-           for key, names in ISOLATED[path].items()}
-    below = [key for key, names in ISOLATED[path].items()
-             if sum(replay["seconds"].get(n, 0.0) for n in names) < 0]
+    iso = {
+        key: max(0.0, sum(replay["seconds"].get(n, 0.0) for n in names))
+        for key, names in ISOLATED[path].items()
+    }
+    below = [
+        key
+        for key, names in ISOLATED[path].items()
+        if sum(replay["seconds"].get(n, 0.0) for n in names) < 0
+    ]
     parts = {}
     for key, label in PARTS.items():
         if key in ISOLATED[path]:
@@ -246,92 +273,150 @@ def split(path: str, drives: list[Drive], replay: dict, lanes: int) -> dict[str,
     isolated = sum(iso.values())
     summed = isolated + sum(in_run.get(k, 0.0) for k in IN_RUN[path])
     device = in_run.get("device_call", 0.0)
-    remainder = _row(total - summed, "remainder", "remainder: end to end minus the parts",
-                     unit, total)
-    remainder.update(device_s=round(device - isolated, 4),
-                     host_s=round(total - device - sum(in_run.get(k, 0.0)
-                                                       for k in IN_RUN[path]), 4))
+    remainder = _row(
+        total - summed, "remainder", "remainder: end to end minus the parts", unit, total
+    )
+    remainder.update(
+        device_s=round(device - isolated, 4),
+        host_s=round(total - device - sum(in_run.get(k, 0.0) for k in IN_RUN[path]), 4),
+    )
     info = {"device_call": _row(device, "in run", INFO["device_call"], unit, total)}
     for key in ("bare_physics", "qp_vectors"):
         if key in replay["seconds"]:
-            info[key] = _row(max(0.0, replay["seconds"][key]), "isolated", INFO[key], unit,
-                             total)
-    return {"seconds": round(total, 4), "parts": parts, "remainder": remainder, "info": info,
-            "total": _row(total, "measured", "end to end", unit, total),
-            "below_resolution": below}
+            info[key] = _row(max(0.0, replay["seconds"][key]), "isolated", INFO[key], unit, total)
+    return {
+        "seconds": round(total, 4),
+        "parts": parts,
+        "remainder": remainder,
+        "info": info,
+        "total": _row(total, "measured", "end to end", unit, total),
+        "below_resolution": below,
+    }
 
 
-def measure_path(config: Config, forces: np.ndarray, durations: np.ndarray, *, physics: str,
-                 slots: int | None = None, runs: int = 2, repeats: int = 3,
-                 sampled: int = 10, admm_tile: int | None = None,
-                 say=print) -> dict[str, Any]:
+def measure_path(
+    config: Config,
+    forces: np.ndarray,
+    durations: np.ndarray,
+    *,
+    physics: str,
+    slots: int | None = None,
+    runs: int = 2,
+    repeats: int = 3,
+    sampled: int = 10,
+    admm_tile: int | None = None,
+    say=print,
+) -> dict[str, Any]:
     """The split of one physics path: build and compile the engine, ``runs`` instrumented runs
     of every cell (the first records the replay's inputs), the replay."""
     t0 = time.perf_counter()
-    runner = BatchRunner(config, slots=slots, early_stop=True, physics=physics,
-                         admm_tile=admm_tile if physics == "mjx" else None)
+    runner = BatchRunner(
+        config,
+        slots=slots,
+        early_stop=True,
+        physics=physics,
+        admm_tile=admm_tile if physics == "mjx" else None,
+    )
     compile_s = runner.prepare()
     engine = runner.engine
     if physics == "mjx":  # the block's first execution, outside the runs
         warm_up(engine)
     build_s = time.perf_counter() - t0
     lanes = engine.slots * engine.n_devices
-    say(f"  {physics}: engine ready in {build_s:.1f} s ({engine.slots} slots on each of "
+    say(
+        f"  {physics}: engine ready in {build_s:.1f} s ({engine.slots} slots on each of "
         f"{engine.n_devices} device(s), block {engine.block}, refill {engine.refill}, "
-        f"ADMM tile {engine.tile or engine.slots})")
+        f"ADMM tile {engine.tile or engine.slots})"
+    )
     n_push = push_steps(durations, config.scenario.physics_dt)
     drives = []
     for i in range(max(1, runs)):
         drives.append(drive(engine, forces, n_push, record=i == 0, sampled=sampled))
-        say(f"  {physics}: run {i + 1}: {len(forces)} scenarios in {drives[-1].seconds:.2f} s "
-            f"({drives[-1].periods} control periods, {drives[-1].calls} calls)")
+        say(
+            f"  {physics}: run {i + 1}: {len(forces)} scenarios in {drives[-1].seconds:.2f} s "
+            f"({drives[-1].periods} control periods, {drives[-1].calls} calls)"
+        )
     t1 = time.perf_counter()
     stages = Stages(engine, repeats)
     if physics == "mjx":
         replay = replay_mjx(engine, drives[0].records, stages, sampled)
     else:
         replay = replay_c(engine, drives[0].records, stages, sampled, drives[0].periods)
-    say(f"  {physics}: replayed {replay['sampled_periods']} control periods stage by stage in "
-        f"{time.perf_counter() - t1:.1f} s")
+    say(
+        f"  {physics}: replayed {replay['sampled_periods']} control periods stage by stage in "
+        f"{time.perf_counter() - t1:.1f} s"
+    )
     figures = split(physics, drives, replay, lanes)
     raw = drives[0].raw
     figures.update(
-        physics=physics, slots=engine.slots, devices=engine.n_devices, lanes=lanes,
-        block=engine.block, refill=engine.refill, admm_tile=engine.tile or engine.slots,
+        physics=physics,
+        slots=engine.slots,
+        devices=engine.n_devices,
+        lanes=lanes,
+        block=engine.block,
+        refill=engine.refill,
+        admm_tile=engine.tile or engine.slots,
         compile_s=round(compile_s, 3),
-        runs=[round(d.seconds, 4) for d in drives], scenarios=len(forces),
-        scen_per_s=round(len(forces) / figures["seconds"], 3), periods=drives[0].periods,
-        calls=drives[0].calls, certified=int(raw["certified"].sum()),
+        runs=[round(d.seconds, 4) for d in drives],
+        scenarios=len(forces),
+        scen_per_s=round(len(forces) / figures["seconds"], 3),
+        periods=drives[0].periods,
+        calls=drives[0].calls,
+        certified=int(raw["certified"].sum()),
         occupancy=round(float(raw["periods"].sum()) / (drives[0].periods * lanes), 4),
-        admm_iterations=replay["iterations"], repeats=stages.repeats,
+        admm_iterations=replay["iterations"],
+        repeats=stages.repeats,
         call={k: round(v, 6) if isinstance(v, float) else v for k, v in replay["call"].items()},
-        replay=dict(sampled_periods=replay["sampled_periods"],
-                    **replay["agreement"]))
+        replay=dict(sampled_periods=replay["sampled_periods"], **replay["agreement"]),
+    )
     if physics == "c":
         figures["threads"] = engine.c.threads
     return figures
 
 
-def measure(config: Config, *, forces: str = DEFAULT_FORCES,
-            durations: str = DEFAULT_DURATIONS, paths: tuple[str, ...] = ("mjx", "c"),
-            slots: int | None = None, runs: int = 2, repeats: int = 3, sampled: int = 10,
-            admm_tile: int | None = None, say=print) -> dict[str, Any]:
+def measure(
+    config: Config,
+    *,
+    forces: str = DEFAULT_FORCES,
+    durations: str = DEFAULT_DURATIONS,
+    paths: tuple[str, ...] = ("mjx", "c"),
+    slots: int | None = None,
+    runs: int = 2,
+    repeats: int = 3,
+    sampled: int = 10,
+    admm_tile: int | None = None,
+    say=print,
+) -> dict[str, Any]:
     """:func:`measure_path` of every path on the cells of ``forces`` x ``durations`` (grid
     specifications as ``sweep`` takes them)."""
     f, d = grid_cells(parse_grid(forces, "forces"), parse_grid(durations, "durations"))
     d = np.minimum(d, config.scenario.t_end)
     load = os.getloadavg()
     out: dict[str, Any]
-    out = {"scenarios": int(f.size), "forces": forces, "durations": durations,
-           "t_end": config.scenario.t_end, "cpus": os.cpu_count(),
-           "load_average_start": [round(v, 2) for v in load], "paths": {}}
+    out = {
+        "scenarios": int(f.size),
+        "forces": forces,
+        "durations": durations,
+        "t_end": config.scenario.t_end,
+        "cpus": os.cpu_count(),
+        "load_average_start": [round(v, 2) for v in load],
+        "paths": {},
+    }
     for path in paths:
         if path == "c" and cpath.unsupported(config):
             say(f"  c: skipped ({cpath.unsupported(config)})")
             continue
-        out["paths"][path] = measure_path(config, f, d, physics=path, slots=slots, runs=runs,
-                                          repeats=repeats, sampled=sampled,
-                                          admm_tile=admm_tile, say=say)
+        out["paths"][path] = measure_path(
+            config,
+            f,
+            d,
+            physics=path,
+            slots=slots,
+            runs=runs,
+            repeats=repeats,
+            sampled=sampled,
+            admm_tile=admm_tile,
+            say=say,
+        )
     out["load_average_end"] = [round(v, 2) for v in os.getloadavg()]
     return out
-

@@ -65,8 +65,9 @@ def ipopt_mpc(qp: CondensedQP, controller: ControllerParams):
     cost += 0.5 * X[:, N].T @ Qf @ X[:, N]
     w = ca.vertcat(ca.vec(X), ca.vec(U))
     nlp = {"x": w, "f": cost, "g": ca.vertcat(*g), "p": P}
-    solver = ca.nlpsol("mpc", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": False,
-                                             "ipopt.sb": "yes"})
+    solver = ca.nlpsol(
+        "mpc", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes"}
+    )
     inf = np.inf
     lbx_x = np.tile([-inf] * 4, N + 1).reshape(N + 1, 4)
     ubx_x = np.tile([inf] * 4, N + 1).reshape(N + 1, 4)
@@ -82,13 +83,14 @@ def ipopt_mpc(qp: CondensedQP, controller: ControllerParams):
         w0 = np.zeros(nX + 2 * N) if w0 is None else w0
         sol = solver(x0=w0, p=x0, lbx=lbx, ubx=ubx, lbg=np.array(lbg), ubg=np.array(ubg))
         w_opt = np.asarray(sol["x"]).ravel()
-        return qp.clip_input(w_opt[nX: nX + 2]), w_opt
+        return qp.clip_input(w_opt[nX : nX + 2]), w_opt
 
     def shift(w_opt: np.ndarray) -> np.ndarray:
         Xs = w_opt[:nX].reshape(N + 1, 4)
         Us = w_opt[nX:].reshape(N, 2)
-        return np.concatenate([np.vstack([Xs[1:], Xs[-1:]]).ravel(),
-                               np.vstack([Us[1:], Us[-1:]]).ravel()])
+        return np.concatenate(
+            [np.vstack([Xs[1:], Xs[-1:]]).ravel(), np.vstack([Us[1:], Us[-1:]]).ravel()]
+        )
 
     return solve, shift
 

@@ -79,10 +79,12 @@ def _mjx_steps(runner, forces: np.ndarray, n_steps: int, kinematics: bool) -> fl
     def one(force):
         def body(d, i):
             push = jnp.where(i < n_steps // 4, force, 0.0).astype(d.qpos.dtype)
-            d = d.replace(xfrc_applied=jnp.zeros_like(d.xfrc_applied)
-                          .at[sensors.upper_body, 0].set(push))
+            d = d.replace(
+                xfrc_applied=jnp.zeros_like(d.xfrc_applied).at[sensors.upper_body, 0].set(push)
+            )
             d = mjx.step(arrays.mx, d)
             return (mjx.kinematics(arrays.mx, d) if kinematics else d), None
+
         return jax.lax.scan(body, arrays.d0, jnp.arange(n_steps))[0].qpos
 
     fn = jax.jit(jax.vmap(one))
@@ -91,18 +93,19 @@ def _mjx_steps(runner, forces: np.ndarray, n_steps: int, kinematics: bool) -> fl
     return seconds / (forces.size * n_steps)
 
 
-def _closed_loop_steps(runner, forces: np.ndarray, push_steps: np.ndarray,
-                       periods: int) -> float:
+def _closed_loop_steps(runner, forces: np.ndarray, push_steps: np.ndarray, periods: int) -> float:
     """Seconds per scenario-step of ``periods`` control periods of ``kernel.period`` for every
     scenario in lock-step, split over the local devices."""
     arrays, sensors, static = runner.arrays, runner.sensors, runner.static
     devices = jax.local_devices()
-    split = jax.sharding.NamedSharding(jax.sharding.Mesh(np.array(devices), ("batch",)),
-                                       jax.sharding.PartitionSpec("batch"))
+    split = jax.sharding.NamedSharding(
+        jax.sharding.Mesh(np.array(devices), ("batch",)), jax.sharding.PartitionSpec("batch")
+    )
 
     def one(force, n_push):
         def body(carry, k):
             return kernel.period(arrays, sensors, static, carry, k, force, n_push)[0], None
+
         carry = kernel.initial_carry(arrays, sensors, static)
         return jax.lax.scan(body, carry, jnp.arange(periods, dtype=jnp.int32))[0].acc.alive
 
@@ -131,8 +134,7 @@ class CPhysics:
         state0 = np.empty(size)
         mujoco.mj_getState(self.model, data, state0, spec)
         self.state = np.tile(state0, (slots, 1))
-        self.control_spec = int(mujoco.mjtState.mjSTATE_CTRL
-                                | mujoco.mjtState.mjSTATE_XFRC_APPLIED)
+        self.control_spec = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_XFRC_APPLIED)
         nc = mujoco.mj_stateSize(self.model, self.control_spec)
         self.control = np.zeros((slots, self.substeps, nc))
         self.out = np.empty((slots, self.substeps, size))
@@ -151,9 +153,17 @@ class CPhysics:
         Returns the joint state (q, dq) [slots, 4] at the period's end."""
         self.control[:, :, :2] = torques[:, None, :]
         self.control[:, :, self.push_index] = push
-        self.pool.rollout(self.models, self.datas, self.state, self.control,
-                          control_spec=self.control_spec, nstep=self.substeps,
-                          state=self.out, sensordata=self.sensordata, skip_checks=True)
+        self.pool.rollout(
+            self.models,
+            self.datas,
+            self.state,
+            self.control,
+            control_spec=self.control_spec,
+            nstep=self.substeps,
+            state=self.out,
+            sensordata=self.sensordata,
+            skip_checks=True,
+        )
         self.state = self.out[:, -1].copy()
         return np.concatenate([self.state[:, self.q_index], self.state[:, self.v_index]], 1)
 
@@ -161,8 +171,9 @@ class CPhysics:
         self.pool.close()
 
 
-def _c_closed_loop(c: CPhysics, runner, forces: np.ndarray, push_steps: np.ndarray,
-                   periods: int) -> tuple[float, float]:
+def _c_closed_loop(
+    c: CPhysics, runner, forces: np.ndarray, push_steps: np.ndarray, periods: int
+) -> tuple[float, float]:
     """(seconds per scenario-step, ADMM seconds per scenario-step) of the C closed loop bound:
     per period one jitted batched ADMM call, then one C period."""
     arrays, static = runner.arrays, runner.static
@@ -174,13 +185,16 @@ def _c_closed_loop(c: CPhysics, runner, forces: np.ndarray, push_steps: np.ndarr
             x = arrays.to_state @ jq[:2], arrays.to_state @ jq[2:]
             res = admm_mod.admm_solve(arrays.qp, jnp.concatenate(x), w, static.settings)
             return arrays.torque_map @ res.u0, admm_mod.ADMMWarm(*res.warm_next)
+
         return jax.vmap(one)(joints, warm)
 
     devices = jax.local_devices()
-    split = jax.sharding.NamedSharding(jax.sharding.Mesh(np.array(devices), ("batch",)),
-                                       jax.sharding.PartitionSpec("batch"))
-    warm0 = jax.device_put(jax.vmap(lambda _: admm_mod.initial_warm(arrays.qp))(
-        jnp.arange(c.slots)), split)
+    split = jax.sharding.NamedSharding(
+        jax.sharding.Mesh(np.array(devices), ("batch",)), jax.sharding.PartitionSpec("batch")
+    )
+    warm0 = jax.device_put(
+        jax.vmap(lambda _: admm_mod.initial_warm(arrays.qp))(jnp.arange(c.slots)), split
+    )
     state0 = c.state.copy()
     times = {"admm": 0.0}
 
@@ -206,8 +220,9 @@ def _c_closed_loop(c: CPhysics, runner, forces: np.ndarray, push_steps: np.ndarr
     return total / n, times["admm"] / n
 
 
-def measure(config: Config, *, slots: int = 64, seconds: float = 3.0,
-            threads: int | None = None) -> dict[str, Any]:
+def measure(
+    config: Config, *, slots: int = 64, seconds: float = 3.0, threads: int | None = None
+) -> dict[str, Any]:
     """Every figure of the module docstring, per scenario-step in microseconds, and the
     ratios; ``slots`` scenarios side by side (split over the local devices for MJX, over
     ``threads`` C threads, default one per local device), ``seconds`` of simulated time."""
@@ -223,8 +238,7 @@ def measure(config: Config, *, slots: int = 64, seconds: float = 3.0,
 
     us = {}
     us["mjx_step"] = 1e6 * _mjx_steps(runner, forces[:slots], n_steps, kinematics=False)
-    us["mjx_step_kinematics"] = 1e6 * _mjx_steps(runner, forces[:slots], n_steps,
-                                                 kinematics=True)
+    us["mjx_step_kinematics"] = 1e6 * _mjx_steps(runner, forces[:slots], n_steps, kinematics=True)
     per_device = max(1, slots // len(jax.local_devices()))
 
     engine = BatchRunner(config, early_stop=False, slots=per_device)
@@ -234,24 +248,29 @@ def measure(config: Config, *, slots: int = 64, seconds: float = 3.0,
     wall = time.perf_counter() - t0
     assert engine.last_periods is not None  # (set by run)
     us["pipeline"] = 1e6 * wall / (engine.last_periods.sum() * sc.substeps)
-    floor = BatchRunner(config.replace(
-        controller={"admm_max_iter": config.controller.admm_check_every}))
+    floor = BatchRunner(
+        config.replace(controller={"admm_max_iter": config.controller.admm_check_every})
+    )
     us["closed_loop_admm_floor"] = 1e6 * _closed_loop_steps(
-        floor, forces[:slots], to_push_steps(durations[:slots], sc.physics_dt), periods)
+        floor, forces[:slots], to_push_steps(durations[:slots], sc.physics_dt), periods
+    )
     c = CPhysics(config, slots, threads)
     try:
-        bound, admm = _c_closed_loop(c, runner, forces[:slots],
-                                     to_push_steps(durations[:slots], sc.physics_dt), periods)
+        bound, admm = _c_closed_loop(
+            c, runner, forces[:slots], to_push_steps(durations[:slots], sc.physics_dt), periods
+        )
     finally:
         c.close()
     us["c_pipeline_bound"], us["admm"] = 1e6 * bound, 1e6 * admm
     us["c_step"] = us["c_pipeline_bound"] - us["admm"]
     return {
-        "slots": slots, "threads": threads, "devices": len(jax.local_devices()),
-        "simulated_s": seconds, "us_per_scenario_step": {k: round(v, 3) for k, v in us.items()},
+        "slots": slots,
+        "threads": threads,
+        "devices": len(jax.local_devices()),
+        "simulated_s": seconds,
+        "us_per_scenario_step": {k: round(v, 3) for k, v in us.items()},
         "pipeline_vs_mjx_step": round(us["pipeline"] / us["mjx_step"], 3),
-        "closed_loop_physics_vs_mjx_step": round(us["closed_loop_admm_floor"] / us["mjx_step"],
-                                                 3),
+        "closed_loop_physics_vs_mjx_step": round(us["closed_loop_admm_floor"] / us["mjx_step"], 3),
         "mjx_step_vs_c_step": round(us["mjx_step"] / us["c_step"], 3),
         "c_bound_vs_pipeline": round(us["pipeline"] / us["c_pipeline_bound"], 3),
         "c_path_worth_it": bool(us["pipeline"] / us["c_pipeline_bound"] >= WORTH_IT),

@@ -78,15 +78,17 @@ def scenario_set(n: int, t_end: float) -> tuple[np.ndarray, np.ndarray]:
     return forces, np.minimum(durations, t_end)
 
 
-def benchmark_configs(config: Config, t_end: float | None = None,
-                      osqp_max_iter: int | None = None) -> tuple[Config, Config]:
+def benchmark_configs(
+    config: Config, t_end: float | None = None, osqp_max_iter: int | None = None
+) -> tuple[Config, Config]:
     """(config, ref_config): ``config`` with scenario length ``t_end`` (the push duration capped
     at it), and that with the reference's OSQP iteration cap ``osqp_max_iter`` (None or 0: keep
     the configuration's)."""
     if t_end:
         t_end = float(t_end)
-        config = config.replace(scenario={
-            "t_end": t_end, "duration": min(config.scenario.duration, t_end)})
+        config = config.replace(
+            scenario={"t_end": t_end, "duration": min(config.scenario.duration, t_end)}
+        )
     ref_config = config
     if osqp_max_iter:
         ref_config = config.replace(controller={"osqp_max_iter": int(osqp_max_iter)})
@@ -121,8 +123,7 @@ def _warm_reference(config: Config, mpc=None) -> int:
     return os.getpid()
 
 
-def _run_reference(config: Config, force: float, duration: float,
-                   mpc=None) -> tuple[int, float]:
+def _run_reference(config: Config, force: float, duration: float, mpc=None) -> tuple[int, float]:
     t0 = time.perf_counter()
     row, _ = reference.simulate_scenario(config, force, duration, record=False, mpc=mpc)
     return OUTCOMES.index(row["outcome"]), time.perf_counter() - t0
@@ -136,8 +137,9 @@ def _run_ipopt(config: Config, force: float, duration: float) -> tuple[int, floa
     return _run_reference(config, force, duration, _study_mpc(config))
 
 
-def _pool_run(warm: Callable, run: Callable, config: Config, forces, durations,
-              workers: int) -> dict[str, Any]:
+def _pool_run(
+    warm: Callable, run: Callable, config: Config, forces, durations, workers: int
+) -> dict[str, Any]:
     """Run scenarios on a fresh pool of ``workers`` spawned processes; time after warm-up.
 
     Returns outcomes (codes), seconds (all scenarios, after warm-up), per (seconds of each
@@ -152,8 +154,12 @@ def _pool_run(warm: Callable, run: Callable, config: Config, forces, durations,
         futures = [pool.submit(run, config, float(f), float(d)) for f, d in zip(forces, durations)]
         results = [fut.result() for fut in futures]
         seconds = time.perf_counter() - t1
-    return dict(outcomes=np.array([r[0] for r in results], np.int32), seconds=seconds,
-                per=np.array([r[1] for r in results]), warm_s=warm_s)
+    return dict(
+        outcomes=np.array([r[0] for r in results], np.int32),
+        seconds=seconds,
+        per=np.array([r[1] for r in results]),
+        warm_s=warm_s,
+    )
 
 
 def run_reference_pool(config: Config, forces, durations, workers: int) -> dict[str, Any]:
@@ -180,8 +186,9 @@ def casadi_available() -> bool:
 # The batched pipeline (this process)
 
 
-def build_batched(config: Config, *, slots: int | None = None,
-                  early_stop: bool = True, physics: str = "mjx") -> dict[str, Any]:
+def build_batched(
+    config: Config, *, slots: int | None = None, early_stop: bool = True, physics: str = "mjx"
+) -> dict[str, Any]:
     """Build the batched runner and compile its continuous-batching engine (``physics``: the
     MJX or the MuJoCo C path). Returns runner, slots (per device), build_s, compile_s, devices,
     platform."""
@@ -191,12 +198,19 @@ def build_batched(config: Config, *, slots: int | None = None,
     runner = BatchRunner(config, slots=slots, early_stop=early_stop, physics=physics)
     build_s = time.perf_counter() - t0
     compile_s = runner.prepare()
-    return dict(runner=runner, slots=runner.engine.slots, build_s=build_s, compile_s=compile_s,
-                devices=len(jax.devices()), platform=jax.devices()[0].platform)
+    return dict(
+        runner=runner,
+        slots=runner.engine.slots,
+        build_s=build_s,
+        compile_s=compile_s,
+        devices=len(jax.devices()),
+        platform=jax.devices()[0].platform,
+    )
 
 
-def run_batched(built: dict[str, Any], config: Config, forces: np.ndarray,
-                durations: np.ndarray, repeats: int) -> dict[str, Any]:
+def run_batched(
+    built: dict[str, Any], config: Config, forces: np.ndarray, durations: np.ndarray, repeats: int
+) -> dict[str, Any]:
     """Run every scenario through :func:`build_batched`'s engine, ``repeats`` times.
 
     Returns outcomes (codes), summary (the columns of ``BatchRunner.run``), seconds (median),
@@ -213,12 +227,16 @@ def run_batched(built: dict[str, Any], config: Config, forces: np.ndarray,
     seconds = float(np.median(times))
     sc = config.scenario
     periods = runner.last_periods
-    return dict(outcomes=summary["outcome"], summary=summary, seconds=seconds,
-                repeats=len(times),
-                physics_steps_per_s=float(periods.sum()) * sc.substeps / seconds,
-                admm_iterations_per_period=summary["admm_iterations"].sum() / max(1, periods.sum()),
-                simulated_s=float(periods.mean()) * sc.control_dt,
-                certified=int(runner.last_certified.sum()))
+    return dict(
+        outcomes=summary["outcome"],
+        summary=summary,
+        seconds=seconds,
+        repeats=len(times),
+        physics_steps_per_s=float(periods.sum()) * sc.substeps / seconds,
+        admm_iterations_per_period=summary["admm_iterations"].sum() / max(1, periods.sum()),
+        simulated_s=float(periods.mean()) * sc.control_dt,
+        certified=int(runner.last_certified.sum()),
+    )
 
 
 def stratified_subset(outcomes: np.ndarray, n: int) -> np.ndarray:
@@ -250,22 +268,51 @@ def early_vs_full(early: dict[str, Any], full: dict[str, Any]) -> dict[str, Any]
     rates, their ratio, mean simulated seconds, and whether the summaries agree (outcomes,
     fall and settle times, peaks exactly; energies: the largest relative difference)."""
     a, b = early["summary"], full["summary"]
-    exact = ("outcome", "fall_time", "settle_time", "peak_ankle", "peak_hip",
-             "peak_foot_pitch", "peak_tau_ankle", "peak_tau_hip", "nonconverged_solves",
-             "ankle_saturation_fraction", "hip_saturation_fraction")
+    exact = (
+        "outcome",
+        "fall_time",
+        "settle_time",
+        "peak_ankle",
+        "peak_hip",
+        "peak_foot_pitch",
+        "peak_tau_ankle",
+        "peak_tau_hip",
+        "nonconverged_solves",
+        "ankle_saturation_fraction",
+        "hip_saturation_fraction",
+    )
     differ = [c for c in exact if not np.array_equal(a[c], b[c], equal_nan=True)]
-    energy = max(float(np.nanmax(np.abs(a[c] - b[c]) / np.maximum(np.abs(b[c]), 1e-9)))
-                 for c in ("energy_ankle", "energy_hip", "energy_total", "work_ankle",
-                           "work_hip", "energy_u1", "energy_u2"))
+    energy = max(
+        float(np.nanmax(np.abs(a[c] - b[c]) / np.maximum(np.abs(b[c]), 1e-9)))
+        for c in (
+            "energy_ankle",
+            "energy_hip",
+            "energy_total",
+            "work_ankle",
+            "work_hip",
+            "energy_u1",
+            "energy_u2",
+        )
+    )
     n = len(a["outcome"])
-    return dict(scen_per_s=n / full["seconds"], seconds=full["seconds"],
-                simulated_s=full["simulated_s"], early_scen_per_s=n / early["seconds"],
-                speedup=full["seconds"] / early["seconds"], exact_columns_differ=differ,
-                energy_max_rel_diff=energy)
+    return dict(
+        scen_per_s=n / full["seconds"],
+        seconds=full["seconds"],
+        simulated_s=full["simulated_s"],
+        early_scen_per_s=n / early["seconds"],
+        speedup=full["seconds"] / early["seconds"],
+        exact_columns_differ=differ,
+        energy_max_rel_diff=energy,
+    )
 
 
-def compare(counts: tuple[int, int, int], batched: dict[str, Any], ref: dict[str, Any] | None,
-            ipopt: dict[str, Any] | None, ipopt_idx: np.ndarray) -> dict[str, Any]:
+def compare(
+    counts: tuple[int, int, int],
+    batched: dict[str, Any],
+    ref: dict[str, Any] | None,
+    ipopt: dict[str, Any] | None,
+    ipopt_idx: np.ndarray,
+) -> dict[str, Any]:
     """Rates (scenarios/s, NaN for a system not run), MJX ratios, the MJX outcome mix and the
     outcome agreements [equal, compared] of each pair of systems that ran."""
     n_mjx, n_ref, n_ipopt = counts
@@ -281,38 +328,75 @@ def compare(counts: tuple[int, int, int], batched: dict[str, Any], ref: dict[str
     if ipopt:
         agree["mjx_vs_ipopt"] = list(agreement(batched["outcomes"][ipopt_idx], ipopt["outcomes"]))
         if ref:
-            agree["reference_vs_ipopt"] = list(agreement(ref["outcomes"][ipopt_idx],
-                                                         ipopt["outcomes"]))
-    return dict(mjx=r_mjx, reference=r_ref, ipopt=r_ipopt, ratio_vs_reference=r_mjx / r_ref,
-                ratio_vs_ipopt=r_mjx / r_ipopt, mix=mix, agreement=agree)
+            agree["reference_vs_ipopt"] = list(
+                agreement(ref["outcomes"][ipopt_idx], ipopt["outcomes"])
+            )
+    return dict(
+        mjx=r_mjx,
+        reference=r_ref,
+        ipopt=r_ipopt,
+        ratio_vs_reference=r_mjx / r_ref,
+        ratio_vs_ipopt=r_mjx / r_ipopt,
+        mix=mix,
+        agreement=agree,
+    )
 
 
-def pipeline_figures(*, counts: tuple[int, int, int], t_end: float, workers: int,
-                     load_average: float, built: dict[str, Any], batched: dict[str, Any],
-                     ref: dict[str, Any] | None, ipopt: dict[str, Any] | None,
-                     ref_config: Config, comparison: dict[str, Any],
-                     peak_rss_mib: dict[str, float],
-                     memory_scaling: list[dict[str, Any]] | None,
-                     full_length: dict[str, Any] | None = None) -> dict[str, Any]:
+def pipeline_figures(
+    *,
+    counts: tuple[int, int, int],
+    t_end: float,
+    workers: int,
+    load_average: float,
+    built: dict[str, Any],
+    batched: dict[str, Any],
+    ref: dict[str, Any] | None,
+    ipopt: dict[str, Any] | None,
+    ref_config: Config,
+    comparison: dict[str, Any],
+    peak_rss_mib: dict[str, float],
+    memory_scaling: list[dict[str, Any]] | None,
+    full_length: dict[str, Any] | None = None,
+) -> dict[str, Any]:
     """The benchmark's figures (what ``--json`` prints), from the steps' results."""
     n_mjx, n_ref, n_ipopt = counts
     return dict(
-        scenarios=n_mjx, t_end=t_end, workers=workers, cpus=os.cpu_count(),
+        scenarios=n_mjx,
+        t_end=t_end,
+        workers=workers,
+        cpus=os.cpu_count(),
         load_average_start=load_average,
-        mjx=dict(scen_per_s=comparison["mjx"], seconds=batched["seconds"],
-                 build_s=built["build_s"], compile_s=built["compile_s"], batch=built["slots"],
-                 slots=built["slots"], devices=built["devices"], outcomes=comparison["mix"],
-                 simulated_s=batched["simulated_s"], certified=batched["certified"]),
-        reference=dict(scenarios=n_ref, scen_per_s=comparison["reference"],
-                       seconds=ref["seconds"] if ref else math.nan,
-                       osqp_max_iter=ref_config.controller.osqp_max_iter),
-        ipopt=dict(scenarios=n_ipopt, scen_per_s=comparison["ipopt"],
-                   seconds=ipopt["seconds"] if ipopt else math.nan),
+        mjx=dict(
+            scen_per_s=comparison["mjx"],
+            seconds=batched["seconds"],
+            build_s=built["build_s"],
+            compile_s=built["compile_s"],
+            batch=built["slots"],
+            slots=built["slots"],
+            devices=built["devices"],
+            outcomes=comparison["mix"],
+            simulated_s=batched["simulated_s"],
+            certified=batched["certified"],
+        ),
+        reference=dict(
+            scenarios=n_ref,
+            scen_per_s=comparison["reference"],
+            seconds=ref["seconds"] if ref else math.nan,
+            osqp_max_iter=ref_config.controller.osqp_max_iter,
+        ),
+        ipopt=dict(
+            scenarios=n_ipopt,
+            scen_per_s=comparison["ipopt"],
+            seconds=ipopt["seconds"] if ipopt else math.nan,
+        ),
         ratio_vs_reference=comparison["ratio_vs_reference"],
         ratio_vs_ipopt=comparison["ratio_vs_ipopt"],
-        agreement=comparison["agreement"], peak_rss_mib=peak_rss_mib,
-        memory_scaling=memory_scaling, full_length=full_length,
+        agreement=comparison["agreement"],
+        peak_rss_mib=peak_rss_mib,
+        memory_scaling=memory_scaling,
+        full_length=full_length,
     )
+
 
 # --------------------------------------------------------------------------------------------
 # Memory scaling
@@ -331,21 +415,32 @@ def memory_child(cells: int, t_end: float, chunk: int | None, out: str) -> None:
     forces = np.linspace(0.0, 150.0, n_f)
     t0 = time.perf_counter()
     with folder_lock(out):  # this child's run: its entry takes the folder's lock
-        result = sweep.run_sweep(out, config, Grid.of(forces, durations, config), chunk=chunk,
-                                 progress=False, say=None)
+        result = sweep.run_sweep(
+            out, config, Grid.of(forces, durations, config), chunk=chunk, progress=False, say=None
+        )
     seconds = time.perf_counter() - t0
     import pandas as pd
 
     # Only the outcome column: reading the whole region back would add the table to the peak.
     outcomes = pd.read_parquet(result.region_path, columns=["outcome"])["outcome"]
     counts = outcomes.value_counts().to_dict()
-    print(json.dumps(dict(cells=n_f * n_d, seconds=seconds,
-                          peak_rss_mib=peak_rss_mib(resource.RUSAGE_SELF),
-                          chunks=result.computed_chunks, outcomes=counts)), flush=True)
+    print(
+        json.dumps(
+            dict(
+                cells=n_f * n_d,
+                seconds=seconds,
+                peak_rss_mib=peak_rss_mib(resource.RUSAGE_SELF),
+                chunks=result.computed_chunks,
+                outcomes=counts,
+            )
+        ),
+        flush=True,
+    )
 
 
-def memory_sweep(cells: int, t_end: float, chunk: int | None,
-                 timeout: float) -> tuple[dict[str, Any], str]:
+def memory_sweep(
+    cells: int, t_end: float, chunk: int | None, timeout: float
+) -> tuple[dict[str, Any], str]:
     """One sweep of about ``cells`` cells in a fresh process (:func:`memory_child`).
 
     Returns (row, error): row is the child's figures (cells, seconds, peak_rss_mib, chunks,
@@ -353,8 +448,16 @@ def memory_sweep(cells: int, t_end: float, chunk: int | None,
     child's stderr when it failed, else "".
     """
     with tempfile.TemporaryDirectory() as out:
-        cmd = [sys.executable, "-m", "mjx_balance.bench.pipeline", "--memory-child",
-               str(cells), str(t_end), str(chunk or 0), out]
+        cmd = [
+            sys.executable,
+            "-m",
+            "mjx_balance.bench.pipeline",
+            "--memory-child",
+            str(cells),
+            str(t_end),
+            str(chunk or 0),
+            out,
+        ]
         t0 = time.perf_counter()
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
@@ -393,8 +496,13 @@ print(json.dumps({"compile_s": built["compile_s"], **counter.as_dict()}))
 """
 
 
-def compile_cache_times(config: Config, slots: int | None, early_stop: bool,
-                        timeout: float = 1800.0, physics: str = "mjx") -> dict:
+def compile_cache_times(
+    config: Config,
+    slots: int | None,
+    early_stop: bool,
+    timeout: float = 1800.0,
+    physics: str = "mjx",
+) -> dict:
     """The engine's compile time in a first process (an empty persistent cache) and in a
     second one (the cache the first filled), each a fresh interpreter: compile_first_s,
     compile_cached_s, and the second's cache hits and XLA compilations (0: nothing compiled).
@@ -403,13 +511,21 @@ def compile_cache_times(config: Config, slots: int | None, early_stop: bool,
         config_path = Path(tmp) / "config.toml"
         save_config(config, config_path)
         env = {**os.environ, "MJX_BALANCE_CACHE_DIR": str(Path(tmp) / "jax")}
-        argv = [sys.executable, "-c", COMPILE_SCRIPT, str(config_path),
-                "none" if slots is None else str(slots), "1" if early_stop else "0", physics]
+        argv = [
+            sys.executable,
+            "-c",
+            COMPILE_SCRIPT,
+            str(config_path),
+            "none" if slots is None else str(slots),
+            "1" if early_stop else "0",
+            physics,
+        ]
         runs = []
         for _ in range(2):
             try:
-                proc = subprocess.run(argv, env=env, capture_output=True, text=True,
-                                      timeout=timeout)
+                proc = subprocess.run(
+                    argv, env=env, capture_output=True, text=True, timeout=timeout
+                )
             except subprocess.TimeoutExpired:
                 return {"compile_cache_error": f"a compile took over {timeout:.0f} s"}
             if proc.returncode != 0:
@@ -417,23 +533,33 @@ def compile_cache_times(config: Config, slots: int | None, early_stop: bool,
                 return {"compile_cache_error": last}
             runs.append(json.loads(proc.stdout.strip().splitlines()[-1]))
     first, cached = runs
-    return {"compile_first_s": round(first["compile_s"], 3),
-            "compile_cached_s": round(cached["compile_s"], 3),
-            "compile_cached_hits": cached["cache_hits"],
-            "compile_cached_compiles": cached["compiles"]}
+    return {
+        "compile_first_s": round(first["compile_s"], 3),
+        "compile_cached_s": round(cached["compile_s"], 3),
+        "compile_cached_hits": cached["cache_hits"],
+        "compile_cached_compiles": cached["compiles"],
+    }
 
 
 def pool_line(result: dict, workers: int, label: str) -> str:
     """One worker pool's figures in a line."""
     per = result["per"]
-    return (f"  {label}: {len(per)} scenarios in {result['seconds']:.1f} s on {workers} processes "
-          f"(warm-up {result['warm_s']:.1f} s; per scenario median {np.median(per):.2f} s, "
-          f"max {per.max():.2f} s)")
+    return (
+        f"  {label}: {len(per)} scenarios in {result['seconds']:.1f} s on {workers} processes "
+        f"(warm-up {result['warm_s']:.1f} s; per scenario median {np.median(per):.2f} s, "
+        f"max {per.max():.2f} s)"
+    )
 
 
-def run_pools(config: Config, ref_config: Config, forces: Any, durations: Any,
-              counts: tuple[int, int, int], workers: int,
-              say: Callable[[str], None]) -> tuple[Any, Any, Any]:
+def run_pools(
+    config: Config,
+    ref_config: Config,
+    forces: Any,
+    durations: Any,
+    counts: tuple[int, int, int],
+    workers: int,
+    say: Callable[[str], None],
+) -> tuple[Any, Any, Any]:
     """The scalar reference and the study toolchain in worker processes (each skipped at a
     count of 0; IPOPT also without casadi): (reference, ipopt, the IPOPT scenarios' indices,
     with the reference's outcome mix when it ran)."""
@@ -441,8 +567,7 @@ def run_pools(config: Config, ref_config: Config, forces: Any, durations: Any,
     ref = ipopt = None
     if n_ref:
         cap = ref_config.controller.osqp_max_iter
-        ref = run_reference_pool(ref_config, forces[:n_ref], durations[:n_ref],
-                                          workers)
+        ref = run_reference_pool(ref_config, forces[:n_ref], durations[:n_ref], workers)
         say(pool_line(ref, workers, f"reference (MuJoCo C + OSQP, max_iter {cap})"))
     ipopt_idx = np.arange(n_ipopt)
     if n_ipopt and ref is not None:
@@ -451,8 +576,7 @@ def run_pools(config: Config, ref_config: Config, forces: Any, durations: Any,
         if not casadi_available():
             say("  CasADi/IPOPT: casadi not installed, skipped")
         else:
-            ipopt = run_ipopt_pool(config, forces[ipopt_idx], durations[ipopt_idx],
-                                            workers)
+            ipopt = run_ipopt_pool(config, forces[ipopt_idx], durations[ipopt_idx], workers)
             say(pool_line(ipopt, workers, "study toolchain (MuJoCo C + CasADi/IPOPT)"))
     return ref, ipopt, ipopt_idx
 
@@ -460,40 +584,55 @@ def run_pools(config: Config, ref_config: Config, forces: Any, durations: Any,
 PATH_NAMES = {"mjx": "MJX + ADMM", "c": "MuJoCo C + ADMM"}
 
 
-def run_physics_paths(config: Config, forces: Any, durations: Any, *, physics: str | None,
-                      slots: int | None, full_length: bool, repeats: int,
-                      say: Callable[[str], None]) -> tuple[str, dict, dict]:
+def run_physics_paths(
+    config: Config,
+    forces: Any,
+    durations: Any,
+    *,
+    physics: str | None,
+    slots: int | None,
+    full_length: bool,
+    repeats: int,
+    say: Callable[[str], None],
+) -> tuple[str, dict, dict]:
     """Every physics path on the same scenarios: the default one with continuous batching and
     --full-length (or only --full-length), the others with continuous batching. Returns (the
     default path, label -> (built, result) of the default path's runs, path -> its figures)."""
 
     n_mjx = len(forces)
     default = resolve(physics or "auto", config)
-    paths = [default] + [p for p in PATHS[1:] if p != default
-                         and not (p == "c" and unsupported(config))]
+    paths = [default] + [
+        p for p in PATHS[1:] if p != default and not (p == "c" and unsupported(config))
+    ]
     runs, backends = {}, {}
     for path in paths:
         modes = [("--full-length", False)] if path == default else []
         if not full_length:  # both on the same scenarios, compared
             modes.insert(0, ("continuous batching", True))
         for label, early in modes:
-            built = build_batched(config, slots=slots, early_stop=early,
-                                           physics=path)
+            built = build_batched(config, slots=slots, early_stop=early, physics=path)
             name = f"{PATH_NAMES[path]}, {label}"
-            say(f"  {name}: build {built['build_s']:.1f} s, compile {built['compile_s']:.1f} s "
-                  f"({built['slots']} slots on each of {built['devices']} {built['platform']} "
-                  "device(s))")
+            say(
+                f"  {name}: build {built['build_s']:.1f} s, compile {built['compile_s']:.1f} s "
+                f"({built['slots']} slots on each of {built['devices']} {built['platform']} "
+                "device(s))"
+            )
             result = run_batched(built, config, forces, durations, repeats)
-            say(f"  {name}: {n_mjx} scenarios in {result['seconds']:.1f} s (median of "
-                  f"{result['repeats']}; {n_mjx / result['seconds']:.1f} scen/s; mean simulated "
-                  f"{result['simulated_s']:.2f} s per scenario, {result['certified']} certified; "
-                  f"{result['physics_steps_per_s']:,.0f} physics steps/s; mean ADMM iterations "
-                  f"per period {result['admm_iterations_per_period']:.1f})")
+            say(
+                f"  {name}: {n_mjx} scenarios in {result['seconds']:.1f} s (median of "
+                f"{result['repeats']}; {n_mjx / result['seconds']:.1f} scen/s; mean simulated "
+                f"{result['simulated_s']:.2f} s per scenario, {result['certified']} certified; "
+                f"{result['physics_steps_per_s']:,.0f} physics steps/s; mean ADMM iterations "
+                f"per period {result['admm_iterations_per_period']:.1f})"
+            )
             if path == default:
                 runs[label] = (built, result)
             if early or full_length:
-                backends[path] = dict(scen_per_s=round(n_mjx / result["seconds"], 3),
-                                      seconds=round(result["seconds"], 3),
-                                      compile_s=round(built["compile_s"], 3),
-                                      slots=built["slots"], outcomes=result["outcomes"])
+                backends[path] = dict(
+                    scen_per_s=round(n_mjx / result["seconds"], 3),
+                    seconds=round(result["seconds"], 3),
+                    compile_s=round(built["compile_s"], 3),
+                    slots=built["slots"],
+                    outcomes=result["outcomes"],
+                )
     return default, runs, backends

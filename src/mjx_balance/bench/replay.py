@@ -49,7 +49,6 @@ def bare_physics(arrays, sensors, static, d, k, force, n_push, torques):
     return mjx.kinematics(arrays.mx, d).xpos
 
 
-
 def qp_vectors(data: admm_mod.ADMMData, x0, warm):
     """The per-solve work of ``admm_solve`` outside its iterations, from the public data: the
     linear term, the offset, the scaled bounds and the warm start's scaling (information:
@@ -84,8 +83,11 @@ class Stages:
         r = engine.runner
         self.mesh, self.repeats = r.mesh, max(1, int(repeats))
         self.split, whole = r._shardings()
-        self.stacked = (None if self.mesh is None else jax.sharding.NamedSharding(
-            self.mesh, jax.sharding.PartitionSpec(None, "batch")))
+        self.stacked = (
+            None
+            if self.mesh is None
+            else jax.sharding.NamedSharding(self.mesh, jax.sharding.PartitionSpec(None, "batch"))
+        )
         leaves, self.treedef = jax.tree.flatten((engine.arrays, engine.cert))
         self.leaves = tuple(leaves if whole is None else jax.device_put(leaves, whole))
         self.fns: dict[Any, Any] = {}
@@ -93,13 +95,15 @@ class Stages:
         self.seconds: dict[str, float] = {}
         self.kept: dict[str, list] = {}
         self.bodies: dict[str, Any] = {}
-        self._stack = jax.jit(lambda *trees: jax.tree.map(lambda *v: jnp.stack(v), *trees),
-                              out_shardings=self.stacked)
+        self._stack = jax.jit(
+            lambda *trees: jax.tree.map(lambda *v: jnp.stack(v), *trees), out_shardings=self.stacked
+        )
 
     def put(self, tree, stacked: bool = False):
         sharding = self.stacked if stacked else self.split
-        return jax.tree.map(jnp.asarray if sharding is None
-                            else (lambda a: jax.device_put(a, sharding)), tree)
+        return jax.tree.map(
+            jnp.asarray if sharding is None else (lambda a: jax.device_put(a, sharding)), tree
+        )
 
     def _fn(self, name: str, body, n_args: int, scan: bool = False):
         """The compiled stage: one period, or (``scan``) every period of stacked inputs."""
@@ -121,9 +125,17 @@ class Stages:
             return jax.jit(call, keep_unused=True, donate_argnums=donate)
         P = jax.sharding.PartitionSpec
         spec = P(None, "batch") if scan else P("batch")
-        return jax.jit(jax.shard_map(call, mesh=self.mesh, in_specs=(P(),) + (spec,) * n_args,
-                                     out_specs=spec, check_vma=False),
-                       keep_unused=True, donate_argnums=donate)
+        return jax.jit(
+            jax.shard_map(
+                call,
+                mesh=self.mesh,
+                in_specs=(P(),) + (spec,) * n_args,
+                out_specs=spec,
+                check_vma=False,
+            ),
+            keep_unused=True,
+            donate_argnums=donate,
+        )
 
     def __call__(self, name: str, body, *args, keep: bool = True, run: bool = True):
         """``body`` on ``args`` (one period); with ``keep``, the inputs kept for :meth:`flush`
@@ -147,13 +159,13 @@ class Stages:
             if name not in self.overhead:
                 jax.block_until_ready(fn(self.leaves, *args))  # compiles
                 shapes = jax.eval_shape(fn, self.leaves, *args)  # (jit's own trace)
-                noop = self.sharded(lambda leaves, *a: noop_outputs(shapes, stacked=True),
-                                    len(args), scan=True)
+                noop = self.sharded(
+                    lambda leaves, *a: noop_outputs(shapes, stacked=True), len(args), scan=True
+                )
                 jax.block_until_ready(noop(self.leaves, *args))
                 self.overhead[name] = _median_call(noop, self.leaves, args, 5)[0]
             seconds, out = _median_call(fn, self.leaves, args, self.repeats)
-        self.seconds[name] = (self.seconds.get(name, 0.0)
-                              + (seconds - self.overhead[name]) * weight)
+        self.seconds[name] = self.seconds.get(name, 0.0) + (seconds - self.overhead[name]) * weight
         return out
 
     def flush(self, weight: float) -> None:
@@ -203,11 +215,14 @@ class Iterations:
     def figures(self) -> dict[str, float]:
         per_lane = self.lane_sum / max(1, self.lanes)
         per_block = self.block_sum / max(1, self.blocks)
-        return {"per_busy_slot": round(per_lane, 2), "per_block": round(per_block, 2),
-                "block_over_slot": round(per_block / per_lane, 2) if per_lane else math.nan,
-                "cap": self.cap,
-                "busy_slots_at_cap": round(self.lanes_capped / max(1, self.lanes), 4),
-                "blocks_at_cap": round(self.blocks_capped / max(1, self.blocks), 4)}
+        return {
+            "per_busy_slot": round(per_lane, 2),
+            "per_block": round(per_block, 2),
+            "block_over_slot": round(per_block / per_lane, 2) if per_lane else math.nan,
+            "cap": self.cap,
+            "busy_slots_at_cap": round(self.lanes_capped / max(1, self.lanes), 4),
+            "blocks_at_cap": round(self.blocks_capped / max(1, self.blocks), 4),
+        }
 
 
 class Agreement:
@@ -240,8 +255,13 @@ class Agreement:
                 self.max_rel = math.inf
 
     def figures(self, checked: int) -> dict:
-        return {"checked": checked, "values": self.values, "differ": self.differ,
-                "max_rel_diff": self.max_rel, "identical": self.differ == 0 if checked else None}
+        return {
+            "checked": checked,
+            "values": self.values,
+            "differ": self.differ,
+            "max_rel_diff": self.max_rel,
+            "identical": self.differ == 0 if checked else None,
+        }
 
 
 def call_cost(engine, stages: Stages, tail: tuple, repeats: int = 9) -> dict[str, Any]:
@@ -255,15 +275,24 @@ def call_cost(engine, stages: Stages, tail: tuple, repeats: int = 9) -> dict[str
     fn = engine.block_fn()
     c_path = isinstance(engine, cpath.CEngine)
     head = (engine._leaves,) if c_path else (engine.arrays, engine.cert)
-    shapes = (jax.eval_shape(fn, *head, *stages.put(tail)) if c_path  # (jit's own trace)
-              else fn.out_info)
+    shapes = (
+        jax.eval_shape(fn, *head, *stages.put(tail))
+        if c_path  # (jit's own trace)
+        else fn.out_info
+    )
+
     def run(*args):
         return noop_outputs(shapes)
 
     if r.mesh is not None:
         P = jax.sharding.PartitionSpec
-        run = jax.shard_map(run, mesh=r.mesh, out_specs=P("batch"), check_vma=False,
-                            in_specs=(P(),) * len(head) + (P("batch"),) * len(tail))
+        run = jax.shard_map(
+            run,
+            mesh=r.mesh,
+            out_specs=P("batch"),
+            check_vma=False,
+            in_specs=(P(),) * len(head) + (P("batch"),) * len(tail),
+        )
     noop: jax.stages.Wrapped | jax.stages.Compiled  # (compiled ahead of time on the MJX path)
     noop = jax.jit(run, donate_argnums=(len(head),), keep_unused=True)
     if not c_path:
@@ -276,9 +305,11 @@ def call_cost(engine, stages: Stages, tail: tuple, repeats: int = 9) -> dict[str
             t0 = time.perf_counter()
             jax.block_until_ready(noop(*head, *args))
             times.append(time.perf_counter() - t0)
-    return {"seconds": float(np.median(times[1:])),
-            "arrays_in": len(jax.tree.leaves((head, tail))),
-            "arrays_out": len(jax.tree.leaves(shapes))}
+    return {
+        "seconds": float(np.median(times[1:])),
+        "arrays_in": len(jax.tree.leaves((head, tail))),
+        "arrays_out": len(jax.tree.leaves(shapes)),
+    }
 
 
 # --------------------------------------------------------------------------------------------
@@ -299,37 +330,59 @@ def mjx_bodies(engine) -> dict[str, Any]:
         return slots, starts
 
     def refill(arrays, cert, slots, taken, s, offer):
-        slots, taken = slots_mod.take(slots, slots_mod.broadcast(rest(arrays), S), taken[0],
-                                      s[0], *offer, gated=early)
+        slots, taken = slots_mod.take(
+            slots, slots_mod.broadcast(rest(arrays), S), taken[0], s[0], *offer, gated=early
+        )
         return slots, taken[None]
 
     def certify(arrays, cert, carry, due):
-        return slots_mod.decide(slots_mod.checker(cert if early else None), static,
-                                arrays.n_control, carry, due.k + 1, (due.n_push, due.force),
-                                due.cell >= 0, due.due[0])
+        return slots_mod.decide(
+            slots_mod.checker(cert if early else None),
+            static,
+            arrays.n_control,
+            carry,
+            due.k + 1,
+            (due.n_push, due.force),
+            due.cell >= 0,
+            due.due[0],
+        )
 
     def harvest(arrays, cert, buffer, decided, slots, acc, certified, carry):
         done, n_done, slots = slots_mod.retire(
-            buffer[0], buffer[1][0], decided, slots, acc, slots.k + 1, certified, carry=carry,
-            rest=slots_mod.broadcast(rest(arrays), S))
+            buffer[0],
+            buffer[1][0],
+            decided,
+            slots,
+            acc,
+            slots.k + 1,
+            certified,
+            carry=carry,
+            rest=slots_mod.broadcast(rest(arrays), S),
+        )
         return done, n_done[None], slots
 
     return {
-        "unpack": unpack, "refill": refill, "certify": certify, "harvest": harvest,
+        "unpack": unpack,
+        "refill": refill,
+        "certify": certify,
+        "harvest": harvest,
         "pack": lambda arrays, cert, slots: slots._replace(carry=packing.pack(slots.carry)),
-        "prepare": lambda arrays, cert, carry: kernel.prepare_batch(arrays, static, carry,
-                                                                    rest(arrays)),
+        "prepare": lambda arrays, cert, carry: kernel.prepare_batch(
+            arrays, static, carry, rest(arrays)
+        ),
         "solve": lambda arrays, cert, pre: kernel.solve_batch(arrays, static, pre, engine.tile),
         "conclude": lambda arrays, cert, pre, res, k: kernel.conclude_batch(
-            arrays, static, pre, res, k, rest(arrays)),
+            arrays, static, pre, res, k, rest(arrays)
+        ),
         "physics": lambda arrays, cert, carry, slots, torques, u: kernel.physics_batch(
-            arrays, sensors, static, carry, slots.k, slots.force, slots.n_push, torques=torques,
-            u=u)[0],
+            arrays, sensors, static, carry, slots.k, slots.force, slots.n_push, torques=torques, u=u
+        )[0],
         "bare_physics": lambda arrays, cert, d, slots, torques: jax.vmap(
-            lambda d, k, f, n, t: bare_physics(arrays, sensors, static, d, k, f, n, t))(
-            d, slots.k, slots.force, slots.n_push, torques),
+            lambda d, k, f, n, t: bare_physics(arrays, sensors, static, d, k, f, n, t)
+        )(d, slots.k, slots.force, slots.n_push, torques),
         "qp_vectors": lambda arrays, cert, pre: jax.vmap(
-            lambda p: qp_vectors(arrays.qp, p.x0, p.carry.warm))(pre),
+            lambda p: qp_vectors(arrays.qp, p.x0, p.carry.warm)
+        )(pre),
     }
 
 
@@ -350,8 +403,14 @@ def mjx_period(stages: Stages, bodies: dict, held: dict, s: int, iters: Iteratio
     D = iters.devices
     every = cert_mod.CHECK_EVERY
     s_arr = stages.put(np.full(D, s, np.int32))
-    slots, taken = stages("refill", bodies["refill"], held["slots"], held["taken"], s_arr,
-                          (*held["offer"], held["starts"]))
+    slots, taken = stages(
+        "refill",
+        bodies["refill"],
+        held["slots"],
+        held["taken"],
+        s_arr,
+        (*held["offer"], held["starts"]),
+    )
     pre = stages("prepare", bodies["prepare"], slots.carry)
     stages("qp_vectors", bodies["qp_vectors"], pre, run=False)
     res = stages("solve", bodies["solve"], pre)
@@ -359,11 +418,24 @@ def mjx_period(stages: Stages, bodies: dict, held: dict, s: int, iters: Iteratio
     carry, u, torques = stages("conclude", bodies["conclude"], pre, res, slots.k)
     stages("bare_physics", bodies["bare_physics"], carry.d, slots, torques, run=False)
     carry = stages("physics", bodies["physics"], carry, slots, torques, u)
-    due = CertifyInputs(slots.k, slots.n_push, slots.force, slots.cell,
-                        stages.put(np.full(D, s % every == every - 1)))
+    due = CertifyInputs(
+        slots.k,
+        slots.n_push,
+        slots.force,
+        slots.cell,
+        stages.put(np.full(D, s % every == every - 1)),
+    )
     acc, certified, decided = stages("certify", bodies["certify"], carry, due)
-    done, n_done, slots = stages("harvest", bodies["harvest"], (held["done"], held["n_done"]),
-                                 decided, slots, acc, certified, carry)
+    done, n_done, slots = stages(
+        "harvest",
+        bodies["harvest"],
+        (held["done"], held["n_done"]),
+        decided,
+        slots,
+        acc,
+        certified,
+        carry,
+    )
     return dict(held, slots=slots, taken=taken, done=done, n_done=n_done)
 
 
@@ -372,23 +444,30 @@ def replay_mjx(engine, records: list, stages: Stages, sampled: int) -> dict[str,
     seconds scaled to whole blocks, the ADMM iterations and, where whole blocks were replayed,
     whether the replay ended in the engine's own state (bit for bit)."""
     if engine.lanes:
-        raise ValueError("the replay times an engine with one shared body (BatchRunner's); "
-                         "an engine with per-lane bodies is timed end to end")
+        raise ValueError(
+            "the replay times an engine with one shared body (BatchRunner's); "
+            "an engine with per-lane bodies is timed end to end"
+        )
     bodies = mjx_bodies(engine)
     r = engine.runner
     D = engine.n_devices
     periods = min(int(sampled), engine.block)
-    iters = Iterations(D, r.static.settings.iteration_cap,
-                       loops=D * engine.slots // (engine.tile or engine.slots))
+    iters = Iterations(
+        D, r.static.settings.iteration_cap, loops=D * engine.slots // (engine.tile or engine.slots)
+    )
     checked, agreement = 0, Agreement()
     for b, (packed, offer) in enumerate(records[:-1]):
         packed, offer = stages.put(packed), stages.put(offer)
         slots, starts = stages("unpack", bodies["unpack"], packed, offer[3], keep=False)
         empty = slots_mod.empty_finished(engine.slots + engine.refill, r.dtype)
-        held = dict(slots=slots, taken=stages.put(np.zeros(D, np.int32)), offer=offer[:3],
-                    starts=starts, n_done=stages.put(np.zeros(D, np.int32)),
-                    done=stages.put(jax.tree.map(lambda v: np.concatenate([v] * D),
-                                                 jax.device_get(empty))))
+        held = dict(
+            slots=slots,
+            taken=stages.put(np.zeros(D, np.int32)),
+            offer=offer[:3],
+            starts=starts,
+            n_done=stages.put(np.zeros(D, np.int32)),
+            done=stages.put(jax.tree.map(lambda v: np.concatenate([v] * D), jax.device_get(empty))),
+        )
         for s in range(periods):
             held = mjx_period(stages, bodies, held, s, iters)
         stages.flush(engine.block / periods)
@@ -398,9 +477,13 @@ def replay_mjx(engine, records: list, stages: Stages, sampled: int) -> dict[str,
             checked += 1
     cost = call_cost(engine, stages, (records[0][0], *records[0][1]))
     seconds = dict(stages.seconds, call=cost["seconds"] * (len(records) - 1))
-    return dict(seconds=seconds, call=cost,
-                iterations=iters.figures(), agreement=agreement.figures(checked),
-                sampled_periods=periods * (len(records) - 1))
+    return dict(
+        seconds=seconds,
+        call=cost,
+        iterations=iters.figures(),
+        agreement=agreement.figures(checked),
+        sampled_periods=periods * (len(records) - 1),
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -419,30 +502,43 @@ def c_bodies(engine) -> dict[str, Any]:
         return carry, k, (cell, force, push), p[None]
 
     def certify(arrays, cert, cs, carry, k, p):
-        return cpath.judged(arrays, static, slots_mod.checker(cert if early else None), cs,
-                            carry, k, p[0])
+        return cpath.judged(
+            arrays, static, slots_mod.checker(cert if early else None), cs, carry, k, p[0]
+        )
 
     def refill(arrays, cert, cs, carry, k, verdict, offer, p):
-        slots, fresh, taken, done = cpath.turnover(arrays, sensors, static, early, cs, carry, k,
-                                                   p[0], verdict=verdict, offer=offer)
+        slots, fresh, taken, done = cpath.turnover(
+            arrays, sensors, static, early, cs, carry, k, p[0], verdict=verdict, offer=offer
+        )
         return slots, fresh, taken[None], done
 
     def finish(arrays, cert, slots, u, torques, fresh, taken, done):
         return cpath.outputs(static, slots, u, torques, fresh, taken, done)[1:]
 
     return {
-        "fold": fold, "certify": certify, "refill": refill, "finish": finish,
+        "fold": fold,
+        "certify": certify,
+        "refill": refill,
+        "finish": finish,
         "prepare": lambda arrays, cert, carry: kernel.prepare_batch(arrays, static, carry),
         "solve": lambda arrays, cert, pre: kernel.solve_lanes(arrays, static, pre),
-        "conclude": lambda arrays, cert, pre, res, k: kernel.conclude_batch(arrays, static, pre,
-                                                                          res, k),
+        "conclude": lambda arrays, cert, pre, res, k: kernel.conclude_batch(
+            arrays, static, pre, res, k
+        ),
         "qp_vectors": lambda arrays, cert, pre: jax.vmap(
-            lambda p: qp_vectors(arrays.qp, p.x0, p.carry.warm))(pre),
+            lambda p: qp_vectors(arrays.qp, p.x0, p.carry.warm)
+        )(pre),
     }
 
 
-def c_group(stages: Stages, bodies: dict, records: list, weight: float,
-            iters: Iterations, agreement: Agreement) -> None:
+def c_group(
+    stages: Stages,
+    bodies: dict,
+    records: list,
+    weight: float,
+    iters: Iterations,
+    agreement: Agreement,
+) -> None:
     """The recorded calls of one group, stage after stage, each stage over all of them in one
     scan (every call starts from its own recorded inputs); the outputs compared with the
     calls' own (``agreement``)."""
@@ -484,6 +580,10 @@ def replay_c(engine, records: list, stages: Stages, sampled: int, periods: int) 
         c_group(stages, bodies, kept, in_group / len(kept), iters, agreement)
     cost = call_cost(engine, stages, records[0][1:4])
     seconds = dict(stages.seconds, call=cost["seconds"] * periods)
-    return dict(seconds=seconds, call=cost, iterations=iters.figures(),
-                agreement=agreement.figures(len(records)),
-                sampled_periods=len(records))
+    return dict(
+        seconds=seconds,
+        call=cost,
+        iterations=iters.figures(),
+        agreement=agreement.figures(len(records)),
+        sampled_periods=len(records),
+    )

@@ -32,8 +32,17 @@ import numpy as np
 
 from ..model.params import BodyParams, Config, ControllerParams
 from ..control.qp import CondensedQP, build_qp
-from .states import (PUSH_DURATIONS, TILE, Truth, admm_along_trajectories, closed_loop_states,
-                     first_control_error, misses, osqp_loop, truth_solutions)
+from .states import (
+    PUSH_DURATIONS,
+    TILE,
+    Truth,
+    admm_along_trajectories,
+    closed_loop_states,
+    first_control_error,
+    misses,
+    osqp_loop,
+    truth_solutions,
+)
 from ..control import admm
 from .ipopt import ipopt_mpc
 
@@ -63,8 +72,9 @@ def admm_dtype(name: str):
     return jnp.float32
 
 
-def benchmark_states(qp: CondensedQP, body: BodyParams,
-                     n_states: int) -> tuple[list[np.ndarray], np.ndarray, Truth]:
+def benchmark_states(
+    qp: CondensedQP, body: BodyParams, n_states: int
+) -> tuple[list[np.ndarray], np.ndarray, Truth]:
     """(trajectories, states [S, 4], truth): whole closed-loop trajectories in a fixed random
     order over all pushes, the last one cut so that S = n_states (or fewer if there are not
     enough), and OSQP's solutions at eps 1e-9."""
@@ -80,8 +90,9 @@ def benchmark_states(qp: CondensedQP, body: BodyParams,
     return trajectories, states, truth_solutions(qp, states)
 
 
-def admm_accuracy(qp: CondensedQP, trajectories: list[np.ndarray], truth: Truth, settings,
-                  dtype) -> dict[str, Any]:
+def admm_accuracy(
+    qp: CondensedQP, trajectories: list[np.ndarray], truth: Truth, settings, dtype
+) -> dict[str, Any]:
     """The ADMM along the trajectories against the truth.
 
     Returns seq (``states.admm_along_trajectories``'s arrays, warm starts included), misses,
@@ -92,10 +103,15 @@ def admm_accuracy(qp: CondensedQP, trajectories: list[np.ndarray], truth: Truth,
     seq = admm_along_trajectories(qp, trajectories, settings, dtype)
     err = first_control_error(qp, seq["u0"], truth)
     both = truth.solved & (seq["status"] == admm.SOLVED)
-    return dict(seq=seq, misses=misses(err, truth), max_err=float(np.nanmax(err[truth.solved])),
-                max_err_both=float(np.nanmax(err[both])), mean_iters=float(seq["iters"].mean()),
-                status_counts=np.bincount(seq["status"], minlength=4)[1:].tolist(),
-                seconds=time.perf_counter() - t0)
+    return dict(
+        seq=seq,
+        misses=misses(err, truth),
+        max_err=float(np.nanmax(err[truth.solved])),
+        max_err_both=float(np.nanmax(err[both])),
+        mean_iters=float(seq["iters"].mean()),
+        status_counts=np.bincount(seq["status"], minlength=4)[1:].tolist(),
+        seconds=time.perf_counter() - t0,
+    )
 
 
 def batch_indices(n_states: int, batch: int) -> np.ndarray:
@@ -104,8 +120,9 @@ def batch_indices(n_states: int, batch: int) -> np.ndarray:
     return (n_states // 3 + np.arange(batch)) % n_states
 
 
-def time_admm_batch(qp: CondensedQP, settings, dtype, states: np.ndarray,
-                    seq: dict[str, np.ndarray], batch: int) -> dict[str, Any]:
+def time_admm_batch(
+    qp: CondensedQP, settings, dtype, states: np.ndarray, seq: dict[str, np.ndarray], batch: int
+) -> dict[str, Any]:
     """One batch size: compile, warm up, time (median); the row of the figures.
 
     Row: batch, tile, compile_s, seconds (per batch), solves_per_s, mean_iters, gflops (flops
@@ -118,8 +135,9 @@ def time_admm_batch(qp: CondensedQP, settings, dtype, states: np.ndarray,
     it_flops, chk_flops = flops_per_solve_step(qp, settings)
     idx = batch_indices(len(states), batch)
     x0 = jnp.asarray(states[idx], dtype)
-    warm = admm.ADMMWarm(z=jnp.asarray(seq["warm_z"][idx], dtype),
-                         y=jnp.asarray(seq["warm_y"][idx], dtype))
+    warm = admm.ADMMWarm(
+        z=jnp.asarray(seq["warm_z"][idx], dtype), y=jnp.asarray(seq["warm_y"][idx], dtype)
+    )
     tile = TILE if batch % TILE == 0 and batch > TILE else None
     fn = jax.jit(admm.admm_solve_batch, static_argnums=(3, 4))
     t0 = time.perf_counter()
@@ -132,24 +150,38 @@ def time_admm_batch(qp: CondensedQP, settings, dtype, states: np.ndarray,
     t = tile or batch
     executed = np.repeat(iters.reshape(-1, t).max(axis=1), t)
     flops = float(np.sum(executed * it_flops + executed / settings.check_every * chk_flops))
-    return dict(batch=batch, tile=t, compile_s=compile_s, seconds=sec, solves_per_s=batch / sec,
-                mean_iters=float(iters.mean()), gflops=flops / sec / 1e9)
+    return dict(
+        batch=batch,
+        tile=t,
+        compile_s=compile_s,
+        seconds=sec,
+        solves_per_s=batch / sec,
+        mean_iters=float(iters.mean()),
+        gflops=flops / sec / 1e9,
+    )
 
 
-def osqp_at_eps(qp: CondensedQP, trajectories: list[np.ndarray], truth: Truth,
-                eps: float) -> dict[str, Any]:
+def osqp_at_eps(
+    qp: CondensedQP, trajectories: list[np.ndarray], truth: Truth, eps: float
+) -> dict[str, Any]:
     """The warm-started OSQP loop at ``eps``: misses, max_err, seconds per solve over all states
     and over the truth-solved ones, iterations (mean, median)."""
     u0, seconds, iters = osqp_loop(qp, trajectories, eps)
     err = first_control_error(qp, u0, truth)
-    return dict(eps=eps, misses=misses(err, truth), max_err=float(np.nanmax(err[truth.solved])),
-                seconds_per_solve=float(seconds.mean()),
-                seconds_per_solved=float(seconds[truth.solved].mean()),
-                mean_iters=float(iters.mean()), median_iters=float(np.median(iters)))
+    return dict(
+        eps=eps,
+        misses=misses(err, truth),
+        max_err=float(np.nanmax(err[truth.solved])),
+        seconds_per_solve=float(seconds.mean()),
+        seconds_per_solved=float(seconds[truth.solved].mean()),
+        mean_iters=float(iters.mean()),
+        median_iters=float(np.median(iters)),
+    )
 
 
-def osqp_search(qp: CondensedQP, trajectories: list[np.ndarray], truth: Truth,
-                admm_misses: int) -> Iterator[dict[str, Any]]:
+def osqp_search(
+    qp: CondensedQP, trajectories: list[np.ndarray], truth: Truth, admm_misses: int
+) -> Iterator[dict[str, Any]]:
     """:func:`osqp_at_eps` for each eps of ``OSQP_EPS`` in turn, up to the first whose misses do
     not exceed ``admm_misses``; the last row yielded is the one compared (the tightest tried if
     none meets it)."""
@@ -160,9 +192,14 @@ def osqp_search(qp: CondensedQP, trajectories: list[np.ndarray], truth: Truth,
             return
 
 
-def time_ipopt(qp: CondensedQP, controller: ControllerParams, trajectories: list[np.ndarray],
-               truth: Truth, n_solves: int = IPOPT_SOLVES,
-               per_trajectory: int = IPOPT_PER_TRAJECTORY) -> dict[str, Any]:
+def time_ipopt(
+    qp: CondensedQP,
+    controller: ControllerParams,
+    trajectories: list[np.ndarray],
+    truth: Truth,
+    n_solves: int = IPOPT_SOLVES,
+    per_trajectory: int = IPOPT_PER_TRAJECTORY,
+) -> dict[str, Any]:
     """CasADi/IPOPT on the first ``per_trajectory`` states of each trajectory, warm-started
     along it, until ``n_solves`` solves.
 
@@ -211,8 +248,10 @@ def cpu_peak_gflops(dtype: str = "float32") -> tuple[float, str]:
     per_cycle = lanes32 * fma * units // (2 if dtype == "float64" else 1)
     peak = cores * mhz * 1e-3 * per_cycle
     isa = "avx512f" if "avx512f" in flags else "avx2" if "avx2" in flags else "sse"
-    return peak, (f"{cores} cores x {mhz / 1e3:.2f} GHz x {per_cycle} {dtype} flops/cycle "
-                  f"({isa}, {'FMA' if fma == 2 else 'no FMA'}, {units} vector units assumed)")
+    return peak, (
+        f"{cores} cores x {mhz / 1e3:.2f} GHz x {per_cycle} {dtype} flops/cycle "
+        f"({isa}, {'FMA' if fma == 2 else 'no FMA'}, {units} vector units assumed)"
+    )
 
 
 def flops_per_solve_step(qp: CondensedQP, settings) -> tuple[int, int]:
@@ -220,18 +259,35 @@ def flops_per_solve_step(qp: CondensedQP, settings) -> tuple[int, int]:
     return admm.flops_per_iteration(qp.n, qp.m, settings.sigma), admm.flops_per_check(qp.n, qp.m)
 
 
-def solver_figures(*, states: np.ndarray, controller: ControllerParams, dtype: str,
-                   accuracy: dict[str, Any], truth: Truth, admm_rows: list[dict],
-                   osqp_rows: list[dict], ipopt_seconds_per_solve: float, peak_gflops: float,
-                   settings) -> dict[str, Any]:
+def solver_figures(
+    *,
+    states: np.ndarray,
+    controller: ControllerParams,
+    dtype: str,
+    accuracy: dict[str, Any],
+    truth: Truth,
+    admm_rows: list[dict],
+    osqp_rows: list[dict],
+    ipopt_seconds_per_solve: float,
+    peak_gflops: float,
+    settings,
+) -> dict[str, Any]:
     """The benchmark's figures (what ``--json`` prints and ``--out`` writes)."""
     return dict(
-        states=len(states), convention=controller.convention, dtype=dtype,
-        admm_misses=accuracy["misses"], solved=int(truth.solved.sum()),
-        infeasible=int(truth.infeasible.sum()), saturated=int(truth.saturated.sum()),
-        admm=admm_rows, osqp=osqp_rows, osqp_chosen_eps=osqp_rows[-1]["eps"],
-        ipopt_seconds_per_solve=ipopt_seconds_per_solve, peak_gflops=peak_gflops,
-        settings=settings._asdict())
+        states=len(states),
+        convention=controller.convention,
+        dtype=dtype,
+        admm_misses=accuracy["misses"],
+        solved=int(truth.solved.sum()),
+        infeasible=int(truth.infeasible.sum()),
+        saturated=int(truth.saturated.sum()),
+        admm=admm_rows,
+        osqp=osqp_rows,
+        osqp_chosen_eps=osqp_rows[-1]["eps"],
+        ipopt_seconds_per_solve=ipopt_seconds_per_solve,
+        peak_gflops=peak_gflops,
+        settings=settings._asdict(),
+    )
 
 
 class SolverRun(NamedTuple):
@@ -244,8 +300,14 @@ class SolverRun(NamedTuple):
     seconds: float
 
 
-def measure(config: Config, *, batches: list[int], n_states: int, dtype: str = "float32",
-            say: Callable[[str], None] = print) -> SolverRun:
+def measure(
+    config: Config,
+    *,
+    batches: list[int],
+    n_states: int,
+    dtype: str = "float32",
+    say: Callable[[str], None] = print,
+) -> SolverRun:
     """The benchmark's steps in turn on ``n_states`` states of ``config``'s controller, each
     step's figures said through ``say`` as they come (the ADMM timed at each batch size of
     ``batches``, in ``dtype``)."""
@@ -256,22 +318,26 @@ def measure(config: Config, *, batches: list[int], n_states: int, dtype: str = "
     t_start = time.perf_counter()
 
     trajectories, states, truth = benchmark_states(qp, body, n_states)
-    say(f"states: {len(states)} from {len(trajectories)} closed-loop pushes (F 20..120 N, T "
+    say(
+        f"states: {len(states)} from {len(trajectories)} closed-loop pushes (F 20..120 N, T "
         f"{'/'.join(str(d) for d in PUSH_DURATIONS)} s), convention {controller.convention}: "
         f"{truth.solved.sum()} solved by OSQP at 1e-9, {truth.infeasible.sum()} infeasible, "
         f"{(~truth.solved & ~truth.infeasible).sum()} not solved in 4000 iterations, "
-        f"{truth.saturated.sum()} with a saturated first input")
+        f"{truth.saturated.sum()} with a saturated first input"
+    )
 
     acc = admm_accuracy(qp, trajectories, truth, settings, working)
     admm_miss = acc["misses"]
-    say(f"ADMM ({dtype}, rho {settings.rho}, alpha {settings.alpha}, sigma "
+    say(
+        f"ADMM ({dtype}, rho {settings.rho}, alpha {settings.alpha}, sigma "
         f"{settings.sigma}, cap {settings.iteration_cap} iterations, check every "
         f"{settings.check_every}, eps_abs {settings.eps_abs:g}, eps_rel {settings.eps_rel:g}): "
         f"misses {admm_miss}/"
         f"{truth.solved.sum()} ({100 * admm_miss / max(1, truth.solved.sum()):.2f}%), max "
         f"first-control error {acc['max_err']:.2e} of range (both solved: "
         f"{acc['max_err_both']:.2e}), mean iterations {acc['mean_iters']:.1f}, status "
-        f"solved/max_iter/infeasible {acc['status_counts']} [{acc['seconds']:.1f} s]")
+        f"solved/max_iter/infeasible {acc['status_counts']} [{acc['seconds']:.1f} s]"
+    )
 
     flops = flops_per_solve_step(qp, settings)
     peak, peak_note = cpu_peak_gflops(dtype)
@@ -279,32 +345,48 @@ def measure(config: Config, *, batches: list[int], n_states: int, dtype: str = "
     for B in batches:
         r = time_admm_batch(qp, settings, working, states, acc["seq"], B)
         rows.append(r)
-        say(f"  ADMM batch {B:6d} (tile {r['tile']:5d}): compile {r['compile_s']:5.2f} s, "
+        say(
+            f"  ADMM batch {B:6d} (tile {r['tile']:5d}): compile {r['compile_s']:5.2f} s, "
             f"{r['seconds'] * 1e3:9.3f} ms/batch, {r['solves_per_s']:11.0f} solves/s, mean "
-            f"iterations {r['mean_iters']:5.1f}, {r['gflops']:6.2f} GFLOP/s")
+            f"iterations {r['mean_iters']:5.1f}, {r['gflops']:6.2f} GFLOP/s"
+        )
 
     osqp_rows = []
     for r in osqp_search(qp, trajectories, truth, admm_miss):
         osqp_rows.append(r)
         per_solve, per_solved = r["seconds_per_solve"], r["seconds_per_solved"]
-        say(f"  OSQP eps {r['eps']:g}: misses {r['misses']}/{truth.solved.sum()}, max error "
+        say(
+            f"  OSQP eps {r['eps']:g}: misses {r['misses']}/{truth.solved.sum()}, max error "
             f"{r['max_err']:.2e}, {per_solve * 1e6:8.1f} us/solve over all "
             f"states ({1 / per_solve:6.0f} solves/s; iterations mean {r['mean_iters']:.1f}, "
             f"median {r['median_iters']:.0f}: infeasible states run to 4000), "
             f"{per_solved * 1e6:8.1f} us/solve over the OSQP-solved states "
-            f"({1 / per_solved:6.0f} solves/s)")
+            f"({1 / per_solved:6.0f} solves/s)"
+        )
 
     ipopt_per_solve = ipopt_seconds_per_solve(qp, controller, trajectories, truth, say)
     figures = solver_figures(
-        states=states, controller=controller, dtype=dtype, accuracy=acc, truth=truth,
-        admm_rows=rows, osqp_rows=osqp_rows, ipopt_seconds_per_solve=ipopt_per_solve,
-        peak_gflops=peak, settings=settings)
+        states=states,
+        controller=controller,
+        dtype=dtype,
+        accuracy=acc,
+        truth=truth,
+        admm_rows=rows,
+        osqp_rows=osqp_rows,
+        ipopt_seconds_per_solve=ipopt_per_solve,
+        peak_gflops=peak,
+        settings=settings,
+    )
     return SolverRun(figures, peak_note, flops, time.perf_counter() - t_start)
 
 
-def ipopt_seconds_per_solve(qp: CondensedQP, controller: ControllerParams,
-                            trajectories: list[np.ndarray], truth: Truth,
-                            say: Callable[[str], None] = print) -> float:
+def ipopt_seconds_per_solve(
+    qp: CondensedQP,
+    controller: ControllerParams,
+    trajectories: list[np.ndarray],
+    truth: Truth,
+    say: Callable[[str], None] = print,
+) -> float:
     """CasADi/IPOPT's seconds per solve on the benchmark's states (:func:`time_ipopt`), said
     through ``say``; NaN, and said, without casadi."""
     try:
@@ -313,8 +395,10 @@ def ipopt_seconds_per_solve(qp: CondensedQP, controller: ControllerParams,
         say("  CasADi/IPOPT: casadi not installed, skipped")
         return float("nan")
     per_solve, errs = ip["seconds_per_solve"], ip["errors"]
-    say(f"  CasADi/IPOPT (multiple shooting, RK4 on Ac, Bc): {ip['solves']} solves, "
+    say(
+        f"  CasADi/IPOPT (multiple shooting, RK4 on Ac, Bc): {ip['solves']} solves, "
         f"{per_solve * 1e3:.2f} ms/solve ({1 / per_solve:.0f} solves/s); "
         f"first control vs the ZOH QP: median {np.median(errs):.1e}, max {max(errs):.1e} "
-        f"of range (RK4 on Ac differs from exact ZOH)")
+        f"of range (RK4 on Ac differs from exact ZOH)"
+    )
     return per_solve

@@ -46,9 +46,15 @@ def push_input(qp: CondensedQP, body: BodyParams) -> np.ndarray:
     return lm.B @ (lm.P.T @ lever)
 
 
-def closed_loop_states(qp: CondensedQP, body: BodyParams, forces=PUSH_FORCES,
-                       durations=PUSH_DURATIONS, steps: int = 100, eps: float = 1e-5,
-                       max_iter: int = 400) -> list[np.ndarray]:
+def closed_loop_states(
+    qp: CondensedQP,
+    body: BodyParams,
+    forces=PUSH_FORCES,
+    durations=PUSH_DURATIONS,
+    steps: int = 100,
+    eps: float = 1e-5,
+    max_iter: int = 400,
+) -> list[np.ndarray]:
     """Closed-loop trajectories [len, 4] of the linear model under the OSQP MPC (see module doc),
     one per (force, duration), forces outermost."""
     solver = osqp_solver(qp, eps, max_iter)
@@ -80,12 +86,14 @@ class Truth:
 
     def select(self, index) -> Truth:
         """The truth of the states ``index`` (an integer gives one state's, without the S axis)."""
-        return Truth(self.u0[index], self.solved[index], self.infeasible[index],
-                     self.saturated[index])
+        return Truth(
+            self.u0[index], self.solved[index], self.infeasible[index], self.saturated[index]
+        )
 
 
-def truth_solutions(qp: CondensedQP, states: np.ndarray, eps: float = 1e-9,
-                    max_iter: int = 4000) -> Truth:
+def truth_solutions(
+    qp: CondensedQP, states: np.ndarray, eps: float = 1e-9, max_iter: int = 4000
+) -> Truth:
     """OSQP at ``eps`` (no polishing, infeasibility detection on) on every state.
 
     States not solved within ``max_iter`` (the slowest solved one on our closed-loop states
@@ -102,8 +110,9 @@ def truth_solutions(qp: CondensedQP, states: np.ndarray, eps: float = 1e-9,
         if solved[i]:
             u0[i] = qp.clip_input(res.x[:2])
     span = qp.input_upper - qp.input_lower
-    at_bound = ((np.abs(u0 - qp.input_lower) <= 1e-6 * span)
-                | (np.abs(u0 - qp.input_upper) <= 1e-6 * span))
+    at_bound = (np.abs(u0 - qp.input_lower) <= 1e-6 * span) | (
+        np.abs(u0 - qp.input_upper) <= 1e-6 * span
+    )
     return Truth(u0=u0, solved=solved, infeasible=infeasible, saturated=at_bound.any(axis=1))
 
 
@@ -118,8 +127,9 @@ def misses(error: np.ndarray, truth: Truth) -> int:
     return int(np.sum(truth.solved & ~(error <= ACCURACY)))
 
 
-def admm_along_trajectories(qp: CondensedQP, trajectories: list[np.ndarray], settings=None,
-                            dtype=None, warm: bool = True) -> dict[str, np.ndarray]:
+def admm_along_trajectories(
+    qp: CondensedQP, trajectories: list[np.ndarray], settings=None, dtype=None, warm: bool = True
+) -> dict[str, np.ndarray]:
     """Solve every state with the ADMM, warm-started from the previous state's shifted solution.
 
     Batched over trajectories, sequential in time (as in the closed loop). Returns flat arrays
@@ -137,7 +147,7 @@ def admm_along_trajectories(qp: CondensedQP, trajectories: list[np.ndarray], set
     X = np.zeros((L, B, 4))
     for i, t in enumerate(trajectories):
         X[: len(t), i] = t
-        X[len(t):, i] = t[-1]
+        X[len(t) :, i] = t[-1]
     solve = jax.jit(admm.admm_solve_batch, static_argnums=3)
     cold = admm.initial_warm(data)
     w = admm.ADMMWarm(z=jnp.tile(cold.z, (B, 1)), y=jnp.tile(cold.y, (B, 1)))
@@ -158,8 +168,9 @@ def admm_along_trajectories(qp: CondensedQP, trajectories: list[np.ndarray], set
     return flat
 
 
-def osqp_loop(qp: CondensedQP, trajectories: list[np.ndarray], eps: float,
-              max_iter: int = 4000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def osqp_loop(
+    qp: CondensedQP, trajectories: list[np.ndarray], eps: float, max_iter: int = 4000
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """OSQP in a Python loop, warm-started from its shifted previous solution (primal and dual).
 
     Returns (u0 [S, 2], seconds [S] per solve (update + solve + warm start), iterations [S]).

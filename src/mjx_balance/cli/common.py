@@ -26,16 +26,23 @@ def base_config(args: argparse.Namespace, overrides: bool = True) -> Config:
     [subject] and the --set overrides on top (--convention not applied). ``overrides=False``:
     without them (the base of a --sweep file, which the overrides go on top of: a value may
     only be valid with the file's others)."""
-    return run_config(getattr(args, "config", None), None,
-                      getattr(args, "set", None) if overrides else None,
-                      getattr(args, "subject", None))
+    return run_config(
+        getattr(args, "config", None),
+        None,
+        getattr(args, "set", None) if overrides else None,
+        getattr(args, "subject", None),
+    )
 
 
 def load_run_config(args: argparse.Namespace) -> Config:
     """The run's configuration: --config file (or defaults) with --subject, --set overrides,
     then --convention on top."""
-    return run_config(getattr(args, "config", None), getattr(args, "convention", None),
-                      getattr(args, "set", None), getattr(args, "subject", None))
+    return run_config(
+        getattr(args, "config", None),
+        getattr(args, "convention", None),
+        getattr(args, "set", None),
+        getattr(args, "subject", None),
+    )
 
 
 def one_push(args: argparse.Namespace) -> tuple[Config, float]:
@@ -47,15 +54,29 @@ def one_push(args: argparse.Namespace) -> tuple[Config, float]:
     config = load_run_config(args)
     if args.t_end is not None:
         config = config.replace(scenario={"t_end": args.t_end})
-    duration = float(check_durations([args.duration], config.scenario.t_end, "--duration",
-                                      physics_dt=config.scenario.physics_dt)[0])
+    duration = float(
+        check_durations(
+            [args.duration],
+            config.scenario.t_end,
+            "--duration",
+            physics_dt=config.scenario.physics_dt,
+        )[0]
+    )
     config.replace(scenario={"duration": duration})
     return config, duration
 
 
-def guard_work(args: argparse.Namespace, config: Config, n_scenarios: int, what: str, *,
-               chunk_size: int | None = None, extra: int = 0, reference: bool = False,
-               note: str = "") -> None:
+def guard_work(
+    args: argparse.Namespace,
+    config: Config,
+    n_scenarios: int,
+    what: str,
+    *,
+    chunk_size: int | None = None,
+    extra: int = 0,
+    reference: bool = False,
+    note: str = "",
+) -> None:
     """Say the planned work (one line: scenarios, estimated time and disk) and refuse it above
     the limit unless --yes, before anything is compiled or written. ``extra``: scenarios
     beyond ``n_scenarios`` (a table's); ``reference``: run one at a time by the scalar
@@ -64,13 +85,13 @@ def guard_work(args: argparse.Namespace, config: Config, n_scenarios: int, what:
     from ..runs import chunks  # lazy: the runs floor loads JAX
 
     t_end = config.scenario.t_end
-    rate = (chunks.REFERENCE_SECONDS_PER_SECOND if reference
-            else chunks.SIMULATED_SECONDS_PER_SECOND)
+    rate = chunks.REFERENCE_SECONDS_PER_SECOND if reference else chunks.SIMULATED_SECONDS_PER_SECOND
     disk = {} if not reference else {"bytes_per_scenario": reference_bytes(config)}
     logging.getLogger("mjx_balance").info(
         chunks.planned_work(n_scenarios, t_end, chunk_size, what, rate=rate, **disk)
         + (f" (+ about {extra:,} table scenarios)" if extra else "")
-        + (f"; {note}" if note else ""))
+        + (f"; {note}" if note else "")
+    )
     if not getattr(args, "yes", False):
         chunks.check_planned_work(n_scenarios + extra, t_end, what, rate=rate)
 
@@ -85,9 +106,19 @@ def table_scenarios(config: Config, n_forces: int) -> int:
 def planner(args: argparse.Namespace) -> Any:
     """The ``plan`` callable an API function calls with its ``runs.chunks.PlannedWork`` once
     everything is checked: :func:`guard_work` with these options (--yes)."""
+
     def plan(work: Any) -> None:
-        guard_work(args, work.config, work.scenarios, work.what, chunk_size=work.chunk_size,
-                   extra=work.extra, reference=work.reference, note=work.note)
+        guard_work(
+            args,
+            work.config,
+            work.scenarios,
+            work.what,
+            chunk_size=work.chunk_size,
+            extra=work.extra,
+            reference=work.reference,
+            note=work.note,
+        )
+
     return plan
 
 
@@ -112,12 +143,10 @@ def progress_enabled(args: argparse.Namespace) -> bool:
 
 def chosen_physics(args: Any, definition: Any) -> str:
     """--physics, else the --sweep file's [sweep] physics, else auto."""
-    return (getattr(args, "physics", None) or getattr(definition, "physics", None)
-            or "auto")
+    return getattr(args, "physics", None) or getattr(definition, "physics", None) or "auto"
 
 
-def in_folder(out: Path, work: Callable[[], None], *, wait: bool = False,
-              lock: bool = True) -> int:
+def in_folder(out: Path, work: Callable[[], None], *, wait: bool = False, lock: bool = True) -> int:
     """Run ``work`` holding the folder's lock (``wait``: waiting for another run to let go of
     it, else refused at once; ``lock`` False: ``work`` is an API function that takes it
     itself); a failed write ends in one line, exit code 1."""
@@ -145,5 +174,7 @@ def _write_failure(out: Path, exc: OSError) -> str:
         fix = "raise the file-size limit (ulimit -f)"
     else:
         fix = "fix the cause"
-    return (f"writing in {out} failed: {reason}{where}; what was finished is kept: {fix}, "
-            "then run the same command again to resume")
+    return (
+        f"writing in {out} failed: {reason}{where}; what was finished is kept: {fix}, "
+        "then run the same command again to resume"
+    )

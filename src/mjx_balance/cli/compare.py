@@ -32,29 +32,50 @@ from .options import (
 )
 
 
-
-
 def add_parser(sub: Any) -> None:
     """The ``compare`` sub-command (``sub.add_parser`` of ``main.build_parser``)."""
-    p = sub.add_parser("compare", help="several configurations on one grid: their recovery "
-                                       "boundaries in one figure, their numbers in one table")
-    p.add_argument("variants", nargs="*", type=sweep_file, metavar="FILE",
-                   help="the configurations to compare: TOML configuration files or sweep "
-                        "definitions (a file or a shipped name such as study_offset_free: its "
-                        "configuration, not its grid); each one's folder is the file's stem")
-    p.add_argument("--variant", type=variant, action="append", default=None,
-                   metavar="NAME=FILE", help="a configuration to compare under a name of its "
-                                             "own (repeatable; after the positional FILEs)")
+    p = sub.add_parser(
+        "compare",
+        help="several configurations on one grid: their recovery "
+        "boundaries in one figure, their numbers in one table",
+    )
+    p.add_argument(
+        "variants",
+        nargs="*",
+        type=sweep_file,
+        metavar="FILE",
+        help="the configurations to compare: TOML configuration files or sweep "
+        "definitions (a file or a shipped name such as study_offset_free: its "
+        "configuration, not its grid); each one's folder is the file's stem",
+    )
+    p.add_argument(
+        "--variant",
+        type=variant,
+        action="append",
+        default=None,
+        metavar="NAME=FILE",
+        help="a configuration to compare under a name of its "
+        "own (repeatable; after the positional FILEs)",
+    )
     config_options(p, repeat=True)
-    p.add_argument("--forces", default=None,
-                   help="start:stop:step or a comma list [N] (default: the default sweep's, "
-                        f"{DEFAULT_SWEEP_FORCES})")
-    p.add_argument("--durations", default=None,
-                   help="start:stop:step or a comma list [s] (default: the default sweep's, "
-                        f"{DEFAULT_SWEEP_DURATIONS})")
-    p.add_argument("--table-forces", default=None,
-                   help="forces of each configuration's max-acting-time table [N] (default: "
-                        f"the default sweep's, {DEFAULT_SWEEP_TABLE_FORCES})")
+    p.add_argument(
+        "--forces",
+        default=None,
+        help="start:stop:step or a comma list [N] (default: the default sweep's, "
+        f"{DEFAULT_SWEEP_FORCES})",
+    )
+    p.add_argument(
+        "--durations",
+        default=None,
+        help="start:stop:step or a comma list [s] (default: the default sweep's, "
+        f"{DEFAULT_SWEEP_DURATIONS})",
+    )
+    p.add_argument(
+        "--table-forces",
+        default=None,
+        help="forces of each configuration's max-acting-time table [N] (default: "
+        f"the default sweep's, {DEFAULT_SWEEP_TABLE_FORCES})",
+    )
     engine_options(p)
     queue_option(p, "configuration")
     cluster_option(p)
@@ -62,9 +83,12 @@ def add_parser(sub: Any) -> None:
     yes_option(p)
     format_option(p)
     figure_options(p)
-    p.add_argument("--out", type=out_folder, required=True,
-                   help="output folder: one sweep folder per configuration, compare.csv, "
-                        "compare.png")
+    p.add_argument(
+        "--out",
+        type=out_folder,
+        required=True,
+        help="output folder: one sweep folder per configuration, compare.csv, compare.png",
+    )
     p.set_defaults(target="mjx_balance.cli.compare:compare_command")
 
 
@@ -74,8 +98,9 @@ def variant(text: str) -> tuple[str, str]:
     if not sep or not name.strip() or not path.strip():
         raise argparse.ArgumentTypeError(f"give NAME=FILE, got {text!r}")
     if "/" in name or "\\" in name or name.strip() != name:
-        raise argparse.ArgumentTypeError(f"{name!r} is not a folder name (letters, digits, "
-                                         "'.', '_', '-')")
+        raise argparse.ArgumentTypeError(
+            f"{name!r} is not a folder name (letters, digits, '.', '_', '-')"
+        )
     return name, sweep_file(path)
 
 
@@ -84,11 +109,15 @@ def variants_and_base(args: Any) -> tuple[list[tuple[str | None, str]], str | No
     variants = [(None, path) for path in args.variants or []] + list(args.variant or [])
     configs = args.config or []
     if not variants:
-        raise ParameterError("compare needs at least one configuration: compare FILE ... "
-                             "or --variant NAME=FILE (--config names the base configuration)")
+        raise ParameterError(
+            "compare needs at least one configuration: compare FILE ... "
+            "or --variant NAME=FILE (--config names the base configuration)"
+        )
     if len(configs) > 1:
-        raise ParameterError("--config: give one base configuration (the configurations to "
-                             "compare are the FILEs or --variant NAME=FILE)")
+        raise ParameterError(
+            "--config: give one base configuration (the configurations to "
+            "compare are the FILEs or --variant NAME=FILE)"
+        )
     return variants, (configs[0] if configs else None)
 
 
@@ -99,19 +128,33 @@ def compare_command(args: Any) -> int:
     from ..studies.compare import load_base, load_configs  # lazy: as above
 
     variants, base = variants_and_base(args)
-    configs = load_configs([path for _, path in variants],
-                           base=load_base(base, getattr(args, "subject", None)),
-                           names=[name for name, _ in variants])
-    configs = {name: with_convention(apply_overrides(config, args.set), args.convention)
-               for name, config in configs.items()}
+    configs = load_configs(
+        [path for _, path in variants],
+        base=load_base(base, getattr(args, "subject", None)),
+        names=[name for name, _ in variants],
+    )
+    configs = {
+        name: with_convention(apply_overrides(config, args.set), args.convention)
+        for name, config in configs.items()
+    }
     out = Path(args.out)
 
     def work() -> None:
-        api.compare(configs, out=out, forces=args.forces, durations=args.durations,
-                    table_forces=args.table_forces, slots=args.slots,
-                    full_length=args.full_length, physics=args.physics or "auto",
-                    cluster=args.cluster, queue=args.queue, progress=progress_enabled(args),
-                    format=getattr(args, "table_format", None),
-                    wait=getattr(args, "wait", False), plan=planner(args))
+        api.compare(
+            configs,
+            out=out,
+            forces=args.forces,
+            durations=args.durations,
+            table_forces=args.table_forces,
+            slots=args.slots,
+            full_length=args.full_length,
+            physics=args.physics or "auto",
+            cluster=args.cluster,
+            queue=args.queue,
+            progress=progress_enabled(args),
+            format=getattr(args, "table_format", None),
+            wait=getattr(args, "wait", False),
+            plan=planner(args),
+        )
 
     return in_folder(out, work, lock=False)  # the API takes the folder's lock

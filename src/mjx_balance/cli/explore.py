@@ -26,15 +26,25 @@ def port_number(text: str) -> int:
 def add_parser(sub: Any) -> None:
     """The ``explore`` sub-command (``sub.add_parser`` of ``main.build_parser``)."""
     p = sub.add_parser(
-        "explore", help="a page on this machine (127.0.0.1) where every cell of a sweep, "
-                        "compare or cohort folder's map opens its run, computed on demand by "
-                        "the scalar reference and kept in the folder")
-    p.add_argument("folder", type=input_folder, metavar="DIR",
-                   help="a folder written by sweep, compare or cohort (also one being written)")
-    p.add_argument("--port", type=port_number, default=0,
-                   help="the port on 127.0.0.1 (default: 0, a free one)")
-    p.add_argument("--no-browser", action="store_true",
-                   help="do not open the page in the web browser; print its address only")
+        "explore",
+        help="a page on this machine (127.0.0.1) where every cell of a sweep, "
+        "compare or cohort folder's map opens its run, computed on demand by "
+        "the scalar reference and kept in the folder",
+    )
+    p.add_argument(
+        "folder",
+        type=input_folder,
+        metavar="DIR",
+        help="a folder written by sweep, compare or cohort (also one being written)",
+    )
+    p.add_argument(
+        "--port", type=port_number, default=0, help="the port on 127.0.0.1 (default: 0, a free one)"
+    )
+    p.add_argument(
+        "--no-browser",
+        action="store_true",
+        help="do not open the page in the web browser; print its address only",
+    )
     p.set_defaults(target="mjx_balance.cli.explore:explore_command")
 
 

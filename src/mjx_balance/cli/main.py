@@ -25,21 +25,50 @@ from ..model.params import ParameterError, ParameterWarning, forget_warnings
 from ..runtime import signals
 from ..runtime.version import InstallError
 from ..runtime.xla import deterministic_flags
-from . import (animate, basin, bench, cohort, compare, explore, landscape, model, report,
-               sensitivity, simulate, sweep)
+from . import (
+    animate,
+    basin,
+    bench,
+    cohort,
+    compare,
+    explore,
+    landscape,
+    model,
+    report,
+    sensitivity,
+    simulate,
+    sweep,
+)
 from .common import verbosity
 from .options import EPILOG, HelpFormatter, conventions, conventions_parent
 
 # In the order of ``mjx-balance --help``: sweep adds sweep and table, model adds model and view.
-COMMANDS = (simulate, bench, sweep, compare, cohort, landscape, basin, sensitivity, animate,
-            report, explore, model)
+COMMANDS = (
+    simulate,
+    bench,
+    sweep,
+    compare,
+    cohort,
+    landscape,
+    basin,
+    sensitivity,
+    animate,
+    report,
+    explore,
+    model,
+)
 
 
 class _Version(argparse.Action):
     """--version: the package's, JAX's, jaxlib's and MuJoCo's versions (no import of JAX)."""
 
-    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS,
-                 help="print the versions of mjx_balance, JAX, jaxlib and MuJoCo and exit"):
+    def __init__(
+        self,
+        option_strings,
+        dest=argparse.SUPPRESS,
+        default=argparse.SUPPRESS,
+        help="print the versions of mjx_balance, JAX, jaxlib and MuJoCo and exit",
+    ):
         super().__init__(option_strings, dest, nargs=0, default=default, help=help)
 
     def __call__(self, parser, namespace, values, option_string=None):
@@ -52,8 +81,10 @@ def version_text() -> str:
     from ..store.provenance import versions  # lazy: the store floor loads pandas; only --version
 
     v = versions()
-    return (f"mjx-balance {v['package']} (jax {v['jax']}, jaxlib {v['jaxlib']}, "
-            f"mujoco {v['mujoco']}, mujoco-mjx {v['mujoco_mjx']}, python {v['python']})")
+    return (
+        f"mjx-balance {v['package']} (jax {v['jax']}, jaxlib {v['jaxlib']}, "
+        f"mujoco {v['mujoco']}, mujoco-mjx {v['mujoco_mjx']}, python {v['python']})"
+    )
 
 
 # An argument that starts with a minus and a digit is a value, not an option: argparse's own
@@ -65,8 +96,12 @@ NEGATIVE_VALUE = re.compile(r"^-\.?\d")
 def build_parser() -> argparse.ArgumentParser:
     # allow_abbrev=False: one spelling per option (a prefix such as --force is not --forces)
     parser = argparse.ArgumentParser(
-        prog="mjx-balance", formatter_class=HelpFormatter, epilog=EPILOG, allow_abbrev=False,
-        description="Standing-balance recovery under constrained MPC: pushes, sweeps, tables.")
+        prog="mjx-balance",
+        formatter_class=HelpFormatter,
+        epilog=EPILOG,
+        allow_abbrev=False,
+        description="Standing-balance recovery under constrained MPC: pushes, sweeps, tables.",
+    )
     parser.add_argument("--version", action=_Version)
     conventions(parser)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -74,8 +109,15 @@ def build_parser() -> argparse.ArgumentParser:
     add_parser = sub.add_parser
 
     def command(name: str, **kwargs) -> argparse.ArgumentParser:
-        p = add_parser(name, formatter_class=HelpFormatter, epilog=EPILOG, allow_abbrev=False,
-                       parents=[parent], description=kwargs.get("help"), **kwargs)
+        p = add_parser(
+            name,
+            formatter_class=HelpFormatter,
+            epilog=EPILOG,
+            allow_abbrev=False,
+            parents=[parent],
+            description=kwargs.get("help"),
+            **kwargs,
+        )
         p._negative_number_matcher = NEGATIVE_VALUE
         return p
 
@@ -134,6 +176,7 @@ def _logging(level: int):
         logger.removeHandler(handler)
         logger.setLevel(saved[0])
         logger.propagate = saved[1]
+
     return restore
 
 
@@ -169,9 +212,11 @@ def main(argv: list[str] | None = None, *, hold_signals_after: bool = False) -> 
         words = sys.argv[1:] if argv is None else list(argv)
         # SIGINT and SIGTERM raise Interrupted / Terminated wherever they land, and a signal
         # whose exception the runtime drops (a GC callback) still ends the work (signals.py)
-        with (signals.honoured(hold_after=hold_signals_after),
-              run_context(command=" ".join(shlex.quote(w) for w in ["mjx-balance", *words])),
-              warnings.catch_warnings()):
+        with (
+            signals.honoured(hold_after=hold_signals_after),
+            run_context(command=" ".join(shlex.quote(w) for w in ["mjx-balance", *words])),
+            warnings.catch_warnings(),
+        ):
             # a never-binding limit is logged where it is found (params.warn_parameter): the
             # Python warning's own copy on stderr would say it twice
             warnings.simplefilter("ignore", ParameterWarning)
@@ -180,8 +225,9 @@ def main(argv: list[str] | None = None, *, hold_signals_after: bool = False) -> 
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM, wherever the work was
         if not isinstance(exc, signals.Interrupted):  # raised by Python's own SIGINT handler
             exc = signals.Interrupted()
-        say_error(f"interrupted ({exc.name}); what finished is kept: run the same command to "
-                  "resume")
+        say_error(
+            f"interrupted ({exc.name}); what finished is kept: run the same command to resume"
+        )
         return exc.code
     finally:
         restore()
@@ -200,8 +246,7 @@ def _run(args: argparse.Namespace) -> int:
     command = getattr(importlib.import_module(module), func)
     try:
         # --figure-format / --figure-size of a command that writes figures (the defaults else)
-        with figure_style(getattr(args, "figure_format", None),
-                          getattr(args, "figure_size", None)):
+        with figure_style(getattr(args, "figure_format", None), getattr(args, "figure_size", None)):
             return int(command(args) or 0)
     except ParameterError as exc:
         say_error(str(exc))

@@ -32,20 +32,29 @@ NO_DISPLAY = 1  # exit code of `view` without a display (a failure, not a usage 
 
 def add_parser(sub: Any) -> None:
     """The ``model`` and ``view`` sub-commands (``sub.add_parser`` of ``main.build_parser``)."""
-    p = sub.add_parser("model", help="write the MJCF (MuJoCo XML) of the configured body (its "
-                                     "time step: scenario.physics_dt)")
+    p = sub.add_parser(
+        "model",
+        help="write the MJCF (MuJoCo XML) of the configured body (its "
+        "time step: scenario.physics_dt)",
+    )
     config_options(p)
     p.add_argument("--out", type=out_file, required=True, help="output MJCF file, e.g. body.xml")
     p.set_defaults(target="mjx_balance.cli.model:model_command")
 
-    p = sub.add_parser("view", help="replay one push in MuJoCo's interactive (passive) viewer "
-                                    "(needs a display)")
+    p = sub.add_parser(
+        "view", help="replay one push in MuJoCo's interactive (passive) viewer (needs a display)"
+    )
     p.add_argument("--force", type=finite_float, required=True, help="push force [N]")
     p.add_argument("--duration", type=nonnegative_float, default=0.1, help="push duration [s]")
-    p.add_argument("--t-end", type=positive_float, default=None,
-                   help="simulate only this long [s] (default: the configuration's t_end)")
-    p.add_argument("--speed", type=positive_float, default=1.0,
-                   help="playback speed (1: real time)")
+    p.add_argument(
+        "--t-end",
+        type=positive_float,
+        default=None,
+        help="simulate only this long [s] (default: the configuration's t_end)",
+    )
+    p.add_argument(
+        "--speed", type=positive_float, default=1.0, help="playback speed (1: real time)"
+    )
     p.add_argument("--loop", action="store_true", help="replay until the viewer is closed")
     config_options(p)
     p.set_defaults(target="mjx_balance.cli.model:view_command")
@@ -64,16 +73,19 @@ def model_command(args) -> int:
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)  # as --out folders are made
     write_text(text, out)
-    log.info(f"wrote {out} (total mass {float(model.body_mass.sum()):.4g} kg, time step "
-             f"{model.opt.timestep:g} s)")
+    log.info(
+        f"wrote {out} (total mass {float(model.body_mass.sum()):.4g} kg, time step "
+        f"{model.opt.timestep:g} s)"
+    )
     return 0
 
 
 def display_missing() -> str | None:
     """Why no viewer window can open here, or None (only checked on Linux, where a window
     needs an X11 or Wayland display)."""
-    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
-                                                 or os.environ.get("WAYLAND_DISPLAY")):
+    if sys.platform.startswith("linux") and not (
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    ):
         return "no display (DISPLAY and WAYLAND_DISPLAY are not set)"
     return None
 
@@ -82,8 +94,11 @@ def view_command(args) -> int:
     """Simulate one push with the reference, then replay it in MuJoCo's passive viewer."""
     missing = display_missing()
     if missing:
-        print(f"mjx-balance: error: view needs a display: {missing}; `mjx-balance animate` "
-              "writes a GIF of the push, `mjx-balance model` the MJCF", file=sys.stderr)
+        print(
+            f"mjx-balance: error: view needs a display: {missing}; `mjx-balance animate` "
+            "writes a GIF of the push, `mjx-balance model` the MJCF",
+            file=sys.stderr,
+        )
         return NO_DISPLAY
     config, duration = one_push(args)
 
@@ -94,14 +109,23 @@ def view_command(args) -> int:
 
     summary, series = simulate_scenario(config, args.force, duration, record=True)
     assert series is not None  # (record=True)
-    log.info(f"push {args.force:g} N for {duration:g} s: {summary['outcome']}; replaying "
-             f"{series['time'].iloc[-1]:.2f} s at {args.speed:g}x (close the window to end)")
+    log.info(
+        f"push {args.force:g} N for {duration:g} s: {summary['outcome']}; replaying "
+        f"{series['time'].iloc[-1]:.2f} s at {args.speed:g}x (close the window to end)"
+    )
     model = build_model(config.body, config.scenario.physics_dt)
     data = mujoco.MjData(model)
-    address = {name: int(model.joint(name).qposadr[0])
-               for name in ("foot_x", "foot_z", "foot_pitch", "ankle", "hip")}
-    columns = {"foot_x": "foot_x", "foot_z": "foot_z", "foot_pitch": "foot_pitch",
-               "ankle": "q_a", "hip": "q_h"}
+    address = {
+        name: int(model.joint(name).qposadr[0])
+        for name in ("foot_x", "foot_z", "foot_pitch", "ankle", "hip")
+    }
+    columns = {
+        "foot_x": "foot_x",
+        "foot_z": "foot_z",
+        "foot_pitch": "foot_pitch",
+        "ankle": "q_a",
+        "hip": "q_h",
+    }
     frames = series[["time", *columns.values()]].to_numpy()
     try:
         import mujoco.viewer

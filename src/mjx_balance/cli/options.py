@@ -39,6 +39,7 @@ value or configuration), reported before any work and before anything is written
 # ---------------------------------------------------------------------------------------------
 # Argument types: each returns the parsed value or raises ArgumentTypeError with the rule.
 
+
 def _number(text: str) -> float:
     try:
         value = float(text)
@@ -80,7 +81,8 @@ def _integer(text: str, minimum: int) -> int:
         raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
     if not (math.isfinite(value) and value.is_integer() and minimum <= value <= MAX_INTEGER):
         raise argparse.ArgumentTypeError(
-            f"must be an integer >= {minimum} (at most {MAX_INTEGER:,}), got {text!r}")
+            f"must be an integer >= {minimum} (at most {MAX_INTEGER:,}), got {text!r}"
+        )
     return int(value)
 
 
@@ -119,7 +121,8 @@ def reference_file(text: str) -> str:
         raise argparse.ArgumentTypeError(str(exc)) from None
     except argparse.ArgumentTypeError as exc:
         raise argparse.ArgumentTypeError(
-            f"{exc}; the shipped references: {', '.join(references.SHIPPED)}") from None
+            f"{exc}; the shipped references: {', '.join(references.SHIPPED)}"
+        ) from None
 
 
 def input_file(text: str) -> str:
@@ -135,7 +138,8 @@ def input_file(text: str) -> str:
         raise argparse.ArgumentTypeError(f"{text!r} cannot be read ({exc.strerror})") from None
     except UnicodeDecodeError as exc:
         raise argparse.ArgumentTypeError(
-            f"{text!r} is not UTF-8 text (byte {exc.start}); expected a text file") from None
+            f"{text!r} is not UTF-8 text (byte {exc.start}); expected a text file"
+        ) from None
     return text
 
 
@@ -177,8 +181,9 @@ def convention_list(text: str) -> str:
         raise argparse.ArgumentTypeError(f"give one or more of {', '.join(CONVENTIONS)}")
     bad = [item for item in items if item not in CONVENTIONS]
     if bad:
-        raise argparse.ArgumentTypeError(f"unknown {', '.join(bad)}; known: "
-                                         f"{', '.join(CONVENTIONS)}")
+        raise argparse.ArgumentTypeError(
+            f"unknown {', '.join(bad)}; known: {', '.join(CONVENTIONS)}"
+        )
     return ",".join(items)
 
 
@@ -212,8 +217,9 @@ def out_folder(text: str) -> str:
         raise argparse.ArgumentTypeError("give a folder name")
     path = Path(text)
     if path.is_symlink() and not path.exists():
-        raise argparse.ArgumentTypeError(f"{text!r} is a symbolic link to a missing target "
-                                         f"({os.readlink(path)!r})")
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is a symbolic link to a missing target ({os.readlink(path)!r})"
+        )
     if path.exists() and not path.is_dir():
         raise argparse.ArgumentTypeError(f"{text!r} exists and is not a folder")
     reason = _unwritable(path)
@@ -262,30 +268,43 @@ def cluster_spec(text: str) -> str:
 # ---------------------------------------------------------------------------------------------
 # The help formatter and the flags several commands share.
 
-class HelpFormatter(argparse.RawDescriptionHelpFormatter,
-                    argparse.ArgumentDefaultsHelpFormatter):
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter, argparse.ArgumentDefaultsHelpFormatter):
     """Every option's default in its help ("(default: ...)"), unless the help already says it
     or there is none to say (no value, a flag); descriptions and epilogs as written."""
 
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""
-        if ("default" in text or action.default in (None, False, argparse.SUPPRESS)
-                or not action.option_strings):
+        if (
+            "default" in text
+            or action.default in (None, False, argparse.SUPPRESS)
+            or not action.option_strings
+        ):
             return text
         return text + " (default: %(default)s)"
 
 
 def conventions(p: argparse.ArgumentParser) -> None:
     """-q, -v, --no-cache: accepted before or after the command (mjx-balance -q sweep ...)."""
-    p.add_argument("-q", "--quiet", action="count", default=argparse.SUPPRESS,
-                   help="only warnings and errors; no progress bars")
-    p.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
-                   help="debug messages too")
-    p.add_argument("--no-cache", action="store_true", default=argparse.SUPPRESS,
-                   help="do not use JAX's persistent compilation cache (default: on, in "
-                        "$MJX_BALANCE_CACHE_DIR or the user's cache folder, "
-                        "~/.cache/mjx_balance/jax on Linux; MJX_BALANCE_CACHE_DIR=off turns it "
-                        "off too)")
+    p.add_argument(
+        "-q",
+        "--quiet",
+        action="count",
+        default=argparse.SUPPRESS,
+        help="only warnings and errors; no progress bars",
+    )
+    p.add_argument(
+        "-v", "--verbose", action="count", default=argparse.SUPPRESS, help="debug messages too"
+    )
+    p.add_argument(
+        "--no-cache",
+        action="store_true",
+        default=argparse.SUPPRESS,
+        help="do not use JAX's persistent compilation cache (default: on, in "
+        "$MJX_BALANCE_CACHE_DIR or the user's cache folder, "
+        "~/.cache/mjx_balance/jax on Linux; MJX_BALANCE_CACHE_DIR=off turns it "
+        "off too)",
+    )
 
 
 def conventions_parent() -> argparse.ArgumentParser:
@@ -295,73 +314,117 @@ def conventions_parent() -> argparse.ArgumentParser:
     return parent
 
 
-def config_options(p: argparse.ArgumentParser, *, repeat: bool = False,
-                   convention_help: str | None = None) -> None:
+def config_options(
+    p: argparse.ArgumentParser, *, repeat: bool = False, convention_help: str | None = None
+) -> None:
     """--convention, --config and --set: the run's configuration. ``repeat``: --config may be
     given more than once (compare's old form, where it named the configurations to compare;
     the command says what more than one means)."""
-    p.add_argument("--convention", choices=CONVENTIONS, default=None,
-                   help=convention_help or "controller convention (default: the "
-                                           "configuration's, 'paper')")
+    p.add_argument(
+        "--convention",
+        choices=CONVENTIONS,
+        default=None,
+        help=convention_help or "controller convention (default: the configuration's, 'paper')",
+    )
     if repeat:
-        p.add_argument("--config", type=sweep_file, action="append", default=None,
-                       metavar="FILE",
-                       help="base TOML configuration file (body, controller, scenario) that "
-                            "every configuration's values go on top of")
+        p.add_argument(
+            "--config",
+            type=sweep_file,
+            action="append",
+            default=None,
+            metavar="FILE",
+            help="base TOML configuration file (body, controller, scenario) that "
+            "every configuration's values go on top of",
+        )
     else:
-        p.add_argument("--config", type=input_file, default=None,
-                       help="TOML configuration file (body, controller, scenario)")
-    p.add_argument("--set", type=setting, action="append", default=None,
-                   metavar="SECTION.KEY=VALUE",
-                   help="override one value of the configuration, e.g. --set "
-                        "controller.horizon=30 --set scenario.t_end=6 (repeatable; checked "
-                        "as in a TOML file; applied after --config and a sweep definition)")
-    p.add_argument("--subject", type=subject, default=None,
-                   metavar="height=H,mass=M[,sex=female]",
-                   help="a person's body from de Leva's (1996) segment table: stature H [m], "
-                        "mass M [kg], sex male (default) or female, optional ankle_strength "
-                        "and hip_strength factors (default 1) on the mass-scaled torque "
-                        "bounds; replaces the --config file's [subject] and goes under a sweep "
-                        "definition and --set (docs/model.md, 'Subjects')")
+        p.add_argument(
+            "--config",
+            type=input_file,
+            default=None,
+            help="TOML configuration file (body, controller, scenario)",
+        )
+    p.add_argument(
+        "--set",
+        type=setting,
+        action="append",
+        default=None,
+        metavar="SECTION.KEY=VALUE",
+        help="override one value of the configuration, e.g. --set "
+        "controller.horizon=30 --set scenario.t_end=6 (repeatable; checked "
+        "as in a TOML file; applied after --config and a sweep definition)",
+    )
+    p.add_argument(
+        "--subject",
+        type=subject,
+        default=None,
+        metavar="height=H,mass=M[,sex=female]",
+        help="a person's body from de Leva's (1996) segment table: stature H [m], "
+        "mass M [kg], sex male (default) or female, optional ankle_strength "
+        "and hip_strength factors (default 1) on the mass-scaled torque "
+        "bounds; replaces the --config file's [subject] and goes under a sweep "
+        "definition and --set (docs/model.md, 'Subjects')",
+    )
 
 
-def common_options(p: argparse.ArgumentParser, out_required: bool = True,
-                   out_help: str = "output folder", out_type=out_folder) -> None:
+def common_options(
+    p: argparse.ArgumentParser,
+    out_required: bool = True,
+    out_help: str = "output folder",
+    out_type=out_folder,
+) -> None:
     """:func:`config_options` and --out."""
     config_options(p)
     p.add_argument("--out", type=out_type, required=out_required, default=None, help=out_help)
 
 
 def yes_option(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--yes", action="store_true",
-                   help="run even when the planned work is beyond the limit (2,000,000 scenarios "
-                        "or an estimated 24 h on a 2-core CPU)")
+    p.add_argument(
+        "--yes",
+        action="store_true",
+        help="run even when the planned work is beyond the limit (2,000,000 scenarios "
+        "or an estimated 24 h on a 2-core CPU)",
+    )
 
 
 def wait_option(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--wait", action="store_true",
-                   help="when another run holds the --out folder, wait for it to end "
-                        "(default: refuse at once, naming that run)")
+    p.add_argument(
+        "--wait",
+        action="store_true",
+        help="when another run holds the --out folder, wait for it to end "
+        "(default: refuse at once, naming that run)",
+    )
 
 
 def cluster_option(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--cluster", type=cluster_spec, default=None, metavar="SPEC",
-                   help="run the scenarios on a Dask cluster (a region map's chunks, a table's "
-                        "bisection calls): local:N (N worker processes "
-                        "here), a scheduler address (tcp://host:8786) or a scheduler file "
-                        '(.json); needs pip install "mjx_balance[cluster]" (docs/cluster.md)')
+    p.add_argument(
+        "--cluster",
+        type=cluster_spec,
+        default=None,
+        metavar="SPEC",
+        help="run the scenarios on a Dask cluster (a region map's chunks, a table's "
+        "bisection calls): local:N (N worker processes "
+        "here), a scheduler address (tcp://host:8786) or a scheduler file "
+        '(.json); needs pip install "mjx_balance[cluster]" (docs/cluster.md)',
+    )
 
 
 def engine_options(p: argparse.ArgumentParser) -> None:
     """Options of the continuous-batching engine (sweep, table, bench)."""
-    p.add_argument("--full-length", action="store_true",
-                   help="run every scenario to t_end (no early stop of certified recoveries; "
-                        "falls still end a scenario), for validation")
-    p.add_argument("--slots", type=positive_int, default=None,
-                   help="scenarios in flight per device (default: 32 on a CPU, 4096 on a GPU; "
-                        "64 on the C path); "
-                        "results are bit-identical for any chunk, device count or order at one "
-                        "slot count, so a sweep folder keeps the count it started with")
+    p.add_argument(
+        "--full-length",
+        action="store_true",
+        help="run every scenario to t_end (no early stop of certified recoveries; "
+        "falls still end a scenario), for validation",
+    )
+    p.add_argument(
+        "--slots",
+        type=positive_int,
+        default=None,
+        help="scenarios in flight per device (default: 32 on a CPU, 4096 on a GPU; "
+        "64 on the C path); "
+        "results are bit-identical for any chunk, device count or order at one "
+        "slot count, so a sweep folder keeps the count it started with",
+    )
     physics_option(p)
 
 
@@ -369,25 +432,35 @@ def queue_option(p: argparse.ArgumentParser, maps: str, auto: bool = False) -> N
     """--queue of the commands that run several region maps (``maps``: what they are);
     ``auto``: the default is auto (``studies.cohort.resolved_queue``), else each."""
     default = "auto" if auto else "each"
-    p.add_argument("--queue", choices=("auto", "each", "one") if auto else ("each", "one"),
-                   default=default,
-                   help=("auto (default): one on the MJX path without a cluster, each "
-                         "otherwise, or the queue a resumed folder was started with; "
-                         if auto else "") +
-                        f"each{'' if auto else ' (default)'}: every {maps}'s map its own "
-                        f"engine run (the bytes of sweep --subject); one: every {maps}'s map "
-                        "through one engine queue with per-lane bodies (MJX only; the maps "
-                        "differ from each's by float rounding; docs/engine.md, "
-                        "\"Per-lane bodies\")")
+    p.add_argument(
+        "--queue",
+        choices=("auto", "each", "one") if auto else ("each", "one"),
+        default=default,
+        help=(
+            "auto (default): one on the MJX path without a cluster, each "
+            "otherwise, or the queue a resumed folder was started with; "
+            if auto
+            else ""
+        )
+        + f"each{'' if auto else ' (default)'}: every {maps}'s map its own "
+        f"engine run (the bytes of sweep --subject); one: every {maps}'s map "
+        "through one engine queue with per-lane bodies (MJX only; the maps "
+        "differ from each's by float rounding; docs/engine.md, "
+        '"Per-lane bodies")',
+    )
 
 
 def physics_option(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--physics", choices=("auto", "mjx", "c"), default=None,
-                   help="physics of the batched closed loop: mjx (MuJoCo MJX in JAX, float32), "
-                        "c (MuJoCo C on a thread pool, float64, the reference's physics; the "
-                        "ADMM stays in JAX) or auto (the faster on this machine: "
-                        "docs/engine.md; default: a --sweep file's [sweep] physics, else auto); "
-                        "a sweep folder keeps the path it started with")
+    p.add_argument(
+        "--physics",
+        choices=("auto", "mjx", "c"),
+        default=None,
+        help="physics of the batched closed loop: mjx (MuJoCo MJX in JAX, float32), "
+        "c (MuJoCo C on a thread pool, float64, the reference's physics; the "
+        "ADMM stays in JAX) or auto (the faster on this machine: "
+        "docs/engine.md; default: a --sweep file's [sweep] physics, else auto); "
+        "a sweep folder keeps the path it started with",
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -397,13 +470,18 @@ TABLE_FORMATS = ("csv", "parquet", "both")  # store.files.FORMATS (the parser st
 
 def format_option(p: argparse.ArgumentParser) -> None:
     """``--format csv|parquet|both``: every table also in that format, beside its own file."""
-    p.add_argument("--format", choices=TABLE_FORMATS, default=None, dest="table_format",
-                   help="also write every table as CSV (full precision, units in a "
-                        "NAME.units.csv beside it), as parquet (units in its schema), or both, "
-                        "under the same name beside the table's own file, which stays "
-                        "(default: each table in its own format only: parquet for the region, "
-                        "scenarios, time series and basin, CSV for table, summary, compare and "
-                        "landscape; docs/outputs.md, 'Units and exports')")
+    p.add_argument(
+        "--format",
+        choices=TABLE_FORMATS,
+        default=None,
+        dest="table_format",
+        help="also write every table as CSV (full precision, units in a "
+        "NAME.units.csv beside it), as parquet (units in its schema), or both, "
+        "under the same name beside the table's own file, which stays "
+        "(default: each table in its own format only: parquet for the region, "
+        "scenarios, time series and basin, CSV for table, summary, compare and "
+        "landscape; docs/outputs.md, 'Units and exports')",
+    )
 
 
 def write_exports(out: str | Path, args: argparse.Namespace) -> None:
@@ -413,21 +491,31 @@ def write_exports(out: str | Path, args: argparse.Namespace) -> None:
 
     from ..store.files import export_tables_said  # lazy: the store floor loads pandas
 
-    export_tables_said(out, getattr(args, "table_format", None),
-                       logging.getLogger("mjx_balance").info)
+    export_tables_said(
+        out, getattr(args, "table_format", None), logging.getLogger("mjx_balance").info
+    )
 
 
 # ---------------------------------------------------------------------------------------------
 # Figures (--figure-format, --figure-size): figures.style, applied by main around the command
 
+
 def figure_options(p: argparse.ArgumentParser) -> None:
     """``--figure-format png|svg|pdf`` and ``--figure-size screen|one-column|two-column``."""
     from ..figures.style import FIGURE_FORMATS, FIGURE_SIZES  # lazy: light (no matplotlib)
 
-    p.add_argument("--figure-format", choices=FIGURE_FORMATS, default="png",
-                   help="file format of the figures the command writes: png, or vector svg or "
-                        "pdf (region.png becomes region.svg, ...)")
-    p.add_argument("--figure-size", choices=tuple(FIGURE_SIZES), default="screen",
-                   help="figure size: screen (each figure's own size), one-column (3.5 in, "
-                        "89 mm wide) or two-column (7.2 in, 183 mm) for a paper; fonts 7 to "
-                        "9 pt, every text inside the figure (docs/outputs.md, 'Figures')")
+    p.add_argument(
+        "--figure-format",
+        choices=FIGURE_FORMATS,
+        default="png",
+        help="file format of the figures the command writes: png, or vector svg or "
+        "pdf (region.png becomes region.svg, ...)",
+    )
+    p.add_argument(
+        "--figure-size",
+        choices=tuple(FIGURE_SIZES),
+        default="screen",
+        help="figure size: screen (each figure's own size), one-column (3.5 in, "
+        "89 mm wide) or two-column (7.2 in, 183 mm) for a paper; fonts 7 to "
+        "9 pt, every text inside the figure (docs/outputs.md, 'Figures')",
+    )

@@ -114,9 +114,12 @@ class ADMMSettings(NamedTuple):
 def settings_from_controller(controller: ControllerParams) -> ADMMSettings:
     """The ADMM settings of a controller configuration."""
     return ADMMSettings(
-        rho=float(controller.admm_rho), sigma=float(controller.admm_sigma),
-        alpha=float(controller.admm_alpha), max_iter=int(controller.admm_max_iter),
-        check_every=int(controller.admm_check_every), eps_abs=float(controller.admm_eps_abs),
+        rho=float(controller.admm_rho),
+        sigma=float(controller.admm_sigma),
+        alpha=float(controller.admm_alpha),
+        max_iter=int(controller.admm_max_iter),
+        check_every=int(controller.admm_check_every),
+        eps_abs=float(controller.admm_eps_abs),
         eps_rel=float(controller.admm_eps_rel),
         stop_on_infeasible=bool(controller.admm_stop_on_infeasible),
         penalty=penalty_of(controller),
@@ -241,10 +244,24 @@ def build_admm(qp: CondensedQP, settings: ADMMSettings, dtype=jnp.float32) -> AD
     soft = np.where(np.isfinite(weight), c * weight / (E * rho), np.inf)
     z_idx, y_idx = shift_index(qp.rows, n, m, qp.horizon)
     arrays = dict(
-        MwT=(K_inv @ As.T @ np.diag(rho)).T, MxT=(sigma * K_inv).T, GT=(-K_inv @ q_x0).T, AT=As.T,
-        l0=E * qp.lower0, u0=E * qp.upper0, bT=(E[:, None] * qp.E).T, rho=rho, E=E,
-        cost_scale=np.array(c), T=T, T_inv=np.linalg.inv(T), H=H, CT=C.T, FT=qp.F.T,
-        input_lower=qp.input_lower, input_upper=qp.input_upper, soft=soft,
+        MwT=(K_inv @ As.T @ np.diag(rho)).T,
+        MxT=(sigma * K_inv).T,
+        GT=(-K_inv @ q_x0).T,
+        AT=As.T,
+        l0=E * qp.lower0,
+        u0=E * qp.upper0,
+        bT=(E[:, None] * qp.E).T,
+        rho=rho,
+        E=E,
+        cost_scale=np.array(c),
+        T=T,
+        T_inv=np.linalg.inv(T),
+        H=H,
+        CT=C.T,
+        FT=qp.F.T,
+        input_lower=qp.input_lower,
+        input_upper=qp.input_upper,
+        soft=soft,
     )
     data = {k: jnp.asarray(v, dtype=dtype) for k, v in arrays.items()}
     return ADMMData(**data, z_shift=jnp.asarray(z_idx), y_shift=jnp.asarray(y_idx))
@@ -304,8 +321,9 @@ class _Solve(NamedTuple):
     hi: jax.Array  # [m] scaled upper bounds
 
 
-def _setup(data: ADMMData, x0: jax.Array, settings: ADMMSettings,
-           offset: jax.Array | None) -> _Solve:
+def _setup(
+    data: ADMMData, x0: jax.Array, settings: ADMMSettings, offset: jax.Array | None
+) -> _Solve:
     """The per-solve terms at state ``x0`` [4]: only q and the bounds move with x0 (and
     ``offset`` [m], which moves every row's bounds down)."""
     dtype = data.MwT.dtype
@@ -324,13 +342,25 @@ def _setup(data: ADMMData, x0: jax.Array, settings: ADMMSettings,
         shift = shift + E * jnp.asarray(offset, dtype)
     lo, hi = data.l0 - shift, data.u0 - shift  # scaled bounds
     eps_pinf = jnp.asarray(settings.eps_prim_inf, dtype)
-    return _Solve(alpha=alpha, eps_abs=eps_abs, eps_rel=eps_rel, eps_pinf=eps_pinf, rho=rho,
-                  E=E, E_inv=E_inv, c=c, q=q, g=g, lo=lo, hi=hi)
+    return _Solve(
+        alpha=alpha,
+        eps_abs=eps_abs,
+        eps_rel=eps_rel,
+        eps_pinf=eps_pinf,
+        rho=rho,
+        E=E,
+        E_inv=E_inv,
+        c=c,
+        q=q,
+        g=g,
+        lo=lo,
+        hi=hi,
+    )
 
 
-def _iteration(data: ADMMData, p: _Solve, settings: ADMMSettings,
-               state: tuple[jax.Array, jax.Array, jax.Array]
-               ) -> tuple[jax.Array, jax.Array, jax.Array]:
+def _iteration(
+    data: ADMMData, p: _Solve, settings: ADMMSettings, state: tuple[jax.Array, jax.Array, jax.Array]
+) -> tuple[jax.Array, jax.Array, jax.Array]:
     """One ADMM iteration (OSQP alg. 1, lines 4-7) on (x [n], s [m], v [m])."""
     # The loop carries the dual divided by ρ, v = y / ρ (ρ is folded into MwT).
     x, s, v = state
@@ -356,8 +386,9 @@ def _iteration(data: ADMMData, p: _Solve, settings: ADMMSettings,
     return x_next, s_next, v_next
 
 
-def _residuals(data: ADMMData, p: _Solve, x: jax.Array, s: jax.Array,
-               y: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+def _residuals(
+    data: ADMMData, p: _Solve, x: jax.Array, s: jax.Array, y: jax.Array
+) -> tuple[jax.Array, jax.Array, jax.Array]:
     """Unscaled primal/dual residuals [] and OSQP's termination test (§3.4) of the scaled
     iterate x [n], s [m] and dual y [m]."""
     E, E_inv, c, eps_abs, eps_rel = p.E, p.E_inv, p.c, p.eps_abs, p.eps_rel
@@ -371,7 +402,8 @@ def _residuals(data: ADMMData, p: _Solve, x: jax.Array, s: jax.Array,
     prim_tol = eps_abs + eps_rel * jnp.maximum(_inf_norm(Cz), _inf_norm(s_u))
     dual = _inf_norm(Hz + p.q + CTy)
     dual_tol = eps_abs + eps_rel * jnp.maximum(
-        jnp.maximum(_inf_norm(Hz), _inf_norm(CTy)), _inf_norm(p.q))
+        jnp.maximum(_inf_norm(Hz), _inf_norm(CTy)), _inf_norm(p.q)
+    )
     return prim, dual, (prim <= prim_tol) & (dual <= dual_tol)
 
 
@@ -381,17 +413,24 @@ def _infeasible(data: ADMMData, p: _Solve, y: jax.Array, y_check: jax.Array) -> 
     E_inv, eps_pinf = p.E_inv, p.eps_pinf
     dy = p.E * p.rho * (y - y_check)
     dy_norm = _inf_norm(dy)
-    return ((dy_norm > 0)
-            & (_inf_norm(dy @ data.CT.T) <= eps_pinf * dy_norm)
-            & ((E_inv * p.hi) @ jnp.maximum(dy, 0) + (E_inv * p.lo) @ jnp.minimum(dy, 0)
-               < eps_pinf * dy_norm))
+    return (
+        (dy_norm > 0)
+        & (_inf_norm(dy @ data.CT.T) <= eps_pinf * dy_norm)
+        & (
+            (E_inv * p.hi) @ jnp.maximum(dy, 0) + (E_inv * p.lo) @ jnp.minimum(dy, 0)
+            < eps_pinf * dy_norm
+        )
+    )
 
 
 def _chunk(data: ADMMData, p: _Solve, settings: ADMMSettings, carry: _Carry) -> _Carry:
     """``check_every`` iterations, then the termination test (the while loop's body)."""
-    x, s, y = jax.lax.fori_loop(0, settings.check_every,
-                                lambda _, state: _iteration(data, p, settings, state),
-                                (carry.x, carry.s, carry.y))
+    x, s, y = jax.lax.fori_loop(
+        0,
+        settings.check_every,
+        lambda _, state: _iteration(data, p, settings, state),
+        (carry.x, carry.s, carry.y),
+    )
     prim, dual, converged = _residuals(data, p, x, s, p.rho * y)
     stop = converged
     if settings.stop_on_infeasible:
@@ -407,41 +446,58 @@ def _start(data: ADMMData, p: _Solve, warm: ADMMWarm) -> _Carry:
     y_start = p.c * p.E_inv * jnp.asarray(warm.y, dtype) / p.rho  # carried as y / ρ
     s_start = x_start @ data.AT
     zero = jnp.zeros((), dtype)
-    return _Carry(x_start, s_start, y_start, y_start, jnp.zeros((), jnp.int32),
-                  jnp.zeros((), bool), jnp.zeros((), bool), zero, zero)
+    return _Carry(
+        x_start,
+        s_start,
+        y_start,
+        y_start,
+        jnp.zeros((), jnp.int32),
+        jnp.zeros((), bool),
+        jnp.zeros((), bool),
+        zero,
+        zero,
+    )
 
 
-def _finish(data: ADMMData, p: _Solve, settings: ADMMSettings, carry: _Carry,
-            offset: jax.Array | None) -> ADMMResult:
+def _finish(
+    data: ADMMData, p: _Solve, settings: ADMMSettings, carry: _Carry, offset: jax.Array | None
+) -> ADMMResult:
     """The result of the last carry: status (the primal infeasibility certificate on δy over
     the last chunk), unscaled z [n] and y [m], the first input and the shifted warm start."""
     dtype = data.MwT.dtype
     if settings.penalty is None:
         certificate = _infeasible(data, p, carry.y, carry.y_check)
-        status = jnp.where(carry.done, SOLVED,
-                           jnp.where(certificate, PRIMAL_INFEASIBLE, MAX_ITER))
+        status = jnp.where(carry.done, SOLVED, jnp.where(certificate, PRIMAL_INFEASIBLE, MAX_ITER))
     else:
         # the hard QP has no solution where the penalised one's rows stay outside their bounds
         # (with weights above every multiplier of a solvable QP, its solution is the hard one)
         # (judged on a converged solve only: an unconverged iterate's violation says nothing)
         violation = _inf_norm(p.E_inv * (carry.s - jnp.clip(carry.s, p.lo, p.hi)))
         certificate = carry.done & (violation > p.eps_pinf)
-        status = jnp.where(certificate, PRIMAL_INFEASIBLE, jnp.where(carry.done, SOLVED,
-                                                                     MAX_ITER))
+        status = jnp.where(certificate, PRIMAL_INFEASIBLE, jnp.where(carry.done, SOLVED, MAX_ITER))
 
     z = carry.x @ data.T.T
     y = p.E * p.rho * carry.y / p.c
     first = z[:2] if offset is None else z[:2] + jnp.asarray(offset[:2], dtype)
     u0 = jnp.clip(first, data.input_lower, data.input_upper)
     return ADMMResult(
-        z=z, u0=u0, status=status.astype(jnp.int32), prim_res=carry.prim_res,
-        dual_res=carry.dual_res, iters=(carry.chunk * settings.check_every).astype(jnp.int32),
+        z=z,
+        u0=u0,
+        status=status.astype(jnp.int32),
+        prim_res=carry.prim_res,
+        dual_res=carry.dual_res,
+        iters=(carry.chunk * settings.check_every).astype(jnp.int32),
         warm_next=ADMMWarm(z=z[data.z_shift], y=y[data.y_shift]),
     )
 
 
-def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
-               settings: ADMMSettings, offset: jax.Array | None = None) -> ADMMResult:
+def admm_solve(
+    data: ADMMData,
+    x0: jax.Array,
+    warm: ADMMWarm,
+    settings: ADMMSettings,
+    offset: jax.Array | None = None,
+) -> ADMMResult:
     """Solve the QP at state ``x0`` [4] from ``warm``; pure, jit-able (settings static).
 
     ``offset`` [m] (the offset-free MPC's deviation QP, offset_free.py): every row's bounds
@@ -458,12 +514,20 @@ def admm_solve(data: ADMMData, x0: jax.Array, warm: ADMMWarm,
     p = _setup(data, x0, settings, offset)
     carry = jax.lax.while_loop(
         lambda carry: (~carry.stop) & (carry.chunk < settings.n_chunks),
-        lambda carry: _chunk(data, p, settings, carry), _start(data, p, warm))
+        lambda carry: _chunk(data, p, settings, carry),
+        _start(data, p, warm),
+    )
     return _finish(data, p, settings, carry, offset)
 
 
-def admm_solve_batch(data: ADMMData, x0: jax.Array, warm: ADMMWarm, settings: ADMMSettings,
-                     tile: int | None = None, offset: jax.Array | None = None) -> ADMMResult:
+def admm_solve_batch(
+    data: ADMMData,
+    x0: jax.Array,
+    warm: ADMMWarm,
+    settings: ADMMSettings,
+    tile: int | None = None,
+    offset: jax.Array | None = None,
+) -> ADMMResult:
     """``admm_solve`` vmapped over x0 [B, 4], warm ([B, n], [B, m]) and offset ([B, m] or
     None), the QP ``data`` shared (one QP per tile of lanes: :func:`admm_solve_tiles`).
 
@@ -473,16 +537,18 @@ def admm_solve_batch(data: ADMMData, x0: jax.Array, warm: ADMMWarm, settings: AD
     Every lane's iterates are the same whatever its tile: a lane that stopped is held, not
     iterated, while its tile runs on.
     """
-    solve = jax.vmap(lambda x, w, o: admm_solve(data, x, w, settings, o),
-                     in_axes=(0, 0, None if offset is None else 0))
+    solve = jax.vmap(
+        lambda x, w, o: admm_solve(data, x, w, settings, o),
+        in_axes=(0, 0, None if offset is None else 0),
+    )
     if tile is None or tile >= x0.shape[0]:
         return solve(x0, warm, offset)
-    return _by_tiles(lambda args: jax.lax.map(lambda a: solve(*a), args), tile, x0, warm,
-                     offset)
+    return _by_tiles(lambda args: jax.lax.map(lambda a: solve(*a), args), tile, x0, warm, offset)
 
 
-def _by_tiles(solve, tile: int, x0: jax.Array, warm: ADMMWarm, offset: jax.Array | None,
-              *leading) -> ADMMResult:
+def _by_tiles(
+    solve, tile: int, x0: jax.Array, warm: ADMMWarm, offset: jax.Array | None, *leading
+) -> ADMMResult:
     """``solve((*leading, x0, warm, offset))`` with x0, warm and offset [B, ...] split into
     B / ``tile`` tiles [B / tile, tile, ...] (``leading``: per-tile arguments, given as they
     are), and its result merged back to [B, ...]."""
@@ -493,14 +559,21 @@ def _by_tiles(solve, tile: int, x0: jax.Array, warm: ADMMWarm, offset: jax.Array
     def split(a):
         return a.reshape((batch // tile, tile) + a.shape[1:])
 
-    out = solve((*leading, split(x0), jax.tree.map(split, warm),
-                 None if offset is None else split(offset)))
+    out = solve(
+        (*leading, split(x0), jax.tree.map(split, warm), None if offset is None else split(offset))
+    )
     return jax.tree.map(lambda a: a.reshape((batch,) + a.shape[2:]), out)
 
 
-def admm_solve_tiles(bodies: ADMMData, tile_body: jax.Array, x0: jax.Array, warm: ADMMWarm,
-                     settings: ADMMSettings, tile: int, offset: jax.Array | None = None
-                     ) -> ADMMResult:
+def admm_solve_tiles(
+    bodies: ADMMData,
+    tile_body: jax.Array,
+    x0: jax.Array,
+    warm: ADMMWarm,
+    settings: ADMMSettings,
+    tile: int,
+    offset: jax.Array | None = None,
+) -> ADMMResult:
     """``admm_solve`` over x0 [B, 4], warm ([B, n], [B, m]) and offset ([B, m] or None) in
     B / ``tile`` tiles of ``tile`` consecutive lanes, every lane of tile t solving the QP
     ``bodies[tile_body[t]]`` (``bodies``: QPs stacked [n_bodies, ...], every leaf; tile_body
@@ -513,8 +586,12 @@ def admm_solve_tiles(bodies: ADMMData, tile_body: jax.Array, x0: jax.Array, warm
     solve (tests/rollout/test_body_tiles.py). One loop for every tile, as ``admm_solve_batch``
     without tiles: it runs to the slowest lane's stop.
     """
-    solve = jax.vmap(lambda d, x, w, o: admm_solve(d, x, w, settings, o),
-                     in_axes=(None, 0, 0, None if offset is None else 0))
-    per_tile = jax.vmap(lambda b, x, w, o: solve(jax.tree.map(lambda v: v[b], bodies), x, w, o),
-                        in_axes=(0, 0, 0, None if offset is None else 0))
+    solve = jax.vmap(
+        lambda d, x, w, o: admm_solve(d, x, w, settings, o),
+        in_axes=(None, 0, 0, None if offset is None else 0),
+    )
+    per_tile = jax.vmap(
+        lambda b, x, w, o: solve(jax.tree.map(lambda v: v[b], bodies), x, w, o),
+        in_axes=(0, 0, 0, None if offset is None else 0),
+    )
     return _by_tiles(lambda args: per_tile(*args), tile, x0, warm, offset, tile_body)

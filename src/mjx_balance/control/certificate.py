@@ -90,10 +90,30 @@ COP_FLOOR = 2e-4  # m
 
 # Quantities predicted (columns of Certificate.rows): joint angles, joint rates, motor torques,
 # CoP and CoM relative to rest, the convention's angles and inputs.
-TAIL_FIELDS = ("energy_ankle", "energy_hip", "work_ankle", "work_hip", "energy_u1", "energy_u2",
-               "work_u1", "work_u2")
-QUANTITIES = ("q_ankle", "q_hip", "dq_ankle", "dq_hip", "tau_ankle", "tau_hip", "cop", "com",
-              "y1", "y2", "u1", "u2")
+TAIL_FIELDS = (
+    "energy_ankle",
+    "energy_hip",
+    "work_ankle",
+    "work_hip",
+    "energy_u1",
+    "energy_u2",
+    "work_u1",
+    "work_u2",
+)
+QUANTITIES = (
+    "q_ankle",
+    "q_hip",
+    "dq_ankle",
+    "dq_hip",
+    "tau_ankle",
+    "tau_hip",
+    "cop",
+    "com",
+    "y1",
+    "y2",
+    "u1",
+    "u2",
+)
 
 
 class Certificate(NamedTuple):
@@ -128,8 +148,14 @@ def _reach(rows: np.ndarray, P_inv: np.ndarray) -> np.ndarray:
     return np.sqrt(np.einsum("...i,ij,...j->...", rows, P_inv, rows))
 
 
-def build(qp: CondensedQP, controller, scenario, *, rest: tuple[float, float],
-          periods: int = PREDICTED_PERIODS) -> Certificate:
+def build(
+    qp: CondensedQP,
+    controller,
+    scenario,
+    *,
+    rest: tuple[float, float],
+    periods: int = PREDICTED_PERIODS,
+) -> Certificate:
     """The certificate of a controller (float64 numpy); see the module docstring."""
     lm = qp.linear
     K = lqr_gain(qp, controller.r_diag)
@@ -157,20 +183,36 @@ def build(qp: CondensedQP, controller, scenario, *, rest: tuple[float, float],
     for j in range(1, scenario.substeps + 1):
         Aj, Bj = zoh(lm.Ac, lm.Bc, j * scenario.physics_dt)
         Mj = Aj - Bj @ K
-        per_sample.append(np.vstack([to_q @ Mj[:2], to_q @ Mj[2:], -lm.torque_map @ K,
-                                     (lm.cop_x @ Mj - lm.cop_u @ K)[None],
-                                     (lm.com_x @ Mj)[None], Mj[:2], -K]))
+        per_sample.append(
+            np.vstack(
+                [
+                    to_q @ Mj[:2],
+                    to_q @ Mj[2:],
+                    -lm.torque_map @ K,
+                    (lm.cop_x @ Mj - lm.cop_u @ K)[None],
+                    (lm.com_x @ Mj)[None],
+                    Mj[:2],
+                    -K,
+                ]
+            )
+        )
     per_sample = np.stack(per_sample)  # [S, 12, 4]
     rows, power = [], np.eye(4)
     for _ in range(periods):
         rows.append(per_sample @ power)
         power = Acl @ power
     return Certificate(
-        rows=np.concatenate(rows), tail=power.T @ P @ power,
-        tail_reach=_reach(per_sample, P_inv).max(axis=0), to_q=to_q, P=P, qp_level=qp_level,
+        rows=np.concatenate(rows),
+        tail=power.T @ P @ power,
+        tail_reach=_reach(per_sample, P_inv).max(axis=0),
+        to_q=to_q,
+        P=P,
+        qp_level=qp_level,
         band=np.array([scenario.settle_angle_tol] * 2 + [scenario.settle_rate_tol] * 2),
-        rest=np.asarray(rest, float), pitch_per_cop=PITCH_PER_COP,
-        pitch_floor=PITCH_FLOOR, floor=noise_floors(),
+        rest=np.asarray(rest, float),
+        pitch_per_cop=PITCH_PER_COP,
+        pitch_floor=PITCH_FLOOR,
+        floor=noise_floors(),
     )
 
 
@@ -195,8 +237,12 @@ def applies(config) -> bool:
     """Whether a configuration has a certificate (no controller delay, no hip servo, not the
     offset-free controller, whose observer and target are outside the certified loop)."""
     body = config.body
-    return (config.scenario.delay_steps == 0 and body.hip_servo_stiffness == 0
-            and body.hip_servo_damping == 0 and not config.controller.offset_free)
+    return (
+        config.scenario.delay_steps == 0
+        and body.hip_servo_stiffness == 0
+        and body.hip_servo_damping == 0
+        and not config.controller.offset_free
+    )
 
 
 def check(xp, cert: Certificate, x, acc, push_over, samples_left):
@@ -218,12 +264,16 @@ def check(xp, cert: Certificate, x, acc, push_over, samples_left):
     # floor (rule 5: the full run's peak then differs by less than the floor)
     floor = cert.floor
     pitch_floor = cert.pitch_per_cop * floor[6] + cert.pitch_floor
-    peaks = ((size[0] <= xp.maximum(acc.peak_ankle, floor[0]))
-             & (size[1] <= xp.maximum(acc.peak_hip, floor[1]))
-             & (size[4] <= xp.maximum(acc.peak_tau_ankle, floor[4]))
-             & (size[5] <= xp.maximum(acc.peak_tau_hip, floor[5]))
-             & (cert.pitch_per_cop * size[6] + cert.pitch_floor
-                <= xp.maximum(acc.peak_foot_pitch, pitch_floor)))
+    peaks = (
+        (size[0] <= xp.maximum(acc.peak_ankle, floor[0]))
+        & (size[1] <= xp.maximum(acc.peak_hip, floor[1]))
+        & (size[4] <= xp.maximum(acc.peak_tau_ankle, floor[4]))
+        & (size[5] <= xp.maximum(acc.peak_tau_hip, floor[5]))
+        & (
+            cert.pitch_per_cop * size[6] + cert.pitch_floor
+            <= xp.maximum(acc.peak_foot_pitch, pitch_floor)
+        )
+    )
     qp_free = GROWTH * (x @ cert.P @ x) <= cert.qp_level
     # (the current sample is in the band whenever the prediction is, for the default model; kept
     # as a guard for others)
@@ -242,7 +292,13 @@ def tail_integrals(xp, cert: Certificate, x, pred, samples_left) -> dict:
     before_end = (xp.arange(pred.shape[0]) < samples_left)[:, None]
     power = xp.where(before_end, pred[:, 4:6] * (q[1:] - q[:-1]), 0)
     power_u = xp.where(before_end, pred[:, 10:12] * (y[1:] - y[:-1]), 0)
-    return {"energy_ankle": xp.abs(power[:, 0]).sum(), "energy_hip": xp.abs(power[:, 1]).sum(),
-            "work_ankle": power[:, 0].sum(), "work_hip": power[:, 1].sum(),
-            "energy_u1": xp.abs(power_u[:, 0]).sum(), "energy_u2": xp.abs(power_u[:, 1]).sum(),
-            "work_u1": power_u[:, 0].sum(), "work_u2": power_u[:, 1].sum()}
+    return {
+        "energy_ankle": xp.abs(power[:, 0]).sum(),
+        "energy_hip": xp.abs(power[:, 1]).sum(),
+        "work_ankle": power[:, 0].sum(),
+        "work_hip": power[:, 1].sum(),
+        "energy_u1": xp.abs(power_u[:, 0]).sum(),
+        "energy_u2": xp.abs(power_u[:, 1]).sum(),
+        "work_u1": power_u[:, 0].sum(),
+        "work_u2": power_u[:, 1].sum(),
+    }

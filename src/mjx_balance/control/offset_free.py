@@ -105,18 +105,37 @@ def build(qp: CondensedQP, controller: ControllerParams) -> OffsetFree:
     com_y = lm.com_x[:2]
     eye = np.eye(2)
     normals = np.vstack([-K, K, eye, -eye, cop_y, -cop_y, com_y, -com_y])
-    b0 = np.concatenate([u_hi, -u_lo, s_hi, -s_lo, [controller.cop_bounds[1]],
-                         [-controller.cop_bounds[0]], [controller.com_bounds[1]],
-                         [-controller.com_bounds[0]]])
+    b0 = np.concatenate(
+        [
+            u_hi,
+            -u_lo,
+            s_hi,
+            -s_lo,
+            [controller.cop_bounds[1]],
+            [-controller.cop_bounds[0]],
+            [controller.com_bounds[1]],
+            [-controller.com_bounds[0]],
+        ]
+    )
     bd = np.vstack([eye, -eye, np.zeros((4, 2)), -cop_dd, cop_dd, np.zeros((2, 2))])
     scale = np.linalg.norm(normals, axis=1)
     if not (scale > 0).all():
         raise ValueError("a steady-state constraint does not depend on the posture")
     pairs = np.array(list(itertools.combinations(range(len(b0)), 2)))
     W = np.diag(np.maximum(controller.q_diag[:2], 1e-9 * max(max(controller.q_diag[:2]), 1.0)))
-    return OffsetFree(A=A, B=B, L=L, K=K, normals=normals / scale[:, None],
-                      b0=b0 / scale, bd=bd / scale[:, None], W=W, first=pairs[:, 0],
-                      second=pairs[:, 1], rows=offset_rows(qp))
+    return OffsetFree(
+        A=A,
+        B=B,
+        L=L,
+        K=K,
+        normals=normals / scale[:, None],
+        b0=b0 / scale,
+        bd=bd / scale[:, None],
+        W=W,
+        first=pairs[:, 0],
+        second=pairs[:, 1],
+        rows=offset_rows(qp),
+    )
 
 
 def offset_rows(qp: CondensedQP) -> np.ndarray:
@@ -136,8 +155,12 @@ def offset_rows(qp: CondensedQP) -> np.ndarray:
 
 def cast(of: OffsetFree, xp, dtype) -> OffsetFree:
     """``of`` as arrays of ``xp`` in ``dtype`` (index arrays stay integers)."""
-    return OffsetFree(*(xp.asarray(v) if name in ("first", "second")
-                        else xp.asarray(v, dtype) for name, v in zip(OffsetFree._fields, of)))
+    return OffsetFree(
+        *(
+            xp.asarray(v) if name in ("first", "second") else xp.asarray(v, dtype)
+            for name, v in zip(OffsetFree._fields, of)
+        )
+    )
 
 
 def observe(xp, of: OffsetFree, d, x_last, u_last, x):
@@ -161,8 +184,9 @@ def target(xp, of: OffsetFree, d):
     det = ai[:, 0] * aj[:, 1] - ai[:, 1] * aj[:, 0]
     crossing = xp.abs(det) > _PARALLEL
     safe = xp.where(crossing, det, 1.0)
-    corners = xp.stack([(bi * aj[:, 1] - bj * ai[:, 1]) / safe,
-                        (ai[:, 0] * bj - aj[:, 0] * bi) / safe], axis=1)
+    corners = xp.stack(
+        [(bi * aj[:, 1] - bj * ai[:, 1]) / safe, (ai[:, 0] * bj - aj[:, 0] * bi) / safe], axis=1
+    )
     candidates = xp.concatenate([xp.zeros((1, 2), dtype=corners.dtype), along, corners])
     usable = xp.concatenate([xp.ones(1 + along.shape[0], dtype=bool), crossing])
     violation = xp.max(candidates @ a.T - b[None, :], axis=1)

@@ -22,22 +22,38 @@ INFEASIBILITY_EPS_OFF = 1e-30  # eps_prim_inf / eps_dual_inf that never certify 
 INFEASIBILITY_EPS_ON = 1e-4  # OSQP's default tolerance
 
 
-def osqp_solver(qp: CondensedQP, eps: float, max_iter: int = 20000,
-                detect_infeasible: bool = False) -> osqp.OSQP:
+def osqp_solver(
+    qp: CondensedQP, eps: float, max_iter: int = 20000, detect_infeasible: bool = False
+) -> osqp.OSQP:
     """An OSQP instance for ``qp``, set up (and factorised) for x0 = 0, warm starts on."""
     lower, upper = qp.bounds(np.zeros(4))
     inf_eps = INFEASIBILITY_EPS_ON if detect_infeasible else INFEASIBILITY_EPS_OFF
     solver = osqp.OSQP()
-    solver.setup(P=sp.triu(sp.csc_matrix(qp.H), format="csc"), q=qp.linear_term(np.zeros(4)),
-                 A=sp.csc_matrix(qp.C), l=lower, u=upper, eps_abs=eps, eps_rel=eps,
-                 eps_prim_inf=inf_eps, eps_dual_inf=inf_eps, max_iter=max_iter,
-                 polishing=False, warm_starting=True, verbose=False)
+    solver.setup(
+        P=sp.triu(sp.csc_matrix(qp.H), format="csc"),
+        q=qp.linear_term(np.zeros(4)),
+        A=sp.csc_matrix(qp.C),
+        l=lower,
+        u=upper,
+        eps_abs=eps,
+        eps_rel=eps,
+        eps_prim_inf=inf_eps,
+        eps_dual_inf=inf_eps,
+        max_iter=max_iter,
+        polishing=False,
+        warm_starting=True,
+        verbose=False,
+    )
     return solver
 
 
-def osqp_solve(solver: osqp.OSQP, qp: CondensedQP, x0: np.ndarray,
-               warm: tuple[np.ndarray, np.ndarray] | None = None,
-               offset: np.ndarray | None = None):
+def osqp_solve(
+    solver: osqp.OSQP,
+    qp: CondensedQP,
+    x0: np.ndarray,
+    warm: tuple[np.ndarray, np.ndarray] | None = None,
+    offset: np.ndarray | None = None,
+):
     """Solve the QP of measured state ``x0`` [4] (optionally from a primal/dual warm start;
     ``offset``: the offset-free deviation QP's row offsets, ``qp.bounds``); OSQP's result
     object; an exception only for a Ctrl-C that OSQP caught (:func:`checked`)."""
@@ -76,22 +92,39 @@ class PenaltyOSQP:
         self.soft = np.concatenate([np.arange(qp.m)[qp.rows[g]] for g in SOFT_GROUPS])
         self.hard = np.setdiff1d(np.arange(qp.m), self.soft)
         weights = dict(zip(SOFT_GROUPS, controller.penalty_weights))
-        self.weight = np.concatenate([np.full(qp.rows[g].stop - qp.rows[g].start, weights[g])
-                                      for g in SOFT_GROUPS])
+        self.weight = np.concatenate(
+            [np.full(qp.rows[g].stop - qp.rows[g].start, weights[g]) for g in SOFT_GROUPS]
+        )
         n, k = qp.n, self.soft.size
         eye, zero = sp.identity(k, format="csc"), sp.csc_matrix((k, n))
         C = sp.csc_matrix(qp.C)
-        self.A = sp.vstack([sp.hstack([C[self.hard], sp.csc_matrix((self.hard.size, k))]),
-                            sp.hstack([C[self.soft], -eye]), sp.hstack([C[self.soft], eye]),
-                            sp.hstack([zero, eye])], format="csc")
-        self.P = sp.block_diag([sp.triu(sp.csc_matrix(qp.H)), sp.csc_matrix((k, k))],
-                               format="csc")
+        self.A = sp.vstack(
+            [
+                sp.hstack([C[self.hard], sp.csc_matrix((self.hard.size, k))]),
+                sp.hstack([C[self.soft], -eye]),
+                sp.hstack([C[self.soft], eye]),
+                sp.hstack([zero, eye]),
+            ],
+            format="csc",
+        )
+        self.P = sp.block_diag([sp.triu(sp.csc_matrix(qp.H)), sp.csc_matrix((k, k))], format="csc")
         self.solver = osqp.OSQP()
         q, lower, upper = self.terms(np.zeros(4))
-        self.solver.setup(P=self.P, q=q, A=self.A, l=lower, u=upper, eps_abs=controller.osqp_eps,
-                          eps_rel=controller.osqp_eps, eps_prim_inf=INFEASIBILITY_EPS_OFF,
-                          eps_dual_inf=INFEASIBILITY_EPS_OFF, max_iter=controller.osqp_max_iter,
-                          polishing=False, warm_starting=True, verbose=False)
+        self.solver.setup(
+            P=self.P,
+            q=q,
+            A=self.A,
+            l=lower,
+            u=upper,
+            eps_abs=controller.osqp_eps,
+            eps_rel=controller.osqp_eps,
+            eps_prim_inf=INFEASIBILITY_EPS_OFF,
+            eps_dual_inf=INFEASIBILITY_EPS_OFF,
+            max_iter=controller.osqp_max_iter,
+            polishing=False,
+            warm_starting=True,
+            verbose=False,
+        )
 
     def terms(self, x0: np.ndarray, offset: np.ndarray | None = None):
         """(q, l, u) of the slack QP at state ``x0``."""
@@ -111,7 +144,7 @@ class PenaltyOSQP:
         result = checked(self.solver.solve(raise_error=False))
         x = np.array(result.x, dtype=float)
         ok = result.info.status_val == osqp.SolverStatus.OSQP_SOLVED
-        z, slack = x[:self.qp.n], x[self.qp.n:]
+        z, slack = x[: self.qp.n], x[self.qp.n :]
         violation = float(np.max(slack, initial=0.0)) if np.isfinite(slack).all() else np.inf
         return z, ok, float(result.info.prim_res), violation
 
@@ -129,24 +162,31 @@ class ReferenceMPC:
         self.controller = controller
         # Dual warm start shifts each constraint block by its per-step row count.
         N = qp.horizon
-        self._dual_blocks = [(qp.rows["inputs"], 2), (qp.rows["states"], 2),
-                             (qp.rows["cop"], 1), (qp.rows["com"], 1)]
+        self._dual_blocks = [
+            (qp.rows["inputs"], 2),
+            (qp.rows["states"], 2),
+            (qp.rows["cop"], 1),
+            (qp.rows["com"], 1),
+        ]
         assert qp.n == 2 * N
         self.reset()
 
     def reset(self) -> None:
         """Fresh solver (no warm start, initial rho): scenarios do not depend on each other."""
-        self._penalty = (PenaltyOSQP(self.qp, self.controller)
-                         if self.controller.infeasible == "exact_penalty" else None)
-        self._solver = osqp_solver(self.qp, self.controller.osqp_eps,
-                                   self.controller.osqp_max_iter)
+        self._penalty = (
+            PenaltyOSQP(self.qp, self.controller)
+            if self.controller.infeasible == "exact_penalty"
+            else None
+        )
+        self._solver = osqp_solver(self.qp, self.controller.osqp_eps, self.controller.osqp_max_iter)
         self._z: np.ndarray | None = None
         self._y: np.ndarray | None = None
         self.violation = 0.0  # the last penalised solve's largest slack (0 when capped)
         self.hard_infeasible: bool | None = None  # the last solve's LP test, when it ran
 
-    def _soft(self, x0: np.ndarray, z: np.ndarray, offset: np.ndarray | None,
-              hard: tuple) -> tuple[np.ndarray, bool, float]:
+    def _soft(
+        self, x0: np.ndarray, z: np.ndarray, offset: np.ndarray | None, hard: tuple
+    ) -> tuple[np.ndarray, bool, float]:
         """An unsolved hard QP under the exact penalty: if it is infeasible (the LP test), the
         slack QP's solution (warm-started from the hard iterate), else the hard result as is.
 
@@ -171,8 +211,9 @@ class ReferenceMPC:
             out[rows] = np.concatenate([block[stride:], block[-stride:]])
         return out
 
-    def solve(self, x0: np.ndarray, offset: np.ndarray | None = None
-              ) -> tuple[np.ndarray, np.ndarray, bool, float]:
+    def solve(
+        self, x0: np.ndarray, offset: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, bool, float]:
         """Solve the QP for measured state x0 [4] (with ``offset``: the offset-free deviation
         QP of x0 = x - x_s, whose first input is offset[:2] + z[:2]; offset_free.py).
 

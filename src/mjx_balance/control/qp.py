@@ -64,8 +64,9 @@ class CondensedQP:
     def linear_term(self, x0: np.ndarray) -> np.ndarray:
         return self.F @ x0
 
-    def bounds(self, x0: np.ndarray, offset: np.ndarray | None = None
-               ) -> tuple[np.ndarray, np.ndarray]:
+    def bounds(
+        self, x0: np.ndarray, offset: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The bounds at state ``x0``; ``offset`` [m]: the rows' values at the offset-free
         target, subtracted (the deviation QP, offset_free.py)."""
         shift = self.E @ x0 + (0.0 if offset is None else np.asarray(offset, float))
@@ -76,7 +77,7 @@ class CondensedQP:
         lm, N = self.linear, self.horizon
         xs, x = [], x0
         for k in range(N):
-            x = lm.A @ x + lm.B @ z[2 * k: 2 * k + 2]
+            x = lm.A @ x + lm.B @ z[2 * k : 2 * k + 2]
             xs.append(x)
         return np.array(xs)
 
@@ -91,8 +92,9 @@ class CondensedQP:
         lo, hi = np.isfinite(lower), np.isfinite(upper)
         A = np.concatenate([self.C[hi], -self.C[lo]])
         b = np.concatenate([upper[hi], -lower[lo]])
-        result = scipy.optimize.linprog(np.zeros(self.n), A_ub=A, b_ub=b,
-                                        bounds=(None, None), method="highs")
+        result = scipy.optimize.linprog(
+            np.zeros(self.n), A_ub=A, b_ub=b, bounds=(None, None), method="highs"
+        )
         if result.status not in (0, 2):  # 0 optimal (feasible), 2 infeasible
             raise RuntimeError(f"feasibility LP failed: {result.message}")
         return result.status == 0
@@ -103,8 +105,9 @@ def shift_warm_start(z: np.ndarray) -> np.ndarray:
     return np.concatenate([z[..., 2:], z[..., -2:]], axis=-1)
 
 
-def terminal_weight(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray,
-                    input_bounds) -> np.ndarray:
+def terminal_weight(
+    A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, input_bounds
+) -> np.ndarray:
     """DARE solution for the inputs whose bounds are not [0, 0] (see the module docstring)."""
     free = [i for i, (lo, hi) in enumerate(input_bounds) if not (lo == 0.0 and hi == 0.0)]
     if not free:
@@ -112,8 +115,9 @@ def terminal_weight(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray,
     return scipy.linalg.solve_discrete_are(A, B[:, free], Q, R[np.ix_(free, free)])
 
 
-def _prediction_matrices(A: np.ndarray, B: np.ndarray,
-                         N: int) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+def _prediction_matrices(
+    A: np.ndarray, B: np.ndarray, N: int
+) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
     """The powers A^0..A^N, Phi and Gamma of the states over N steps: x = Phi x0 + Gamma z."""
     nx, nu = B.shape
     powers = [np.eye(nx)]
@@ -123,7 +127,7 @@ def _prediction_matrices(A: np.ndarray, B: np.ndarray,
     Gamma = np.zeros((N * nx, N * nu))
     for k in range(1, N + 1):
         for j in range(k):
-            Gamma[(k - 1) * nx: k * nx, j * nu: (j + 1) * nu] = powers[k - 1 - j] @ B
+            Gamma[(k - 1) * nx : k * nx, j * nu : (j + 1) * nu] = powers[k - 1 - j] @ B
     return powers, Phi, Gamma
 
 
@@ -146,7 +150,7 @@ def build_qp(controller: ControllerParams, body: BodyParams, control_dt: float) 
 
     n = N * nu
     # x_k as affine function of (z, x0): x_k = Gk z + Pk x0, k = 0..N.
-    Gk = [np.zeros((nx, n))] + [Gamma[(k - 1) * nx: k * nx] for k in range(1, N + 1)]
+    Gk = [np.zeros((nx, n))] + [Gamma[(k - 1) * nx : k * nx] for k in range(1, N + 1)]
     Pk = powers
     blocks_C: list[np.ndarray]
     blocks_E: list[np.ndarray]
@@ -170,7 +174,7 @@ def build_qp(controller: ControllerParams, body: BodyParams, control_dt: float) 
     for k in range(N):
         row = lm.cop_x @ Gk[k]
         row = row.copy()
-        row[k * nu: (k + 1) * nu] += lm.cop_u
+        row[k * nu : (k + 1) * nu] += lm.cop_u
         blocks_C.append(row[None])
         blocks_E.append((lm.cop_x @ Pk[k])[None])
         lows.append([controller.cop_bounds[0]])
@@ -189,17 +193,24 @@ def build_qp(controller: ControllerParams, body: BodyParams, control_dt: float) 
         "com": slice(2 * n + N, 2 * n + 2 * N),
     }
     return CondensedQP(
-        horizon=N, H=H, F=F, C=np.vstack(blocks_C), E=np.vstack(blocks_E),
+        horizon=N,
+        H=H,
+        F=F,
+        C=np.vstack(blocks_C),
+        E=np.vstack(blocks_E),
         lower0=np.concatenate([np.asarray(v, float) for v in lows]),
         upper0=np.concatenate([np.asarray(v, float) for v in highs]),
-        Qf=Qf, rows=rows,
-        input_lower=np.array([u1l, u2l]), input_upper=np.array([u1h, u2h]), linear=lm,
+        Qf=Qf,
+        rows=rows,
+        input_lower=np.array([u1l, u2l]),
+        input_upper=np.array([u1h, u2h]),
+        linear=lm,
     )
 
 
 # -- what a configuration's QP costs and whether float32 can solve it -------------------------
 
-FLOAT32_EPS = 2.0 ** -23  # float32's machine epsilon (unit roundoff x 2)
+FLOAT32_EPS = 2.0**-23  # float32's machine epsilon (unit roundoff x 2)
 
 
 def qp_bytes(horizon: int) -> int:

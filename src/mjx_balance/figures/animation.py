@@ -39,12 +39,23 @@ class _GifWriter(PillowWriter):
 
     def finish(self):
         self._frames[0].save(
-            self.outfile, format="GIF", save_all=True, append_images=self._frames[1:],
-            duration=int(1000 / self.fps), loop=0)
+            self.outfile,
+            format="GIF",
+            save_all=True,
+            append_images=self._frames[1:],
+            duration=int(1000 / self.fps),
+            loop=0,
+        )
 
 
-def frame_times(t_last: float, fps: float, *, settled_at: float | None = None,
-                push: float = 0.0, fast_forward: int = FAST_FORWARD) -> np.ndarray:
+def frame_times(
+    t_last: float,
+    fps: float,
+    *,
+    settled_at: float | None = None,
+    push: float = 0.0,
+    fast_forward: int = FAST_FORWARD,
+) -> np.ndarray:
     """Frame times: 0, 1/fps, ... up to t_last, and t_last itself (within float error); with
     ``push`` > 0 at least PUSH_FRAMES frames in [0, push); with ``settled_at``, from
     settled_at + SETTLED_HOLD_S on a step of fast_forward / fps, and t_last as the last frame."""
@@ -68,6 +79,7 @@ def frame_times(t_last: float, fps: float, *, settled_at: float | None = None,
 
 def segment_points(body: BodyParams, foot_x, foot_z, foot_pitch, q_a, q_h) -> dict[str, np.ndarray]:
     """World (x, z) of the sole ends, ankle, hip, head and upper-body CoM (arrays [..., 2])."""
+
     def rot(angle, x, z):  # rotation about +y: a positive angle tilts +z towards +x
         return (np.cos(angle) * x + np.sin(angle) * z, -np.sin(angle) * x + np.cos(angle) * z)
 
@@ -81,7 +93,10 @@ def segment_points(body: BodyParams, foot_x, foot_z, foot_pitch, q_a, q_h) -> di
     dir2 = np.stack([np.sin(tilt2), np.cos(tilt2)], -1)
     hip = ankle + body.lower_length * dir1
     return {
-        "heel": heel, "toe": toe, "ankle": ankle, "hip": hip,
+        "heel": heel,
+        "toe": toe,
+        "ankle": ankle,
+        "hip": hip,
         "head": hip + body.upper_length * dir2,
         "upper_com": hip + body.upper_com * dir2,
     }
@@ -90,15 +105,18 @@ def segment_points(body: BodyParams, foot_x, foot_z, foot_pitch, q_a, q_h) -> di
 def settle_time(ts: pd.DataFrame, scenario: ScenarioParams = ScenarioParams()) -> float | None:
     """Time of the last sample outside the settle band (0 if none), or None when the last
     sample is outside it (not settled at the end)."""
-    outside = ((ts[["q_a", "q_h"]].abs() > scenario.settle_angle_tol).any(axis=1)
-               | (ts[["dq_a", "dq_h"]].abs() > scenario.settle_rate_tol).any(axis=1)).to_numpy()
+    outside = (
+        (ts[["q_a", "q_h"]].abs() > scenario.settle_angle_tol).any(axis=1)
+        | (ts[["dq_a", "dq_h"]].abs() > scenario.settle_rate_tol).any(axis=1)
+    ).to_numpy()
     if outside[-1]:
         return None
     return float(ts["time"].to_numpy()[outside][-1]) if outside.any() else 0.0
 
 
-def _outcome_text(summary: Mapping[str, Any] | None, settled: float | None,
-                  t_last: float) -> tuple[str, str]:
+def _outcome_text(
+    summary: Mapping[str, Any] | None, settled: float | None, t_last: float
+) -> tuple[str, str]:
     """(text, outcome class) of the run: from its summary row when given, else from the
     series (settled at the end: recovered; otherwise the run ended at t_last unsettled)."""
     if summary is not None:
@@ -123,26 +141,42 @@ class _Frames:
     fast_forward / fps (inf: never); the outcome's text and class (from ``summary`` when
     given, else the series)."""
 
-    def __init__(self, ts: pd.DataFrame, body: BodyParams, fps: float,
-                 summary: Mapping[str, Any] | None, scenario: ScenarioParams,
-                 fast_forward: int):
+    def __init__(
+        self,
+        ts: pd.DataFrame,
+        body: BodyParams,
+        fps: float,
+        summary: Mapping[str, Any] | None,
+        scenario: ScenarioParams,
+        fast_forward: int,
+    ):
         t = ts["time"].to_numpy()
         force = float(ts["force"].iloc[0])
         duration = float(ts["duration"].iloc[0])
         settled = settle_time(ts, scenario)
         if summary is not None:
-            settled = (float(summary["settle_time"]) if summary["outcome"] == "recovered"
-                       else None)
+            settled = float(summary["settle_time"]) if summary["outcome"] == "recovered" else None
         self.text, self.outcome = _outcome_text(summary, settled, float(t[-1]))
-        times = frame_times(t[-1], fps, settled_at=settled, push=duration if force else 0.0,
-                            fast_forward=fast_forward)
-        self.fast_from = ((settled + SETTLED_HOLD_S) if settled is not None and fast_forward > 1
-                          else np.inf)
+        times = frame_times(
+            t[-1],
+            fps,
+            settled_at=settled,
+            push=duration if force else 0.0,
+            fast_forward=fast_forward,
+        )
+        self.fast_from = (
+            (settled + SETTLED_HOLD_S) if settled is not None and fast_forward > 1 else np.inf
+        )
         idx = np.clip(np.searchsorted(t, times - 1e-12), 0, len(t) - 1)
         rows = ts.iloc[idx]
-        self.pts = segment_points(body, rows["foot_x"].to_numpy(), rows["foot_z"].to_numpy(),
-                                  rows["foot_pitch"].to_numpy(), rows["q_a"].to_numpy(),
-                                  rows["q_h"].to_numpy())
+        self.pts = segment_points(
+            body,
+            rows["foot_x"].to_numpy(),
+            rows["foot_z"].to_numpy(),
+            rows["foot_pitch"].to_numpy(),
+            rows["q_a"].to_numpy(),
+            rows["q_h"].to_numpy(),
+        )
         self.t, self.times, self.rows = t, times, rows
         self.force, self.duration, self.arrow_len = force, duration, ARROW_M_PER_N * force
 
@@ -163,16 +197,38 @@ def _stick_axes(ax, fr: _Frames, body: BodyParams) -> tuple:
     (body_line,) = ax.plot([], [], "o-", color="tab:blue", lw=4, ms=5)
     (cop_dot,) = ax.plot([], [], "^", color="tab:red", ms=9, label="CoP (load cells)")
     (com_dot,) = ax.plot([], [], "s", color="tab:green", ms=7, label="CoM (ground projection)")
-    arrow = ax.annotate("", xy=(0, 0), xytext=(0, 0),
-                        arrowprops=dict(arrowstyle="-|>", color="tab:orange", lw=3,
-                                        mutation_scale=18))
-    arrow_text = ax.text(0, 0, f"F = {force:g} N", color="tab:orange", fontsize=9,
-                         ha="center", va="bottom", fontweight="bold")
+    arrow = ax.annotate(
+        "",
+        xy=(0, 0),
+        xytext=(0, 0),
+        arrowprops=dict(arrowstyle="-|>", color="tab:orange", lw=3, mutation_scale=18),
+    )
+    arrow_text = ax.text(
+        0,
+        0,
+        f"F = {force:g} N",
+        color="tab:orange",
+        fontsize=9,
+        ha="center",
+        va="bottom",
+        fontweight="bold",
+    )
     ax.legend(loc="upper left", fontsize=7, frameon=False)
-    ax.set_title(f"push F = {force:g} N for T = {fr.duration:g} s "
-                 f"(arrow {ARROW_M_PER_N * 100:g} m per 100 N)", fontsize=9)
-    clock = ax.text(0.98, 0.97, "", transform=ax.transAxes, ha="right", va="top", fontsize=11,
-                    family="monospace")
+    ax.set_title(
+        f"push F = {force:g} N for T = {fr.duration:g} s "
+        f"(arrow {ARROW_M_PER_N * 100:g} m per 100 N)",
+        fontsize=9,
+    )
+    clock = ax.text(
+        0.98,
+        0.97,
+        "",
+        transform=ax.transAxes,
+        ha="right",
+        va="top",
+        fontsize=11,
+        family="monospace",
+    )
     state = ax.text(0.98, 0.90, "", transform=ax.transAxes, ha="right", va="top", fontsize=9)
     return foot_line, body_line, cop_dot, com_dot, arrow, arrow_text, clock, state
 
@@ -216,17 +272,28 @@ def _draw_frame(i: int, fr: _Frames, artists: tuple, fast_forward: int) -> tuple
     arrow_text.set_position((tip[0] - fr.arrow_len / 2, tip[1] + 0.04))
     arrow_text.set_visible(bool(pushing))
     clock.set_text(f"t = {times[i]:5.2f} s")
-    state.set_text("pushing" if pushing else
-                   f"settled: ×{fast_forward} speed" if times[i] > fr.fast_from + 1e-9 else "")
+    state.set_text(
+        "pushing"
+        if pushing
+        else f"settled: ×{fast_forward} speed"
+        if times[i] > fr.fast_from + 1e-9
+        else ""
+    )
     cursor.set_xdata([times[i], times[i]])
     return artists
 
 
-def animate_timeseries(ts: pd.DataFrame, out: str | Path, body: BodyParams = BodyParams(),
-                       fps: float = 25.0, dpi: int = 80, *,
-                       summary: Mapping[str, Any] | None = None,
-                       scenario: ScenarioParams = ScenarioParams(),
-                       fast_forward: int = FAST_FORWARD) -> int:
+def animate_timeseries(
+    ts: pd.DataFrame,
+    out: str | Path,
+    body: BodyParams = BodyParams(),
+    fps: float = 25.0,
+    dpi: int = 80,
+    *,
+    summary: Mapping[str, Any] | None = None,
+    scenario: ScenarioParams = ScenarioParams(),
+    fast_forward: int = FAST_FORWARD,
+) -> int:
     """Write an animated GIF of one scenario's time series atomically (the file is whole, or
     the old one or none is left); returns the number of frames.
 
@@ -243,16 +310,24 @@ def animate_timeseries(ts: pd.DataFrame, out: str | Path, body: BodyParams = Bod
     fig, (ax, axt) = plt.subplots(1, 2, figsize=FIGSIZE, width_ratios=(1.0, 1.15))
     stick = _stick_axes(ax, fr, body)
     # the outcome's colour as the title's box (yellow text would not read on white)
-    fig.suptitle(f"outcome: {fr.text}", fontsize=11, fontweight="bold",
-                 color="white" if fr.outcome == "diverged" else "black",
-                 bbox={"facecolor": OUTCOME_COLOURS.get(fr.outcome, "white"), "edgecolor": "none",
-                       "boxstyle": "round,pad=0.3"})
+    fig.suptitle(
+        f"outcome: {fr.text}",
+        fontsize=11,
+        fontweight="bold",
+        color="white" if fr.outcome == "diverged" else "black",
+        bbox={
+            "facecolor": OUTCOME_COLOURS.get(fr.outcome, "white"),
+            "edgecolor": "none",
+            "boxstyle": "round,pad=0.3",
+        },
+    )
     # Beside: the joint angles against time, with a cursor.
     artists = (*stick, _angle_axes(axt, ts, fr, fast_forward))
 
     fig.tight_layout()
-    anim = FuncAnimation(fig, lambda i: _draw_frame(i, fr, artists, fast_forward),
-                         frames=len(fr.times), blit=False)
+    anim = FuncAnimation(
+        fig, lambda i: _draw_frame(i, fr, artists, fast_forward), frames=len(fr.times), blit=False
+    )
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         write_atomic(out, lambda tmp: anim.save(tmp, writer=_GifWriter(fps=fps), dpi=dpi))  # type: ignore[arg-type]  # matplotlib's stub says int; a float fps works

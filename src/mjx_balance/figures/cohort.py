@@ -47,9 +47,19 @@ def plot_area(frame: pd.DataFrame, path: str | Path) -> Path:
     for sex, marker in SEX_MARKERS.items():
         rows = (frame["sex"] == sex).to_numpy()
         if rows.any():
-            points = ax.scatter(x[rows], frame["mass"][rows], c=frame["area"][rows], cmap="viridis",
-                                vmin=low, vmax=high if high > low else low + 1, s=70,
-                                marker=marker, edgecolors="0.2", linewidths=0.6, label=sex)
+            points = ax.scatter(
+                x[rows],
+                frame["mass"][rows],
+                c=frame["area"][rows],
+                cmap="viridis",
+                vmin=low,
+                vmax=high if high > low else low + 1,
+                s=70,
+                marker=marker,
+                edgecolors="0.2",
+                linewidths=0.6,
+                label=sex,
+            )
     fig.colorbar(points, ax=ax, label="recoverable area [N·s]")
     ax.set_xlabel("height [m]")
     ax.set_ylabel("mass [kg]")
@@ -59,8 +69,9 @@ def plot_area(frame: pd.DataFrame, path: str | Path) -> Path:
     return style.save(fig, path, dpi=120)
 
 
-def plot_boundaries(segments: dict[str, list], chosen: pd.DataFrame, every: pd.DataFrame,
-                    path: str | Path) -> Path:
+def plot_boundaries(
+    segments: dict[str, list], chosen: pd.DataFrame, every: pd.DataFrame, path: str | Path
+) -> Path:
     """The recovery boundary (outline of the recovered cells; ``segments`` per subject id, as
     ``studies.compare.boundary_segments`` gives them) of each chosen subject on one plane, the
     legend naming the subject's body and area. ``chosen``: cohort.csv's rows of those subjects
@@ -73,11 +84,18 @@ def plot_boundaries(segments: dict[str, list], chosen: pd.DataFrame, every: pd.D
     lines = ["-", "--", "-.", ":"]
     for k, (ident, segs) in enumerate(segments.items()):
         row = chosen.loc[ident]
-        label = (f"{ident}: {row['height']:g} m, {row['mass']:g} kg, {row['sex']}: "
-                 f"{row['area']:.3g} N·s")
-        ax.add_collection(LineCollection(segs, colors=style.SERIES[k % len(style.SERIES)],
-                                         linewidths=2.0, linestyles=lines[k % len(lines)],
-                                         label=label))
+        label = (
+            f"{ident}: {row['height']:g} m, {row['mass']:g} kg, {row['sex']}: {row['area']:.3g} N·s"
+        )
+        ax.add_collection(
+            LineCollection(
+                segs,
+                colors=style.SERIES[k % len(style.SERIES)],
+                linewidths=2.0,
+                linestyles=lines[k % len(lines)],
+                label=label,
+            )
+        )
     fb = cell_bounds(np.sort(every["force"].unique()))
     ax.set_xlim(fb[0], fb[-1])
     duration_axis(ax, durations, cell_bounds(durations, log=log), log)
@@ -100,20 +118,32 @@ def _outcome_panel(ax: Any, region: pd.DataFrame) -> None:
     log = log_durations(durations)
     fx, dy = cell_bounds(forces), cell_bounds(durations, log)
     cmap = ListedColormap([style.OUTCOME_COLOURS[n] for n in names]).with_extremes(bad="white")
-    ax.pcolormesh(fx, dy, np.ma.masked_invalid(codes), cmap=cmap,
-                  norm=BoundaryNorm(np.arange(len(names) + 1) - 0.5, cmap.N), shading="flat")
+    ax.pcolormesh(
+        fx,
+        dy,
+        np.ma.masked_invalid(codes),
+        cmap=cmap,
+        norm=BoundaryNorm(np.arange(len(names) + 1) - 0.5, cmap.N),
+        shading="flat",
+    )
     for name, hatch in style.OUTCOME_HATCHES.items():
         if hatch and (outcome == name).any():
-            ax.pcolor(fx, dy, np.ma.masked_where(outcome != name, np.ones(outcome.shape)),
-                      facecolor="none", edgecolor="0.2", hatch=hatch, linewidth=0)
+            ax.pcolor(
+                fx,
+                dy,
+                np.ma.masked_where(outcome != name, np.ones(outcome.shape)),
+                facecolor="none",
+                edgecolor="0.2",
+                hatch=hatch,
+                linewidth=0,
+            )
     ax.set_xlim(fx[0], fx[-1])
     if log:
         ax.set_yscale("log")
     ax.set_ylim(dy[0], dy[-1])
 
 
-def plot_regions(regions: dict[str, pd.DataFrame], frame: pd.DataFrame,
-                 path: str | Path) -> Path:
+def plot_regions(regions: dict[str, pd.DataFrame], frame: pd.DataFrame, path: str | Path) -> Path:
     """One small outcome map per subject (cohorts of up to 16), titled with its id, body and
     area; one legend of the outcomes below."""
     from matplotlib.patches import Patch
@@ -121,45 +151,68 @@ def plot_regions(regions: dict[str, pd.DataFrame], frame: pd.DataFrame,
     n = len(regions)
     cols = min(4, n)
     rows = -(-n // cols)
-    fig, axes = style.subplots(rows, cols, figsize=(2.6 * cols, 2.3 * rows + 0.6),
-                               sharex=True, sharey=True, squeeze=False)
+    fig, axes = style.subplots(
+        rows, cols, figsize=(2.6 * cols, 2.3 * rows + 0.6), sharex=True, sharey=True, squeeze=False
+    )
     numbers = frame.set_index("id")
     for ax, (ident, region) in zip(axes.flat, regions.items()):
         _outcome_panel(ax, region)
         row = numbers.loc[ident]
-        ax.set_title(f"{ident}: {row['height']:g} m, {row['mass']:g} kg\n"
-                     f"{row['area']:.3g} N·s", fontsize=8)
+        ax.set_title(
+            f"{ident}: {row['height']:g} m, {row['mass']:g} kg\n{row['area']:.3g} N·s", fontsize=8
+        )
     for k in range(n, rows * cols):  # empty panels: the force axis on the panel above
         axes.flat[k].set_visible(False)
         above = axes.flat[k - cols]
         above.xaxis.set_tick_params(labelbottom=True)
         above.set_xlabel("F [N]")
-    for ax in axes[-1, :n - (rows - 1) * cols]:
+    for ax in axes[-1, : n - (rows - 1) * cols]:
         ax.set_xlabel("F [N]")
     for ax in axes[:, 0]:
         ax.set_ylabel("T [s]")
-    fig.legend(handles=[Patch(facecolor=style.OUTCOME_COLOURS[o], edgecolor="0.3",
-                              hatch=style.OUTCOME_HATCHES[o], label=o.replace("_", " "))
-                        for o in style.OUTCOME_COLOURS],
-               loc="outside lower center", ncol=4, fontsize=8, frameon=False)
+    fig.legend(
+        handles=[
+            Patch(
+                facecolor=style.OUTCOME_COLOURS[o],
+                edgecolor="0.3",
+                hatch=style.OUTCOME_HATCHES[o],
+                label=o.replace("_", " "),
+            )
+            for o in style.OUTCOME_COLOURS
+        ],
+        loc="outside lower center",
+        ncol=4,
+        fontsize=8,
+        frameon=False,
+    )
     return style.save(fig, path, dpi=120)
 
 
-def _write_shares(ax: Any, share: np.ndarray, fx: np.ndarray, dy: np.ndarray,
-                  log: bool) -> None:
+def _write_shares(ax: Any, share: np.ndarray, fx: np.ndarray, dy: np.ndarray, log: bool) -> None:
     """Each cell's P in percent at its centre (the geometric centre on a log axis): dark text
     on viridis' light half, light text on its dark half."""
     fc = (fx[:-1] + fx[1:]) / 2
     dc = np.sqrt(dy[:-1] * dy[1:]) if log else (dy[:-1] + dy[1:]) / 2
     for (j, i), value in np.ndenumerate(share):
         if np.isfinite(value):
-            ax.text(fc[i], dc[j], f"{100 * value:.0f}", ha="center", va="center", fontsize=7,
-                    color="0.1" if value > 0.55 else "0.95")
+            ax.text(
+                fc[i],
+                dc[j],
+                f"{100 * value:.0f}",
+                ha="center",
+                va="center",
+                fontsize=7,
+                color="0.1" if value > 0.55 else "0.95",
+            )
 
 
-def plot_probability(cells: pd.DataFrame, levels: dict[float, pd.DataFrame],
-                     base: tuple[str, pd.DataFrame], half_width: float,
-                     path: str | Path) -> Path:
+def plot_probability(
+    cells: pd.DataFrame,
+    levels: dict[float, pd.DataFrame],
+    base: tuple[str, pd.DataFrame],
+    half_width: float,
+    path: str | Path,
+) -> Path:
     """P(recover | F, T) per cell (``cells``: cohort_probability.csv's frame) in viridis from 0
     to 1, each cell's P in percent written in it where the cells are large enough for it
     (:data:`WRITTEN_CELL`; not at one column on the default grid); over it the boundary
@@ -178,33 +231,57 @@ def plot_probability(cells: pd.DataFrame, levels: dict[float, pd.DataFrame],
     fig, ax = style.subplots(figsize=(SCREEN_WIDTH, 6.5))
     width = fig.get_figwidth()
     scale = min(1.0, width / SCREEN_WIDTH)  # one column: 0.41
-    mesh = ax.pcolormesh(fx, dy, np.ma.masked_invalid(share), cmap="viridis", vmin=0.0,
-                         vmax=1.0, shading="flat")
+    mesh = ax.pcolormesh(
+        fx, dy, np.ma.masked_invalid(share), cmap="viridis", vmin=0.0, vmax=1.0, shading="flat"
+    )
     fig.colorbar(mesh, ax=ax, label="P(recover | F, T)")
     # the axes take about 3/4 of the figure's width and 2/3 of its height
-    written = (0.75 * width / forces.size >= WRITTEN_CELL[0]
-               and 0.66 * fig.get_figheight() / durations.size >= WRITTEN_CELL[1])
+    written = (
+        0.75 * width / forces.size >= WRITTEN_CELL[0]
+        and 0.66 * fig.get_figheight() / durations.size >= WRITTEN_CELL[1]
+    )
     if written:
         _write_shares(ax, share, fx, dy, log)
     name, region = base
-    boundary_line(ax, region, fx, dy, color=style.SERIES[1], lw=7.0 * scale,
-                  solid_capstyle="butt", label=f"{name} recovers")
+    boundary_line(
+        ax,
+        region,
+        fx,
+        dy,
+        color=style.SERIES[1],
+        lw=7.0 * scale,
+        solid_capstyle="butt",
+        label=f"{name} recovers",
+    )
     halo = [patheffects.withStroke(linewidth=3.5 * scale, foreground="white")]
     middle = (len(levels) - 1) / 2
     for k, (level, region) in enumerate(levels.items()):
         shift = LEVEL_SHIFT * scale * (k - middle)
-        boundary_line(ax, region, fx, dy, color="black", lw=max(1.6 * scale, 1.0),
-                      ls=LEVEL_LINES[k % len(LEVEL_LINES)], path_effects=halo,
-                      transform=offset_copy(ax.transData, fig=fig, x=shift, y=shift,
-                                            units="points"),
-                      label=f"P(recover) ≥ {100 * level:g} %")
+        boundary_line(
+            ax,
+            region,
+            fx,
+            dy,
+            color="black",
+            lw=max(1.6 * scale, 1.0),
+            ls=LEVEL_LINES[k % len(LEVEL_LINES)],
+            path_effects=halo,
+            transform=offset_copy(ax.transData, fig=fig, x=shift, y=shift, units="points"),
+            label=f"P(recover) ≥ {100 * level:g} %",
+        )
     ax.set_xlim(fx[0], fx[-1])
     duration_axis(ax, durations, dy, log)
     ax.set_xlabel(FORCE_LABEL)
     subjects = int(cells["subjects"].max())
-    ax.set_title(f"Probability of recovery over {subjects} subject"
-                 f"{'' if subjects == 1 else 's'}{' (in % in each cell)' if written else ''}"
-                 f"\n95 % Wilson interval within ±{100 * half_width:.1f} % at worst")
-    fig.legend(loc="outside lower center", ncol=4 if width > 5 else 2, frameon=False,
-               title="per force, the longest duration up to which")
+    ax.set_title(
+        f"Probability of recovery over {subjects} subject"
+        f"{'' if subjects == 1 else 's'}{' (in % in each cell)' if written else ''}"
+        f"\n95 % Wilson interval within ±{100 * half_width:.1f} % at worst"
+    )
+    fig.legend(
+        loc="outside lower center",
+        ncol=4 if width > 5 else 2,
+        frameon=False,
+        title="per force, the longest duration up to which",
+    )
     return style.save(fig, path, dpi=120)

@@ -140,10 +140,14 @@ def recovery_boundary(region: pd.DataFrame) -> pd.DataFrame:
         ok = (group["outcome"] == RECOVERED_TEXT).to_numpy()
         durations = group["duration"].to_numpy()
         first_fail = int(np.argmin(ok)) if not ok.all() else ok.size
-        rows.append({"force": force,
-                     "boundary": durations[first_fail - 1] if first_fail else 0.0,
-                     "first_failure": durations[first_fail] if first_fail < ok.size else np.nan,
-                     "monotone": not ok[first_fail:].any()})
+        rows.append(
+            {
+                "force": force,
+                "boundary": durations[first_fail - 1] if first_fail else 0.0,
+                "first_failure": durations[first_fail] if first_fail < ok.size else np.nan,
+                "monotone": not ok[first_fail:].any(),
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -154,8 +158,10 @@ def map_title(kind: str, config: Config | None, region: pd.DataFrame) -> str:
 
 
 def grid_text(forces: np.ndarray, durations: np.ndarray) -> str:
-    return (f"grid: {forces.size} forces {forces.min():g}..{forces.max():g} N x "
-            f"{durations.size} durations {durations.min():g}..{durations.max():g} s")
+    return (
+        f"grid: {forces.size} forces {forces.min():g}..{forces.max():g} N x "
+        f"{durations.size} durations {durations.min():g}..{durations.max():g} s"
+    )
 
 
 def duration_axis(ax, durations: np.ndarray, bounds: np.ndarray, log: bool) -> None:
@@ -171,9 +177,11 @@ def _nice_impulses(low: float, high: float, count: int = 4) -> list[float]:
     spread evenly on a log scale."""
     if not (low > 0 and high > low):
         return []
-    candidates = [m * 10.0 ** k for k in range(int(np.floor(np.log10(low))) - 1,
-                                                int(np.ceil(np.log10(high))) + 1)
-                  for m in (1, 2, 5)]
+    candidates = [
+        m * 10.0**k
+        for k in range(int(np.floor(np.log10(low))) - 1, int(np.ceil(np.log10(high))) + 1)
+        for m in (1, 2, 5)
+    ]
     inside = [c for c in candidates if low * 1.05 < c < high / 1.05]
     if len(inside) <= count:
         return inside
@@ -192,8 +200,16 @@ def _impulse_lines(ax, fx: np.ndarray, dy: np.ndarray, log: bool) -> list[float]
     f = np.linspace(fx[0], fx[-1], 400)
     t = np.geomspace(t_low, t_high, 300) if log else np.linspace(dy[0], dy[-1], 300)
     grid_f, grid_t = np.meshgrid(f, t)
-    lines = ax.contour(grid_f, grid_t, np.abs(grid_f) * grid_t, levels=impulses, colors="0.15",
-                       linestyles="dashed", linewidths=0.9, alpha=0.8)
+    lines = ax.contour(
+        grid_f,
+        grid_t,
+        np.abs(grid_f) * grid_t,
+        levels=impulses,
+        colors="0.15",
+        linestyles="dashed",
+        linewidths=0.9,
+        alpha=0.8,
+    )
     name = "|F|·T" if fx[0] < 0 else "F·T"
     ax.clabel(lines, fmt=lambda v: f"{name} = {v:g} N·s", fontsize=7, inline=True)
     return impulses
@@ -222,16 +238,22 @@ def boundary_line(ax, region: pd.DataFrame, fx: np.ndarray, dy: np.ndarray, **li
     durations = np.sort(region["duration"].unique())
     boundary = recovery_boundary(region).set_index("force").reindex(forces)
     d_index = {d: i for i, d in enumerate(durations)}
-    tops = np.array([dy[d_index[b] + 1] if b in d_index else dy[0]
-                     for b in boundary["boundary"].to_numpy()])
-    line_style = {"color": "black", "lw": 2.0, "label": "recovery boundary on the grid",
-                  **line_style}
+    tops = np.array(
+        [dy[d_index[b] + 1] if b in d_index else dy[0] for b in boundary["boundary"].to_numpy()]
+    )
+    line_style = {
+        "color": "black",
+        "lw": 2.0,
+        "label": "recovery boundary on the grid",
+        **line_style,
+    }
     (line,) = ax.plot(np.repeat(fx, 2)[1:-1], np.repeat(tops, 2), **line_style)
     return line
 
 
-def takeover_line(ax, region: pd.DataFrame, threshold: float, fx: np.ndarray, dy: np.ndarray,
-                  **style):
+def takeover_line(
+    ax, region: pd.DataFrame, threshold: float, fx: np.ndarray, dy: np.ndarray, **style
+):
     """Draw, per force, the bottom of the first cell where the hip takes over (a step line
     through the forces that have one); returns the line or None when no force has one."""
     forces = np.sort(region["force"].unique())
@@ -245,9 +267,15 @@ def takeover_line(ax, region: pd.DataFrame, threshold: float, fx: np.ndarray, dy
     return line
 
 
-def region_map(region: pd.DataFrame, *, config: Config | None = None,
-               reference: pd.DataFrame | None = None, table: pd.DataFrame | None = None,
-               impulses: bool = True, ax=None):
+def region_map(
+    region: pd.DataFrame,
+    *,
+    config: Config | None = None,
+    reference: pd.DataFrame | None = None,
+    table: pd.DataFrame | None = None,
+    impulses: bool = True,
+    ax=None,
+):
     """Draw the outcome map of ``region`` on ``ax`` (None: a new figure); returns the Figure.
 
     Cells as in :func:`cell_bounds` (the axes' limits are the grid's cell bounds), coloured by
@@ -287,31 +315,58 @@ def _sample_dots(ax, forces: np.ndarray, durations: np.ndarray) -> list:
     handles = []
     if forces.size * durations.size <= SAMPLE_DOTS:
         grid_f, grid_d = np.meshgrid(forces, durations)
-        ax.plot(grid_f.ravel(), grid_d.ravel(), ".", color="0.1", ms=5, alpha=0.7,
-                clip_on=False, zorder=3)
-        handles.append(Line2D([], [], ls="", marker=".", color="0.1", ms=5,
-                              label="sampled (F, T): one cell each"))
+        ax.plot(
+            grid_f.ravel(),
+            grid_d.ravel(),
+            ".",
+            color="0.1",
+            ms=5,
+            alpha=0.7,
+            clip_on=False,
+            zorder=3,
+        )
+        handles.append(
+            Line2D(
+                [], [], ls="", marker=".", color="0.1", ms=5, label="sampled (F, T): one cell each"
+            )
+        )
     return handles
 
 
-def _boundary_lines(ax, region: pd.DataFrame, forces: np.ndarray, fx: np.ndarray,
-                    dy: np.ndarray) -> list:
+def _boundary_lines(
+    ax, region: pd.DataFrame, forces: np.ndarray, fx: np.ndarray, dy: np.ndarray
+) -> list:
     """Draw the recovery boundary, the hip's takeover and non-monotone marks; returns handles."""
     # Boundary on the grid: a step line along the top of each force's first recovered range.
     boundary = recovery_boundary(region).set_index("force").reindex(forces)
     handles = [boundary_line(ax, region, fx, dy)]
     if "energy_hip" in region:
-        over = takeover_line(ax, region, HIP_SHARE_THRESHOLD, fx, dy, color=TAKEOVER_COLOUR,
-                             lw=2.0, ls="--",
-                             label=f"hip takes over above (hip's share of the work "
-                                   f"> {HIP_SHARE_THRESHOLD:g}; "
-                                   f"{style.figure_name('strategy.png')})")
+        over = takeover_line(
+            ax,
+            region,
+            HIP_SHARE_THRESHOLD,
+            fx,
+            dy,
+            color=TAKEOVER_COLOUR,
+            lw=2.0,
+            ls="--",
+            label=f"hip takes over above (hip's share of the work "
+            f"> {HIP_SHARE_THRESHOLD:g}; "
+            f"{style.figure_name('strategy.png')})",
+        )
         if over is not None:
             handles.append(over)
     if not boundary["monotone"].all():
         odd = boundary.index[~boundary["monotone"].to_numpy()]
-        (mark,) = ax.plot(odd, np.full(odd.size, dy[-1]), "v", color="black", ms=6,
-                          clip_on=False, label="recovers again beyond a failure (not monotone)")
+        (mark,) = ax.plot(
+            odd,
+            np.full(odd.size, dy[-1]),
+            "v",
+            color="black",
+            ms=6,
+            clip_on=False,
+            label="recovers again beyond a failure (not monotone)",
+        )
         handles.append(mark)
     return handles
 
@@ -321,34 +376,72 @@ def _impulse_legend(ax, fx: np.ndarray, dy: np.ndarray, log: bool) -> list:
     handles = []
     drawn = _impulse_lines(ax, fx, dy, log)
     if drawn:
-        handles.append(Line2D([], [], color="0.15", ls="--", lw=0.9,
-                              label="constant impulse " + ("|F|·T" if fx[0] < 0 else "F·T")
-                              + " [N·s]"))
+        handles.append(
+            Line2D(
+                [],
+                [],
+                color="0.15",
+                ls="--",
+                lw=0.9,
+                label="constant impulse " + ("|F|·T" if fx[0] < 0 else "F·T") + " [N·s]",
+            )
+        )
     return handles
 
 
 def _reference_points(ax, reference: pd.DataFrame) -> list:
     """Draw the reference's (F, T) points; returns their legend handle."""
     label = str(reference["label"].iloc[0]) if "label" in reference else "reference points"
-    (ref,) = ax.plot(reference["force"], reference["duration"], "o", mfc="white", mec="black",
-                     mew=1.5, ms=6, label=label)
+    (ref,) = ax.plot(
+        reference["force"],
+        reference["duration"],
+        "o",
+        mfc="white",
+        mec="black",
+        mew=1.5,
+        ms=6,
+        label=label,
+    )
     return [ref]
 
 
-def _outcome_legend(ax, region: pd.DataFrame, handles: list, config: Config | None,
-                    forces: np.ndarray, durations: np.ndarray) -> None:
+def _outcome_legend(
+    ax,
+    region: pd.DataFrame,
+    handles: list,
+    config: Config | None,
+    forces: np.ndarray,
+    durations: np.ndarray,
+) -> None:
     """Label the map and draw its legend: the outcomes with their counts, then ``handles``."""
     counts = region["outcome"].value_counts()
-    outcome_handles = [Patch(facecolor=OUTCOME_COLOURS[n], edgecolor="0.3", lw=0.5,
-                             hatch=OUTCOME_HATCHES[n],
-                             label=f"{OUTCOME_LABELS[n]} ({counts.get(n, 0)})")
-                       for n in OUTCOMES]
+    outcome_handles = [
+        Patch(
+            facecolor=OUTCOME_COLOURS[n],
+            edgecolor="0.3",
+            lw=0.5,
+            hatch=OUTCOME_HATCHES[n],
+            label=f"{OUTCOME_LABELS[n]} ({counts.get(n, 0)})",
+        )
+        for n in OUTCOMES
+    ]
     ax.set_xlabel(FORCE_LABEL)
-    ax.set_title(map_title("Outcome of a push (F, T) from upright rest", config, region)
-                 + "\n" + grid_text(forces, durations), fontsize=9)
-    ax.legend(handles=outcome_handles + handles, loc="upper center",
-              bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8, frameon=False,
-              title=f"{len(region)} cells by outcome (count)", title_fontsize=8)
+    ax.set_title(
+        map_title("Outcome of a push (F, T) from upright rest", config, region)
+        + "\n"
+        + grid_text(forces, durations),
+        fontsize=9,
+    )
+    ax.legend(
+        handles=outcome_handles + handles,
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.1),
+        ncol=3,
+        fontsize=8,
+        frameon=False,
+        title=f"{len(region)} cells by outcome (count)",
+        title_fontsize=8,
+    )
 
 
 def _hatch_outcomes(ax, fx: np.ndarray, dy: np.ndarray, outcome: np.ndarray) -> None:
@@ -357,8 +450,16 @@ def _hatch_outcomes(ax, fx: np.ndarray, dy: np.ndarray, outcome: np.ndarray) -> 
     for name, hatch in OUTCOME_HATCHES.items():
         cells = outcome == name
         if hatch and cells.any():
-            ax.pcolor(fx, dy, np.ma.masked_where(~cells, np.ones(cells.shape)), hatch=hatch,
-                      facecolor="none", edgecolor="0.15", linewidth=0.0, shading="flat")
+            ax.pcolor(
+                fx,
+                dy,
+                np.ma.masked_where(~cells, np.ones(cells.shape)),
+                hatch=hatch,
+                facecolor="none",
+                edgecolor="0.15",
+                linewidth=0.0,
+                shading="flat",
+            )
 
 
 def _table_overlay(ax, table: pd.DataFrame, fx: np.ndarray, dy: np.ndarray) -> list:
@@ -373,26 +474,53 @@ def _table_overlay(ax, table: pd.DataFrame, fx: np.ndarray, dy: np.ndarray) -> l
     shown = (tmax >= dy[0]) & (tmax <= dy[-1])
     handles = []
     if shown.any():
-        (curve,) = ax.plot(force[shown], tmax[shown], "o-", color="#1f3fbf", mfc="white",
-                           mew=1.5, ms=5, lw=1.5,
-                           label="max acting time, bisected to 0.01 s (table.csv)")
+        (curve,) = ax.plot(
+            force[shown],
+            tmax[shown],
+            "o-",
+            color="#1f3fbf",
+            mfc="white",
+            mew=1.5,
+            ms=5,
+            lw=1.5,
+            label="max acting time, bisected to 0.01 s (table.csv)",
+        )
         handles.append(curve)
     below = tmax < dy[0]
     if below.any():
-        (low,) = ax.plot(force[below], np.full(below.sum(), dy[0]), "v", color="#1f3fbf", ms=7,
-                         clip_on=False, label="max acting time below the grid (table.csv)")
+        (low,) = ax.plot(
+            force[below],
+            np.full(below.sum(), dy[0]),
+            "v",
+            color="#1f3fbf",
+            ms=7,
+            clip_on=False,
+            label="max acting time below the grid (table.csv)",
+        )
         handles.append(low)
     above = tmax > dy[-1]
     if above.any():
-        (high,) = ax.plot(force[above], np.full(above.sum(), dy[-1]), "^", color="#1f3fbf",
-                          ms=7, clip_on=False, label="max acting time above the grid (table.csv)")
+        (high,) = ax.plot(
+            force[above],
+            np.full(above.sum(), dy[-1]),
+            "^",
+            color="#1f3fbf",
+            ms=7,
+            clip_on=False,
+            label="max acting time above the grid (table.csv)",
+        )
         handles.append(high)
     return handles
 
 
-def plot_region(region: pd.DataFrame, path: str | Path, *, config: Config | None = None,
-                reference: pd.DataFrame | None = None,
-                table: pd.DataFrame | None = None) -> Path:
+def plot_region(
+    region: pd.DataFrame,
+    path: str | Path,
+    *,
+    config: Config | None = None,
+    reference: pd.DataFrame | None = None,
+    table: pd.DataFrame | None = None,
+) -> Path:
     """Save the outcome map (:func:`region_map`) as ``path``. ``table`` None: the table.csv in
     the folder of ``path`` is drawn when there is one (of the same convention)."""
     if table is None:
@@ -405,8 +533,9 @@ def energy_map(region: pd.DataFrame, *, config: Config | None = None, ax=None):
     """Draw the total joint energy (∫|τ_ankle dq_a| + |τ_hip dq_h| dt) of the recovered cells on
     ``ax`` (None: a new figure), log colour scale; the cells that did not recover are grey and
     their energy is not drawn. Cells as in :func:`cell_bounds`. Returns the Figure."""
-    recovered = region.assign(energy=np.where(region["outcome"] == RECOVERED_TEXT,
-                                              region["energy_total"], np.nan))
+    recovered = region.assign(
+        energy=np.where(region["outcome"] == RECOVERED_TEXT, region["energy_total"], np.nan)
+    )
     forces, durations, energy = pivot(recovered, "energy")
     log = log_durations(durations)
     fx, dy = cell_bounds(forces), cell_bounds(durations, log)
@@ -420,22 +549,50 @@ def energy_map(region: pd.DataFrame, *, config: Config | None = None, ax=None):
         if vmin >= vmax:
             vmin = vmax / 10
         cmap = plt.get_cmap("viridis").with_extremes(under="white")
-        mesh = ax.pcolormesh(fx, dy, np.ma.masked_invalid(energy), cmap=cmap,
-                             norm=LogNorm(vmin=vmin, vmax=vmax), shading="flat")
+        mesh = ax.pcolormesh(
+            fx,
+            dy,
+            np.ma.masked_invalid(energy),
+            cmap=cmap,
+            norm=LogNorm(vmin=vmin, vmax=vmax),
+            shading="flat",
+        )
         fig.colorbar(mesh, ax=ax, label="total joint energy [J]  (ankle + hip, ∫|τ·dq/dt| dt)")
     not_recovered = int((region["outcome"] != RECOVERED_TEXT).sum())
-    handles = [Patch(facecolor="#bdbdbd", edgecolor="0.3", lw=0.5,
-                     label=f"not recovered ({not_recovered} cells): energy not shown")]
+    handles = [
+        Patch(
+            facecolor="#bdbdbd",
+            edgecolor="0.3",
+            lw=0.5,
+            label=f"not recovered ({not_recovered} cells): energy not shown",
+        )
+    ]
     if vmin is not None and np.nanmin(energy) < vmin:
-        handles.append(Patch(facecolor="white", edgecolor="black", lw=0.5,
-                             label=f"< {vmin:.2g} J (about 0, e.g. F = 0)"))
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), fontsize=8,
-              frameon=False, ncol=2)
+        handles.append(
+            Patch(
+                facecolor="white",
+                edgecolor="black",
+                lw=0.5,
+                label=f"< {vmin:.2g} J (about 0, e.g. F = 0)",
+            )
+        )
+    ax.legend(
+        handles=handles,
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.1),
+        fontsize=8,
+        frameon=False,
+        ncol=2,
+    )
     ax.set_xlabel(FORCE_LABEL)
     ax.set_xlim(fx[0], fx[-1])
     duration_axis(ax, durations, dy, log)
-    ax.set_title(map_title("Joint energy of the recovered pushes", config, region)
-                 + "\n" + grid_text(forces, durations), fontsize=9)
+    ax.set_title(
+        map_title("Joint energy of the recovered pushes", config, region)
+        + "\n"
+        + grid_text(forces, durations),
+        fontsize=9,
+    )
     return fig
 
 
@@ -455,23 +612,60 @@ def _acting_time_axes(ax, table: pd.DataFrame, t_end: float | None) -> None:
     regular = np.isfinite(tmax) & ~full & ~zero
 
     floor = 0.005
-    ax.plot(force[np.isfinite(tmax) & ~zero], tmax[np.isfinite(tmax) & ~zero], "-", color="C0",
-            lw=1, alpha=0.6)
+    ax.plot(
+        force[np.isfinite(tmax) & ~zero],
+        tmax[np.isfinite(tmax) & ~zero],
+        "-",
+        color="C0",
+        lw=1,
+        alpha=0.6,
+    )
     window = (table["ending_outcome"].astype(str) == "not_settled").to_numpy() & regular
-    ax.plot(force[regular & monotone & ~window], tmax[regular & monotone & ~window], "o",
-            color="C0", label="max acting time")
+    ax.plot(
+        force[regular & monotone & ~window],
+        tmax[regular & monotone & ~window],
+        "o",
+        color="C0",
+        label="max acting time",
+    )
     if (window & monotone).any():
-        ax.plot(force[window & monotone], tmax[window & monotone], "s", mfc="white", mec="C0",
-                mew=1.5, label="max acting time (longer pushes do not settle by t_end)")
+        ax.plot(
+            force[window & monotone],
+            tmax[window & monotone],
+            "s",
+            mfc="white",
+            mec="C0",
+            mew=1.5,
+            label="max acting time (longer pushes do not settle by t_end)",
+        )
     if (regular & ~monotone).any():
-        ax.plot(force[regular & ~monotone], tmax[regular & ~monotone], "o", mfc="white", mec="C3",
-                mew=1.5, label="not monotone (recovers again later)")
+        ax.plot(
+            force[regular & ~monotone],
+            tmax[regular & ~monotone],
+            "o",
+            mfc="white",
+            mec="C3",
+            mew=1.5,
+            label="not monotone (recovers again later)",
+        )
     if full.any():
-        ax.plot(force[full], tmax[full], "^", color="C2", ms=8,
-                label=f"recovers for every T up to t_end = {t_end:g} s")
+        ax.plot(
+            force[full],
+            tmax[full],
+            "^",
+            color="C2",
+            ms=8,
+            label=f"recovers for every T up to t_end = {t_end:g} s",
+        )
     if zero.any():
-        ax.plot(force[zero], np.full(zero.sum(), floor), "x", color="C3", ms=8,
-                label="fails at the shortest push (0.01 s)")
+        ax.plot(
+            force[zero],
+            np.full(zero.sum(), floor),
+            "x",
+            color="C3",
+            ms=8,
+            label="fails at the shortest push (0.01 s)",
+        )
     shown = tmax[np.isfinite(tmax) & (tmax > 0)]
     if zero.any() or (shown.size and shown.max() / shown.min() > 30):
         ax.set_yscale("log")  # from 0.01 s to t_end: a log axis keeps both ends readable
@@ -496,20 +690,27 @@ def _energy_axes(ax2, table: pd.DataFrame, convention: str) -> None:
     # absolute work beside it in grey; the joint convention, the motors' alone
     study = convention == "paper" and "study_energy_total_max" in table
     lines: list[tuple[str, str, str, dict[str, object]]]  # (column, format, label, line style)
-    lines = [("energy_total_01", "s-", "total, T = 0.1 s", {}),
-             ("energy_total_max", "o-", "total, T = max acting time", {}),
-             ("energy_ankle_max", ".--", "ankle, T = max acting time", {}),
-             ("energy_hip_max", ".:", "hip, T = max acting time", {})]
+    lines = [
+        ("energy_total_01", "s-", "total, T = 0.1 s", {}),
+        ("energy_total_max", "o-", "total, T = max acting time", {}),
+        ("energy_ankle_max", ".--", "ankle, T = max acting time", {}),
+        ("energy_hip_max", ".:", "hip, T = max acting time", {}),
+    ]
     if study:
         grey = {"color": "0.55", "lw": 1, "ms": 4}
-        lines = [("study_energy_total_01", "s-", "study's total, T = 0.1 s", {}),
-                 ("study_energy_total_max", "o-", "study's total, T = max acting time", {}),
-                 ("study_energy_u1_max", ".--", "study's (τ1, q1), T = max acting time", {}),
-                 ("study_energy_u2_max", ".:", "study's (τ2, q2), T = max acting time", {}),
-                 ("energy_total_01", "s-", "motors' total ∫|τ·dq/dt|, T = 0.1 s",
-                  {**grey, "mfc": "white"}),
-                 ("energy_total_max", "o-", "motors' total ∫|τ·dq/dt|, T = max acting time",
-                  grey)]
+        lines = [
+            ("study_energy_total_01", "s-", "study's total, T = 0.1 s", {}),
+            ("study_energy_total_max", "o-", "study's total, T = max acting time", {}),
+            ("study_energy_u1_max", ".--", "study's (τ1, q1), T = max acting time", {}),
+            ("study_energy_u2_max", ".:", "study's (τ2, q2), T = max acting time", {}),
+            (
+                "energy_total_01",
+                "s-",
+                "motors' total ∫|τ·dq/dt|, T = 0.1 s",
+                {**grey, "mfc": "white"},
+            ),
+            ("energy_total_max", "o-", "motors' total ∫|τ·dq/dt|, T = max acting time", grey),
+        ]
     for column, fmt, label, options in lines:
         values = table[column].to_numpy(dtype=float)
         ok = np.isfinite(values) & (values > 0)
@@ -519,18 +720,32 @@ def _energy_axes(ax2, table: pd.DataFrame, convention: str) -> None:
             ax2.plot(force[ok], values[ok], fmt, label=label, **options)
     failed_01 = ~recovered_01 & (table["outcome_01"].astype(str) != "")
     if failed_01.any():
-        ax2.plot(force[failed_01], np.zeros(failed_01.sum()), "x", color="C3", ms=8, mew=2,
-                 transform=ax2.get_xaxis_transform(), clip_on=False,
-                 label="T = 0.1 s did not recover: energy not shown")
+        ax2.plot(
+            force[failed_01],
+            np.zeros(failed_01.sum()),
+            "x",
+            color="C3",
+            ms=8,
+            mew=2,
+            transform=ax2.get_xaxis_transform(),
+            clip_on=False,
+            label="T = 0.1 s did not recover: energy not shown",
+        )
     ax2.set_yscale("log")
     _plain_log_labels(ax2.yaxis)
     ax2.set_xlabel("push force F [N]")
-    ax2.set_ylabel("joint energy [J]  (study's eq. 20: |∫τ_i dq_i|; grey: ∫|τ·dq/dt| dt)"
-                   if study else "joint energy [J]  (∫|τ·dq/dt| dt)")
+    ax2.set_ylabel(
+        "joint energy [J]  (study's eq. 20: |∫τ_i dq_i|; grey: ∫|τ·dq/dt| dt)"
+        if study
+        else "joint energy [J]  (∫|τ·dq/dt| dt)"
+    )
     ax2.grid(True, which="both", alpha=0.3)
     ax2.legend(fontsize=7 if study else 8)
-    ax2.set_title("Energy of the recovered runs"
-                  + (": the study's (eq. 20), the motors' in grey" if study else ""), fontsize=10)
+    ax2.set_title(
+        "Energy of the recovered runs"
+        + (": the study's (eq. 20), the motors' in grey" if study else ""),
+        fontsize=10,
+    )
 
 
 def table_figure(table: pd.DataFrame, *, config: Config | None = None, axes=None):

@@ -21,10 +21,16 @@ from . import timeseries as plots
 # The weight study's bars: the study's energy (eq. 20, docs/model.md) heads the paper
 # convention's figure, the motors' absolute work in the row below; the joint convention's, the
 # motors' alone (weight_rows).
-MOTOR_BARS = [("energy_ankle", "ankle motor", "#0072B2"), ("energy_hip", "hip motor", "#D55E00"),
-              ("energy_total", "total", "0.3")]
-STUDY_BARS = [("study_energy_u1", "(τ1, q1)", "#009E73"),
-              ("study_energy_u2", "(τ2, q2)", "#CC79A7"), ("study_energy_total", "total", "0.3")]
+MOTOR_BARS = [
+    ("energy_ankle", "ankle motor", "#0072B2"),
+    ("energy_hip", "hip motor", "#D55E00"),
+    ("energy_total", "total", "0.3"),
+]
+STUDY_BARS = [
+    ("study_energy_u1", "(τ1, q1)", "#009E73"),
+    ("study_energy_u2", "(τ2, q2)", "#CC79A7"),
+    ("study_energy_total", "total", "0.3"),
+]
 
 
 def weight_rows(weights: pd.DataFrame, convention: str) -> list[tuple[list, str]]:
@@ -47,8 +53,9 @@ def weight_figure(weights: pd.DataFrame, convention: str, axes=None):
 
     rows = weight_rows(weights, convention)
     if axes is None:
-        fig, axes = plt.subplots(len(rows), 2, figsize=(12, 4.6 * len(rows)),
-                                 layout="constrained", squeeze=False)
+        fig, axes = plt.subplots(
+            len(rows), 2, figsize=(12, 4.6 * len(rows)), layout="constrained", squeeze=False
+        )
     else:
         axes = np.asarray(axes, dtype=object).reshape(-1, 2)
         fig = axes[0, 0].figure
@@ -60,21 +67,27 @@ def weight_figure(weights: pd.DataFrame, convention: str, axes=None):
         labels += [name if len(rows) == 1 else f"{name} ({which})" for _, name, _ in parts]
     if (weights["outcome"] != OUTCOMES[RECOVERED]).any():
         handles.append(Patch(facecolor="white", edgecolor="white"))
-        labels.append("a setting that did not recover: no bars (an energy of a fall is not a "
-                      "recovery cost), its outcome written instead")
+        labels.append(
+            "a setting that did not recover: no bars (an energy of a fall is not a "
+            "recovery cost), its outcome written instead"
+        )
     fig.legend(handles, labels, loc="outside lower center", ncol=4, fontsize=8, frameon=False)
     force = weights["force"].iloc[0]
     duration = weights["duration"].iloc[0]
-    fig.suptitle(f"Weight study, {convention} convention: F = {force:g} N, T = {duration:g} s"
-                 + ("; top: the study's energy (eq. 20), bottom: the motors'"
-                    if len(rows) > 1 else ""), fontsize=11)
+    fig.suptitle(
+        f"Weight study, {convention} convention: F = {force:g} N, T = {duration:g} s"
+        + ("; top: the study's energy (eq. 20), bottom: the motors'" if len(rows) > 1 else ""),
+        fontsize=11,
+    )
     return fig
 
 
 def _weight_bars(axes, weights: pd.DataFrame, parts: list, ylabel: str) -> None:
     """One row of the weight figure: the bars of ``parts`` for the Q and the R settings."""
-    for ax, which, label in ((axes[0], "Q", r"Q = s$\cdot$I$_4$  (R default)"),
-                             (axes[1], "R", r"R = s$\cdot$diag(1000, 1)  (Q default)")):
+    for ax, which, label in (
+        (axes[0], "Q", r"Q = s$\cdot$I$_4$  (R default)"),
+        (axes[1], "R", r"R = s$\cdot$diag(1000, 1)  (Q default)"),
+    ):
         rows = weights[weights["weight"] == which].reset_index(drop=True)
         x = np.arange(len(rows))
         ok = (rows["outcome"] == OUTCOMES[RECOVERED]).to_numpy()
@@ -84,9 +97,16 @@ def _weight_bars(axes, weights: pd.DataFrame, parts: list, ylabel: str) -> None:
             ax.bar(x[ok] + (j - 1) * 0.27, values[ok], 0.27, color=colour)
         for i, row in rows.iterrows():
             if row["outcome"] != OUTCOMES[RECOVERED]:
-                ax.annotate(row["outcome"], (i, 0.5), xycoords=("data", "axes fraction"),
-                            ha="center", va="center", rotation=90, fontsize=9,
-                            color="#b2182b")
+                ax.annotate(
+                    row["outcome"],
+                    (i, 0.5),
+                    xycoords=("data", "axes fraction"),
+                    ha="center",
+                    va="center",
+                    rotation=90,
+                    fontsize=9,
+                    color="#b2182b",
+                )
         ax.set_xticks(x, [f"{s:.0e}" for s in rows["scale"]])
         ax.set_xlim(-0.6, len(rows) - 0.4)  # every setting's slot, with or without bars
         values = rows.loc[ok, [c for c, _, _ in parts]].to_numpy(float)
@@ -110,8 +130,13 @@ def conventions_figure(tables: dict[str, pd.DataFrame], ax=None):
     fig = ax.figure
     for i, (convention, table) in enumerate(tables.items()):
         t = table.sort_values("force")
-        ax.plot(t["force"], np.maximum(t["max_acting_time"], 0.005), "o-", color=f"C{i}",
-                label=convention)
+        ax.plot(
+            t["force"],
+            np.maximum(t["max_acting_time"], 0.005),
+            "o-",
+            color=f"C{i}",
+            label=convention,
+        )
     ax.set_yscale("log")
     ax.set_xlabel("push force F [N]")
     ax.set_ylabel("max acting time [s] (0: drawn at 0.005)")
@@ -132,17 +157,23 @@ def save_figure(fig, path: Path) -> Path:
     return path
 
 
-def draw_timeseries(series: pd.DataFrame, figures: Path, convention: str,
-                    config: Config | None = None,
-                    summary: pd.DataFrame | None = None) -> dict[str, Path]:
+def draw_timeseries(
+    series: pd.DataFrame,
+    figures: Path,
+    convention: str,
+    config: Config | None = None,
+    summary: pd.DataFrame | None = None,
+) -> dict[str, Path]:
     """The time-series figures of one convention, by name (plots.timeseries_figures)."""
     folder = figures / f"timeseries_{convention}"
-    return {p.stem: p for p in plots.timeseries_figures(series, folder, config=config,
-                                                       summary=summary)}
+    return {
+        p.stem: p for p in plots.timeseries_figures(series, folder, config=config, summary=summary)
+    }
 
 
-def draw_weights(weights: pd.DataFrame, figures: Path, convention: str,
-                 name: str = "weights") -> Path:
+def draw_weights(
+    weights: pd.DataFrame, figures: Path, convention: str, name: str = "weights"
+) -> Path:
     """The weight study's energy bars of one convention (weight_figure), as
     ``figures/<name>_<convention>.png``."""
     return save_figure(weight_figure(weights, convention), figures / f"{name}_{convention}.png")
@@ -159,15 +190,21 @@ def region_figure(figures: Path, convention: str) -> Path:
     return figures / f"region_{convention}.png"
 
 
-def draw_region(region: pd.DataFrame, figures: Path, config: Config,
-                table: pd.DataFrame | None = None) -> tuple[Path, Path]:
+def draw_region(
+    region: pd.DataFrame, figures: Path, config: Config, table: pd.DataFrame | None = None
+) -> tuple[Path, Path]:
     """The outcome map (with the table's max acting time) and the energy map of one
     convention's region."""
     convention = config.controller.convention
-    outcome = region_plots.plot_region(region, region_figure(figures, convention), config=config,
-                                       table=table if table is not None else pd.DataFrame())
-    energy = region_plots.plot_energy(region, figures / f"region_energy_{convention}.png",
-                                      config=config)
+    outcome = region_plots.plot_region(
+        region,
+        region_figure(figures, convention),
+        config=config,
+        table=table if table is not None else pd.DataFrame(),
+    )
+    energy = region_plots.plot_energy(
+        region, figures / f"region_energy_{convention}.png", config=config
+    )
     return outcome, energy
 
 
@@ -175,9 +212,11 @@ def draw_study(key: str, res: dict, figures: Path) -> list[tuple[Path, str]]:
     """The outcome map of every variant of a study, with its label."""
     drawn = []
     for variant in res["variants"]:
-        path = region_plots.plot_region(res["regions"][variant["key"]],
-                                        figures / f"study_{key}_{variant['key']}.png",
-                                        config=config_from_dict(variant["config"]),
-                                        table=pd.DataFrame())
+        path = region_plots.plot_region(
+            res["regions"][variant["key"]],
+            figures / f"study_{key}_{variant['key']}.png",
+            config=config_from_dict(variant["config"]),
+            table=pd.DataFrame(),
+        )
         drawn.append((path, variant["label"]))
     return drawn

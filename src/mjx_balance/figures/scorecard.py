@@ -61,14 +61,24 @@ def scorecard_figure(card: pd.DataFrame, *, table: pd.DataFrame | None = None):
             colour, marker = SOURCES[k % len(SOURCES)], MARKERS[k % len(MARKERS)]
             status = mine["status"]
             for shown, look, what in (
-                    (status == "agrees", {"mfc": "white", "mec": colour, "mew": 1.6}, "within"),
-                    (status == "differs", {"color": colour}, "differs"),
-                    (~status.isin(["agrees", "differs"]), {"color": colour, "alpha": 0.6},
-                     "not compared")):
+                (status == "agrees", {"mfc": "white", "mec": colour, "mew": 1.6}, "within"),
+                (status == "differs", {"color": colour}, "differs"),
+                (
+                    ~status.isin(["agrees", "differs"]),
+                    {"color": colour, "alpha": 0.6},
+                    "not compared",
+                ),
+            ):
                 if shown.any():
-                    ax.plot(mine["force"][shown], mine["reference"][shown],
-                            marker if what != "not compared" else "x", ls="", ms=7,
-                            label=f"{plain(source)} ({what})", **look)
+                    ax.plot(
+                        mine["force"][shown],
+                        mine["reference"][shown],
+                        marker if what != "not compared" else "x",
+                        ls="",
+                        ms=7,
+                        label=f"{plain(source)} ({what})",
+                        **look,
+                    )
         values = np.concatenate([rows["reference"].to_numpy(float), rows["ours"].to_numpy(float)])
         values = values[np.isfinite(values) & (values > 0)]
         if values.size and values.max() / values.min() > 10:
@@ -77,12 +87,14 @@ def scorecard_figure(card: pd.DataFrame, *, table: pd.DataFrame | None = None):
         ax.set_xlabel("push force F [N]", fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7, frameon=False)
-    for ax in axes.ravel()[len(measures):]:
+    for ax in axes.ravel()[len(measures) :]:
         ax.set_visible(False)
     agree = int((card["status"] == "agrees").sum())
     compared = int(card["status"].isin(["agrees", "differs"]).sum())
-    title = (f"Scorecard: ours (black, with our uncertainty) beside each reference; "
-             f"{agree} of {compared} compared rows within tolerance")
+    title = (
+        f"Scorecard: ours (black, with our uncertainty) beside each reference; "
+        f"{agree} of {compared} compared rows within tolerance"
+    )
     # wrapped to the figure's width (a one-panel figure is 4.6 in wide): about 0.55 em a
     # character at 10 pt, 72 pt an inch
     width = max(30, int(fig.get_figwidth() * 72 / (0.55 * 10)) - 4)
@@ -99,12 +111,21 @@ def _our_curve(ax, rows: pd.DataFrame, table: pd.DataFrame | None, measure: str)
     else:
         ours = rows.drop_duplicates("force").sort_values("force")
         err = ours["our_uncertainty"].to_numpy(float)
-    ax.errorbar(ours["force"], ours["ours"], yerr=np.where(np.isfinite(err), err, 0.0),
-                fmt="-", color=OURS, lw=1.4, capsize=3, label="ours")
+    ax.errorbar(
+        ours["force"],
+        ours["ours"],
+        yerr=np.where(np.isfinite(err), err, 0.0),
+        fmt="-",
+        color=OURS,
+        lw=1.4,
+        capsize=3,
+        label="ours",
+    )
 
 
-def plot_scorecard(card: pd.DataFrame, path: str | Path, *,
-                   table: pd.DataFrame | None = None) -> Path | None:
+def plot_scorecard(
+    card: pd.DataFrame, path: str | Path, *, table: pd.DataFrame | None = None
+) -> Path | None:
     """Save :func:`scorecard_figure` as ``path`` (nothing when it has no panel)."""
     fig = scorecard_figure(card, table=table)
     if fig is None:

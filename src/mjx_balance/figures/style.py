@@ -42,14 +42,22 @@ if TYPE_CHECKING:  # (annotations only: matplotlib loads when a figure is drawn)
     from matplotlib.typing import RcKeyType
 
 OUTCOME_COLOURS = {
-    "recovered": "#009E73",    # Okabe-Ito bluish green
+    "recovered": "#009E73",  # Okabe-Ito bluish green
     "not_settled": "#F0E442",  # Okabe-Ito yellow
-    "fell": "#D55E00",         # Okabe-Ito vermillion, hatched (greyscale: as light as green)
-    "diverged": "#3A3A3A",     # dark grey
+    "fell": "#D55E00",  # Okabe-Ito vermillion, hatched (greyscale: as light as green)
+    "diverged": "#3A3A3A",  # dark grey
 }
 OUTCOME_HATCHES = {"recovered": "", "not_settled": "", "fell": "///", "diverged": ""}
-SERIES = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000",
-          "#F0E442")  # Okabe-Ito, strongest first
+SERIES = (
+    "#0072B2",
+    "#D55E00",
+    "#009E73",
+    "#CC79A7",
+    "#E69F00",
+    "#56B4E9",
+    "#000000",
+    "#F0E442",
+)  # Okabe-Ito, strongest first
 
 FIGURE_FORMATS = ("png", "svg", "pdf")
 FIGURE_SIZES = {"screen": None, "one-column": 3.5, "two-column": 7.2}  # width [in]
@@ -57,10 +65,20 @@ MIN_FONT_PT, MAX_FONT_PT = 7.0, 9.0  # a column figure's text sizes
 MIN_PANEL_HEIGHT = {"one-column": 1.6, "two-column": 2.2}  # [in]
 MAX_HEIGHT = 9.5  # [in]: a column figure never grows taller than a page's text block
 COLUMN_RC: dict[RcKeyType, Any]  # (the keys matplotlib knows)
-COLUMN_RC = {"font.size": 8, "axes.titlesize": 8, "axes.labelsize": 8, "xtick.labelsize": 7,
-             "ytick.labelsize": 7, "legend.fontsize": 7, "legend.title_fontsize": 7,
-             "figure.titlesize": 8, "lines.linewidth": 1.2, "lines.markersize": 4,
-             "axes.linewidth": 0.6, "hatch.linewidth": 0.6}
+COLUMN_RC = {
+    "font.size": 8,
+    "axes.titlesize": 8,
+    "axes.labelsize": 8,
+    "xtick.labelsize": 7,
+    "ytick.labelsize": 7,
+    "legend.fontsize": 7,
+    "legend.title_fontsize": 7,
+    "figure.titlesize": 8,
+    "lines.linewidth": 1.2,
+    "lines.markersize": 4,
+    "axes.linewidth": 0.6,
+    "hatch.linewidth": 0.6,
+}
 SAVE_RC: dict[RcKeyType, Any]
 SAVE_RC = {"pdf.fonttype": 42, "ps.fonttype": 42}  # TrueType in PDFs (editable, as journals ask)
 
@@ -77,7 +95,9 @@ class FigureStyle:
 
 
 _CURRENT: contextvars.ContextVar[FigureStyle] = contextvars.ContextVar(
-    "mjx_balance_figure_style", default=FigureStyle())  # noqa: B039 - a frozen dataclass
+    "mjx_balance_figure_style",
+    default=FigureStyle(),  # noqa: B039 - a frozen dataclass
+)
 
 
 def current() -> FigureStyle:
@@ -108,8 +128,10 @@ def figure_style(format: str | None = None, size: str | None = None) -> Iterator
     font sizes for the figures drawn inside. Raises ParameterError (a ValueError) for an unknown
     value."""
     before = current()
-    style = FigureStyle(check_format(format) if format is not None else before.format,
-                        check_size(size) if size is not None else before.size)
+    style = FigureStyle(
+        check_format(format) if format is not None else before.format,
+        check_size(size) if size is not None else before.size,
+    )
     token = _CURRENT.set(style)
     try:
         if style.width is None:
@@ -135,8 +157,14 @@ def figure_name(name: str) -> str:
     return figure_path(name).name
 
 
-def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float],
-             stack: bool = True, **kwargs: Any) -> tuple[Any, Any]:
+def subplots(
+    nrows: int = 1,
+    ncols: int = 1,
+    *,
+    figsize: tuple[float, float],
+    stack: bool = True,
+    **kwargs: Any,
+) -> tuple[Any, Any]:
     """``plt.subplots`` with constrained layout in the current size: ``figsize`` on a screen;
     at a column width the figure is that wide (height scaled with it, at least
     MIN_PANEL_HEIGHT per row), and at one column a row of panels is stacked into one column
@@ -155,8 +183,10 @@ def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float],
         rows, cols = nrows * ncols, 1
         kwargs.pop("width_ratios", None)
         (kwargs.get("gridspec_kw") or {}).pop("width_ratios", None)
-    panel_h = max(MIN_PANEL_HEIGHT[style.size],
-                  style.width / cols * figsize[1] / figsize[0] * ncols / max(nrows, 1) * 0.9)
+    panel_h = max(
+        MIN_PANEL_HEIGHT[style.size],
+        style.width / cols * figsize[1] / figsize[0] * ncols / max(nrows, 1) * 0.9,
+    )
     height = min(MAX_HEIGHT, panel_h * rows + 0.5)
     fig, axes = plt.subplots(rows, cols, figsize=(style.width, height), squeeze=False, **kwargs)
     axes = np.asarray(axes).reshape(nrows, ncols)
@@ -213,8 +243,11 @@ def drawn_texts(fig: Any) -> list[Any]:
         legend = ax.get_legend()
         if legend is not None:
             texts += [*legend.get_texts(), legend.get_title()]
-    return [t for t in texts if t.get_visible() and t.get_text().strip()
-            and (t.axes is None or t.axes.get_visible())]
+    return [
+        t
+        for t in texts
+        if t.get_visible() and t.get_text().strip() and (t.axes is None or t.axes.get_visible())
+    ]
 
 
 def outside(fig: Any, texts: list[Any] | None = None, tolerance: float = 1.0) -> list[Any]:
@@ -227,8 +260,12 @@ def outside(fig: Any, texts: list[Any] | None = None, tolerance: float = 1.0) ->
     found = []
     for text in drawn_texts(fig) if texts is None else texts:
         ext = text.get_window_extent(renderer)
-        if (ext.x0 < box.x0 - tolerance or ext.x1 > box.x1 + tolerance
-                or ext.y0 < box.y0 - tolerance or ext.y1 > box.y1 + tolerance):
+        if (
+            ext.x0 < box.x0 - tolerance
+            or ext.x1 > box.x1 + tolerance
+            or ext.y0 < box.y0 - tolerance
+            or ext.y1 > box.y1 + tolerance
+        ):
             found.append(text)
     return found
 
@@ -241,8 +278,7 @@ def _rewrap(text: Any, factor: float) -> bool:
         return False
     lines = content.split("\n")
     width = max(8, int(max(len(line) for line in lines) * factor))
-    wrapped = "\n".join(textwrap.fill(line, width) if len(line) > width else line
-                        for line in lines)
+    wrapped = "\n".join(textwrap.fill(line, width) if len(line) > width else line for line in lines)
     if wrapped == content:
         return False
     text.set_text(wrapped)
@@ -250,8 +286,9 @@ def _rewrap(text: Any, factor: float) -> bool:
 
 
 def _legends(fig: Any) -> list[Any]:
-    return list(fig.legends) + [ax.get_legend() for ax in fig.axes
-                                if ax.get_legend() is not None and ax.get_visible()]
+    return list(fig.legends) + [
+        ax.get_legend() for ax in fig.axes if ax.get_legend() is not None and ax.get_visible()
+    ]
 
 
 def _legends_below(fig: Any) -> None:
@@ -267,8 +304,16 @@ def _legends_below(fig: Any) -> None:
         size = legend.get_texts()[0].get_fontsize() if labels else MIN_FONT_PT
         legend.remove()
         for ncols in (2, 1):
-            moved = fig.legend(handles, labels, loc="outside lower center", ncols=ncols,
-                               frameon=False, fontsize=size, title=title, title_fontsize=size)
+            moved = fig.legend(
+                handles,
+                labels,
+                loc="outside lower center",
+                ncols=ncols,
+                frameon=False,
+                fontsize=size,
+                title=title,
+                title_fontsize=size,
+            )
             fig.draw_without_rendering()
             wide = moved.get_window_extent(fig.canvas.get_renderer()).width
             if ncols == 1 or wide <= 0.94 * fig.bbox.width:
@@ -287,8 +332,11 @@ def _narrow_legends(fig: Any, renderer: Any, room: float) -> None:
             texts = legend.get_texts() + [legend.get_title()]
             widest = max(t.get_window_extent(renderer).width for t in texts)
             allowed = widest - (ext.width - room)
-            if not any(_rewrap(t, 0.95 * allowed / widest) for t in texts
-                       if t.get_window_extent(renderer).width > allowed):
+            if not any(
+                _rewrap(t, 0.95 * allowed / widest)
+                for t in texts
+                if t.get_window_extent(renderer).width > allowed
+            ):
                 break
             fig.draw_without_rendering()
 
@@ -331,6 +379,7 @@ def _grow(fig: Any, size: str) -> bool:
 def _clamp_fonts(fig: Any) -> None:
     """Every text's size within [MIN_FONT_PT, MAX_FONT_PT] (tick labels through tick_params:
     new ticks copy the first tick's label size)."""
+
     def clamp(size: float) -> float:
         return min(max(size, MIN_FONT_PT), MAX_FONT_PT)
 
@@ -339,8 +388,11 @@ def _clamp_fonts(fig: Any) -> None:
             for minor in (False, True):
                 ticks = axis.get_minor_ticks() if minor else axis.get_major_ticks()
                 if ticks:
-                    ax.tick_params(axis=which, which="minor" if minor else "major",
-                                   labelsize=clamp(ticks[0].label1.get_fontsize()))
+                    ax.tick_params(
+                        axis=which,
+                        which="minor" if minor else "major",
+                        labelsize=clamp(ticks[0].label1.get_fontsize()),
+                    )
     for text in drawn_texts(fig):
         text.set_fontsize(clamp(text.get_fontsize()))
 

@@ -28,8 +28,10 @@ from ..model.params import ControllerParams, ScenarioParams
 
 # --- measurements from MuJoCo C data -------------------------------------------------------
 
-def load_cell_cop(model: mujoco.MjModel, data: mujoco.MjData,
-                  cell_geoms: tuple[int, ...]) -> tuple[float, float]:
+
+def load_cell_cop(
+    model: mujoco.MjModel, data: mujoco.MjData, cell_geoms: tuple[int, ...]
+) -> tuple[float, float]:
     """(CoP x, total normal force) from the contacts that involve a load-cell geom.
 
     CoP = sum F_i x_i / sum F_i (the study's eq. 18), F_i the contact normal force
@@ -79,14 +81,16 @@ def pendulum_frequency(model: mujoco.MjModel, foot_body: int, ankle_dof: int) ->
     return math.sqrt(abs(float(model.opt.gravity[2])) / length)
 
 
-def cell_heights(model: mujoco.MjModel, data: mujoco.MjData,
-                 cell_geoms: tuple[int, ...]) -> np.ndarray:
+def cell_heights(
+    model: mujoco.MjModel, data: mujoco.MjData, cell_geoms: tuple[int, ...]
+) -> np.ndarray:
     """Lowest point (centre z - radius) of each load-cell sphere [4]."""
     cells = list(cell_geoms)
     return data.geom_xpos[cells, 2] - model.geom_size[cells, 0]
 
 
 # --- rules over a series ----------------------------------------------------------------
+
 
 def settle_time(time: np.ndarray, q: np.ndarray, dq: np.ndarray, limits: Limits) -> float:
     """Time of the last sample outside the settle band (0.0 if never outside)."""
@@ -108,6 +112,7 @@ def saturation_fractions(u: np.ndarray, limits: Limits) -> tuple[float, float]:
 
 # --- the summary row -----------------------------------------------------------------------
 
+
 def study_energies(work_u1, work_u2) -> dict[str, Any]:
     """The study's joint energy (its eq. 20, docs/model.md) from the signed work of the
     convention's pairs, W_i = sum u_i Δx_i (∫ u_i dx_i): ``work_u1``, ``work_u2`` themselves,
@@ -115,8 +120,13 @@ def study_energies(work_u1, work_u2) -> dict[str, Any]:
     magnitude) and ``study_energy_total`` = |W_1| + |W_2|. Floats or numpy arrays (summary
     columns of the reference and of the batched paths alike)."""
     e1, e2 = abs(work_u1), abs(work_u2)
-    return {"work_u1": work_u1, "work_u2": work_u2, "study_energy_u1": e1,
-            "study_energy_u2": e2, "study_energy_total": e1 + e2}
+    return {
+        "work_u1": work_u1,
+        "work_u2": work_u2,
+        "study_energy_u1": e1,
+        "study_energy_u2": e2,
+        "study_energy_total": e1 + e2,
+    }
 
 
 def increments(initial: np.ndarray, series: np.ndarray) -> np.ndarray:
@@ -138,8 +148,9 @@ def _finite_min_max(values: np.ndarray) -> tuple[float, float]:
     return float(values.min()), float(values.max())
 
 
-def _balance_columns(time: np.ndarray, com_vel: np.ndarray | None, mos: np.ndarray | None,
-                     end: int) -> dict[str, Any]:
+def _balance_columns(
+    time: np.ndarray, com_vel: np.ndarray | None, mos: np.ndarray | None, end: int
+) -> dict[str, Any]:
     """CoM velocity extremes and the smallest margin of stability (the push direction's,
     docs/model.md) with its time, over the first ``end`` samples; NaN without the series."""
     nan = np.full(time.shape[0], math.nan)
@@ -148,44 +159,68 @@ def _balance_columns(time: np.ndarray, com_vel: np.ndarray | None, mos: np.ndarr
     vel_min, vel_max = _finite_min_max(vel)
     finite = np.isfinite(margin)
     at = int(np.argmin(np.where(finite, margin, np.inf))) if finite.any() else -1
-    return {"com_vel_min": vel_min, "com_vel_max": vel_max,
-            "mos_min": float(margin[at]) if at >= 0 else math.nan,
-            "mos_min_time": float(time[at]) if at >= 0 else math.nan}
+    return {
+        "com_vel_min": vel_min,
+        "com_vel_max": vel_max,
+        "mos_min": float(margin[at]) if at >= 0 else math.nan,
+        "mos_min_time": float(time[at]) if at >= 0 else math.nan,
+    }
 
 
-def _first_fall(time: np.ndarray, q: np.ndarray, x: np.ndarray, foot_pitch: np.ndarray,
-                cell_low_z: np.ndarray, limits: Limits) -> tuple[np.ndarray, bool, int, float]:
+def _first_fall(
+    time: np.ndarray,
+    q: np.ndarray,
+    x: np.ndarray,
+    foot_pitch: np.ndarray,
+    cell_low_z: np.ndarray,
+    limits: Limits,
+) -> tuple[np.ndarray, bool, int, float]:
     """(bound excess [n] of the states x [n, 4], fell, samples kept ``end`` (up to and
     including the first fall sample; n if none), fall time (NaN if none)) of the series."""
     n = time.shape[0]
     excess = outcomes.bound_excess(np, x, limits) if n else np.zeros(0)  # [n]
-    flags = (outcomes.falls(np, foot_pitch, cell_low_z, excess, q[:, 0], limits) if n
-             else np.zeros(0, bool))
+    flags = (
+        outcomes.falls(np, foot_pitch, cell_low_z, excess, q[:, 0], limits)
+        if n
+        else np.zeros(0, bool)
+    )
     fell = bool(flags.any())
     end = int(np.flatnonzero(flags)[0]) + 1 if fell else n  # samples kept: [0, end)
     fall_time = float(time[end - 1]) if fell else math.nan
     return excess, fell, end, fall_time
 
 
-def _diverged(diverged: bool, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, x: np.ndarray,
-              u_control) -> bool:
+def _diverged(
+    diverged: bool, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, x: np.ndarray, u_control
+) -> bool:
     """Whether the run diverged: said so (``diverged``) or a non-finite sample or input."""
-    finite = (np.isfinite(q).all(axis=-1) & np.isfinite(dq).all(axis=-1)
-              & np.isfinite(tau).all(axis=-1) & np.isfinite(x).all(axis=-1))
-    return bool(diverged or not finite.all()
-                or not np.isfinite(np.asarray(u_control, float)).all())
+    finite = (
+        np.isfinite(q).all(axis=-1)
+        & np.isfinite(dq).all(axis=-1)
+        & np.isfinite(tau).all(axis=-1)
+        & np.isfinite(x).all(axis=-1)
+    )
+    return bool(diverged or not finite.all() or not np.isfinite(np.asarray(u_control, float)).all())
 
 
-def _outcome_code(completed: bool, diverged: bool, fell: bool, time: np.ndarray, q: np.ndarray,
-                  dq: np.ndarray, limits: Limits) -> int:
+def _outcome_code(
+    completed: bool,
+    diverged: bool,
+    fell: bool,
+    time: np.ndarray,
+    q: np.ndarray,
+    dq: np.ndarray,
+    limits: Limits,
+) -> int:
     """The run's outcome code (an OUTCOMES index) from its divergence, its fall and its end."""
     n = time.shape[0]
     settled = bool(completed and n and outcomes.in_settle_band(np, q[-1:], dq[-1:], limits)[0])
     return int(outcomes.classify(np, diverged, fell, settled and not fell))
 
 
-def _outcome_columns(force: float, duration: float, convention: str, code: int, settle: float,
-                     fall_time: float) -> dict[str, Any]:
+def _outcome_columns(
+    force: float, duration: float, convention: str, code: int, settle: float, fall_time: float
+) -> dict[str, Any]:
     """The row's first columns: the push, the convention, the outcome and its times."""
     return {
         "force": float(force),
@@ -197,8 +232,9 @@ def _outcome_columns(force: float, duration: float, convention: str, code: int, 
     }
 
 
-def _peak_columns(q: np.ndarray, foot_pitch: np.ndarray, tau: np.ndarray, cop, com,
-                  end: int) -> dict[str, float]:
+def _peak_columns(
+    q: np.ndarray, foot_pitch: np.ndarray, tau: np.ndarray, cop, com, end: int
+) -> dict[str, float]:
     """The peak angles and torques and the CoP's and CoM's ranges of the samples before ``end``."""
     sl = slice(0, end)
     cop_min, cop_max = _finite_min_max(np.asarray(cop, float)[sl])
@@ -223,10 +259,17 @@ def _max_violation(excess: np.ndarray, end: int) -> float:
     return float(excess.max()) if excess.size else 0.0
 
 
-def _control_columns(u_control: np.ndarray, converged: np.ndarray, residual: np.ndarray,
-                     infeasible: np.ndarray | None, *, fell: bool, fall_time: float,
-                     control_dt: float, limits: Limits
-                     ) -> tuple[float, float, int, float, float]:
+def _control_columns(
+    u_control: np.ndarray,
+    converged: np.ndarray,
+    residual: np.ndarray,
+    infeasible: np.ndarray | None,
+    *,
+    fell: bool,
+    fall_time: float,
+    control_dt: float,
+    limits: Limits,
+) -> tuple[float, float, int, float, float]:
     """(ankle and hip saturation fractions, non-converged solves, max residual, first
     infeasible time) of the control periods [K] whose instant precedes the fall sample."""
     n_ctrl = len(u_control)
@@ -235,30 +278,54 @@ def _control_columns(u_control: np.ndarray, converged: np.ndarray, residual: np.
     u_control = np.asarray(u_control, float)[:n_ctrl]
     converged = np.asarray(converged, bool)[:n_ctrl]
     residual = np.asarray(residual, float)[:n_ctrl]
-    infeasible = (np.zeros(n_ctrl, bool) if infeasible is None
-                  else np.asarray(infeasible, bool)[:n_ctrl])
-    first_infeasible = (float(np.flatnonzero(infeasible)[0] * control_dt)
-                        if infeasible.any() else math.nan)
+    infeasible = (
+        np.zeros(n_ctrl, bool) if infeasible is None else np.asarray(infeasible, bool)[:n_ctrl]
+    )
+    first_infeasible = (
+        float(np.flatnonzero(infeasible)[0] * control_dt) if infeasible.any() else math.nan
+    )
     saturation_ankle, saturation_hip = saturation_fractions(u_control, limits)
     res = residual[np.isfinite(residual)]
-    return (saturation_ankle, saturation_hip, int(np.count_nonzero(~converged)),
-            float(res.max()) if res.size else math.nan, first_infeasible)
+    return (
+        saturation_ankle,
+        saturation_hip,
+        int(np.count_nonzero(~converged)),
+        float(res.max()) if res.size else math.nan,
+        first_infeasible,
+    )
 
 
-def _fall_cause(code: int, end: int, foot_pitch: np.ndarray, cell_low_z: np.ndarray,
-                excess: np.ndarray, q: np.ndarray, limits: Limits) -> int:
+def _fall_cause(
+    code: int,
+    end: int,
+    foot_pitch: np.ndarray,
+    cell_low_z: np.ndarray,
+    excess: np.ndarray,
+    q: np.ndarray,
+    limits: Limits,
+) -> int:
     """The fall cause (outcomes.FALL_CAUSES index) of a run of outcome ``code``: that of the
     fall sample end - 1 for a fall."""
     if code == DIVERGED:
         return outcomes.NON_FINITE
     if code == FELL:
-        return int(outcomes.fall_cause(np, foot_pitch[end - 1], cell_low_z[end - 1],
-                                       excess[end - 1], q[end - 1, 0], limits))
+        return int(
+            outcomes.fall_cause(
+                np, foot_pitch[end - 1], cell_low_z[end - 1], excess[end - 1], q[end - 1, 0], limits
+            )
+        )
     return outcomes.NO_CAUSE
 
 
-def _energy_columns(q0: np.ndarray, x0: np.ndarray, q: np.ndarray, x: np.ndarray,
-                    tau: np.ndarray, u: np.ndarray, end: int) -> dict[str, Any]:
+def _energy_columns(
+    q0: np.ndarray,
+    x0: np.ndarray,
+    q: np.ndarray,
+    x: np.ndarray,
+    tau: np.ndarray,
+    u: np.ndarray,
+    end: int,
+) -> dict[str, Any]:
     """The energy and work columns of the first ``end`` samples: the motors' sum |tau dq|
     and sum tau dq from q0 [2], the convention's pairs' sum |u_i dx_i| and the study's
     (:func:`study_energies`) from x0 [4]."""
@@ -283,15 +350,34 @@ def _energy_columns(q0: np.ndarray, x0: np.ndarray, q: np.ndarray, x: np.ndarray
     }
 
 
-def summarize(*, force: float, duration: float, convention: str,
-              scenario: ScenarioParams, controller: ControllerParams,
-              time: np.ndarray, q: np.ndarray, dq: np.ndarray, x: np.ndarray,
-              foot_pitch: np.ndarray, cell_low_z: np.ndarray, cop: np.ndarray, com: np.ndarray,
-              tau: np.ndarray, u: np.ndarray, q0: np.ndarray, x0: np.ndarray,
-              u_control: np.ndarray, converged: np.ndarray, residual: np.ndarray,
-              completed: bool, diverged: bool = False, infeasible: np.ndarray | None = None,
-              com_vel: np.ndarray | None = None, mos: np.ndarray | None = None
-              ) -> dict[str, Any]:
+def summarize(
+    *,
+    force: float,
+    duration: float,
+    convention: str,
+    scenario: ScenarioParams,
+    controller: ControllerParams,
+    time: np.ndarray,
+    q: np.ndarray,
+    dq: np.ndarray,
+    x: np.ndarray,
+    foot_pitch: np.ndarray,
+    cell_low_z: np.ndarray,
+    cop: np.ndarray,
+    com: np.ndarray,
+    tau: np.ndarray,
+    u: np.ndarray,
+    q0: np.ndarray,
+    x0: np.ndarray,
+    u_control: np.ndarray,
+    converged: np.ndarray,
+    residual: np.ndarray,
+    completed: bool,
+    diverged: bool = False,
+    infeasible: np.ndarray | None = None,
+    com_vel: np.ndarray | None = None,
+    mos: np.ndarray | None = None,
+) -> dict[str, Any]:
     """The per-scenario summary row (keys = SUMMARY_COLUMNS) from the sample series.
 
     Sample series (one entry per physics step, time = (i+1) dt): time [n]; q, dq [n, 2] joint
@@ -315,8 +401,17 @@ def summarize(*, force: float, duration: float, convention: str,
     excess, fell, end, fall_time = _first_fall(time, q, x, foot_pitch, cell_low_z, limits)
     # control periods whose instant precedes the last kept sample's time
     saturation_ankle, saturation_hip, nonconverged, max_residual, first_infeasible = (
-        _control_columns(u_control, converged, residual, infeasible, fell=fell,
-                         fall_time=fall_time, control_dt=scenario.control_dt, limits=limits))
+        _control_columns(
+            u_control,
+            converged,
+            residual,
+            infeasible,
+            fell=fell,
+            fall_time=fall_time,
+            control_dt=scenario.control_dt,
+            limits=limits,
+        )
+    )
 
     code = _outcome_code(completed, diverged, fell, time, q, dq, limits)
     cause = _fall_cause(code, end, foot_pitch, cell_low_z, excess, q, limits)

@@ -43,8 +43,7 @@ RECOVERED, NOT_SETTLED, FELL, DIVERGED = range(4)
 
 # Why a run ended (column ``fall_cause``): FALL_CAUSES[code]; code 0 (empty) for a run that
 # neither fell nor diverged. Codes 1..5 are the fall rules in the order they are tested.
-FALL_CAUSES = ("", "foot_pitch", "heel_lift", "toe_lift", "state_bound", "lower_tilt",
-               "non_finite")
+FALL_CAUSES = ("", "foot_pitch", "heel_lift", "toe_lift", "state_bound", "lower_tilt", "non_finite")
 NO_CAUSE, NON_FINITE = 0, 6
 # Load cells in model.LOAD_CELLS order: front left, front right, back left, back right.
 TOE_CELLS, HEEL_CELLS = slice(0, 2), slice(2, 4)
@@ -54,17 +53,44 @@ SATURATION_TOL = 1e-6
 
 # One summary row per scenario, in this order, in every path (reference, batched, sweeps).
 SUMMARY_COLUMNS = [
-    "force", "duration", "convention", "outcome", "settle_time", "fall_time",
-    "peak_ankle", "peak_hip", "peak_foot_pitch",
-    "cop_min", "cop_max", "com_min", "com_max",
-    "peak_tau_ankle", "peak_tau_hip",
-    "ankle_saturation_fraction", "hip_saturation_fraction",
-    "energy_ankle", "energy_hip", "energy_total", "work_ankle", "work_hip",
-    "energy_u1", "energy_u2", "work_u1", "work_u2",
-    "study_energy_u1", "study_energy_u2", "study_energy_total",
-    "nonconverged_solves", "max_residual", "max_bound_violation",
-    "fall_cause", "first_infeasible_time",
-    "com_vel_min", "com_vel_max", "mos_min", "mos_min_time",
+    "force",
+    "duration",
+    "convention",
+    "outcome",
+    "settle_time",
+    "fall_time",
+    "peak_ankle",
+    "peak_hip",
+    "peak_foot_pitch",
+    "cop_min",
+    "cop_max",
+    "com_min",
+    "com_max",
+    "peak_tau_ankle",
+    "peak_tau_hip",
+    "ankle_saturation_fraction",
+    "hip_saturation_fraction",
+    "energy_ankle",
+    "energy_hip",
+    "energy_total",
+    "work_ankle",
+    "work_hip",
+    "energy_u1",
+    "energy_u2",
+    "work_u1",
+    "work_u2",
+    "study_energy_u1",
+    "study_energy_u2",
+    "study_energy_total",
+    "nonconverged_solves",
+    "max_residual",
+    "max_bound_violation",
+    "fall_cause",
+    "first_infeasible_time",
+    "com_vel_min",
+    "com_vel_max",
+    "mos_min",
+    "mos_min_time",
 ]
 
 
@@ -89,12 +115,16 @@ class Limits(NamedTuple):
         (s1l, s1h), (s2l, s2h) = controller.state_bounds
         (u1l, u1h), (u2l, u2h) = controller.input_bounds
         return cls(
-            foot_pitch_limit=scenario.foot_pitch_limit, foot_lift_limit=scenario.foot_lift_limit,
+            foot_pitch_limit=scenario.foot_pitch_limit,
+            foot_lift_limit=scenario.foot_lift_limit,
             bound_violation_limit=scenario.bound_violation_limit,
             lower_tilt_limit=scenario.lower_tilt_limit,
-            settle_angle_tol=scenario.settle_angle_tol, settle_rate_tol=scenario.settle_rate_tol,
-            state_lower=(s1l, s2l), state_upper=(s1h, s2h),
-            input_lower=(u1l, u2l), input_upper=(u1h, u2h),
+            settle_angle_tol=scenario.settle_angle_tol,
+            settle_rate_tol=scenario.settle_rate_tol,
+            state_lower=(s1l, s2l),
+            state_upper=(s1h, s2h),
+            input_lower=(u1l, u2l),
+            input_upper=(u1h, u2h),
         )
 
 
@@ -106,20 +136,24 @@ def bound_excess(xp: Any, x: Any, limits: Limits) -> Any:
     return xp.max(xp.maximum(xp.maximum(lower - pos, pos - upper), 0), axis=-1)
 
 
-def fall_rules(xp: Any, foot_pitch: Any, cell_low_z: Any, excess: Any, q_ankle: Any,
-               limits: Limits) -> list[Any]:
+def fall_rules(
+    xp: Any, foot_pitch: Any, cell_low_z: Any, excess: Any, q_ankle: Any, limits: Limits
+) -> list[Any]:
     """The five fall rules of a sample (or a series), in FALL_CAUSES order (codes 1..5):
     foot pitch, heel lift, toe lift, state bound, lower-body tilt. foot_pitch, excess, q_ankle:
     [...]; cell_low_z: [..., 4] -> five bool arrays [...]."""
-    return [xp.abs(foot_pitch) > limits.foot_pitch_limit,
-            xp.max(cell_low_z[..., HEEL_CELLS], axis=-1) > limits.foot_lift_limit,
-            xp.max(cell_low_z[..., TOE_CELLS], axis=-1) > limits.foot_lift_limit,
-            excess > limits.bound_violation_limit,
-            xp.abs(foot_pitch + q_ankle) > limits.lower_tilt_limit]
+    return [
+        xp.abs(foot_pitch) > limits.foot_pitch_limit,
+        xp.max(cell_low_z[..., HEEL_CELLS], axis=-1) > limits.foot_lift_limit,
+        xp.max(cell_low_z[..., TOE_CELLS], axis=-1) > limits.foot_lift_limit,
+        excess > limits.bound_violation_limit,
+        xp.abs(foot_pitch + q_ankle) > limits.lower_tilt_limit,
+    ]
 
 
-def falls(xp: Any, foot_pitch: Any, cell_low_z: Any, excess: Any, q_ankle: Any,
-          limits: Limits) -> Any:
+def falls(
+    xp: Any, foot_pitch: Any, cell_low_z: Any, excess: Any, q_ankle: Any, limits: Limits
+) -> Any:
     """The fall test of a sample (or a series): any of :func:`fall_rules`. -> bool [...]."""
     rules = fall_rules(xp, foot_pitch, cell_low_z, excess, q_ankle, limits)
     out = rules[0]
@@ -128,8 +162,9 @@ def falls(xp: Any, foot_pitch: Any, cell_low_z: Any, excess: Any, q_ankle: Any,
     return out
 
 
-def fall_cause(xp: Any, foot_pitch: Any, cell_low_z: Any, excess: Any, q_ankle: Any,
-               limits: Limits) -> Any:
+def fall_cause(
+    xp: Any, foot_pitch: Any, cell_low_z: Any, excess: Any, q_ankle: Any, limits: Limits
+) -> Any:
     """The first rule of :func:`fall_rules` that fires (code 1..5 into FALL_CAUSES), NO_CAUSE
     (0) where none does. -> int [...]."""
     rules = fall_rules(xp, foot_pitch, cell_low_z, excess, q_ankle, limits)
@@ -139,8 +174,9 @@ def fall_cause(xp: Any, foot_pitch: Any, cell_low_z: Any, excess: Any, q_ankle: 
     return code
 
 
-def stability_margins(xp: Any, com: Any, com_vel: Any, heel: Any, toe: Any,
-                      omega0: Any) -> tuple[Any, Any, Any]:
+def stability_margins(
+    xp: Any, com: Any, com_vel: Any, heel: Any, toe: Any, omega0: Any
+) -> tuple[Any, Any, Any]:
     """The extrapolated centre of mass and the margins of stability (Hof et al. 2005, J Biomech
     38:1-8; docs/model.md): XcoM = com + com_vel / omega0, the toe margin toe - XcoM and the
     heel margin XcoM - heel (both positive while XcoM lies over the foot). com, com_vel, heel,
@@ -157,8 +193,9 @@ def support_edges(xp: Any, cell_x: Any) -> tuple[Any, Any]:
 
 def in_settle_band(xp: Any, q: Any, dq: Any, limits: Limits) -> Any:
     """Joint angles and rates within the settle band. q, dq: [..., 2] -> bool [...]."""
-    return (xp.all(xp.abs(q) <= limits.settle_angle_tol, axis=-1)
-            & xp.all(xp.abs(dq) <= limits.settle_rate_tol, axis=-1))
+    return xp.all(xp.abs(q) <= limits.settle_angle_tol, axis=-1) & xp.all(
+        xp.abs(dq) <= limits.settle_rate_tol, axis=-1
+    )
 
 
 def at_input_bound(xp: Any, u: Any, limits: Limits) -> Any:
@@ -171,12 +208,14 @@ def at_input_bound(xp: Any, u: Any, limits: Limits) -> Any:
 
 def classify(xp: Any, diverged: Any, fell: Any, settled: Any) -> Any:
     """Outcome codes (indices into OUTCOMES) from the three flags (arrays or scalars)."""
-    return xp.where(diverged, DIVERGED,
-                    xp.where(fell, FELL, xp.where(settled, RECOVERED, NOT_SETTLED)))
+    return xp.where(
+        diverged, DIVERGED, xp.where(fell, FELL, xp.where(settled, RECOVERED, NOT_SETTLED))
+    )
 
 
-def summary_frame(result: pd.DataFrame | Mapping[str, Any], convention: str, *,
-                  extra: bool = True) -> pd.DataFrame:
+def summary_frame(
+    result: pd.DataFrame | Mapping[str, Any], convention: str, *, extra: bool = True
+) -> pd.DataFrame:
     """Summary rows as a table: SUMMARY_COLUMNS in order (then any other columns of
     ``result`` when ``extra``), outcome as strings.
 
@@ -184,8 +223,11 @@ def summary_frame(result: pd.DataFrame | Mapping[str, Any], convention: str, *,
     integer codes; ``convention`` fills the column when ``result`` lacks it. Raises
     RuntimeError for a missing column or an unknown outcome.
     """
-    frame = result.copy() if isinstance(result, pd.DataFrame) else pd.DataFrame(
-        {k: np.asarray(v) for k, v in result.items()})
+    frame = (
+        result.copy()
+        if isinstance(result, pd.DataFrame)
+        else pd.DataFrame({k: np.asarray(v) for k, v in result.items()})
+    )
     if "convention" not in frame:
         frame["convention"] = convention
     missing = [c for c in SUMMARY_COLUMNS if c not in frame]
@@ -242,5 +284,5 @@ def check_results(outcomes, what: str) -> None:
             f"{share:.0%} of the {len(values)} {what} diverged (the numbers left the finite "
             "range), so these are not results; likely cause: the controller's settings for "
             "this body (horizon x control_dt, the ADMM's rho and tolerances, extreme weights "
-            "or bounds) or the physics step (docs/reliability.md)")
-
+            "or bounds) or the physics step (docs/reliability.md)"
+        )

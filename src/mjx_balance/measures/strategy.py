@@ -82,8 +82,12 @@ def takeover(region: pd.DataFrame, threshold: float = HIP_SHARE_THRESHOLD) -> pd
     for force, group in frame.sort_values("duration").groupby("force", sort=True):
         rec = group[group["strategy"] != ""]
         hip = rec[rec["strategy"] == STRATEGIES[1]]
-        rows.append({"force": float(force),
-                     "takeover": float(hip["duration"].iloc[0]) if len(hip) else np.nan,
-                     "recovered_max": float(rec["duration"].iloc[-1]) if len(rec) else np.nan,
-                     "share_at_max": float(rec["hip_share"].iloc[-1]) if len(rec) else np.nan})
+        rows.append(
+            {
+                "force": float(force),
+                "takeover": float(hip["duration"].iloc[0]) if len(hip) else np.nan,
+                "recovered_max": float(rec["duration"].iloc[-1]) if len(rec) else np.nan,
+                "share_at_max": float(rec["hip_share"].iloc[-1]) if len(rec) else np.nan,
+            }
+        )
     return pd.DataFrame(rows, columns=["force", "takeover", "recovered_max", "share_at_max"])

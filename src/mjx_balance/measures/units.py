@@ -52,11 +52,17 @@ UNITS: dict[str, tuple[str, str]] = {
     "study_energy_u2": ("J", f"{_STUDY_EQ20} of the second pair, |sum u2 dx2|"),
     "study_energy_total": ("J", "study_energy_u1 + study_energy_u2"),
     "nonconverged_solves": ("1", "count of QP solves not reported solved"),
-    "max_residual": ("mixed", "largest primal residual of those solves, in the constraint "
-                              "rows' own units (rad, rad/s or N m)"),
+    "max_residual": (
+        "mixed",
+        "largest primal residual of those solves, in the constraint "
+        "rows' own units (rad, rad/s or N m)",
+    ),
     "max_bound_violation": ("rad", "largest excess of a position state beyond its bound"),
-    "fall_cause": ("", "the fall rule that fired (foot_pitch, heel_lift, toe_lift, "
-                       "state_bound, lower_tilt, non_finite), empty otherwise"),
+    "fall_cause": (
+        "",
+        "the fall rule that fired (foot_pitch, heel_lift, toe_lift, "
+        "state_bound, lower_tilt, non_finite), empty otherwise",
+    ),
     "first_infeasible_time": ("s", "control instant of the first QP without a solution"),
     "com_vel_min": ("m/s", "smallest whole-body CoM x velocity"),
     "com_vel_max": ("m/s", "largest whole-body CoM x velocity"),
@@ -170,8 +176,16 @@ UNITS: dict[str, tuple[str, str]] = {
     "max_acting_time_ratio": ("1", "max / min of the max acting time over the readings"),
 }
 
-_ENERGIES = ("energy_ankle", "energy_hip", "energy_total", "energy_u1", "energy_u2",
-             "study_energy_u1", "study_energy_u2", "study_energy_total")
+_ENERGIES = (
+    "energy_ankle",
+    "energy_hip",
+    "energy_total",
+    "energy_u1",
+    "energy_u2",
+    "study_energy_u1",
+    "study_energy_u2",
+    "study_energy_total",
+)
 for _name in _ENERGIES:  # table.csv: the 0.1-s push and the push at the max acting time
     UNITS[f"{_name}_01"] = ("J", f"{_name} of the 0.1-s push if it recovered")
     UNITS[f"{_name}_max"] = ("J", f"{_name} of the push at the max acting time")
@@ -179,12 +193,21 @@ del _name
 
 # Columns whose names carry a value: (pattern, unit, meaning); the first match wins.
 PATTERNS: list[tuple[re.Pattern[str], str, str]] = [
-    (re.compile(r"max_acting_time_-?[0-9.e+-]+N"), "s",
-     "max acting time at the force the name gives (N)"),
-    (re.compile(r"energy_(study|motors)(_01)?_(min|max)"), "J",
-     "smallest / largest energy over the sensitivity readings"),
-    (re.compile(r"energy_study(_01)?_[a-z_]+"), "J",
-     f"{_STUDY_EQ20} in the reading the name gives"),
+    (
+        re.compile(r"max_acting_time_-?[0-9.e+-]+N"),
+        "s",
+        "max acting time at the force the name gives (N)",
+    ),
+    (
+        re.compile(r"energy_(study|motors)(_01)?_(min|max)"),
+        "J",
+        "smallest / largest energy over the sensitivity readings",
+    ),
+    (
+        re.compile(r"energy_study(_01)?_[a-z_]+"),
+        "J",
+        f"{_STUDY_EQ20} in the reading the name gives",
+    ),
     (re.compile(r"energy_motors(_01)?_[a-z_]+"), "J", f"{_MOTORS} in the reading the name gives"),
     (re.compile(r"max_acting_time_[a-z_]+"), "s", "max acting time in the reading the name gives"),
 ]

@@ -32,7 +32,8 @@ def config_from_dict(data: dict[str, Any]) -> Config:
     if unknown:
         raise ParameterError(
             f"unknown section(s) {', '.join(unknown)}; known sections: body, controller, "
-            "scenario, subject")
+            "scenario, subject"
+        )
     parts = {}
     for name, cls in SECTIONS.items():
         section = data.get(name, {})
@@ -56,8 +57,9 @@ def read_toml(path: str | Path, what: str = "configuration file") -> dict[str, A
     except OSError as exc:
         raise ParameterError(f"{path}: cannot be read ({exc.strerror})") from None
     except UnicodeDecodeError as exc:
-        raise ParameterError(f"{path}: not UTF-8 text (byte {exc.start}); a {what} "
-                             "is TOML") from None
+        raise ParameterError(
+            f"{path}: not UTF-8 text (byte {exc.start}); a {what} is TOML"
+        ) from None
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError(f"{path}: not valid TOML: {exc}") from None
 
@@ -95,8 +97,10 @@ def parse_override(text: str) -> tuple[str, str, Any]:
     name, sep, raw = str(text).partition("=")
     section, dot, key = name.strip().partition(".")
     if not sep or not dot or not section or not key.strip() or "." in key:
-        raise ParameterError(f"--set {text!r}: expected SECTION.KEY=VALUE, e.g. "
-                             "controller.horizon=30 (sections: body, controller, scenario)")
+        raise ParameterError(
+            f"--set {text!r}: expected SECTION.KEY=VALUE, e.g. "
+            "controller.horizon=30 (sections: body, controller, scenario)"
+        )
     raw = raw.strip()
     if not raw:
         raise ParameterError(f"--set {text!r}: give a value after '='")
@@ -122,9 +126,12 @@ def apply_overrides(config: Config, overrides: "list[str] | tuple[str, ...] | No
         raise ParameterError(f"--set: {exc}") from None
 
 
-def run_config(path: str | Path | None = None, convention: str | None = None,
-               overrides: "list[str] | tuple[str, ...] | None" = None,
-               subject: Subject | None = None) -> Config:
+def run_config(
+    path: str | Path | None = None,
+    convention: str | None = None,
+    overrides: "list[str] | tuple[str, ...] | None" = None,
+    subject: Subject | None = None,
+) -> Config:
     """A run's configuration: the TOML file at ``path`` (or the defaults) with ``subject``
     (``--subject``) in place of its [subject] table, then ``--set`` ``overrides``, then
     ``convention`` on top (None keeps the configuration's)."""

@@ -83,10 +83,12 @@ def mass_gravity_abs(body: BodyParams) -> tuple[np.ndarray, np.ndarray, np.ndarr
     """(M_abs, G_abs, J) in absolute tilts; J theta = sum_i m_i x_i (linearised)."""
     m1, m2 = body.lower_mass, body.upper_mass
     c1, c2, L1 = body.lower_com, body.upper_com, body.lower_length
-    M = np.array([
-        [body.lower_pitch_inertia + m1 * c1**2 + m2 * L1**2, m2 * L1 * c2],
-        [m2 * L1 * c2, body.upper_pitch_inertia + m2 * c2**2],
-    ])
+    M = np.array(
+        [
+            [body.lower_pitch_inertia + m1 * c1**2 + m2 * L1**2, m2 * L1 * c2],
+            [m2 * L1 * c2, body.upper_pitch_inertia + m2 * c2**2],
+        ]
+    )
     G = body.gravity * np.diag([m1 * c1 + m2 * L1, m2 * c2])
     J = np.array([m1 * c1 + m2 * L1, m2 * c2])
     return M, G, J
@@ -110,8 +112,9 @@ def zoh(Ac: np.ndarray, Bc: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarr
     return E[:n, :n], E[:n, n:]
 
 
-def delay_predictor(Ac: np.ndarray, Bc: np.ndarray, dt: float, delay_steps: int,
-                    substeps: int) -> tuple[np.ndarray, np.ndarray]:
+def delay_predictor(
+    Ac: np.ndarray, Bc: np.ndarray, dt: float, delay_steps: int, substeps: int
+) -> tuple[np.ndarray, np.ndarray]:
     """The delay compensator's matrices: (A_h^d [n, n], G [P, n, m]), P = ceil(d / S).
 
     With (A_h, B_h) = zoh(Ac, Bc, dt) (one physics step), a measurement x_meas taken d steps
@@ -167,5 +170,17 @@ def linear_model(body: BodyParams, convention: str, dt: float) -> LinearModel:
     cop_d = -h * (J @ Minv) / total_weight
     cop_x = np.concatenate([cop_y, cop_dy])
     com_x = np.concatenate([J / body.total_mass, np.zeros(2)])
-    return LinearModel(convention=convention, dt=dt, Ac=Ac, Bc=Bc, A=A, B=B, cop_x=cop_x,
-                       cop_u=cop_u, com_x=com_x, P=P, torque_map=torque_map, cop_d=cop_d)
+    return LinearModel(
+        convention=convention,
+        dt=dt,
+        Ac=Ac,
+        Bc=Bc,
+        A=A,
+        B=B,
+        cop_x=cop_x,
+        cop_u=cop_u,
+        com_x=com_x,
+        P=P,
+        torque_map=torque_map,
+        cop_d=cop_d,
+    )

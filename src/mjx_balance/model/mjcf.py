@@ -30,9 +30,11 @@ LOAD_CELLS = ("cell_front_left", "cell_front_right", "cell_back_left", "cell_bac
 def foot_diaginertia(b: BodyParams) -> tuple[float, float, float]:
     """The foot's (roll, pitch, yaw) inertias about its CoM: the slab's, with the pitch
     ``b.foot_pitch_inertia``."""
-    roll, pitch, yaw = (b.foot_mass * (b.foot_width**2 + b.foot_thickness**2) / 12,
-                        b.foot_pitch_inertia,
-                        b.foot_mass * (b.foot_length**2 + b.foot_width**2) / 12)
+    roll, pitch, yaw = (
+        b.foot_mass * (b.foot_width**2 + b.foot_thickness**2) / 12,
+        b.foot_pitch_inertia,
+        b.foot_mass * (b.foot_length**2 + b.foot_width**2) / 12,
+    )
     if b.foot_inertia is not None:
         # A given pitch inertia (e.g. a subject's, below the slab's) with the slab's roll and
         # yaw can break MuJoCo's triangle inequality; only the pitch acts in the plane, so the
@@ -71,8 +73,10 @@ def mjcf(body: BodyParams = BodyParams(), physics_dt: float = 0.002, foot: str =
     hip_servo = ""
     if b.hip_servo_stiffness > 0 or b.hip_servo_damping > 0:
         # the hip servo (BodyParams): passive spring about q_h = 0 plus viscous damping
-        hip_servo = (f' stiffness="{b.hip_servo_stiffness:.9g}" springref="0"'
-                     f' damping="{b.hip_servo_damping:.9g}"')
+        hip_servo = (
+            f' stiffness="{b.hip_servo_stiffness:.9g}" springref="0"'
+            f' damping="{b.hip_servo_damping:.9g}"'
+        )
 
     def fmt(values: tuple[float, ...]) -> str:
         return " ".join(f"{v:.9g}" for v in values)
@@ -114,8 +118,9 @@ def mjcf(body: BodyParams = BodyParams(), physics_dt: float = 0.002, foot: str =
 """
 
 
-def build_model(body: BodyParams = BodyParams(), physics_dt: float = 0.002,
-                foot: str = "free") -> mujoco.MjModel:
+def build_model(
+    body: BodyParams = BodyParams(), physics_dt: float = 0.002, foot: str = "free"
+) -> mujoco.MjModel:
     """Compile the generated MJCF. Every physics path starts here or at ``rollout.physics``: a
     mismatched mujoco / mujoco-mjx pair is refused first (``runtime.version.check_mujoco``)."""
     check_mujoco()
@@ -158,10 +163,18 @@ def indices(model: mujoco.MjModel) -> Indices:
         return int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name))
 
     return Indices(
-        foot_x=jnt("foot_x"), foot_z=jnt("foot_z"), foot_pitch=jnt("foot_pitch"),
-        ankle_qpos=jnt("ankle"), hip_qpos=jnt("hip"), ankle_dof=dof("ankle"), hip_dof=dof("hip"),
-        foot_body=bid("foot"), lower_body=bid("lower"), upper_body=bid("upper"),
-        floor_geom=gid("floor"), cell_geoms=tuple(gid(n) for n in LOAD_CELLS),
+        foot_x=jnt("foot_x"),
+        foot_z=jnt("foot_z"),
+        foot_pitch=jnt("foot_pitch"),
+        ankle_qpos=jnt("ankle"),
+        hip_qpos=jnt("hip"),
+        ankle_dof=dof("ankle"),
+        hip_dof=dof("hip"),
+        foot_body=bid("foot"),
+        lower_body=bid("lower"),
+        upper_body=bid("upper"),
+        floor_geom=gid("floor"),
+        cell_geoms=tuple(gid(n) for n in LOAD_CELLS),
     )
 
 

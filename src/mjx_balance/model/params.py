@@ -25,7 +25,6 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 
-
 log = logging.getLogger(__name__)
 
 CONVENTIONS = ("paper", "joint")
@@ -115,13 +114,13 @@ def _check_types(record: str, obj: Any) -> None:
             fail(record, f.name, "must be a number (or left out)", value)
 
 
-def check_range(record: str, obj: Any, names: tuple[str, ...], low: float, high: float,
-                 unit: str) -> None:
+def check_range(
+    record: str, obj: Any, names: tuple[str, ...], low: float, high: float, unit: str
+) -> None:
     for name in names:
         value = getattr(obj, name)
         if not low <= value <= high:
-            fail(record, name, f"must lie in [{low:g}, {high:g}] {unit} (plausible range)",
-                  value)
+            fail(record, name, f"must lie in [{low:g}, {high:g}] {unit} (plausible range)", value)
 
 
 def check_finite(record: str, obj: Any) -> None:
@@ -186,36 +185,70 @@ class BodyParams:
             "body",
             self,
             (
-                "foot_mass", "foot_length", "foot_width", "foot_thickness", "lower_mass",
-                "lower_length", "upper_mass", "upper_length", "gravity", "friction",
+                "foot_mass",
+                "foot_length",
+                "foot_width",
+                "foot_thickness",
+                "lower_mass",
+                "lower_length",
+                "upper_mass",
+                "upper_length",
+                "gravity",
+                "friction",
                 "contact_radius",
             ),
         )
         check_range("body", self, ("foot_mass", "lower_mass", "upper_mass"), *MASS_RANGE, "kg")
-        check_range("body", self, ("foot_length", "foot_width", "foot_thickness", "lower_length",
-                                    "upper_length", "contact_radius"), *LENGTH_RANGE, "m")
+        check_range(
+            "body",
+            self,
+            (
+                "foot_length",
+                "foot_width",
+                "foot_thickness",
+                "lower_length",
+                "upper_length",
+                "contact_radius",
+            ),
+            *LENGTH_RANGE,
+            "m",
+        )
         if self.friction > MAX_FRICTION:
-            fail("body", "friction",
-                  f"must be <= {MAX_FRICTION:g} (above it the pyramidal contact softens the "
-                  "floor until the body cannot stand at rest)", self.friction)
+            fail(
+                "body",
+                "friction",
+                f"must be <= {MAX_FRICTION:g} (above it the pyramidal contact softens the "
+                "floor until the body cannot stand at rest)",
+                self.friction,
+            )
         if not MIN_GRAVITY <= self.gravity <= MAX_GRAVITY:
-            fail("body", "gravity", f"must lie in [{MIN_GRAVITY:g}, {MAX_GRAVITY:g}] m/s^2 "
-                  "(plausible range)", self.gravity)
+            fail(
+                "body",
+                "gravity",
+                f"must lie in [{MIN_GRAVITY:g}, {MAX_GRAVITY:g}] m/s^2 (plausible range)",
+                self.gravity,
+            )
         for name, length in (("lower_com", self.lower_length), ("upper_com", self.upper_length)):
             value = getattr(self, name)
             if not 0 <= value <= length:
                 fail("body", name, f"must lie on the segment, in [0, {length}]", value)
         if not 0 <= self.ankle_height <= LENGTH_RANGE[1]:
-            fail("body", "ankle_height", f"must lie in [0, {LENGTH_RANGE[1]:g}] m",
-                  self.ankle_height)
+            fail(
+                "body", "ankle_height", f"must lie in [0, {LENGTH_RANGE[1]:g}] m", self.ankle_height
+            )
         for name in ("hip_servo_stiffness", "hip_servo_damping"):
             if not getattr(self, name) >= 0:
                 fail("body", name, "must be >= 0", getattr(self, name))
         for name in INERTIA_FIELDS:
             value = getattr(self, name)
             if value is not None and not INERTIA_RANGE[0] <= value <= INERTIA_RANGE[1]:
-                fail("body", name, f"must lie in [{INERTIA_RANGE[0]:g}, {INERTIA_RANGE[1]:g}] "
-                      "kg m^2 (plausible range), or be left out for the uniform shape's", value)
+                fail(
+                    "body",
+                    name,
+                    f"must lie in [{INERTIA_RANGE[0]:g}, {INERTIA_RANGE[1]:g}] "
+                    "kg m^2 (plausible range), or be left out for the uniform shape's",
+                    value,
+                )
 
     @property
     def total_mass(self) -> float:
@@ -328,8 +361,15 @@ class ControllerParams:
         _check_types("controller", self)
         object.__setattr__(self, "q_diag", tuple(float(v) for v in self.q_diag))
         object.__setattr__(self, "r_diag", tuple(float(v) for v in self.r_diag))
-        for name in ("input1_bounds", "input2_bounds", "state1_bounds", "state2_bounds",
-                     "cop_bounds", "com_bounds", "penalty_weights"):
+        for name in (
+            "input1_bounds",
+            "input2_bounds",
+            "state1_bounds",
+            "state2_bounds",
+            "cop_bounds",
+            "com_bounds",
+            "penalty_weights",
+        ):
             object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
         check_finite("controller", self)
         if self.convention not in CONVENTIONS:
@@ -340,11 +380,18 @@ class ControllerParams:
             fail("controller", "q_diag", "must be 4 non-negative numbers", self.q_diag)
         if len(self.r_diag) != 2 or min(self.r_diag) <= 0:
             fail("controller", "r_diag", "must be 2 positive numbers", self.r_diag)
-        for name in ("input1_bounds", "input2_bounds", "state1_bounds", "state2_bounds",
-                     "cop_bounds", "com_bounds"):
+        for name in (
+            "input1_bounds",
+            "input2_bounds",
+            "state1_bounds",
+            "state2_bounds",
+            "cop_bounds",
+            "com_bounds",
+        ):
             _check_bounds("controller", name, getattr(self, name))
-        _check_positive("controller", self, ("osqp_eps", "admm_rho",
-                                             "admm_eps_abs", "admm_eps_rel"))
+        _check_positive(
+            "controller", self, ("osqp_eps", "admm_rho", "admm_eps_abs", "admm_eps_rel")
+        )
         if not self.admm_sigma >= 0:
             fail("controller", "admm_sigma", "must be >= 0", self.admm_sigma)
         if not 0 < self.admm_alpha < 2:
@@ -354,17 +401,28 @@ class ControllerParams:
             if not isinstance(value, int) or value < 1:
                 fail("controller", name, "must be an integer >= 1", value)
         if self.infeasible not in INFEASIBLE_MODES:
-            fail("controller", "infeasible", f"must be one of {INFEASIBLE_MODES}",
-                  self.infeasible)
+            fail("controller", "infeasible", f"must be one of {INFEASIBLE_MODES}", self.infeasible)
         if len(self.penalty_weights) != 3 or not min(self.penalty_weights) > 0:
-            fail("controller", "penalty_weights", "must be 3 positive numbers (state, CoP, "
-                  "CoM rows)", self.penalty_weights)
+            fail(
+                "controller",
+                "penalty_weights",
+                "must be 3 positive numbers (state, CoP, CoM rows)",
+                self.penalty_weights,
+            )
         if not 0 <= self.target_margin < 1:
-            fail("controller", "target_margin", "must lie in [0, 1) (a fraction of each "
-                  "input's half-range)", self.target_margin)
+            fail(
+                "controller",
+                "target_margin",
+                "must lie in [0, 1) (a fraction of each input's half-range)",
+                self.target_margin,
+            )
         if not 0 <= self.observer_pole < 1:
-            fail("controller", "observer_pole", "must lie in [0, 1) (the observer's pole per "
-                  "control period; 0: deadbeat)", self.observer_pole)
+            fail(
+                "controller",
+                "observer_pole",
+                "must lie in [0, 1) (the observer's pole per control period; 0: deadbeat)",
+                self.observer_pole,
+            )
 
     @property
     def input_bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -401,14 +459,29 @@ class ScenarioParams:
     def __post_init__(self) -> None:
         _check_types("scenario", self)
         check_finite("scenario", self)
-        _check_positive("scenario", self, ("t_end", "physics_dt", "control_dt",
-                                           "foot_pitch_limit", "foot_lift_limit",
-                                           "bound_violation_limit", "lower_tilt_limit",
-                                           "settle_angle_tol", "settle_rate_tol"))
+        _check_positive(
+            "scenario",
+            self,
+            (
+                "t_end",
+                "physics_dt",
+                "control_dt",
+                "foot_pitch_limit",
+                "foot_lift_limit",
+                "bound_violation_limit",
+                "lower_tilt_limit",
+                "settle_angle_tol",
+                "settle_rate_tol",
+            ),
+        )
         if self.physics_dt > MAX_PHYSICS_DT:
-            fail("scenario", "physics_dt",
-                  f"must be <= {MAX_PHYSICS_DT:g} s (half the contact time constant, 0.02 s, "
-                  "for a stable contact)", self.physics_dt)
+            fail(
+                "scenario",
+                "physics_dt",
+                f"must be <= {MAX_PHYSICS_DT:g} s (half the contact time constant, 0.02 s, "
+                "for a stable contact)",
+                self.physics_dt,
+            )
         if self.duration < 0:
             fail("scenario", "duration", "must be >= 0", self.duration)
         if self.duration > self.t_end:
@@ -424,19 +497,37 @@ class ScenarioParams:
         # 1e308 s would overflow Python's round() below).
         for name in ("t_end", "controller_delay"):
             if getattr(self, name) / self.physics_dt > MAX_STEPS:
-                fail("scenario", name, f"must be at most {MAX_STEPS:,} physics steps "
-                      f"(physics_dt = {self.physics_dt:g} s)", getattr(self, name))
+                fail(
+                    "scenario",
+                    name,
+                    f"must be at most {MAX_STEPS:,} physics steps "
+                    f"(physics_dt = {self.physics_dt:g} s)",
+                    getattr(self, name),
+                )
         if self.controller_delay >= self.t_end:
-            fail("scenario", "controller_delay", f"must be shorter than t_end = {self.t_end:g} "
-                  "s (the controller would never see a measurement)", self.controller_delay)
+            fail(
+                "scenario",
+                "controller_delay",
+                f"must be shorter than t_end = {self.t_end:g} "
+                "s (the controller would never see a measurement)",
+                self.controller_delay,
+            )
         ratio = self.control_dt / self.physics_dt
         if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
-            fail("scenario", "control_dt",
-                  f"must be a whole multiple of physics_dt = {self.physics_dt}", self.control_dt)
+            fail(
+                "scenario",
+                "control_dt",
+                f"must be a whole multiple of physics_dt = {self.physics_dt}",
+                self.control_dt,
+            )
         steps = self.t_end / self.control_dt
         if abs(steps - round(steps)) > 1e-6:
-            fail("scenario", "t_end",
-                  f"must be a whole multiple of control_dt = {self.control_dt}", self.t_end)
+            fail(
+                "scenario",
+                "t_end",
+                f"must be a whole multiple of control_dt = {self.control_dt}",
+                self.t_end,
+            )
 
     def _check_delay(self) -> None:
         """Check the controller's delay and its error: whole physics steps, not negative."""
@@ -445,11 +536,19 @@ class ScenarioParams:
         for name in ("controller_delay", "delay_error"):
             steps = getattr(self, name) / self.physics_dt
             if abs(steps - round(steps)) > 1e-6:
-                fail("scenario", name, f"must be a whole multiple of physics_dt = "
-                      f"{self.physics_dt}", getattr(self, name))
+                fail(
+                    "scenario",
+                    name,
+                    f"must be a whole multiple of physics_dt = {self.physics_dt}",
+                    getattr(self, name),
+                )
         if self.controller_delay + self.delay_error < -1e-12:
-            fail("scenario", "delay_error", "must be >= -controller_delay (the measurement "
-                  "cannot come from the future)", self.delay_error)
+            fail(
+                "scenario",
+                "delay_error",
+                "must be >= -controller_delay (the measurement cannot come from the future)",
+                self.delay_error,
+            )
 
     @property
     def substeps(self) -> int:
@@ -488,7 +587,8 @@ class Config:
                 "controller.offset_free = true with scenario.controller_delay (or delay_error) "
                 "> 0 is not supported: the observer compares each measurement with the model's "
                 "prediction from the previous one and the input applied since, which a delayed "
-                "measurement does not match; set controller_delay = 0 or offset_free = false")
+                "measurement does not match; set controller_delay = 0 or offset_free = false"
+            )
 
     def replace(self, **sections: Any) -> "Config":
         """Return a copy with fields replaced, e.g. ``cfg.replace(controller={"horizon": 10})``.
@@ -499,16 +599,20 @@ class Config:
             if name not in ("body", "controller", "scenario"):
                 raise ParameterError(f"unknown section {name!r}")
             current = getattr(self, name)
-            updated[name] = build_section(type(current), name,
-                                          {**dataclasses.asdict(current), **changes})
+            updated[name] = build_section(
+                type(current), name, {**dataclasses.asdict(current), **changes}
+            )
         return dataclasses.replace(self, **updated)
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
         """The configuration as nested plain values; an optional field left at None (e.g.
         ``body.lower_inertia``) is left out, as in a TOML file that does not give it."""
         return {
-            name: {k: (list(v) if isinstance(v, tuple) else v)
-                   for k, v in dataclasses.asdict(getattr(self, name)).items() if v is not None}
+            name: {
+                k: (list(v) if isinstance(v, tuple) else v)
+                for k, v in dataclasses.asdict(getattr(self, name)).items()
+                if v is not None
+            }
             for name in ("body", "controller", "scenario")
         }
 
@@ -532,13 +636,15 @@ def check_linked_limits(config: Config) -> None:
                 f"controller.{name} = [{low:g}, {high:g}] m lies wholly outside the sole of "
                 f"body.foot_length = {body.foot_length:g} m (its edges at +-{half:g} m): the "
                 f"upright body's {what} (x = 0) breaks it at rest, so no run means anything; "
-                f"bring the bounds onto the sole or lengthen the foot")
+                f"bring the bounds onto the sole or lengthen the foot"
+            )
     (a1, b1), (a2, b2) = ctrl.input1_bounds, ctrl.input2_bounds
     if a1 == b1 and a2 == b2:
         raise ParameterError(
             f"controller.input1_bounds = [{a1:g}, {b1:g}] N m and controller.input2_bounds = "
             f"[{a2:g}, {b2:g}] N m: neither input has any range, so the controller cannot act "
-            "on any push; give at least one of them a range")
+            "on any push; give at least one of them a range"
+        )
     for message in config_warnings(config):
         warn_parameter(message)
 
@@ -551,10 +657,12 @@ def config_warnings(config: Config) -> list[str]:
     low, high = ctrl.cop_bounds
     out = []
     if low < -half - EDGE_TOL or high > half + EDGE_TOL:
-        out.append(f"controller.cop_bounds = [{low:g}, {high:g}] m reaches beyond the sole of "
-                   f"body.foot_length = {body.foot_length:g} m (its edges at +-{half:g} m): "
-                   "the CoP cannot leave the sole (the foot tips first), so the bound can never "
-                   "bind beyond the edge")
+        out.append(
+            f"controller.cop_bounds = [{low:g}, {high:g}] m reaches beyond the sole of "
+            f"body.foot_length = {body.foot_length:g} m (its edges at +-{half:g} m): "
+            "the CoP cannot leave the sole (the foot tips first), so the bound can never "
+            "bind beyond the edge"
+        )
     return out
 
 
@@ -595,7 +703,8 @@ def build_section(cls: type, section: str, values: dict[str, Any]) -> Any:
     unknown = sorted(set(values) - set(known))
     if unknown:
         raise ParameterError(
-            f"{section}: unknown key(s) {', '.join(unknown)}; known keys: {', '.join(known)}")
+            f"{section}: unknown key(s) {', '.join(unknown)}; known keys: {', '.join(known)}"
+        )
     coerced = {}
     for key, value in values.items():
         default = known[key].default

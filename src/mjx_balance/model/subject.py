@@ -42,8 +42,16 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from .params import (Config, ControllerParams, ParameterError, check_finite, check_range, fail,
-                     is_number, plain)
+from .params import (
+    Config,
+    ControllerParams,
+    ParameterError,
+    check_finite,
+    check_range,
+    fail,
+    is_number,
+    plain,
+)
 
 SEXES = ("male", "female")
 
@@ -126,10 +134,12 @@ def segments(height: float, mass: float, sex: str = "male") -> dict[str, float]:
     # lower body, heights above the ankle: the shank's origin (KJC) is at its top
     shank, thigh = table["shank"], table["thigh"]
     lower_length = length["shank"] + length["thigh"]
-    lower = aggregate([
-        _part(shank, s, mass, length["shank"] * (1 - shank.com), 2),
-        _part(thigh, s, mass, lower_length - length["thigh"] * thigh.com, 2),
-    ])
+    lower = aggregate(
+        [
+            _part(shank, s, mass, length["shank"] * (1 - shank.com), 2),
+            _part(thigh, s, mass, lower_length - length["thigh"] * thigh.com, 2),
+        ]
+    )
 
     # upper body, heights above the hip: trunk up from MIDH, head down from the top, arms
     # down from the shoulders (at the trunk's top)
@@ -137,19 +147,32 @@ def segments(height: float, mass: float, sex: str = "male") -> dict[str, float]:
     shoulder = length["trunk"]
     elbow = shoulder - length["upper_arm"]
     wrist = elbow - length["forearm"]
-    upper = aggregate([
-        _part(table["trunk"], s, mass, length["trunk"] * (1 - table["trunk"].com)),
-        _part(table["head"], s, mass, upper_length - length["head"] * table["head"].com),
-        _part(table["upper_arm"], s, mass, shoulder - length["upper_arm"]
-              * table["upper_arm"].com, 2),
-        _part(table["forearm"], s, mass, elbow - length["forearm"] * table["forearm"].com, 2),
-        _part(table["hand"], s, mass, wrist - length["hand"] * table["hand"].com, 2),
-    ])
+    upper = aggregate(
+        [
+            _part(table["trunk"], s, mass, length["trunk"] * (1 - table["trunk"].com)),
+            _part(table["head"], s, mass, upper_length - length["head"] * table["head"].com),
+            _part(
+                table["upper_arm"],
+                s,
+                mass,
+                shoulder - length["upper_arm"] * table["upper_arm"].com,
+                2,
+            ),
+            _part(table["forearm"], s, mass, elbow - length["forearm"] * table["forearm"].com, 2),
+            _part(table["hand"], s, mass, wrist - length["hand"] * table["hand"].com, 2),
+        ]
+    )
     return {
-        "foot_mass": foot_mass, "foot_length": length["foot"], "foot_inertia": foot_inertia,
-        "lower_mass": lower[0], "lower_length": lower_length, "lower_com": lower[1],
+        "foot_mass": foot_mass,
+        "foot_length": length["foot"],
+        "foot_inertia": foot_inertia,
+        "lower_mass": lower[0],
+        "lower_length": lower_length,
+        "lower_com": lower[1],
         "lower_inertia": lower[2],
-        "upper_mass": upper[0], "upper_length": upper_length, "upper_com": upper[1],
+        "upper_mass": upper[0],
+        "upper_length": upper_length,
+        "upper_com": upper[1],
         "upper_inertia": upper[2],
     }
 
@@ -169,9 +192,19 @@ SUBJECT_MASS_RANGE = (5.0, 300.0)  # kg
 BMI_RANGE = (10.0, 60.0)  # kg/m^2
 STRENGTH_RANGE = (0.0, 10.0)  # factor, > 0
 # What a subject derives (a configuration's values that [subject] replaces).
-SUBJECT_BODY_KEYS = ("foot_mass", "foot_length", "foot_inertia", "lower_mass", "lower_length",
-                     "lower_com", "lower_inertia", "upper_mass", "upper_length", "upper_com",
-                     "upper_inertia")
+SUBJECT_BODY_KEYS = (
+    "foot_mass",
+    "foot_length",
+    "foot_inertia",
+    "lower_mass",
+    "lower_length",
+    "lower_com",
+    "lower_inertia",
+    "upper_mass",
+    "upper_length",
+    "upper_com",
+    "upper_inertia",
+)
 SUBJECT_CONTROLLER_KEYS = ("cop_bounds", "com_bounds")
 
 
@@ -203,18 +236,23 @@ class Subject:
             fail("subject", "sex", f"must be one of {SEXES}", self.sex)
         check_range("subject", self, ("height",), *HEIGHT_RANGE, "m")
         check_range("subject", self, ("mass",), *SUBJECT_MASS_RANGE, "kg")
-        bmi = self.mass / self.height ** 2
+        bmi = self.mass / self.height**2
         if not BMI_RANGE[0] <= bmi <= BMI_RANGE[1]:
             raise ParameterError(
                 f"subject.mass = {self.mass:g} kg at subject.height = {self.height:g} m: body "
                 f"mass index {bmi:.3g} kg/m^2, outside the plausible [{BMI_RANGE[0]:g}, "
-                f"{BMI_RANGE[1]:g}]; check the height [m] and the mass [kg] (a decimal comma?)")
+                f"{BMI_RANGE[1]:g}]; check the height [m] and the mass [kg] (a decimal comma?)"
+            )
         for name in ("ankle_strength", "hip_strength"):
             value = getattr(self, name)
             if not STRENGTH_RANGE[0] < value <= STRENGTH_RANGE[1]:
-                fail("subject", name, f"must lie in ({STRENGTH_RANGE[0]:g}, "
-                      f"{STRENGTH_RANGE[1]:g}] (a factor on the mass-scaled torque bounds)",
-                      value)
+                fail(
+                    "subject",
+                    name,
+                    f"must lie in ({STRENGTH_RANGE[0]:g}, "
+                    f"{STRENGTH_RANGE[1]:g}] (a factor on the mass-scaled torque bounds)",
+                    value,
+                )
 
     def body_values(self) -> dict[str, float]:
         """The body's values this subject derives (``SUBJECT_BODY_KEYS``)."""
@@ -224,17 +262,19 @@ class Subject:
         """CoP and CoM bounds at the sole's edges and ``base``'s input bounds scaled."""
         half = self.body_values()["foot_length"] / 2
         scale = self.mass / STUDY_BODY_MASS
-        return {"cop_bounds": (-half, half), "com_bounds": (-half, half),
-                "input1_bounds": tuple(v * scale * self.ankle_strength
-                                       for v in base.input1_bounds),
-                "input2_bounds": tuple(v * scale * self.hip_strength
-                                       for v in base.input2_bounds)}
+        return {
+            "cop_bounds": (-half, half),
+            "com_bounds": (-half, half),
+            "input1_bounds": tuple(v * scale * self.ankle_strength for v in base.input1_bounds),
+            "input2_bounds": tuple(v * scale * self.hip_strength for v in base.input2_bounds),
+        }
 
     def config(self, base: Config | None = None) -> Config:
         """``base`` (None: the defaults, the study's configuration) with this subject's body."""
         base = Config() if base is None else base
-        return base.replace(body=self.body_values(),
-                            controller=self.controller_values(base.controller))
+        return base.replace(
+            body=self.body_values(), controller=self.controller_values(base.controller)
+        )
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -242,8 +282,11 @@ class Subject:
     def describe(self) -> str:
         """``height=1.62,mass=58,sex=female`` (the --subject form; strengths when not 1)."""
         parts = [f"height={self.height:g}", f"mass={self.mass:g}", f"sex={self.sex}"]
-        parts += [f"{n}={getattr(self, n):g}" for n in ("ankle_strength", "hip_strength")
-                  if getattr(self, n) != 1.0]
+        parts += [
+            f"{n}={getattr(self, n):g}"
+            for n in ("ankle_strength", "hip_strength")
+            if getattr(self, n) != 1.0
+        ]
         return ",".join(parts)
 
 
@@ -252,17 +295,21 @@ def as_subject(value: Any) -> Subject:
     if isinstance(value, Subject):
         return value
     if not isinstance(value, dict):
-        raise ParameterError(f"section 'subject' must be a table (height, mass, sex, "
-                             f"ankle_strength, hip_strength), got {value!r}")
+        raise ParameterError(
+            f"section 'subject' must be a table (height, mass, sex, "
+            f"ankle_strength, hip_strength), got {value!r}"
+        )
     known = [f.name for f in fields(Subject)]
     unknown = sorted(set(value) - set(known))
     if unknown:
-        raise ParameterError(f"subject: unknown key(s) {', '.join(unknown)}; known keys: "
-                             f"{', '.join(known)}")
+        raise ParameterError(
+            f"subject: unknown key(s) {', '.join(unknown)}; known keys: {', '.join(known)}"
+        )
     missing = [name for name in ("height", "mass") if name not in value]
     if missing:
-        raise ParameterError(f"subject: give {' and '.join(missing)} (known keys: "
-                             f"{', '.join(known)})")
+        raise ParameterError(
+            f"subject: give {' and '.join(missing)} (known keys: {', '.join(known)})"
+        )
     return Subject(**{k: plain(v) for k, v in value.items()})
 
 
@@ -277,14 +324,18 @@ def check_subject_conflicts(subject: Subject, sections: dict[str, Any]) -> None:
         clash = [k for k in keys if k in given]
         if clash:
             key = clash[0]
-            values = subject.body_values() if section == "body" else {
-                "cop_bounds": "+-foot_length / 2", "com_bounds": "+-foot_length / 2"}
+            values = (
+                subject.body_values()
+                if section == "body"
+                else {"cop_bounds": "+-foot_length / 2", "com_bounds": "+-foot_length / 2"}
+            )
             derived_value = values[key]
             shown = f"{derived_value:.6g}" if isinstance(derived_value, float) else derived_value
             raise ParameterError(
                 f"{section}.{key} = {given[key]!r} and subject {subject.describe()} (which "
                 f"derives {section}.{key} = {shown}) both set it: give one of them (a later "
-                "--set overrides a subject's value)")
+                "--set overrides a subject's value)"
+            )
 
 
 def parse_subject(text: str) -> Subject:
@@ -295,8 +346,10 @@ def parse_subject(text: str) -> Subject:
         key, sep, raw = part.partition("=")
         key, raw = key.strip(), raw.strip()
         if not sep or not key or not raw:
-            raise ParameterError(f"--subject {text!r}: {part.strip()!r} is not KEY=VALUE "
-                                 "(e.g. height=1.62,mass=58,sex=female)")
+            raise ParameterError(
+                f"--subject {text!r}: {part.strip()!r} is not KEY=VALUE "
+                "(e.g. height=1.62,mass=58,sex=female)"
+            )
         if key in values:
             raise ParameterError(f"--subject {text!r}: {key} given twice")
         try:
@@ -355,8 +408,9 @@ def subject_rows(path: str | Path) -> list[SubjectRow]:
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise ParameterError(f"{path}: cannot be read as a CSV file ({exc})") from None
     if not rows:
-        raise ParameterError(f"{path}: empty; give a header (such as id,height,mass,sex) and "
-                             "a row per subject")
+        raise ParameterError(
+            f"{path}: empty; give a header (such as id,height,mass,sex) and a row per subject"
+        )
     columns = _subject_columns(path, *rows[0])
     if len(rows) == 1:
         raise ParameterError(f"{path}: holds a header and no subject")
@@ -377,8 +431,9 @@ def _csv_rows(fh: Any) -> list[tuple[int, list[str]]]:
             where[0] = number
             yield text
 
-    return [(where[0], cells) for cells in csv.reader(lines())
-            if any(cell.strip() for cell in cells)]
+    return [
+        (where[0], cells) for cells in csv.reader(lines()) if any(cell.strip() for cell in cells)
+    ]
 
 
 def _subject_columns(path: Path, line: int, header: list[str]) -> list[str]:
@@ -387,21 +442,32 @@ def _subject_columns(path: Path, line: int, header: list[str]) -> list[str]:
     known = [CSV_ID_COLUMN, *(f.name for f in fields(Subject))]
     names = [h.strip().lower() for h in header]
     listed = f"known columns: {', '.join(known)} (and {', '.join(CSV_TEXT_COLUMNS)}: ignored)"
-    unknown = [h.strip() for h, n in zip(header, names) if n and n not in known
-               and n not in CSV_TEXT_COLUMNS]
+    unknown = [
+        h.strip()
+        for h, n in zip(header, names)
+        if n and n not in known and n not in CSV_TEXT_COLUMNS
+    ]
     if unknown:
-        hint = ("; columns are separated by commas" if any(";" in u or "\t" in u
-                                                          for u in unknown) else "")
-        raise ParameterError(f"{path}, line {line}: unknown column(s) "
-                             f"{', '.join(repr(u) for u in unknown)}; {listed}{hint}")
+        hint = (
+            "; columns are separated by commas"
+            if any(";" in u or "\t" in u for u in unknown)
+            else ""
+        )
+        raise ParameterError(
+            f"{path}, line {line}: unknown column(s) "
+            f"{', '.join(repr(u) for u in unknown)}; {listed}{hint}"
+        )
     twice = sorted({n for n in names if n and names.count(n) > 1})
     if twice:
-        raise ParameterError(f"{path}, line {line}: column {twice[0]!r} is given twice "
-                             "(column names ignore case)")
+        raise ParameterError(
+            f"{path}, line {line}: column {twice[0]!r} is given twice (column names ignore case)"
+        )
     missing = [n for n in ("height", "mass") if n not in names]
     if missing:
-        raise ParameterError(f"{path}, line {line}: the header has no column "
-                             f"{' and no column '.join(missing)}; {listed}")
+        raise ParameterError(
+            f"{path}, line {line}: the header has no column "
+            f"{' and no column '.join(missing)}; {listed}"
+        )
     return names
 
 
@@ -411,7 +477,8 @@ def _subject_row(path: Path, line: int, columns: list[str], cells: list[str]) ->
     if len(cells) > len(columns):
         raise ParameterError(
             f"{where}: {len(cells)} values for the header's {len(columns)} columns "
-            f"({','.join(cells)}); a decimal comma? Write decimals with a point (1.62)")
+            f"({','.join(cells)}); a decimal comma? Write decimals with a point (1.62)"
+        )
     values: dict[str, Any] = {}
     ident = ""
     for name, raw in zip(columns, cells):
@@ -419,8 +486,10 @@ def _subject_row(path: Path, line: int, columns: list[str], cells: list[str]) ->
         if not raw or name in CSV_TEXT_COLUMNS:
             continue
         if not name:
-            raise ParameterError(f"{where}: {raw!r} is in a column without a name; name it "
-                                 "in the header or remove it")
+            raise ParameterError(
+                f"{where}: {raw!r} is in a column without a name; name it "
+                "in the header or remove it"
+            )
         if name == CSV_ID_COLUMN:
             ident = raw
             continue

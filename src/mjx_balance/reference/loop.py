@@ -43,12 +43,37 @@ from ..control.qp import CondensedQP, build_qp
 from ..runtime import signals
 
 TIMESERIES_COLUMNS = [
-    "scenario", "force", "duration", "convention", "time",
-    "q_a", "q_h", "dq_a", "dq_h", "x1", "x2", "x3", "x4",
-    "foot_x", "foot_z", "foot_pitch", "u1", "u2", "tau_ankle", "tau_hip", "cop", "com",
-    "energy_ankle", "energy_hip", "energy_total",
-    "study_energy_u1", "study_energy_u2", "study_energy_total",
-    "com_vel", "xcom", "mos",
+    "scenario",
+    "force",
+    "duration",
+    "convention",
+    "time",
+    "q_a",
+    "q_h",
+    "dq_a",
+    "dq_h",
+    "x1",
+    "x2",
+    "x3",
+    "x4",
+    "foot_x",
+    "foot_z",
+    "foot_pitch",
+    "u1",
+    "u2",
+    "tau_ankle",
+    "tau_hip",
+    "cop",
+    "com",
+    "energy_ankle",
+    "energy_hip",
+    "energy_total",
+    "study_energy_u1",
+    "study_energy_u2",
+    "study_energy_total",
+    "com_vel",
+    "xcom",
+    "mos",
 ]
 
 
@@ -78,22 +103,30 @@ class MPC(Protocol):
     def reset(self) -> None:
         """Forget the warm start: scenarios do not depend on each other."""
 
-    def solve(self, x0: np.ndarray, offset: np.ndarray | None = None
-              ) -> tuple[np.ndarray, np.ndarray, bool, float]:
+    def solve(
+        self, x0: np.ndarray, offset: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, bool, float]:
         """(u [2] clipped first input, iterate, converged, primal residual) for state x0."""
 
 
 @functools.lru_cache(maxsize=8)
-def reference_mpc(controller: ControllerParams, body: BodyParams,
-                  control_dt: float) -> ReferenceMPC:
+def reference_mpc(
+    controller: ControllerParams, body: BodyParams, control_dt: float
+) -> ReferenceMPC:
     """The OSQP controller of a configuration (built once per process and configuration)."""
     return ReferenceMPC(build_qp(controller, body, control_dt), controller)
 
 
 # MuJoCo's checks of non-finite or huge values; each resets the data when it fires.
-_BAD_VALUE_WARNINGS = tuple(int(w) for w in (
-    mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
-    mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADCTRL))
+_BAD_VALUE_WARNINGS = tuple(
+    int(w)
+    for w in (
+        mujoco.mjtWarning.mjWARN_BADQPOS,
+        mujoco.mjtWarning.mjWARN_BADQVEL,
+        mujoco.mjtWarning.mjWARN_BADQACC,
+        mujoco.mjtWarning.mjWARN_BADCTRL,
+    )
+)
 
 
 def _bad_value_warnings(data: mujoco.MjData) -> int:
@@ -127,8 +160,9 @@ class _Series:
     history_q, history_dq [n + 1, 2], entry j the state at t = j dt. q0 [2], x0 [4]: the
     state at t = 0 (joint state q0, dq0 [2])."""
 
-    def __init__(self, n_steps: int, n_control: int, dt: float, q0: np.ndarray,
-                 dq0: np.ndarray, lm: Any):
+    def __init__(
+        self, n_steps: int, n_control: int, dt: float, q0: np.ndarray, dq0: np.ndarray, lm: Any
+    ):
         self.time = (np.arange(n_steps) + 1) * dt
         self.q = np.zeros((n_steps, 2))
         self.dq = np.zeros((n_steps, 2))
@@ -165,8 +199,9 @@ class _Controller:
         self.substeps, self.delay_steps = sc.substeps, sc.delay_steps
         self.compensate = ctrl.delay_compensation and sc.assumed_delay_steps > 0
         if self.compensate:
-            self.pred_A, self.pred_G = delay_predictor(lm.Ac, lm.Bc, sc.physics_dt,
-                                                       sc.assumed_delay_steps, sc.substeps)
+            self.pred_A, self.pred_G = delay_predictor(
+                lm.Ac, lm.Bc, sc.physics_dt, sc.assumed_delay_steps, sc.substeps
+            )
             self.applied = np.zeros((self.pred_G.shape[0], 2))
         self.ofs = offset_free_mod.build(mpc.qp, ctrl) if ctrl.offset_free else None
         self.d_hat, self.x_last, self.u_last = np.zeros(2), x0.copy(), np.zeros(2)
@@ -180,8 +215,9 @@ class _Controller:
             x_meas = predict(np, self.pred_A, self.pred_G, x_meas, self.applied)
         offset = None
         if self.ofs is not None:
-            self.d_hat = offset_free_mod.observe(np, self.ofs, self.d_hat, self.x_last,
-                                                 self.u_last, x_meas)
+            self.d_hat = offset_free_mod.observe(
+                np, self.ofs, self.d_hat, self.x_last, self.u_last, x_meas
+            )
             x_s, _, _, offset = offset_free_mod.steady_state(np, self.ofs, self.d_hat)
             self.x_last, x_meas = x_meas, x_meas - x_s
         mpc = self.mpc
@@ -195,13 +231,23 @@ class _Controller:
         if hard is not None:
             infeasible = hard
         else:
-            infeasible = (not ok and np.isfinite(x_meas).all()
-                          and not mpc.qp.feasible(x_meas, offset))
+            infeasible = (
+                not ok and np.isfinite(x_meas).all() and not mpc.qp.feasible(x_meas, offset)
+            )
         return u, ok, prim_res, infeasible
 
 
-def _record(model: mujoco.MjModel, data: mujoco.MjData, ix: Any, lm: Any, series: _Series,
-            i: int, *, torques: np.ndarray, u: np.ndarray) -> None:
+def _record(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    ix: Any,
+    lm: Any,
+    series: _Series,
+    i: int,
+    *,
+    torques: np.ndarray,
+    u: np.ndarray,
+) -> None:
     """Sample i into ``series``: positions refreshed to t = (i+1) dt, contacts and forces
     those of step i; the torques [2] and input u [2] held during step i."""
     mujoco.mj_kinematics(model, data)
@@ -220,9 +266,18 @@ def _record(model: mujoco.MjModel, data: mujoco.MjData, ix: Any, lm: Any, series
     series.tau[i], series.u[i] = torques, u
 
 
-def _closed_loop(model: mujoco.MjModel, data: mujoco.MjData, ix: Any, series: _Series,
-                 controller: _Controller, *, force: float, n_push: int, sc: Any,
-                 limits: Limits) -> tuple[int, int, bool]:
+def _closed_loop(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    ix: Any,
+    series: _Series,
+    controller: _Controller,
+    *,
+    force: float,
+    n_push: int,
+    sc: Any,
+    limits: Limits,
+) -> tuple[int, int, bool]:
     """Run the control periods from ``data`` until t_end, the first fall sample or a
     non-finite value, filling ``series``; the push acts during physics steps i < n_push.
     Returns (samples taken, control periods done, diverged)."""
@@ -259,9 +314,14 @@ def _closed_loop(model: mujoco.MjModel, data: mujoco.MjData, ix: Any, series: _S
                 diverged = True
                 stop = True
                 break
-            if outcomes.falls(np, series.foot[i, 2], series.cell_low[i],
-                              outcomes.bound_excess(np, series.x[i], limits), series.q[i, 0],
-                              limits):
+            if outcomes.falls(
+                np,
+                series.foot[i, 2],
+                series.cell_low[i],
+                outcomes.bound_excess(np, series.x[i], limits),
+                series.q[i, 0],
+                limits,
+            ):
                 stop = True
                 break
         if stop:
@@ -270,9 +330,16 @@ def _closed_loop(model: mujoco.MjModel, data: mujoco.MjData, ix: Any, series: _S
     return n, k_done, diverged
 
 
-def simulate_scenario(config: Config, force: float, duration: float, *, record: bool = True,
-                      scenario_id: int = 0, mpc: MPC | None = None,
-                      initial: Any = None) -> tuple[dict[str, Any], pd.DataFrame | None]:
+def simulate_scenario(
+    config: Config,
+    force: float,
+    duration: float,
+    *,
+    record: bool = True,
+    scenario_id: int = 0,
+    mpc: MPC | None = None,
+    initial: Any = None,
+) -> tuple[dict[str, Any], pd.DataFrame | None]:
     """Run one push scenario; return (summary row, long time series or None).
 
     ``force`` [N] (+ forward) and ``duration`` [s] override config.scenario's; the summary row
@@ -294,16 +361,31 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
     data = _initial_data(model, ix, initial)
 
     n_steps = sc.n_control * sc.substeps
-    s = _Series(n_steps, sc.n_control, sc.physics_dt, data.qpos[[ix.ankle_qpos, ix.hip_qpos]],
-                data.qvel[[ix.ankle_dof, ix.hip_dof]], lm)
+    s = _Series(
+        n_steps,
+        sc.n_control,
+        sc.physics_dt,
+        data.qpos[[ix.ankle_qpos, ix.hip_qpos]],
+        data.qvel[[ix.ankle_dof, ix.hip_dof]],
+        lm,
+    )
     n, k_done, diverged = _closed_loop(
-        model, data, ix, s, _Controller(mpc, ctrl, sc, lm, s.x0), force=force,
-        n_push=math.ceil(duration / sc.physics_dt - 1e-9), sc=sc, limits=limits)
+        model,
+        data,
+        ix,
+        s,
+        _Controller(mpc, ctrl, sc, lm, s.x0),
+        force=force,
+        n_push=math.ceil(duration / sc.physics_dt - 1e-9),
+        sc=sc,
+        limits=limits,
+    )
 
     sl = slice(0, n)
     xcom, mos = margin_series(model, ix, force, s.com[sl], s.com_vel[sl], s.cell_x[sl])
-    summary = _summary_of(s, config, force, duration, n, k_done, completed=(n == n_steps),
-                          diverged=diverged, mos=mos)
+    summary = _summary_of(
+        s, config, force, duration, n, k_done, completed=(n == n_steps), diverged=diverged, mos=mos
+    )
     if not record:
         return summary, None
 
@@ -312,32 +394,82 @@ def simulate_scenario(config: Config, force: float, duration: float, *, record: 
     return summary, frame
 
 
-def _summary_of(s: _Series, config: Config, force: float, duration: float, n: int, k_done: int,
-                *, completed: bool, diverged: bool, mos: np.ndarray) -> dict[str, Any]:
+def _summary_of(
+    s: _Series,
+    config: Config,
+    force: float,
+    duration: float,
+    n: int,
+    k_done: int,
+    *,
+    completed: bool,
+    diverged: bool,
+    mos: np.ndarray,
+) -> dict[str, Any]:
     """The run's summary row (``metrics.summarize``) of its first n samples and k_done periods."""
     sc, ctrl = config.scenario, config.controller
     sl = slice(0, n)
     return metrics.summarize(
-        force=force, duration=duration, convention=ctrl.convention, scenario=sc, controller=ctrl,
-        time=s.time[sl], q=s.q[sl], dq=s.dq[sl], x=s.x[sl], foot_pitch=s.foot[sl, 2],
-        cell_low_z=s.cell_low[sl], cop=s.cop[sl], com=s.com[sl], tau=s.tau[sl], u=s.u[sl],
-        q0=s.q0, x0=s.x0, u_control=s.u_control[:k_done], converged=s.converged[:k_done],
-        residual=s.residual[:k_done], completed=completed, diverged=diverged,
-        infeasible=s.infeasible[:k_done], com_vel=s.com_vel[sl], mos=mos,
+        force=force,
+        duration=duration,
+        convention=ctrl.convention,
+        scenario=sc,
+        controller=ctrl,
+        time=s.time[sl],
+        q=s.q[sl],
+        dq=s.dq[sl],
+        x=s.x[sl],
+        foot_pitch=s.foot[sl, 2],
+        cell_low_z=s.cell_low[sl],
+        cop=s.cop[sl],
+        com=s.com[sl],
+        tau=s.tau[sl],
+        u=s.u[sl],
+        q0=s.q0,
+        x0=s.x0,
+        u_control=s.u_control[:k_done],
+        converged=s.converged[:k_done],
+        residual=s.residual[:k_done],
+        completed=completed,
+        diverged=diverged,
+        infeasible=s.infeasible[:k_done],
+        com_vel=s.com_vel[sl],
+        mos=mos,
     )
 
 
-def _frame_of(s: _Series, scenario_id: int, force: float, duration: float, convention: str,
-              n: int) -> pd.DataFrame:
+def _frame_of(
+    s: _Series, scenario_id: int, force: float, duration: float, convention: str, n: int
+) -> pd.DataFrame:
     """The run's time series (:func:`timeseries_frame`) of its first ``n`` samples."""
     sl = slice(0, n)
-    return timeseries_frame(scenario_id, force, duration, convention, q0=s.q0, x0=s.x0,
-                            time=s.time[sl], q=s.q[sl], dq=s.dq[sl], x=s.x[sl], foot=s.foot[sl],
-                            u=s.u[sl], tau=s.tau[sl], cop=s.cop[sl], com=s.com[sl])
+    return timeseries_frame(
+        scenario_id,
+        force,
+        duration,
+        convention,
+        q0=s.q0,
+        x0=s.x0,
+        time=s.time[sl],
+        q=s.q[sl],
+        dq=s.dq[sl],
+        x=s.x[sl],
+        foot=s.foot[sl],
+        u=s.u[sl],
+        tau=s.tau[sl],
+        cop=s.cop[sl],
+        com=s.com[sl],
+    )
 
 
-def margin_series(model: mujoco.MjModel, ix: Any, force: float, com: np.ndarray,
-                  com_vel: np.ndarray, cell_x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def margin_series(
+    model: mujoco.MjModel,
+    ix: Any,
+    force: float,
+    com: np.ndarray,
+    com_vel: np.ndarray,
+    cell_x: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """(XcoM [n], margin of stability [n]) of a run's samples (docs/model.md): the toe margin
     for a push with force >= 0, the heel margin for a backward one."""
     omega0 = metrics.pendulum_frequency(model, ix.foot_body, ix.ankle_dof)
@@ -346,10 +478,24 @@ def margin_series(model: mujoco.MjModel, ix: Any, force: float, com: np.ndarray,
     return xcom, (mos_toe if force >= 0 else mos_heel)
 
 
-def timeseries_frame(scenario_id: int, force: float, duration: float, convention: str, *,
-                     q0: np.ndarray, x0: np.ndarray, time: np.ndarray, q: np.ndarray,
-                     dq: np.ndarray, x: np.ndarray, foot: np.ndarray, u: np.ndarray,
-                     tau: np.ndarray, cop: np.ndarray, com: np.ndarray) -> pd.DataFrame:
+def timeseries_frame(
+    scenario_id: int,
+    force: float,
+    duration: float,
+    convention: str,
+    *,
+    q0: np.ndarray,
+    x0: np.ndarray,
+    time: np.ndarray,
+    q: np.ndarray,
+    dq: np.ndarray,
+    x: np.ndarray,
+    foot: np.ndarray,
+    u: np.ndarray,
+    tau: np.ndarray,
+    cop: np.ndarray,
+    com: np.ndarray,
+) -> pd.DataFrame:
     """The long time series of one run (TIMESERIES_COLUMNS, one row per sample), with the
     cumulative joint energies of the motors sum |tau dq| from q0 [2] and the study's (eq. 20,
     docs/model.md) |sum u_i dx_i| of the convention's pairs from x0 [4]. Series [n]: time, cop,
@@ -357,38 +503,55 @@ def timeseries_frame(scenario_id: int, force: float, duration: float, convention
     n = time.shape[0]
     energy = np.cumsum(np.abs(tau * metrics.increments(q0, q)), axis=0)
     study = np.abs(np.cumsum(u * metrics.increments(x0[:2], x[:, :2]), axis=0))
-    return pd.DataFrame({
-        "scenario": np.full(n, scenario_id, dtype=np.int64),
-        "force": np.full(n, float(force)),
-        "duration": np.full(n, float(duration)),
-        "convention": convention,
-        "time": time,
-        "q_a": q[:, 0], "q_h": q[:, 1], "dq_a": dq[:, 0], "dq_h": dq[:, 1],
-        "x1": x[:, 0], "x2": x[:, 1], "x3": x[:, 2], "x4": x[:, 3],
-        "foot_x": foot[:, 0], "foot_z": foot[:, 1], "foot_pitch": foot[:, 2],
-        "u1": u[:, 0], "u2": u[:, 1],
-        "tau_ankle": tau[:, 0], "tau_hip": tau[:, 1],
-        "cop": cop, "com": com,
-        "energy_ankle": energy[:, 0], "energy_hip": energy[:, 1],
-        "energy_total": energy[:, 0] + energy[:, 1],
-        "study_energy_u1": study[:, 0], "study_energy_u2": study[:, 1],
-        "study_energy_total": study[:, 0] + study[:, 1],
-    }, columns=TIMESERIES_COLUMNS)
+    return pd.DataFrame(
+        {
+            "scenario": np.full(n, scenario_id, dtype=np.int64),
+            "force": np.full(n, float(force)),
+            "duration": np.full(n, float(duration)),
+            "convention": convention,
+            "time": time,
+            "q_a": q[:, 0],
+            "q_h": q[:, 1],
+            "dq_a": dq[:, 0],
+            "dq_h": dq[:, 1],
+            "x1": x[:, 0],
+            "x2": x[:, 1],
+            "x3": x[:, 2],
+            "x4": x[:, 3],
+            "foot_x": foot[:, 0],
+            "foot_z": foot[:, 1],
+            "foot_pitch": foot[:, 2],
+            "u1": u[:, 0],
+            "u2": u[:, 1],
+            "tau_ankle": tau[:, 0],
+            "tau_hip": tau[:, 1],
+            "cop": cop,
+            "com": com,
+            "energy_ankle": energy[:, 0],
+            "energy_hip": energy[:, 1],
+            "energy_total": energy[:, 0] + energy[:, 1],
+            "study_energy_u1": study[:, 0],
+            "study_energy_u2": study[:, 1],
+            "study_energy_total": study[:, 0] + study[:, 1],
+        },
+        columns=TIMESERIES_COLUMNS,
+    )
 
 
 # --- many scenarios -------------------------------------------------------------------------
 
 
-def simulate_many(config: Config, forces: list[float], durations: list[float], *,
-                  progress: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
+def simulate_many(
+    config: Config, forces: list[float], durations: list[float], *, progress: bool = True
+) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Every (force, duration) of the cross product, every force for the first duration, then
     the next: (summary table, long time series)."""
-    return simulate_pairs(config, [(f, T) for T in durations for f in forces],
-                          progress=progress)
+    return simulate_pairs(config, [(f, T) for T in durations for f in forces], progress=progress)
 
 
-def simulate_pairs(config: Config, pairs: list[tuple[float, float]], *,
-                   progress: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
+def simulate_pairs(
+    config: Config, pairs: list[tuple[float, float]], *, progress: bool = True
+) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The given (force, duration) pairs in their order: (summary table, long time series,
     scenario_id = the pair's index)."""
     rows, frames = [], []
@@ -399,8 +562,9 @@ def simulate_pairs(config: Config, pairs: list[tuple[float, float]], *,
     return summary, pd.concat(frames, ignore_index=True)
 
 
-def each_pair(config: Config, pairs: list[tuple[float, float]], *, skip: Any = (),
-              progress: bool = True) -> Iterator[tuple[int, dict[str, Any], pd.DataFrame]]:
+def each_pair(
+    config: Config, pairs: list[tuple[float, float]], *, skip: Any = (), progress: bool = True
+) -> Iterator[tuple[int, dict[str, Any], pd.DataFrame]]:
     """Run the pairs in their order, but those whose index is in ``skip`` (finished before):
     yield (scenario_id = the pair's index, summary row, time series) as each ends. Every
     duration is checked before anything runs."""
@@ -409,8 +573,14 @@ def each_pair(config: Config, pairs: list[tuple[float, float]], *, skip: Any = (
     for _, T in pairs:  # validate every duration before running anything
         config.replace(scenario={"duration": T})
     skip = set(skip)
-    with tqdm(total=len(pairs), initial=len(skip), desc="scenarios", unit="scenario",
-              disable=not progress, file=sys.stderr) as bar:
+    with tqdm(
+        total=len(pairs),
+        initial=len(skip),
+        desc="scenarios",
+        unit="scenario",
+        disable=not progress,
+        file=sys.stderr,
+    ) as bar:
         for scenario_id, (force, duration) in enumerate(pairs):
             if scenario_id in skip:
                 continue

@@ -29,12 +29,38 @@ from .html import HTML, build_report, sections
 from .results import key_numbers, load_results
 from ..runs.batch import ReferenceBatch
 from ..runs.folders import batch_function
-from ..studies.experiments import (PLANS, Q_SCALES, R_SCALES, REPORT_JSON, Plan, plan_config,
-                                   run_report, run_weights, selected_studies, weight_settings)
+from ..studies.experiments import (
+    PLANS,
+    Q_SCALES,
+    R_SCALES,
+    REPORT_JSON,
+    Plan,
+    plan_config,
+    run_report,
+    run_weights,
+    selected_studies,
+    weight_settings,
+)
 
 __all__ = [
-    "HTML", "PLANS", "Plan", "Q_SCALES", "REPORT_JSON", "R_SCALES", "ReferenceBatch",
-    "batch_function", "build_report", "conventions_figure", "key_numbers", "load_results",
-    "plan_config", "run_report", "run_weights", "save_figure", "sections", "selected_studies",
-    "weight_figure", "weight_settings",
+    "HTML",
+    "PLANS",
+    "Plan",
+    "Q_SCALES",
+    "REPORT_JSON",
+    "R_SCALES",
+    "ReferenceBatch",
+    "batch_function",
+    "build_report",
+    "conventions_figure",
+    "key_numbers",
+    "load_results",
+    "plan_config",
+    "run_report",
+    "run_weights",
+    "save_figure",
+    "sections",
+    "selected_studies",
+    "weight_figure",
+    "weight_settings",
 ]

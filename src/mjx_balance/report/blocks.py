@@ -22,8 +22,12 @@ PALETTE_COLOURS = 64
 def img(path: Path, caption: str = "", alt: str | None = None) -> dict:
     """A figure block of the PNG at ``path`` (embedded when the page is rendered: ``embed``);
     ``alt`` defaults to the caption, else the file's stem."""
-    return {"kind": "figure", "path": str(path), "caption": caption,
-            "alt": alt or caption or Path(path).stem}
+    return {
+        "kind": "figure",
+        "path": str(path),
+        "caption": caption,
+        "alt": alt or caption or Path(path).stem,
+    }
 
 
 def png_data(path: str | Path, max_width: int) -> str:
@@ -34,10 +38,12 @@ def png_data(path: str | Path, max_width: int) -> str:
     with Image.open(path) as image:
         rgb = image.convert("RGB")
     if rgb.width > max_width:
-        rgb = rgb.resize((max_width, round(rgb.height * max_width / rgb.width)),
-                         Image.Resampling.LANCZOS)
-    palette = rgb.quantize(colors=PALETTE_COLOURS, method=Image.Quantize.MAXCOVERAGE,
-                           dither=Image.Dither.NONE)
+        rgb = rgb.resize(
+            (max_width, round(rgb.height * max_width / rgb.width)), Image.Resampling.LANCZOS
+        )
+    palette = rgb.quantize(
+        colors=PALETTE_COLOURS, method=Image.Quantize.MAXCOVERAGE, dither=Image.Dither.NONE
+    )
     buffer = io.BytesIO()
     palette.save(buffer, format="PNG", optimize=True)
     return base64.b64encode(buffer.getvalue()).decode("ascii")
@@ -46,6 +52,7 @@ def png_data(path: str | Path, max_width: int) -> str:
 def embed(sections: list[dict]) -> list[dict]:
     """The sections with every figure block's image data filled in (``data``): a figure in a
     row of figures at ROW_WIDTH_PX, any other at FULL_WIDTH_PX."""
+
     def figure(block: dict, width: int) -> dict:
         return {**block, "data": png_data(block["path"], width)}
 

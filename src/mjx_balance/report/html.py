@@ -53,21 +53,71 @@ HTML = "report.html"
 TEMPLATE = "report.html.j2"  # in templates/ (package data)
 FIGURES = "figures"
 
-SUMMARY_SHOWN = ["force", "duration", "outcome", "settle_time", "fall_time", "peak_ankle",
-                 "peak_hip", "cop_min", "cop_max", "com_min", "com_max", "peak_tau_ankle",
-                 "peak_tau_hip", "energy_ankle", "energy_hip", "energy_total", "energy_u1",
-                 "energy_u2", "nonconverged_solves"]
-WEIGHTS_SHOWN = ["weight", "scale", "outcome", "settle_time", "fall_time", "energy_ankle",
-                 "energy_hip", "energy_total", "energy_u1", "energy_u2", "peak_tau_ankle",
-                 "peak_tau_hip", "nonconverged_solves"]
-TABLE_SHOWN = ["force", "max_acting_time", "ending_outcome", "energy_ankle_01", "energy_hip_01",
-               "energy_total_01", "outcome_01", "energy_ankle_max", "energy_hip_max",
-               "energy_total_max", "energy_u1_max", "energy_u2_max", "note"]
+SUMMARY_SHOWN = [
+    "force",
+    "duration",
+    "outcome",
+    "settle_time",
+    "fall_time",
+    "peak_ankle",
+    "peak_hip",
+    "cop_min",
+    "cop_max",
+    "com_min",
+    "com_max",
+    "peak_tau_ankle",
+    "peak_tau_hip",
+    "energy_ankle",
+    "energy_hip",
+    "energy_total",
+    "energy_u1",
+    "energy_u2",
+    "nonconverged_solves",
+]
+WEIGHTS_SHOWN = [
+    "weight",
+    "scale",
+    "outcome",
+    "settle_time",
+    "fall_time",
+    "energy_ankle",
+    "energy_hip",
+    "energy_total",
+    "energy_u1",
+    "energy_u2",
+    "peak_tau_ankle",
+    "peak_tau_hip",
+    "nonconverged_solves",
+]
+TABLE_SHOWN = [
+    "force",
+    "max_acting_time",
+    "ending_outcome",
+    "energy_ankle_01",
+    "energy_hip_01",
+    "energy_total_01",
+    "outcome_01",
+    "energy_ankle_max",
+    "energy_hip_max",
+    "energy_total_max",
+    "energy_u1_max",
+    "energy_u2_max",
+    "note",
+]
 # In the paper convention the study's energy (eq. 20, docs/model.md) heads each table and the
 # motors' absolute work is beside it (shown_columns); the lists above are the joint convention's.
 STUDY_ENERGY = ["study_energy_u1", "study_energy_u2", "study_energy_total"]
-STUDY_SHOWN = ["label", "area", "fraction", "recovered_cells", "cells", "f_max_ref",
-               "area_change", "gained_cells", "lost_cells"]
+STUDY_SHOWN = [
+    "label",
+    "area",
+    "fraction",
+    "recovered_cells",
+    "cells",
+    "f_max_ref",
+    "area_change",
+    "gained_cells",
+    "lost_cells",
+]
 
 CSS = """
 body { font-family: system-ui, -apple-system, 'Segoe UI', sans-serif; max-width: 1150px;
@@ -98,10 +148,12 @@ def sections(out: str | Path) -> list[tuple[str, str]]:
     if any(r.kind == "table" for r in read_references(reference_files(out))):
         ids.insert(0, ("scorecard", SCORECARD_HEADING))
     for convention in record["conventions"]:
-        ids += [(f"timeseries-{convention}", f"1. Time series — {convention} convention"),
-                (f"weights-{convention}", f"2. Weight study — {convention} convention"),
-                (f"table-{convention}", f"3. Robustness table — {convention} convention"),
-                (f"region-{convention}", f"4. Recoverable region — {convention} convention")]
+        ids += [
+            (f"timeseries-{convention}", f"1. Time series — {convention} convention"),
+            (f"weights-{convention}", f"2. Weight study — {convention} convention"),
+            (f"table-{convention}", f"3. Robustness table — {convention} convention"),
+            (f"region-{convention}", f"4. Recoverable region — {convention} convention"),
+        ]
     if len(record["conventions"]) > 1:
         ids.append(("conventions", "Side by side: paper vs joint convention"))
     for entry in record["studies"]:
@@ -116,6 +168,7 @@ def sections(out: str | Path) -> list[tuple[str, str]]:
 
 # ---------------------------------------------------------------------------------------------
 # Blocks: what the template draws (templates/report.html.j2); every text is escaped there
+
 
 def _row(*figures: dict) -> dict:
     return {"kind": "row", "figures": list(figures)}
@@ -153,8 +206,11 @@ def _noise(column: pd.Series) -> float:
     return float(top) * NOISE_FRACTION
 
 
-def mark_outcomes(frame: pd.DataFrame, columns: list[str], outcome: str = "outcome",
-                  ) -> pd.DataFrame:
+def mark_outcomes(
+    frame: pd.DataFrame,
+    columns: list[str],
+    outcome: str = "outcome",
+) -> pd.DataFrame:
     """``frame`` with the values of ``columns`` as text; in a row whose ``outcome`` is not
     recovered the value is left out and that outcome shown instead (``– [fell]``): the energy
     of a run that did not recover is not a recovery cost, so it is never tabulated."""
@@ -163,13 +219,16 @@ def mark_outcomes(frame: pd.DataFrame, columns: list[str], outcome: str = "outco
     ok = ~frame[outcome].astype(str).isin([o for o in OUTCOMES if o != OUTCOMES[RECOVERED]])
     for column in columns:
         noise = _noise(frame[column][ok])
-        frame[column] = [(_cell(v, noise) if good else f"– [{o}]")
-                         for v, good, o in zip(frame[column], ok, frame[outcome].astype(str))]
+        frame[column] = [
+            (_cell(v, noise) if good else f"– [{o}]")
+            for v, good, o in zip(frame[column], ok, frame[outcome].astype(str))
+        ]
     return frame
 
 
-def _table(frame: pd.DataFrame, columns: list[str] | None = None,
-           note_column: str | None = None) -> dict:
+def _table(
+    frame: pd.DataFrame, columns: list[str] | None = None, note_column: str | None = None
+) -> dict:
     """A table block: the frame's cells as text (floats to 4 significant digits, float noise
     as 0: NOISE_FRACTION, NaN as –);
     ``note_column``'s texts become footnote markers ([1], [2], ...) with the notes below."""
@@ -192,8 +251,12 @@ def _table(frame: pd.DataFrame, columns: list[str] | None = None,
             else:
                 cells.append(_cell(value, noise[column]))
         rows.append(cells)
-    return {"kind": "table", "header": [_header(c) for c in frame.columns], "rows": rows,
-            "notes": notes}
+    return {
+        "kind": "table",
+        "header": [_header(c) for c in frame.columns],
+        "rows": rows,
+        "notes": notes,
+    }
 
 
 def _header(column: Any) -> str:
@@ -220,26 +283,27 @@ def _paragraph(text: str | Markup, cls: str = "") -> dict:
     return {"kind": "paragraph", "text": text, "cls": cls}
 
 
-
-
-
 def _config_text(config: Config) -> str:
     c, s = config.controller, config.scenario
-    return (f"N = {c.horizon}, Q = diag{c.q_diag}, R = diag{c.r_diag}, input bounds "
-            f"{c.input1_bounds}, {c.input2_bounds} N·m, state bounds {c.state1_bounds}, "
-            f"{c.state2_bounds} rad, CoP/CoM bounds {c.cop_bounds}/{c.com_bounds} m; "
-            f"physics dt {s.physics_dt} s, control dt {s.control_dt} s, recovery within "
-            f"t_end = {s.t_end:g} s; body mass {config.body.total_mass:g} kg, height "
-            f"{config.body.lower_length + config.body.upper_length:g} m")
+    return (
+        f"N = {c.horizon}, Q = diag{c.q_diag}, R = diag{c.r_diag}, input bounds "
+        f"{c.input1_bounds}, {c.input2_bounds} N·m, state bounds {c.state1_bounds}, "
+        f"{c.state2_bounds} rad, CoP/CoM bounds {c.cop_bounds}/{c.com_bounds} m; "
+        f"physics dt {s.physics_dt} s, control dt {s.control_dt} s, recovery within "
+        f"t_end = {s.t_end:g} s; body mass {config.body.total_mass:g} kg, height "
+        f"{config.body.lower_length + config.body.upper_length:g} m"
+    )
 
 
 def _outcomes_text(config: Config) -> str:
     """The outcome rules in words, with the configuration's thresholds (outcomes.py)."""
     s = config.scenario
-    return (f"Outcomes: recovered (every angle within {s.settle_angle_tol:g} rad and rate "
-            f"within {s.settle_rate_tol:g} rad/s of upright at t_end), not settled, fell (foot "
-            f"pitch, foot lift, a state bound exceeded by {s.bound_violation_limit:g} rad, or "
-            f"lower-body tilt beyond {s.lower_tilt_limit:g} rad), diverged.")
+    return (
+        f"Outcomes: recovered (every angle within {s.settle_angle_tol:g} rad and rate "
+        f"within {s.settle_rate_tol:g} rad/s of upright at t_end), not settled, fell (foot "
+        f"pitch, foot lift, a state bound exceeded by {s.bound_violation_limit:g} rad, or "
+        f"lower-body tilt beyond {s.lower_tilt_limit:g} rad), diverged."
+    )
 
 
 def banner(record: dict, config: Config) -> str | None:
@@ -247,13 +311,15 @@ def banner(record: dict, config: Config) -> str | None:
     plan = record.get("plan", {})
     if plan.get("name") != "tiny":
         return None
-    return (f"Tiny-scale smoke run (plan tiny): t_end = {config.scenario.t_end:g} s, region "
-            f"grids of forces {plan.get('region_forces')} N x durations "
-            f"{plan.get('region_durations')} s, table forces "
-            f"{number_list(plan.get('table_forces', []))} N, the reference solver capped at "
-            f"{plan.get('osqp_max_iter')} iterations. It checks that every stage runs; its "
-            "numbers are NOT meaningful results. Run `mjx-balance report` (default scale) for "
-            "results.")
+    return (
+        f"Tiny-scale smoke run (plan tiny): t_end = {config.scenario.t_end:g} s, region "
+        f"grids of forces {plan.get('region_forces')} N x durations "
+        f"{plan.get('region_durations')} s, table forces "
+        f"{number_list(plan.get('table_forces', []))} N, the reference solver capped at "
+        f"{plan.get('osqp_max_iter')} iterations. It checks that every stage runs; its "
+        "numbers are NOT meaningful results. Run `mjx-balance report` (default scale) for "
+        "results."
+    )
 
 
 @dataclass
@@ -287,33 +353,51 @@ class Page:
 def overview_section(page: Page) -> dict:
     """What was run, the outcome rules, the key numbers and the table of contents."""
     record, plan = page.record, page.plan
-    run = (Markup("mjx_balance {}, plan <b>{}</b>, batch backend <b>{}</b> (table and region "
-                  "maps; the time series and the weight study use the scalar reference loop, "
-                  "MuJoCo C + OSQP)").format(str(record["version"]), plan["name"],
-                                             record["backend"])
-           + (f", last run {record['seconds']:.0f} s (stages already saved are not rerun)"
-              if "seconds" in record else "")
-           + ". Base configuration: " + _config_text(page.config) + ".")
+    run = (
+        Markup(
+            "mjx_balance {}, plan <b>{}</b>, batch backend <b>{}</b> (table and region "
+            "maps; the time series and the weight study use the scalar reference loop, "
+            "MuJoCo C + OSQP)"
+        ).format(str(record["version"]), plan["name"], record["backend"])
+        + (
+            f", last run {record['seconds']:.0f} s (stages already saved are not rerun)"
+            if "seconds" in record
+            else ""
+        )
+        + ". Base configuration: "
+        + _config_text(page.config)
+        + "."
+    )
     return page.section(
         "overview",
         _run_settings(run),
-        _paragraph("Pushes start at upright rest: a horizontal force F (+ forward) on the upper "
-              "body's centre of mass for T seconds. " + _outcomes_text(page.config)
-              + " Two energies. The study's (its eq. 20), headlined in the paper convention: "
-              "|∫ τ1 dq1| and |∫ τ2 dq2|, the magnitude of the signed work of its generalised "
-              "pairs (study_energy_u1/u2, their sum study_energy_total; a recovery's signed work "
-              "is negative). The motors' absolute mechanical work ∫|τ·dq/dt| dt of the ankle "
-              "and hip (energy_ankle/hip/total), headlined in the joint convention and shown "
-              "beside the study's in the paper convention; energy_u1/u2 are ∫|τ_i dq_i| of the "
-              "convention's pairs. Energies are those of recovered runs; a value of a run that "
-              "did not recover is marked with its outcome in brackets, or left out (–)."),
+        _paragraph(
+            "Pushes start at upright rest: a horizontal force F (+ forward) on the upper "
+            "body's centre of mass for T seconds. "
+            + _outcomes_text(page.config)
+            + " Two energies. The study's (its eq. 20), headlined in the paper convention: "
+            "|∫ τ1 dq1| and |∫ τ2 dq2|, the magnitude of the signed work of its generalised "
+            "pairs (study_energy_u1/u2, their sum study_energy_total; a recovery's signed work "
+            "is negative). The motors' absolute mechanical work ∫|τ·dq/dt| dt of the ankle "
+            "and hip (energy_ankle/hip/total), headlined in the joint convention and shown "
+            "beside the study's in the paper convention; energy_u1/u2 are ∫|τ_i dq_i| of the "
+            "convention's pairs. Energies are those of recovered runs; a value of a run that "
+            "did not recover is marked with its outcome in brackets, or left out (–)."
+        ),
         {"kind": "heading", "text": "Key numbers"},
         {"kind": "list", "entries": key_numbers(page.results)},
-        {"kind": "nav", "links": [(k, h) for k, h in page.headings.items() if k != "overview"]})
+        {"kind": "nav", "links": [(k, h) for k, h in page.headings.items() if k != "overview"]},
+    )
 
 
-ENERGY_COLUMNS = ["energy_ankle", "energy_hip", "energy_total", "energy_u1", "energy_u2",
-                  *STUDY_ENERGY]
+ENERGY_COLUMNS = [
+    "energy_ankle",
+    "energy_hip",
+    "energy_total",
+    "energy_u1",
+    "energy_u2",
+    *STUDY_ENERGY,
+]
 ENERGY_01 = [f"{c}_01" for c in ENERGY_COLUMNS]
 
 
@@ -346,24 +430,36 @@ def timeseries_section(page: Page, convention: str, res: dict) -> dict:
     paths = draw_timeseries(res["timeseries"], page.figures, convention, cfg, res["summary"])
     return page.section(
         f"timeseries-{convention}",
-        _run_settings(f"Reference loop, {convention} convention, F = "
-                f"{number_list(page.plan['timeseries_forces'])} N, "
-                f"T = {page.plan['push_duration']:g} s (shaded), t_end = "
-                f"{cfg.scenario.t_end:g} s; time axes end where the action ends; dashed red: "
-                "the MPC's bounds where they apply."),
+        _run_settings(
+            f"Reference loop, {convention} convention, F = "
+            f"{number_list(page.plan['timeseries_forces'])} N, "
+            f"T = {page.plan['push_duration']:g} s (shaded), t_end = "
+            f"{cfg.scenario.t_end:g} s; time axes end where the action ends; dashed red: "
+            "the MPC's bounds where they apply."
+        ),
         _row(img(paths["ankle_angle"], "ankle angle"), img(paths["hip_angle"], "hip angle")),
         img(paths["states"], "MPC states x1, x2 against their bounds"),
         img(paths["inputs"], "MPC inputs u1, u2 against their bounds"),
-        _row(img(paths["phase_ankle"], "ankle phase portrait"),
-             img(paths["phase_hip"], "hip phase portrait")),
+        _row(
+            img(paths["phase_ankle"], "ankle phase portrait"),
+            img(paths["phase_hip"], "hip phase portrait"),
+        ),
         _row(img(paths["cop"], "CoP"), img(paths["com"], "CoM")),
-        _row(img(paths["ankle_torque"], "ankle torque"),
-             img(paths["hip_torque"], "hip torque")),
-        img(paths["energy"], "cumulative joint energy" + (
-            ": the study's (eq. 20, top) and the motors' (bottom)"
-            if convention == "paper" else "")),
-        _table(_marked(res["summary"], ENERGY_COLUMNS),
-               shown_columns("summary", convention, res["summary"])))
+        _row(img(paths["ankle_torque"], "ankle torque"), img(paths["hip_torque"], "hip torque")),
+        img(
+            paths["energy"],
+            "cumulative joint energy"
+            + (
+                ": the study's (eq. 20, top) and the motors' (bottom)"
+                if convention == "paper"
+                else ""
+            ),
+        ),
+        _table(
+            _marked(res["summary"], ENERGY_COLUMNS),
+            shown_columns("summary", convention, res["summary"]),
+        ),
+    )
 
 
 def weights_section(page: Page, convention: str, res: dict) -> dict:
@@ -371,38 +467,60 @@ def weights_section(page: Page, convention: str, res: dict) -> dict:
     on a push that recovers under every setting; a setting that did not recover shows its
     outcome, never its energy (the energy of a fall is not a recovery cost)."""
     plan = page.plan
-    blocks = [_run_settings(f"Reference loop, {convention} convention, T = "
-                      f"{plan['push_duration']:g} s; Q = s·I4 for s in "
-                      f"{number_list(plan['q_scales'])} (R default); R = s·diag(1000, 1) for s in "
-                      f"{number_list(plan['r_scales'])} (Q default).")]
-    blocks += _weight_blocks(page, convention, res["weights"], "weights",
-                             f"As the study ran it: F = {plan['weight_force']:g} N.")
+    blocks = [
+        _run_settings(
+            f"Reference loop, {convention} convention, T = "
+            f"{plan['push_duration']:g} s; Q = s·I4 for s in "
+            f"{number_list(plan['q_scales'])} (R default); R = s·diag(1000, 1) for s in "
+            f"{number_list(plan['r_scales'])} (Q default)."
+        )
+    ]
+    blocks += _weight_blocks(
+        page,
+        convention,
+        res["weights"],
+        "weights",
+        f"As the study ran it: F = {plan['weight_force']:g} N.",
+    )
     if res.get("weights_recovering") is not None:
         blocks += _weight_blocks(
-            page, convention, res["weights_recovering"], "weights_recovering",
+            page,
+            convention,
+            res["weights_recovering"],
+            "weights_recovering",
             f"On a push every setting should recover: F = "
             f"{plan.get('weight_recovering_force', 50):g} N, the largest of the study's "
             "time-series forces that recovers under all ten settings on the default body "
             "(scalar reference, paper convention, measured 2026-11-25; 80 N falls under Q ≥ "
-            "1e4 and under R = 1e-5), so that the energies below compare recovery costs.")
+            "1e4 and under R = 1e-5), so that the energies below compare recovery costs.",
+        )
     return page.section(f"weights-{convention}", *blocks)
 
 
-def _weight_blocks(page: Page, convention: str, weights: pd.DataFrame, name: str,
-                   lead: str) -> list[dict]:
+def _weight_blocks(
+    page: Page, convention: str, weights: pd.DataFrame, name: str, lead: str
+) -> list[dict]:
     """One weight comparison: its lead, figure, outcome count and table."""
     path = draw_weights(weights, page.figures, convention, name=name)
     recovered = int(catalog.is_recovered(weights).sum())
-    verdict = (f"{recovered} of {len(weights)} settings recover"
-               + ("." if recovered == len(weights) else
-                  "; the others show their outcome instead of an energy: the energy of a fall "
-                  "is not a recovery cost, so they are not compared."))
-    return [_paragraph(lead + " " + verdict),
-            img(path, ("the study's energy (eq. 20, top) and the motors' (bottom) per weight "
-                       "setting" if convention == "paper"
-                       else "ankle, hip and total energy per weight setting")),
-            _table(_marked(weights, ENERGY_COLUMNS), shown_columns("weights", convention,
-                                                                   weights))]
+    verdict = f"{recovered} of {len(weights)} settings recover" + (
+        "."
+        if recovered == len(weights)
+        else "; the others show their outcome instead of an energy: the energy of a fall "
+        "is not a recovery cost, so they are not compared."
+    )
+    return [
+        _paragraph(lead + " " + verdict),
+        img(
+            path,
+            (
+                "the study's energy (eq. 20, top) and the motors' (bottom) per weight setting"
+                if convention == "paper"
+                else "ankle, hip and total energy per weight setting"
+            ),
+        ),
+        _table(_marked(weights, ENERGY_COLUMNS), shown_columns("weights", convention, weights)),
+    ]
 
 
 def table_section(page: Page, convention: str, res: dict) -> dict:
@@ -411,48 +529,66 @@ def table_section(page: Page, convention: str, res: dict) -> dict:
     path = draw_table(res["table"], page.figures, cfg)
     return page.section(
         f"table-{convention}",
-        _run_settings(f"Batch backend {page.record['backend']}, {convention} convention, table "
-                f"forces {number_list(res['table']['force'])} N: for each force the largest T "
-                f"(to 0.01 s) such that every T up to it recovers within t_end = "
-                f"{cfg.scenario.t_end:g} s (coarse scan, then bisection; "
-                f"sweep.max_acting_time). Energies at T = 0.1 s (_01) and at the max "
-                f"acting time (_max), of recovered runs only (– when that run did not "
-                f"recover; its outcome is outcome_01)"
-                + ("; study_energy_*: the study's energy (eq. 20), energy_*: the motors' "
-                   "absolute work" if convention == "paper" else "")
-                + f". Sustained-push limit, the largest "
-                f"force held (not fallen) when it pushes for the whole window: "
-                f"{sustained_text(res['table'])}."),
+        _run_settings(
+            f"Batch backend {page.record['backend']}, {convention} convention, table "
+            f"forces {number_list(res['table']['force'])} N: for each force the largest T "
+            f"(to 0.01 s) such that every T up to it recovers within t_end = "
+            f"{cfg.scenario.t_end:g} s (coarse scan, then bisection; "
+            f"sweep.max_acting_time). Energies at T = 0.1 s (_01) and at the max "
+            f"acting time (_max), of recovered runs only (– when that run did not "
+            f"recover; its outcome is outcome_01)"
+            + (
+                "; study_energy_*: the study's energy (eq. 20), energy_*: the motors' absolute work"
+                if convention == "paper"
+                else ""
+            )
+            + f". Sustained-push limit, the largest "
+            f"force held (not fallen) when it pushes for the whole window: "
+            f"{sustained_text(res['table'])}."
+        ),
         img(path, "max acting time and energies"),
-        _table(_marked(res["table"], ENERGY_01, "outcome_01"),
-               shown_columns("table", convention, res["table"]), note_column="note"))
+        _table(
+            _marked(res["table"], ENERGY_01, "outcome_01"),
+            shown_columns("table", convention, res["table"]),
+            note_column="note",
+        ),
+    )
 
 
 def region_section(page: Page, convention: str, res: dict) -> dict:
     """Experiment 4: the outcome and energy maps and the recovered area."""
     region = res["region"]
-    outcome, energy = draw_region(region, page.figures, with_convention(page.config, convention),
-                                  res["table"])
+    outcome, energy = draw_region(
+        region, page.figures, with_convention(page.config, convention), res["table"]
+    )
     numbers = catalog.region_numbers(region)
     cfg = with_convention(page.config, convention)
     return page.section(
         f"region-{convention}",
-        _run_settings(f"Batch backend {page.record['backend']}, {convention} convention, grid "
-                f"{catalog.grid_text(region)}; each sampled (F, T) is one cell (bounds half-way "
-                "between samples, the outer ones on the first and last sample); blue: the "
-                "table's bisected max acting time."),
+        _run_settings(
+            f"Batch backend {page.record['backend']}, {convention} convention, grid "
+            f"{catalog.grid_text(region)}; each sampled (F, T) is one cell (bounds half-way "
+            "between samples, the outer ones on the first and last sample); blue: the "
+            "table's bisected max acting time."
+        ),
         _row(img(outcome, "outcome map"), img(energy, "energy of the recovered pushes")),
-        _paragraph(f"Recovered area {numbers['area']:.3g} N·s ({numbers['fraction']:.0%} of the "
-              f"grid, {numbers['recovered_cells']} of {numbers['cells']} cells); at T = "
-              f"{numbers['t_ref']:g} s the largest recovered force is "
-              f"{catalog.force_text(numbers['f_max_ref'])}."),
-        _paragraph(f"Why the falls happened ({catalog.grid_text(region)}): "
-              + catalog.infeasibility_text(region)),
-        *strategy_blocks(region, res["table"], page.figures, cfg, convention))
+        _paragraph(
+            f"Recovered area {numbers['area']:.3g} N·s ({numbers['fraction']:.0%} of the "
+            f"grid, {numbers['recovered_cells']} of {numbers['cells']} cells); at T = "
+            f"{numbers['t_ref']:g} s the largest recovered force is "
+            f"{catalog.force_text(numbers['f_max_ref'])}."
+        ),
+        _paragraph(
+            f"Why the falls happened ({catalog.grid_text(region)}): "
+            + catalog.infeasibility_text(region)
+        ),
+        *strategy_blocks(region, res["table"], page.figures, cfg, convention),
+    )
 
 
-def _conventions_reading(tables: dict[str, pd.DataFrame], numbers: dict[str, dict],
-                         grid: str = "") -> str:
+def _conventions_reading(
+    tables: dict[str, pd.DataFrame], numbers: dict[str, dict], grid: str = ""
+) -> str:
     """Which convention has the longer max acting time, and both region areas (on ``grid``)."""
     a, b = list(tables)[:2]
     ta = tables[a].set_index("force")["max_acting_time"]
@@ -460,14 +596,17 @@ def _conventions_reading(tables: dict[str, pd.DataFrame], numbers: dict[str, dic
     common = ta.index.intersection(tb.index)
     longer_a = int((ta[common] > tb[common]).sum())
     longer_b = int((tb[common] > ta[common]).sum())
-    return (f"Over the {len(common)} table forces the {a} convention has the longer max acting "
-            f"time for {longer_a} forces and the {b} convention for {longer_b} "
-            f"({len(common) - longer_a - longer_b} equal). The region maps"
-            + (f" ({grid})" if grid else "") + " recover "
-            f"{numbers[a]['area']:.3g} N·s ({a}) and {numbers[b]['area']:.3g} N·s ({b}); at T = "
-            f"{numbers[a]['t_ref']:g} s the largest recovered force is "
-            f"{catalog.force_text(numbers[a]['f_max_ref'])} ({a}) and "
-            f"{catalog.force_text(numbers[b]['f_max_ref'])} ({b}).")
+    return (
+        f"Over the {len(common)} table forces the {a} convention has the longer max acting "
+        f"time for {longer_a} forces and the {b} convention for {longer_b} "
+        f"({len(common) - longer_a - longer_b} equal). The region maps"
+        + (f" ({grid})" if grid else "")
+        + " recover "
+        f"{numbers[a]['area']:.3g} N·s ({a}) and {numbers[b]['area']:.3g} N·s ({b}); at T = "
+        f"{numbers[a]['t_ref']:g} s the largest recovered force is "
+        f"{catalog.force_text(numbers[a]['f_max_ref'])} ({a}) and "
+        f"{catalog.force_text(numbers[b]['f_max_ref'])} ({b})."
+    )
 
 
 def conventions_section(page: Page) -> dict:
@@ -478,8 +617,9 @@ def conventions_section(page: Page) -> dict:
     tables = {c: results[c]["table"] for c in convs}
     merged = None
     for c in convs:
-        part = tables[c][["force", "max_acting_time", "energy_total_01", "energy_total_max",
-                          "outcome_01"]]
+        part = tables[c][
+            ["force", "max_acting_time", "energy_total_01", "energy_total_max", "outcome_01"]
+        ]
         part = mark_outcomes(part, ["energy_total_01"], "outcome_01").drop(columns="outcome_01")
         part = part.rename(columns={k: f"{k} ({c})" for k in part.columns if k != "force"})
         merged = part if merged is None else merged.merge(part, on="force", how="outer")
@@ -494,17 +634,20 @@ def conventions_section(page: Page) -> dict:
     images = [img(region_figure(page.figures, c), f"region map, {c}") for c in convs]
     return page.section(
         "conventions",
-        _run_settings("Both conventions with the same configuration otherwise; the paper "
-                "convention reads the study's equations literally (generalised forces "
-                "τ1, τ2 on the absolute tilts), the joint convention uses the motor "
-                "torques and joint angles. Bounds apply to each convention's own x and u. "
-                "An energy of a run that did not recover carries its outcome in brackets."),
-        img(path, "max acting time per force"), _table(merged),
+        _run_settings(
+            "Both conventions with the same configuration otherwise; the paper "
+            "convention reads the study's equations literally (generalised forces "
+            "τ1, τ2 on the absolute tilts), the joint convention uses the motor "
+            "torques and joint angles. Bounds apply to each convention's own x and u. "
+            "An energy of a run that did not recover carries its outcome in brackets."
+        ),
+        img(path, "max acting time per force"),
+        _table(merged),
         {"kind": "heading", "text": f"Time-series pushes (T = {page.plan['push_duration']:g} s)"},
         _table(outcomes),
         _row(*images),
-        _paragraph(_conventions_reading(tables, numbers, grid_of(results[a]["region"])),
-              "reading"))
+        _paragraph(_conventions_reading(tables, numbers, grid_of(results[a]["region"])), "reading"),
+    )
 
 
 def study_section(page: Page, key: str, res: dict) -> dict:
@@ -516,14 +659,19 @@ def study_section(page: Page, key: str, res: dict) -> dict:
     files = ", ".join(v["file"] for v in res["variants"] if v["file"])
     return page.section(
         f"study-{key}",
-        _run_settings(st.question + f" Sweep definitions (shipped with the package): {files}; "
-                f"convention {page.config.controller.convention}; batch backend "
-                f"{page.record['backend']}; grid {catalog.grid_text(first)}."),
+        _run_settings(
+            st.question + f" Sweep definitions (shipped with the package): {files}; "
+            f"convention {page.config.controller.convention}; batch backend "
+            f"{page.record['backend']}; grid {catalog.grid_text(first)}."
+        ),
         _row(*images),
         _table(numbers, STUDY_SHOWN),
         _paragraph(catalog.reading(st, numbers, first), "reading"),
-        *(_paragraph(f"{v['label']}: " + catalog.infeasibility_text(res["regions"][v["key"]]))
-          for v in res["variants"]))
+        *(
+            _paragraph(f"{v['label']}: " + catalog.infeasibility_text(res["regions"][v["key"]]))
+            for v in res["variants"]
+        ),
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -534,15 +682,23 @@ def _environment():
     """The Jinja2 environment of the report templates (package data), autoescaping on."""
     from jinja2 import Environment, PackageLoader, StrictUndefined
 
-    return Environment(loader=PackageLoader("mjx_balance.report", "templates"),
-                       autoescape=True, undefined=StrictUndefined, trim_blocks=True,
-                       lstrip_blocks=True, keep_trailing_newline=True)
+    return Environment(
+        loader=PackageLoader("mjx_balance.report", "templates"),
+        autoescape=True,
+        undefined=StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+        keep_trailing_newline=True,
+    )
 
 
 def page_html(sections_: list[dict], banner_text: str | None = None) -> str:
     """The whole self-contained HTML document around the sections (templates/report.html.j2)."""
-    return _environment().get_template(TEMPLATE).render(
-        title=TITLE, css=CSS, banner=banner_text, sections=embed(sections_))
+    return (
+        _environment()
+        .get_template(TEMPLATE)
+        .render(title=TITLE, css=CSS, banner=banner_text, sections=embed(sections_))
+    )
 
 
 def build_report(out: str | Path) -> Path:
@@ -554,10 +710,12 @@ def build_report(out: str | Path) -> Path:
     card = scorecard_section(out, list(page.results["conventions"]), figures)
     body = ([card] if card is not None else []) + [overview_section(page)]
     for convention, res in page.results["conventions"].items():
-        body += [timeseries_section(page, convention, res),
-                 weights_section(page, convention, res),
-                 table_section(page, convention, res),
-                 region_section(page, convention, res)]
+        body += [
+            timeseries_section(page, convention, res),
+            weights_section(page, convention, res),
+            table_section(page, convention, res),
+            region_section(page, convention, res),
+        ]
     if len(page.results["conventions"]) > 1:
         body.append(conventions_section(page))
     for key, res in page.results["studies"].items():

@@ -11,7 +11,20 @@ from .sensing import Sensors, sensors
 from .runner import BatchRunner, push_steps, summarize
 
 __all__ = [
-    "Accumulators", "Arrays", "BatchRunner", "MJX_OPTIONS", "Sensors", "Static", "advance",
-    "cast_floats", "mj_model", "mjx_model", "open_loop", "push_steps", "rest_data", "scenario",
-    "sensors", "summarize",
+    "Accumulators",
+    "Arrays",
+    "BatchRunner",
+    "MJX_OPTIONS",
+    "Sensors",
+    "Static",
+    "advance",
+    "cast_floats",
+    "mj_model",
+    "mjx_model",
+    "open_loop",
+    "push_steps",
+    "rest_data",
+    "scenario",
+    "sensors",
+    "summarize",
 ]

@@ -60,15 +60,30 @@ from ..model.mjcf import indices
 from ..model.params import Config
 from .queue import Queue
 from .engine import NO_PROBE, Engine, Probe, cells_of
-from .slots import (Finished, Slots, broadcast, checker, decide, empty_finished, retire,
-                    take)
+from .slots import Finished, Slots, broadcast, checker, decide, empty_finished, retire, take
 from ..runtime import compiled, signals
 from ..runtime.compiled import MATMUL_PRECISION
-from .kernel import (Carry, conclude_batch, initial_carry, limits_of, prepare_batch, remember,
-                     sample_update, select, solve_lanes)
+from .kernel import (
+    Carry,
+    conclude_batch,
+    initial_carry,
+    limits_of,
+    prepare_batch,
+    remember,
+    sample_update,
+    select,
+    solve_lanes,
+)
 from .physics import mj_model, mjx
-from .sensing import (Sample, Sensors, cell_heights, com_velocity, pendulum_frequency, state,
-                      whole_body_com)
+from .sensing import (
+    Sample,
+    Sensors,
+    cell_heights,
+    com_velocity,
+    pendulum_frequency,
+    state,
+    whole_body_com,
+)
 
 PATHS = ("auto", "mjx", "c")
 
@@ -93,8 +108,9 @@ ROW = 15 + NV
 AUTO_ON_CPU = "mjx"
 
 
-def resolve(physics: str, config: Config, trajectories: bool = False,
-            platform: str | None = None) -> str:
+def resolve(
+    physics: str, config: Config, trajectories: bool = False, platform: str | None = None
+) -> str:
     """The path that runs: ``physics`` ("auto", "mjx" or "c") for this configuration on
     ``platform`` (default: JAX's). "c" where it cannot run is an error; "auto" falls back to
     MJX there."""
@@ -115,8 +131,10 @@ def resolve(physics: str, config: Config, trajectories: bool = False,
 def unsupported(config: Config, trajectories: bool = False) -> str | None:
     """Why the C path cannot run this (None: it can)."""
     if config.scenario.push_body != "upper":
-        return ("the C path pushes at the upper body's CoM only (scenario.push_body = "
-                f"{config.scenario.push_body!r} needs the MJX path)")
+        return (
+            "the C path pushes at the upper body's CoM only (scenario.push_body = "
+            f"{config.scenario.push_body!r} needs the MJX path)"
+        )
     if trajectories:
         return "the C path returns summaries only (per-step series come from the MJX path)"
     return None
@@ -129,8 +147,9 @@ def sensor_xml(model: mujoco.MjModel) -> str:
     lines = []
     for g in ix.cell_geoms:
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
-        lines.append(f'    <contact geom1="{name}" geom2="floor" data="found force pos" '
-                     'num="1"/>\n')
+        lines.append(
+            f'    <contact geom1="{name}" geom2="floor" data="found force pos" num="1"/>\n'
+        )
     for g in ix.cell_geoms:
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
         lines.append(f'    <framepos objtype="geom" objname="{name}"/>\n')
@@ -196,23 +215,33 @@ class CPhysics:
             self._pool.close()
             self._pool = None
 
-    def advance(self, state0: np.ndarray, warm0: np.ndarray, torques: np.ndarray,
-                push: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def advance(
+        self, state0: np.ndarray, warm0: np.ndarray, torques: np.ndarray, push: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """``substeps`` steps of n scenarios from full states [n, nstate] with warm starts
         [n, nv], motor torques [n, 2] held and the push [n, substeps] (N). Returns the states
         [n, S, nstate] and sensor values [n, S, nsensordata] after each step."""
         n, S = state0.shape[0], self.substeps
         m = self.model
         control = np.zeros((n, S, self.ncontrol))
-        control[:, :, :m.nu] = torques[:, None, :]
+        control[:, :, : m.nu] = torques[:, None, :]
         control[:, :, self.push_col] = push
         states = np.empty((n, S, self.nstate))
         sens = np.empty((n, S, m.nsensordata))
         chunk = max(1, n // (10 * self.threads))
-        self._pool.rollout([m] * n, self._data, np.ascontiguousarray(state0), control,
-                           control_spec=_CONTROL_SPEC, skip_checks=True, nstep=S,
-                           initial_warmstart=np.ascontiguousarray(warm0), state=states,
-                           sensordata=sens, chunk_size=chunk)
+        self._pool.rollout(
+            [m] * n,
+            self._data,
+            np.ascontiguousarray(state0),
+            control,
+            control_spec=_CONTROL_SPEC,
+            skip_checks=True,
+            nstep=S,
+            initial_warmstart=np.ascontiguousarray(warm0),
+            state=states,
+            sensordata=sens,
+            chunk_size=chunk,
+        )
         return states, sens
 
     def next_warm(self, state0: np.ndarray, states: np.ndarray) -> np.ndarray:
@@ -233,15 +262,15 @@ class CPhysics:
         normal = np.where(contact[..., 0] > 0, contact[..., 1], 0.0)
         total = normal.sum(-1)
         with np.errstate(invalid="ignore", divide="ignore"):
-            rows[..., COP] = np.where(total > 0, (normal * contact[..., 4]).sum(-1) / total,
-                                      np.nan)
+            rows[..., COP] = np.where(total > 0, (normal * contact[..., 4]).sum(-1) / total, np.nan)
         # positions at the start of step j + 1 belong to sample j
         z = sens[:, 1:, self.framepos + 2]
         rows[:, :-1, CELLS] = z - self.radius
         rows[:, :-1, COM] = sens[:, 1:, self.subtreecom]
         rows[:, :-1, VCOM] = sens[:, 1:, self.subtreelinvel]
         rows[:, :-1, HEEL], rows[:, :-1, TOE] = outcomes.support_edges(
-            np, sens[:, 1:, self.framepos])
+            np, sens[:, 1:, self.framepos]
+        )
         rows[..., QVEL] = qvel
         expected = TIME0 + (np.arange(S) + 1) * self.dt
         rows[..., OK] = np.abs(states[..., 0] - expected) < 0.5 * self.dt
@@ -258,9 +287,18 @@ class CState(NamedTuple):
     u: jax.Array  # [2]
 
 
-def fold_period(arrays, sensors: Sensors, static, carry: Carry, rows: jax.Array,
-                last_qpos: jax.Array, k: jax.Array, *, torques: jax.Array,
-                u: jax.Array) -> Carry:
+def fold_period(
+    arrays,
+    sensors: Sensors,
+    static,
+    carry: Carry,
+    rows: jax.Array,
+    last_qpos: jax.Array,
+    k: jax.Array,
+    *,
+    torques: jax.Array,
+    u: jax.Array,
+) -> Carry:
     """The S samples of period k (decoded ``rows`` [S, ROW]; ``last_qpos`` [nq] the last
     sample's) folded into one slot's carry; torques [2] and u [2] held during the period."""
     dtype = arrays.d0.qpos.dtype
@@ -277,16 +315,36 @@ def fold_period(arrays, sensors: Sensors, static, carry: Carry, rows: jax.Array,
     def one(carry: Carry, inputs):
         j, r = inputs
         q, dq = r[Q], r[DQ]
-        _, mos_toe, mos_heel = outcomes.stability_margins(jnp, r[COM], r[VCOM], r[HEEL],
-                                                          r[TOE], omega0)
-        s = Sample(q=q, dq=dq, x=state(arrays, q, dq), pitch=r[PITCH], cell_low=r[CELLS],
-                   cop=r[COP], com=r[COM],
-                   magnitude=jnp.where(r[OK] > 0, jnp.zeros((), dtype), jnp.inf),
-                   qvel=r[QVEL], com_vel=r[VCOM], mos_toe=mos_toe, mos_heel=mos_heel)
-        acc = sample_update(carry.acc, s, k * S + j, torques, u, carry.q_prev, carry.x_prev,
-                            limits_of(arrays, static))
-        return carry._replace(acc=acc, q_prev=s.q, x_prev=s.x,
-                              history=remember(carry.history, s)), None
+        _, mos_toe, mos_heel = outcomes.stability_margins(
+            jnp, r[COM], r[VCOM], r[HEEL], r[TOE], omega0
+        )
+        s = Sample(
+            q=q,
+            dq=dq,
+            x=state(arrays, q, dq),
+            pitch=r[PITCH],
+            cell_low=r[CELLS],
+            cop=r[COP],
+            com=r[COM],
+            magnitude=jnp.where(r[OK] > 0, jnp.zeros((), dtype), jnp.inf),
+            qvel=r[QVEL],
+            com_vel=r[VCOM],
+            mos_toe=mos_toe,
+            mos_heel=mos_heel,
+        )
+        acc = sample_update(
+            carry.acc,
+            s,
+            k * S + j,
+            torques,
+            u,
+            carry.q_prev,
+            carry.x_prev,
+            limits_of(arrays, static),
+        )
+        return carry._replace(
+            acc=acc, q_prev=s.q, x_prev=s.x, history=remember(carry.history, s)
+        ), None
 
     return jax.lax.scan(one, carry, (jnp.arange(S, dtype=jnp.int32), rows))[0]
 
@@ -295,12 +353,19 @@ def unpack(floats: jax.Array, ints: jax.Array, S: int):
     """The two arrays a call receives (one transfer each) -> sample rows [B, S, ROW], the last
     sample's qpos [B, nq], refill cells, forces and push steps [B], the period counter []."""
     B = floats.shape[0]
-    rows = floats[:, :S * ROW].reshape(B, S, ROW)
-    return (rows, floats[:, S * ROW:-1], ints[:, 0], floats[:, -1], ints[:, 1], ints[0, 2])
+    rows = floats[:, : S * ROW].reshape(B, S, ROW)
+    return (rows, floats[:, S * ROW : -1], ints[:, 0], floats[:, -1], ints[:, 1], ints[0, 2])
 
 
-def pack(rows: np.ndarray, last_qpos: np.ndarray, cell: np.ndarray, force: np.ndarray,
-         push: np.ndarray, p: int, dtype) -> tuple[np.ndarray, np.ndarray]:
+def pack(
+    rows: np.ndarray,
+    last_qpos: np.ndarray,
+    cell: np.ndarray,
+    force: np.ndarray,
+    push: np.ndarray,
+    p: int,
+    dtype,
+) -> tuple[np.ndarray, np.ndarray]:
     """The host side of :func:`unpack`."""
     B = rows.shape[0]
     floats = np.concatenate([rows.reshape(B, -1), last_qpos, force[:, None]], axis=1)
@@ -319,22 +384,35 @@ def call(arrays, sensors, static, cert, cs: CState, floats, ints, *, early_stop:
     carry, k = folded(arrays, sensors, static, cs, rows, last_qpos)
     # 2. decided scenarios harvested and their slots vacated; vacant slots take new cells
     verdict = judged(arrays, static, check, cs, carry, k, p)
-    slots, fresh, taken, done = turnover(arrays, sensors, static, check is not None, cs, carry,
-                                         k, p, verdict=verdict,
-                                         offer=(refill_cell, refill_force, refill_push))
+    slots, fresh, taken, done = turnover(
+        arrays,
+        sensors,
+        static,
+        check is not None,
+        cs,
+        carry,
+        k,
+        p,
+        verdict=verdict,
+        offer=(refill_cell, refill_force, refill_push),
+    )
     # 3. every slot's MPC (a vacant one solves x = 0 at rest; its result is not used)
     pre = prepare_batch(arrays, static, slots.carry)
-    carry, u, torques = conclude_batch(arrays, static, pre, solve_lanes(arrays, static, pre),
-                                       slots.k)
+    carry, u, torques = conclude_batch(
+        arrays, static, pre, solve_lanes(arrays, static, pre), slots.k
+    )
     return outputs(static, slots._replace(carry=carry), u, torques, fresh, taken, done)
 
 
-def folded(arrays, sensors: Sensors, static, cs: CState, rows, last_qpos
-           ) -> tuple[Carry, jax.Array]:
+def folded(
+    arrays, sensors: Sensors, static, cs: CState, rows, last_qpos
+) -> tuple[Carry, jax.Array]:
     """Step 1 of a call: the samples of the period each slot ran (``cs.ran``) folded into its
     carry (:func:`fold_period`); the carry and the periods done."""
+
     def fold(c, r, q, k, t, u):
         return fold_period(arrays, sensors, static, c, r, q, k, torques=t, u=u)
+
     slots = cs.slots
     carry = jax.vmap(fold)(slots.carry, rows, last_qpos, slots.k, cs.torques, cs.u)
     return select(cs.ran, carry, slots.carry), jnp.where(cs.ran, slots.k + 1, slots.k)
@@ -344,13 +422,31 @@ def judged(arrays, static, check, cs: CState, carry: Carry, k, p):
     """The engine's :func:`slots.decide` over the slots that ran a period before call ``p``
     (the certificate checks after every ``CHECK_EVERY``-th period, as on the MJX path)."""
     every = cert_mod.CHECK_EVERY
-    return decide(check, static, arrays.n_control, carry, k,
-                  (cs.slots.n_push, cs.slots.force), cs.ran, (p - 1) % every == every - 1)
+    return decide(
+        check,
+        static,
+        arrays.n_control,
+        carry,
+        k,
+        (cs.slots.n_push, cs.slots.force),
+        cs.ran,
+        (p - 1) % every == every - 1,
+    )
 
 
-def turnover(arrays, sensors: Sensors, static, gated: bool, cs: CState, carry: Carry, k, p, *,
-             verdict, offer: tuple[jax.Array, jax.Array, jax.Array]
-             ) -> tuple[Slots, jax.Array, jax.Array, Finished]:
+def turnover(
+    arrays,
+    sensors: Sensors,
+    static,
+    gated: bool,
+    cs: CState,
+    carry: Carry,
+    k,
+    p,
+    *,
+    verdict,
+    offer: tuple[jax.Array, jax.Array, jax.Array],
+) -> tuple[Slots, jax.Array, jax.Array, Finished]:
     """Step 2 of call ``p``: the decided scenarios (``verdict``: :func:`judged`) harvested and
     their slots vacated, then the refill (``gated``: with the certificate, only every
     ``CHECK_EVERY`` periods, as on the MJX path). Returns the slots, which were refilled (their
@@ -359,15 +455,25 @@ def turnover(arrays, sensors: Sensors, static, gated: bool, cs: CState, carry: C
     acc, certified, decided = verdict
     rest = broadcast(initial_carry(arrays, sensors, static)._replace(d=None), B)
     zero = jnp.zeros((), jnp.int32)
-    done, _, slots = retire(empty_finished(B, arrays.d0.qpos.dtype), zero, decided, cs.slots,
-                            acc, k, certified, carry=carry, rest=rest)
+    done, _, slots = retire(
+        empty_finished(B, arrays.d0.qpos.dtype),
+        zero,
+        decided,
+        cs.slots,
+        acc,
+        k,
+        certified,
+        carry=carry,
+        rest=rest,
+    )
     vacant = slots.cell < 0
     slots, taken = take(slots, rest, zero, p, *offer, None, gated=gated)
     return slots, vacant & (slots.cell >= 0), taken, done
 
 
-def outputs(static, slots: Slots, u, torques, fresh, taken, done: Finished
-            ) -> tuple[CState, jax.Array, jax.Array]:
+def outputs(
+    static, slots: Slots, u, torques, fresh, taken, done: Finished
+) -> tuple[CState, jax.Array, jax.Array]:
     """Step 3's end: the state and the call's two output arrays. floats = the torques [2] and
     push [S] to run, then the finished buffer's float accumulators; ints = whether the slot was
     refilled, whether it is busy, the finished buffer's cell, periods and certified, the
@@ -376,13 +482,16 @@ def outputs(static, slots: Slots, u, torques, fresh, taken, done: Finished
     B = slots.cell.shape[0]
     busy = slots.cell >= 0
     steps = slots.k[:, None] * S + jnp.arange(S, dtype=jnp.int32)[None]
-    push = jnp.where(steps < slots.n_push[:, None], slots.force[:, None],
-                     jnp.zeros((), slots.force.dtype))
+    push = jnp.where(
+        steps < slots.n_push[:, None], slots.force[:, None], jnp.zeros((), slots.force.dtype)
+    )
     cs = CState(slots=slots, ran=busy, torques=torques, u=u)
     acc_f, acc_i = pack_acc(done.acc)
     out_f = jnp.concatenate([torques, push, acc_f], axis=1)
-    flags = jnp.stack([fresh, busy, done.cell, done.periods, done.certified,
-                       jnp.broadcast_to(taken, (B,))], axis=1).astype(jnp.int32)
+    flags = jnp.stack(
+        [fresh, busy, done.cell, done.periods, done.certified, jnp.broadcast_to(taken, (B,))],
+        axis=1,
+    ).astype(jnp.int32)
     return cs, out_f, jnp.concatenate([flags, acc_i], axis=1)
 
 
@@ -411,13 +520,22 @@ class CEngine(Engine):
 
     physics = "c"
 
-    def __init__(self, runner, *, slots: int | None = None, early_stop: bool = True,
-                 threads: int | None = None, **options: Any):
+    def __init__(
+        self,
+        runner,
+        *,
+        slots: int | None = None,
+        early_stop: bool = True,
+        threads: int | None = None,
+        **options: Any,
+    ):
         # Engine's other options have no meaning here: one control period a call (block), no
         # ADMM tiles of a slot group (tile), one body per engine (bodies). Refused, not dropped.
         if options:
-            raise TypeError(f"the C path's engine takes slots, early_stop and threads; not "
-                            f"{', '.join(sorted(options))}")
+            raise TypeError(
+                f"the C path's engine takes slots, early_stop and threads; not "
+                f"{', '.join(sorted(options))}"
+            )
         reason = unsupported(runner.config, runner.trajectories)
         if reason:
             raise ValueError(reason)
@@ -432,18 +550,31 @@ class CEngine(Engine):
         self._leaves = tuple(leaves if whole is None else jax.device_put(leaves, whole))
 
     def _key(self) -> tuple:
-        return ("cpath", self.runner._shape_key(self.slots, self.static), self.cert is not None,
-                None if self.cert is None else tuple(np.shape(v) for v in self.cert))
+        return (
+            "cpath",
+            self.runner._shape_key(self.slots, self.static),
+            self.cert is not None,
+            None if self.cert is None else tuple(np.shape(v) for v in self.cert),
+        )
 
     def _template(self, arrays) -> CState:
         r = self.runner
         n = self.slots * self.n_devices
         carry = broadcast(initial_carry(arrays, r.sensors, r.static)._replace(d=None), n)
-        slots = Slots(carry=carry, cell=jnp.full(n, -1, jnp.int32), force=jnp.zeros(n, r.dtype),
-                      n_push=jnp.zeros(n, jnp.int32), k=jnp.zeros(n, jnp.int32),
-                      body=jnp.zeros(n, jnp.int32))
-        return CState(slots=slots, ran=jnp.zeros(n, bool), torques=jnp.zeros((n, 2), r.dtype),
-                      u=jnp.zeros((n, 2), r.dtype))
+        slots = Slots(
+            carry=carry,
+            cell=jnp.full(n, -1, jnp.int32),
+            force=jnp.zeros(n, r.dtype),
+            n_push=jnp.zeros(n, jnp.int32),
+            k=jnp.zeros(n, jnp.int32),
+            body=jnp.zeros(n, jnp.int32),
+        )
+        return CState(
+            slots=slots,
+            ran=jnp.zeros(n, bool),
+            torques=jnp.zeros((n, 2), r.dtype),
+            u=jnp.zeros((n, 2), r.dtype),
+        )
 
     def _initial_state(self) -> CState:
         batch_sharding, _ = self.runner._shardings()
@@ -470,9 +601,13 @@ class CEngine(Engine):
             run = one
             if r.mesh is not None:
                 P = jax.sharding.PartitionSpec
-                run = jax.shard_map(one, mesh=r.mesh,
-                                    in_specs=(P(), P("batch"), P("batch"), P("batch")),
-                                    out_specs=P("batch"), check_vma=False)
+                run = jax.shard_map(
+                    one,
+                    mesh=r.mesh,
+                    in_specs=(P(), P("batch"), P("batch"), P("batch")),
+                    out_specs=P("batch"),
+                    check_vma=False,
+                )
             return jax.jit(run, donate_argnums=(1,))
 
         key = self._key()
@@ -480,8 +615,15 @@ class CEngine(Engine):
         fn = compiled.get_or_compile(key, build)
         state = self._state if self._state is not None else self._initial_state()
         n = self.slots * self.n_devices
-        floats, ints = pack(np.zeros((n, r.static.substeps, ROW)), np.zeros((n, self.c.nq)),
-                            np.full(n, -1), np.zeros(n), np.zeros(n), 0, r.dtype)
+        floats, ints = pack(
+            np.zeros((n, r.static.substeps, ROW)),
+            np.zeros((n, self.c.nq)),
+            np.full(n, -1),
+            np.zeros(n),
+            np.zeros(n),
+            0,
+            r.dtype,
+        )
         t1 = _time.perf_counter()
         state, *_ = fn(self._leaves, state, self._put(floats), self._put(ints))
         self._state = jax.block_until_ready(state)  # all vacant: nothing was run
@@ -495,9 +637,14 @@ class CEngine(Engine):
         batch_sharding, _ = self.runner._shardings()
         return jnp.asarray(a) if batch_sharding is None else jax.device_put(a, batch_sharding)
 
-    def stream(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None,
-               probe: Probe | None = None, bodies: np.ndarray | None = None
-               ) -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:
+    def stream(
+        self,
+        forces: np.ndarray,
+        n_push: np.ndarray,
+        inits: np.ndarray | None = None,
+        probe: Probe | None = None,
+        bodies: np.ndarray | None = None,
+    ) -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:
         """As :meth:`engine.Engine.stream`, one control period per call (from upright rest
         only: ``inits`` must be None or zero; one body: ``bodies`` None or zero)."""
         _refuse_cells(inits, bodies)
@@ -533,13 +680,13 @@ class CEngine(Engine):
                 probe.after(p, (out_f, out_i))
                 p += 1
                 with probe("python"):
-                    torques, push = out_f[:, :2], out_f[:, 2:2 + S]
+                    torques, push = out_f[:, :2], out_f[:, 2 : 2 + S]
                     reset, busy = out_i[:, 0] > 0, out_i[:, 1] > 0
                     index = out_i[:, 2]
-                    queue.took(out_i[::self.slots, 5])  # one per device
+                    queue.took(out_i[:: self.slots, 5])  # one per device
                     keep = index >= 0
                     if keep.any():
-                        raw = unpack_acc(out_f[keep, 2 + S:], out_i[keep, 6:], template)
+                        raw = unpack_acc(out_f[keep, 2 + S :], out_i[keep, 6:], template)
                         raw["periods"], raw["certified"] = out_i[keep, 3], out_i[keep, 4] > 0
                         queue.finished(index[keep], raw["periods"])
                         remaining -= int(keep.sum())
@@ -553,9 +700,12 @@ class CEngine(Engine):
                     run = np.flatnonzero(busy)
                 if run.size:
                     with probe("physics"):
-                        states, sens = c.advance(phys[run], warm[run],
-                                                 torques[run].astype(float),
-                                                 push[run].astype(float))
+                        states, sens = c.advance(
+                            phys[run],
+                            warm[run],
+                            torques[run].astype(float),
+                            push[run].astype(float),
+                        )
                     with probe("samples_host"):
                         warm[run] = c.next_warm(phys[run], states)
                         phys[run] = states[:, -1]
@@ -570,11 +720,15 @@ class CEngine(Engine):
 def _refuse_cells(inits: np.ndarray | None, bodies: np.ndarray | None) -> None:
     """Raise ValueError for cells the C path cannot run: off upright rest or of other bodies."""
     if inits is not None and np.any(inits):
-        raise ValueError("the MuJoCo C path starts every scenario at upright rest; "
-                         "initial states need --physics mjx")
+        raise ValueError(
+            "the MuJoCo C path starts every scenario at upright rest; "
+            "initial states need --physics mjx"
+        )
     if bodies is not None and np.any(bodies):
-        raise ValueError("the MuJoCo C path steps one body's model; several bodies in "
-                         "one queue need --physics mjx")
+        raise ValueError(
+            "the MuJoCo C path steps one body's model; several bodies in "
+            "one queue need --physics mjx"
+        )
 
 
 def default_slots() -> int:
@@ -583,5 +737,15 @@ def default_slots() -> int:
 
 
 # (re-exported for the tests)
-__all__ = ["CEngine", "CPhysics", "CState", "PATHS", "TIME0", "call",
-           "default_threads", "fold_period", "sensor_xml", "unsupported"]
+__all__ = [
+    "CEngine",
+    "CPhysics",
+    "CState",
+    "PATHS",
+    "TIME0",
+    "call",
+    "default_threads",
+    "fold_period",
+    "sensor_xml",
+    "unsupported",
+]

@@ -53,7 +53,6 @@ from .slots import Packing, Slots, block, broadcast
 LANE_TILE = 8
 
 
-
 def default_slots(platform: str) -> int:
     """Slots per device: 32 on a CPU (the fastest per scenario measured on 2 cores, batch 16-64:
     BENCHMARKS.md), 4096 on an accelerator."""
@@ -78,8 +77,9 @@ def certificate(runner, early_stop: bool):
     except ValueError as exc:  # e.g. a bound through rest: run to t_end instead
         warnings.warn(f"no certified early stop for this configuration: {exc}", stacklevel=4)
         cert = None
-    built.append(None if cert is None else
-                 jax.tree.map(lambda v: jnp.asarray(v, runner.dtype), cert))
+    built.append(
+        None if cert is None else jax.tree.map(lambda v: jnp.asarray(v, runner.dtype), cert)
+    )
     return built[0]
 
 
@@ -94,8 +94,10 @@ def lane_bodies(runner, bodies: Sequence[Any], early_stop: bool) -> tuple[Arrays
     key = runner._shape_key(1, runner.static._replace(n_control=None))
     for other in bodies:
         if other._shape_key(1, other.static._replace(n_control=None)) != key:
-            raise ValueError("bodies must share the shapes and static settings of one compiled "
-                             "program (horizon, delay, t_end, ADMM settings, thresholds)")
+            raise ValueError(
+                "bodies must share the shapes and static settings of one compiled "
+                "program (horizon, delay, t_end, ADMM settings, thresholds)"
+            )
     certs = [certificate(b, early_stop) for b in bodies]
     if len({c is None for c in certs}) > 1:
         raise ValueError("bodies: some have a certificate and some not; run them apart")
@@ -106,8 +108,7 @@ def lane_bodies(runner, bodies: Sequence[Any], early_stop: bool) -> tuple[Arrays
     certs += [certs[-1]] * (len(padded) - len(certs))
 
     def stack(trees):  # on the host: jnp.stack or jnp.asarray would compile a program per leaf
-        return jax.tree.map(lambda *v: jax.device_put(np.stack([np.asarray(x) for x in v])),
-                            *trees)
+        return jax.tree.map(lambda *v: jax.device_put(np.stack([np.asarray(x) for x in v])), *trees)
 
     arrays = stack([b.arrays for b in padded])
     _, whole = runner._shardings()
@@ -166,19 +167,29 @@ class Engine:
     (:func:`slots.refill_tiles`). None: one body, shared by every slot.
     """
 
-    def __init__(self, runner, *, slots: int | None = None, block: int = 100,
-                 early_stop: bool = True, refill: int | None = None, tile: int | None = None,
-                 bodies: Sequence[Any] | None = None):
+    def __init__(
+        self,
+        runner,
+        *,
+        slots: int | None = None,
+        block: int = 100,
+        early_stop: bool = True,
+        refill: int | None = None,
+        tile: int | None = None,
+        bodies: Sequence[Any] | None = None,
+    ):
         self.runner = runner
         devices: list[Any] = [None] if runner.mesh is None else list(runner.mesh.devices.flat)
         self.n_devices = len(devices)
         platform = (jax.local_devices()[0] if runner.mesh is None else devices[0]).platform
         if platform == "cpu" and not deterministic_flags():
-            warnings.warn("JAX started before mjx_balance could set its XLA options "
-                          "(mjx_balance.runtime.xla): results may depend on the slot a "
-                          "scenario ran in; import mjx_balance before running anything with "
-                          "JAX",
-                          stacklevel=3)
+            warnings.warn(
+                "JAX started before mjx_balance could set its XLA options "
+                "(mjx_balance.runtime.xla): results may depend on the slot a "
+                "scenario ran in; import mjx_balance before running anything with "
+                "JAX",
+                stacklevel=3,
+            )
         self.slots = int(slots or default_slots(platform))
         if self.slots < 1:
             raise ValueError(f"slots must be >= 1, got {slots}")
@@ -191,8 +202,9 @@ class Engine:
             raise ValueError(f"ADMM tile {tile} must divide the slots per device, {self.slots}")
         self.lanes = bodies is not None
         if self.lanes:  # body tiles (default: LANE_TILE slots, or fewer dividing the slots)
-            self.tile: int | None = (int(tile) if tile is not None
-                                     else math.gcd(self.slots, LANE_TILE))
+            self.tile: int | None = (
+                int(tile) if tile is not None else math.gcd(self.slots, LANE_TILE)
+            )
         else:
             self.tile = int(tile) if tile is not None and tile < self.slots else None
         self.early_stop = bool(early_stop)
@@ -214,11 +226,16 @@ class Engine:
     # -- compilation ----------------------------------------------------------------------
 
     def _key(self) -> tuple:
-        return ("engine", self.runner._shape_key(self.slots, self.static), self.refill,
-                self.block,
-                self.tile, self.cert is not None, None if self.cert is None else
-                tuple(np.shape(v) for v in self.cert),
-                self.lanes and jax.tree.leaves(self.arrays)[0].shape[0])
+        return (
+            "engine",
+            self.runner._shape_key(self.slots, self.static),
+            self.refill,
+            self.block,
+            self.tile,
+            self.cert is not None,
+            None if self.cert is None else tuple(np.shape(v) for v in self.cert),
+            self.lanes and jax.tree.leaves(self.arrays)[0].shape[0],
+        )
 
     def block_fn(self):
         """The compiled call: (arrays, cert, slots, refill cell/force/push) -> (slots, taken,
@@ -232,31 +249,65 @@ class Engine:
         packing, tile, lanes = self.packing, self.tile, self.lanes
 
         def call(arrays, cert, slots, cell, force, push, init, body):
-            return block(arrays, sensors, static, cert, slots, refill_cell=cell,
-                         refill_force=force, refill_push=push, refill_init=init,
-                         refill_body=body, periods=periods, early_stop=early_stop, packing=packing,
-                         tile=tile, lanes=lanes)
+            return block(
+                arrays,
+                sensors,
+                static,
+                cert,
+                slots,
+                refill_cell=cell,
+                refill_force=force,
+                refill_push=push,
+                refill_init=init,
+                refill_body=body,
+                periods=periods,
+                early_stop=early_stop,
+                packing=packing,
+                tile=tile,
+                lanes=lanes,
+            )
 
         def build():
             run = call
             if r.mesh is not None:
                 P = jax.sharding.PartitionSpec
-                run = jax.shard_map(call, mesh=r.mesh,
-                                    in_specs=(P(), P(), P("batch"), P("batch"), P("batch"),
-                                              P("batch"), P("batch"), P("batch")),
-                                    out_specs=P("batch"), check_vma=False)
+                run = jax.shard_map(
+                    call,
+                    mesh=r.mesh,
+                    in_specs=(
+                        P(),
+                        P(),
+                        P("batch"),
+                        P("batch"),
+                        P("batch"),
+                        P("batch"),
+                        P("batch"),
+                        P("batch"),
+                    ),
+                    out_specs=P("batch"),
+                    check_vma=False,
+                )
             slots = jax.eval_shape(self._vacant, self.arrays)
             batch_sharding, _ = r._shardings()
+
             def spec(a):
                 return jax.ShapeDtypeStruct(a.shape, a.dtype, sharding=batch_sharding)
+
             n = self.refill * self.n_devices
-            return jax.jit(run, donate_argnums=(2,)).lower(
-                self.arrays, self.cert, jax.tree.map(spec, slots),
-                jax.ShapeDtypeStruct((n,), jnp.int32, sharding=batch_sharding),
-                jax.ShapeDtypeStruct((n,), r.dtype, sharding=batch_sharding),
-                jax.ShapeDtypeStruct((n,), jnp.int32, sharding=batch_sharding),
-                jax.ShapeDtypeStruct((n, 4), r.dtype, sharding=batch_sharding),
-                jax.ShapeDtypeStruct((n,), jnp.int32, sharding=batch_sharding)).compile()
+            return (
+                jax.jit(run, donate_argnums=(2,))
+                .lower(
+                    self.arrays,
+                    self.cert,
+                    jax.tree.map(spec, slots),
+                    jax.ShapeDtypeStruct((n,), jnp.int32, sharding=batch_sharding),
+                    jax.ShapeDtypeStruct((n,), r.dtype, sharding=batch_sharding),
+                    jax.ShapeDtypeStruct((n,), jnp.int32, sharding=batch_sharding),
+                    jax.ShapeDtypeStruct((n, 4), r.dtype, sharding=batch_sharding),
+                    jax.ShapeDtypeStruct((n,), jnp.int32, sharding=batch_sharding),
+                )
+                .compile()
+            )
 
         fn = get_or_compile(self._key(), build)
         self.compile_seconds = _time.perf_counter() - t0
@@ -271,9 +322,14 @@ class Engine:
         if self.lanes:  # vacant slots idle at the first body's rest
             arrays = jax.tree.map(lambda v: v[0], arrays)
         carry = broadcast(initial_carry(arrays, r.sensors, r.static), n)
-        return Slots(carry=self.packing.pack(carry), cell=jnp.full(n, -1, jnp.int32),
-                     force=jnp.zeros(n, r.dtype), n_push=jnp.zeros(n, jnp.int32),
-                     k=jnp.zeros(n, jnp.int32), body=jnp.zeros(n, jnp.int32))
+        return Slots(
+            carry=self.packing.pack(carry),
+            cell=jnp.full(n, -1, jnp.int32),
+            force=jnp.zeros(n, r.dtype),
+            n_push=jnp.zeros(n, jnp.int32),
+            k=jnp.zeros(n, jnp.int32),
+            body=jnp.zeros(n, jnp.int32),
+        )
 
     def _initial_state(self) -> tuple:  # Slots (cpath.CEngine: its CState)
         batch_sharding, _ = self.runner._shardings()
@@ -281,9 +337,14 @@ class Engine:
 
     # -- running --------------------------------------------------------------------------
 
-    def stream(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None,
-               probe: Probe | None = None, bodies: np.ndarray | None = None
-               ) -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:
+    def stream(
+        self,
+        forces: np.ndarray,
+        n_push: np.ndarray,
+        inits: np.ndarray | None = None,
+        probe: Probe | None = None,
+        bodies: np.ndarray | None = None,
+    ) -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:
         """Run every cell (forces [n], push steps [n], initial joint states [n, 4] or None:
         upright rest); yield (cell indices, finished raw results) after each call, as cells
         complete. Raw results: the accumulators' fields, ``periods`` and ``certified``, numpy,
@@ -300,8 +361,9 @@ class Engine:
         if self.lanes:
             assert self.tile is not None  # (set with self.lanes: __init__)
             wave = self.slots * self.n_devices // self.tile
-        queue = Queue(forces, n_push, self.n_devices, self.refill, inits, self.block, bodies,
-                      wave=wave)
+        queue = Queue(
+            forces, n_push, self.n_devices, self.refill, inits, self.block, bodies, wave=wave
+        )
         remaining, finished, p = n, False, 0
         try:
             while remaining:
@@ -315,8 +377,16 @@ class Engine:
                     state, taken, done = probe.call(fn, self.arrays, self.cert, state, *args)
                 with probe("transfers"):
                     taken, index, acc, periods, certified, in_slot, ran = jax.device_get(
-                        (taken, done.cell, tuple(done.acc), done.periods, done.certified,
-                         state.cell, state.k))
+                        (
+                            taken,
+                            done.cell,
+                            tuple(done.acc),
+                            done.periods,
+                            done.certified,
+                            state.cell,
+                            state.k,
+                        )
+                    )
                 p += 1
                 with probe("python"):
                     queue.took(taken)
@@ -346,11 +416,14 @@ class Engine:
             return None
         bodies = np.asarray(bodies)
         if bodies.shape != (n,) or not np.issubdtype(bodies.dtype, np.integer):
-            raise ValueError(f"bodies: one integer per cell ({n}), got {bodies.dtype} "
-                             f"{bodies.shape}")
+            raise ValueError(
+                f"bodies: one integer per cell ({n}), got {bodies.dtype} {bodies.shape}"
+            )
         if n and (bodies.min() < 0 or bodies.max() >= self.n_bodies):
-            raise ValueError(f"bodies: indices must lie in [0, {self.n_bodies}), got "
-                             f"{bodies.min()}..{bodies.max()}")
+            raise ValueError(
+                f"bodies: indices must lie in [0, {self.n_bodies}), got "
+                f"{bodies.min()}..{bodies.max()}"
+            )
         return bodies.astype(np.int32)
 
     def offer_args(self, cells, f, p, init, body) -> tuple:
@@ -358,15 +431,27 @@ class Engine:
         devices."""
         r = self.runner
         batch_sharding, _ = r._shardings()
-        args = (jnp.asarray(cells), jnp.asarray(f.astype(r.dtype)), jnp.asarray(p),
-                jnp.asarray(init.astype(r.dtype)), jnp.asarray(body))
+        args = (
+            jnp.asarray(cells),
+            jnp.asarray(f.astype(r.dtype)),
+            jnp.asarray(p),
+            jnp.asarray(init.astype(r.dtype)),
+            jnp.asarray(body),
+        )
         if batch_sharding is None:
             return args
         return tuple(jax.device_put(a, batch_sharding) for a in args)
 
-    def run(self, forces: np.ndarray, n_push: np.ndarray, inits: np.ndarray | None = None,
-            bodies: np.ndarray | None = None, *, probe: Probe | None = None,
-            update: Callable[[int], None] | None = None) -> dict[str, np.ndarray]:
+    def run(
+        self,
+        forces: np.ndarray,
+        n_push: np.ndarray,
+        inits: np.ndarray | None = None,
+        bodies: np.ndarray | None = None,
+        *,
+        probe: Probe | None = None,
+        update: Callable[[int], None] | None = None,
+    ) -> dict[str, np.ndarray]:
         """Every cell's raw results (see :meth:`stream`; ``probe`` clocks their collection as
         ``python`` too), in the order of the cells. ``update(n)``: n more cells decided."""
         probe = probe or NO_PROBE
@@ -386,7 +471,9 @@ class Engine:
             raise RuntimeError(f"the engine returned {int(seen.sum())} of {n} scenarios")
         if not out:  # no cells: empty columns of the accumulators' types
             initial = Accumulators.initial(self.runner.dtype)
-            out = {name: np.zeros(0, np.asarray(v).dtype)
-                   for name, v in zip(Accumulators._fields, initial)}
+            out = {
+                name: np.zeros(0, np.asarray(v).dtype)
+                for name, v in zip(Accumulators._fields, initial)
+            }
             out.update(periods=np.zeros(0, np.int32), certified=np.zeros(0, bool))
         return out

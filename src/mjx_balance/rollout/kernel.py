@@ -98,19 +98,44 @@ class Accumulators(NamedTuple):
         i0 = jnp.zeros((), jnp.int32)
         inf = math.inf
         return Accumulators(
-            alive=jnp.asarray(True), fell=jnp.asarray(False), fall_step=i0 - 1,
-            diverged=jnp.asarray(False), last_outside=i0 - 1, in_band=jnp.asarray(True),
-            peak_ankle=f(-inf), peak_hip=f(-inf), peak_foot_pitch=f(-inf),
-            cop_min=f(inf), cop_max=f(-inf), com_min=f(inf), com_max=f(-inf),
-            peak_tau_ankle=f(-inf), peak_tau_hip=f(-inf),
-            energy_ankle=f(0), energy_hip=f(0), work_ankle=f(0), work_hip=f(0),
-            energy_u1=f(0), energy_u2=f(0), work_u1=f(0), work_u2=f(0),
+            alive=jnp.asarray(True),
+            fell=jnp.asarray(False),
+            fall_step=i0 - 1,
+            diverged=jnp.asarray(False),
+            last_outside=i0 - 1,
+            in_band=jnp.asarray(True),
+            peak_ankle=f(-inf),
+            peak_hip=f(-inf),
+            peak_foot_pitch=f(-inf),
+            cop_min=f(inf),
+            cop_max=f(-inf),
+            com_min=f(inf),
+            com_max=f(-inf),
+            peak_tau_ankle=f(-inf),
+            peak_tau_hip=f(-inf),
+            energy_ankle=f(0),
+            energy_hip=f(0),
+            work_ankle=f(0),
+            work_hip=f(0),
+            energy_u1=f(0),
+            energy_u2=f(0),
+            work_u1=f(0),
+            work_u2=f(0),
             max_bound_violation=f(0),
-            control_periods=i0, saturated_ankle=i0, saturated_hip=i0,
-            nonconverged_solves=i0, max_residual=f(-inf), admm_iterations=i0,
-            fall_cause=i0 + outcomes.NO_CAUSE, first_infeasible=i0 - 1,
-            com_vel_min=f(inf), com_vel_max=f(-inf), mos_toe_min=f(inf), mos_toe_step=i0 - 1,
-            mos_heel_min=f(inf), mos_heel_step=i0 - 1,
+            control_periods=i0,
+            saturated_ankle=i0,
+            saturated_hip=i0,
+            nonconverged_solves=i0,
+            max_residual=f(-inf),
+            admm_iterations=i0,
+            fall_cause=i0 + outcomes.NO_CAUSE,
+            first_infeasible=i0 - 1,
+            com_vel_min=f(inf),
+            com_vel_max=f(-inf),
+            mos_toe_min=f(inf),
+            mos_toe_step=i0 - 1,
+            mos_heel_min=f(inf),
+            mos_heel_step=i0 - 1,
         )
 
 
@@ -133,16 +158,26 @@ def split_limits(limits: Limits, dtype: Any) -> tuple[Limits, jax.Array]:
     lower, state upper, input lower, input upper). A subject's body scales its torque bounds;
     as arguments, not constants, they leave the compiled program the same for every body
     (``runner.BatchRunner._shape_key``)."""
-    bounds = jnp.asarray(np.array([limits.state_lower, limits.state_upper, limits.input_lower,
-                                   limits.input_upper], np.float64), dtype)
-    return limits._replace(state_lower=None, state_upper=None, input_lower=None,
-                           input_upper=None), bounds
+    bounds = jnp.asarray(
+        np.array(
+            [limits.state_lower, limits.state_upper, limits.input_lower, limits.input_upper],
+            np.float64,
+        ),
+        dtype,
+    )
+    return limits._replace(
+        state_lower=None, state_upper=None, input_lower=None, input_upper=None
+    ), bounds
 
 
 def limits_of(arrays: "Arrays", static: Static) -> Limits:
     """The outcome rules' limits: the static thresholds with the traced bounds."""
-    return static.limits._replace(state_lower=arrays.bounds[0], state_upper=arrays.bounds[1],
-                              input_lower=arrays.bounds[2], input_upper=arrays.bounds[3])
+    return static.limits._replace(
+        state_lower=arrays.bounds[0],
+        state_upper=arrays.bounds[1],
+        input_lower=arrays.bounds[2],
+        input_upper=arrays.bounds[3],
+    )
 
 
 class Arrays(NamedTuple):
@@ -186,6 +221,7 @@ class Carry(NamedTuple):
 def select(pred: jax.Array, a: Any, b: Any) -> Any:
     """Leaf by leaf, ``a`` where ``pred`` else ``b``; pred is a scalar, or [B] over the leading
     axis of batched leaves."""
+
     def pick(u, v):
         extra = (1,) * (jnp.ndim(u) - jnp.ndim(pred))
         return jnp.where(jnp.reshape(pred, jnp.shape(pred) + extra), u, v)
@@ -198,17 +234,29 @@ def remember(history: jax.Array, s: Sample) -> jax.Array:
     return jnp.concatenate([jnp.concatenate([s.q, s.dq])[None], history[:-1]])
 
 
-def sample_update(acc: Accumulators, s: Sample, i: jax.Array, torques: jax.Array,
-                  u: jax.Array, q_prev: jax.Array, x_prev: jax.Array,
-                  limits: Limits) -> Accumulators:
+def sample_update(
+    acc: Accumulators,
+    s: Sample,
+    i: jax.Array,
+    torques: jax.Array,
+    u: jax.Array,
+    q_prev: jax.Array,
+    x_prev: jax.Array,
+    limits: Limits,
+) -> Accumulators:
     """Fold the sample of physics step ``i`` into the accumulators: divergence (a non-finite
     value, or one beyond MuJoCo's bound MAX_VALUE as in the reference), the fall test, the
     settle band, peaks, extremes and energies. ``torques`` / ``u`` are held during step
     i; ``q_prev`` / ``x_prev`` are the previous sample's joint angles and state. Nothing
     changes once the scenario is dead (fallen or diverged)."""
     excess = outcomes.bound_excess(jnp, s.x, limits)
-    finite = (jnp.isfinite(s.q).all() & jnp.isfinite(s.dq).all() & jnp.isfinite(s.x).all()
-              & jnp.isfinite(torques).all() & (s.magnitude <= MAX_VALUE))
+    finite = (
+        jnp.isfinite(s.q).all()
+        & jnp.isfinite(s.dq).all()
+        & jnp.isfinite(s.x).all()
+        & jnp.isfinite(torques).all()
+        & (s.magnitude <= MAX_VALUE)
+    )
     ok = acc.alive & finite
     cause = outcomes.fall_cause(jnp, s.pitch, s.cell_low, excess, s.q[0], limits)
     falls = cause != outcomes.NO_CAUSE
@@ -226,20 +274,23 @@ def sample_update(acc: Accumulators, s: Sample, i: jax.Array, torques: jax.Array
         fell=acc.fell | newly_fell,
         fall_step=jnp.where(newly_fell, i, acc.fall_step),
         diverged=acc.diverged | (acc.alive & ~finite),
-        fall_cause=jnp.where(newly_fell, cause,
-                             jnp.where(acc.alive & ~finite, outcomes.NON_FINITE, acc.fall_cause)),
+        fall_cause=jnp.where(
+            newly_fell, cause, jnp.where(acc.alive & ~finite, outcomes.NON_FINITE, acc.fall_cause)
+        ),
         last_outside=jnp.where(ok & ~band, i, acc.last_outside),
         in_band=band,
         peak_ankle=upd(acc.peak_ankle, jnp.maximum(acc.peak_ankle, jnp.abs(s.q[0]))),
         peak_hip=upd(acc.peak_hip, jnp.maximum(acc.peak_hip, jnp.abs(s.q[1]))),
-        peak_foot_pitch=upd(acc.peak_foot_pitch,
-                            jnp.maximum(acc.peak_foot_pitch, jnp.abs(s.pitch))),
+        peak_foot_pitch=upd(
+            acc.peak_foot_pitch, jnp.maximum(acc.peak_foot_pitch, jnp.abs(s.pitch))
+        ),
         cop_min=jnp.where(loaded, jnp.minimum(acc.cop_min, s.cop), acc.cop_min),
         cop_max=jnp.where(loaded, jnp.maximum(acc.cop_max, s.cop), acc.cop_max),
         com_min=upd(acc.com_min, jnp.minimum(acc.com_min, s.com)),
         com_max=upd(acc.com_max, jnp.maximum(acc.com_max, s.com)),
-        peak_tau_ankle=upd(acc.peak_tau_ankle,
-                           jnp.maximum(acc.peak_tau_ankle, jnp.abs(torques[0]))),
+        peak_tau_ankle=upd(
+            acc.peak_tau_ankle, jnp.maximum(acc.peak_tau_ankle, jnp.abs(torques[0]))
+        ),
         peak_tau_hip=upd(acc.peak_tau_hip, jnp.maximum(acc.peak_tau_hip, jnp.abs(torques[1]))),
         energy_ankle=upd(acc.energy_ankle, acc.energy_ankle + jnp.abs(power[0])),
         energy_hip=upd(acc.energy_hip, acc.energy_hip + jnp.abs(power[1])),
@@ -249,8 +300,9 @@ def sample_update(acc: Accumulators, s: Sample, i: jax.Array, torques: jax.Array
         energy_u2=upd(acc.energy_u2, acc.energy_u2 + jnp.abs(power_u[1])),
         work_u1=upd(acc.work_u1, acc.work_u1 + power_u[0]),
         work_u2=upd(acc.work_u2, acc.work_u2 + power_u[1]),
-        max_bound_violation=upd(acc.max_bound_violation,
-                                jnp.maximum(acc.max_bound_violation, excess)),
+        max_bound_violation=upd(
+            acc.max_bound_violation, jnp.maximum(acc.max_bound_violation, excess)
+        ),
         com_vel_min=upd(acc.com_vel_min, jnp.minimum(acc.com_vel_min, s.com_vel)),
         com_vel_max=upd(acc.com_vel_max, jnp.maximum(acc.com_vel_max, s.com_vel)),
         mos_toe_min=upd(acc.mos_toe_min, jnp.minimum(acc.mos_toe_min, s.mos_toe)),
@@ -260,8 +312,14 @@ def sample_update(acc: Accumulators, s: Sample, i: jax.Array, torques: jax.Array
     )
 
 
-def period_update(acc: Accumulators, res: admm_mod.ADMMResult, u: jax.Array,
-                  torques: jax.Array, limits: Limits, k: jax.Array) -> Accumulators:
+def period_update(
+    acc: Accumulators,
+    res: admm_mod.ADMMResult,
+    u: jax.Array,
+    torques: jax.Array,
+    limits: Limits,
+    k: jax.Array,
+) -> Accumulators:
     """Fold the solve of control period ``k`` into the accumulators (counted only while
     alive): a non-finite input or torque diverges the scenario; saturation, non-converged
     solves, the largest primal residual, the ADMM iterations and the first period whose QP
@@ -272,8 +330,9 @@ def period_update(acc: Accumulators, res: admm_mod.ADMMResult, u: jax.Array,
     counted = alive
     saturated = outcomes.at_input_bound(jnp, u, limits)
     residual_ok = counted & jnp.isfinite(res.prim_res)
-    first_infeasible = (counted & (res.status == admm_mod.PRIMAL_INFEASIBLE)
-                        & (acc.first_infeasible < 0))
+    first_infeasible = (
+        counted & (res.status == admm_mod.PRIMAL_INFEASIBLE) & (acc.first_infeasible < 0)
+    )
     return acc._replace(
         alive=alive & finite,
         diverged=acc.diverged | (counted & ~finite),
@@ -282,11 +341,10 @@ def period_update(acc: Accumulators, res: admm_mod.ADMMResult, u: jax.Array,
         control_periods=acc.control_periods + counted,
         saturated_ankle=acc.saturated_ankle + (counted & saturated[0]),
         saturated_hip=acc.saturated_hip + (counted & saturated[1]),
-        nonconverged_solves=(acc.nonconverged_solves
-                             + (counted & (res.status != admm_mod.SOLVED))),
-        max_residual=jnp.where(residual_ok,
-                               jnp.maximum(acc.max_residual, res.prim_res.astype(dtype)),
-                               acc.max_residual),
+        nonconverged_solves=(acc.nonconverged_solves + (counted & (res.status != admm_mod.SOLVED))),
+        max_residual=jnp.where(
+            residual_ok, jnp.maximum(acc.max_residual, res.prim_res.astype(dtype)), acc.max_residual
+        ),
         admm_iterations=acc.admm_iterations + jnp.where(counted, res.iters, 0),
     )
 
@@ -297,10 +355,18 @@ def initial_carry(arrays: Arrays, sensors: Sensors, static: Static) -> Carry:
     q0, dq0 = joints(sensors, arrays.d0)
     history0 = jnp.tile(jnp.concatenate([q0, dq0])[None], (static.delay_steps + 1, 1))
     x0 = state(arrays, q0, dq0)
-    return Carry(d=arrays.d0, warm=admm_mod.initial_warm(arrays.qp), history=history0, q_prev=q0,
-                 x_prev=x0, acc=Accumulators.initial(dtype),
-                 inputs=jnp.zeros((arrays.pred_G.shape[0], 2), dtype),
-                 dist=jnp.zeros(2, dtype), x_last=x0, u_last=jnp.zeros(2, dtype))
+    return Carry(
+        d=arrays.d0,
+        warm=admm_mod.initial_warm(arrays.qp),
+        history=history0,
+        q_prev=q0,
+        x_prev=x0,
+        acc=Accumulators.initial(dtype),
+        inputs=jnp.zeros((arrays.pred_G.shape[0], 2), dtype),
+        dist=jnp.zeros(2, dtype),
+        x_last=x0,
+        u_last=jnp.zeros(2, dtype),
+    )
 
 
 def start(arrays: Arrays, sensors: Sensors, rest: Carry, init: jax.Array) -> Carry:
@@ -311,11 +377,13 @@ def start(arrays: Arrays, sensors: Sensors, rest: Carry, init: jax.Array) -> Car
     init = jnp.asarray(init, rest.x_prev.dtype)
     q, dq = init[:2], init[2:]
     qpos = jnp.where(jnp.any(init != 0), arrays.settled, rest.d.qpos)
-    d = rest.d.replace(qpos=qpos.at[sensors.joints_q].set(q),
-                       qvel=rest.d.qvel.at[sensors.joints_v].set(dq))
+    d = rest.d.replace(
+        qpos=qpos.at[sensors.joints_q].set(q), qvel=rest.d.qvel.at[sensors.joints_v].set(dq)
+    )
     x = state(arrays, q, dq)
-    return rest._replace(d=d, history=jnp.broadcast_to(init, rest.history.shape), q_prev=q,
-                         x_prev=x, x_last=x)
+    return rest._replace(
+        d=d, history=jnp.broadcast_to(init, rest.history.shape), q_prev=q, x_prev=x, x_last=x
+    )
 
 
 class Prepared(NamedTuple):
@@ -338,16 +406,18 @@ def prepare(arrays: Arrays, static: Static, carry: Carry, rest: Carry | None = N
     dtype = arrays.d0.qpos.dtype
     alive = carry.acc.alive
     if rest is not None:
-        carry = carry._replace(d=select(alive, carry.d, arrays.d0),
-                               warm=select(alive, carry.warm, rest.warm))
+        carry = carry._replace(
+            d=select(alive, carry.d, arrays.d0), warm=select(alive, carry.warm, rest.warm)
+        )
     measured = carry.history[static.delay_steps]
     x_meas = state(arrays, measured[:2], measured[2:])
     if static.compensate:
         x_meas = linear_mod.predict(jnp, arrays.pred_A, arrays.pred_G, x_meas, carry.inputs)
     x_meas = jnp.where(alive, x_meas, jnp.zeros(4, dtype))
     if static.offset_free:
-        dist = offset_free_mod.observe(jnp, arrays.ofs, carry.dist, carry.x_last, carry.u_last,
-                                       x_meas)
+        dist = offset_free_mod.observe(
+            jnp, arrays.ofs, carry.dist, carry.x_last, carry.u_last, x_meas
+        )
         x_s, _, _, offset = offset_free_mod.steady_state(jnp, arrays.ofs, dist)
         return Prepared(carry, x_meas - x_s, offset, x_meas, dist, alive)
     return Prepared(carry, x_meas, None, x_meas, carry.dist, alive)
@@ -358,22 +428,35 @@ def solve(arrays: Arrays, static: Static, pre: Prepared) -> admm_mod.ADMMResult:
     return admm_mod.admm_solve(arrays.qp, pre.x0, pre.carry.warm, static.settings, pre.offset)
 
 
-def solve_batch(arrays: Arrays, static: Static, pre: Prepared, tile: int | None,
-                tiles: tuple[admm_mod.ADMMData, jax.Array] | None = None) -> admm_mod.ADMMResult:
+def solve_batch(
+    arrays: Arrays,
+    static: Static,
+    pre: Prepared,
+    tile: int | None,
+    tiles: tuple[admm_mod.ADMMData, jax.Array] | None = None,
+) -> admm_mod.ADMMResult:
     """:func:`solve` over a batch of :func:`prepare` results, ``arrays.qp`` shared
     (``admm_solve_batch``: with ``tile``, sequential tiles of that many lanes, each stopping at
     its own slowest). ``tiles``: (the bodies' QPs stacked, each tile's body), every tile of
     ``tile`` lanes solving its body's QP (``admm_solve_tiles``; ``arrays.qp`` unused)."""
     if tiles is not None:
         assert tile is not None  # (body tiles come with their lane count: engine.Engine.tile)
-        return admm_mod.admm_solve_tiles(tiles[0], tiles[1], pre.x0, pre.carry.warm,
-                                         static.settings, tile, offset=pre.offset)
-    return admm_mod.admm_solve_batch(arrays.qp, pre.x0, pre.carry.warm, static.settings, tile,
-                                     offset=pre.offset)
+        return admm_mod.admm_solve_tiles(
+            tiles[0], tiles[1], pre.x0, pre.carry.warm, static.settings, tile, offset=pre.offset
+        )
+    return admm_mod.admm_solve_batch(
+        arrays.qp, pre.x0, pre.carry.warm, static.settings, tile, offset=pre.offset
+    )
 
 
-def conclude(arrays: Arrays, static: Static, pre: Prepared, res: admm_mod.ADMMResult, k: jax.Array,
-             rest: Carry | None = None) -> tuple[Carry, jax.Array, jax.Array]:
+def conclude(
+    arrays: Arrays,
+    static: Static,
+    pre: Prepared,
+    res: admm_mod.ADMMResult,
+    k: jax.Array,
+    rest: Carry | None = None,
+) -> tuple[Carry, jax.Array, jax.Array]:
     """After the solve: the carry (next warm start, :func:`period_update` folded in, the input
     buffer, the observer's state), the input u [2] and the motor torques [2] to hold (zero if
     not finite). With ``rest``, a dead scenario's buffers start from rest."""
@@ -386,35 +469,55 @@ def conclude(arrays: Arrays, static: Static, pre: Prepared, res: admm_mod.ADMMRe
     u = jnp.where(finite, u, jnp.zeros_like(u))
     torques = jnp.where(finite, torques, jnp.zeros_like(torques))
     warm = admm_mod.ADMMWarm(*(w.astype(dtype) for w in res.warm_next))
-    inputs = jnp.concatenate([u[None], carry.inputs[:-1]])[:carry.inputs.shape[0]]
-    carry = carry._replace(warm=warm, acc=acc, inputs=inputs, dist=pre.dist, x_last=pre.x_meas,
-                           u_last=u)
+    inputs = jnp.concatenate([u[None], carry.inputs[:-1]])[: carry.inputs.shape[0]]
+    carry = carry._replace(
+        warm=warm, acc=acc, inputs=inputs, dist=pre.dist, x_last=pre.x_meas, u_last=u
+    )
     if rest is not None:
-        kept = select(pre.alive,
-                      (carry.history, carry.inputs, carry.dist, carry.x_last, carry.u_last),
-                      (rest.history, rest.inputs, rest.dist, rest.x_last, rest.u_last))
-        carry = carry._replace(history=kept[0], inputs=kept[1], dist=kept[2], x_last=kept[3],
-                               u_last=kept[4])
+        kept = select(
+            pre.alive,
+            (carry.history, carry.inputs, carry.dist, carry.x_last, carry.u_last),
+            (rest.history, rest.inputs, rest.dist, rest.x_last, rest.u_last),
+        )
+        carry = carry._replace(
+            history=kept[0], inputs=kept[1], dist=kept[2], x_last=kept[3], u_last=kept[4]
+        )
     return carry, u, torques
 
 
-def period(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: jax.Array,
-           force: jax.Array, n_push: jax.Array) -> tuple[Carry, dict[str, jax.Array] | None]:
+def period(
+    arrays: Arrays,
+    sensors: Sensors,
+    static: Static,
+    carry: Carry,
+    k: jax.Array,
+    force: jax.Array,
+    n_push: jax.Array,
+) -> tuple[Carry, dict[str, jax.Array] | None]:
     """Control period k of one scenario: the MPC solve, then ``static.substeps`` physics steps.
 
     Returns the carry and, with ``static.trajectories``, the period's per-step series [S, ...].
     """
     rest = initial_carry(arrays, sensors, static)
     pre = prepare(arrays, static, carry, rest)
-    return advance_period(arrays, sensors, static, pre, solve(arrays, static, pre), k, force,
-                          n_push)
+    return advance_period(
+        arrays, sensors, static, pre, solve(arrays, static, pre), k, force, n_push
+    )
 
 
-def period_batch(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: jax.Array,
-                 force: jax.Array, n_push: jax.Array, *, tile: int | None = None,
-                 axis: int | None = None,
-                 tiles: tuple[admm_mod.ADMMData, jax.Array] | None = None
-                 ) -> tuple[Carry, dict[str, jax.Array] | None]:
+def period_batch(
+    arrays: Arrays,
+    sensors: Sensors,
+    static: Static,
+    carry: Carry,
+    k: jax.Array,
+    force: jax.Array,
+    n_push: jax.Array,
+    *,
+    tile: int | None = None,
+    axis: int | None = None,
+    tiles: tuple[admm_mod.ADMMData, jax.Array] | None = None,
+) -> tuple[Carry, dict[str, jax.Array] | None]:
     """:func:`period` of a batch of scenarios (every argument but ``arrays`` with a leading batch
     axis), the QPs solved by :func:`solve_batch` (``tile``: lanes per ADMM loop). ``axis``
     None: ``arrays`` shared by every lane; 0: one body per lane (every leaf [B, ...], the
@@ -426,8 +529,9 @@ def period_batch(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry,
     pre = prepare_batch(arrays, static, carry, rest, axis)
     res = solve_batch(arrays, static, pre, tile, tiles)
     carry, u, torques = conclude_batch(arrays, static, pre, res, k, rest, axis)
-    return physics_batch(arrays, sensors, static, carry, k, force, n_push, torques=torques, u=u,
-                         axis=axis)
+    return physics_batch(
+        arrays, sensors, static, carry, k, force, n_push, torques=torques, u=u, axis=axis
+    )
 
 
 def rest_of(arrays: Arrays, sensors: Sensors, static: Static, axis: int | None = None) -> Carry:
@@ -442,14 +546,16 @@ def lane_arrays(bodies: Tree, body: jax.Array) -> Tree:
     return jax.tree.map(lambda v: v[body], bodies)
 
 
-def prepare_batch(arrays: Arrays, static: Static, carry: Carry, rest: Carry | None = None,
-                  axis: int | None = None) -> Prepared:
+def prepare_batch(
+    arrays: Arrays, static: Static, carry: Carry, rest: Carry | None = None, axis: int | None = None
+) -> Prepared:
     """:func:`prepare` over a batch of carries (``rest``: one carry, shared; with ``axis`` 0,
     ``arrays`` and ``rest`` per lane)."""
     if rest is None:
         return jax.vmap(lambda a, c: prepare(a, static, c), in_axes=(axis, 0))(arrays, carry)
-    return jax.vmap(lambda a, c, r: prepare(a, static, c, r),
-                    in_axes=(axis, 0, None if axis is None else 0))(arrays, carry, rest)
+    return jax.vmap(
+        lambda a, c, r: prepare(a, static, c, r), in_axes=(axis, 0, None if axis is None else 0)
+    )(arrays, carry, rest)
 
 
 def solve_lanes(arrays: Arrays, static: Static, pre: Prepared) -> admm_mod.ADMMResult:
@@ -457,41 +563,77 @@ def solve_lanes(arrays: Arrays, static: Static, pre: Prepared) -> admm_mod.ADMMR
     return jax.vmap(lambda p: solve(arrays, static, p))(pre)
 
 
-def conclude_batch(arrays: Arrays, static: Static, pre: Prepared, res: admm_mod.ADMMResult,
-                   k: jax.Array, rest: Carry | None = None, axis: int | None = None
-                   ) -> tuple[Carry, jax.Array, jax.Array]:
+def conclude_batch(
+    arrays: Arrays,
+    static: Static,
+    pre: Prepared,
+    res: admm_mod.ADMMResult,
+    k: jax.Array,
+    rest: Carry | None = None,
+    axis: int | None = None,
+) -> tuple[Carry, jax.Array, jax.Array]:
     """:func:`conclude` over a batch (``rest``: one carry, shared; with ``axis`` 0,
     ``arrays`` and ``rest`` per lane)."""
     if rest is None:
-        return jax.vmap(lambda a, p, r, k: conclude(a, static, p, r, k),
-                        in_axes=(axis, 0, 0, 0))(arrays, pre, res, k)
-    return jax.vmap(lambda a, p, r, k, rest: conclude(a, static, p, r, k, rest),
-                    in_axes=(axis, 0, 0, 0, None if axis is None else 0))(arrays, pre, res, k,
-                                                                          rest)
+        return jax.vmap(lambda a, p, r, k: conclude(a, static, p, r, k), in_axes=(axis, 0, 0, 0))(
+            arrays, pre, res, k
+        )
+    return jax.vmap(
+        lambda a, p, r, k, rest: conclude(a, static, p, r, k, rest),
+        in_axes=(axis, 0, 0, 0, None if axis is None else 0),
+    )(arrays, pre, res, k, rest)
 
 
-def physics_batch(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: jax.Array,
-                  force: jax.Array, n_push: jax.Array, *, torques: jax.Array, u: jax.Array,
-                  axis: int | None = None) -> tuple[Carry, dict[str, jax.Array] | None]:
+def physics_batch(
+    arrays: Arrays,
+    sensors: Sensors,
+    static: Static,
+    carry: Carry,
+    k: jax.Array,
+    force: jax.Array,
+    n_push: jax.Array,
+    *,
+    torques: jax.Array,
+    u: jax.Array,
+    axis: int | None = None,
+) -> tuple[Carry, dict[str, jax.Array] | None]:
     """:func:`physics_period` over a batch (``axis`` 0: ``arrays`` per lane)."""
-    return jax.vmap(lambda a, c, k, f, n, t, u: physics_period(a, sensors, static, c, k, f, n,
-                                                               torques=t, u=u),
-                    in_axes=(axis, 0, 0, 0, 0, 0, 0))(arrays, carry, k, force, n_push, torques, u)
+    return jax.vmap(
+        lambda a, c, k, f, n, t, u: physics_period(a, sensors, static, c, k, f, n, torques=t, u=u),
+        in_axes=(axis, 0, 0, 0, 0, 0, 0),
+    )(arrays, carry, k, force, n_push, torques, u)
 
 
-def advance_period(arrays: Arrays, sensors: Sensors, static: Static, pre: Prepared,
-                   res: admm_mod.ADMMResult, k: jax.Array, force: jax.Array, n_push: jax.Array
-                   ) -> tuple[Carry, dict[str, jax.Array] | None]:
+def advance_period(
+    arrays: Arrays,
+    sensors: Sensors,
+    static: Static,
+    pre: Prepared,
+    res: admm_mod.ADMMResult,
+    k: jax.Array,
+    force: jax.Array,
+    n_push: jax.Array,
+) -> tuple[Carry, dict[str, jax.Array] | None]:
     """:func:`period` after the solve: :func:`conclude` (a dead scenario restarts from rest with
     a cold controller; see the module docstring), then :func:`physics_period`."""
-    carry, u, torques = conclude(arrays, static, pre, res, k,
-                                 initial_carry(arrays, sensors, static))
+    carry, u, torques = conclude(
+        arrays, static, pre, res, k, initial_carry(arrays, sensors, static)
+    )
     return physics_period(arrays, sensors, static, carry, k, force, n_push, torques=torques, u=u)
 
 
-def physics_period(arrays: Arrays, sensors: Sensors, static: Static, carry: Carry, k: jax.Array,
-                   force: jax.Array, n_push: jax.Array, *, torques: jax.Array, u: jax.Array
-                   ) -> tuple[Carry, dict[str, jax.Array] | None]:
+def physics_period(
+    arrays: Arrays,
+    sensors: Sensors,
+    static: Static,
+    carry: Carry,
+    k: jax.Array,
+    force: jax.Array,
+    n_push: jax.Array,
+    *,
+    torques: jax.Array,
+    u: jax.Array,
+) -> tuple[Carry, dict[str, jax.Array] | None]:
     """The ``static.substeps`` physics steps of control period k with ``torques`` held (u: the
     input they come from), each sample folded into the accumulators; with
     ``static.trajectories``, the per-step series [S, ...]."""
@@ -500,8 +642,9 @@ def physics_period(arrays: Arrays, sensors: Sensors, static: Static, carry: Carr
 
     def fold(carry: Carry, s: Sample, i: jax.Array) -> Carry:
         """Carry after the complete sample ``s`` of physics step ``i``."""
-        acc = sample_update(carry.acc, s, i, torques, u, carry.q_prev, carry.x_prev,
-                            limits_of(arrays, static))
+        acc = sample_update(
+            carry.acc, s, i, torques, u, carry.q_prev, carry.x_prev, limits_of(arrays, static)
+        )
         return carry._replace(q_prev=s.q, x_prev=s.x, acc=acc)
 
     def push(i: jax.Array) -> jax.Array:
@@ -519,8 +662,7 @@ def physics_period(arrays: Arrays, sensors: Sensors, static: Static, carry: Carr
         out = None
         if static.trajectories:  # NaN from the fall sample on (the run is reset)
             out = dict(qpos=d.qpos, qvel=d.qvel, tau=torques, u=u, cop=s.cop, com=s.com)
-            out = {k: jnp.where(carry.acc.alive, v, jnp.nan).astype(dtype)
-                   for k, v in out.items()}
+            out = {k: jnp.where(carry.acc.alive, v, jnp.nan).astype(dtype) for k, v in out.items()}
         return carry, out
 
     def lean_step(state: tuple[Carry, Sample], i: jax.Array):
@@ -529,8 +671,11 @@ def physics_period(arrays: Arrays, sensors: Sensors, static: Static, carry: Carr
         carry, pending = state
         d = step(arrays.mx, sensors, carry.d, torques, push(i), static.push_at_hip)
         folded = fold(carry, with_positions(pending, arrays, sensors, d), i - 1)
-        kept = select(i > k * S, (folded.acc, folded.q_prev, folded.x_prev),
-                      (carry.acc, carry.q_prev, carry.x_prev))
+        kept = select(
+            i > k * S,
+            (folded.acc, folded.q_prev, folded.x_prev),
+            (carry.acc, carry.q_prev, carry.x_prev),
+        )
         carry = carry._replace(acc=kept[0], q_prev=kept[1], x_prev=kept[2])
         s = measure_step(arrays, sensors, d)
         return (record(carry, d, s), s), None
@@ -542,14 +687,16 @@ def physics_period(arrays: Arrays, sensors: Sensors, static: Static, carry: Carr
         return jax.lax.scan(physics_step, carry, steps)
     # lean: a sample's positions are those the next step computes at its start; the period's
     # last sample takes them from one mjx.kinematics, so no sample is pending between periods
-    (carry, last), _ = jax.lax.scan(lean_step, (carry, measure_step(arrays, sensors, carry.d)),
-                                    steps)
+    (carry, last), _ = jax.lax.scan(
+        lean_step, (carry, measure_step(arrays, sensors, carry.d)), steps
+    )
     positions = mjx.kinematics(arrays.mx, carry.d)
     return fold(carry, with_positions(last, arrays, sensors, positions), steps[-1]), None
 
 
-def scenario(arrays: Arrays, sensors: Sensors, static: Static, force: jax.Array,
-             n_push: jax.Array) -> tuple[Accumulators, dict[str, jax.Array] | None]:
+def scenario(
+    arrays: Arrays, sensors: Sensors, static: Static, force: jax.Array, n_push: jax.Array
+) -> tuple[Accumulators, dict[str, jax.Array] | None]:
     """Run one scenario to t_end; pure, jit-able (``sensors``, ``static`` static). force: [] N;
     n_push: [] int.
 
@@ -565,8 +712,11 @@ def scenario(arrays: Arrays, sensors: Sensors, static: Static, force: jax.Array,
         return period(arrays, sensors, static, carry, k, force, n_push)
 
     assert static.n_control is not None  # (the runner's own Static: its window's length)
-    carry, series = jax.lax.scan(control_period, initial_carry(arrays, sensors, static),
-                                 jnp.arange(static.n_control, dtype=jnp.int32))
+    carry, series = jax.lax.scan(
+        control_period,
+        initial_carry(arrays, sensors, static),
+        jnp.arange(static.n_control, dtype=jnp.int32),
+    )
     if series is not None:
         S = static.substeps
         series = {k: v.reshape((static.n_control * S,) + v.shape[2:]) for k, v in series.items()}

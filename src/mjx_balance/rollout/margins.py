@@ -18,8 +18,11 @@ def measure(config=None, forces=None, durations=None) -> dict:
     0.5 for the linear prediction), the largest growth of V after it, and the foot pitch per CoP
     excursion over every sample of recovering runs."""
     config = config or Config()
-    forces = np.array([5.0, 10.0, 20.0, 30.0, 40.0, 60.0, 80.0, 100.0, -20.0, -40.0, -80.0]
-                      if forces is None else forces)
+    forces = np.array(
+        [5.0, 10.0, 20.0, 30.0, 40.0, 60.0, 80.0, 100.0, -20.0, -40.0, -80.0]
+        if forces is None
+        else forces
+    )
     durations = np.array([0.05, 0.1, 0.2, 0.5, 1.0] if durations is None else durations)
     f, d = np.repeat(forces, durations.size), np.tile(durations, forces.size)
     sc = config.scenario
@@ -41,9 +44,9 @@ def measure(config=None, forces=None, durations=None) -> dict:
         step = int(early.last_periods[i]) * sc.substeps
         q = series["qpos"][row][:, sensors.joints_q]
         dq = series["qvel"][row][:, sensors.joints_v]
-        angle_use = max(angle_use, float(np.abs(q[step - 1:]).max()) / sc.settle_angle_tol)
-        rate_use = max(rate_use, float(np.abs(dq[step - 1:]).max()) / sc.settle_rate_tol)
-        x = lm.state_from_joints(q[step - 1::sc.substeps], dq[step - 1::sc.substeps])
+        angle_use = max(angle_use, float(np.abs(q[step - 1 :]).max()) / sc.settle_angle_tol)
+        rate_use = max(rate_use, float(np.abs(dq[step - 1 :]).max()) / sc.settle_rate_tol)
+        x = lm.state_from_joints(q[step - 1 :: sc.substeps], dq[step - 1 :: sc.substeps])
         V = np.einsum("ti,ij,tj->t", x, P, x)
         growth = max(growth, float(V.max() / V[0]))
         if summary["outcome"][row] == 0:  # recovered: the foot-pitch relation
@@ -52,9 +55,15 @@ def measure(config=None, forces=None, durations=None) -> dict:
             big = np.isfinite(excursion) & (excursion > 1e-4)
             ratio = max(ratio, float((pitch[big] / excursion[big]).max(initial=0.0)))
             floor = max(floor, float(pitch[np.isfinite(excursion) & ~big].max(initial=0.0)))
-    return dict(scenarios=int(f.size), certified=int(pick.size),
-                band_use_angle=angle_use, band_use_rate=rate_use, V_growth=growth,
-                pitch_per_cop=ratio, pitch_near_rest=floor)
+    return dict(
+        scenarios=int(f.size),
+        certified=int(pick.size),
+        band_use_angle=angle_use,
+        band_use_rate=rate_use,
+        V_growth=growth,
+        pitch_per_cop=ratio,
+        pitch_near_rest=floor,
+    )
 
 
 if __name__ == "__main__":

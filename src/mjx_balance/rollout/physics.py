@@ -64,10 +64,13 @@ MJX_OPTIONS: dict[str, Any] = {
 }
 
 _DISABLE = (
-    mujoco.mjtDisableBit.mjDSBL_EULERDAMP | mujoco.mjtDisableBit.mjDSBL_SPRING
+    mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+    | mujoco.mjtDisableBit.mjDSBL_SPRING
     | mujoco.mjtDisableBit.mjDSBL_DAMPER
-    | mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS | mujoco.mjtDisableBit.mjDSBL_LIMIT
-    | mujoco.mjtDisableBit.mjDSBL_EQUALITY | mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL
+    | mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS
+    | mujoco.mjtDisableBit.mjDSBL_LIMIT
+    | mujoco.mjtDisableBit.mjDSBL_EQUALITY
+    | mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL
 )
 
 
@@ -88,8 +91,9 @@ def cast_floats(tree: Any, dtype) -> Any:
     return jax.tree_util.tree_map(cast, tree)
 
 
-def mj_model(config: Config, options: dict[str, Any] | None = None, *,
-             sensors: str = "") -> mujoco.MjModel:
+def mj_model(
+    config: Config, options: dict[str, Any] | None = None, *, sensors: str = ""
+) -> mujoco.MjModel:
     """The free-foot MuJoCo model of ``config`` with the MJX options applied (C side too).
 
     sensors: MJCF sensor elements to add (the C path's measurements, ``cpath.py``); sensors
@@ -106,8 +110,11 @@ def mj_model(config: Config, options: dict[str, Any] | None = None, *,
     if (model.jnt_stiffness != 0).any() or (model.dof_damping != 0).any():
         # a body with the hip servo (BodyParams): keep its spring and damper, and Euler's
         # implicit damping, exactly as mj_step in the reference runs them
-        disable &= ~(mujoco.mjtDisableBit.mjDSBL_EULERDAMP | mujoco.mjtDisableBit.mjDSBL_SPRING
-                     | mujoco.mjtDisableBit.mjDSBL_DAMPER)
+        disable &= ~(
+            mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+            | mujoco.mjtDisableBit.mjDSBL_SPRING
+            | mujoco.mjtDisableBit.mjDSBL_DAMPER
+        )
     model.opt.disableflags |= int(disable)
     return model
 
@@ -158,7 +165,8 @@ def rest_data(model: mujoco.MjModel, dtype=jnp.float32) -> mjx.Data:
 
     return jax.tree_util.tree_unflatten(
         jax.tree_util.tree_structure(d),
-        [match(x, s) for x, s in zip(jax.tree_util.tree_leaves(d), stepped)])
+        [match(x, s) for x, s in zip(jax.tree_util.tree_leaves(d), stepped)],
+    )
 
 
 _STEPPED: dict[tuple, tuple] = {}
@@ -174,18 +182,35 @@ def _stepped_dtypes(model: mujoco.MjModel, dtype, d: mjx.Data) -> tuple:
     structure, a cohort's, share it."""
     leaves, treedef = jax.tree_util.tree_flatten(d)
     opt = model.opt
-    key = (treedef, tuple((v.shape, str(v.dtype)) for v in leaves),  # jax arrays, all
-           bool(jax.config.jax_enable_x64), np.dtype(dtype).name, model.geom_type.tobytes(),  # type: ignore[attr-defined]  # jax.config's flags are set at run time
-           model.jnt_type.tobytes(), int(opt.integrator), int(opt.cone), int(opt.solver),
-           int(opt.disableflags), int(opt.enableflags))
+    key = (
+        treedef,
+        tuple((v.shape, str(v.dtype)) for v in leaves),  # jax arrays, all
+        bool(jax.config.jax_enable_x64),  # type: ignore[attr-defined]  # flags set at run time
+        np.dtype(dtype).name,
+        model.geom_type.tobytes(),
+        model.jnt_type.tobytes(),
+        int(opt.integrator),
+        int(opt.cone),
+        int(opt.solver),
+        int(opt.disableflags),
+        int(opt.enableflags),
+    )
     if key not in _STEPPED:
-        _STEPPED[key] = tuple(s.dtype for s in jax.tree_util.tree_leaves(
-            jax.eval_shape(mjx.step, mjx_model(model, dtype), d)))
+        _STEPPED[key] = tuple(
+            s.dtype
+            for s in jax.tree_util.tree_leaves(jax.eval_shape(mjx.step, mjx_model(model, dtype), d))
+        )
     return _STEPPED[key]
 
 
-def step(mx: mjx.Model, sensors: Sensors, d: mjx.Data, torques: jax.Array, force: jax.Array,
-         push_at_hip: bool = False) -> mjx.Data:
+def step(
+    mx: mjx.Model,
+    sensors: Sensors,
+    d: mjx.Data,
+    torques: jax.Array,
+    force: jax.Array,
+    push_at_hip: bool = False,
+) -> mjx.Data:
     """One physics step (``mjx.step``) with motor ``torques`` [2] and the push ``force`` []
     (N, along x). Afterwards qpos and qvel are those at the new time, while body and geom
     positions, contacts and constraint forces are those the step computed at its start.
@@ -204,8 +229,14 @@ def step(mx: mjx.Model, sensors: Sensors, d: mjx.Data, torques: jax.Array, force
     return cast_floats(mjx.step(mx, d), dtype)
 
 
-def advance(mx: mjx.Model, sensors: Sensors, d: mjx.Data, torques: jax.Array, force: jax.Array,
-            push_at_hip: bool = False) -> mjx.Data:
+def advance(
+    mx: mjx.Model,
+    sensors: Sensors,
+    d: mjx.Data,
+    torques: jax.Array,
+    force: jax.Array,
+    push_at_hip: bool = False,
+) -> mjx.Data:
     """:func:`step`, then the positions refreshed (``mjx.kinematics``): body and geom
     positions are those at the new time while the contacts and constraint forces stay those
     that acted during the step (as the reference leaves them after ``mj_step`` +
@@ -214,8 +245,15 @@ def advance(mx: mjx.Model, sensors: Sensors, d: mjx.Data, torques: jax.Array, fo
     return cast_floats(mjx.kinematics(mx, d), d.qpos.dtype)
 
 
-def open_loop(mx: mjx.Model, sensors: Sensors, d0: mjx.Data, torques: jax.Array, force: jax.Array,
-              n_push: jax.Array, push_at_hip: bool = False) -> dict[str, jax.Array]:
+def open_loop(
+    mx: mjx.Model,
+    sensors: Sensors,
+    d0: mjx.Data,
+    torques: jax.Array,
+    force: jax.Array,
+    n_push: jax.Array,
+    push_at_hip: bool = False,
+) -> dict[str, jax.Array]:
     """Physics only: motor ``torques`` [n, 2] applied at steps i = 0..n-1, the push on for
     i < n_push. Returns per-step samples at t = (i+1) dt: qpos [n, nq], qvel [n, nv], cop [n],
     com [n], cell_low [n, 4]. Jit with ``sensors`` and ``push_at_hip`` static."""
@@ -226,8 +264,13 @@ def open_loop(mx: mjx.Model, sensors: Sensors, d0: mjx.Data, torques: jax.Array,
         i, tau = inputs
         d = advance(mx, sensors, d, tau, jnp.where(i < n_push, force, 0 * force), push_at_hip)
         cop, _ = load_cell_cop(d, sensors)
-        return d, dict(qpos=d.qpos, qvel=d.qvel, cop=cop, com=whole_body_com(mx, d, sensors),
-                       cell_low=cell_heights(mx, d, sensors))
+        return d, dict(
+            qpos=d.qpos,
+            qvel=d.qvel,
+            cop=cop,
+            com=whole_body_com(mx, d, sensors),
+            cell_low=cell_heights(mx, d, sensors),
+        )
 
     steps = jnp.arange(torques.shape[0], dtype=jnp.int32)
     return jax.lax.scan(body, d0, (steps, jnp.asarray(torques, dtype)))[1]

@@ -37,9 +37,17 @@ class Queue:
     docstring).
     """
 
-    def __init__(self, forces: np.ndarray, n_push: np.ndarray, devices: int, refill: int,
-                 inits: np.ndarray | None = None, block: int = 1,
-                 bodies: np.ndarray | None = None, wave: int = 1):
+    def __init__(
+        self,
+        forces: np.ndarray,
+        n_push: np.ndarray,
+        devices: int,
+        refill: int,
+        inits: np.ndarray | None = None,
+        block: int = 1,
+        bodies: np.ndarray | None = None,
+        wave: int = 1,
+    ):
         self.forces, self.n_push = forces, n_push
         self.wave = max(1, int(wave))
         n = forces.shape[0]
@@ -74,8 +82,11 @@ class Queue:
 
         flight = (self.taken_at >= 0) & ~done
         known = np.flatnonzero(done | flight)
-        ran = np.where(done, self.length, np.maximum(self.progress, (self.calls - self.taken_at
-                                                                     - 1) * self.block))
+        ran = np.where(
+            done,
+            self.length,
+            np.maximum(self.progress, (self.calls - self.taken_at - 1) * self.block),
+        )
         k = min(NEIGHBOURS, max(1, known.size // NEIGHBOURS))
         _, near = cKDTree(feats[known]).query(feats[self.pending], k=k, workers=-1)
         expected = ran[known][near.reshape(self.pending.size, k)].max(axis=1)
@@ -94,11 +105,11 @@ class Queue:
         [D R, 4]; their bodies) for the next call."""
         D, R = self.D, self.R
         self._order()
-        offer = self.pending[:D * R]
+        offer = self.pending[: D * R]
         cells = np.full(D * R, -1, np.int32)
         self._per = [offer[d::D] for d in range(D)]
         for d, part in enumerate(self._per):
-            cells[d * R: d * R + part.size] = part
+            cells[d * R : d * R + part.size] = part
         used = cells >= 0
         f = np.zeros(D * R, np.float64)
         p = np.zeros(D * R, np.int32)
@@ -112,16 +123,16 @@ class Queue:
     def took(self, taken: np.ndarray) -> None:
         """How many of its offered cells each device took [D] (the first ones of its offer),
         or which [D R] (bool, :meth:`offer`'s layout; body tiles take cells out of order)."""
-        offer = self.pending[:self.D * self.R]  # device d's part is offer[d::D]
+        offer = self.pending[: self.D * self.R]  # device d's part is offer[d::D]
         left = np.ones(offer.size, bool)
         for d in range(self.D):
-            part = left[d::self.D]
+            part = left[d :: self.D]
             if taken.dtype == bool:
-                part &= ~taken[d * self.R: d * self.R + part.size]
+                part &= ~taken[d * self.R : d * self.R + part.size]
             else:
-                part[:int(taken[d])] = False
+                part[: int(taken[d])] = False
         self.taken_at[offer[~left]] = self.calls
-        self.pending = np.concatenate([offer[left], self.pending[offer.size:]])
+        self.pending = np.concatenate([offer[left], self.pending[offer.size :]])
         self.calls += 1
 
     def finished(self, cells: np.ndarray, periods: np.ndarray) -> None:

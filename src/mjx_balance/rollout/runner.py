@@ -50,13 +50,16 @@ def _bucket(n: int, minimum: int = 8) -> int:
     return max(minimum, 1 << max(0, math.ceil(math.log2(max(n, 1)))))
 
 
-def _delay_prediction(lm: LinearModel, ctrl: ControllerParams,
-                      sc: ScenarioParams) -> tuple[bool, np.ndarray, np.ndarray]:
+def _delay_prediction(
+    lm: LinearModel, ctrl: ControllerParams, sc: ScenarioParams
+) -> tuple[bool, np.ndarray, np.ndarray]:
     """Whether the controller compensates its delay, and its predictor's (A, G) matrices."""
     compensate = bool(ctrl.delay_compensation and sc.assumed_delay_steps > 0)
-    pred_A, pred_G = (delay_predictor(lm.Ac, lm.Bc, sc.physics_dt, sc.assumed_delay_steps,
-                                      sc.substeps) if compensate
-                      else (np.eye(4), np.zeros((0, 4, 2))))
+    pred_A, pred_G = (
+        delay_predictor(lm.Ac, lm.Bc, sc.physics_dt, sc.assumed_delay_steps, sc.substeps)
+        if compensate
+        else (np.eye(4), np.zeros((0, 4, 2)))
+    )
     return compensate, pred_A, pred_G
 
 
@@ -69,13 +72,24 @@ class BatchRunner:
     is split over them along the scenario axis (a 1-D mesh, NamedSharding, shard_map).
     """
 
-    def __init__(self, config: Config, *, dtype=jnp.float32, trajectories: bool = False,
-                 mjx_options: dict[str, Any] | None = None, devices: list | None = None,
-                 slots: int | None = None, early_stop: bool = True, physics: str = "mjx",
-                 threads: int | None = None, admm_tile: int | None = None):
+    def __init__(
+        self,
+        config: Config,
+        *,
+        dtype=jnp.float32,
+        trajectories: bool = False,
+        mjx_options: dict[str, Any] | None = None,
+        devices: list | None = None,
+        slots: int | None = None,
+        early_stop: bool = True,
+        physics: str = "mjx",
+        threads: int | None = None,
+        admm_tile: int | None = None,
+    ):
         if physics not in ("mjx", "c"):
-            raise ValueError(f"physics must be 'mjx' or 'c' (resolve 'auto' first), got "
-                             f"{physics!r}")
+            raise ValueError(
+                f"physics must be 'mjx' or 'c' (resolve 'auto' first), got {physics!r}"
+            )
         self.config = config
         self.physics = physics
         self.dtype = jnp.dtype(dtype)
@@ -93,24 +107,31 @@ class BatchRunner:
         compensate, pred_A, pred_G = _delay_prediction(lm, ctrl, sc)
         limits, bounds = split_limits(Limits.from_params(sc, ctrl), self.dtype)
         self.arrays = Arrays(
-            mx=canonical_hfield_bounds(mx, self.model), d0=d0,
+            mx=canonical_hfield_bounds(mx, self.model),
+            d0=d0,
             qp=admm_mod.build_admm(qp, settings, dtype=self.dtype),
             to_state=jnp.asarray(to_state, self.dtype),
             torque_map=jnp.asarray(lm.torque_map, self.dtype),
-            pred_A=jnp.asarray(pred_A, self.dtype), pred_G=jnp.asarray(pred_G, self.dtype),
+            pred_A=jnp.asarray(pred_A, self.dtype),
+            pred_G=jnp.asarray(pred_G, self.dtype),
             ofs=offset_free.cast(offset_free.build(qp, ctrl), jnp, self.dtype),
-            settled=jnp.asarray(settled_rest(self.model), self.dtype), bounds=bounds,
+            settled=jnp.asarray(settled_rest(self.model), self.dtype),
+            bounds=bounds,
             n_control=jnp.asarray(sc.n_control, jnp.int32),
         )
         self.static = Static(
-            n_control=sc.n_control, substeps=sc.substeps, delay_steps=sc.delay_steps,
-            push_at_hip=sc.push_body == "hip", settings=settings, trajectories=trajectories,
-            limits=limits, compensate=compensate,
+            n_control=sc.n_control,
+            substeps=sc.substeps,
+            delay_steps=sc.delay_steps,
+            push_at_hip=sc.push_body == "hip",
+            settings=settings,
+            trajectories=trajectories,
+            limits=limits,
+            compensate=compensate,
             offset_free=ctrl.offset_free,
         )
         devices = list(jax.local_devices() if devices is None else devices)
-        self.mesh = (jax.sharding.Mesh(np.array(devices), ("batch",)) if len(devices) > 1
-                     else None)
+        self.mesh = jax.sharding.Mesh(np.array(devices), ("batch",)) if len(devices) > 1 else None
         if self.mesh is not None:  # the shared arrays, replicated on every device once
             self.arrays = jax.device_put(self.arrays, self._shardings()[1])
         self._compiled_fns: dict[int, Any] = {}
@@ -168,8 +189,13 @@ class BatchRunner:
         # its loops (the ADMM while_loop, the contact solver) stop for its own scenarios only
         # and no device waits on another inside the scan.
         P = jax.sharding.PartitionSpec
-        sharded = jax.shard_map(run_batch, mesh=mesh, in_specs=(P(), P("batch"), P("batch")),
-                                out_specs=P("batch"), check_vma=False)
+        sharded = jax.shard_map(
+            run_batch,
+            mesh=mesh,
+            in_specs=(P(), P("batch"), P("batch")),
+            out_specs=P("batch"),
+            check_vma=False,
+        )
         return jax.jit(sharded)
 
     def _shape_key(self, batch: int, static: Static | None = None) -> tuple:
@@ -177,12 +203,19 @@ class BatchRunner:
         tree structure, shapes and dtypes, the static addresses and settings (``static``:
         what the function bakes in, default the runner's), the batch."""
         leaves, treedef = jax.tree.flatten(self.arrays)
-        sensors = tuple(tuple(np.asarray(v).ravel().tolist()) + (np.shape(v),)
-                        for v in self.sensors)
+        sensors = tuple(
+            tuple(np.asarray(v).ravel().tolist()) + (np.shape(v),) for v in self.sensors
+        )
         devices = None if self.mesh is None else tuple(d.id for d in self.mesh.devices.flat)
-        return (treedef, tuple((np.shape(v), str(v.dtype)) for v in leaves), sensors,
-                self.static if static is None else static, batch, devices,
-                jax.config.jax_enable_x64)  # type: ignore[attr-defined]  # jax.config's flags are set at run time
+        return (
+            treedef,
+            tuple((np.shape(v), str(v.dtype)) for v in leaves),
+            sensors,
+            self.static if static is None else static,
+            batch,
+            devices,
+            jax.config.jax_enable_x64,  # type: ignore[attr-defined]  # flags set at run time
+        )
 
     def compiled(self, batch: int):
         """The compiled batch function for a padded batch size (compiled ahead of time).
@@ -197,8 +230,10 @@ class BatchRunner:
             batch_sharding, _ = self._shardings()
             force = jax.ShapeDtypeStruct((batch,), self.dtype, sharding=batch_sharding)
             n_push = jax.ShapeDtypeStruct((batch,), jnp.int32, sharding=batch_sharding)
-            fn = get_or_compile(self._shape_key(batch),
-                          lambda: self._batched().lower(self.arrays, force, n_push).compile())
+            fn = get_or_compile(
+                self._shape_key(batch),
+                lambda: self._batched().lower(self.arrays, force, n_push).compile(),
+            )
             self.compile_seconds[batch] = _time.perf_counter() - t0
             self._compiled_fns[batch] = fn
         return fn
@@ -213,8 +248,10 @@ class BatchRunner:
         if self.mesh is None:
             return None, None
         P = jax.sharding.PartitionSpec
-        return (jax.sharding.NamedSharding(self.mesh, P("batch")),
-                jax.sharding.NamedSharding(self.mesh, P()))
+        return (
+            jax.sharding.NamedSharding(self.mesh, P("batch")),
+            jax.sharding.NamedSharding(self.mesh, P()),
+        )
 
     def padded_batch(self, n: int) -> int:
         """The compiled batch size for n scenarios: the next power of two (>= 8), rounded up
@@ -229,16 +266,19 @@ class BatchRunner:
         forces = np.atleast_1d(np.asarray(forces, np.float64))
         durations = np.atleast_1d(np.asarray(durations, np.float64))
         if forces.ndim != 1 or forces.shape != durations.shape:
-            raise ValueError(f"forces and durations must be 1-D arrays of one length, got "
-                             f"shapes {forces.shape} and {durations.shape}")
+            raise ValueError(
+                f"forces and durations must be 1-D arrays of one length, got "
+                f"shapes {forces.shape} and {durations.shape}"
+            )
         if not (np.isfinite(forces).all() and np.isfinite(durations).all()):
             raise ValueError("forces and durations must be finite")
         if (durations < 0).any():
             raise ValueError("durations must be >= 0")
         return forces, durations
 
-    def run_raw(self, forces, durations, inits=None
-                ) -> tuple[Accumulators, dict[str, np.ndarray] | None]:
+    def run_raw(
+        self, forces, durations, inits=None
+    ) -> tuple[Accumulators, dict[str, np.ndarray] | None]:
         """Device results as numpy (accumulators, series), padding removed.
 
         Without trajectories the scenarios run on the continuous-batching engine (stopped when
@@ -251,8 +291,9 @@ class BatchRunner:
         if inits is not None and self.trajectories:
             raise ValueError("initial states run on the engine only (no trajectories)")
         if not self.trajectories:
-            raw = self.engine.run(forces, push_steps(durations, self.config.scenario.physics_dt),
-                                  inits)
+            raw = self.engine.run(
+                forces, push_steps(durations, self.config.scenario.physics_dt), inits
+            )
             self.last_periods = raw.pop("periods").astype(np.int64)
             self.last_certified = raw.pop("certified").astype(bool)
             return Accumulators(*(raw[name] for name in Accumulators._fields)), None
@@ -267,8 +308,11 @@ class BatchRunner:
         if batch_sharding is None:
             acc, series = fn(self.arrays, jnp.asarray(f), jnp.asarray(steps))
         else:  # the batch axis split over the devices (padding cells F = 0, T = 0)
-            acc, series = fn(self.arrays, jax.device_put(f, batch_sharding),
-                             jax.device_put(steps, batch_sharding))
+            acc, series = fn(
+                self.arrays,
+                jax.device_put(f, batch_sharding),
+                jax.device_put(steps, batch_sharding),
+            )
         acc = Accumulators(*(np.asarray(v)[:n] for v in acc))  # type: ignore[arg-type]  # the record's host (numpy) copy
         if series is not None:
             series = {k: np.asarray(v)[:n] for k, v in series.items()}
@@ -280,8 +324,10 @@ class BatchRunner:
             return None
         inits = np.asarray(inits, np.float64)
         if inits.shape != (n, 4) or not np.isfinite(inits).all():
-            raise ValueError(f"initial states must be finite, one [q_a, q_h, dq_a, dq_h] per "
-                             f"scenario ({n}, 4), got shape {inits.shape}")
+            raise ValueError(
+                f"initial states must be finite, one [q_a, q_h, dq_a, dq_h] per "
+                f"scenario ({n}, 4), got shape {inits.shape}"
+            )
         return inits
 
     def run(self, forces, durations, inits=None) -> dict[str, np.ndarray]:
@@ -309,9 +355,16 @@ class BatchRunner:
         steps = push_steps(durations, self.config.scenario.physics_dt)
         for index, raw in self.engine.stream(forces, steps, inits):
             acc = Accumulators(*(raw[name] for name in Accumulators._fields))
-            yield index, {"force": forces[index], "duration": durations[index],
-                          **summarize(acc, self.config, forces[index]), "periods": raw["periods"],
-                          "certified": raw["certified"]}
+            yield (
+                index,
+                {
+                    "force": forces[index],
+                    "duration": durations[index],
+                    **summarize(acc, self.config, forces[index]),
+                    "periods": raw["periods"],
+                    "certified": raw["certified"],
+                },
+            )
 
     def run_frame(self, forces, durations, inits=None) -> pd.DataFrame:
         """As :meth:`run`, as a table with columns ``outcomes.SUMMARY_COLUMNS`` (outcome as
@@ -371,8 +424,9 @@ def summarize(acc: Accumulators, config: Config, force=None) -> dict[str, np.nda
         "max_residual": finite_or_nan(acc.max_residual),
         "max_bound_violation": f64(acc.max_bound_violation),
         "fall_cause": np.asarray(acc.fall_cause, np.int32),
-        "first_infeasible_time": np.where(acc.first_infeasible >= 0,
-                                          f64(acc.first_infeasible) * sc.control_dt, np.nan),
+        "first_infeasible_time": np.where(
+            acc.first_infeasible >= 0, f64(acc.first_infeasible) * sc.control_dt, np.nan
+        ),
         "admm_iterations": np.asarray(acc.admm_iterations, np.int64),
         **balance_columns(acc, dt, force),
     }
@@ -382,14 +436,20 @@ def balance_columns(acc: Accumulators, dt: float, force=None) -> dict[str, np.nd
     """The CoM velocity extremes and the smallest margin of stability in each push's direction
     (the toe margin for force >= 0, the heel margin for a backward push; None: forward) with
     the time of its sample (docs/model.md)."""
+
     def finite_or_nan(v):
         v = np.asarray(v, np.float64)
         return np.where(np.isfinite(v), v, np.nan)
 
-    forward = np.ones(np.shape(acc.mos_toe_min), bool) if force is None else (
-        np.asarray(force, np.float64) >= 0)
+    forward = (
+        np.ones(np.shape(acc.mos_toe_min), bool)
+        if force is None
+        else (np.asarray(force, np.float64) >= 0)
+    )
     step = np.where(forward, acc.mos_toe_step, acc.mos_heel_step)
-    return {"com_vel_min": finite_or_nan(acc.com_vel_min),
-            "com_vel_max": finite_or_nan(acc.com_vel_max),
-            "mos_min": finite_or_nan(np.where(forward, acc.mos_toe_min, acc.mos_heel_min)),
-            "mos_min_time": np.where(step >= 0, (np.asarray(step, np.float64) + 1) * dt, np.nan)}
+    return {
+        "com_vel_min": finite_or_nan(acc.com_vel_min),
+        "com_vel_max": finite_or_nan(acc.com_vel_max),
+        "mos_min": finite_or_nan(np.where(forward, acc.mos_toe_min, acc.mos_heel_min)),
+        "mos_min_time": np.where(step >= 0, (np.asarray(step, np.float64) + 1) * dt, np.nan),
+    }

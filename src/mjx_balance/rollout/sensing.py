@@ -24,6 +24,7 @@ from ..model.mjcf import indices
 if TYPE_CHECKING:  # (annotations only: the model and data types)
     from mujoco import mjx
 
+
 class Sensors(NamedTuple):
     """Static (numpy) addresses for reading a sample out of mjx.Data."""
 
@@ -62,10 +63,13 @@ def sensors(model: mujoco.MjModel, d0: mjx.Data) -> Sensors:
     return Sensors(
         joints_q=np.array([ix.ankle_qpos, ix.hip_qpos]),
         joints_v=np.array([ix.ankle_dof, ix.hip_dof]),
-        foot_pitch=ix.foot_pitch, upper_body=ix.upper_body,
-        subtree=body_ids[in_subtree], cells=cells,
+        foot_pitch=ix.foot_pitch,
+        upper_body=ix.upper_body,
+        subtree=body_ids[in_subtree],
+        cells=cells,
         cell_radius=np.asarray(model.geom_size[cells, 0]),
-        cell_contacts=np.array(ids), contact_efc=np.stack(rows),
+        cell_contacts=np.array(ids),
+        contact_efc=np.stack(rows),
     )
 
 
@@ -140,10 +144,20 @@ def measure_step(arrays: Any, sensors: Sensors, d: mjx.Data) -> Sample:
     q, dq = joints(sensors, d)
     cop, _ = load_cell_cop(d, sensors)
     nan = jnp.full((), jnp.nan, d.qpos.dtype)
-    return Sample(q=q, dq=dq, x=state(arrays, q, dq), pitch=d.qpos[sensors.foot_pitch],
-                  cell_low=jnp.full((sensors.cells.shape[0],), nan), cop=cop, com=nan,
-                  magnitude=jnp.max(jnp.abs(jnp.concatenate([d.qpos, d.qvel, d.qacc, d.ctrl]))),
-                  qvel=d.qvel, com_vel=nan, mos_toe=nan, mos_heel=nan)
+    return Sample(
+        q=q,
+        dq=dq,
+        x=state(arrays, q, dq),
+        pitch=d.qpos[sensors.foot_pitch],
+        cell_low=jnp.full((sensors.cells.shape[0],), nan),
+        cop=cop,
+        com=nan,
+        magnitude=jnp.max(jnp.abs(jnp.concatenate([d.qpos, d.qvel, d.qacc, d.ctrl]))),
+        qvel=d.qvel,
+        com_vel=nan,
+        mos_toe=nan,
+        mos_heel=nan,
+    )
 
 
 def with_positions(s: Sample, arrays: Any, sensors: Sensors, d: mjx.Data) -> Sample:
@@ -152,8 +166,13 @@ def with_positions(s: Sample, arrays: Any, sensors: Sensors, d: mjx.Data) -> Sam
     com = whole_body_com(arrays.mx, d, sensors)
     com_vel = com_velocity(arrays.mx, d, sensors, s.qvel)
     _, mos_toe, mos_heel = margins(arrays, sensors, com, com_vel, d.geom_xpos[sensors.cells, 0])
-    return s._replace(cell_low=cell_heights(arrays.mx, d, sensors), com=com, com_vel=com_vel,
-                      mos_toe=mos_toe, mos_heel=mos_heel)
+    return s._replace(
+        cell_low=cell_heights(arrays.mx, d, sensors),
+        com=com,
+        com_vel=com_vel,
+        mos_toe=mos_toe,
+        mos_heel=mos_heel,
+    )
 
 
 def com_velocity(mx: mjx.Model, d: mjx.Data, sensors: Sensors, qvel: jax.Array) -> jax.Array:
@@ -197,11 +216,16 @@ def pendulum_frequency(arrays: Any, sensors: Sensors) -> jax.Array:
     return jnp.sqrt(jnp.abs(arrays.mx.opt.gravity[2]) / (com_z - arrays.d0.xanchor[ankle, 2]))
 
 
-def margins(arrays: Any, sensors: Sensors, com: jax.Array, com_vel: jax.Array,
-            cell_x: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+def margins(
+    arrays: Any, sensors: Sensors, com: jax.Array, com_vel: jax.Array, cell_x: jax.Array
+) -> tuple[jax.Array, jax.Array, jax.Array]:
     """(XcoM, toe margin, heel margin) of a sample from its CoM, CoM velocity and the load-cell
     centres' x [4] (outcomes.support_edges, outcomes.stability_margins)."""
     heel, toe = outcomes.support_edges(jnp, cell_x)
     dtype = com.dtype
-    return tuple(v.astype(dtype) for v in outcomes.stability_margins(
-        jnp, com, com_vel, heel, toe, pendulum_frequency(arrays, sensors).astype(dtype)))
+    return tuple(
+        v.astype(dtype)
+        for v in outcomes.stability_margins(
+            jnp, com, com_vel, heel, toe, pendulum_frequency(arrays, sensors).astype(dtype)
+        )
+    )

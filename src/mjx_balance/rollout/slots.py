@@ -26,8 +26,16 @@ import jax
 import jax.numpy as jnp
 
 from ..control import certificate as cert_mod
-from .kernel import (Accumulators, Carry, initial_carry, lane_arrays, period_batch, rest_of,
-                     select, start)
+from .kernel import (
+    Accumulators,
+    Carry,
+    initial_carry,
+    lane_arrays,
+    period_batch,
+    rest_of,
+    select,
+    start,
+)
 
 
 class Slots(NamedTuple):
@@ -60,13 +68,16 @@ class Packing:
         self.layout = tuple((tuple(v.shape), jnp.dtype(v.dtype), v.size == 0) for v in leaves)
 
     def pack(self, carry: Carry) -> tuple:
-        return tuple(v for v, (_, _, empty) in zip(jax.tree.leaves(carry), self.layout)
-                     if not empty)
+        return tuple(
+            v for v, (_, _, empty) in zip(jax.tree.leaves(carry), self.layout) if not empty
+        )
 
     def unpack(self, packed: tuple, batch: int) -> Carry:
         it = iter(packed)
-        leaves = [jnp.zeros((batch,) + shape, dtype) if empty else next(it)
-                  for shape, dtype, empty in self.layout]
+        leaves = [
+            jnp.zeros((batch,) + shape, dtype) if empty else next(it)
+            for shape, dtype, empty in self.layout
+        ]
         return jax.tree.unflatten(self.treedef, leaves)
 
 
@@ -74,8 +85,18 @@ def broadcast(tree, n):
     return jax.tree.map(lambda v: jnp.broadcast_to(v, (n,) + jnp.shape(v)), tree)
 
 
-def refill(slots: Slots, rest: Carry, taken, vacant, refill_cell, refill_force, refill_push, *,
-           starts: Carry | None = None, refill_body=None) -> tuple[Slots, jax.Array]:
+def refill(
+    slots: Slots,
+    rest: Carry,
+    taken,
+    vacant,
+    refill_cell,
+    refill_force,
+    refill_push,
+    *,
+    starts: Carry | None = None,
+    refill_body=None,
+) -> tuple[Slots, jax.Array]:
     """Vacant slots take the next refill cells, in slot order (``taken`` already used).
     ``starts`` [R]: each refill cell's first carry (:func:`kernel.start`, a per-scenario
     initial state); None: upright rest (``rest``). ``refill_body`` [R]: each cell's body
@@ -109,8 +130,19 @@ def _ranks(key, mask):
     return jnp.zeros(n, jnp.int32).at[order].set(rank.astype(jnp.int32)), order, sorted_key
 
 
-def refill_tiles(slots: Slots, rests: Carry, used, vacant, refill_cell, refill_force,
-                 refill_push, *, starts: Carry, refill_body, tile: int) -> tuple[Slots, jax.Array]:
+def refill_tiles(
+    slots: Slots,
+    rests: Carry,
+    used,
+    vacant,
+    refill_cell,
+    refill_force,
+    refill_push,
+    *,
+    starts: Carry,
+    refill_body,
+    tile: int,
+) -> tuple[Slots, jax.Array]:
     """:func:`refill` for per-lane bodies solved by body tiles: every ``tile`` consecutive
     slots hold one body's scenarios (``admm.admm_solve_tiles`` solves one QP per tile).
 
@@ -126,8 +158,9 @@ def refill_tiles(slots: Slots, rests: Carry, used, vacant, refill_cell, refill_f
     n_bodies = jax.tree.leaves(rests)[0].shape[0]
     avail = (refill_cell >= 0) & ~used
     rank, order, sorted_body = _ranks(refill_body, avail)
-    body_first = jnp.searchsorted(sorted_body, jnp.arange(n_bodies, dtype=jnp.int32),
-                                  side="left").astype(jnp.int32)
+    body_first = jnp.searchsorted(
+        sorted_body, jnp.arange(n_bodies, dtype=jnp.int32), side="left"
+    ).astype(jnp.int32)
 
     def cell_of(b, r):  # the offered cell of body b at rank r among those available, if any
         at = body_first[b] + r
@@ -146,8 +179,9 @@ def refill_tiles(slots: Slots, rests: Carry, used, vacant, refill_cell, refill_f
     tile_free = (empty & vacant).reshape(T, tile).any(axis=1)
     nth = jnp.cumsum(tile_free.astype(jnp.int32)) - 1  # the empty tile's turn
     served = tile_free & (nth < n_groups)
-    lead = jnp.clip(jnp.searchsorted(jnp.cumsum(leads.astype(jnp.int32)), nth + 1,
-                                     side="left"), 0, R - 1)
+    lead = jnp.clip(
+        jnp.searchsorted(jnp.cumsum(leads.astype(jnp.int32)), nth + 1, side="left"), 0, R - 1
+    )
     new_body = jnp.where(served, refill_body[lead], slots.body.reshape(T, tile)[:, 0])
     body = jnp.repeat(new_body.astype(slots.body.dtype), tile)
     seat = jnp.cumsum(vacant.reshape(T, tile), axis=1).reshape(S) - 1  # j-th vacant of a tile
@@ -163,7 +197,9 @@ def refill_tiles(slots: Slots, rests: Carry, used, vacant, refill_cell, refill_f
         cell=jnp.where(take, refill_cell[source], slots.cell),
         force=jnp.where(take, refill_force[source], slots.force),
         n_push=jnp.where(take, refill_push[source], slots.n_push),
-        k=jnp.where(take, 0, slots.k), body=body)
+        k=jnp.where(take, 0, slots.k),
+        body=body,
+    )
     return slots, (refill_cell >= 0) & (used | jnp.zeros(R, bool).at[source].max(take))
 
 
@@ -191,15 +227,20 @@ def certify(check, static, x, acc: Accumulators, k, n_push, ended, due, *, n_con
     # a certified scenario's remaining periods are solved and unsaturated, and its energies go
     # on as the linear model predicts (certificate.py)
     acc = acc._replace(
-        control_periods=jnp.where(certified, acc.control_periods + (n_control - k),
-                                  acc.control_periods),
-        **{name: jnp.where(certified, getattr(acc, name) + v.astype(dtype), getattr(acc, name))
-           for name, v in tail.items()})
+        control_periods=jnp.where(
+            certified, acc.control_periods + (n_control - k), acc.control_periods
+        ),
+        **{
+            name: jnp.where(certified, getattr(acc, name) + v.astype(dtype), getattr(acc, name))
+            for name, v in tail.items()
+        },
+    )
     return acc, certified
 
 
-def harvest(done: Finished, n_done, decided, cell, acc: Accumulators, k, certified
-            ) -> tuple[Finished, jax.Array]:
+def harvest(
+    done: Finished, n_done, decided, cell, acc: Accumulators, k, certified
+) -> tuple[Finished, jax.Array]:
     """Decided scenarios go to the buffer ``done`` (after its ``n_done`` entries)."""
     capacity = done.cell.shape[0]
     where = jnp.where(decided, n_done + jnp.cumsum(decided) - 1, capacity)
@@ -215,14 +256,30 @@ def harvest(done: Finished, n_done, decided, cell, acc: Accumulators, k, certifi
 def vacate(decided, rest: Carry, carry: Carry, slots: Slots, k) -> Slots:
     """Slots with ``carry`` after a period; decided ones vacated, reset to rest (a vacated slot
     idles at rest, unpushed, until it is refilled)."""
-    return Slots(carry=select(decided, rest, carry), cell=jnp.where(decided, -1, slots.cell),
-                 force=jnp.where(decided, 0, slots.force),
-                 n_push=jnp.where(decided, 0, slots.n_push), k=k, body=slots.body)
+    return Slots(
+        carry=select(decided, rest, carry),
+        cell=jnp.where(decided, -1, slots.cell),
+        force=jnp.where(decided, 0, slots.force),
+        n_push=jnp.where(decided, 0, slots.n_push),
+        k=k,
+        body=slots.body,
+    )
 
 
-def take(slots: Slots, rest: Carry, taken, s, refill_cell, refill_force, refill_push,
-         starts: Carry | None, *, gated: bool, refill_body=None,
-         tile: int | None = None) -> tuple[Slots, jax.Array]:
+def take(
+    slots: Slots,
+    rest: Carry,
+    taken,
+    s,
+    refill_cell,
+    refill_force,
+    refill_push,
+    starts: Carry | None,
+    *,
+    gated: bool,
+    refill_body=None,
+    tile: int | None = None,
+) -> tuple[Slots, jax.Array]:
     """Step 1 of a period (``s``: its index in the call): vacant slots take the next refill
     cells, in slot order. ``gated`` (with the certificate): only every ``CHECK_EVERY`` periods,
     so that every scenario's k is a multiple of it when it is checked (a check skipped for the
@@ -230,21 +287,43 @@ def take(slots: Slots, rest: Carry, taken, s, refill_cell, refill_force, refill_
     (:func:`refill_tiles`; ``rest``: each body's, ``taken``: the offered cells used [R])."""
     vacant = slots.cell < 0
     if tile is not None:
+
         def fill(_):
-            return refill_tiles(slots, rest, taken, vacant, refill_cell, refill_force,
-                                refill_push, starts=starts, refill_body=refill_body, tile=tile)
+            return refill_tiles(
+                slots,
+                rest,
+                taken,
+                vacant,
+                refill_cell,
+                refill_force,
+                refill_push,
+                starts=starts,
+                refill_body=refill_body,
+                tile=tile,
+            )
+
         if not gated:
             return fill(None)
         # the tiles' sorts and searches run only in the periods that refill
         return jax.lax.cond(s % cert_mod.CHECK_EVERY == 0, fill, lambda _: (slots, taken), None)
     if gated:
         vacant = vacant & (s % cert_mod.CHECK_EVERY == 0)
-    return refill(slots, rest, taken, vacant, refill_cell, refill_force, refill_push,
-                  starts=starts, refill_body=refill_body)
+    return refill(
+        slots,
+        rest,
+        taken,
+        vacant,
+        refill_cell,
+        refill_force,
+        refill_push,
+        starts=starts,
+        refill_body=refill_body,
+    )
 
 
-def decide(check, static, n_control, carry: Carry, k, push, busy, due
-           ) -> tuple[Accumulators, jax.Array, jax.Array]:
+def decide(
+    check, static, n_control, carry: Carry, k, push, busy, due
+) -> tuple[Accumulators, jax.Array, jax.Array]:
     """Step 3 of a period, after the period ran (``carry``; ``k``: periods done; ``push``:
     each slot's (push steps, force)): whether each busy slot's scenario ended (fell, diverged
     or reached t_end) or is certified (``due``: the certificate checks this period). Returns
@@ -254,13 +333,33 @@ def decide(check, static, n_control, carry: Carry, k, push, busy, due
     if not isinstance(push, tuple):  # (an array of two slots would unpack silently)
         raise TypeError(f"push: (push steps, force), got {type(push).__name__}")
     n_push, force = push
-    acc, certified = certify(check, static, carry.x_prev, carry.acc, k, n_push, ended, due,
-                             n_control=n_control, force=force)
+    acc, certified = certify(
+        check,
+        static,
+        carry.x_prev,
+        carry.acc,
+        k,
+        n_push,
+        ended,
+        due,
+        n_control=n_control,
+        force=force,
+    )
     return acc, certified, busy & (ended | certified)
 
 
-def retire(done: Finished, n_done, decided, slots: Slots, acc: Accumulators, k, certified, *,
-           carry: Carry, rest: Carry) -> tuple[Finished, jax.Array, Slots]:
+def retire(
+    done: Finished,
+    n_done,
+    decided,
+    slots: Slots,
+    acc: Accumulators,
+    k,
+    certified,
+    *,
+    carry: Carry,
+    rest: Carry,
+) -> tuple[Finished, jax.Array, Slots]:
     """Step 4 of a period: decided scenarios go to the buffer (:func:`harvest`) and their
     slots are vacated (:func:`vacate`)."""
     done, n_done = harvest(done, n_done, decided, slots.cell, acc, k, certified)
@@ -271,7 +370,9 @@ def empty_finished(capacity: int, dtype) -> Finished:
     return Finished(
         cell=jnp.full(capacity, -1, jnp.int32),
         acc=broadcast(Accumulators.initial(dtype), capacity),
-        periods=jnp.zeros(capacity, jnp.int32), certified=jnp.zeros(capacity, bool))
+        periods=jnp.zeros(capacity, jnp.int32),
+        certified=jnp.zeros(capacity, bool),
+    )
 
 
 def checker(cert, periods: int | None = None, axis: int | None = None, body=None):
@@ -284,15 +385,18 @@ def checker(cert, periods: int | None = None, axis: int | None = None, body=None
         return None
     if periods is not None and periods % cert_mod.CHECK_EVERY:
         raise ValueError(f"block of {periods} periods: not a multiple of {cert_mod.CHECK_EVERY}")
-    check = jax.vmap(lambda c, x, acc, over, left: cert_mod.check(jnp, c, x, acc, over, left),
-                     in_axes=(axis, 0, 0, 0, 0))
+    check = jax.vmap(
+        lambda c, x, acc, over, left: cert_mod.check(jnp, c, x, acc, over, left),
+        in_axes=(axis, 0, 0, 0, 0),
+    )
     if body is not None:
         return lambda x, acc, over, left: check(lane_arrays(cert, body), x, acc, over, left)
     return lambda x, acc, over, left: check(cert, x, acc, over, left)
 
 
-def opened(arrays, sensors, static, slots: Slots, refill_init, packing: Packing,
-           refill_body=None) -> tuple[Slots, Carry, Carry]:
+def opened(
+    arrays, sensors, static, slots: Slots, refill_init, packing: Packing, refill_body=None
+) -> tuple[Slots, Carry, Carry]:
     """A call's start: the slots with their carry unpacked (:class:`Packing`), upright rest
     (shared arrays: every slot's [S]; lanes, ``refill_body`` given: each body's
     [n_bodies]), and each refill cell's first carry (from its initial joint state)."""
@@ -304,34 +408,81 @@ def opened(arrays, sensors, static, slots: Slots, refill_init, packing: Packing,
         return slots, broadcast(single, n), starts
     rests = rest_of(arrays, sensors, static, 0)
     starts = jax.vmap(lambda a, r, init: start(a, sensors, r, init))(
-        lane_arrays(arrays, refill_body), lane_arrays(rests, refill_body), refill_init)
+        lane_arrays(arrays, refill_body), lane_arrays(rests, refill_body), refill_init
+    )
     return slots, rests, starts
 
 
-def _run_period(arrays, sensors, static, cert, slots: Slots, rest: Carry, s, *,
-                done: Finished, n_done, periods: int, early_stop: bool, tile: int | None,
-                lanes: bool) -> tuple[Finished, jax.Array, Slots]:
+def _run_period(
+    arrays,
+    sensors,
+    static,
+    cert,
+    slots: Slots,
+    rest: Carry,
+    s,
+    *,
+    done: Finished,
+    n_done,
+    periods: int,
+    early_stop: bool,
+    tile: int | None,
+    lanes: bool,
+) -> tuple[Finished, jax.Array, Slots]:
     """Steps 2-4 of :func:`block`'s period ``s``: run it, decide, harvest and vacate."""
     every = cert_mod.CHECK_EVERY
     axis = 0 if lanes else None
-    body, body_rest = ((lane_arrays(arrays, slots.body), lane_arrays(rest, slots.body))
-                       if lanes else (arrays, rest))
-    check = checker(cert if early_stop else None, periods, axis,
-                    slots.body if lanes else None)
+    body, body_rest = (
+        (lane_arrays(arrays, slots.body), lane_arrays(rest, slots.body))
+        if lanes
+        else (arrays, rest)
+    )
+    check = checker(cert if early_stop else None, periods, axis, slots.body if lanes else None)
     # lanes: the QPs by body tiles of ``tile`` slots (:func:`refill_tiles`)
-    carry = period_batch(body, sensors, static, slots.carry, slots.k, slots.force,
-                         slots.n_push, tile=tile, axis=axis,
-                         tiles=(arrays.qp, slots.body[::tile]) if lanes else None)[0]
+    carry = period_batch(
+        body,
+        sensors,
+        static,
+        slots.carry,
+        slots.k,
+        slots.force,
+        slots.n_push,
+        tile=tile,
+        axis=axis,
+        tiles=(arrays.qp, slots.body[::tile]) if lanes else None,
+    )[0]
     k = slots.k + 1
-    acc, certified, decided = decide(check, static, body.n_control, carry, k,
-                                     (slots.n_push, slots.force), slots.cell >= 0,
-                                     s % every == every - 1)
+    acc, certified, decided = decide(
+        check,
+        static,
+        body.n_control,
+        carry,
+        k,
+        (slots.n_push, slots.force),
+        slots.cell >= 0,
+        s % every == every - 1,
+    )
     return retire(done, n_done, decided, slots, acc, k, certified, carry=carry, rest=body_rest)
 
 
-def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_force, refill_push,
-          refill_init, refill_body, periods: int, early_stop: bool, packing: Packing,
-          tile: int | None = None, lanes: bool = False):
+def block(
+    arrays,
+    sensors,
+    static,
+    cert,
+    slots: Slots,
+    *,
+    refill_cell,
+    refill_force,
+    refill_push,
+    refill_init,
+    refill_body,
+    periods: int,
+    early_stop: bool,
+    packing: Packing,
+    tile: int | None = None,
+    lanes: bool = False,
+):
     """``periods`` control periods of one device's slots with refill and harvest (pure JAX).
 
     refill_*: [R] the next cells for this device (cell -1: none), refill_init [R, 4] their
@@ -344,23 +495,47 @@ def block(arrays, sensors, static, cert, slots: Slots, *, refill_cell, refill_fo
     sequential ADMM tiles).
     """
     S = slots.cell.shape[0]
-    slots, rest, starts = opened(arrays, sensors, static, slots, refill_init, packing,
-                                 refill_body if lanes else None)
+    slots, rest, starts = opened(
+        arrays, sensors, static, slots, refill_init, packing, refill_body if lanes else None
+    )
 
     def step(state, s):
         slots, taken, done, n_done = state
         # 1. refill; 2. one control period of every slot; 3. decide; 4. harvest and vacate
-        slots, taken = take(slots, rest, taken, s, refill_cell, refill_force, refill_push,
-                            starts, gated=early_stop and cert is not None, refill_body=refill_body,
-                            tile=tile if lanes else None)
-        done, n_done, slots = _run_period(arrays, sensors, static, cert, slots, rest, s,
-                                          done=done, n_done=n_done, periods=periods,
-                                          early_stop=early_stop, tile=tile, lanes=lanes)
+        slots, taken = take(
+            slots,
+            rest,
+            taken,
+            s,
+            refill_cell,
+            refill_force,
+            refill_push,
+            starts,
+            gated=early_stop and cert is not None,
+            refill_body=refill_body,
+            tile=tile if lanes else None,
+        )
+        done, n_done, slots = _run_period(
+            arrays,
+            sensors,
+            static,
+            cert,
+            slots,
+            rest,
+            s,
+            done=done,
+            n_done=n_done,
+            periods=periods,
+            early_stop=early_stop,
+            tile=tile,
+            lanes=lanes,
+        )
         return (slots, taken, done, n_done), None
 
     done = empty_finished(S + refill_cell.shape[0], arrays.d0.qpos.dtype)
     zero = jnp.zeros((), jnp.int32)
     taken = jnp.zeros(refill_cell.shape, bool) if lanes else zero
-    (slots, taken, done, _), _ = jax.lax.scan(step, (slots, taken, done, zero),
-                                              jnp.arange(periods, dtype=jnp.int32))
+    (slots, taken, done, _), _ = jax.lax.scan(
+        step, (slots, taken, done, zero), jnp.arange(periods, dtype=jnp.int32)
+    )
     return slots._replace(carry=packing.pack(slots.carry)), taken if lanes else taken[None], done

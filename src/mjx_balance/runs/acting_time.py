@@ -40,23 +40,42 @@ COARSE_DURATIONS = (0.01, 0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
 # Energies at T = 0.1 s (_01) and at the max acting time (_max): the study's (eq. 20,
 # |sum u_i Δx_i| of the convention's pairs, docs/model.md) and the motors' absolute work.
 STUDY_ENERGY_COLUMNS = [
-    "study_energy_u1_01", "study_energy_u2_01", "study_energy_total_01",
-    "study_energy_u1_max", "study_energy_u2_max", "study_energy_total_max",
+    "study_energy_u1_01",
+    "study_energy_u2_01",
+    "study_energy_total_01",
+    "study_energy_u1_max",
+    "study_energy_u2_max",
+    "study_energy_total_max",
 ]
 MOTOR_ENERGY_COLUMNS = [
-    "energy_ankle_01", "energy_hip_01", "energy_total_01",
-    "energy_ankle_max", "energy_hip_max", "energy_total_max",
+    "energy_ankle_01",
+    "energy_hip_01",
+    "energy_total_01",
+    "energy_ankle_max",
+    "energy_hip_max",
+    "energy_total_max",
 ]
 # table.csv of the paper convention: the study's energies come first (its headline); the joint
 # convention's puts the motors' first (table_columns).
 TABLE_COLUMNS = [
-    "force", "max_acting_time",
+    "force",
+    "max_acting_time",
     *STUDY_ENERGY_COLUMNS,
     *MOTOR_ENERGY_COLUMNS,
-    "ending_outcome", "monotone", "recovered_beyond_failure",
-    "outcome_01", "settle_time_01", "settle_time_max",
-    "energy_u1_01", "energy_u2_01", "energy_u1_max", "energy_u2_max",
-    "convention", "evaluations", "note", "sustained_push_limit",
+    "ending_outcome",
+    "monotone",
+    "recovered_beyond_failure",
+    "outcome_01",
+    "settle_time_01",
+    "settle_time_max",
+    "energy_u1_01",
+    "energy_u2_01",
+    "energy_u1_max",
+    "energy_u2_max",
+    "convention",
+    "evaluations",
+    "note",
+    "sustained_push_limit",
 ]
 
 
@@ -65,8 +84,9 @@ def table_columns(convention: str) -> list[str]:
     study's energy first); in the joint convention the motors' energies first."""
     if convention == "paper":
         return list(TABLE_COLUMNS)
-    rest = TABLE_COLUMNS[2 + len(STUDY_ENERGY_COLUMNS) + len(MOTOR_ENERGY_COLUMNS):]
+    rest = TABLE_COLUMNS[2 + len(STUDY_ENERGY_COLUMNS) + len(MOTOR_ENERGY_COLUMNS) :]
     return [*TABLE_COLUMNS[:2], *MOTOR_ENERGY_COLUMNS, *STUDY_ENERGY_COLUMNS, *rest]
+
 
 # Forces [N] of the sustained-push limit's coarse scan (each pushed for the whole window).
 SUSTAINED_COARSE = (0.0, 2.5, 5.0, 7.5, 10.0, 12.5, 15.0, 20.0, 30.0, 50.0, 80.0, 120.0, 200.0)
@@ -80,14 +100,16 @@ class TableResult:
     seconds: float
 
 
-def coarse_steps(t_end: float, resolution: float,
-                 durations: Iterable[float] = COARSE_DURATIONS) -> np.ndarray:
+def coarse_steps(
+    t_end: float, resolution: float, durations: Iterable[float] = COARSE_DURATIONS
+) -> np.ndarray:
     """Coarse scan durations in units of ``resolution``: the given ones that fit in t_end, 0.1 s,
     and t_end itself (at least one step)."""
     n_max = int(math.floor(t_end / resolution + 1e-9))
     if n_max < 1:
-        raise ParameterError(f"scenario.t_end = {t_end:g} s is shorter than the resolution "
-                             f"{resolution:g} s")
+        raise ParameterError(
+            f"scenario.t_end = {t_end:g} s is shorter than the resolution {resolution:g} s"
+        )
     steps = {int(round(d / resolution)) for d in (*durations, 0.1) if d <= t_end + GRID_TOL}
     steps.add(n_max)
     return np.array(sorted(s for s in steps if 1 <= s <= n_max), dtype=np.int64)
@@ -101,12 +123,19 @@ def table_batch_size(config: Config, n_forces: int, resolution: float = 0.01) ->
     return min(1 << max(3, math.ceil(math.log2(max(n, 1)))), max(limit, n_forces))
 
 
-def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, *,
-                    run_batch: RunBatch | None = None, resolution: float = 0.01,
-                    coarse: Iterable[float] = COARSE_DURATIONS, batch: int | None = None,
-                    points_per_round: int | None = None, progress: bool | None = True,
-                    say: Callable[[str], None] | None = print,
-                    cells: TableCells | None = None) -> TableResult:
+def max_acting_time(
+    forces: np.ndarray | str | Sequence[float],
+    config: Config,
+    *,
+    run_batch: RunBatch | None = None,
+    resolution: float = 0.01,
+    coarse: Iterable[float] = COARSE_DURATIONS,
+    batch: int | None = None,
+    points_per_round: int | None = None,
+    progress: bool | None = True,
+    say: Callable[[str], None] | None = print,
+    cells: TableCells | None = None,
+) -> TableResult:
     """Max acting time of every force (docs/outputs.md, "mjx-balance table"): the largest T, a
     multiple of ``resolution`` in [0, t_end], such that the push (F, T) recovers and so does
     every duration tried below it.
@@ -153,9 +182,18 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
     say(_plan_text(n_f, n_c, points_per_round, resolution, batch, config.controller.convention))
     bar = _table_bar(n_f, n_c, widest, points_per_round, progress)
     try:
-        brackets, runs = _bracket_rounds(run_batch, forces, steps, n_max, config, batch=batch,
-                                         resolution=resolution,
-                                         points_per_round=points_per_round, cells=cells, bar=bar)
+        brackets, runs = _bracket_rounds(
+            run_batch,
+            forces,
+            steps,
+            n_max,
+            config,
+            batch=batch,
+            resolution=resolution,
+            points_per_round=points_per_round,
+            cells=cells,
+            bar=bar,
+        )
     finally:
         bar.close()
 
@@ -166,33 +204,47 @@ def max_acting_time(forces: np.ndarray | str | Sequence[float], config: Config, 
     return TableResult(table, runs_frame, seconds)
 
 
-def _plan_text(n_f: int, n_c: int, points_per_round: int, resolution: float, batch: int | None,
-               convention: str) -> str:
+def _plan_text(
+    n_f: int, n_c: int, points_per_round: int, resolution: float, batch: int | None, convention: str
+) -> str:
     """The line that says the table's planned work: forces, coarse scan, rounds, batches."""
-    return (f"table: {n_f} forces; coarse scan of {n_c} durations, then "
-            + ("bisection" if points_per_round == 1 else f"{points_per_round + 1}-section")
-            + f" to {resolution:g} s" + (f" in batches of {batch}" if batch else "")
-            + f"; convention {convention}")
+    return (
+        f"table: {n_f} forces; coarse scan of {n_c} durations, then "
+        + ("bisection" if points_per_round == 1 else f"{points_per_round + 1}-section")
+        + f" to {resolution:g} s"
+        + (f" in batches of {batch}" if batch else "")
+        + f"; convention {convention}"
+    )
 
 
 def _table_bar(n_f: int, n_c: int, widest: int, points_per_round: int, progress: bool | None):
     """The table's progress bar, over the most scenarios its coarse scan and rounds can take."""
     # a fixed total: the most scenarios the coarse scan and the rounds can take (the bar
     # counts those run and those a force no longer needs once its bracket has closed)
-    return progress_bar(n_f * (n_c + bracket_cost(widest, points_per_round)), 0, progress,
-                        desc="table")
+    return progress_bar(
+        n_f * (n_c + bracket_cost(widest, points_per_round)), 0, progress, desc="table"
+    )
 
 
-def _table_of(forces: np.ndarray, brackets: Brackets, steps: np.ndarray, resolution: float,
-              t_end: float, config: Config) -> pd.DataFrame:
+def _table_of(
+    forces: np.ndarray,
+    brackets: Brackets,
+    steps: np.ndarray,
+    resolution: float,
+    t_end: float,
+    config: Config,
+) -> pd.DataFrame:
     """The table: one row per force from its closed bracket (:func:`table_row`)."""
-    rows = [table_row(i, force, brackets, steps, resolution, t_end, config)
-            for i, force in enumerate(forces)]
+    rows = [
+        table_row(i, force, brackets, steps, resolution, t_end, config)
+        for i, force in enumerate(forces)
+    ]
     return pd.DataFrame(rows, columns=table_columns(config.controller.convention))
 
 
-def _points_per_round(resolution: float, batch: int | None, points_per_round: int | None,
-                      n_forces: int) -> int:
+def _points_per_round(
+    resolution: float, batch: int | None, points_per_round: int | None, n_forces: int
+) -> int:
     """Check the table's resolution and batch; the points per bracket and round (default
     max(1, batch // n_forces) with a batch, else 1: bisection)."""
     if not resolution > 0:
@@ -206,32 +258,50 @@ def _points_per_round(resolution: float, batch: int | None, points_per_round: in
     return points_per_round
 
 
-def _bracket_rounds(run_batch: RunBatch, forces: np.ndarray, steps: np.ndarray, n_max: int,
-                    config: Config, *, batch: int | None, resolution: float,
-                    points_per_round: int, cells: TableCells | None,
-                    bar: Any) -> tuple[Brackets, list[pd.DataFrame]]:
+def _bracket_rounds(
+    run_batch: RunBatch,
+    forces: np.ndarray,
+    steps: np.ndarray,
+    n_max: int,
+    config: Config,
+    *,
+    batch: int | None,
+    resolution: float,
+    points_per_round: int,
+    cells: TableCells | None,
+    bar: Any,
+) -> tuple[Brackets, list[pd.DataFrame]]:
     """The coarse scan of the durations ``steps`` (in resolution units) for every force [n_f],
     then refine rounds until every bracket is one resolution step wide; returns the brackets
     and each call's summary rows (the coarse scan first). ``bar`` counts the scenarios (its
     total, an upper estimate, is set to the count at the end)."""
     n_f, n_c = forces.size, steps.size
     runs: list[pd.DataFrame] = []
-    coarse_frame = evaluate_cells(run_batch, np.repeat(forces, n_c),
-                                  np.round(np.tile(steps * resolution, n_f), 12),
-                                  config, batch, None, cells)
+    coarse_frame = evaluate_cells(
+        run_batch,
+        np.repeat(forces, n_c),
+        np.round(np.tile(steps * resolution, n_f), 12),
+        config,
+        batch,
+        None,
+        cells,
+    )
     runs.append(coarse_frame)
     brackets = coarse_brackets(coarse_frame, steps, n_max)
 
     def work_left() -> int:
-        return sum(bracket_cost(int(brackets.hi[i] - brackets.lo[i]), points_per_round)
-                   for i in brackets.active())
+        return sum(
+            bracket_cost(int(brackets.hi[i] - brackets.lo[i]), points_per_round)
+            for i in brackets.active()
+        )
 
     advance(bar, work_left())
     for _round in range(64):
         if not brackets.active().size:
             break
-        frame = refine_round(brackets, forces, run_batch, config, batch, resolution,
-                             points_per_round, cells)
+        frame = refine_round(
+            brackets, forces, run_batch, config, batch, resolution, points_per_round, cells
+        )
         runs.append(frame)
         advance(bar, work_left())
     else:  # pragma: no cover - the bracket halves every round
@@ -290,28 +360,41 @@ def coarse_brackets(coarse_frame: pd.DataFrame, steps: np.ndarray, n_max: int) -
     n_f = len(coarse_frame) // n_c
     recovered = (coarse_frame["outcome"].to_numpy() == OUTCOMES[RECOVERED]).reshape(n_f, n_c)
     rows = coarse_frame.to_dict("records")
-    coarse_rows = [rows[i * n_c:(i + 1) * n_c] for i in range(n_f)]
+    coarse_rows = [rows[i * n_c : (i + 1) * n_c] for i in range(n_f)]
     first_fail = np.where(recovered.all(axis=1), n_c, np.argmin(recovered, axis=1))
-    b = Brackets(lo=np.zeros(n_f, dtype=np.int64), hi=np.full(n_f, n_max + 1, dtype=np.int64),
-                 lo_row=[None] * n_f, hi_row=[None] * n_f, monotone=np.ones(n_f, dtype=bool),
-                 beyond=np.full(n_f, np.nan), evaluations=np.full(n_f, n_c, dtype=np.int64),
-                 coarse_rows=coarse_rows, n_max=n_max)
+    b = Brackets(
+        lo=np.zeros(n_f, dtype=np.int64),
+        hi=np.full(n_f, n_max + 1, dtype=np.int64),
+        lo_row=[None] * n_f,
+        hi_row=[None] * n_f,
+        monotone=np.ones(n_f, dtype=bool),
+        beyond=np.full(n_f, np.nan),
+        evaluations=np.full(n_f, n_c, dtype=np.int64),
+        coarse_rows=coarse_rows,
+        n_max=n_max,
+    )
     for i in range(n_f):
         j = first_fail[i]
         if j > 0:
             b.lo[i], b.lo_row[i] = steps[j - 1], coarse_rows[i][j - 1]
         if j < n_c:
             b.hi[i], b.hi_row[i] = steps[j], coarse_rows[i][j]
-            later = np.flatnonzero(recovered[i, j + 1:])
+            later = np.flatnonzero(recovered[i, j + 1 :])
             if later.size:
                 b.monotone[i] = False
                 b.beyond[i] = steps[j + 1 + later[-1]]
     return b
 
 
-def evaluate_cells(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarray,
-                   config: Config, batch: int | None, pad_to: int | None,
-                   cells: TableCells | None) -> pd.DataFrame:
+def evaluate_cells(
+    run_batch: RunBatch,
+    forces: np.ndarray,
+    durations: np.ndarray,
+    config: Config,
+    batch: int | None,
+    pad_to: int | None,
+    cells: TableCells | None,
+) -> pd.DataFrame:
     """Summary rows of the scenarios, in order: in calls of exactly ``batch`` (padded) if
     given, else one call padded to ``pad_to``. With ``cells``, only the scenarios it lacks are
     run (in calls of those sizes), each call's rows are kept there as it returns, and every row
@@ -323,29 +406,41 @@ def evaluate_cells(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarra
     if cells is None:
         if on_cluster is not None:
             parts = chunk_slices(forces.size, batch) if batch else [slice(0, forces.size)]
-            frames = list(on_cluster([(forces[p], durations[p]) for p in parts],
-                                     batch or pad_to))
+            frames = list(on_cluster([(forces[p], durations[p]) for p in parts], batch or pad_to))
             return pd.concat(frames, ignore_index=True) if len(frames) > 1 else frames[0]
-        return (evaluate_batches(run_batch, forces, durations, config, batch) if batch
-                else evaluate(run_batch, forces, durations, config, pad_to=pad_to))
+        return (
+            evaluate_batches(run_batch, forces, durations, config, batch)
+            if batch
+            else evaluate(run_batch, forces, durations, config, pad_to=pad_to)
+        )
     todo = cells.missing(forces, durations)
-    calls = [todo[part] for part in
-             (chunk_slices(todo.size, batch) if batch else [slice(0, todo.size)])
-             if todo[part].size]
+    calls = [
+        todo[part]
+        for part in (chunk_slices(todo.size, batch) if batch else [slice(0, todo.size)])
+        if todo[part].size
+    ]
     if on_cluster is not None:
         # the same calls, each split into tasks over the workers and kept as it comes back
         for frame in on_cluster([(forces[c], durations[c]) for c in calls], batch or pad_to):
             cells.add(frame)
     else:
         for call in calls:
-            cells.add(evaluate(run_batch, forces[call], durations[call], config,
-                               pad_to=batch or pad_to))
+            cells.add(
+                evaluate(run_batch, forces[call], durations[call], config, pad_to=batch or pad_to)
+            )
     return cells.frame(forces, durations)
 
 
-def refine_round(b: Brackets, forces: np.ndarray, run_batch: RunBatch, config: Config,
-                 batch: int | None, resolution: float, points_per_round: int,
-                 cells: TableCells | None = None) -> pd.DataFrame:
+def refine_round(
+    b: Brackets,
+    forces: np.ndarray,
+    run_batch: RunBatch,
+    config: Config,
+    batch: int | None,
+    resolution: float,
+    points_per_round: int,
+    cells: TableCells | None = None,
+) -> pd.DataFrame:
     """One round of bisection (k-section for points_per_round = k > 1): evaluate k points
     inside each active bracket, all forces in one batch of the fixed size n_f * k (or calls of
     ``batch``); each bracket shrinks to the gap around its first failing point. Updates ``b``
@@ -361,8 +456,9 @@ def refine_round(b: Brackets, forces: np.ndarray, run_batch: RunBatch, config: C
         points += split.tolist()
     owner, points = np.asarray(owner), np.asarray(points, dtype=np.int64)
     durations = np.round(points * resolution, 12)
-    frame = evaluate_cells(run_batch, forces[owner], durations, config, batch,
-                           forces.size * k_points, cells)
+    frame = evaluate_cells(
+        run_batch, forces[owner], durations, config, batch, forces.size * k_points, cells
+    )
     ok = frame["outcome"].to_numpy() == OUTCOMES[RECOVERED]
     rows = frame.to_dict("records")
     for i in np.unique(owner):
@@ -380,8 +476,15 @@ def refine_round(b: Brackets, forces: np.ndarray, run_batch: RunBatch, config: C
     return frame
 
 
-def table_row(i: int, force: float, b: Brackets, steps: np.ndarray, resolution: float,
-              t_end: float, config: Config) -> dict[str, Any]:
+def table_row(
+    i: int,
+    force: float,
+    b: Brackets,
+    steps: np.ndarray,
+    resolution: float,
+    t_end: float,
+    config: Config,
+) -> dict[str, Any]:
     """The table row (TABLE_COLUMNS) of force ``i`` from its final bracket."""
     index_01 = int(round(0.1 / resolution))
     at_01 = next((r for s, r in zip(steps, b.coarse_rows[i]) if s == index_01), None)
@@ -397,13 +500,16 @@ def table_row(i: int, force: float, b: Brackets, steps: np.ndarray, resolution: 
     elif b.hi[i] > b.n_max:
         note = f"recovers for every duration up to t_end = {t_end:g} s"
     elif hi_row is not None and hi_row["outcome"] == OUTCOMES[NOT_SETTLED]:
-        note = (f"a longer push does not fall but is not settled by t_end = {t_end:g} s "
-                "(limited by the time window)")
+        note = (
+            f"a longer push does not fall but is not settled by t_end = {t_end:g} s "
+            "(limited by the time window)"
+        )
     beyond = b.beyond[i] * resolution
     if not b.monotone[i]:
         note = (note + "; " if note else "") + (
             f"not monotone: fails at {b.hi[i] * resolution:g} s but recovers again at "
-            f"{beyond:g} s (coarse scan)")
+            f"{beyond:g} s (coarse scan)"
+        )
     return {
         "force": float(force),
         "max_acting_time": round(float(b.lo[i] * resolution), 12),
@@ -413,9 +519,11 @@ def table_row(i: int, force: float, b: Brackets, steps: np.ndarray, resolution: 
         "energy_ankle_max": _get(energy_max, "energy_ankle"),
         "energy_hip_max": _get(energy_max, "energy_hip"),
         "energy_total_max": _get(energy_max, "energy_total"),
-        **{f"{c}_{suffix}": _get(row, c)
-           for suffix, row in (("01", energy_01), ("max", energy_max))
-           for c in ("study_energy_u1", "study_energy_u2", "study_energy_total")},
+        **{
+            f"{c}_{suffix}": _get(row, c)
+            for suffix, row in (("01", energy_01), ("max", energy_max))
+            for c in ("study_energy_u1", "study_energy_u2", "study_energy_total")
+        },
         "ending_outcome": hi_row["outcome"] if hi_row is not None else "",
         "monotone": bool(b.monotone[i]),
         "recovered_beyond_failure": beyond,
@@ -433,11 +541,17 @@ def table_row(i: int, force: float, b: Brackets, steps: np.ndarray, resolution: 
     }
 
 
-def sustained_push_limit(config: Config, run_batch: RunBatch, *, batch: int | None = None,
-                         cells: TableCells | None = None, resolution: float = 0.1,
-                         points_per_round: int = 7,
-                         coarse: Sequence[float] = SUSTAINED_COARSE, bar: Any = None
-                         ) -> tuple[float, str, pd.DataFrame]:
+def sustained_push_limit(
+    config: Config,
+    run_batch: RunBatch,
+    *,
+    batch: int | None = None,
+    cells: TableCells | None = None,
+    resolution: float = 0.1,
+    points_per_round: int = 7,
+    coarse: Sequence[float] = SUSTAINED_COARSE,
+    bar: Any = None,
+) -> tuple[float, str, pd.DataFrame]:
     """The largest force (a multiple of ``resolution``, N) that the body holds for the whole
     window: pushed from t = 0 to t_end, it does not fall (the outcome is recovered or
     not_settled: a body leaning against a push that is still on at t_end is outside the settle
@@ -453,8 +567,15 @@ def sustained_push_limit(config: Config, run_batch: RunBatch, *, batch: int | No
     units = np.unique(np.round(np.asarray(coarse, float) / resolution).astype(np.int64))
 
     def held(points: np.ndarray) -> tuple[np.ndarray, pd.DataFrame]:
-        frame = evaluate_cells(run_batch, np.round(points * resolution, 12),
-                               np.full(points.size, t_end), config, batch, None, cells)
+        frame = evaluate_cells(
+            run_batch,
+            np.round(points * resolution, 12),
+            np.full(points.size, t_end),
+            config,
+            batch,
+            None,
+            cells,
+        )
         if bar is not None:  # never past a fixed total
             room = getattr(bar, "total", None)
             bar.update(points.size if room is None else min(points.size, max(0, room - bar.n)))
@@ -470,8 +591,10 @@ def sustained_push_limit(config: Config, run_batch: RunBatch, *, batch: int | No
     first = int(np.argmin(ok))
     note = ""
     if ok[first:].any():
-        note = (f"not monotone: falls at {units[first] * resolution:g} N but holds "
-                f"{units[first:][ok[first:]].max() * resolution:g} N (coarse scan)")
+        note = (
+            f"not monotone: falls at {units[first] * resolution:g} N but holds "
+            f"{units[first:][ok[first:]].max() * resolution:g} N (coarse scan)"
+        )
     lo, hi = int(units[first - 1]), int(units[first])
     while hi - lo > 1:
         split = lo + (hi - lo) * np.arange(1, points_per_round + 1) // (points_per_round + 1)
@@ -487,26 +610,36 @@ def sustained_push_limit(config: Config, run_batch: RunBatch, *, batch: int | No
     return round(lo * resolution, 12), note, pd.concat(runs, ignore_index=True)
 
 
-def _add_sustained_limit(result: TableResult, config: Config, run_batch: RunBatch,
-                         cells: TableCells, batch: int | None, progress: bool | None,
-                         say: Callable[[str], None]) -> None:
+def _add_sustained_limit(
+    result: TableResult,
+    config: Config,
+    run_batch: RunBatch,
+    cells: TableCells,
+    batch: int | None,
+    progress: bool | None,
+    say: Callable[[str], None],
+) -> None:
     """The sustained-push limit into ``result``'s table (a column) and runs, with a progress
     bar and a line on how it came out."""
     start = time.perf_counter()
     units = np.unique(np.round(np.asarray(SUSTAINED_COARSE) / 0.1).astype(np.int64))
     # a fixed total: the coarse scan and the most its bracket's rounds can take (7 points a
     # round, as sustained_push_limit's defaults); what was not needed is counted at the end
-    bar = progress_bar(units.size + bracket_cost(int(np.diff(units).max()), 7), 0, progress,
-                       desc="sustained limit")
+    bar = progress_bar(
+        units.size + bracket_cost(int(np.diff(units).max()), 7), 0, progress, desc="sustained limit"
+    )
     try:
-        limit, note, held_runs = sustained_push_limit(config, run_batch, batch=batch,
-                                                      cells=cells, bar=bar)
+        limit, note, held_runs = sustained_push_limit(
+            config, run_batch, batch=batch, cells=cells, bar=bar
+        )
         advance(bar, 0)
     finally:
         bar.close()
-    say(f"table: sustained-push limit {limit:g} N (the largest force held for the whole "
+    say(
+        f"table: sustained-push limit {limit:g} N (the largest force held for the whole "
         f"{config.scenario.t_end:g}-s window{'; ' + note if note else ''}; "
-        f"{len(held_runs)} scenarios in {time.perf_counter() - start:.1f} s)")
+        f"{len(held_runs)} scenarios in {time.perf_counter() - start:.1f} s)"
+    )
     result.table["sustained_push_limit"] = limit
     result.runs = pd.concat([result.runs, held_runs], ignore_index=True)
 
@@ -519,11 +652,18 @@ def _get(row: dict | None, key: str) -> float:
     return float(row[key]) if row is not None else float("nan")
 
 
-def run_table(out: str | os.PathLike[str], config: Config,
-              forces: np.ndarray | str | Sequence[float], *,
-              run_batch: RunBatch | None = None, progress: bool | None = True,
-              say: Callable[[str], None] | None = print, cluster: Any = None,
-              sustained: bool = True, **options: Any) -> TableResult | None:
+def run_table(
+    out: str | os.PathLike[str],
+    config: Config,
+    forces: np.ndarray | str | Sequence[float],
+    *,
+    run_batch: RunBatch | None = None,
+    progress: bool | None = True,
+    say: Callable[[str], None] | None = print,
+    cluster: Any = None,
+    sustained: bool = True,
+    **options: Any,
+) -> TableResult | None:
     """``max_acting_time`` into ``out/table.csv`` (+ table_runs.parquet, every scenario run),
     under the folder's lock, which the run's entry holds (``store.folder.folder_lock``).
 
@@ -541,22 +681,29 @@ def run_table(out: str | os.PathLike[str], config: Config,
     # the run's entry holds the folder's lock: a failure below marks the run failed
     require_lock(out)
     if cluster is None:
-        result = _run_table(out, config, forces, run_batch, progress, say, options,
-                            sustained)
+        result = _run_table(out, config, forces, run_batch, progress, say, options, sustained)
     else:
-        with ClusterBatch(cluster, run_batch or LazyBatch(config), config,
-                          say) as on_cluster:
-            result = _run_table(out, config, forces, on_cluster, progress, say, options,
-                                sustained)
-    runs = (result.runs if result is not None
-            else pd.read_parquet(Path(out) / TABLE_RUNS, columns=["outcome"]))
+        with ClusterBatch(cluster, run_batch or LazyBatch(config), config, say) as on_cluster:
+            result = _run_table(out, config, forces, on_cluster, progress, say, options, sustained)
+    runs = (
+        result.runs
+        if result is not None
+        else pd.read_parquet(Path(out) / TABLE_RUNS, columns=["outcome"])
+    )
     check_results(runs["outcome"], "scenarios the table ran")
     return result
 
 
-def _run_table(out: str | os.PathLike[str], config: Config, forces: np.ndarray, run_batch: Any,
-               progress: bool | None, say: Callable[[str], None] | None,
-               options: dict[str, Any], sustained: bool = True) -> TableResult | None:
+def _run_table(
+    out: str | os.PathLike[str],
+    config: Config,
+    forces: np.ndarray,
+    run_batch: Any,
+    progress: bool | None,
+    say: Callable[[str], None] | None,
+    options: dict[str, Any],
+    sustained: bool = True,
+) -> TableResult | None:
     # (run_batch: a batch function, None, or a cluster.ClusterBatch, found by its methods)
     say = say or (lambda _msg: None)
     folder = OutputFolder(out, config)
@@ -564,8 +711,10 @@ def _run_table(out: str | os.PathLike[str], config: Config, forces: np.ndarray, 
     recorded = manifest.get("table")
     table_path = folder.path / TABLE
     if folder.rebuilt:
-        say(f"note: {folder.path} had lost its manifest; rebuilt it: config.toml matches this run"
-            + (f" and table.csv holds forces {describe(recorded['forces'])}" if recorded else ""))
+        say(
+            f"note: {folder.path} had lost its manifest; rebuilt it: config.toml matches this run"
+            + (f" and table.csv holds forces {describe(recorded['forces'])}" if recorded else "")
+        )
         folder.write_manifest(manifest)
     if recorded is not None and same_values(recorded["forces"], forces) and table_path.exists():
         try:
@@ -577,8 +726,10 @@ def _run_table(out: str | os.PathLike[str], config: Config, forces: np.ndarray, 
         except Exception:
             pass
     if recorded is not None and not same_values(recorded["forces"], forces):
-        say(f"replacing the table for forces {describe(recorded['forces'])} in {folder.path} "
-            "(reusing the scenarios they share)")
+        say(
+            f"replacing the table for forces {describe(recorded['forces'])} in {folder.path} "
+            "(reusing the scenarios they share)"
+        )
     folder.check_numerics(manifest)  # new scenarios: computed as the folder's were
     # the engine settings the table's scenarios were (or will be) run with
     run_batch = run_batch or LazyBatch(config)
@@ -589,13 +740,15 @@ def _run_table(out: str | os.PathLike[str], config: Config, forces: np.ndarray, 
         folder.write_manifest(manifest)
     cells = TableCells(folder.path, config.controller.convention)
     if cells.rows:
-        say(f"table: {len(cells.rows)} scenarios already evaluated in {cells.path}; "
-            "running only the others")
-    result = max_acting_time(forces, config, run_batch=run_batch, progress=progress, say=say,
-                             cells=cells, **options)
+        say(
+            f"table: {len(cells.rows)} scenarios already evaluated in {cells.path}; "
+            "running only the others"
+        )
+    result = max_acting_time(
+        forces, config, run_batch=run_batch, progress=progress, say=say, cells=cells, **options
+    )
     if sustained:
-        _add_sustained_limit(result, config, run_batch, cells, options.get("batch"), progress,
-                             say)
+        _add_sustained_limit(result, config, run_batch, cells, options.get("batch"), progress, say)
     write_parquet(result.runs, folder.path / TABLE_RUNS)
     write_csv(result.table, table_path)
     manifest = folder.read_manifest() or manifest

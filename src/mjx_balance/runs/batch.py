@@ -45,8 +45,14 @@ class LazyBatch:
 
     queue = "each"  # its cells run with this body alone (runs.population: "one")
 
-    def __init__(self, config: Config, *, slots: int | None = None, early_stop: bool = True,
-                 physics: str = "auto"):
+    def __init__(
+        self,
+        config: Config,
+        *,
+        slots: int | None = None,
+        early_stop: bool = True,
+        physics: str = "auto",
+    ):
         if physics not in PATHS:
             raise ValueError(f"physics must be one of {', '.join(PATHS)}, got {physics!r}")
         self.config = config
@@ -63,13 +69,14 @@ class LazyBatch:
             self._physics = resolve(self.asked_physics, self.config)
         return self._physics
 
-    def use_engine(self, slots: int | None, early_stop: bool, physics: str | None = None
-                   ) -> None:
+    def use_engine(self, slots: int | None, early_stop: bool, physics: str | None = None) -> None:
         """Run with these engine settings (rebuilt if it was built with others)."""
         runner = getattr(self._run, "__self__", None)
-        if runner is not None and (early_stop != self.early_stop or (
-                slots is not None and slots != runner.engine.slots) or (
-                physics is not None and physics != runner.physics)):
+        if runner is not None and (
+            early_stop != self.early_stop
+            or (slots is not None and slots != runner.engine.slots)
+            or (physics is not None and physics != runner.physics)
+        ):
             self._run = None
         self.slots, self.early_stop = slots, early_stop
         if physics is not None:
@@ -77,8 +84,11 @@ class LazyBatch:
 
     def _built(self) -> RunBatch:
         if self._run is None:
-            options = ({} if self.slots is None and self.early_stop
-                       else {"slots": self.slots, "early_stop": self.early_stop})
+            options = (
+                {}
+                if self.slots is None and self.early_stop
+                else {"slots": self.slots, "early_stop": self.early_stop}
+            )
             self._run = default_batch(self.config, physics=self.physics, **options)
 
         note_physics("mujoco" if self.physics == "c" else "mjx")
@@ -105,8 +115,11 @@ class LazyBatch:
         stand-in."""
         if not self.can_stream():
             return None
-        return {"slots": int(self.runner.engine.slots), "early_stop": bool(self.early_stop),
-                "physics": self.physics}
+        return {
+            "slots": int(self.runner.engine.slots),
+            "early_stop": bool(self.early_stop),
+            "physics": self.physics,
+        }
 
     def __call__(self, forces: np.ndarray, durations: np.ndarray):
         return self._built()(forces, durations)
@@ -121,8 +134,9 @@ class LazyBatch:
         say = say or (lambda _msg: None)
         start = time.perf_counter()
         if self._run is None:
-            say(f"building the rollout ({'MuJoCo C' if self.physics == 'c' else 'MJX'} "
-                "physics) ...")
+            say(
+                f"building the rollout ({'MuJoCo C' if self.physics == 'c' else 'MJX'} physics) ..."
+            )
         runner = self.runner
         if runner is not None and hasattr(runner, "prepare"):  # rollout.BatchRunner
             if not runner.is_prepared():
@@ -133,8 +147,9 @@ class LazyBatch:
             say(f"rollout ready ({seconds:.0f} s)")
 
 
-def resume_engine(run_batch: Any, recorded: dict | None, path: Any,
-                   say: Callable[[str], None]) -> None:
+def resume_engine(
+    run_batch: Any, recorded: dict | None, path: Any, say: Callable[[str], None]
+) -> None:
     """Resume with the engine settings the folder was started with (results depend on the slot
     count's compiled program, on early stopping and on the physics path). A folder from before
     they were recorded (lock-step batches run to t_end) resumes with what is asked; one from
@@ -147,14 +162,16 @@ def resume_engine(run_batch: Any, recorded: dict | None, path: Any,
         raise ParameterError(
             f"{path} was started with the cohort's queue {queue!r} (per-lane bodies: 'one'); "
             "its results differ by float rounding from the other queue's: resume it with "
-            f"queue {queue!r}, or use another --out folder")
+            f"queue {queue!r}, or use another --out folder"
+        )
     physics = recorded.get("physics", "mjx")
     asked_physics = getattr(run_batch, "asked_physics", "auto")
     if asked_physics not in ("auto", physics):
         raise ParameterError(
             f"{path} was started with {physics} physics; refusing to resume it with "
             f"--physics {asked_physics} (use --physics {physics} or auto, or another --out "
-            "folder)")
+            "folder)"
+        )
     asked = (run_batch.slots, run_batch.early_stop)
     wanted = (int(recorded["slots"]), bool(recorded["early_stop"]))
     if hasattr(run_batch, "use_engine"):
@@ -165,12 +182,19 @@ def resume_engine(run_batch: Any, recorded: dict | None, path: Any,
     else:
         run_batch.slots, run_batch.early_stop = wanted
     if asked[0] not in (None, wanted[0]) or asked[1] != wanted[1]:
-        say(f"note: {path} was started with {run_batch.slots} slots per device and "
-            f"{'early stopping' if run_batch.early_stop else '--full-length'}; keeping that")
+        say(
+            f"note: {path} was started with {run_batch.slots} slots per device and "
+            f"{'early stopping' if run_batch.early_stop else '--full-length'}; keeping that"
+        )
 
 
-def evaluate(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarray, config: Config,
-             pad_to: int | None = None) -> pd.DataFrame:
+def evaluate(
+    run_batch: RunBatch,
+    forces: np.ndarray,
+    durations: np.ndarray,
+    config: Config,
+    pad_to: int | None = None,
+) -> pd.DataFrame:
     """Summary rows for the scenarios (forces[i], durations[i]), in order.
 
     The batch is padded to ``pad_to`` scenarios by repeating its last one (a batch of a fixed
@@ -191,8 +215,9 @@ def evaluate(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarray, con
         forces_in, durations_in = forces, durations
     frame = summary_frame(run_batch(forces_in, durations_in), config.controller.convention)
     if len(frame) != forces_in.size:
-        raise RuntimeError(f"batch function returned {len(frame)} rows for {forces_in.size} "
-                           "scenarios")
+        raise RuntimeError(
+            f"batch function returned {len(frame)} rows for {forces_in.size} scenarios"
+        )
     frame = frame.iloc[:count].reset_index(drop=True)
     for column, asked in (("force", forces), ("duration", durations)):
         got = frame[column].to_numpy(dtype=np.float64)
@@ -202,13 +227,23 @@ def evaluate(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarray, con
     return frame
 
 
-def evaluate_batches(run_batch: RunBatch, forces: np.ndarray, durations: np.ndarray,
-                     config: Config, batch: int | None) -> pd.DataFrame:
+def evaluate_batches(
+    run_batch: RunBatch,
+    forces: np.ndarray,
+    durations: np.ndarray,
+    config: Config,
+    batch: int | None,
+) -> pd.DataFrame:
     """``evaluate`` in calls of exactly ``batch`` scenarios (padded), or one call if None."""
     if batch is None:
         return evaluate(run_batch, forces, durations, config)
-    return pd.concat([evaluate(run_batch, forces[s], durations[s], config, pad_to=batch)
-                      for s in chunk_slices(forces.size, batch)], ignore_index=True)
+    return pd.concat(
+        [
+            evaluate(run_batch, forces[s], durations[s], config, pad_to=batch)
+            for s in chunk_slices(forces.size, batch)
+        ],
+        ignore_index=True,
+    )
 
 
 def streams(run_batch: Any) -> bool:
@@ -217,8 +252,14 @@ def streams(run_batch: Any) -> bool:
     return can() if can is not None else hasattr(run_batch, "stream")
 
 
-def chunk_frames(run_batch: Any, slices: list[slice], cell_f: np.ndarray, cell_d: np.ndarray,
-                 config: Config, update: Callable[[int], None] | None = None):
+def chunk_frames(
+    run_batch: Any,
+    slices: list[slice],
+    cell_f: np.ndarray,
+    cell_d: np.ndarray,
+    config: Config,
+    update: Callable[[int], None] | None = None,
+):
     """Yield (k, summary rows of ``slices[k]``) as each chunk's last cell is decided, running
     every cell of the chunks through the engine's queue at once (a cluster's worker runs it on
     one chunk: the rows are the same, the engine's results do not depend on the schedule).

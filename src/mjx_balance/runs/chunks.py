@@ -131,9 +131,15 @@ def wall_span(shortest: float, longest: float) -> str:
     return f"about {low} to {high}"
 
 
-def planned_work(n_scenarios: int, t_end: float, chunk_size: int | None, what: str = "cells",
-                 *, rate: tuple[float, float] = SIMULATED_SECONDS_PER_SECOND,
-                 bytes_per_scenario: int = 2 * CHUNK_BYTES_PER_SCENARIO) -> str:
+def planned_work(
+    n_scenarios: int,
+    t_end: float,
+    chunk_size: int | None,
+    what: str = "cells",
+    *,
+    rate: tuple[float, float] = SIMULATED_SECONDS_PER_SECOND,
+    bytes_per_scenario: int = 2 * CHUNK_BYTES_PER_SCENARIO,
+) -> str:
     """One line: scenarios, chunks (unless ``chunk_size`` is None), simulated time, estimated
     wall time at ``rate`` (window-s/s: slower, faster) and disk."""
     simulated = n_scenarios * t_end
@@ -141,11 +147,16 @@ def planned_work(n_scenarios: int, t_end: float, chunk_size: int | None, what: s
     disk = n_scenarios * bytes_per_scenario  # (chunks + the merged table, by default)
     low, high = rate
     chunks = "" if chunk_size is None else math.ceil(n_scenarios / chunk_size)
-    chunks = "" if chunk_size is None else (
-        f" in {chunks:,} chunk{'' if chunks == 1 else 's'} of {chunk_size}")
-    return (f"planned work: {n_scenarios:,} {what}{chunks}, {simulated:,.0f} s of scenario "
-            f"windows, {wall_span(shortest, longest)} at {low:g}-{high:g} window-s/s "
-            f"(2-core CPU, BENCHMARKS.md; compile not included), about {_size(disk)} on disk")
+    chunks = (
+        ""
+        if chunk_size is None
+        else (f" in {chunks:,} chunk{'' if chunks == 1 else 's'} of {chunk_size}")
+    )
+    return (
+        f"planned work: {n_scenarios:,} {what}{chunks}, {simulated:,.0f} s of scenario "
+        f"windows, {wall_span(shortest, longest)} at {low:g}-{high:g} window-s/s "
+        f"(2-core CPU, BENCHMARKS.md; compile not included), about {_size(disk)} on disk"
+    )
 
 
 def _size(n: float) -> str:
@@ -153,9 +164,14 @@ def _size(n: float) -> str:
     return f"{n / 1e9:.3g} GB" if n >= 1e9 else f"{n / 1e6:.3g} MB"
 
 
-def check_planned_work(n_scenarios: int, t_end: float, what: str = "cells", *,
-                       rate: tuple[float, float] = SIMULATED_SECONDS_PER_SECOND,
-                       scenarios_limit: int = MAX_PLANNED_SCENARIOS) -> None:
+def check_planned_work(
+    n_scenarios: int,
+    t_end: float,
+    what: str = "cells",
+    *,
+    rate: tuple[float, float] = SIMULATED_SECONDS_PER_SECOND,
+    scenarios_limit: int = MAX_PLANNED_SCENARIOS,
+) -> None:
     """Refuse work above ``scenarios_limit`` or MAX_PLANNED_HOURS at the slower ``rate``
     (ParameterError, one line saying how to go ahead anyway: --yes)."""
     hours = n_scenarios * t_end / rate[0] / 3600
@@ -163,7 +179,8 @@ def check_planned_work(n_scenarios: int, t_end: float, what: str = "cells", *,
         raise ParameterError(
             f"{n_scenarios:,} {what} of {t_end:g} s (up to {hours:,.1f} h on a 2-core CPU) is "
             f"beyond the limit of {scenarios_limit:,} {what} or {MAX_PLANNED_HOURS:g} h; "
-            "use a coarser grid, or pass --yes to run it anyway")
+            "use a coarser grid, or pass --yes to run it anyway"
+        )
 
 
 class PlannedWork(NamedTuple):

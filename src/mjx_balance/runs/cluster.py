@@ -67,8 +67,17 @@ EXTRA = 'pip install "mjx_balance[cluster]"'
 LOCAL = "local:"
 # What the driver and every worker must agree on (store.provenance.versions() names, plus the XLA
 # flags).
-CHECKED = ("package", "jax", "jaxlib", "mujoco", "mujoco_mjx", "python", "deterministic_xla",
-           "xla_flags", "matmul_precision")
+CHECKED = (
+    "package",
+    "jax",
+    "jaxlib",
+    "mujoco",
+    "mujoco_mjx",
+    "python",
+    "deterministic_xla",
+    "xla_flags",
+    "matmul_precision",
+)
 WAIT_FOR_WORKERS_S = 300.0  # how long a scheduler may take to get its first worker
 
 
@@ -78,6 +87,7 @@ class ClusterError(ParameterError):
 
 # ---------------------------------------------------------------------------------------------
 # What a process runs: checked on the driver and on every worker.
+
 
 def local_facts() -> dict[str, Any]:
     """The versions and settings that decide a chunk's bytes, in this process."""
@@ -103,8 +113,11 @@ def worker_device() -> tuple[str, str]:
 def differences(expected: dict[str, Any], got: dict[str, Any]) -> list[str]:
     """``name got (driver: expected)`` for each checked fact that differs."""
     names = {"package": "mjx_balance", "deterministic_xla": "deterministic XLA flags"}
-    return [f"{names.get(k, k)} {got.get(k)} (driver: {expected.get(k)})"
-            for k in CHECKED if got.get(k) != expected.get(k)]
+    return [
+        f"{names.get(k, k)} {got.get(k)} (driver: {expected.get(k)})"
+        for k in CHECKED
+        if got.get(k) != expected.get(k)
+    ]
 
 
 def check_workers(client: Any, expected: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -114,22 +127,30 @@ def check_workers(client: Any, expected: dict[str, Any] | None = None) -> dict[s
     try:
         facts = client.run(local_facts)
     except Exception as exc:
-        raise ClusterError(f"the cluster's workers cannot run mjx_balance ({type(exc).__name__}: "
-                           f"{exc}); install the same mjx_balance, JAX and MuJoCo on every "
-                           "worker") from None
-    problems = [f"worker {address}: {', '.join(differences(expected, got))}"
-                for address, got in sorted(facts.items()) if differences(expected, got)]
+        raise ClusterError(
+            f"the cluster's workers cannot run mjx_balance ({type(exc).__name__}: "
+            f"{exc}); install the same mjx_balance, JAX and MuJoCo on every "
+            "worker"
+        ) from None
+    problems = [
+        f"worker {address}: {', '.join(differences(expected, got))}"
+        for address, got in sorted(facts.items())
+        if differences(expected, got)
+    ]
     if problems:
         raise ClusterError(
             "refusing the cluster: a chunk's results must not depend on where it ran, and "
             f"{len(problems)} of {len(facts)} worker(s) run other versions than this process: "
-            + "; ".join(problems) + ". Install the same versions on every worker (and start "
-            "them with the same environment), then run the same command again")
+            + "; ".join(problems)
+            + ". Install the same versions on every worker (and start "
+            "them with the same environment), then run the same command again"
+        )
     return facts
 
 
 # ---------------------------------------------------------------------------------------------
 # The worker's side: one task per chunk.
+
 
 @dataclass(frozen=True)
 class ChunkSpec:
@@ -146,9 +167,13 @@ class ChunkSpec:
     physics: str = "auto"  # the physics path (auto: resolved on the worker, then recorded)
 
     def runner_key(self, slots: int | None = None) -> str:
-        settings = {"config": config_dict(self.config), "x64": self.x64,
-                    "slots": self.slots if slots is None else slots,
-                    "early_stop": self.early_stop, "physics": self.physics}
+        settings = {
+            "config": config_dict(self.config),
+            "x64": self.x64,
+            "slots": self.slots if slots is None else slots,
+            "early_stop": self.early_stop,
+            "physics": self.physics,
+        }
         return json.dumps(settings, sort_keys=True, default=str)
 
 
@@ -171,8 +196,9 @@ def _runner(spec: ChunkSpec) -> Any:
     run = _RUNNERS.get(key)
     if run is None:
         cache.enable()  # the persistent compilation cache, where the worker has one
-        run = _RUNNERS[key] = LazyBatch(spec.config, slots=spec.slots,
-                                        early_stop=spec.early_stop, physics=spec.physics)
+        run = _RUNNERS[key] = LazyBatch(
+            spec.config, slots=spec.slots, early_stop=spec.early_stop, physics=spec.physics
+        )
     return run
 
 
@@ -184,11 +210,13 @@ def _check_here(spec: ChunkSpec) -> None:
     if spec.device is not None and spec.batch is None:
         here = worker_device()
         if tuple(here) != tuple(spec.device):
-            problems.append(f"device {here[0]} {here[1]} (the sweep's: {spec.device[0]} "
-                            f"{spec.device[1]})")
+            problems.append(
+                f"device {here[0]} {here[1]} (the sweep's: {spec.device[0]} {spec.device[1]})"
+            )
     if problems:
-        raise ClusterError(f"worker on {platform.node()} (PID {os.getpid()}) refused: "
-                           + ", ".join(problems))
+        raise ClusterError(
+            f"worker on {platform.node()} (PID {os.getpid()}) refused: " + ", ".join(problems)
+        )
 
 
 def worker_engine_record(spec: ChunkSpec) -> dict[str, Any] | None:
@@ -204,8 +232,9 @@ def worker_engine_record(spec: ChunkSpec) -> dict[str, Any] | None:
     return record
 
 
-def compute_chunk(spec: ChunkSpec, index: int, forces: np.ndarray,
-                  durations: np.ndarray) -> pd.DataFrame:
+def compute_chunk(
+    spec: ChunkSpec, index: int, forces: np.ndarray, durations: np.ndarray
+) -> pd.DataFrame:
     """The summary rows of one chunk (forces[i], durations[i]), as the local sweep writes them."""
     _check_here(spec)
     run = _runner(spec)
@@ -215,20 +244,22 @@ def compute_chunk(spec: ChunkSpec, index: int, forces: np.ndarray,
         context = _x64(spec)
     with context:
         if streams(run):
-            [(_, frame)] = list(chunk_frames(run, [slice(0, forces.size)], forces, durations,
-                                             spec.config))
+            [(_, frame)] = list(
+                chunk_frames(run, [slice(0, forces.size)], forces, durations, spec.config)
+            )
         else:
             frame = evaluate(run, forces, durations, spec.config, pad_to=spec.chunk_size)
     return frame
 
 
-def compute_cells(spec: ChunkSpec, forces: np.ndarray, durations: np.ndarray,
-                  pad_to: int | None) -> pd.DataFrame:
+def compute_cells(
+    spec: ChunkSpec, forces: np.ndarray, durations: np.ndarray, pad_to: int | None
+) -> pd.DataFrame:
     """The summary rows of the scenarios (forces[i], durations[i]), as the local table's batch
     call gets them (``batch.evaluate``, padded to ``pad_to`` where the function wants it)."""
     _check_here(spec)
     run = _runner(spec)
-    with (_NoContext() if spec.batch is not None else _x64(spec)):
+    with _NoContext() if spec.batch is not None else _x64(spec):
         return evaluate(run, forces, durations, spec.config, pad_to=pad_to)
 
 
@@ -243,26 +274,30 @@ class _NoContext:
 # ---------------------------------------------------------------------------------------------
 # The driver's side.
 
+
 def parse_cluster(spec: str) -> tuple[str, Any]:
     """``("local", N)`` for ``local:N`` (N >= 1), else ``("address", spec)``: a scheduler's
     address (``tcp://host:8786``) or scheduler file (``dask scheduler --scheduler-file``)."""
     text = str(spec).strip()
     if text.startswith(LOCAL):
-        count = text[len(LOCAL):]
+        count = text[len(LOCAL) :]
         if not count.isdigit() or int(count) < 1:
             raise ClusterError(f"--cluster {text}: local:N needs a number of workers N >= 1")
         return "local", int(count)
     if not text:
-        raise ClusterError("--cluster: empty; give local:N or a scheduler address "
-                           "(tcp://host:8786)")
+        raise ClusterError(
+            "--cluster: empty; give local:N or a scheduler address (tcp://host:8786)"
+        )
     if text.endswith(".json"):
         if not os.path.isfile(text):
             raise ClusterError(f"--cluster {text}: no such scheduler file")
         return "address", text
     port = ADDRESS.match(text)
     if port is None or not 0 < int(port.group(1)) < 65536:
-        raise ClusterError(f"--cluster {text}: not local:N, a scheduler address with its port "
-                           "(tcp://host:8786) or a scheduler file (.json)")
+        raise ClusterError(
+            f"--cluster {text}: not local:N, a scheduler address with its port "
+            "(tcp://host:8786) or a scheduler file (.json)"
+        )
     return "address", text
 
 
@@ -274,8 +309,9 @@ def _distributed() -> Any:
     try:
         import distributed
     except ImportError:
-        raise ClusterError(f"--cluster needs Dask distributed, which is not installed: {EXTRA}"
-                           ) from None
+        raise ClusterError(
+            f"--cluster needs Dask distributed, which is not installed: {EXTRA}"
+        ) from None
     return distributed
 
 
@@ -292,24 +328,31 @@ def connect(spec: Any, say: Callable[[str], None]) -> tuple[Any, Any]:
         kind, value = parse_cluster(spec)
         if kind == "local":
             say(f"starting a local Dask cluster of {value} worker process(es) ...")
-            cluster = distributed.LocalCluster(n_workers=value, threads_per_worker=1,
-                                               processes=True, dashboard_address=None)
+            cluster = distributed.LocalCluster(
+                n_workers=value, threads_per_worker=1, processes=True, dashboard_address=None
+            )
             client = distributed.Client(cluster)
         else:
             # a scheduler file (dask scheduler --scheduler-file F) or an address
-            where = ({"scheduler_file": value} if value.endswith(".json") and os.path.isfile(value)
-                     else {"address": value})
+            where = (
+                {"scheduler_file": value}
+                if value.endswith(".json") and os.path.isfile(value)
+                else {"address": value}
+            )
             try:
                 client = distributed.Client(**where, timeout="30s")
             except (OSError, TimeoutError, ValueError) as exc:
-                raise ClusterError(f"--cluster {value}: cannot reach the scheduler ({exc})"
-                                   ) from None
+                raise ClusterError(
+                    f"--cluster {value}: cannot reach the scheduler ({exc})"
+                ) from None
     try:
         try:
             client.wait_for_workers(1, timeout=WAIT_FOR_WORKERS_S)
         except TimeoutError:
-            raise ClusterError(f"the cluster ({client.scheduler.address}) has no worker after "
-                               f"{WAIT_FOR_WORKERS_S:.0f} s") from None
+            raise ClusterError(
+                f"the cluster ({client.scheduler.address}) has no worker after "
+                f"{WAIT_FOR_WORKERS_S:.0f} s"
+            ) from None
         facts = check_workers(client)
     except BaseException:
         close(client, cluster, owned=not isinstance(spec, distributed.Client))
@@ -339,8 +382,9 @@ class ClusterBatch:
     (:meth:`compute_chunks`; a table's batch calls: :meth:`evaluate_calls`). Use it as a
     context manager: it closes what it started."""
 
-    def __init__(self, cluster: Any, inner: Any, config: Config,
-                 say: Callable[[str], None] | None = print):
+    def __init__(
+        self, cluster: Any, inner: Any, config: Config, say: Callable[[str], None] | None = print
+    ):
         self.cluster = cluster
         self.inner = inner
         self.config = config
@@ -366,8 +410,7 @@ class ClusterBatch:
     def close(self) -> None:
         if self._client is not None:
             distributed = _distributed()
-            close(self._client, self._local, owned=not isinstance(self.cluster,
-                                                                    distributed.Client))
+            close(self._client, self._local, owned=not isinstance(self.cluster, distributed.Client))
             self._client = self._local = None
 
     @property
@@ -385,13 +428,20 @@ class ClusterBatch:
             import jax
 
             x64 = bool(jax.config.jax_enable_x64)  # type: ignore[attr-defined]  # jax.config's flags are set at run time
-        return ChunkSpec(self.config, self.slots, bool(self.early_stop), int(chunk_size), x64,
-                         facts=dict(self._facts), device=self.device,
-                         batch=None if self.engine else self.inner, physics=self.physics)
+        return ChunkSpec(
+            self.config,
+            self.slots,
+            bool(self.early_stop),
+            int(chunk_size),
+            x64,
+            facts=dict(self._facts),
+            device=self.device,
+            batch=None if self.engine else self.inner,
+            physics=self.physics,
+        )
 
     # -- the engine's settings (batch.resume_engine, region._region_record) ------------------
-    def use_engine(self, slots: int | None, early_stop: bool, physics: str | None = None
-                   ) -> None:
+    def use_engine(self, slots: int | None, early_stop: bool, physics: str | None = None) -> None:
         self.slots, self.early_stop = slots, early_stop
         if physics is not None:
             self.physics = physics
@@ -418,14 +468,23 @@ class ClusterBatch:
             if len(kinds) > 1:
                 raise ClusterError(
                     "refusing the cluster: its workers run on different devices ("
-                    + ", ".join(f"{p} {k}" for p, k in kinds) + "), on which a chunk's last "
-                    "bits differ; use workers of one kind")
+                    + ", ".join(f"{p} {k}" for p, k in kinds)
+                    + "), on which a chunk's last "
+                    "bits differ; use workers of one kind"
+                )
             self.device = kinds[0]
 
     # -- the work -------------------------------------------------------------------------
-    def compute_chunks(self, slices: list[slice], todo: list[int], cell_f: np.ndarray,
-                       cell_d: np.ndarray, chunk_size: int,
-                       write: Callable[[int, pd.DataFrame], None], bar: Any) -> None:
+    def compute_chunks(
+        self,
+        slices: list[slice],
+        todo: list[int],
+        cell_f: np.ndarray,
+        cell_d: np.ndarray,
+        chunk_size: int,
+        write: Callable[[int, pd.DataFrame], None],
+        bar: Any,
+    ) -> None:
         """One task per chunk of ``todo``; each returned chunk is checked and written once by
         ``write(index, frame)`` (on the driver), as it arrives."""
         distributed = _distributed()
@@ -434,14 +493,28 @@ class ClusterBatch:
         if self.engine and spec.slots is None:
             raise RuntimeError("the engine's slot count is not set (no engine record)")
         grid = hashlib.sha1(cell_f.tobytes() + cell_d.tobytes()).hexdigest()
-        token = _token({"runner": spec.runner_key(), "chunk": chunk_size, "grid": grid,
-                        "facts": spec.facts, "device": spec.device,
-                        "batch": None if self.engine else _tokenize(self.inner)})
+        token = _token(
+            {
+                "runner": spec.runner_key(),
+                "chunk": chunk_size,
+                "grid": grid,
+                "facts": spec.facts,
+                "device": spec.device,
+                "batch": None if self.engine else _tokenize(self.inner),
+            }
+        )
         futures = {}
         for index in todo:
             cells = slices[index]
-            future = client.submit(compute_chunk, spec, index, cell_f[cells], cell_d[cells],
-                                   key=f"mjx_balance-chunk-{token}-{index:05d}", pure=True)
+            future = client.submit(
+                compute_chunk,
+                spec,
+                index,
+                cell_f[cells],
+                cell_d[cells],
+                key=f"mjx_balance-chunk-{token}-{index:05d}",
+                pure=True,
+            )
             futures[future] = index
         written: set[int] = set()
         try:
@@ -458,9 +531,11 @@ class ClusterBatch:
                 if index in written:
                     continue
                 cells = slices[index]
-                if not (len(frame) == cells.stop - cells.start
-                        and same_values(frame["force"], cell_f[cells])
-                        and same_values(frame["duration"], cell_d[cells])):
+                if not (
+                    len(frame) == cells.stop - cells.start
+                    and same_values(frame["force"], cell_f[cells])
+                    and same_values(frame["duration"], cell_d[cells])
+                ):
                     raise RuntimeError(f"chunk {index} came back with other cells than asked")
                 write(index, frame)
                 written.add(index)
@@ -470,9 +545,9 @@ class ClusterBatch:
             if left:
                 client.cancel(left)
 
-
-    def evaluate_calls(self, calls: list[tuple[np.ndarray, np.ndarray]],
-                       pad_to: int | None) -> Iterator[pd.DataFrame]:
+    def evaluate_calls(
+        self, calls: list[tuple[np.ndarray, np.ndarray]], pad_to: int | None
+    ) -> Iterator[pd.DataFrame]:
         """The summary rows of each batch call (forces, durations) of a table round, in order,
         as ``batch.evaluate(..., pad_to=pad_to)`` returns them here: every call is split into
         tasks of at least the engine's slots (so that all the workers share a round), all the
@@ -487,21 +562,30 @@ class ClusterBatch:
             raise RuntimeError("the engine's slot count is not set (no engine record)")
         workers = max(1, len(client.nthreads()))
         smallest = int(spec.slots) if self.engine and spec.slots is not None else 1
-        base = {"runner": spec.runner_key(), "facts": spec.facts, "device": spec.device,
-                "batch": None if self.engine else _tokenize(self.inner)}
+        base = {
+            "runner": spec.runner_key(),
+            "facts": spec.facts,
+            "device": spec.device,
+            "batch": None if self.engine else _tokenize(self.inner),
+        }
         tasks: list[list[tuple[Any, slice]]] = []
         for forces, durations in calls:
             n = int(forces.size)
             size = max(smallest, -(-n // workers)) if n else 1
             pad = (size if pad_to else None) if size < n else pad_to
             mine = []
-            for cells in (chunk_slices(n, size) if n else []):
+            for cells in chunk_slices(n, size) if n else []:
                 f, d = forces[cells], durations[cells]
-                key = "mjx_balance-cells-" + _token({
-                    **base, "pad": pad, "cells": hashlib.sha1(f.tobytes() + d.tobytes()
-                                                              ).hexdigest()})
-                mine.append((client.submit(compute_cells, spec, f, d, pad, key=key, pure=True),
-                             cells))
+                key = "mjx_balance-cells-" + _token(
+                    {
+                        **base,
+                        "pad": pad,
+                        "cells": hashlib.sha1(f.tobytes() + d.tobytes()).hexdigest(),
+                    }
+                )
+                mine.append(
+                    (client.submit(compute_cells, spec, f, d, pad, key=key, pure=True), cells)
+                )
             tasks.append(mine)
         futures = [future for mine in tasks for future, _ in mine]
         try:
@@ -516,9 +600,11 @@ class ClusterBatch:
                             "scenarios kept so far stay: run the same command again to resume"
                         ) from None
                     future.release()
-                    if not (len(frame) == cells.stop - cells.start
-                            and same_values(frame["force"], forces[cells])
-                            and same_values(frame["duration"], durations[cells])):
+                    if not (
+                        len(frame) == cells.stop - cells.start
+                        and same_values(frame["force"], forces[cells])
+                        and same_values(frame["duration"], durations[cells])
+                    ):
                         raise RuntimeError("a table task came back with other cells than asked")
                     parts.append(frame)
                 if not parts:

@@ -59,8 +59,10 @@ def find_sweep(name: str | Path) -> Path:
         shipped = sweeps_dir() / (path.name if path.suffix == ".toml" else f"{path.name}.toml")
         if shipped.is_file():
             return shipped
-    raise ParameterError(f"{str(name)!r} not found: neither a file nor a shipped sweep "
-                         f"definition ({', '.join(shipped_sweeps())})")
+    raise ParameterError(
+        f"{str(name)!r} not found: neither a file nor a shipped sweep "
+        f"definition ({', '.join(shipped_sweeps())})"
+    )
 
 
 @dataclass
@@ -85,15 +87,16 @@ def load_sweep(path: str | Path | None, base: Config) -> SweepDefinition:
     data = read_toml(path, "sweep definition")
     for section, values in data.items():
         if not isinstance(values, dict):
-            raise ParameterError(f"{path}: {section} must be a table ([{section}]), "
-                                 f"got {values!r}")
+            raise ParameterError(f"{path}: {section} must be a table ([{section}]), got {values!r}")
     sweep = data.pop("sweep", {})
     if not isinstance(sweep, dict):
         raise ParameterError(f"{path}: [sweep] must be a table")
     unknown = sorted(set(sweep) - set(_SWEEP_KEYS))
     if unknown:
-        raise ParameterError(f"{path}: [sweep] has unknown key(s) {', '.join(unknown)}; "
-                             f"known: {', '.join(_SWEEP_KEYS)}")
+        raise ParameterError(
+            f"{path}: [sweep] has unknown key(s) {', '.join(unknown)}; "
+            f"known: {', '.join(_SWEEP_KEYS)}"
+        )
     try:
         config = with_sections(base, data) if data else base
     except ParameterError as exc:
@@ -103,7 +106,14 @@ def load_sweep(path: str | Path | None, base: Config) -> SweepDefinition:
         raise ParameterError(f"{path}: [sweep] chunk must be an integer >= 1, got {chunk!r}")
     physics = sweep.get("physics")
     if physics is not None and physics not in ("auto", "mjx", "c"):
-        raise ParameterError(f"{path}: [sweep] physics must be \"auto\", \"mjx\" or \"c\", "
-                             f"got {physics!r}")
-    return SweepDefinition(config, sweep.get("forces"), sweep.get("durations"),
-                           sweep.get("table_forces"), chunk, physics)
+        raise ParameterError(
+            f'{path}: [sweep] physics must be "auto", "mjx" or "c", got {physics!r}'
+        )
+    return SweepDefinition(
+        config,
+        sweep.get("forces"),
+        sweep.get("durations"),
+        sweep.get("table_forces"),
+        chunk,
+        physics,
+    )

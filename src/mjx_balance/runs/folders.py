@@ -28,11 +28,11 @@ from ..store.folder import folder_lock, require_lock
 from .acting_time import TableResult, run_table, table_batch_size
 from .batch import LazyBatch, ReferenceBatch
 from .chunks import memory_budget, scenario_bytes
-from .grid import (Grid, Values, check_durations, duration_values, grid_values, is_bool,
-                   parse_pairs)
+from .grid import Grid, Values, check_durations, duration_values, grid_values, is_bool, parse_pairs
 from .region import SweepResult, run_sweep
 
 log = logging.getLogger("mjx_balance")
+
 
 def size_value(value: Any, name: str) -> int | None:
     """An optional size (``chunk``, ``slots``, ``batch``): None, or a whole number >= 1 (Python
@@ -41,11 +41,14 @@ def size_value(value: Any, name: str) -> int | None:
     if value is None:
         return None
     if is_bool(value) or not isinstance(value, numbers.Real):
-        raise ParameterError(f"{name} = {value!r}: must be a whole number >= 1 (or None for "
-                             f"the default); got {type(value).__name__}")
+        raise ParameterError(
+            f"{name} = {value!r}: must be a whole number >= 1 (or None for "
+            f"the default); got {type(value).__name__}"
+        )
     if not (math.isfinite(value) and float(value) == int(value) and value >= 1):  # type: ignore[call-overload,operator]  # typeshed's numbers.Real has no int() or >=
-        raise ParameterError(f"{name} = {value!r}: must be a whole number >= 1 (or None for "
-                             "the default)")
+        raise ParameterError(
+            f"{name} = {value!r}: must be a whole number >= 1 (or None for the default)"
+        )
     return int(value)  # type: ignore[call-overload]  # typeshed's numbers.Real has no int()
 
 
@@ -53,7 +56,7 @@ FLOAT32_RANGE = (1.1754944e-38, 3.4028235e38)  # float32's smallest normal, larg
 
 
 def _gib(n: int) -> str:
-    return f"{n / 2 ** 30:.3g} GiB"
+    return f"{n / 2**30:.3g} GiB"
 
 
 def check_memory(config: Config, *, batched: bool = True) -> None:
@@ -68,7 +71,8 @@ def check_memory(config: Config, *, batched: bool = True) -> None:
             f"controller.horizon = {horizon}: the MPC's dense QP ({2 * horizon} inputs, "
             f"{6 * horizon} constraint rows){' and one scenario' if batched else ''} need "
             f"about {_gib(need)}, more than the memory budget of {_gib(budget)} (a quarter of "
-            "the available memory); use a shorter horizon (the study's: 20)")
+            "the available memory); use a shorter horizon (the study's: 20)"
+        )
 
 
 FLOAT32_MAX = 3.4028235e38
@@ -79,9 +83,11 @@ def check_float32_grid(values: "np.ndarray", name: str) -> None:
     big = np.asarray(values, np.float64)
     big = big[np.abs(big) > FLOAT32_MAX]
     if big.size:
-        raise ParameterError(f"{name}: {big[0]:g} does not fit the batched path's float32 "
-                             f"(largest {FLOAT32_MAX:.3g}); the scalar reference (simulate) "
-                             "runs in float64")
+        raise ParameterError(
+            f"{name}: {big[0]:g} does not fit the batched path's float32 "
+            f"(largest {FLOAT32_MAX:.3g}); the scalar reference (simulate) "
+            "runs in float64"
+        )
 
 
 def check_batched(config: Config, *grids: tuple) -> None:
@@ -119,13 +125,15 @@ def check_closed_loop(config: Config) -> None:
             raise ParameterError(
                 f"controller.{name} = {value!r}: the batched ADMM computes in float32, where "
                 f"this value or its reciprocal is not a normal number (range {low:.3g} to "
-                f"{high:.3g})")
+                f"{high:.3g})"
+            )
     try:
         qp = build_qp(c, config.body, config.scenario.control_dt)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
         raise ParameterError(
             f"the MPC's QP cannot be built from this configuration ({type(exc).__name__}: "
-            f"{exc}); check controller.q_diag, r_diag and the bounds") from None
+            f"{exc}); check controller.q_diag, r_diag and the bounds"
+        ) from None
     ratio = float32_conditioning(qp)
     if not ratio < 1.0:
         prediction = c.horizon * config.scenario.control_dt
@@ -134,13 +142,15 @@ def check_closed_loop(config: Config) -> None:
             f"cond(H) x eps_float32 = {ratio:.3g} >= 1 (controller.horizon = {c.horizon} x "
             f"scenario.control_dt = {config.scenario.control_dt:g} s: a {prediction:g}-s "
             "prediction of an unstable body, with these weights); shorten the prediction (the "
-            "study's: 20 x 0.01 s) or run the scalar reference (mjx-balance simulate)")
+            "study's: 20 x 0.01 s) or run the scalar reference (mjx-balance simulate)"
+        )
     try:  # everything else the batched closed loop builds (models, observer, predictor)
         BatchRunner(config)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
         raise ParameterError(
             f"the batched closed loop cannot be built from this configuration "
-            f"({type(exc).__name__}: {exc})") from None
+            f"({type(exc).__name__}: {exc})"
+        ) from None
 
 
 def check_reference(config: Config) -> None:
@@ -155,7 +165,8 @@ def check_reference(config: Config) -> None:
         raise ParameterError(
             f"the scalar reference cannot be built from this configuration "
             f"({type(exc).__name__}: {exc}); check controller.q_diag, r_diag, the bounds and "
-            "the body") from None
+            "the body"
+        ) from None
 
 
 class Pushes(NamedTuple):
@@ -167,8 +178,9 @@ class Pushes(NamedTuple):
     todo: list[tuple[float, float]]  # every push in run order
 
 
-def check_pushes(config: Config, forces: Any = None, durations: Any = None, pairs: Any = None,
-                 *, flag: str = "") -> Pushes:
+def check_pushes(
+    config: Config, forces: Any = None, durations: Any = None, pairs: Any = None, *, flag: str = ""
+) -> Pushes:
     """The pushes of ``simulate`` (the command and ``mb.simulate``), every one checked before
     any work: the cross product of ``forces`` and ``durations`` (grids; every force for the
     first duration, then the next), or the given ``pairs`` (``"20:0.7,30:0.45"``, a CSV file
@@ -178,11 +190,17 @@ def check_pushes(config: Config, forces: Any = None, durations: Any = None, pair
     them so). ParameterError naming the value and the rule."""
     if pairs is not None:
         f, d = parse_pairs(pairs, f"{flag}pairs")
-        d = check_durations(d, config.scenario.t_end, f"{flag}pairs", unique=False,
-                            physics_dt=config.scenario.physics_dt)
+        d = check_durations(
+            d,
+            config.scenario.t_end,
+            f"{flag}pairs",
+            unique=False,
+            physics_dt=config.scenario.physics_dt,
+        )
         if forces is not None or durations is not None:
-            raise ParameterError(f"{flag}pairs gives the pushes: leave out {flag}forces and "
-                                 f"{flag}durations")
+            raise ParameterError(
+                f"{flag}pairs gives the pushes: leave out {flag}forces and {flag}durations"
+            )
         given = list(zip(f.tolist(), d.tolist()))
         result = Pushes(f.tolist(), d.tolist(), given, given)
     else:
@@ -191,16 +209,23 @@ def check_pushes(config: Config, forces: Any = None, durations: Any = None, pair
                 raise ParameterError(f"{flag}{name}: give the pushes' {name} (or {flag}pairs)")
         f = grid_values(forces, f"{flag}forces")
         d = duration_values(durations, config, f"{flag}durations")
-        result = Pushes(f.tolist(), d.tolist(), None,
-                        [(x, y) for y in d.tolist() for x in f.tolist()])
+        result = Pushes(
+            f.tolist(), d.tolist(), None, [(x, y) for y in d.tolist() for x in f.tolist()]
+        )
     for duration in result.durations:  # every other rule of each push's configuration
         config.replace(scenario={"duration": float(duration)})
     check_reference(config)
     return result
 
 
-def batch_function(config: Config, *, slots: int | None = None, full_length: bool = False,
-                   physics: str = "auto", backend: str = "mjx"):
+def batch_function(
+    config: Config,
+    *,
+    slots: int | None = None,
+    full_length: bool = False,
+    physics: str = "auto",
+    backend: str = "mjx",
+):
     """The batch function of ``sweep`` and ``table``: the batched closed loop of ``config`` on
     the continuous-batching engine, built and compiled on its first call (with the persistent
     compilation cache on, :func:`mjx_balance.runtime.cache.enable`). ``physics``: "mjx", "c"
@@ -213,6 +238,7 @@ def batch_function(config: Config, *, slots: int | None = None, full_length: boo
         raise ParameterError(f"backend must be 'mjx' or 'reference', got {backend!r}")
     return LazyBatch(config, slots=slots, early_stop=not full_length, physics=physics)
 
+
 def _holding(out: str | os.PathLike[str], lock: bool, wait: bool) -> Any:
     """The folder's lock for this run (``lock``), or a check that the caller's run holds it."""
     if lock:
@@ -221,11 +247,22 @@ def _holding(out: str | os.PathLike[str], lock: bool, wait: bool) -> Any:
     return contextlib.nullcontext()
 
 
-def run_region(out: str | os.PathLike[str], config: Config, grid: Grid,
-               *, run_batch: Any = None, chunk: int | None = None, slots: int | None = None,
-               full_length: bool = False, progress: bool | None = None,
-               wait: bool = False, cluster: Any = None, physics: str = "auto",
-               say: Any = log.info, lock: bool = True) -> "SweepResult":
+def run_region(
+    out: str | os.PathLike[str],
+    config: Config,
+    grid: Grid,
+    *,
+    run_batch: Any = None,
+    chunk: int | None = None,
+    slots: int | None = None,
+    full_length: bool = False,
+    progress: bool | None = None,
+    wait: bool = False,
+    cluster: Any = None,
+    physics: str = "auto",
+    say: Any = log.info,
+    lock: bool = True,
+) -> "SweepResult":
     """The region sweep of ``grid`` (:class:`grid.Grid`, made for ``config``: ``Grid.of``)
     into the folder ``out`` (resumable; ``region.run_sweep``) under its lock (``wait``: wait
     for another run that holds it; ``lock`` False: the caller's run holds it already, as the
@@ -242,20 +279,38 @@ def run_region(out: str | os.PathLike[str], config: Config, grid: Grid,
     if run_batch is None or isinstance(run_batch, LazyBatch):  # the batched engine's run
         check_batched(config, (grid.forces, "forces"), (grid.durations, "durations"))
     if run_batch is None:
-        run_batch = batch_function(config, slots=slots, full_length=full_length,
-                                   physics=physics)
+        run_batch = batch_function(config, slots=slots, full_length=full_length, physics=physics)
     cache.enable()
     with _holding(out, lock, wait):
-        return run_sweep(out, config, grid, run_batch=run_batch, chunk=chunk,
-                         progress=progress, say=say, cluster=cluster)
+        return run_sweep(
+            out,
+            config,
+            grid,
+            run_batch=run_batch,
+            chunk=chunk,
+            progress=progress,
+            say=say,
+            cluster=cluster,
+        )
 
 
-def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values, *,
-                     run_batch: Any = None, batch: int | None = None, slots: int | None = None,
-                     full_length: bool = False, progress: bool | None = None,
-                     wait: bool = False, cluster: Any = None,
-                     physics: str = "auto", sustained: bool = True,
-                     say: Any = log.info, lock: bool = True) -> "TableResult | None":
+def run_table_folder(
+    out: str | os.PathLike[str],
+    config: Config,
+    forces: Values,
+    *,
+    run_batch: Any = None,
+    batch: int | None = None,
+    slots: int | None = None,
+    full_length: bool = False,
+    progress: bool | None = None,
+    wait: bool = False,
+    cluster: Any = None,
+    physics: str = "auto",
+    sustained: bool = True,
+    say: Any = log.info,
+    lock: bool = True,
+) -> "TableResult | None":
     """The max-acting-time table into the folder ``out`` (``runs.acting_time.run_table``:
     resumable, the scenarios it ran kept) under its lock. ``batch``: scenarios per call
     (default: ``runs.acting_time.table_batch_size``; the scalar reference loop,
@@ -269,11 +324,19 @@ def run_table_folder(out: str | os.PathLike[str], config: Config, forces: Values
     if run_batch is None or isinstance(run_batch, LazyBatch):  # the batched engine's run
         check_batched(config, (forces, "forces"))
     if run_batch is None:
-        run_batch = batch_function(config, slots=slots, full_length=full_length,
-                                   physics=physics)
+        run_batch = batch_function(config, slots=slots, full_length=full_length, physics=physics)
     if batch is None and not isinstance(run_batch, ReferenceBatch):
         batch = table_batch_size(config, forces.size)
     cache.enable()
     with _holding(out, lock, wait):
-        return run_table(out, config, forces, run_batch=run_batch, batch=batch,
-                         progress=progress, say=say, cluster=cluster, sustained=sustained)
+        return run_table(
+            out,
+            config,
+            forces,
+            run_batch=run_batch,
+            batch=batch,
+            progress=progress,
+            say=say,
+            cluster=cluster,
+            sustained=sustained,
+        )

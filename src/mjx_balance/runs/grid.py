@@ -16,8 +16,7 @@ from ..model.params import Config, ParameterError
 from ..store.folder import GRID_TOL, same_values
 
 
-def parse_grid(spec: str | float | Sequence[float] | np.ndarray, name: str = "grid"
-               ) -> np.ndarray:
+def parse_grid(spec: str | float | Sequence[float] | np.ndarray, name: str = "grid") -> np.ndarray:
     """Values of a grid: ``"start:stop:step"`` (stop included when it lands on the grid, up to
     float error), a comma list ``"a,b,c"``, a number or a list of numbers.
 
@@ -38,14 +37,16 @@ def parse_grid(spec: str | float | Sequence[float] | np.ndarray, name: str = "gr
     elif isinstance(spec, (list, tuple, np.ndarray)):
         values = [_number(item, name) for item in spec]
     else:
-        raise ParameterError(f"{name} = {spec!r}: must be 'start:stop:step', a comma list or "
-                             "numbers")
+        raise ParameterError(
+            f"{name} = {spec!r}: must be 'start:stop:step', a comma list or numbers"
+        )
     values = np.asarray(values, dtype=np.float64)
     if values.size == 0:
         raise ParameterError(f"{name}: empty grid")
     if not np.all(np.isfinite(values)):
-        raise ParameterError(f"{name}: every value must be finite, got "
-                             f"{values[~np.isfinite(values)][:3]}")
+        raise ParameterError(
+            f"{name}: every value must be finite, got {values[~np.isfinite(values)][:3]}"
+        )
     values = np.sort(values)
     repeated = values[1:][np.diff(values) == 0]
     if repeated.size:
@@ -89,10 +90,10 @@ def exact_range(start: Decimal, step: Decimal, count: int) -> list[float]:
     one IEEE division rounds the exact quotient to its nearest float, the same number as
     ``float(Decimal(...))``; otherwise each value goes through Decimal."""
     decimals = max(0, -start.as_tuple().exponent, -step.as_tuple().exponent)  # type: ignore[operator]  # finite Decimals: the exponents are ints
-    scale = 10 ** decimals
+    scale = 10**decimals
     first, stride = int(start * scale), int(step * scale)
     last = abs(first) + stride * max(count - 1, 0)
-    if decimals <= 22 and last < 2 ** 53:
+    if decimals <= 22 and last < 2**53:
         whole = first + stride * np.arange(count, dtype=np.int64)
         return (whole.astype(np.float64) / float(scale)).tolist()
     return [float(start + k * step) for k in range(count)]
@@ -101,8 +102,13 @@ def exact_range(start: Decimal, step: Decimal, count: int) -> list[float]:
 STEP_TOL = 1e-6  # how far from a whole number of physics steps a duration may sit (in steps)
 
 
-def check_whole_steps(durations: Sequence[float] | np.ndarray, physics_dt: float,
-                      name: str = "durations", *, unique: bool = True) -> np.ndarray:
+def check_whole_steps(
+    durations: Sequence[float] | np.ndarray,
+    physics_dt: float,
+    name: str = "durations",
+    *,
+    unique: bool = True,
+) -> np.ndarray:
     """Durations must be whole numbers of physics steps (the push acts for whole steps, so any
     other value would be rounded silently), up to float error (STEP_TOL steps); returns them
     snapped to the whole steps (0.10000000001 -> 0.1 at 0.002 s), sorted as given.
@@ -119,17 +125,26 @@ def check_whole_steps(durations: Sequence[float] | np.ndarray, physics_dt: float
         raise ParameterError(
             f"{name}: push duration {bad!r} s is not a whole number of physics steps "
             f"(scenario.physics_dt = {physics_dt:g} s); nearest valid values: "
-            f"{round(below, 12):g} or {round(below + physics_dt, 12):g} s")
+            f"{round(below, 12):g} or {round(below + physics_dt, 12):g} s"
+        )
     snapped = np.round(np.round(steps) * physics_dt, 12)
     values, counts = np.unique(snapped, return_counts=True)
     if unique and np.any(counts > 1):
-        raise ParameterError(f"{name}: push duration {values[counts > 1][0]:g} s appears more "
-                             "than once (up to float error)")
+        raise ParameterError(
+            f"{name}: push duration {values[counts > 1][0]:g} s appears more "
+            "than once (up to float error)"
+        )
     return snapped
 
 
-def check_durations(durations: Sequence[float] | np.ndarray, t_end: float, name: str = "durations",
-                    physics_dt: float | None = None, *, unique: bool = True) -> np.ndarray:
+def check_durations(
+    durations: Sequence[float] | np.ndarray,
+    t_end: float,
+    name: str = "durations",
+    physics_dt: float | None = None,
+    *,
+    unique: bool = True,
+) -> np.ndarray:
     """Durations must lie in [0, t_end] (t_end = scenario.t_end) and, given physics_dt, be whole
     physics steps (check_whole_steps: then returned snapped to them; ``unique``: each once, as
     a grid's; given pairs may share a duration); returns them."""
@@ -141,7 +156,8 @@ def check_durations(durations: Sequence[float] | np.ndarray, t_end: float, name:
     if np.any(durations > t_end + GRID_TOL):
         raise ParameterError(
             f"{name}: push durations must not exceed scenario.t_end = {t_end:g} s, "
-            f"got {durations.max():g}")
+            f"got {durations.max():g}"
+        )
     return durations
 
 
@@ -155,7 +171,8 @@ def check_cell_count(n_forces: int, n_durations: int) -> int:
     if n_cells > MAX_CELLS:
         raise ParameterError(
             f"{n_forces:,} forces x {n_durations:,} durations = {n_cells:,} cells is more than "
-            f"one grid may hold ({MAX_CELLS:,}); use coarser steps")
+            f"one grid may hold ({MAX_CELLS:,}); use coarser steps"
+        )
     return n_cells
 
 
@@ -188,8 +205,9 @@ def parse_pairs(spec: Any, name: str = "pairs") -> tuple[np.ndarray, np.ndarray]
         for item in items:
             force, sep, duration = item.partition(":")
             if not sep or ":" in duration:
-                raise ParameterError(f"{name}: {item!r} is not FORCE:DURATION (e.g. 20:0.7), and "
-                                     "no such file")
+                raise ParameterError(
+                    f"{name}: {item!r} is not FORCE:DURATION (e.g. 20:0.7), and no such file"
+                )
             pairs.append((force, duration))
     else:
         try:
@@ -218,8 +236,10 @@ def _pairs_file(path: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
 def _pairs_frame(frame: pd.DataFrame, name: str) -> tuple[np.ndarray, np.ndarray]:
     frame = frame.rename(columns=lambda c: str(c).strip().lower())
     if "force" not in frame or "duration" not in frame or not len(frame):
-        raise ParameterError(f"{name}: needs columns force and duration and a row; got "
-                             f"columns {', '.join(map(str, frame.columns)) or 'none'}")
+        raise ParameterError(
+            f"{name}: needs columns force and duration and a row; got "
+            f"columns {', '.join(map(str, frame.columns)) or 'none'}"
+        )
     return parse_pairs(list(zip(frame["force"], frame["duration"])), name)
 
 
@@ -239,8 +259,7 @@ def grid_values(values: Values | None, name: str) -> np.ndarray:
     a list or anything else is refused (ParameterError, a ValueError naming ``name``)."""
     if isinstance(values, str):
         return parse_grid(values, name)
-    expected = ("a number, a sequence of numbers or a grid string such as '0:150:10' or "
-                "'20,50,80'")
+    expected = "a number, a sequence of numbers or a grid string such as '0:150:10' or '20,50,80'"
     if is_bool(values):
         raise ParameterError(f"{name}: expected {expected}; got a bool ({values!r})")
     if isinstance(values, numbers.Real):
@@ -248,21 +267,26 @@ def grid_values(values: Values | None, name: str) -> np.ndarray:
     try:
         items = list(values)  # type: ignore[arg-type]  # mypy: a float is no numbers.Real (wrapped above); None: TypeError below
     except TypeError:
-        raise ParameterError(f"{name}: expected {expected}; got {type(values).__name__} "
-                             f"({values!r})") from None
+        raise ParameterError(
+            f"{name}: expected {expected}; got {type(values).__name__} ({values!r})"
+        ) from None
     for item in items:
         if is_bool(item) or not isinstance(item, numbers.Real):
-            raise ParameterError(f"{name}: expected {expected}; got {item!r} "
-                                 f"({type(item).__name__}) in the list")
+            raise ParameterError(
+                f"{name}: expected {expected}; got {item!r} ({type(item).__name__}) in the list"
+            )
     return parse_grid([float(v) for v in items], name)
 
 
-def duration_values(values: Values | None, config: Config, name: str = "durations"
-                    ) -> np.ndarray:
+def duration_values(values: Values | None, config: Config, name: str = "durations") -> np.ndarray:
     """Durations as a request gives them, checked for ``config``'s window: sorted, each once,
     in [0, t_end] and whole physics steps (snapped to them)."""
-    return check_durations(grid_values(values, name), config.scenario.t_end, name,
-                           physics_dt=config.scenario.physics_dt)
+    return check_durations(
+        grid_values(values, name),
+        config.scenario.t_end,
+        name,
+        physics_dt=config.scenario.physics_dt,
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -300,9 +324,11 @@ class Grid:
         checked against (a programming error: the grid is made for its configuration)."""
         sc = config.scenario
         if (float(sc.t_end), float(sc.physics_dt)) != (self.t_end, self.physics_dt):
-            raise ValueError(f"a grid checked for t_end {self.t_end:g} s, physics_dt "
-                             f"{self.physics_dt:g} s, run with t_end {sc.t_end:g} s, "
-                             f"physics_dt {sc.physics_dt:g} s: make it with Grid.of(..., config)")
+            raise ValueError(
+                f"a grid checked for t_end {self.t_end:g} s, physics_dt "
+                f"{self.physics_dt:g} s, run with t_end {sc.t_end:g} s, "
+                f"physics_dt {sc.physics_dt:g} s: make it with Grid.of(..., config)"
+            )
 
     @property
     def cells(self) -> tuple[np.ndarray, np.ndarray]:
@@ -321,9 +347,9 @@ class Grid:
 
     def matches(self, recorded: dict) -> bool:
         """Whether a manifest's record holds this grid (up to the store's float tolerance)."""
-        return (same_values(recorded["forces"], self.forces)
-                and same_values(recorded["durations"], self.durations))
+        return same_values(recorded["forces"], self.forces) and same_values(
+            recorded["durations"], self.durations
+        )
 
     def describe(self) -> str:
-        return (f"{self.forces.size} forces x {self.durations.size} durations = "
-                f"{self.n_cells} cells")
+        return f"{self.forces.size} forces x {self.durations.size} durations = {self.n_cells} cells"

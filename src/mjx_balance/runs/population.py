@@ -50,44 +50,61 @@ class Population:
     ``slots``, ``early_stop``: as a sweep's; ``runners``: the configurations' runners, when
     already built."""
 
-    def __init__(self, configs: Sequence[Config], forces: np.ndarray, durations: np.ndarray, *,
-                 slots: int | None = None, early_stop: bool = True,
-                 runners: Sequence[Any] | None = None):
+    def __init__(
+        self,
+        configs: Sequence[Config],
+        forces: np.ndarray,
+        durations: np.ndarray,
+        *,
+        slots: int | None = None,
+        early_stop: bool = True,
+        runners: Sequence[Any] | None = None,
+    ):
         self.configs = list(configs)
-        self.runners = list(runners) if runners is not None else [
-            BatchRunner(c, slots=slots, early_stop=early_stop, physics="mjx")
-            for c in self.configs]
-        self.engine = Engine(self.runners[0], slots=slots, early_stop=early_stop,
-                             bodies=self.runners)
+        self.runners = (
+            list(runners)
+            if runners is not None
+            else [
+                BatchRunner(c, slots=slots, early_stop=early_stop, physics="mjx")
+                for c in self.configs
+            ]
+        )
+        self.engine = Engine(
+            self.runners[0], slots=slots, early_stop=early_stop, bodies=self.runners
+        )
         self.slots, self.early_stop = self.engine.slots, early_stop
         self.cell_f, self.cell_d = grid_cells(forces, durations)
 
-    def run(self, which: Sequence[int], update: Callable[[int], None] | None = None
-            ) -> dict[int, dict[str, np.ndarray]]:
+    def run(
+        self, which: Sequence[int], update: Callable[[int], None] | None = None
+    ) -> dict[int, dict[str, np.ndarray]]:
         """Every grid cell of the bodies ``which`` (indices into ``configs``) through the one
         queue; each body's summary columns (``BatchRunner.stream``'s), in grid order.
         ``update(n)``: n more cells decided."""
         which = list(which)
         n = self.cell_f.size
         forces = np.tile(self.cell_f, len(which))
-        steps = np.tile(push_steps(self.cell_d, self.configs[0].scenario.physics_dt),
-                        len(which))
+        steps = np.tile(push_steps(self.cell_d, self.configs[0].scenario.physics_dt), len(which))
         bodies = np.repeat(np.asarray(which, np.int32), n)
         raw = self.engine.run(forces, steps, bodies=bodies, update=update)
         out = {}
         for j, body in enumerate(which):
-            part = {name: v[j * n:(j + 1) * n] for name, v in raw.items()}
-            acc = Accumulators(
-                *(part[name] for name in Accumulators._fields))  # type: ignore[arg-type]  # the record's host (numpy) copy
-            out[body] = {"force": self.cell_f, "duration": self.cell_d,
-                         **summarize(acc, self.configs[body], self.cell_f),
-                         "periods": part["periods"], "certified": part["certified"]}
+            part = {name: v[j * n : (j + 1) * n] for name, v in raw.items()}
+            acc = Accumulators(*(part[name] for name in Accumulators._fields))  # type: ignore[arg-type]  # the record's host (numpy) copy
+            out[body] = {
+                "force": self.cell_f,
+                "duration": self.cell_d,
+                **summarize(acc, self.configs[body], self.cell_f),
+                "periods": part["periods"],
+                "certified": part["certified"],
+            }
         return out
 
     def batch(self, body: int, columns: dict[str, np.ndarray]) -> ServedBatch:
         """Body ``body``'s batch function, serving ``columns`` (:meth:`run`'s)."""
-        return ServedBatch(self.configs[body], columns, slots=self.slots,
-                           early_stop=self.early_stop)
+        return ServedBatch(
+            self.configs[body], columns, slots=self.slots, early_stop=self.early_stop
+        )
 
 
 QUEUES = ("each", "one")
@@ -98,18 +115,27 @@ def check_queue(queue: Any, physics: Any = "auto", cluster: Any = None) -> str:
     engine queue, :func:`run_maps`: the MJX path in this process, so not with physics "c" or a
     cluster). ParameterError (a ValueError) naming what it accepts."""
     if not isinstance(queue, str) or queue not in QUEUES:
-        raise ParameterError(f"queue = {queue!r}: must be one of "
-                             f"{', '.join(repr(q) for q in QUEUES)}")
+        raise ParameterError(
+            f"queue = {queue!r}: must be one of {', '.join(repr(q) for q in QUEUES)}"
+        )
     if queue == "one" and (physics == "c" or cluster is not None):
-        raise ParameterError("queue = 'one' runs every map on the MJX path in this process: "
-                             "not with physics 'c' or a cluster")
+        raise ParameterError(
+            "queue = 'one' runs every map on the MJX path in this process: "
+            "not with physics 'c' or a cluster"
+        )
     return queue
 
 
-def run_maps(maps: Sequence[tuple[Path, Config]], forces: np.ndarray, durations: np.ndarray,
-             *, slots: int | None = None, full_length: bool = False,
-             say: Callable[[str], None] | None = None,
-             update: Callable[[int], None] | None = None) -> None:
+def run_maps(
+    maps: Sequence[tuple[Path, Config]],
+    forces: np.ndarray,
+    durations: np.ndarray,
+    *,
+    slots: int | None = None,
+    full_length: bool = False,
+    say: Callable[[str], None] | None = None,
+    update: Callable[[int], None] | None = None,
+) -> None:
     """The region maps of ``maps`` ((folder, configuration) pairs; those whose folder holds its
     region.parquet are skipped) through one engine queue per compiled program: configurations
     of one program's shapes and static settings, with a certificate or all without, share a
@@ -123,16 +149,26 @@ def run_maps(maps: Sequence[tuple[Path, Config]], forces: np.ndarray, durations:
         if (Path(folder) / REGION).exists():
             continue
         runner = BatchRunner(config, slots=slots, early_stop=early_stop, physics="mjx")
-        key = (runner._shape_key(1, runner.static._replace(n_control=None)),
-               certificate(runner, early_stop) is None)
+        key = (
+            runner._shape_key(1, runner.static._replace(n_control=None)),
+            certificate(runner, early_stop) is None,
+        )
         groups.setdefault(key, []).append((Path(folder), config, runner))
     cells = forces.size * durations.size
     for members in groups.values():
-        people = Population([c for _, c, _ in members], forces, durations, slots=slots,
-                            early_stop=early_stop, runners=[r for _, _, r in members])
+        people = Population(
+            [c for _, c, _ in members],
+            forces,
+            durations,
+            slots=slots,
+            early_stop=early_stop,
+            runners=[r for _, _, r in members],
+        )
         t0 = time.perf_counter()
-        say(f"preparing the engine ({len(members)} bodies, each lane its own; compiled on "
-            "first use, or loaded from the cache) ...")
+        say(
+            f"preparing the engine ({len(members)} bodies, each lane its own; compiled on "
+            "first use, or loaded from the cache) ..."
+        )
         people.engine.block_fn()  # before the progress bar's first update
         if time.perf_counter() - t0 > 1:
             say(f"engine ready ({time.perf_counter() - t0:.0f} s)")
@@ -142,9 +178,15 @@ def run_maps(maps: Sequence[tuple[Path, Config]], forces: np.ndarray, durations:
             columns = people.run(part, update=update)
             for i in part:
                 folder, config, _ = members[i]
-                run_region(folder, config, Grid.of(forces, durations, config), slots=slots,
-                           full_length=full_length, progress=False,
-                           run_batch=people.batch(i, columns.pop(i)))
+                run_region(
+                    folder,
+                    config,
+                    Grid.of(forces, durations, config),
+                    slots=slots,
+                    full_length=full_length,
+                    progress=False,
+                    run_batch=people.batch(i, columns.pop(i)),
+                )
 
 
 def queues(count: int, cells: int, limit: int = QUEUE_CELLS) -> list[range]:
@@ -159,12 +201,15 @@ class ServedBatch(LazyBatch):
     streams their summary columns to ``run_sweep`` as the engine would (a sweep folder records
     the same engine settings: the slots, early stopping, the MJX path)."""
 
-    def __init__(self, config: Config, columns: dict[str, np.ndarray], *, slots: int,
-                 early_stop: bool):
+    def __init__(
+        self, config: Config, columns: dict[str, np.ndarray], *, slots: int, early_stop: bool
+    ):
         super().__init__(config, slots=slots, early_stop=early_stop, physics="mjx")
         self.columns = columns
-        self._row = {(float(f), float(d)): i
-                     for i, (f, d) in enumerate(zip(columns["force"], columns["duration"]))}
+        self._row = {
+            (float(f), float(d)): i
+            for i, (f, d) in enumerate(zip(columns["force"], columns["duration"]))
+        }
 
     @property
     def runner(self):
@@ -177,23 +222,29 @@ class ServedBatch(LazyBatch):
 
     def engine_record(self) -> dict[str, Any]:
         assert self.slots is not None  # (given to __init__, an int)
-        return {"slots": int(self.slots), "early_stop": bool(self.early_stop), "physics": "mjx",
-                "queue": self.queue}
+        return {
+            "slots": int(self.slots),
+            "early_stop": bool(self.early_stop),
+            "physics": "mjx",
+            "queue": self.queue,
+        }
 
-    def use_engine(self, slots: int | None, early_stop: bool, physics: str | None = None
-                   ) -> None:
+    def use_engine(self, slots: int | None, early_stop: bool, physics: str | None = None) -> None:
         """A folder started with other engine settings cannot be served these results."""
         if (slots, early_stop, physics or "mjx") != (self.slots, self.early_stop, "mjx"):
-            raise ValueError(f"this folder was started with {slots} slots, early stop "
-                             f"{early_stop}, {physics} physics; the population ran "
-                             f"{self.slots} slots, early stop {self.early_stop}, mjx")
+            raise ValueError(
+                f"this folder was started with {slots} slots, early stop "
+                f"{early_stop}, {physics} physics; the population ran "
+                f"{self.slots} slots, early stop {self.early_stop}, mjx"
+            )
 
     def prepare(self, batch: int, say: Callable[[str], None] | None = print) -> None:
         pass
 
     def stream(self, forces: np.ndarray, durations: np.ndarray):
-        rows = np.array([self._row[(float(f), float(d))] for f, d in zip(forces, durations)],
-                        np.int64)
+        rows = np.array(
+            [self._row[(float(f), float(d))] for f, d in zip(forces, durations)], np.int64
+        )
         yield np.arange(rows.size), {name: v[rows] for name, v in self.columns.items()}
 
     def __call__(self, forces: np.ndarray, durations: np.ndarray):

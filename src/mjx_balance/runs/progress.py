@@ -92,5 +92,14 @@ def progress_bar(total: int, done: int, enabled: bool | None, desc: str = "scena
         return bar
     from tqdm.auto import tqdm
 
-    return CheckedBar(tqdm(total=total, initial=done, unit="scen", desc=desc,
-                           dynamic_ncols=True, smoothing=0.1, file=SafeStream(sys.stderr)))
+    return CheckedBar(
+        tqdm(
+            total=total,
+            initial=done,
+            unit="scen",
+            desc=desc,
+            dynamic_ncols=True,
+            smoothing=0.1,
+            file=SafeStream(sys.stderr),
+        )
+    )

@@ -34,8 +34,15 @@ from .cluster import ClusterBatch
 from .grid import Grid, describe
 from .progress import progress_bar
 from ..store.files import MANIFEST, REGION, write_atomic
-from ..store.folder import (OutputFolder, chunk_path, require_lock, merge_chunks, read_chunk,
-                            same_values, write_chunk)
+from ..store.folder import (
+    OutputFolder,
+    chunk_path,
+    require_lock,
+    merge_chunks,
+    read_chunk,
+    same_values,
+    write_chunk,
+)
 
 
 @dataclass
@@ -64,10 +71,17 @@ def check_region(region: pd.DataFrame, grid: Grid) -> None:
         raise RuntimeError("region cells differ from the grid")
 
 
-def run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, *,
-              run_batch: RunBatch | None = None, chunk: int | None = None,
-              progress: bool | None = True, say: Callable[[str], None] | None = print,
-              cluster: Any = None) -> SweepResult:
+def run_sweep(
+    out: str | os.PathLike[str],
+    config: Config,
+    grid: Grid,
+    *,
+    run_batch: RunBatch | None = None,
+    chunk: int | None = None,
+    progress: bool | None = True,
+    say: Callable[[str], None] | None = print,
+    cluster: Any = None,
+) -> SweepResult:
     """Evaluate every cell of ``grid`` (:class:`grid.Grid`, checked for ``config``),
     resumably, into ``out/region.parquet``.
 
@@ -84,17 +98,21 @@ def run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, *,
     if cluster is None:
         result = _run_sweep(out, config, grid, run_batch, chunk, progress, say)
     else:
-        with ClusterBatch(cluster, run_batch or LazyBatch(config), config,
-                          say) as on_cluster:
+        with ClusterBatch(cluster, run_batch or LazyBatch(config), config, say) as on_cluster:
             result = _run_sweep(out, config, grid, on_cluster, chunk, progress, say)
-    check_results(pd.read_parquet(result.region_path, columns=["outcome"])["outcome"],
-                  "cells")
+    check_results(pd.read_parquet(result.region_path, columns=["outcome"])["outcome"], "cells")
     return result
 
 
-def _run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, run_batch: Any,
-               chunk_size: int | None, progress: bool | None,
-               say: Callable[[str], None] | None) -> SweepResult:
+def _run_sweep(
+    out: str | os.PathLike[str],
+    config: Config,
+    grid: Grid,
+    run_batch: Any,
+    chunk_size: int | None,
+    progress: bool | None,
+    say: Callable[[str], None] | None,
+) -> SweepResult:
     # (run_batch: a batch function, None, or a cluster.ClusterBatch, found by its methods)
     say = say or (lambda _msg: None)
     start = time.perf_counter()
@@ -124,8 +142,10 @@ def _run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, run_batc
     remaining = sum(slices[i].stop - slices[i].start for i in todo)
     if reused:
         say(f"resuming: {reused} of {len(slices)} chunks already done, {remaining} cells to go")
-    say(f"sweep: {grid.describe()} in {len(slices)} chunks of {chunk_size}; convention "
-        f"{convention}; output {folder.path}")
+    say(
+        f"sweep: {grid.describe()} in {len(slices)} chunks of {chunk_size}; convention "
+        f"{convention}; output {folder.path}"
+    )
 
     if todo:
         folder.check_numerics(manifest)  # new rows: computed as the folder's were
@@ -133,21 +153,37 @@ def _run_sweep(out: str | os.PathLike[str], config: Config, grid: Grid, run_batc
             run_batch.prepare(chunk_size, say=say)
         bar = progress_bar(n_cells, n_cells - remaining, progress)
         try:
-            _compute_chunks(run_batch, folder.path, slices, todo, cell_f, cell_d, config=config,
-                            chunk_size=chunk_size, bar=bar)
+            _compute_chunks(
+                run_batch,
+                folder.path,
+                slices,
+                todo,
+                cell_f,
+                cell_d,
+                config=config,
+                chunk_size=chunk_size,
+                bar=bar,
+            )
         finally:
             bar.close()
 
-    write_atomic(region_path, lambda tmp: merge_chunks(folder.path, slices, cell_f, cell_d,
-                                                        convention, tmp))
+    write_atomic(
+        region_path, lambda tmp: merge_chunks(folder.path, slices, cell_f, cell_d, convention, tmp)
+    )
     seconds = time.perf_counter() - start
     say(f"wrote {region_path} ({n_cells} cells; {len(todo)} chunks computed in {seconds:.1f} s)")
     return SweepResult(region_path, len(todo), reused, recomputed, seconds, False)
 
 
-def _region_record(folder: OutputFolder, manifest: dict, config: Config, grid: Grid,
-                   chunk_size: int | None, run_batch: RunBatch,
-                   say: Callable[[str], None]) -> int:
+def _region_record(
+    folder: OutputFolder,
+    manifest: dict,
+    config: Config,
+    grid: Grid,
+    chunk_size: int | None,
+    run_batch: RunBatch,
+    say: Callable[[str], None],
+) -> int:
     """The chunk size of the sweep in ``folder``: the recorded one (and the recorded engine
     settings) when resuming, else a new record written to the manifest (after adopting results
     that lost their manifest, if they match the grid)."""
@@ -160,10 +196,13 @@ def _region_record(folder: OutputFolder, manifest: dict, config: Config, grid: G
             raise ParameterError(
                 f"{folder.path} holds a sweep over another grid (forces "
                 f"{describe(recorded['forces'])}, durations {describe(recorded['durations'])}); "
-                "use another --out folder or the same grid")
+                "use another --out folder or the same grid"
+            )
         if chunk_size is not None and chunk_size != recorded["chunk_size"]:
-            say(f"note: {folder.path} was started with chunks of {recorded['chunk_size']} "
-                f"scenarios; keeping that (ignoring --chunk {chunk_size})")
+            say(
+                f"note: {folder.path} was started with chunks of {recorded['chunk_size']} "
+                f"scenarios; keeping that (ignoring --chunk {chunk_size})"
+            )
         chunk_size = int(recorded["chunk_size"])
         resume_engine(run_batch, recorded.get("engine"), folder.path, say)
     else:
@@ -175,13 +214,16 @@ def _region_record(folder: OutputFolder, manifest: dict, config: Config, grid: G
             # Region results without a record of their grid (a lost manifest): adopt them only
             # if they check out against this grid.
             chunk_size, adopted = _adopt_results(folder.path, found, grid, convention, chunk_size)
-            say(f"note: {folder.path} had lost its {MANIFEST}; rebuilt it: config.toml matches "
-                f"this run and {adopted} match the grid")
+            say(
+                f"note: {folder.path} had lost its {MANIFEST}; rebuilt it: config.toml matches "
+                f"this run and {adopted} match the grid"
+            )
         elif folder.rebuilt:
-            say(f"note: {folder.path} had lost its {MANIFEST}; rebuilt it: config.toml matches "
-                "this run")
-        manifest["region"] = {**grid.record(), "chunk_size": int(chunk_size),
-                              "cells": int(n_cells)}
+            say(
+                f"note: {folder.path} had lost its {MANIFEST}; rebuilt it: config.toml matches "
+                "this run"
+            )
+        manifest["region"] = {**grid.record(), "chunk_size": int(chunk_size), "cells": int(n_cells)}
         record = run_batch.engine_record() if hasattr(run_batch, "engine_record") else None
         if record is not None:
             manifest["region"]["engine"] = record
@@ -189,8 +231,14 @@ def _region_record(folder: OutputFolder, manifest: dict, config: Config, grid: G
     return int(chunk_size)
 
 
-def _chunks_to_do(path: Path, slices: list[slice], cell_f: np.ndarray, cell_d: np.ndarray,
-                  convention: str, say: Callable[[str], None]) -> tuple[list[int], int]:
+def _chunks_to_do(
+    path: Path,
+    slices: list[slice],
+    cell_f: np.ndarray,
+    cell_d: np.ndarray,
+    convention: str,
+    say: Callable[[str], None],
+) -> tuple[list[int], int]:
     """(chunks to compute, how many of them were damaged). Chunk files are checked one at a
     time and not kept: peak memory is one chunk, not the grid."""
     todo: list[int] = []
@@ -206,19 +254,35 @@ def _chunks_to_do(path: Path, slices: list[slice], cell_f: np.ndarray, cell_d: n
     return todo, recomputed
 
 
-def _compute_chunks(run_batch: RunBatch, path: Path, slices: list[slice], todo: list[int],
-                    cell_f: np.ndarray, cell_d: np.ndarray, *, config: Config, chunk_size: int,
-                    bar: Any) -> None:
+def _compute_chunks(
+    run_batch: RunBatch,
+    path: Path,
+    slices: list[slice],
+    todo: list[int],
+    cell_f: np.ndarray,
+    cell_d: np.ndarray,
+    *,
+    config: Config,
+    chunk_size: int,
+    bar: Any,
+) -> None:
     """Compute the chunks ``todo`` and write each chunk file: through the engine's queue when
     the batch function streams, else one padded call per chunk (or on a cluster's workers)."""
     if hasattr(run_batch, "compute_chunks"):  # cluster.ClusterBatch: written here as they return
-        run_batch.compute_chunks(slices, todo, cell_f, cell_d, chunk_size,
-                                 lambda index, frame: write_chunk(frame, path, index),
-                                 bar)
+        run_batch.compute_chunks(
+            slices,
+            todo,
+            cell_f,
+            cell_d,
+            chunk_size,
+            lambda index, frame: write_chunk(frame, path, index),
+            bar,
+        )
         return
     if streams(run_batch):
-        _stream_chunks(run_batch, path, [slices[i] for i in todo], todo, cell_f, cell_d,
-                       config, bar)
+        _stream_chunks(
+            run_batch, path, [slices[i] for i in todo], todo, cell_f, cell_d, config, bar
+        )
         return
     for index in todo:
         cells = slices[index]
@@ -227,16 +291,25 @@ def _compute_chunks(run_batch: RunBatch, path: Path, slices: list[slice], todo: 
         bar.update(cells.stop - cells.start)
 
 
-def _stream_chunks(run_batch: Any, path: Path, slices: list[slice], indices: list[int],
-                   cell_f: np.ndarray, cell_d: np.ndarray, config: Config, bar: Any) -> None:
+def _stream_chunks(
+    run_batch: Any,
+    path: Path,
+    slices: list[slice],
+    indices: list[int],
+    cell_f: np.ndarray,
+    cell_d: np.ndarray,
+    config: Config,
+    bar: Any,
+) -> None:
     """Every cell of the chunks through the engine's queue at once (its slots stay busy across
     chunk boundaries); a chunk file is written as soon as its last cell is decided."""
     for k, rows in chunk_frames(run_batch, slices, cell_f, cell_d, config, bar.update):
         write_chunk(rows, path, indices[k])
 
 
-def _adopt_results(path: Path, found: list[Path], grid: Grid, convention: str,
-                   chunk_size: int) -> tuple[int, str]:
+def _adopt_results(
+    path: Path, found: list[Path], grid: Grid, convention: str, chunk_size: int
+) -> tuple[int, str]:
     """The chunk size of results found without a manifest, and what matched (for the message).
 
     Every chunk but the last holds chunk_size cells, so the largest chunk file gives it; the
@@ -256,8 +329,10 @@ def _adopt_results(path: Path, found: list[Path], grid: Grid, convention: str,
     if rows:
         size = max(rows)
         slices = chunk_slices(cell_f.size, size)
-        good = sum(read_chunk(chunk_path(path, i), cell_f[cells], cell_d[cells], convention)[0]
-                   is not None for i, cells in enumerate(slices))
+        good = sum(
+            read_chunk(chunk_path(path, i), cell_f[cells], cell_d[cells], convention)[0] is not None
+            for i, cells in enumerate(slices)
+        )
         if good:
             return size, f"{good} of {len(found)} chunk files"
     elif (path / REGION).exists():
@@ -266,5 +341,7 @@ def _adopt_results(path: Path, found: list[Path], grid: Grid, convention: str,
             return chunk_size, REGION
         except Exception:
             pass
-    raise ParameterError(f"{path} holds results but no {MANIFEST}, and they do not match this "
-                         "grid; use another --out folder or the grid they were made with")
+    raise ParameterError(
+        f"{path} holds results but no {MANIFEST}, and they do not match this "
+        "grid; use another --out folder or the grid they were made with"
+    )

@@ -95,8 +95,9 @@ def enable() -> str | None:
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        log.warning("note: compilation cache off: cannot create %s (%s)", folder,
-                    exc.strerror or exc)
+        log.warning(
+            "note: compilation cache off: cannot create %s (%s)", folder, exc.strerror or exc
+        )
         return None
     path = str(folder)
     if _state["dir"] == path:
@@ -164,17 +165,21 @@ def heal(folder: str | Path) -> list[str]:
             whole = _whole(entry.read_bytes())
             if whole is False:
                 entry.unlink()
-                (folder / (entry.name[:-len(ENTRY_SUFFIX)] + "-atime")).unlink(missing_ok=True)
+                (folder / (entry.name[: -len(ENTRY_SUFFIX)] + "-atime")).unlink(missing_ok=True)
                 removed.append(entry.name)
             elif whole:
                 checked[entry.name] = stamp
         except OSError:
             continue
     if removed:
-        log.warning("compilation cache: removed %d damaged entr%s from %s (cut short or "
-                    "corrupt); %s compiled again once", len(removed),
-                    "y" if len(removed) == 1 else "ies", folder,
-                    "it is" if len(removed) == 1 else "they are")
+        log.warning(
+            "compilation cache: removed %d damaged entr%s from %s (cut short or "
+            "corrupt); %s compiled again once",
+            len(removed),
+            "y" if len(removed) == 1 else "ies",
+            folder,
+            "it is" if len(removed) == 1 else "they are",
+        )
     if checked != known or removed:
         try:
             tmp = folder / f".{VERIFIED}.{os.getpid()}.tmp"
@@ -267,9 +272,13 @@ class CompileCounter:
         return self.requests - self.cache_hits
 
     def as_dict(self) -> dict[str, float | int | list[object]]:
-        return {"requests": self.requests, "compiles": self.compiles, "cache_hits": self.cache_hits,
-                "cache_misses": self.cache_misses,
-                "compile_seconds": round(self.compile_seconds, 3),
-                "retrieval_seconds": round(self.retrieval_seconds, 3),
-                "compiled": [[fun, round(sec, 3)] for fun, sec in self.compiled],
-                "loaded": list(self.loaded)}
+        return {
+            "requests": self.requests,
+            "compiles": self.compiles,
+            "cache_hits": self.cache_hits,
+            "cache_misses": self.cache_misses,
+            "compile_seconds": round(self.compile_seconds, 3),
+            "retrieval_seconds": round(self.retrieval_seconds, 3),
+            "compiled": [[fun, round(sec, 3)] for fun, sec in self.compiled],
+            "loaded": list(self.loaded),
+        }

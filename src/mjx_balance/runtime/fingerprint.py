@@ -31,8 +31,11 @@ RESULT_KEYS = ("x64", "xla_flags", "matmul_precision")
 INFO_KEYS = ("package", "jax", "jaxlib", "mujoco", "mujoco_mjx", "cpu_isa")
 # XLA flags that do not change a result's numbers: how many host devices (the engine's
 # results are device-count independent) and where XLA writes its debugging dumps.
-NEUTRAL_FLAGS = ("--xla_force_host_platform_device_count", "--xla_dump_to",
-                 "--xla_dump_hlo_as_text")
+NEUTRAL_FLAGS = (
+    "--xla_force_host_platform_device_count",
+    "--xla_dump_to",
+    "--xla_dump_hlo_as_text",
+)
 _TRUE = ("1", "true", "yes", "on")
 
 
@@ -64,8 +67,12 @@ def cpu_isa(flags: str | None = None) -> str:
                     break
     except OSError:
         return "unknown"
-    for isa, flag in (("AVX512", "avx512f"), ("AVX2", "avx2"), ("AVX", "avx"),
-                      ("SSE4_2", "sse4_2")):
+    for isa, flag in (
+        ("AVX512", "avx512f"),
+        ("AVX2", "avx2"),
+        ("AVX", "avx"),
+        ("SSE4_2", "sse4_2"),
+    ):
         if flag in found:
             return isa
     return "unknown"
@@ -75,8 +82,10 @@ def _jax_settings() -> tuple[bool, str]:
     if "jax" in sys.modules:
         import jax  # lazy: already imported; this module never starts JAX
 
-        return (bool(jax.config.jax_enable_x64),  # type: ignore[attr-defined]  # jax.config's flags are set at run time
-                str(jax.config.jax_default_matmul_precision or "default"))  # type: ignore[attr-defined]  # (as above)
+        return (
+            bool(jax.config.jax_enable_x64),  # type: ignore[attr-defined]  # jax.config's flags are set at run time
+            str(jax.config.jax_default_matmul_precision or "default"),  # type: ignore[attr-defined]
+        )
     x64 = os.environ.get("JAX_ENABLE_X64", "").strip().lower() in _TRUE
     return x64, os.environ.get("JAX_DEFAULT_MATMUL_PRECISION", "") or "default"
 
@@ -84,17 +93,29 @@ def _jax_settings() -> tuple[bool, str]:
 def numerics() -> dict:
     """This process's numerics fingerprint (:data:`RESULT_KEYS` and :data:`INFO_KEYS`)."""
     x64, precision = _jax_settings()
-    return {"x64": x64, "xla_flags": result_flags(), "matmul_precision": precision,
-            "package": __version__, "jax": _version("jax"), "jaxlib": _version("jaxlib"),
-            "mujoco": _version("mujoco"), "mujoco_mjx": _version("mujoco-mjx"),
-            "cpu_isa": cpu_isa()}
+    return {
+        "x64": x64,
+        "xla_flags": result_flags(),
+        "matmul_precision": precision,
+        "package": __version__,
+        "jax": _version("jax"),
+        "jaxlib": _version("jaxlib"),
+        "mujoco": _version("mujoco"),
+        "mujoco_mjx": _version("mujoco-mjx"),
+        "cpu_isa": cpu_isa(),
+    }
 
 
 def differences(recorded: dict, current: dict) -> tuple[list[str], list[str]]:
     """(what differs in :data:`RESULT_KEYS`, what differs in :data:`INFO_KEYS`), each as
     ``key: recorded -> current``; keys missing from ``recorded`` (an older folder) are not
     compared."""
+
     def changed(keys):
-        return [f"{k}: {recorded[k]!r} -> {current.get(k)!r}" for k in keys
-                if k in recorded and recorded[k] != current.get(k)]
+        return [
+            f"{k}: {recorded[k]!r} -> {current.get(k)!r}"
+            for k in keys
+            if k in recorded and recorded[k] != current.get(k)
+        ]
+
     return changed(RESULT_KEYS), changed(INFO_KEYS)

@@ -62,7 +62,8 @@ class _State:
         self.seen = False  # the work caught its exception: it is stopping
         self.dropped = False  # its exception was dropped where it landed: raise it again
         self.previous: dict[
-            int, Callable[[int, FrameType | None], Any] | int | signal.Handlers | None] = {}
+            int, Callable[[int, FrameType | None], Any] | int | signal.Handlers | None
+        ] = {}
         self.hook: Callable[[sys.UnraisableHookArgs], Any] | None = None
         self.lock = threading.Lock()
         self.timers: list[threading.Timer] = []

@@ -50,8 +50,12 @@ def check_mujoco(*, mjx: bool = False) -> None:
     mujoco, mujoco_mjx = mujoco_versions()
     found = f"mujoco {mujoco or 'not installed'}, mujoco-mjx {mujoco_mjx or 'not installed'}"
     if mujoco_mjx is None and mjx:
-        raise InstallError(f"the batched physics needs mujoco-mjx of the same release as mujoco "
-                           f"(installed: {found}; mjx_balance pins both to {MUJOCO}): {INSTALL}")
+        raise InstallError(
+            f"the batched physics needs mujoco-mjx of the same release as mujoco "
+            f"(installed: {found}; mjx_balance pins both to {MUJOCO}): {INSTALL}"
+        )
     if mujoco_mjx is not None and mujoco != mujoco_mjx:
-        raise InstallError(f"mujoco and mujoco-mjx must be the same release (installed: {found}; "
-                           f"mjx_balance pins both to {MUJOCO}): {INSTALL}")
+        raise InstallError(
+            f"mujoco and mujoco-mjx must be the same release (installed: {found}; "
+            f"mjx_balance pins both to {MUJOCO}): {INSTALL}"
+        )

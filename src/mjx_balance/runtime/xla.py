@@ -56,6 +56,7 @@ def _backend_started() -> bool:
         return False
     try:
         from jax._src import xla_bridge
+
         return bool(xla_bridge._backends)
     except Exception:
         return True

@@ -137,11 +137,14 @@ def with_units(schema: Any) -> Any:
     import pyarrow as pa
 
     known = {name: describe(name) for name in schema.names}
-    fields = [field.with_metadata({**(field.metadata or {}), b"unit": known[field.name][0]})  # type: ignore[index]  # not None (the if below); mypy narrows no dict lookup
-              if known[field.name] is not None else field for field in schema]
+    fields = [
+        field.with_metadata({**(field.metadata or {}), b"unit": known[field.name][0]})  # type: ignore[index]  # not None (the if below); mypy narrows no dict lookup
+        if known[field.name] is not None
+        else field
+        for field in schema
+    ]
     units = {name: found[0] for name, found in known.items() if found is not None}
-    return pa.schema(fields, metadata={**(schema.metadata or {}),
-                                       UNITS_KEY: json.dumps(units)})
+    return pa.schema(fields, metadata={**(schema.metadata or {}), UNITS_KEY: json.dumps(units)})
 
 
 def write_parquet(frame: pd.DataFrame, path: Path) -> None:
@@ -153,8 +156,9 @@ def write_parquet(frame: pd.DataFrame, path: Path) -> None:
 
     table = pa.Table.from_pandas(frame, preserve_index=False)
     if frame.attrs:
-        table = table.replace_schema_metadata({**table.schema.metadata,
-                                               b"PANDAS_ATTRS": json.dumps(frame.attrs)})
+        table = table.replace_schema_metadata(
+            {**table.schema.metadata, b"PANDAS_ATTRS": json.dumps(frame.attrs)}
+        )
     table = table.cast(with_units(table.schema))
     write_atomic(path, lambda tmp: pq.write_table(table, tmp))
 
@@ -184,18 +188,33 @@ def write_csv(frame: pd.DataFrame, path: Path, *, units: bool = True) -> None:
 
 
 # The tables the commands write under their own names, in the format the product reads back.
-TABLES = ("region.parquet", "table.csv", "table_runs.parquet", "summary.csv",
-          "timeseries.parquet", "basin.parquet", "pushes.csv", "compare.csv", "landscape.csv",
-          "sensitivity.csv", "scorecard.csv", "cohort.csv", "cohort_summary.csv",
-          "cohort_probability.csv", "cohort_probability_boundaries.csv")
+TABLES = (
+    "region.parquet",
+    "table.csv",
+    "table_runs.parquet",
+    "summary.csv",
+    "timeseries.parquet",
+    "basin.parquet",
+    "pushes.csv",
+    "compare.csv",
+    "landscape.csv",
+    "sensitivity.csv",
+    "scorecard.csv",
+    "cohort.csv",
+    "cohort_summary.csv",
+    "cohort_probability.csv",
+    "cohort_probability_boundaries.csv",
+)
 
 
 def check_format(fmt: str | None) -> str | None:
     """``fmt`` if it is None (each table in its own format only) or one of :data:`FORMATS`;
     ValueError naming the value otherwise."""
     if fmt is not None and fmt not in FORMATS:
-        raise ValueError(f"format = {fmt!r}: must be one of {', '.join(FORMATS)} (or None: "
-                         "each table in the format the product writes it)")
+        raise ValueError(
+            f"format = {fmt!r}: must be one of {', '.join(FORMATS)} (or None: "
+            "each table in the format the product writes it)"
+        )
     return fmt
 
 
@@ -207,19 +226,18 @@ def export_tables(folder: str | os.PathLike[str], fmt: str | None) -> list[Path]
     again whatever ``fmt`` says, so that no copy disagrees with its table. The table's own file
     stays: resume, ``report`` and ``compare`` read it back. Returns the files written."""
     fmt = check_format(fmt)
-    wanted = {None: set(), "csv": {".csv"}, "parquet": {".parquet"},
-              "both": {".csv", ".parquet"}}[fmt]
+    wanted = {None: set(), "csv": {".csv"}, "parquet": {".parquet"}, "both": {".csv", ".parquet"}}[
+        fmt
+    ]
     written = []
     for name in TABLES:
         for path in sorted(Path(folder).rglob(name)):
             for suffix in sorted({".csv", ".parquet"} - {path.suffix}):
                 target = path.with_suffix(suffix)
-                stale = (target.exists()
-                         and target.stat().st_mtime_ns < path.stat().st_mtime_ns)
+                stale = target.exists() and target.stat().st_mtime_ns < path.stat().st_mtime_ns
                 if suffix not in wanted and not stale:
                     continue
-                frame = (pd.read_parquet(path) if path.suffix == ".parquet"
-                         else pd.read_csv(path))
+                frame = pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
                 frame.attrs = {}
                 (write_csv if suffix == ".csv" else write_parquet)(frame, target)
                 written.append(target)
@@ -236,9 +254,15 @@ def export_tables_said(out: str | os.PathLike[str], fmt: str | None, say: Any) -
     written = export_tables(out, fmt)
     names = [str(Path(p).relative_to(out)) for p in written]
     shown = ", ".join(names[:4]) + (f" and {len(names) - 4} more" if len(names) > 4 else "")
-    units = " (units in NAME.units.csv beside each CSV)" if any(
-        n.endswith(".csv") for n in names) else ""
+    units = (
+        " (units in NAME.units.csv beside each CSV)"
+        if any(n.endswith(".csv") for n in names)
+        else ""
+    )
     if written or fmt is not None:
-        say(f"wrote {shown} in {out}{units}" if written
-            else f"--format {fmt}: every table in {out} is already in that format")
+        say(
+            f"wrote {shown} in {out}{units}"
+            if written
+            else f"--format {fmt}: every table in {out} is already in that format"
+        )
     return written

@@ -46,8 +46,17 @@ from ..measures.outcomes import OUTCOMES, SUMMARY_COLUMNS
 from ..measures.strategy import with_strategy
 from ..model.params import Config, ParameterError, config_warnings
 from ..model.config_files import dumps_config, load_config
-from .files import (CONFIG, LOCK, MANIFEST, TABLE, TABLE_CELLS, TABLE_RUNS, with_units,
-                    write_parquet, write_text)
+from .files import (
+    CONFIG,
+    LOCK,
+    MANIFEST,
+    TABLE,
+    TABLE_CELLS,
+    TABLE_RUNS,
+    with_units,
+    write_parquet,
+    write_text,
+)
 from .provenance import finish_run, with_run
 
 GRID_TOL = 1e-9  # how far a value may sit beyond a limit (float error) and still count
@@ -88,8 +97,9 @@ def config_differences(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
 PUSHES = "pushes"  # a simulate folder's finished pushes, while its run is under way
 
 
-def record_simulation(folder: str | Path, config: Config, forces: Any, durations: Any,
-                      pairs: Any = None) -> set[int]:
+def record_simulation(
+    folder: str | Path, config: Config, forces: Any, durations: Any, pairs: Any = None
+) -> set[int]:
     """Start (or resume) a ``simulate`` run in ``folder``, under its lock: this run's
     provenance in the manifest's ``runs`` (running; :func:`folder_lock` records how it ends),
     and its request (the configuration and the pushes: the grid's forces and durations, or the
@@ -104,16 +114,22 @@ def record_simulation(folder: str | Path, config: Config, forces: Any, durations
     for stale in kept.glob(".*.tmp"):  # a write cut short: no other run holds the folder
         stale.unlink(missing_ok=True)
     if _json_or_none(kept / "request.json") == request:
-        done = {int(p.name.split(".")[0]) for p in kept.glob("*.summary.json")
-                if (kept / p.name.replace(".summary.json", ".series.parquet")).exists()}
+        done = {
+            int(p.name.split(".")[0])
+            for p in kept.glob("*.summary.json")
+            if (kept / p.name.replace(".summary.json", ".series.parquet")).exists()
+        }
     else:
         shutil.rmtree(kept, ignore_errors=True)
         kept.mkdir(parents=True)
         write_text(json.dumps(request) + "\n", kept / "request.json")
         done = set()
     old = _json_or_none(folder / MANIFEST)
-    manifest = (old if isinstance(old, dict) and old.get("kind") == "simulate" else
-                {"package": "mjx_balance", "version": __version__, "kind": "simulate"})
+    manifest = (
+        old
+        if isinstance(old, dict) and old.get("kind") == "simulate"
+        else {"package": "mjx_balance", "version": __version__, "kind": "simulate"}
+    )
     if "simulate" not in manifest:  # no tables yet: the manifest describes this request
         manifest.update(request)
         with_config_warnings(manifest, config)
@@ -121,8 +137,9 @@ def record_simulation(folder: str | Path, config: Config, forces: Any, durations
     return done
 
 
-def finish_simulation(folder: str | Path, config: Config, forces: Any, durations: Any,
-                      pairs: Any = None) -> None:
+def finish_simulation(
+    folder: str | Path, config: Config, forces: Any, durations: Any, pairs: Any = None
+) -> None:
     """After a ``simulate`` run wrote its tables: the manifest describes them (this run's
     configuration and pushes), and the kept pushes, now in the tables, are removed."""
     folder = Path(folder)
@@ -134,15 +151,18 @@ def finish_simulation(folder: str | Path, config: Config, forces: Any, durations
     shutil.rmtree(folder / PUSHES, ignore_errors=True)
 
 
-def _simulation_request(config: Config, forces: Any, durations: Any,
-                        pairs: Any) -> dict[str, Any]:
-    pushes = ({"pairs": [[float(f), float(d)] for f, d in pairs]} if pairs is not None else
-              {"forces": [float(f) for f in forces], "durations": [float(d) for d in durations]})
+def _simulation_request(config: Config, forces: Any, durations: Any, pairs: Any) -> dict[str, Any]:
+    pushes = (
+        {"pairs": [[float(f), float(d)] for f, d in pairs]}
+        if pairs is not None
+        else {"forces": [float(f) for f in forces], "durations": [float(d) for d in durations]}
+    )
     return {"config": config_dict(config), "simulate": pushes}
 
 
-def write_push(folder: str | Path, index: int, summary: dict[str, Any],
-               series: pd.DataFrame) -> None:
+def write_push(
+    folder: str | Path, index: int, summary: dict[str, Any], series: pd.DataFrame
+) -> None:
     """Keep one finished push of a ``simulate`` run: its time series, then its summary row (a
     push counts as finished when its summary is there)."""
     kept = Path(folder) / PUSHES
@@ -158,8 +178,7 @@ def read_pushes(folder: str | Path, count: int) -> tuple[pd.DataFrame, pd.DataFr
     kept = Path(folder) / PUSHES
     rows = [json.loads((kept / f"{i:06d}.summary.json").read_text()) for i in range(count)]
     series = [pd.read_parquet(kept / f"{i:06d}.series.parquet") for i in range(count)]
-    return (pd.DataFrame(rows, columns=SUMMARY_COLUMNS),
-            pd.concat(series, ignore_index=True))
+    return (pd.DataFrame(rows, columns=SUMMARY_COLUMNS), pd.concat(series, ignore_index=True))
 
 
 def _json_or_none(path: Path) -> Any:
@@ -193,8 +212,10 @@ def require_lock(path: str | os.PathLike[str]) -> None:
     with _HELD_LOCK:
         holder = _HELD.get(_key(path))
     if holder != threading.get_ident():
-        raise RuntimeError(f"{path}: the folder's lock is not held by this run; take it once "
-                           "where the run enters (store.folder.folder_lock)")
+        raise RuntimeError(
+            f"{path}: the folder's lock is not held by this run; take it once "
+            "where the run enters (store.folder.folder_lock)"
+        )
 
 
 @contextmanager
@@ -212,8 +233,10 @@ def folder_lock(path: str | os.PathLike[str], *, wait: bool = False) -> Iterator
     me = threading.get_ident()
     with _HELD_LOCK:
         if _HELD.get(key) == me:
-            raise RuntimeError(f"{folder}: the folder's lock taken twice in one run; the run's "
-                               "entry takes it once and the floors below check it")
+            raise RuntimeError(
+                f"{folder}: the folder's lock taken twice in one run; the run's "
+                "entry takes it once and the floors below check it"
+            )
     try:
         fd = os.open(folder / LOCK, os.O_RDWR | os.O_CREAT, 0o666)
     except OSError as exc:
@@ -230,8 +253,10 @@ def folder_lock(path: str | os.PathLike[str], *, wait: bool = False) -> Iterator
         holder = os.read(fd, 200).decode("utf-8", "replace").strip() or "PID not yet recorded"
         if not wait:
             os.close(fd)
-            raise FolderBusy(f"{folder} is in use by another run ({holder}); wait for it to end "
-                             "(--wait) or use another --out folder") from None
+            raise FolderBusy(
+                f"{folder} is in use by another run ({holder}); wait for it to end "
+                "(--wait) or use another --out folder"
+            ) from None
         log.warning("waiting for %s: in use by another run (%s)", folder, holder)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX)
@@ -288,15 +313,20 @@ class OutputFolder:
         try:
             manifest = json.loads(self.manifest_path.read_text())
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise ParameterError(f"{self.manifest_path}: unreadable manifest ({exc}); "
-                                 "use another --out folder") from None
+            raise ParameterError(
+                f"{self.manifest_path}: unreadable manifest ({exc}); use another --out folder"
+            ) from None
         problem = manifest_problem(manifest)
         if problem:
-            raise ParameterError(f"{self.manifest_path}: not a manifest of this package "
-                                 f"({problem}); use another --out folder")
+            raise ParameterError(
+                f"{self.manifest_path}: not a manifest of this package "
+                f"({problem}); use another --out folder"
+            )
         if manifest.get("kind") is not None:  # simulate's or a cohort's: not a sweep's
-            raise ParameterError(f"{self.path} holds another kind of output (a "
-                                 f"{manifest['kind']} run's); use another --out folder")
+            raise ParameterError(
+                f"{self.path} holds another kind of output (a "
+                f"{manifest['kind']} run's); use another --out folder"
+            )
         return manifest
 
     def open(self) -> dict[str, Any]:
@@ -307,17 +337,27 @@ class OutputFolder:
 
     def _open(self) -> dict[str, Any]:
         # Leftovers of a run that ended while writing: no other run holds the folder now.
-        for stale in [*self.path.glob(".*.tmp"), *self.path.glob("chunks/.*.tmp"),
-                      *self.path.glob(f"{TABLE_CELLS}/.*.tmp")]:
+        for stale in [
+            *self.path.glob(".*.tmp"),
+            *self.path.glob("chunks/.*.tmp"),
+            *self.path.glob(f"{TABLE_CELLS}/.*.tmp"),
+        ]:
             stale.unlink(missing_ok=True)
         manifest = self.read_manifest()
         config = config_dict(self.config)
         if manifest is None:
-            manifest = {"package": "mjx_balance", "version": __version__, "config": config,
-                        "numerics": numerics()}
+            manifest = {
+                "package": "mjx_balance",
+                "version": __version__,
+                "config": config,
+                "numerics": numerics(),
+            }
             with_config_warnings(manifest, self.config)
-            if (any(self.path.glob("*.parquet")) or (self.path / "chunks").exists()
-                    or (self.path / TABLE_CELLS).exists()):
+            if (
+                any(self.path.glob("*.parquet"))
+                or (self.path / "chunks").exists()
+                or (self.path / TABLE_CELLS).exists()
+            ):
                 self._check_lost_manifest(config)
                 self.rebuilt = True
                 table = self._lost_table_record()
@@ -331,10 +371,17 @@ class OutputFolder:
         if differences and not self.holds_results():
             # A run that failed before its first result (a bad value found late, a signal):
             # nothing here depends on its configuration, so this run takes the folder over.
-            log.warning("note: %s holds no results of the configuration it was made with; "
-                        "starting it anew with this run's configuration", self.path)
-            manifest = {"package": "mjx_balance", "version": __version__, "config": config,
-                        "runs": manifest.get("runs", [])}
+            log.warning(
+                "note: %s holds no results of the configuration it was made with; "
+                "starting it anew with this run's configuration",
+                self.path,
+            )
+            manifest = {
+                "package": "mjx_balance",
+                "version": __version__,
+                "config": config,
+                "runs": manifest.get("runs", []),
+            }
             with_config_warnings(manifest, self.config)
             self.write_manifest(manifest)
             write_text(dumps_config(self.config), self.path / CONFIG)
@@ -343,10 +390,16 @@ class OutputFolder:
             raise ParameterError(
                 f"{self.path} was made with a different configuration; use another --out folder "
                 "or the same configuration (its config.toml). Differences: "
-                + "; ".join(differences[:6]) + (" ..." if len(differences) > 6 else ""))
+                + "; ".join(differences[:6])
+                + (" ..." if len(differences) > 6 else "")
+            )
         if manifest.get("version") != __version__:
-            log.warning("note: %s was made by mjx_balance %s, this is %s; continuing",
-                        self.path, manifest.get("version"), __version__)
+            log.warning(
+                "note: %s was made by mjx_balance %s, this is %s; continuing",
+                self.path,
+                manifest.get("version"),
+                __version__,
+            )
         if not isinstance(manifest.get("numerics"), dict):  # a folder from before them
             manifest["numerics"] = numerics()
         try:  # this run's provenance record, even if it finds nothing to do
@@ -370,10 +423,15 @@ class OutputFolder:
                 f"{self.path} was computed under other numerics ({'; '.join(refuse)}); "
                 "resuming would mix rows computed differently. Run with the settings it "
                 "was made with (JAX_ENABLE_X64, XLA_FLAGS, JAX_DEFAULT_MATMUL_PRECISION), or "
-                "start a fresh folder (another --out, or delete this one)")
+                "start a fresh folder (another --out, or delete this one)"
+            )
         if warn:
-            log.warning("note: %s was computed under %s; continuing (each chunk keeps the "
-                        "numerics it was computed under)", self.path, "; ".join(warn))
+            log.warning(
+                "note: %s was computed under %s; continuing (each chunk keeps the "
+                "numerics it was computed under)",
+                self.path,
+                "; ".join(warn),
+            )
 
     def holds_results(self) -> bool:
         """Whether the folder holds anything computed: a merged table or region, a chunk file,
@@ -385,20 +443,26 @@ class OutputFolder:
         """Results without a manifest: go on only if config.toml holds this run's configuration."""
         config_path = self.path / CONFIG
         if not config_path.exists():
-            raise ParameterError(f"{self.path} holds results but no {MANIFEST} and no {CONFIG}; "
-                                 "use another --out folder")
+            raise ParameterError(
+                f"{self.path} holds results but no {MANIFEST} and no {CONFIG}; "
+                "use another --out folder"
+            )
         try:
             recorded = config_dict(load_config(config_path))
         except ParameterError as exc:
-            raise ParameterError(f"{self.path} holds results but no {MANIFEST}, and its {CONFIG} "
-                                 f"is unusable ({exc}); use another --out folder") from None
+            raise ParameterError(
+                f"{self.path} holds results but no {MANIFEST}, and its {CONFIG} "
+                f"is unusable ({exc}); use another --out folder"
+            ) from None
         differences = config_differences(recorded, config)
         if differences:
             raise ParameterError(
                 f"{self.path} holds results but no {MANIFEST}, and its {CONFIG} differs from this "
                 "run's configuration; use another --out folder or that configuration. "
-                "Differences: " + "; ".join(differences[:6])
-                + (" ..." if len(differences) > 6 else ""))
+                "Differences: "
+                + "; ".join(differences[:6])
+                + (" ..." if len(differences) > 6 else "")
+            )
 
     def _lost_table_record(self) -> dict[str, Any] | None:
         """The table's record for a rebuilt manifest: the forces of a table.csv that reads back
@@ -440,25 +504,34 @@ def manifest_problem(manifest: Any) -> str:
         missing = [key for key in keys if key not in record]
         if missing:
             return f"'{section}' lacks {', '.join(repr(k) for k in missing)}"
-        for key in ("forces", "durations")[:len(keys)]:
+        for key in ("forces", "durations")[: len(keys)]:
             values = record[key]
-            if not (isinstance(values, list) and values and all(
-                    isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)):
+            if not (
+                isinstance(values, list)
+                and values
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
+            ):
                 return f"'{section}.{key}' is not a list of numbers"
         size = record.get("chunk_size", 1)
         if isinstance(size, bool) or not isinstance(size, int) or size < 1:
             return f"'{section}.chunk_size' is not a whole number >= 1"
-    engines = {"region.engine": (manifest.get("region") or {}).get("engine"),
-               "table_engine": manifest.get("table_engine")}
+    engines = {
+        "region.engine": (manifest.get("region") or {}).get("engine"),
+        "table_engine": manifest.get("table_engine"),
+    }
     for name, engine in engines.items():
         if engine is None:
             continue
         slots = engine.get("slots") if isinstance(engine, dict) else None
-        if (isinstance(slots, bool) or not isinstance(slots, int) or slots < 1
-                or not isinstance(engine.get("early_stop"), bool)):
-            return f"'{name}' is not {{\"slots\": whole number >= 1, \"early_stop\": true/false}}"
+        if (
+            isinstance(slots, bool)
+            or not isinstance(slots, int)
+            or slots < 1
+            or not isinstance(engine.get("early_stop"), bool)
+        ):
+            return f'\'{name}\' is not {{"slots": whole number >= 1, "early_stop": true/false}}'
         if engine.get("physics", "mjx") not in ("mjx", "c"):
-            return f"'{name}.physics' is not \"mjx\" or \"c\""
+            return f'\'{name}.physics\' is not "mjx" or "c"'
     return ""
 
 
@@ -480,9 +553,11 @@ class TableCells:
                 frame = pd.read_parquet(part)
             except Exception:
                 continue
-            if ([c for c in SUMMARY_COLUMNS if c not in frame]
-                    or not set(frame["outcome"]) <= set(OUTCOMES)
-                    or not (frame["convention"] == convention).all()):
+            if (
+                [c for c in SUMMARY_COLUMNS if c not in frame]
+                or not set(frame["outcome"]) <= set(OUTCOMES)
+                or not (frame["convention"] == convention).all()
+            ):
                 continue
             self._remember(frame)
 
@@ -498,8 +573,14 @@ class TableCells:
 
     def missing(self, forces: np.ndarray, durations: np.ndarray) -> np.ndarray:
         """Indices of the cells not kept yet."""
-        return np.array([i for i, (f, d) in enumerate(zip(forces, durations))
-                         if self.key(f, d) not in self.rows], dtype=np.int64)
+        return np.array(
+            [
+                i
+                for i, (f, d) in enumerate(zip(forces, durations))
+                if self.key(f, d) not in self.rows
+            ],
+            dtype=np.int64,
+        )
 
     def add(self, frame: pd.DataFrame) -> None:
         """Keep a batch call's rows: written to their part file, then remembered."""
@@ -514,8 +595,10 @@ class TableCells:
         """The kept rows of these cells, in order (every cell must be kept), with the values
         of force and duration asked for."""
         assert self.dtypes is not None  # (set with the first kept rows)
-        rows = [{**self.rows[self.key(f, d)], "force": float(f), "duration": float(d)}
-                for f, d in zip(forces, durations)]
+        rows = [
+            {**self.rows[self.key(f, d)], "force": float(f), "duration": float(d)}
+            for f, d in zip(forces, durations)
+        ]
         frame = pd.DataFrame(rows, columns=list(self.dtypes.index))
         return frame.astype(self.dtypes.to_dict())
 
@@ -546,8 +629,9 @@ def chunk_numerics(path: Path) -> dict | None:
     return found if isinstance(found, dict) else None
 
 
-def read_chunk(path: Path, forces: np.ndarray, durations: np.ndarray,
-               convention: str) -> tuple[pd.DataFrame | None, str]:
+def read_chunk(
+    path: Path, forces: np.ndarray, durations: np.ndarray, convention: str
+) -> tuple[pd.DataFrame | None, str]:
     """A chunk file if it holds exactly the given cells in order, else (None, reason)."""
     if not path.exists():
         return None, "missing"
@@ -569,8 +653,14 @@ def read_chunk(path: Path, forces: np.ndarray, durations: np.ndarray,
     return frame, "ok"
 
 
-def merge_chunks(folder: Path, slices: list[slice], cell_f: np.ndarray, cell_d: np.ndarray,
-                  convention: str, out: Path) -> None:
+def merge_chunks(
+    folder: Path,
+    slices: list[slice],
+    cell_f: np.ndarray,
+    cell_d: np.ndarray,
+    convention: str,
+    out: Path,
+) -> None:
     """Stream the chunk files into one parquet file, one chunk in memory at a time.
 
     Each chunk is checked again against its slice of the grid (read_chunk), so the merged file
@@ -595,8 +685,9 @@ def merge_chunks(folder: Path, slices: list[slice], cell_f: np.ndarray, cell_d: 
 
     try:
         for index, cells in enumerate(slices):
-            frame, reason = read_chunk(chunk_path(folder, index), cell_f[cells], cell_d[cells],
-                                       convention)
+            frame, reason = read_chunk(
+                chunk_path(folder, index), cell_f[cells], cell_d[cells], convention
+            )
             if frame is None:
                 raise RuntimeError(f"chunk {index} changed while merging: {reason}")
             frame.attrs = {}  # the chunk's own metadata stays with the chunk

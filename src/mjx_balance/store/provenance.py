@@ -28,8 +28,12 @@ def now() -> str:
 
 # This process's run: one record per output folder it works in, updated at every manifest
 # write and when the folder's lock is let go (end time, status).
-_RUN: dict[str, Any] = {"run_id": uuid.uuid4().hex[:12], "started": now(), "command": None,
-                        "physics": "mjx"}
+_RUN: dict[str, Any] = {
+    "run_id": uuid.uuid4().hex[:12],
+    "started": now(),
+    "command": None,
+    "physics": "mjx",
+}
 
 
 @contextmanager
@@ -65,10 +69,14 @@ def _distribution_version(name: str) -> str | None:
 
 def versions() -> dict[str, str | None]:
     """The versions of the package and of what computes its results (no import of JAX)."""
-    return {"package": __version__, "python": platform.python_version(),
-            "jax": _distribution_version("jax"), "jaxlib": _distribution_version("jaxlib"),
-            "mujoco": _distribution_version("mujoco"),
-            "mujoco_mjx": _distribution_version("mujoco-mjx")}
+    return {
+        "package": __version__,
+        "python": platform.python_version(),
+        "jax": _distribution_version("jax"),
+        "jaxlib": _distribution_version("jaxlib"),
+        "mujoco": _distribution_version("mujoco"),
+        "mujoco_mjx": _distribution_version("mujoco-mjx"),
+    }
 
 
 def device_record() -> dict[str, Any]:
@@ -82,12 +90,18 @@ def device_record() -> dict[str, Any]:
                 import jax
 
                 devices = jax.local_devices()
-                return {"platform": devices[0].platform, "kind": devices[0].device_kind,
-                        "count": len(devices)}
+                return {
+                    "platform": devices[0].platform,
+                    "kind": devices[0].device_kind,
+                    "count": len(devices),
+                }
         except Exception:
             pass
-    return {"platform": "cpu", "kind": platform.processor() or platform.machine(),
-            "count": os.cpu_count() or 1}
+    return {
+        "platform": "cpu",
+        "kind": platform.processor() or platform.machine(),
+        "count": os.cpu_count() or 1,
+    }
 
 
 _GIT: dict[str, Any] = {}
@@ -101,12 +115,18 @@ def git_record() -> dict[str, Any]:
     record: dict[str, Any] = {}
     here = Path(__file__).resolve().parent
     try:
-        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True,
-                                text=True, timeout=10)
+        commit = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=10
+        )
         if commit.returncode == 0 and commit.stdout.strip():
             record["git_commit"] = commit.stdout.strip()
-            dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
-                                   cwd=here, capture_output=True, text=True, timeout=30)
+            dirty = subprocess.run(
+                ["git", "status", "--porcelain", "--untracked-files=no"],
+                cwd=here,
+                capture_output=True,
+                text=True,
+                timeout=30,
+            )
             if dirty.returncode == 0:
                 record["git_dirty"] = bool(dirty.stdout.strip())
     except (OSError, subprocess.SubprocessError):
@@ -125,9 +145,17 @@ def default_command() -> str:
 
 def provenance() -> dict[str, Any]:
     """This run's provenance record (see the module docstring; docs/outputs.md, ``runs``)."""
-    return {"run_id": _RUN["run_id"], "command": _RUN["command"] or default_command(),
-            "started": _RUN["started"], "ended": None, "status": "running",
-            **versions(), "physics": _RUN["physics"], "device": device_record(), **git_record()}
+    return {
+        "run_id": _RUN["run_id"],
+        "command": _RUN["command"] or default_command(),
+        "started": _RUN["started"],
+        "ended": None,
+        "status": "running",
+        **versions(),
+        "physics": _RUN["physics"],
+        "device": device_record(),
+        **git_record(),
+    }
 
 
 def with_run(manifest: dict[str, Any], **changes: Any) -> dict[str, Any]:
@@ -159,9 +187,11 @@ def finish_run(folder: Path, status: str) -> None:
         manifest = json.loads(path.read_text())
         runs = manifest.get("runs") if isinstance(manifest, dict) else None
         if not isinstance(runs, list) or not any(
-                isinstance(r, dict) and r.get("run_id") == _RUN["run_id"] for r in runs):
+            isinstance(r, dict) and r.get("run_id") == _RUN["run_id"] for r in runs
+        ):
             return
-        write_text(json.dumps(with_run(manifest, ended=now(), status=status), indent=2) + "\n",
-                   path)
+        write_text(
+            json.dumps(with_run(manifest, ended=now(), status=status), indent=2) + "\n", path
+        )
     except Exception:
         pass

@@ -116,19 +116,22 @@ def cells_of(xs: np.ndarray, vs: np.ndarray) -> pd.DataFrame:
 
 
 def _record(posture: str, xs: np.ndarray, vs: np.ndarray) -> dict[str, Any]:
-    return {"posture": posture, "x_com": [float(v) for v in xs],
-            "v_com": [float(v) for v in vs]}
+    return {"posture": posture, "x_com": [float(v) for v in xs], "v_com": [float(v) for v in vs]}
 
 
 def _check_record(folder: Path, recorded: dict[str, Any] | None, posture: str, xs, vs) -> None:
     if recorded is None:
         return
-    if (recorded.get("posture") != posture or not same_values(recorded["x_com"], xs)
-            or not same_values(recorded["v_com"], vs)):
+    if (
+        recorded.get("posture") != posture
+        or not same_values(recorded["x_com"], xs)
+        or not same_values(recorded["v_com"], vs)
+    ):
         raise ParameterError(
             f"{folder} holds a basin of posture {recorded.get('posture')!r} over x_com "
             f"{describe(recorded['x_com'])} m, v_com {describe(recorded['v_com'])} m/s; use "
-            "another --out folder or the same grid and posture")
+            "another --out folder or the same grid and posture"
+        )
 
 
 def _done(folder: Path) -> pd.DataFrame:
@@ -138,8 +141,9 @@ def _done(folder: Path) -> pd.DataFrame:
     return pd.concat([pd.read_parquet(p) for p in parts], ignore_index=True)
 
 
-def check_basin(config: Config, x_com: Any, v_com: Any, posture: str,
-                pushes: Any = None) -> tuple[np.ndarray, np.ndarray, "Plane"]:
+def check_basin(
+    config: Config, x_com: Any, v_com: Any, posture: str, pushes: Any = None
+) -> tuple[np.ndarray, np.ndarray, "Plane"]:
     """Every input of :func:`run_basin` checked (ParameterError) before any work: the grids,
     the posture, every (x_com, v_com) reachable by a lean, the push grid and the window.
     Returns the grids and the body's :class:`Plane`."""
@@ -154,17 +158,30 @@ def check_basin(config: Config, x_com: Any, v_com: Any, posture: str,
     if pushes is not None:
         forces, durations = pushes
         parse_grid(forces, "push forces")
-        check_durations(parse_grid(durations, "push durations"), config.scenario.t_end,
-                        "push durations", physics_dt=config.scenario.physics_dt)
+        check_durations(
+            parse_grid(durations, "push durations"),
+            config.scenario.t_end,
+            "push durations",
+            physics_dt=config.scenario.physics_dt,
+        )
     return xs, vs, plane
 
 
-def run_basin(out: str | os.PathLike[str], config: Config, x_com: Any = DEFAULT_X,
-              v_com: Any = DEFAULT_V, posture: str = "rigid", pushes: Any = None, *,
-              physics: str = "mjx",
-              progress: bool = True, say: Callable[[str], None] = print,
-              plan: PlanHook | None = None, wait: bool = False,
-              **engine: Any) -> pd.DataFrame:
+def run_basin(
+    out: str | os.PathLike[str],
+    config: Config,
+    x_com: Any = DEFAULT_X,
+    v_com: Any = DEFAULT_V,
+    posture: str = "rigid",
+    pushes: Any = None,
+    *,
+    physics: str = "mjx",
+    progress: bool = True,
+    say: Callable[[str], None] = print,
+    plan: PlanHook | None = None,
+    wait: bool = False,
+    **engine: Any,
+) -> pd.DataFrame:
     """The basin map of ``config`` in OUT (module docstring): basin.parquet, basin.png.
 
     x_com [m], v_com [m/s]: grids (``start:stop:step`` or lists); pushes: None or
@@ -174,25 +191,46 @@ def run_basin(out: str | os.PathLike[str], config: Config, x_com: Any = DEFAULT_
     (``runs.chunks.PlannedWork``) and the work runs under ``out``'s lock (``wait``: for
     another run that holds it). Returns the cells."""
     if physics not in ("mjx", "auto"):
-        raise ParameterError("the basin runs on the MJX path (--physics mjx): the MuJoCo C "
-                             "path starts every scenario at upright rest")
+        raise ParameterError(
+            "the basin runs on the MJX path (--physics mjx): the MuJoCo C "
+            "path starts every scenario at upright rest"
+        )
     xs, vs, plane = check_basin(config, x_com, v_com, posture, pushes)
     if plan is not None:  # before the cells' initial states are built: it may refuse them
         plan(PlannedWork(config, xs.size * vs.size, "cells"))
     out = Path(out)
     with folder_lock(out, wait=wait):
-        return _basin(out, config, xs, vs, plane, posture=posture, pushes=pushes,
-                      progress=progress, say=say, engine=engine)
+        return _basin(
+            out,
+            config,
+            xs,
+            vs,
+            plane,
+            posture=posture,
+            pushes=pushes,
+            progress=progress,
+            say=say,
+            engine=engine,
+        )
 
 
-def _basin(out: Path, config: Config, xs: np.ndarray, vs: np.ndarray, plane: "Plane", *,
-           posture: str, pushes: Any, progress: bool, say: Callable[[str], None],
-           engine: dict[str, Any]) -> pd.DataFrame:
+def _basin(
+    out: Path,
+    config: Config,
+    xs: np.ndarray,
+    vs: np.ndarray,
+    plane: "Plane",
+    *,
+    posture: str,
+    pushes: Any,
+    progress: bool,
+    say: Callable[[str], None],
+    engine: dict[str, Any],
+) -> pd.DataFrame:
     """:func:`run_basin`'s work, its inputs checked (every state reachable: ``check_basin``)
     and the folder locked."""
     grid = cells_of(xs, vs)
-    inits = np.array([plane.initial_state(posture, x, v)
-                      for x, v in zip(grid.x_com, grid.v_com)])
+    inits = np.array([plane.initial_state(posture, x, v) for x, v in zip(grid.x_com, grid.v_com)])
     folder = OutputFolder(out, config)
     manifest = folder.open()
     _check_record(out, manifest.get("basin"), posture, xs, vs)
@@ -201,8 +239,7 @@ def _basin(out: Path, config: Config, xs: np.ndarray, vs: np.ndarray, plane: "Pl
     done = _done(out)
     missing = grid[~grid.cell.isin(done.cell if len(done) else [])]
     if len(missing):
-        say(f"basin: {len(missing)} of {len(grid)} cells to run ({posture} posture); "
-            f"output {out}")
+        say(f"basin: {len(missing)} of {len(grid)} cells to run ({posture} posture); output {out}")
         _run_cells(out, config, missing, inits[missing.cell.to_numpy()], progress, engine)
     else:
         say(f"basin: all {len(grid)} cells done")
@@ -221,8 +258,14 @@ def _basin(out: Path, config: Config, xs: np.ndarray, vs: np.ndarray, plane: "Pl
     return frame
 
 
-def _run_cells(out: Path, config: Config, cells: pd.DataFrame, inits: np.ndarray,
-               progress: bool, engine: dict[str, Any]) -> None:
+def _run_cells(
+    out: Path,
+    config: Config,
+    cells: pd.DataFrame,
+    inits: np.ndarray,
+    progress: bool,
+    engine: dict[str, Any],
+) -> None:
     from tqdm import tqdm
 
     runner = BatchRunner(config, physics="mjx", **engine)
@@ -235,8 +278,9 @@ def _run_cells(out: Path, config: Config, cells: pd.DataFrame, inits: np.ndarray
     def flush():
         if pending:
             frame = pd.concat(pending, ignore_index=True)
-            write_parquet(frame, parts / f"part_{int(frame.cell.min()):06d}_"
-                                         f"{_time.time_ns()}.parquet")
+            write_parquet(
+                frame, parts / f"part_{int(frame.cell.min()):06d}_{_time.time_ns()}.parquet"
+            )
             pending.clear()
 
     with tqdm(total=len(cells), unit="cell", disable=not progress, desc="basin") as bar:
@@ -255,8 +299,15 @@ def _run_cells(out: Path, config: Config, cells: pd.DataFrame, inits: np.ndarray
     flush()
 
 
-def push_ends(config: Config, plane: Plane, forces: Any, durations: Any, *,
-              cached: Path | None = None, progress: bool = False) -> pd.DataFrame:
+def push_ends(
+    config: Config,
+    plane: Plane,
+    forces: Any,
+    durations: Any,
+    *,
+    cached: Path | None = None,
+    progress: bool = False,
+) -> pd.DataFrame:
     """Every push cell of the grid with the push run's outcome and the CoM state (relative to
     the ankle) and joint state at the end of its push (scalar reference runs; NaN for a push
     that ends the run before it ends). Read from ``cached`` (pushes.csv) when it holds this
@@ -280,8 +331,14 @@ def push_ends(config: Config, plane: Plane, forces: Any, durations: Any, *,
         if n_push >= 2 and len(series) >= n_push:
             com = series["com"].to_numpy() - series["foot_x"].to_numpy() - plane.ankle_x
             last = series.iloc[n_push - 1]
-            end = {"x_com": com[n_push - 1], "v_com": (com[n_push - 1] - com[n_push - 2]) / dt,
-                   "q_a": last.q_a, "q_h": last.q_h, "dq_a": last.dq_a, "dq_h": last.dq_h}
+            end = {
+                "x_com": com[n_push - 1],
+                "v_com": (com[n_push - 1] - com[n_push - 2]) / dt,
+                "q_a": last.q_a,
+                "q_h": last.q_h,
+                "dq_a": last.dq_a,
+                "dq_h": last.dq_h,
+            }
         rows.append({**row, **end})
     return pd.DataFrame(rows)
 
@@ -291,8 +348,9 @@ def nearest_outcomes(frame: pd.DataFrame, ends: pd.DataFrame) -> np.ndarray:
     xs, vs = np.sort(frame.x_com.unique()), np.sort(frame.v_com.unique())
     dx = np.diff(xs).min() if len(xs) > 1 else 1.0
     dv = np.diff(vs).min() if len(vs) > 1 else 1.0
-    d = (((frame.x_com.to_numpy()[None] - ends.x_com.to_numpy()[:, None]) / dx) ** 2
-         + ((frame.v_com.to_numpy()[None] - ends.v_com.to_numpy()[:, None]) / dv) ** 2)
+    d = ((frame.x_com.to_numpy()[None] - ends.x_com.to_numpy()[:, None]) / dx) ** 2 + (
+        (frame.v_com.to_numpy()[None] - ends.v_com.to_numpy()[:, None]) / dv
+    ) ** 2
     return frame.outcome.to_numpy()[d.argmin(axis=1)]
 
 
@@ -303,33 +361,41 @@ def reading(frame: pd.DataFrame, ends: pd.DataFrame | None = None) -> str:
     ok = frame.outcome == "recovered"
     n, k = len(frame), int(ok.sum())
     inside = frame.capture_inside.astype(bool)
-    text = (f"{k} of {n} initial states recover ({k / n:.0%}); {int((ok & inside).sum())} of "
-            f"them have the capture point on the foot, {int((ok & ~inside).sum())} not; of the "
-            f"{int(inside.sum())} capturable cells {(ok & inside).sum() / max(inside.sum(), 1):.0%}"
-            " recover.")
-    for name, fixed, along, unit in (("x_com", "x_com", "v_com", "m/s"),
-                                     ("v_com", "v_com", "x_com", "m")):
+    text = (
+        f"{k} of {n} initial states recover ({k / n:.0%}); {int((ok & inside).sum())} of "
+        f"them have the capture point on the foot, {int((ok & ~inside).sum())} not; of the "
+        f"{int(inside.sum())} capturable cells {(ok & inside).sum() / max(inside.sum(), 1):.0%}"
+        " recover."
+    )
+    for name, fixed, along, unit in (
+        ("x_com", "x_com", "v_com", "m/s"),
+        ("v_com", "v_com", "x_com", "m"),
+    ):
         line = frame[np.isclose(frame[fixed], 0.0) & ok]
         if len(line):
-            text += (f" At {name} = 0 the recovered {along} span {line[along].min():g} to "
-                     f"{line[along].max():g} {unit}.")
+            text += (
+                f" At {name} = 0 the recovered {along} span {line[along].min():g} to "
+                f"{line[along].max():g} {unit}."
+            )
     if k:
         energy = frame.energy_total[ok]
-        text += (f" Recovery energy: median {energy.median():.3g} J, largest {energy.max():.3g} "
-                 "J.")
+        text += f" Recovery energy: median {energy.median():.3g} J, largest {energy.max():.3g} J."
     if ends is not None:
         ends = ends[np.isfinite(ends.x_com)]
         if len(ends):
             basin_says = nearest_outcomes(frame, ends)
             pushed = ends.outcome.to_numpy()
             agree = int(((basin_says == "recovered") == (pushed == "recovered")).sum())
-            text += (f" Of {len(ends)} push cells' end-of-push states, {agree} land where the "
-                     "basin (nearest cell) predicts the push run's outcome.")
+            text += (
+                f" Of {len(ends)} push cells' end-of-push states, {agree} land where the "
+                "basin (nearest cell) predicts the push run's outcome."
+            )
     return text
 
 
-def plot_basin(frame: pd.DataFrame, plane: Plane, path: Path, ends: pd.DataFrame | None,
-               posture: str) -> Path:
+def plot_basin(
+    frame: pd.DataFrame, plane: Plane, path: Path, ends: pd.DataFrame | None, posture: str
+) -> Path:
     """Outcome and recovery energy over (x_com, v_com), the foot's edges, the capture-point
     bound, and the push cells' end states."""
     from matplotlib.colors import ListedColormap
@@ -349,12 +415,23 @@ def plot_basin(frame: pd.DataFrame, plane: Plane, path: Path, ends: pd.DataFrame
     fig, axes = figure_style.subplots(1, 2, figsize=(13, 5.2), sharey=True)
     ex, ev = edges(xs), edges(vs)
     colours = figure_style.OUTCOME_COLOURS  # not recovered: the fell colour, hatched
-    axes[0].pcolormesh(ex, ev, recovered, cmap=ListedColormap([colours["fell"],
-                                                               colours["recovered"]]),
-                       vmin=0, vmax=1)
-    axes[0].pcolor(ex, ev, np.ma.masked_where(recovered > 0, np.ones_like(recovered)),
-                   hatch=figure_style.OUTCOME_HATCHES["fell"], facecolor="none",
-                   edgecolor="0.15", linewidth=0.0)
+    axes[0].pcolormesh(
+        ex,
+        ev,
+        recovered,
+        cmap=ListedColormap([colours["fell"], colours["recovered"]]),
+        vmin=0,
+        vmax=1,
+    )
+    axes[0].pcolor(
+        ex,
+        ev,
+        np.ma.masked_where(recovered > 0, np.ones_like(recovered)),
+        hatch=figure_style.OUTCOME_HATCHES["fell"],
+        facecolor="none",
+        edgecolor="0.15",
+        linewidth=0.0,
+    )
     mesh = axes[1].pcolormesh(ex, ev, energy, cmap="viridis")
     fig.colorbar(mesh, ax=axes[1], label="recovery energy (energy_total) [J]")
     line = np.linspace(ex[0], ex[-1], 50)
@@ -363,15 +440,27 @@ def plot_basin(frame: pd.DataFrame, plane: Plane, path: Path, ends: pd.DataFrame
             ax.axvline(x, color="0.2", lw=1.2, ls=":")
             ax.text(x, ev[-1], f" {name}", va="top", fontsize=8)
         for edge, label in ((plane.heel, "capture point on the foot (LIP)"), (plane.toe, None)):
-            ax.plot(line, plane.omega0 * (edge - line), color="k", lw=1.5, ls="--",
-                    label=label)
+            ax.plot(line, plane.omega0 * (edge - line), color="k", lw=1.5, ls="--", label=label)
         if ends is not None and len(ends):
             ends = ends[np.isfinite(ends.x_com)]
             ok = ends.outcome == "recovered"
-            ax.scatter(ends.x_com[ok], ends.v_com[ok], s=14, marker="o", facecolors="none",
-                       edgecolors="black", label="push end, push recovered")
-            ax.scatter(ends.x_com[~ok], ends.v_com[~ok], s=14, marker="x", color="black",
-                       label="push end, push not recovered")
+            ax.scatter(
+                ends.x_com[ok],
+                ends.v_com[ok],
+                s=14,
+                marker="o",
+                facecolors="none",
+                edgecolors="black",
+                label="push end, push recovered",
+            )
+            ax.scatter(
+                ends.x_com[~ok],
+                ends.v_com[~ok],
+                s=14,
+                marker="x",
+                color="black",
+                label="push end, push not recovered",
+            )
         ax.set_xlim(ex[0], ex[-1])
         ax.set_ylim(ev[0], ev[-1])
         ax.set_xlabel("CoM position relative to the ankle x_com [m]")

@@ -55,60 +55,96 @@ class Study:
 BASE = Variant("base", "base configuration", None)
 
 STUDIES: tuple[Study, ...] = (
-    Study("ankle_only", "Ankle-only strategy vs ankle–hip",
-          "The hip is held at zero by a stiff position servo in the plant (a passive "
-          "spring-damper; stiffness and damping in study_ankle_only.toml) and the hip motor "
-          "is off (torque bound zero), so the controller can use the ankle only; the base "
-          "controller uses both joints.",
-          (Variant("ankle_hip", "ankle–hip (base)", None),
-           Variant("ankle_only", "ankle only (hip servo, hip motor off)",
-                   "study_ankle_only.toml"))),
-    Study("backward", "Backward pushes (signed force)",
-          "The push acts backward (F < 0) as well as forward; the state bounds are asymmetric "
-          "(x1 in [-0.26, 0.5] rad, x2 in [-0.35, 1.4] rad by default).",
-          (Variant("signed", "signed forces", "study_backward.toml"),), signed=True),
-    Study("delay", "Sensorimotor delay",
-          "The controller sees the joint state 0, 10, 20, 50, 100 or 150 ms late; the plant "
-          "keeps running (before the push it sees upright rest). At 50, 100 and 150 ms also "
-          "a delay-compensated controller, which predicts the present state from the late "
-          "measurement and the inputs it has applied since (docs/model.md).",
-          (Variant("delay_000ms", "0 ms (base)", None),
-           Variant("delay_010ms", "10 ms", "study_delay_010ms.toml"),
-           Variant("delay_020ms", "20 ms", "study_delay_020ms.toml"),
-           Variant("delay_050ms", "50 ms", "study_delay_050ms.toml"),
-           Variant("delay_100ms", "100 ms", "study_delay_100ms.toml"),
-           Variant("delay_150ms", "150 ms", "study_delay_150ms.toml"),
-           Variant("delay_comp_050ms", "50 ms, compensated", "study_delay_comp_050ms.toml"),
-           Variant("delay_comp_100ms", "100 ms, compensated", "study_delay_comp_100ms.toml"),
-           Variant("delay_comp_150ms", "150 ms, compensated",
-                   "study_delay_comp_150ms.toml"))),
-    Study("offset_free", "Offset-free MPC",
-          "The controller estimates the push as a constant disturbance (an observer) and "
-          "regulates to the steady posture that cancels it within every bound, leaning only "
-          "when upright cannot hold it (docs/model.md); the base is the study's controller, "
-          "which regulates to upright and does not know of the push.",
-          (Variant("plain", "study's MPC (base)", None),
-           Variant("offset_free", "offset-free MPC", "study_offset_free.toml"))),
-    Study("older_adult", "Weaker ankle and an older-adult body",
-          "The ankle torque bound is scaled by 0.6 (weaker ankle), and in the older-adult "
-          "profile also the body (3 % shorter, 10 % heavier) and the hip torque bound (0.8).",
-          (Variant("reference_body", "reference body (base)", None),
-           Variant("weak_ankle", "weaker ankle (0.6 x bound)", "study_weak_ankle.toml"),
-           Variant("older_adult", "older adult", "study_older_adult.toml"))),
-    Study("recovery_definition", "What “recovered” means: the settle band",
-          "The settle band that defines a recovery (every angle within 0.01 rad and every "
-          "rate within 0.05 rad/s at t_end) is made ten times tighter and ten times looser; "
-          "the window is the same. (Windows of 6, 12 and 24 s and the max acting times under "
-          "each definition: docs/studies.md.)",
-          (Variant("band_base", "0.01 rad, 0.05 rad/s (base)", None),
-           Variant("band_tight", "ten times tighter (0.001 rad, 0.005 rad/s)",
-                   "study_settle_tight.toml"),
-           Variant("band_loose", "ten times looser (0.1 rad, 0.5 rad/s)",
-                   "study_settle_loose.toml"))),
-    Study("push_height", "Push height: upper-body CoM vs hip",
-          "The same force acts at the hip joint instead of the upper body's centre of mass.",
-          (Variant("upper_com", "at the upper-body CoM (base)", None),
-           Variant("hip", "at the hip", "study_push_height.toml"))),
+    Study(
+        "ankle_only",
+        "Ankle-only strategy vs ankle–hip",
+        "The hip is held at zero by a stiff position servo in the plant (a passive "
+        "spring-damper; stiffness and damping in study_ankle_only.toml) and the hip motor "
+        "is off (torque bound zero), so the controller can use the ankle only; the base "
+        "controller uses both joints.",
+        (
+            Variant("ankle_hip", "ankle–hip (base)", None),
+            Variant("ankle_only", "ankle only (hip servo, hip motor off)", "study_ankle_only.toml"),
+        ),
+    ),
+    Study(
+        "backward",
+        "Backward pushes (signed force)",
+        "The push acts backward (F < 0) as well as forward; the state bounds are asymmetric "
+        "(x1 in [-0.26, 0.5] rad, x2 in [-0.35, 1.4] rad by default).",
+        (Variant("signed", "signed forces", "study_backward.toml"),),
+        signed=True,
+    ),
+    Study(
+        "delay",
+        "Sensorimotor delay",
+        "The controller sees the joint state 0, 10, 20, 50, 100 or 150 ms late; the plant "
+        "keeps running (before the push it sees upright rest). At 50, 100 and 150 ms also "
+        "a delay-compensated controller, which predicts the present state from the late "
+        "measurement and the inputs it has applied since (docs/model.md).",
+        (
+            Variant("delay_000ms", "0 ms (base)", None),
+            Variant("delay_010ms", "10 ms", "study_delay_010ms.toml"),
+            Variant("delay_020ms", "20 ms", "study_delay_020ms.toml"),
+            Variant("delay_050ms", "50 ms", "study_delay_050ms.toml"),
+            Variant("delay_100ms", "100 ms", "study_delay_100ms.toml"),
+            Variant("delay_150ms", "150 ms", "study_delay_150ms.toml"),
+            Variant("delay_comp_050ms", "50 ms, compensated", "study_delay_comp_050ms.toml"),
+            Variant("delay_comp_100ms", "100 ms, compensated", "study_delay_comp_100ms.toml"),
+            Variant("delay_comp_150ms", "150 ms, compensated", "study_delay_comp_150ms.toml"),
+        ),
+    ),
+    Study(
+        "offset_free",
+        "Offset-free MPC",
+        "The controller estimates the push as a constant disturbance (an observer) and "
+        "regulates to the steady posture that cancels it within every bound, leaning only "
+        "when upright cannot hold it (docs/model.md); the base is the study's controller, "
+        "which regulates to upright and does not know of the push.",
+        (
+            Variant("plain", "study's MPC (base)", None),
+            Variant("offset_free", "offset-free MPC", "study_offset_free.toml"),
+        ),
+    ),
+    Study(
+        "older_adult",
+        "Weaker ankle and an older-adult body",
+        "The ankle torque bound is scaled by 0.6 (weaker ankle), and in the older-adult "
+        "profile also the body (3 % shorter, 10 % heavier) and the hip torque bound (0.8).",
+        (
+            Variant("reference_body", "reference body (base)", None),
+            Variant("weak_ankle", "weaker ankle (0.6 x bound)", "study_weak_ankle.toml"),
+            Variant("older_adult", "older adult", "study_older_adult.toml"),
+        ),
+    ),
+    Study(
+        "recovery_definition",
+        "What “recovered” means: the settle band",
+        "The settle band that defines a recovery (every angle within 0.01 rad and every "
+        "rate within 0.05 rad/s at t_end) is made ten times tighter and ten times looser; "
+        "the window is the same. (Windows of 6, 12 and 24 s and the max acting times under "
+        "each definition: docs/studies.md.)",
+        (
+            Variant("band_base", "0.01 rad, 0.05 rad/s (base)", None),
+            Variant(
+                "band_tight",
+                "ten times tighter (0.001 rad, 0.005 rad/s)",
+                "study_settle_tight.toml",
+            ),
+            Variant(
+                "band_loose", "ten times looser (0.1 rad, 0.5 rad/s)", "study_settle_loose.toml"
+            ),
+        ),
+    ),
+    Study(
+        "push_height",
+        "Push height: upper-body CoM vs hip",
+        "The same force acts at the hip joint instead of the upper body's centre of mass.",
+        (
+            Variant("upper_com", "at the upper-body CoM (base)", None),
+            Variant("hip", "at the hip", "study_push_height.toml"),
+        ),
+    ),
 )
 
 
@@ -130,8 +166,9 @@ def study_files(sweeps: Path | None = None) -> list[Path]:
     return [sweeps / v.file for s in STUDIES for v in s.variants if v.file]
 
 
-def variant_definition(st: Study, variant: Variant, base: Config,
-                       sweeps: Path | None = None) -> SweepDefinition:
+def variant_definition(
+    st: Study, variant: Variant, base: Config, sweeps: Path | None = None
+) -> SweepDefinition:
     """The variant's configuration and grid. The base variant takes the grid of the study's
     first sweep file; all files of a study must have one grid (checked)."""
     sweeps = Path(sweeps) if sweeps is not None else sweeps_dir()
@@ -195,14 +232,23 @@ def infeasibility_numbers(region: pd.DataFrame) -> dict[str, float]:
     Regions written before the column existed give NaN counts."""
     fell = region[region["outcome"] == "fell"]
     if "first_infeasible_time" not in region:
-        return {"falls": int(len(fell)), "preceded": float("nan"),
-                "lead_median": float("nan"), "lead_min": float("nan"),
-                "lead_max": float("nan")}
+        return {
+            "falls": int(len(fell)),
+            "preceded": float("nan"),
+            "lead_median": float("nan"),
+            "lead_min": float("nan"),
+            "lead_max": float("nan"),
+        }
     lead = (fell["fall_time"] - fell["first_infeasible_time"]).dropna().to_numpy()
     lead = lead[lead >= 0]
     pick = (lambda f: float(f(lead))) if lead.size else (lambda f: float("nan"))
-    return {"falls": int(len(fell)), "preceded": int(lead.size),
-            "lead_median": pick(np.median), "lead_min": pick(np.min), "lead_max": pick(np.max)}
+    return {
+        "falls": int(len(fell)),
+        "preceded": int(lead.size),
+        "lead_median": pick(np.median),
+        "lead_min": pick(np.min),
+        "lead_max": pick(np.max),
+    }
 
 
 def infeasibility_text(region: pd.DataFrame) -> str:
@@ -212,13 +258,18 @@ def infeasibility_text(region: pd.DataFrame) -> str:
         return "No push on this grid fell."
     if not n["preceded"] == n["preceded"]:  # NaN: an older region without the column
         return f"{n['falls']} falls (this region predates the infeasible-QP column)."
-    text = (f"{n['preceded']} of {n['falls']} falls came after a control period whose QP had "
-            "no solution")
+    text = (
+        f"{n['preceded']} of {n['falls']} falls came after a control period whose QP had "
+        "no solution"
+    )
     if n["preceded"]:
-        text += (f", {n['lead_median'] * 1000:.0f} ms before the fall (median; "
-                 f"{n['lead_min'] * 1000:.0f}-{n['lead_max'] * 1000:.0f} ms)")
-    return text + (". After an infeasible QP the fall depends on the solver's answer to it "
-                   "(docs/model.md).")
+        text += (
+            f", {n['lead_median'] * 1000:.0f} ms before the fall (median; "
+            f"{n['lead_min'] * 1000:.0f}-{n['lead_max'] * 1000:.0f} ms)"
+        )
+    return text + (
+        ". After an infeasible QP the fall depends on the solver's answer to it (docs/model.md)."
+    )
 
 
 def compare(regions: dict[str, pd.DataFrame], labels: dict[str, str]) -> pd.DataFrame:
@@ -232,13 +283,21 @@ def compare(regions: dict[str, pd.DataFrame], labels: dict[str, str]) -> pd.Data
     for key in keys:
         numbers = region_numbers(regions[key])
         ok = _recovered_cells(regions[key])
-        rows.append({
-            "variant": key, "label": labels.get(key, key), **numbers,
-            "area_change": numbers["area"] - base_numbers["area"],
-            "relative_change": ((numbers["area"] - base_numbers["area"]) / base_numbers["area"]
-                                if base_numbers["area"] > 0 else float("nan")),
-            "gained_cells": len(ok - base_ok), "lost_cells": len(base_ok - ok),
-        })
+        rows.append(
+            {
+                "variant": key,
+                "label": labels.get(key, key),
+                **numbers,
+                "area_change": numbers["area"] - base_numbers["area"],
+                "relative_change": (
+                    (numbers["area"] - base_numbers["area"]) / base_numbers["area"]
+                    if base_numbers["area"] > 0
+                    else float("nan")
+                ),
+                "gained_cells": len(ok - base_ok),
+                "lost_cells": len(base_ok - ok),
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -247,8 +306,10 @@ def signed_halves(region: pd.DataFrame) -> pd.DataFrame:
     back = region[region["force"] <= 0].assign(force=lambda f: -f["force"])
     forward = region[region["force"] >= 0]
     rows = []
-    for key, label, half in (("backward", "backward (F < 0)", back),
-                             ("forward", "forward (F > 0)", forward)):
+    for key, label, half in (
+        ("backward", "backward (F < 0)", back),
+        ("forward", "forward (F > 0)", forward),
+    ):
         rows.append({"variant": key, "label": label, **region_numbers(half)})
     frame = pd.DataFrame(rows)
     frame["area_change"] = frame["area"] - frame["area"].iloc[1]
@@ -271,8 +332,10 @@ def _recovered_cells(region: pd.DataFrame) -> set[tuple[float, float]]:
 def grid_text(region: pd.DataFrame) -> str:
     """The grid of a region map in words: how many forces and durations, and their ranges."""
     f, d = region["force"], region["duration"]
-    return (f"{f.nunique()} forces ({f.min():g} to {f.max():g} N) x {d.nunique()} durations "
-            f"({d.min():g} to {d.max():g} s)")
+    return (
+        f"{f.nunique()} forces ({f.min():g} to {f.max():g} N) x {d.nunique()} durations "
+        f"({d.min():g} to {d.max():g} s)"
+    )
 
 
 def force_text(value: float) -> str:
@@ -306,26 +369,34 @@ def reading(st: Study, numbers: pd.DataFrame, region: pd.DataFrame) -> str:
             + f". At T = {t_ref:g} s the largest backward force that recovers is "
             f"{force_text(back['f_max_ref'])}, forward {force_text(fwd['f_max_ref'])}. "
             f"Mirrored cell by cell, {back['gained_cells']} (|F|, T) cells recover only backward "
-            f"and {back['lost_cells']} only forward.")
+            f"and {back['lost_cells']} only forward."
+        )
     base = rows[0]
     name = base["label"].replace(" (base)", "")
-    text = (f"On {grid}, the base variant ({name}) recovers {base['area']:.3g} N·s "
-            f"({base['fraction']:.0%} of the grid, {base['recovered_cells']} of {base['cells']} "
-            f"cells; at T = {t_ref:g} s up to {force_text(base['f_max_ref'])}).")
+    text = (
+        f"On {grid}, the base variant ({name}) recovers {base['area']:.3g} N·s "
+        f"({base['fraction']:.0%} of the grid, {base['recovered_cells']} of {base['cells']} "
+        f"cells; at T = {t_ref:g} s up to {force_text(base['f_max_ref'])})."
+    )
     if base.get("rest_recovered") == 0:
         text += " Even the unpushed base (F = 0) does not stay upright."
     for row in rows[1:]:
-        text += (f" {row['label'][0].upper() + row['label'][1:]}: {row['area']:.3g} N·s, "
-                 f"{_change_text(row['area_change'], row['relative_change'], base['area'])}; "
-                 f"at T = {t_ref:g} s up to {force_text(row['f_max_ref'])}; "
-                 f"{row['gained_cells']} cells gained, {row['lost_cells']} lost"
-                 + ("; even F = 0 fails: this loop does not hold upright rest"
-                    if row.get("rest_recovered") == 0 else "") + ".")
+        text += (
+            f" {row['label'][0].upper() + row['label'][1:]}: {row['area']:.3g} N·s, "
+            f"{_change_text(row['area_change'], row['relative_change'], base['area'])}; "
+            f"at T = {t_ref:g} s up to {force_text(row['f_max_ref'])}; "
+            f"{row['gained_cells']} cells gained, {row['lost_cells']} lost"
+            + (
+                "; even F = 0 fails: this loop does not hold upright rest"
+                if row.get("rest_recovered") == 0
+                else ""
+            )
+            + "."
+        )
     unstable = [r["label"] for r in rows[1:] if r.get("rest_recovered") == 0]
     stable = [r["label"] for r in rows[1:] if r.get("rest_recovered") == 1]
     if unstable and stable:
-        text += (f" Upright rest holds with {', '.join(stable)} but not with "
-                 f"{', '.join(unstable)}.")
+        text += f" Upright rest holds with {', '.join(stable)} but not with {', '.join(unstable)}."
     if st.key == "ankle_only" and len(rows) == 2:
         added = base["area"] - rows[1]["area"]
         text += f" The hip adds {added:+.3g} N·s to the ankle-only region."
@@ -333,12 +404,24 @@ def reading(st: Study, numbers: pd.DataFrame, region: pd.DataFrame) -> str:
         # each compensated map against the plain one at the same delay (delay_comp_050ms and
         # delay_050ms), as fractions of the undelayed area
         by_key = {r["variant"]: r for r in rows}
-        pairs = [(r, by_key.get(r["variant"].replace("_comp_", "_"))) for r in rows
-                 if "_comp_" in str(r["variant"])]
+        pairs = [
+            (r, by_key.get(r["variant"].replace("_comp_", "_")))
+            for r in rows
+            if "_comp_" in str(r["variant"])
+        ]
         if pairs:
-            text += (" As a fraction of the undelayed area, the delay-compensated controller "
-                     "keeps " + ", ".join(
-                         f"{c['area'] / base['area']:.0%} at {c['label'].split(',')[0]}"
-                         + (f" (without compensation {p['area'] / base['area']:.0%})"
-                            if p is not None else "") for c, p in pairs) + ".")
+            text += (
+                " As a fraction of the undelayed area, the delay-compensated controller "
+                "keeps "
+                + ", ".join(
+                    f"{c['area'] / base['area']:.0%} at {c['label'].split(',')[0]}"
+                    + (
+                        f" (without compensation {p['area'] / base['area']:.0%})"
+                        if p is not None
+                        else ""
+                    )
+                    for c, p in pairs
+                )
+                + "."
+            )
     return text

@@ -89,12 +89,23 @@ SUBJECT_COLUMNS = ["id", "height", "mass", "sex", "ankle_strength", "hip_strengt
 STATISTICS = ("mean", "sd", "p5", "p50", "p95")
 
 
-def _record(members: Sequence[Member], base: Config, forces: np.ndarray,
-            durations: np.ndarray, table_forces: np.ndarray | None) -> dict[str, Any]:
-    return {"kind": "cohort", "config": config_dict(base),
-            "cohort": {"forces": forces.tolist(), "durations": durations.tolist(),
-                       "table_forces": None if table_forces is None else table_forces.tolist(),
-                       "subjects": [m.record() for m in members]}}
+def _record(
+    members: Sequence[Member],
+    base: Config,
+    forces: np.ndarray,
+    durations: np.ndarray,
+    table_forces: np.ndarray | None,
+) -> dict[str, Any]:
+    return {
+        "kind": "cohort",
+        "config": config_dict(base),
+        "cohort": {
+            "forces": forces.tolist(),
+            "durations": durations.tolist(),
+            "table_forces": None if table_forces is None else table_forces.tolist(),
+            "subjects": [m.record() for m in members],
+        },
+    }
 
 
 def holds_results(out: Path, base: Config) -> bool:
@@ -108,8 +119,12 @@ def holds_results(out: Path, base: Config) -> bool:
     return any(OutputFolder(folder, base).holds_results() for folder in folders)
 
 
-def open_manifest(out: Path, record: dict[str, Any], base: Config | None = None,
-                  say: Callable[[str], None] | None = None) -> dict[str, Any]:
+def open_manifest(
+    out: Path,
+    record: dict[str, Any],
+    base: Config | None = None,
+    say: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
     """The cohort's manifest: a new one, or the folder's if it holds this same cohort (base,
     grids, subjects); another cohort's folder is refused, unless it holds no result yet (a
     run refused or stopped before its first result): then this cohort takes it over, keeping
@@ -122,21 +137,29 @@ def open_manifest(out: Path, record: dict[str, Any], base: Config | None = None,
     except (OSError, ValueError) as exc:
         raise ParameterError(f"{path}: cannot be read ({exc}); use another --out") from None
     if not isinstance(old, dict) or old.get("kind") != "cohort":
-        raise ParameterError(f"{out} holds another kind of output (its {MANIFEST} is not a "
-                             "cohort's); use another --out folder")
-    differ = [key for key in ("config", "cohort") if json.dumps(old.get(key), sort_keys=True)
-              != json.dumps(record[key], sort_keys=True)]
+        raise ParameterError(
+            f"{out} holds another kind of output (its {MANIFEST} is not a "
+            "cohort's); use another --out folder"
+        )
+    differ = [
+        key
+        for key in ("config", "cohort")
+        if json.dumps(old.get(key), sort_keys=True) != json.dumps(record[key], sort_keys=True)
+    ]
     if not differ:
         return {**old, **record}
     if not holds_results(out, base if base is not None else Config()):
         if say is not None:
-            say(f"note: {out} holds no results of the cohort it was made for; starting it "
-                "anew with this run's configuration and subjects")
+            say(
+                f"note: {out} holds no results of the cohort it was made for; starting it "
+                "anew with this run's configuration and subjects"
+            )
         runs = old.get("runs")
         return {**record, **({"runs": runs} if isinstance(runs, list) else {})}
     what = "configuration" if differ[0] == "config" else "subjects or grids"
-    raise ParameterError(f"{out} holds a cohort with other {what}; use another --out folder "
-                         "or the same cohort")
+    raise ParameterError(
+        f"{out} holds a cohort with other {what}; use another --out folder or the same cohort"
+    )
 
 
 @dataclass(frozen=True)
@@ -157,21 +180,31 @@ class CohortPlan:
         return _record(self.members, self.base, self.forces, self.durations, self.tables)
 
 
-def check_engine(slots: Any = None, full_length: Any = False, physics: Any = "auto",
-                 cluster: Any = None, queue: Any = "each") -> dict[str, Any]:
+def check_engine(
+    slots: Any = None,
+    full_length: Any = False,
+    physics: Any = "auto",
+    cluster: Any = None,
+    queue: Any = "each",
+) -> dict[str, Any]:
     """The engine's options as ``run_region`` takes them, and ``queue``, each checked
     (ParameterError, a ValueError, naming the argument and what it accepts). ``queue``:
     "each", every subject's map its own engine run (the bytes of ``sweep --subject``); "one",
     every subject's map through one engine queue (``runs.population``; MJX path, no
     cluster); "auto" is resolved before (:func:`resolved_queue`)."""
     if not isinstance(physics, str) or physics not in PATHS:
-        raise ParameterError(f"physics = {physics!r}: must be one of "
-                             f"{', '.join(repr(p) for p in PATHS)}")
+        raise ParameterError(
+            f"physics = {physics!r}: must be one of {', '.join(repr(p) for p in PATHS)}"
+        )
     check_queue(queue, physics, cluster)
     if not isinstance(full_length, bool) and type(full_length).__name__ != "bool_":
         raise ParameterError(f"full_length = {full_length!r}: must be True or False")
-    engine = {"slots": size_value(slots, "slots"), "full_length": bool(full_length),
-              "physics": physics, "queue": queue}
+    engine = {
+        "slots": size_value(slots, "slots"),
+        "full_length": bool(full_length),
+        "physics": physics,
+        "queue": queue,
+    }
     if cluster is not None:
         engine["cluster"] = cluster
     return engine
@@ -182,9 +215,18 @@ def run_options(engine: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in engine.items() if k != "queue"}
 
 
-def plan_cohort(out: str | os.PathLike[str], members: Sequence[Member], base: Config, forces: Any,
-                durations: Any, *, table_forces: Any = None, batched: bool = True,
-                say: Callable[[str], None] | None = None, **engine: Any) -> CohortPlan:
+def plan_cohort(
+    out: str | os.PathLike[str],
+    members: Sequence[Member],
+    base: Config,
+    forces: Any,
+    durations: Any,
+    *,
+    table_forces: Any = None,
+    batched: bool = True,
+    say: Callable[[str], None] | None = None,
+    **engine: Any,
+) -> CohortPlan:
     """Check a cohort before anything is written or locked: the ids, the grids, the engine's
     options (:func:`check_engine`), every subject's configuration (``Subject.config(base)``,
     the durations on its physics steps, and with ``batched`` everything the batched closed
@@ -195,8 +237,9 @@ def plan_cohort(out: str | os.PathLike[str], members: Sequence[Member], base: Co
     members = tuple(members)
     check_ids(members)
     out = Path(out)
-    engine["queue"] = resolved_queue(out, engine.get("queue", "auto"),
-                                     engine.get("physics", "auto"), engine.get("cluster"))
+    engine["queue"] = resolved_queue(
+        out, engine.get("queue", "auto"), engine.get("physics", "auto"), engine.get("cluster")
+    )
     engine = check_engine(**engine)
     forces = grid_values(forces, "forces")
     tables = None if table_forces is None else grid_values(table_forces, "table forces")
@@ -219,8 +262,9 @@ def plan_cohort(out: str | os.PathLike[str], members: Sequence[Member], base: Co
         try:
             check_batched(base, (forces, "forces"), (durations, "durations"))
         except ParameterError as exc:
-            raise ParameterError(f"the base configuration (its map is the probability "
-                                 f"figure's reference): {exc}") from None
+            raise ParameterError(
+                f"the base configuration (its map is the probability figure's reference): {exc}"
+            ) from None
     if out.exists() and not out.is_dir():
         raise ParameterError(f"--out {out}: is a file, not a folder")
     open_manifest(out, _record(members, base, forces, durations, tables), base)
@@ -255,17 +299,31 @@ def subject_numbers(member: Member, folder: Path) -> dict[str, Any]:
 def summary(frame: pd.DataFrame) -> pd.DataFrame:
     """Mean, SD (n - 1; NaN for one subject), 5/50/95th percentiles of every numeric column."""
     numeric = frame.drop(columns=["id", "sex"]).select_dtypes("number")
-    rows = {"mean": numeric.mean(), "sd": numeric.std(ddof=1), "p5": numeric.quantile(0.05),
-            "p50": numeric.quantile(0.5), "p95": numeric.quantile(0.95)}
+    rows = {
+        "mean": numeric.mean(),
+        "sd": numeric.std(ddof=1),
+        "p5": numeric.quantile(0.05),
+        "p50": numeric.quantile(0.5),
+        "p95": numeric.quantile(0.95),
+    }
     out = pd.DataFrame(rows).T
     out.insert(0, "statistic", list(rows))
     return out.reset_index(drop=True)
 
 
-def run_cohort(out: str | Path, members: Sequence[Member], base: Config, forces: Any,
-               durations: Any, *, table_forces: Any = None,
-               run_batches: Callable[[Config], Any] | None = None, progress: bool = False,
-               say: Callable[[str], None] | None = print, **engine: Any) -> pd.DataFrame:
+def run_cohort(
+    out: str | Path,
+    members: Sequence[Member],
+    base: Config,
+    forces: Any,
+    durations: Any,
+    *,
+    table_forces: Any = None,
+    run_batches: Callable[[Config], Any] | None = None,
+    progress: bool = False,
+    say: Callable[[str], None] | None = print,
+    **engine: Any,
+) -> pd.DataFrame:
     """Every subject's region map (and table, with ``table_forces``) in
     ``out/subjects/<id>/`` and the base configuration's map in ``out/base/``, then
     cohort.csv, cohort_summary.csv, the probability map's tables and the figures in ``out``;
@@ -273,14 +331,27 @@ def run_cohort(out: str | Path, members: Sequence[Member], base: Config, forces:
     (:func:`write_outputs`). ``run_batches``: a batch function per configuration (tests);
     ``engine``: ``slots``, ``full_length``, ``physics``, ``cluster`` for ``run_region``.
     Everything is checked before anything is written (:func:`plan_cohort`)."""
-    plan = plan_cohort(out, members, base, forces, durations, table_forces=table_forces,
-                       batched=run_batches is None, say=say, **engine)
+    plan = plan_cohort(
+        out,
+        members,
+        base,
+        forces,
+        durations,
+        table_forces=table_forces,
+        batched=run_batches is None,
+        say=say,
+        **engine,
+    )
     return run_plan(plan, run_batches=run_batches, progress=progress, say=say)
 
 
-def run_plan(plan: CohortPlan, *, run_batches: Callable[[Config], Any] | None = None,
-             progress: bool = False,
-             say: Callable[[str], None] | None = print) -> pd.DataFrame:
+def run_plan(
+    plan: CohortPlan,
+    *,
+    run_batches: Callable[[Config], Any] | None = None,
+    progress: bool = False,
+    say: Callable[[str], None] | None = print,
+) -> pd.DataFrame:
     """Run a checked cohort (:func:`plan_cohort`; :func:`run_cohort` says what it writes)."""
     say = say or (lambda _msg: None)
     out, members, forces, durations = plan.out, plan.members, plan.forces, plan.durations
@@ -291,27 +362,42 @@ def run_plan(plan: CohortPlan, *, run_batches: Callable[[Config], Any] | None = 
     folders = {m.id: out / SUBJECTS / m.id for m in members}
     done = sum((folders[m.id] / REGION).exists() for m in members)
     base_done = (out / BASE / REGION).exists()
-    say(f"cohort: {len(members)} subjects x {cells} cells and the base body's map ({done} "
-        f"subjects already done); output {out}")
+    say(
+        f"cohort: {len(members)} subjects x {cells} cells and the base body's map ({done} "
+        f"subjects already done); output {out}"
+    )
     say(f"cohort: {probability.interval_text(len(members))}")
-    bar = progress_bar((len(members) + 1) * cells, (done + base_done) * cells, progress,
-                       desc="cohort")
+    bar = progress_bar(
+        (len(members) + 1) * cells, (done + base_done) * cells, progress, desc="cohort"
+    )
     try:
         if run_batches is None and one_queue(plan):
             _run_queued(plan, folders, say, bar)  # the base body's map too
         else:
             for member in members:
                 finished = (folders[member.id] / REGION).exists()
-                _run_subject(member, folders[member.id], plan.configs[member.id], forces,
-                             durations, plan.tables, run_batches=run_batches, say=say,
-                             engine=run_options(plan.engine))
+                _run_subject(
+                    member,
+                    folders[member.id],
+                    plan.configs[member.id],
+                    forces,
+                    durations,
+                    plan.tables,
+                    run_batches=run_batches,
+                    say=say,
+                    engine=run_options(plan.engine),
+                )
                 if not finished:
                     bar.update(cells)
-            say(f"cohort: the base configuration's body (the reference boundary) -> "
-                f"{out / BASE}")
-            run_region(out / BASE, plan.base, Grid.of(forces, durations, plan.base), progress=False,
-                       run_batch=run_batches(plan.base) if run_batches is not None else None,
-                       **run_options(plan.engine))
+            say(f"cohort: the base configuration's body (the reference boundary) -> {out / BASE}")
+            run_region(
+                out / BASE,
+                plan.base,
+                Grid.of(forces, durations, plan.base),
+                progress=False,
+                run_batch=run_batches(plan.base) if run_batches is not None else None,
+                **run_options(plan.engine),
+            )
             if not base_done:
                 bar.update(cells)
     finally:
@@ -326,33 +412,59 @@ def one_queue(plan: CohortPlan) -> bool:
     return plan.engine["queue"] == "one" and bool(plan.members)
 
 
-def _run_queued(plan: CohortPlan, folders: dict[str, Path], say: Callable[[str], None],
-                bar: Any) -> None:
+def _run_queued(
+    plan: CohortPlan, folders: dict[str, Path], say: Callable[[str], None], bar: Any
+) -> None:
     """The unfinished subjects' maps and the base body's through one engine queue
     (``runs.population.run_maps``), each then written to its folder as a sweep of that body
     writes it; the tables (``table_forces``) subject by subject after."""
     members = list(plan.members)
-    say(f"cohort: the base configuration's body (the reference boundary) -> "
-        f"{plan.out / BASE}, in the same queue")
-    run_maps([(folders[m.id], plan.configs[m.id]) for m in members]
-             + [(plan.out / BASE, plan.base)], plan.forces,
-             plan.durations, slots=plan.engine["slots"],
-             full_length=plan.engine["full_length"], update=bar.update,
-             say=lambda text: say(f"cohort: {text}"))
+    say(
+        f"cohort: the base configuration's body (the reference boundary) -> "
+        f"{plan.out / BASE}, in the same queue"
+    )
+    run_maps(
+        [(folders[m.id], plan.configs[m.id]) for m in members] + [(plan.out / BASE, plan.base)],
+        plan.forces,
+        plan.durations,
+        slots=plan.engine["slots"],
+        full_length=plan.engine["full_length"],
+        update=bar.update,
+        say=lambda text: say(f"cohort: {text}"),
+    )
     if plan.tables is not None:
         for member in members:
-            run_table_folder(folders[member.id], plan.configs[member.id], plan.tables,
-                             progress=False, **run_options(plan.engine))
+            run_table_folder(
+                folders[member.id],
+                plan.configs[member.id],
+                plan.tables,
+                progress=False,
+                **run_options(plan.engine),
+            )
 
 
-def _run_subject(member: Member, folder: Path, config: Config, forces: np.ndarray,
-                 durations: np.ndarray, tables: np.ndarray | None, *,
-                 run_batches: Callable[[Config], Any] | None, say: Callable[[str], None],
-                 engine: dict[str, Any]) -> None:
+def _run_subject(
+    member: Member,
+    folder: Path,
+    config: Config,
+    forces: np.ndarray,
+    durations: np.ndarray,
+    tables: np.ndarray | None,
+    *,
+    run_batches: Callable[[Config], Any] | None,
+    say: Callable[[str], None],
+    engine: dict[str, Any],
+) -> None:
     say(f"cohort: subject {member.id} ({member.subject.describe()}) -> {folder}")
     batch = run_batches(config) if run_batches is not None else None
-    run_region(folder, config, Grid.of(forces, durations, config), run_batch=batch,
-               progress=False, **engine)
+    run_region(
+        folder,
+        config,
+        Grid.of(forces, durations, config),
+        run_batch=batch,
+        progress=False,
+        **engine,
+    )
     if tables is not None:
         run_table_folder(folder, config, tables, run_batch=batch, progress=False, **engine)
 
@@ -362,8 +474,13 @@ def base_label(base: Config) -> str:
     return "the study's body" if base.body == Config().body else "the base configuration's body"
 
 
-def write_outputs(out: Path, members: Sequence[Member], folders: dict[str, Path],
-                  say: Callable[[str], None], label: str = "the base body") -> pd.DataFrame:
+def write_outputs(
+    out: Path,
+    members: Sequence[Member],
+    folders: dict[str, Path],
+    say: Callable[[str], None],
+    label: str = "the base body",
+) -> pd.DataFrame:
     """cohort.csv, cohort_summary.csv, the probability map's tables and the figures from the
     subjects' folders and the base map's (``out/base``). Returns cohort.csv's frame with, in
     its ``attrs``: ``probability`` (cohort_probability.csv's frame), ``probability_boundaries``
@@ -381,13 +498,24 @@ def write_outputs(out: Path, members: Sequence[Member], folders: dict[str, Path]
     write_csv(lines, out / BOUNDARIES_CSV)
     figures = draw(out, frame, regions)
     levels = {p / 100: probability.thresholded(cells, p) for p in probability.LEVELS}
-    figures.append(cohort_figures.plot_probability(
-        cells, levels, (label, base), probability.half_width(len(members)),
-        out / "cohort_probability.png"))
-    say(f"wrote {out / COHORT_CSV}, {out / SUMMARY_CSV}, {out / PROBABILITY_CSV}, "
-        f"{out / BOUNDARIES_CSV} and " + ", ".join(p.name for p in figures))
-    frame.attrs = {"probability": cells, "probability_boundaries": lines,
-                   "half_width": probability.half_width(len(members))}
+    figures.append(
+        cohort_figures.plot_probability(
+            cells,
+            levels,
+            (label, base),
+            probability.half_width(len(members)),
+            out / "cohort_probability.png",
+        )
+    )
+    say(
+        f"wrote {out / COHORT_CSV}, {out / SUMMARY_CSV}, {out / PROBABILITY_CSV}, "
+        f"{out / BOUNDARIES_CSV} and " + ", ".join(p.name for p in figures)
+    )
+    frame.attrs = {
+        "probability": cells,
+        "probability_boundaries": lines,
+        "half_width": probability.half_width(len(members)),
+    }
     return frame
 
 
@@ -408,8 +536,11 @@ def draw(out: Path, frame: pd.DataFrame, regions: dict[str, pd.DataFrame]) -> li
     every = pd.concat(regions.values())
     log = log_durations(np.sort(every["duration"].unique()))
     segments = {i: boundary_segments(regions[i], log) for i in picks}
-    paths.append(cohort_figures.plot_boundaries(segments, frame.set_index("id").loc[picks],
-                                                every, out / "cohort_boundaries.png"))
+    paths.append(
+        cohort_figures.plot_boundaries(
+            segments, frame.set_index("id").loc[picks], every, out / "cohort_boundaries.png"
+        )
+    )
     if len(frame) <= SMALL_COHORT:
         paths.append(cohort_figures.plot_regions(regions, frame, out / "cohort_regions.png"))
     return paths

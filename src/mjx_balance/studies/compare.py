@@ -42,8 +42,7 @@ from ..runs.folders import check_batched, run_region, run_table_folder
 from ..runs.population import check_queue, run_maps
 from ..runs.grid import Grid, check_durations, describe, parse_grid
 from ..store.files import REGION, TABLE, write_csv
-from ..store.folder import (OutputFolder, config_dict, config_differences, folder_lock,
-                            same_values)
+from ..store.folder import OutputFolder, config_dict, config_differences, folder_lock, same_values
 from . import catalog
 
 COMPARE_CSV = "compare.csv"
@@ -71,34 +70,42 @@ def check_names(names: Sequence[str]) -> None:
     in OUT, distinct from each other and from the comparison's own files."""
     seen: set[str] = set()
     for name in names:
-        if (not name or name in (".", "..") or "/" in name or "\\" in name
-                or name != name.strip()):
-            raise ParameterError(f"configuration name {name!r} is not a folder name (letters, "
-                                 "digits, '.', '_', '-'; no path separators)")
+        if not name or name in (".", "..") or "/" in name or "\\" in name or name != name.strip():
+            raise ParameterError(
+                f"configuration name {name!r} is not a folder name (letters, "
+                "digits, '.', '_', '-'; no path separators)"
+            )
         if name in RESERVED:
-            raise ParameterError(f"configuration name {name!r} is taken by the comparison's "
-                                 "own output file")
+            raise ParameterError(
+                f"configuration name {name!r} is taken by the comparison's own output file"
+            )
         if name.lower() in seen:  # a case-insensitive filesystem would merge them
             raise ParameterError(f"configuration name {name!r} is given twice")
         seen.add(name.lower())
 
 
-def load_configs(paths: Sequence[str | Path], base: Config | None = None,
-                 names: Sequence[str | None] | None = None) -> dict[str, Config]:
+def load_configs(
+    paths: Sequence[str | Path],
+    base: Config | None = None,
+    names: Sequence[str | None] | None = None,
+) -> dict[str, Config]:
     """name -> configuration of every file (ParameterError naming the file that is wrong, or
     a file given twice: its map would be computed twice). ``base``: the configuration each
     file's values go on top of (default: the defaults); ``names``: a name per file, None for
     the file's stem (:func:`names_for`)."""
     if not paths:
-        raise ParameterError("compare needs at least one configuration (compare FILE ... or "
-                             "--variant NAME=FILE)")
+        raise ParameterError(
+            "compare needs at least one configuration (compare FILE ... or --variant NAME=FILE)"
+        )
     seen: dict[Path, str | Path] = {}
     for path in paths:
         key = Path(path).resolve()
         if key in seen:
             also = f" (also as {seen[key]})" if str(seen[key]) != str(path) else ""
-            raise ParameterError(f"{path}: this configuration file is given twice{also}; give "
-                                 "each configuration once")
+            raise ParameterError(
+                f"{path}: this configuration file is given twice{also}; give "
+                "each configuration once"
+            )
         seen[key] = path
     given = list(names) if names is not None else [None] * len(paths)
     chosen = [name or stem for name, stem in zip(given, names_for(paths))]
@@ -126,8 +133,9 @@ def load_one(path: str | Path, base: Config | None = None) -> Config:
     merged: dict[str, Any] = base.to_dict()
     for section, values in data.items():  # the file's values over the base's, section by section
         known = merged.get(section)
-        merged[section] = ({**known, **values} if isinstance(known, dict)
-                           and isinstance(values, dict) else values)
+        merged[section] = (
+            {**known, **values} if isinstance(known, dict) and isinstance(values, dict) else values
+        )
     return config_from_dict(merged)
 
 
@@ -145,8 +153,9 @@ def load_base(path: str | Path | None, subject: Subject | None = None) -> Config
     return run_config(path, subject=subject)
 
 
-def check_folder(folder: Path, name: str, config: Config, forces: np.ndarray,
-                 durations: np.ndarray) -> None:
+def check_folder(
+    folder: Path, name: str, config: Config, forces: np.ndarray, durations: np.ndarray
+) -> None:
     """Refuse, before any configuration runs, a folder OUT/<name> left by another
     configuration or holding a region map over another grid (the sweep itself would refuse
     it, but only once the configurations before it had run)."""
@@ -162,22 +171,27 @@ def check_folder(folder: Path, name: str, config: Config, forces: np.ndarray,
         raise ParameterError(
             f"configuration {name!r}: {folder} was made with a different configuration; use "
             "another --out folder or the same configuration. Differences: "
-            + "; ".join(differences[:6]) + (" ..." if len(differences) > 6 else ""))
+            + "; ".join(differences[:6])
+            + (" ..." if len(differences) > 6 else "")
+        )
     recorded = manifest.get("region")
-    if recorded is not None and not (same_values(recorded["forces"], forces)
-                                     and same_values(recorded["durations"], durations)):
+    if recorded is not None and not (
+        same_values(recorded["forces"], forces) and same_values(recorded["durations"], durations)
+    ):
         raise ParameterError(
             f"configuration {name!r}: {folder} holds a sweep over another grid (forces "
             f"{describe(recorded['forces'])}, durations {describe(recorded['durations'])}); "
-            "use another --out folder or the same grid")
+            "use another --out folder or the same grid"
+        )
 
 
 def numbers(region: pd.DataFrame, table: pd.DataFrame | None) -> dict[str, float]:
     """The comparison's numbers of one configuration (module docstring)."""
     row: dict[str, float] = dict(catalog.region_numbers(region))
     recovered = region[catalog.is_recovered(region)]
-    row["mean_recovery_energy"] = (float(recovered["energy_total"].mean()) if len(recovered)
-                                   else float("nan"))
+    row["mean_recovery_energy"] = (
+        float(recovered["energy_total"].mean()) if len(recovered) else float("nan")
+    )
     row["sustained_push_limit"] = float("nan")
     if table is not None and len(table):
         if "sustained_push_limit" in table:
@@ -187,8 +201,9 @@ def numbers(region: pd.DataFrame, table: pd.DataFrame | None) -> dict[str, float
     return row
 
 
-def check_compare(out: str | Path, configs: dict[str, Config], forces: Any, durations: Any,
-                  table_forces: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def check_compare(
+    out: str | Path, configs: dict[str, Config], forces: Any, durations: Any, table_forces: Any
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every input of :func:`run_compare` checked, nothing written: the names, the grids
     (within float32; every duration on every configuration's window and physics step), each
     configuration as the batched path runs it (``runs.folders.check_batched``) and each
@@ -201,8 +216,7 @@ def check_compare(out: str | Path, configs: dict[str, Config], forces: Any, dura
     check_names(list(configs))
     for name, config in configs.items():  # every grid check before any work
         try:
-            check_durations(durations, config.scenario.t_end,
-                            physics_dt=config.scenario.physics_dt)
+            check_durations(durations, config.scenario.t_end, physics_dt=config.scenario.physics_dt)
             check_batched(config, (forces, "forces"), (table_forces, "table forces"))
         except ParameterError as exc:
             raise ParameterError(f"configuration {name!r}: {exc}") from None
@@ -210,10 +224,20 @@ def check_compare(out: str | Path, configs: dict[str, Config], forces: Any, dura
     return forces, durations, table_forces
 
 
-def run_compare(out: str | os.PathLike[str], configs: dict[str, Config], forces: Any,
-                durations: Any, table_forces: Any, *, run_batches: dict[str, Any] | None = None,
-                progress: bool = False, say: Callable[[str], None] | None = print,
-                plan: PlanHook | None = None, wait: bool = False, **engine: Any) -> pd.DataFrame:
+def run_compare(
+    out: str | os.PathLike[str],
+    configs: dict[str, Config],
+    forces: Any,
+    durations: Any,
+    table_forces: Any,
+    *,
+    run_batches: dict[str, Any] | None = None,
+    progress: bool = False,
+    say: Callable[[str], None] | None = print,
+    plan: PlanHook | None = None,
+    wait: bool = False,
+    **engine: Any,
+) -> pd.DataFrame:
     """Every configuration's region map and table in ``out/<name>/``, then compare.csv and
     compare.png in ``out``; returns the comparison (one row per configuration, in order).
 
@@ -228,57 +252,105 @@ def run_compare(out: str | os.PathLike[str], configs: dict[str, Config], forces:
     say = say or (lambda _msg: None)
     out = Path(out)
     engine = dict(engine)
-    queue = check_queue(engine.pop("queue", "each"), engine.get("physics", "auto"),
-                        engine.get("cluster"))
+    queue = check_queue(
+        engine.pop("queue", "each"), engine.get("physics", "auto"), engine.get("cluster")
+    )
     grids = check_compare(out, configs, forces, durations, table_forces)
     if plan is not None:
         first = next(iter(configs.values()))
-        plan(PlannedWork(first, len(configs) * grids[0].size * grids[1].size, "cells",
-                         extra=len(configs) * table_scenarios(first, grids[2].size)))
+        plan(
+            PlannedWork(
+                first,
+                len(configs) * grids[0].size * grids[1].size,
+                "cells",
+                extra=len(configs) * table_scenarios(first, grids[2].size),
+            )
+        )
     with folder_lock(out, wait=wait):
         cluster = engine.get("cluster")
         if not isinstance(cluster, str):
-            return _compare(out, configs, grids, run_batches=run_batches, progress=progress,
-                            say=say, queue=queue, engine=engine)
+            return _compare(
+                out,
+                configs,
+                grids,
+                run_batches=run_batches,
+                progress=progress,
+                say=say,
+                queue=queue,
+                engine=engine,
+            )
         client, local = cluster_mod.connect(cluster, say)  # one connection for every map
         try:
-            return _compare(out, configs, grids, run_batches=run_batches, progress=progress,
-                            say=say, queue=queue, engine={**engine, "cluster": client})
+            return _compare(
+                out,
+                configs,
+                grids,
+                run_batches=run_batches,
+                progress=progress,
+                say=say,
+                queue=queue,
+                engine={**engine, "cluster": client},
+            )
         finally:
             cluster_mod.close(client, local, owned=True)
 
 
-def _compare(out: Path, configs: dict[str, Config],
-             grids: tuple[np.ndarray, np.ndarray, np.ndarray], *,
-             run_batches: dict[str, Any] | None, progress: bool, say: Callable[[str], None],
-             queue: str, engine: dict[str, Any]) -> pd.DataFrame:
+def _compare(
+    out: Path,
+    configs: dict[str, Config],
+    grids: tuple[np.ndarray, np.ndarray, np.ndarray],
+    *,
+    run_batches: dict[str, Any] | None,
+    progress: bool,
+    say: Callable[[str], None],
+    queue: str,
+    engine: dict[str, Any],
+) -> pd.DataFrame:
     """:func:`run_compare`'s work, its inputs checked (``grids``: forces, durations, table
     forces) and the folder locked."""
     forces, durations, table_forces = grids
     windows = {name: config.scenario.t_end for name, config in configs.items()}
     if len(set(windows.values())) > 1:
-        say("note: the configurations' windows differ ("
-            + ", ".join(f"{n}: {t:g} s" for n, t in windows.items()) + "); 'recovered' and "
-            "the sustained-push limit are judged over each one's own window")
+        say(
+            "note: the configurations' windows differ ("
+            + ", ".join(f"{n}: {t:g} s" for n, t in windows.items())
+            + "); 'recovered' and "
+            "the sustained-push limit are judged over each one's own window"
+        )
     regions, tables, rows = {}, {}, []
     if queue == "one":  # every configuration's map through one engine queue per shape
-        run_maps([(out / name, config) for name, config in configs.items()], forces,
-                 durations, slots=engine.get("slots"),
-                 full_length=engine.get("full_length", False),
-                 say=lambda text: say(f"compare: {text}"))
+        run_maps(
+            [(out / name, config) for name, config in configs.items()],
+            forces,
+            durations,
+            slots=engine.get("slots"),
+            full_length=engine.get("full_length", False),
+            say=lambda text: say(f"compare: {text}"),
+        )
     for name, config in configs.items():
         folder = out / name
         say(f"compare: {name} ({config.controller.convention} convention) -> {folder}")
         batch = (run_batches or {}).get(name)
         if queue != "one":
-            run_region(folder, config, Grid.of(forces, durations, config), run_batch=batch,
-                       progress=progress, **engine)
-        run_table_folder(folder, config, table_forces, run_batch=batch, progress=progress,
-                             **engine)
+            run_region(
+                folder,
+                config,
+                Grid.of(forces, durations, config),
+                run_batch=batch,
+                progress=progress,
+                **engine,
+            )
+        run_table_folder(folder, config, table_forces, run_batch=batch, progress=progress, **engine)
         regions[name] = pd.read_parquet(folder / REGION)
         tables[name] = pd.read_csv(folder / TABLE)
-        rows.append({"name": name, "convention": config.controller.convention,
-                     "t_end": config.scenario.t_end, **numbers(regions[name], tables[name])})
+        rows.append(
+            {
+                "name": name,
+                "convention": config.controller.convention,
+                "t_end": config.scenario.t_end,
+                **numbers(regions[name], tables[name]),
+            }
+        )
     frame = pd.DataFrame(rows)
     out.mkdir(parents=True, exist_ok=True)
     write_csv(frame, out / COMPARE_CSV)
@@ -287,8 +359,9 @@ def _compare(out: Path, configs: dict[str, Config],
     return frame
 
 
-def boundary_segments(region: pd.DataFrame, log: bool) -> list[tuple[tuple[float, float],
-                                                                      tuple[float, float]]]:
+def boundary_segments(
+    region: pd.DataFrame, log: bool
+) -> list[tuple[tuple[float, float], tuple[float, float]]]:
     """The edges between recovered and other cells of a region map, as ((F0, T0), (F1, T1))
     segments on the cells' bounds (``figures.region.cell_bounds``: where each cell is drawn)."""
     forces = np.sort(region["force"].unique())
@@ -323,12 +396,19 @@ def _shade_recovered(ax, first: tuple[str, pd.DataFrame], log: bool) -> Any:
     durations = np.sort(region["duration"].unique())
     grid = np.full((durations.size, forces.size), np.nan)
     rec = region[catalog.is_recovered(region)]
-    grid[np.searchsorted(durations, rec["duration"].to_numpy()),
-         np.searchsorted(forces, rec["force"].to_numpy())] = 1.0
+    grid[
+        np.searchsorted(durations, rec["duration"].to_numpy()),
+        np.searchsorted(forces, rec["force"].to_numpy()),
+    ] = 1.0
     colour = figure_style.OUTCOME_COLOURS["recovered"]
-    ax.pcolormesh(cell_bounds(forces), cell_bounds(durations, log=log),
-                  np.ma.masked_invalid(grid), cmap=ListedColormap([colour]), alpha=0.22,
-                  zorder=0)
+    ax.pcolormesh(
+        cell_bounds(forces),
+        cell_bounds(durations, log=log),
+        np.ma.masked_invalid(grid),
+        cmap=ListedColormap([colour]),
+        alpha=0.22,
+        zorder=0,
+    )
     return Patch(facecolor=colour, alpha=0.22, label=f"{name}: recovered cells")
 
 
@@ -350,12 +430,21 @@ def plot_compare(regions: dict[str, pd.DataFrame], path: Path, frame: pd.DataFra
         segments = boundary_segments(region, log)
         row = numbers_of.loc[name]
         limit = row["sustained_push_limit"]
-        label = (f"{name}: {row['area']:.3g} N·s"
-                 + (f", holds {limit:g} N" if np.isfinite(limit) else "")
-                 + (f" ({row['t_end']:g}-s window)" if several_windows else ""))
+        label = (
+            f"{name}: {row['area']:.3g} N·s"
+            + (f", holds {limit:g} N" if np.isfinite(limit) else "")
+            + (f" ({row['t_end']:g}-s window)" if several_windows else "")
+        )
         colour = figure_style.SERIES[k % len(figure_style.SERIES)]
-        ax.add_collection(LineCollection(segments, colors=colour, linewidths=2.2,
-                                         linestyles=styles[k % len(styles)], label=label))
+        ax.add_collection(
+            LineCollection(
+                segments,
+                colors=colour,
+                linewidths=2.2,
+                linestyles=styles[k % len(styles)],
+                label=label,
+            )
+        )
     forces = np.sort(every["force"].unique())
     fb = cell_bounds(forces)
     ax.set_xlim(fb[0], fb[-1])
@@ -363,7 +452,8 @@ def plot_compare(regions: dict[str, pd.DataFrame], path: Path, frame: pd.DataFra
     ax.set_xlabel("push force F [N]")
     ax.set_title("Recovery boundaries: recovered cells lie inside each outline")
     handles = ax.get_legend_handles_labels()[0] + [shaded]
-    ax.legend(handles=handles, loc="upper right", fontsize=9,
-              title="configuration: recoverable area")
+    ax.legend(
+        handles=handles, loc="upper right", fontsize=9, title="configuration: recoverable area"
+    )
     ax.grid(alpha=0.3)
     return figure_style.save(fig, path, dpi=120)

@@ -21,14 +21,22 @@ DEFAULT_TABLE_FORCES = "50"  # N
 # studies.sensitivity: the readings of the study and the default sweep's table forces
 READINGS = {  # key -> (label, configuration changes); plain sets offset_free = false, so a
     # plain reading stays plain on an offset-free base configuration
-    "paper_plain": ("paper, plain MPC",
-                    {"controller": {"convention": "paper", "offset_free": False}}),
-    "joint_plain": ("joint, plain MPC",
-                    {"controller": {"convention": "joint", "offset_free": False}}),
-    "paper_offset_free": ("paper, offset-free MPC",
-                          {"controller": {"convention": "paper", "offset_free": True}}),
-    "joint_offset_free": ("joint, offset-free MPC",
-                          {"controller": {"convention": "joint", "offset_free": True}}),
+    "paper_plain": (
+        "paper, plain MPC",
+        {"controller": {"convention": "paper", "offset_free": False}},
+    ),
+    "joint_plain": (
+        "joint, plain MPC",
+        {"controller": {"convention": "joint", "offset_free": False}},
+    ),
+    "paper_offset_free": (
+        "paper, offset-free MPC",
+        {"controller": {"convention": "paper", "offset_free": True}},
+    ),
+    "joint_offset_free": (
+        "joint, offset-free MPC",
+        {"controller": {"convention": "joint", "offset_free": True}},
+    ),
 }
 DEFAULT_FORCES = "20,50,80,100,120"  # N
 

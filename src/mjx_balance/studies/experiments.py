@@ -30,8 +30,13 @@ from . import catalog
 from ..measures.outcomes import SUMMARY_COLUMNS
 from ..model.params import CONVENTIONS, Config, ParameterError
 from ..model.config_files import dumps_config, with_convention
-from ..runs import (DEFAULT_SWEEP, STUDY_TABLE_FORCES, SweepDefinition, default_chunk_size,
-                    parse_grid)
+from ..runs import (
+    DEFAULT_SWEEP,
+    STUDY_TABLE_FORCES,
+    SweepDefinition,
+    default_chunk_size,
+    parse_grid,
+)
 from ..runs.folders import batch_function, run_region, run_table_folder
 from ..runs.grid import Grid
 from ..store.files import write_csv, write_parquet, write_text
@@ -78,12 +83,23 @@ class Plan:
 
 PLANS = {
     # For tests and a first look: 2 s scenarios, few forces, scalar reference loop.
-    "tiny": Plan("tiny", backend="reference", t_end=2.0, osqp_max_iter=200, osqp_eps=1e-6,
-                 timeseries_forces=(0, 50, 120), q_scales=(1e3, 1e5, 1e7),
-                 r_scales=(1e-4, 1e-6, 1e-8), table_forces=(20, 100),
-                 region_forces="0:120:60", region_durations="0.05,0.2",
-                 study_forces="0:120:60", study_durations="0.05,0.2",
-                 backward_forces="-120:120:60", sustained=False),
+    "tiny": Plan(
+        "tiny",
+        backend="reference",
+        t_end=2.0,
+        osqp_max_iter=200,
+        osqp_eps=1e-6,
+        timeseries_forces=(0, 50, 120),
+        q_scales=(1e3, 1e5, 1e7),
+        r_scales=(1e-4, 1e-6, 1e-8),
+        table_forces=(20, 100),
+        region_forces="0:120:60",
+        region_durations="0.05,0.2",
+        study_forces="0:120:60",
+        study_durations="0.05,0.2",
+        backward_forces="-120:120:60",
+        sustained=False,
+    ),
     # The study's experiments (table forces, six time series), coarse region maps.
     "default": Plan("default"),
     # The dense region maps of sweeps/region_dense_*.toml (meant for a GPU).
@@ -94,8 +110,11 @@ PLANS = {
 def plan_config(config: Config, plan: Plan) -> Config:
     """The base configuration with the plan's overrides."""
     scenario = {"t_end": plan.t_end} if plan.t_end is not None else {}
-    controller = {key: getattr(plan, key) for key in ("osqp_max_iter", "osqp_eps")
-                  if getattr(plan, key) is not None}
+    controller = {
+        key: getattr(plan, key)
+        for key in ("osqp_max_iter", "osqp_eps")
+        if getattr(plan, key) is not None
+    }
     return config.replace(scenario=scenario, controller=controller)
 
 
@@ -139,21 +158,34 @@ class Batches:
 
     def __call__(self, config: Config):
         if config not in self._runs:
-            self._runs[config] = batch_function(config, backend=self.backend,
-                                                physics=self.physics)
+            self._runs[config] = batch_function(config, backend=self.backend, physics=self.physics)
         return self._runs[config]
 
-    def sweep(self, folder: Path, config: Config, forces: np.ndarray, durations: np.ndarray,
-              chunk: int, quiet: bool) -> None:
+    def sweep(
+        self,
+        folder: Path,
+        config: Config,
+        forces: np.ndarray,
+        durations: np.ndarray,
+        chunk: int,
+        quiet: bool,
+    ) -> None:
         """``runs.folders.run_region``, or a copy of an identical sweep made earlier in this
         report."""
         key = (config, tuple(forces), tuple(durations))
         done = self._regions.get(key)
         if done is not None and not (folder / "region.parquet").exists():
             shutil.copytree(done, folder, dirs_exist_ok=True)
-        run_region(folder, config, Grid.of(forces, durations, config), run_batch=self(config),
-                   chunk=chunk,
-                   progress=not quiet, say=None if quiet else print, cluster=self.cluster)
+        run_region(
+            folder,
+            config,
+            Grid.of(forces, durations, config),
+            run_batch=self(config),
+            chunk=chunk,
+            progress=not quiet,
+            say=None if quiet else print,
+            cluster=self.cluster,
+        )
         self._regions.setdefault(key, folder)
 
 
@@ -178,8 +210,10 @@ def read_record(path: Path, *, required: bool = True) -> dict:
     try:
         record = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ParameterError(f"{path} is damaged ({type(exc).__name__}); delete it to rerun the "
-                             "report in that folder, or use another --out folder") from None
+        raise ParameterError(
+            f"{path} is damaged ({type(exc).__name__}); delete it to rerun the "
+            "report in that folder, or use another --out folder"
+        ) from None
     problem = None
     if not isinstance(record, dict):
         problem = f"holds a {type(record).__name__}, not an object"
@@ -188,25 +222,36 @@ def read_record(path: Path, *, required: bool = True) -> dict:
     elif required and not isinstance(record.get("conventions"), list):
         problem = "has no list of conventions"
     if problem:
-        raise ParameterError(f"{path} {problem}; delete it to rerun the report in that folder, "
-                             "or use another --out folder")
+        raise ParameterError(
+            f"{path} {problem}; delete it to rerun the report in that folder, "
+            "or use another --out folder"
+        )
     return record
 
 
-def open_record(out: Path, config: Config, plan: Plan, backend: str,
-                conventions: tuple[str, ...]) -> dict:
+def open_record(
+    out: Path, config: Config, plan: Plan, backend: str, conventions: tuple[str, ...]
+) -> dict:
     """report.json of ``out`` for this run (the stages already done kept), written with the
     base configuration (config.toml). Raises ParameterError if ``out`` holds a report made with
     another configuration."""
     path = out / REPORT_JSON
     record = read_record(path, required=False)
     if record.get("config") not in (None, config.to_dict()):
-        raise ParameterError(f"{out} holds a report made with another configuration; "
-                             "use another --out folder")
-    record.update({"package": "mjx_balance", "version": __version__,
-                   "plan": dataclasses.asdict(plan),
-                   "backend": backend, "config": config.to_dict(),
-                   "conventions": list(conventions), "studies": []})
+        raise ParameterError(
+            f"{out} holds a report made with another configuration; use another --out folder"
+        )
+    record.update(
+        {
+            "package": "mjx_balance",
+            "version": __version__,
+            "plan": dataclasses.asdict(plan),
+            "backend": backend,
+            "config": config.to_dict(),
+            "conventions": list(conventions),
+            "studies": [],
+        }
+    )
     write_text(dumps_config(config), out / CONFIG_TOML)
     write_json(path, record)
     return record
@@ -251,8 +296,9 @@ class ReportRun:
         write_json(self.out / REPORT_JSON, self.record)
 
 
-def run_stage(run: ReportRun, key: str, params: dict, files: list[Path],
-              work: Callable[[], None]) -> None:
+def run_stage(
+    run: ReportRun, key: str, params: dict, files: list[Path], work: Callable[[], None]
+) -> None:
     """Run ``work`` unless report.json records stage ``key`` done with the same parameters
     and its ``files`` exist; then record it with its time."""
     stages = run.record.setdefault("stages", {})
@@ -276,16 +322,23 @@ def timeseries_stage(run: ReportRun, convention: str) -> None:
     cfg = with_convention(run.config, convention)
 
     def work() -> None:
-        summary, series = simulate_many(cfg, list(plan.timeseries_forces),
-                                        [plan.push_duration], progress=not run.quiet)
+        summary, series = simulate_many(
+            cfg, list(plan.timeseries_forces), [plan.push_duration], progress=not run.quiet
+        )
         write_csv(summary, folder / "summary.csv", units=False)
         write_parquet(series, folder / "timeseries.parquet")
 
-    run.log.stage(f"{convention}: time series, F = {plan.timeseries_forces} N, "
-                  f"T = {plan.push_duration} s (reference loop)")
-    run_stage(run, f"{convention}/timeseries",
-              {"forces": list(plan.timeseries_forces), "duration": plan.push_duration},
-              [folder / "summary.csv", folder / "timeseries.parquet"], work)
+    run.log.stage(
+        f"{convention}: time series, F = {plan.timeseries_forces} N, "
+        f"T = {plan.push_duration} s (reference loop)"
+    )
+    run_stage(
+        run,
+        f"{convention}/timeseries",
+        {"forces": list(plan.timeseries_forces), "duration": plan.push_duration},
+        [folder / "summary.csv", folder / "timeseries.parquet"],
+        work,
+    )
 
 
 def run_weights(config: Config, plan: Plan, force: float | None = None) -> pd.DataFrame:
@@ -295,8 +348,9 @@ def run_weights(config: Config, plan: Plan, force: float | None = None) -> pd.Da
     rows = []
     force = plan.weight_force if force is None else force
     for which, scale, overrides in weight_settings(plan):
-        summary, _ = simulate_scenario(config.replace(controller=overrides), force,
-                                       plan.push_duration, record=False)
+        summary, _ = simulate_scenario(
+            config.replace(controller=overrides), force, plan.push_duration, record=False
+        )
         rows.append({"weight": which, "scale": scale, **summary})
     return pd.DataFrame(rows, columns=["weight", "scale", *SUMMARY_COLUMNS])
 
@@ -307,43 +361,65 @@ def weights_stage(run: ReportRun, convention: str) -> None:
     plan, folder = run.plan, run.out / convention
     cfg = with_convention(run.config, convention)
     run.log.stage(f"{convention}: weight study at F = {plan.weight_force} N (reference loop)")
-    run_stage(run, f"{convention}/weights",
-              {"force": plan.weight_force, "q": list(plan.q_scales), "r": list(plan.r_scales)},
-              [folder / "weights.csv"],
-              lambda: write_csv(run_weights(cfg, plan), folder / "weights.csv", units=False))
+    run_stage(
+        run,
+        f"{convention}/weights",
+        {"force": plan.weight_force, "q": list(plan.q_scales), "r": list(plan.r_scales)},
+        [folder / "weights.csv"],
+        lambda: write_csv(run_weights(cfg, plan), folder / "weights.csv", units=False),
+    )
     force = plan.weight_recovering_force
-    run.log.stage(f"{convention}: weight study at F = {force} N, a push every setting should "
-                  "recover (reference loop)")
-    run_stage(run, f"{convention}/weights_recovering",
-              {"force": force, "q": list(plan.q_scales), "r": list(plan.r_scales)},
-              [folder / WEIGHTS_RECOVERING],
-              lambda: write_csv(run_weights(cfg, plan, force), folder / WEIGHTS_RECOVERING,
-                                units=False))
+    run.log.stage(
+        f"{convention}: weight study at F = {force} N, a push every setting should "
+        "recover (reference loop)"
+    )
+    run_stage(
+        run,
+        f"{convention}/weights_recovering",
+        {"force": force, "q": list(plan.q_scales), "r": list(plan.r_scales)},
+        [folder / WEIGHTS_RECOVERING],
+        lambda: write_csv(run_weights(cfg, plan, force), folder / WEIGHTS_RECOVERING, units=False),
+    )
 
 
 def region_stage(run: ReportRun, convention: str) -> None:
     """Experiment 4: the region map, region/region.parquet (a sweep folder)."""
     forces, durations = run.region_forces, run.region_durations
-    run.log.stage(f"{convention}: region map, {forces.size} x {durations.size} cells "
-                  f"({run.backend})")
-    run.batches.sweep(run.out / convention / "region", with_convention(run.config, convention),
-                      forces, durations, run.chunk, run.quiet)
+    run.log.stage(
+        f"{convention}: region map, {forces.size} x {durations.size} cells ({run.backend})"
+    )
+    run.batches.sweep(
+        run.out / convention / "region",
+        with_convention(run.config, convention),
+        forces,
+        durations,
+        run.chunk,
+        run.quiet,
+    )
 
 
 def table_stage(run: ReportRun, convention: str) -> None:
     """Experiment 3: the max acting time per force, table/table.csv (a sweep folder)."""
     cfg = with_convention(run.config, convention)
-    run.log.stage(f"{convention}: robustness table, {len(run.plan.table_forces)} forces "
-                  f"({run.backend})")
+    run.log.stage(
+        f"{convention}: robustness table, {len(run.plan.table_forces)} forces ({run.backend})"
+    )
     table_folder(run, run.out / convention / "table", cfg)
 
 
 def table_folder(run: ReportRun, folder: Path, cfg: Config) -> None:
     """The plan's table of ``cfg`` into ``folder`` (``runs.folders.run_table_folder``; the
     reference loop bisects, the engine takes the report's chunk per call)."""
-    run_table_folder(folder, cfg, list(run.plan.table_forces), run_batch=run.batches(cfg),
-                     batch=None if run.backend == "reference" else run.chunk,
-                     progress=not run.quiet, say=run.sweep_log, sustained=run.plan.sustained)
+    run_table_folder(
+        folder,
+        cfg,
+        list(run.plan.table_forces),
+        run_batch=run.batches(cfg),
+        batch=None if run.backend == "reference" else run.chunk,
+        progress=not run.quiet,
+        say=run.sweep_log,
+        sustained=run.plan.sustained,
+    )
 
 
 def run_experiments(run: ReportRun, convention: str) -> None:
@@ -359,8 +435,9 @@ def run_experiments(run: ReportRun, convention: str) -> None:
 # The studies
 
 
-def study_grid(plan: Plan, study: catalog.Study,
-               definition: SweepDefinition) -> tuple[np.ndarray, np.ndarray]:
+def study_grid(
+    plan: Plan, study: catalog.Study, definition: SweepDefinition
+) -> tuple[np.ndarray, np.ndarray]:
     """The (forces, durations) of a study variant: the plan's grid, else the definition's."""
     forces = (plan.backward_forces if study.signed else plan.study_forces) or definition.forces
     durations = plan.study_durations or definition.durations
@@ -373,17 +450,26 @@ def run_variant(run: ReportRun, study: catalog.Study, variant: catalog.Variant) 
     definition = catalog.variant_definition(study, variant, run.config, run.sweeps)
     forces, durations = study_grid(run.plan, study, definition)
     run.log.stage(f"study {study.key}: {variant.label}, {forces.size} x {durations.size} cells")
-    run.batches.sweep(run.out / "studies" / study.key / variant.key, definition.config, forces,
-                      durations, run.chunk, run.quiet)
-    return {"key": variant.key, "label": variant.label, "file": variant.file,
-            "config": definition.config.to_dict()}
+    run.batches.sweep(
+        run.out / "studies" / study.key / variant.key,
+        definition.config,
+        forces,
+        durations,
+        run.chunk,
+        run.quiet,
+    )
+    return {
+        "key": variant.key,
+        "label": variant.label,
+        "file": variant.file,
+        "config": definition.config.to_dict(),
+    }
 
 
 def study_numbers(study: catalog.Study, folder: Path, variants: list[dict]) -> pd.DataFrame:
     """The study's numbers from its saved maps: the halves of the signed map, or every
     variant against the first (catalog.signed_halves, catalog.compare)."""
-    regions = {v["key"]: pd.read_parquet(folder / v["key"] / "region.parquet")
-               for v in variants}
+    regions = {v["key"]: pd.read_parquet(folder / v["key"] / "region.parquet") for v in variants}
     if study.signed:
         return catalog.signed_halves(next(iter(regions.values())))
     return catalog.compare(regions, {v["key"]: v["label"] for v in variants})
@@ -394,8 +480,7 @@ def run_study(run: ReportRun, study: catalog.Study) -> None:
     entry: dict[str, Any]
     entry = {"key": study.key, "variants": [run_variant(run, study, v) for v in study.variants]}
     folder = run.out / "studies" / study.key
-    write_csv(study_numbers(study, folder, entry["variants"]), folder / "numbers.csv",
-              units=False)
+    write_csv(study_numbers(study, folder, entry["variants"]), folder / "numbers.csv", units=False)
     run.record["studies"].append(entry)
     run.save_record()
 
@@ -424,16 +509,21 @@ def run_sensitivity_stage(run: ReportRun) -> None:
     experiment's reuses that table (copied, then resumed: nothing is recomputed)."""
     folder = run.out / sensitivity.REPORT_DIR
     configs = sensitivity_readings(run.config, tuple(run.record["conventions"]))
-    run.log.stage(f"sensitivity: the robustness table under {len(configs)} readings "
-                  f"({', '.join(configs)}), {len(run.plan.table_forces)} forces")
+    run.log.stage(
+        f"sensitivity: the robustness table under {len(configs)} readings "
+        f"({', '.join(configs)}), {len(run.plan.table_forces)} forces"
+    )
     if not configs:
         return
     tables = {}
     for key, cfg in configs.items():
         convention = sensitivity.reading_convention(key)
         done = run.out / convention / "table"
-        if (cfg == with_convention(run.config, convention) and (done / "table.csv").exists()
-                and not (folder / key / "table.csv").exists()):
+        if (
+            cfg == with_convention(run.config, convention)
+            and (done / "table.csv").exists()
+            and not (folder / key / "table.csv").exists()
+        ):
             shutil.copytree(done, folder / key, dirs_exist_ok=True)
         table_folder(run, folder / key, cfg)
         tables[key] = pd.read_csv(folder / key / "table.csv")
@@ -444,9 +534,18 @@ def run_sensitivity_stage(run: ReportRun) -> None:
 # The whole run
 
 
-def start_report(out: Path, config: Config, plan: Plan, *, backend: str,
-                 study_list: list[catalog.Study], conventions: tuple[str, ...],
-                 sweeps: Path | None, quiet: bool, physics: str = "auto") -> ReportRun:
+def start_report(
+    out: Path,
+    config: Config,
+    plan: Plan,
+    *,
+    backend: str,
+    study_list: list[catalog.Study],
+    conventions: tuple[str, ...],
+    sweeps: Path | None,
+    quiet: bool,
+    physics: str = "auto",
+) -> ReportRun:
     """Open report.json in ``out`` and set up what the steps share (``config``: the base
     configuration with the plan's overrides)."""
     out.mkdir(parents=True, exist_ok=True)
@@ -455,17 +554,35 @@ def start_report(out: Path, config: Config, plan: Plan, *, backend: str,
     log = StageLog(5 * len(conventions) + n_variants + 1, quiet)  # + 1: the sensitivity
     forces = parse_grid(plan.region_forces, "region forces")
     durations = parse_grid(plan.region_durations, "region durations")
-    return ReportRun(out=out, config=config, plan=plan, backend=backend, record=record, log=log,
-                     batches=Batches(backend, physics=physics), region_forces=forces,
-                     region_durations=durations,
-                     chunk=sweep_chunk_size(config, backend, forces.size * durations.size),
-                     sweeps=sweeps, quiet=quiet)
+    return ReportRun(
+        out=out,
+        config=config,
+        plan=plan,
+        backend=backend,
+        record=record,
+        log=log,
+        batches=Batches(backend, physics=physics),
+        region_forces=forces,
+        region_durations=durations,
+        chunk=sweep_chunk_size(config, backend, forces.size * durations.size),
+        sweeps=sweeps,
+        quiet=quiet,
+    )
 
 
-def run_report(out: str | Path, config: Config = Config(), plan: Plan = PLANS["default"], *,
-               backend: str | None = None, study_list: list[catalog.Study] | None = None,
-               conventions: tuple[str, ...] = CONVENTIONS, sweeps: Path | None = None,
-               quiet: bool = False, cluster: Any = None, physics: str = "auto") -> dict:
+def run_report(
+    out: str | Path,
+    config: Config = Config(),
+    plan: Plan = PLANS["default"],
+    *,
+    backend: str | None = None,
+    study_list: list[catalog.Study] | None = None,
+    conventions: tuple[str, ...] = CONVENTIONS,
+    sweeps: Path | None = None,
+    quiet: bool = False,
+    cluster: Any = None,
+    physics: str = "auto",
+) -> dict:
     """Run everything and save the tables in ``out``; returns the report record (report.json).
 
     config: the base configuration (its convention is the studies'; the experiments run every
@@ -476,9 +593,17 @@ def run_report(out: str | Path, config: Config = Config(), plan: Plan = PLANS["d
     batched backend's physics path (auto, mjx or c).
     """
     study_list = list(catalog.STUDIES) if study_list is None else study_list
-    run = start_report(Path(out), plan_config(config, plan), plan,
-                       backend=backend or plan.backend, study_list=study_list,
-                       conventions=conventions, sweeps=sweeps, quiet=quiet, physics=physics)
+    run = start_report(
+        Path(out),
+        plan_config(config, plan),
+        plan,
+        backend=backend or plan.backend,
+        study_list=study_list,
+        conventions=conventions,
+        sweeps=sweeps,
+        quiet=quiet,
+        physics=physics,
+    )
     client = local = None
     if cluster is not None:
         client, local = cluster_mod.connect(cluster, (lambda _m: None) if quiet else print)

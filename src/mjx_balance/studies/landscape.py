@@ -48,8 +48,13 @@ from ..runs.chunks import PlanHook, PlannedWork
 from ..runs.grid import Grid, check_durations, parse_grid
 from ..store.files import REGION, TABLE, write_atomic, write_csv
 from ..store.folder import folder_lock
-from ..runs.folders import (batch_function, check_batched, check_float32_grid, run_region,
-                            run_table_folder)
+from ..runs.folders import (
+    batch_function,
+    check_batched,
+    check_float32_grid,
+    run_region,
+    run_table_folder,
+)
 from ..runs.population import check_queue, run_maps
 from .defaults import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES
 from ..figures import style as figure_style
@@ -59,9 +64,22 @@ LANDSCAPE_PNG = "landscape.png"
 LANDSCAPE_TXT = "landscape.txt"
 
 KEY_COLUMNS = ["delay", "delay_ms", "compensated", "q_scale", "r_scale"]
-COLUMNS = [*KEY_COLUMNS, "study", "area", "fraction", "recovered_cells", "cells", "t_ref",
-           "f_max_ref", "rest_recovered", "mean_recovery_energy", "sustained_push_limit",
-           "paired_cells", "energy_vs_study", "nonconverged_solves"]
+COLUMNS = [
+    *KEY_COLUMNS,
+    "study",
+    "area",
+    "fraction",
+    "recovered_cells",
+    "cells",
+    "t_ref",
+    "f_max_ref",
+    "rest_recovered",
+    "mean_recovery_energy",
+    "sustained_push_limit",
+    "paired_cells",
+    "energy_vs_study",
+    "nonconverged_solves",
+]
 # then max_acting_time_<F>N per table force
 
 
@@ -94,12 +112,17 @@ def parse_delays(spec: str | Sequence[str | float]) -> list[Delay]:
     """Delay settings from ``"0,10,100c"`` (ms; a trailing ``c``: compensated) or a list of
     such items, in the order given. ParameterError for a bad item, a repeat, a negative delay
     or a compensated 0 ms (nothing to compensate)."""
-    items = [s.strip() for s in spec.split(",")] if isinstance(spec, str) else [
-        str(s).strip() for s in spec]
+    items = (
+        [s.strip() for s in spec.split(",")]
+        if isinstance(spec, str)
+        else [str(s).strip() for s in spec]
+    )
     items = [s for s in items if s]
     if not items:
-        raise ParameterError("delays: give at least one delay setting, e.g. 0,100c (ms; a "
-                             "trailing c: the delay-compensated controller)")
+        raise ParameterError(
+            "delays: give at least one delay setting, e.g. 0,100c (ms; a "
+            "trailing c: the delay-compensated controller)"
+        )
     delays: list[Delay] = []
     for item in items:
         match = re.fullmatch(r"([0-9.eE+-]+)\s*(ms)?\s*(c|comp)?", item)
@@ -108,9 +131,11 @@ def parse_delays(spec: str | Sequence[str | float]) -> list[Delay]:
         except ValueError:
             ms = float("nan")
         if not math.isfinite(ms):
-            raise ParameterError(f"delays: {item!r} is not a delay setting; write the delay in "
-                                 "ms, with a trailing c for the compensated controller (0, 10, "
-                                 "100c)")
+            raise ParameterError(
+                f"delays: {item!r} is not a delay setting; write the delay in "
+                "ms, with a trailing c for the compensated controller (0, 10, "
+                "100c)"
+            )
         if ms < 0:
             raise ParameterError(f"delays: {item!r}: a delay must be >= 0 ms")
         assert match is not None  # (no match: ms is NaN, refused above)
@@ -159,27 +184,46 @@ def setting_config(base: Config, delay: Delay, q: float, r: float) -> Config:
     c = base.controller
     try:
         return base.replace(
-            controller={"q_diag": tuple(scaled(v, q) for v in c.q_diag),
-                        "r_diag": tuple(scaled(v, r) for v in c.r_diag),
-                        "delay_compensation": delay.compensated},
-            scenario={"controller_delay": round(delay.ms / 1000.0, 12)})
+            controller={
+                "q_diag": tuple(scaled(v, q) for v in c.q_diag),
+                "r_diag": tuple(scaled(v, r) for v in c.r_diag),
+                "delay_compensation": delay.compensated,
+            },
+            scenario={"controller_delay": round(delay.ms / 1000.0, 12)},
+        )
     except ParameterError as exc:
         raise ParameterError(f"delay {delay.spec} ms, Q x {q:g}, R x {r:g}: {exc}") from None
 
 
-def plan(base: Config, delays: Sequence[Delay], q_scales: np.ndarray, r_scales: np.ndarray
-         ) -> list[tuple[Delay, float, float, str, Config]]:
+def plan(
+    base: Config, delays: Sequence[Delay], q_scales: np.ndarray, r_scales: np.ndarray
+) -> list[tuple[Delay, float, float, str, Config]]:
     """Every setting in run order (delay, then Q scale, then R scale): (delay, q, r, folder
     relative to OUT, configuration)."""
-    return [(d, float(q), float(r), f"{d.key}/{setting_name(q, r)}",
-             setting_config(base, d, float(q), float(r)))
-            for d in delays for q in q_scales for r in r_scales]
+    return [
+        (
+            d,
+            float(q),
+            float(r),
+            f"{d.key}/{setting_name(q, r)}",
+            setting_config(base, d, float(q), float(r)),
+        )
+        for d in delays
+        for q in q_scales
+        for r in r_scales
+    ]
 
 
-def check_landscape(out: str | Path, base: Config, forces: Any, durations: Any,
-                    q_scales: Any = DEFAULT_SCALES, r_scales: Any = DEFAULT_SCALES,
-                    delays: Any = DEFAULT_DELAYS, table_forces: Any = DEFAULT_TABLE_FORCES
-                    ) -> dict[str, Any]:
+def check_landscape(
+    out: str | Path,
+    base: Config,
+    forces: Any,
+    durations: Any,
+    q_scales: Any = DEFAULT_SCALES,
+    r_scales: Any = DEFAULT_SCALES,
+    delays: Any = DEFAULT_DELAYS,
+    table_forces: Any = DEFAULT_TABLE_FORCES,
+) -> dict[str, Any]:
     """Every input of a landscape checked, nothing written: the scales and delays, every
     setting's configuration, the grids (durations within each window, on its physics step) and
     every setting's folder in ``out`` (left by another configuration or holding a map over
@@ -197,22 +241,41 @@ def check_landscape(out: str | Path, base: Config, forces: Any, durations: Any,
     settings = plan(base, delays, q_scales, r_scales)
     for _delay, _q, _r, name, config in settings:
         try:
-            durations = check_durations(durations, config.scenario.t_end,
-                                        physics_dt=config.scenario.physics_dt)
+            durations = check_durations(
+                durations, config.scenario.t_end, physics_dt=config.scenario.physics_dt
+            )
             check_batched(config)  # the scaled weights' QP builds and float32 resolves it
         except ParameterError as exc:
             raise ParameterError(f"{name}: {exc}") from None
         comparison.check_folder(out / name, name, config, forces, durations)
-    return {"q_scales": q_scales, "r_scales": r_scales, "delays": delays, "forces": forces,
-            "durations": durations, "table_forces": table_forces, "settings": settings}
+    return {
+        "q_scales": q_scales,
+        "r_scales": r_scales,
+        "delays": delays,
+        "forces": forces,
+        "durations": durations,
+        "table_forces": table_forces,
+        "settings": settings,
+    }
 
 
-def run_landscape(out: str | os.PathLike[str], base: Config, forces: Any, durations: Any, *,
-                  q_scales: Any = DEFAULT_SCALES, r_scales: Any = DEFAULT_SCALES,
-                  delays: Any = DEFAULT_DELAYS, table_forces: Any = DEFAULT_TABLE_FORCES,
-                  make_batch: Callable[..., Any] | None = None, progress: bool = False,
-                  say: Callable[[str], None] | None = print, plan: PlanHook | None = None,
-                  wait: bool = False, **engine: Any) -> pd.DataFrame:
+def run_landscape(
+    out: str | os.PathLike[str],
+    base: Config,
+    forces: Any,
+    durations: Any,
+    *,
+    q_scales: Any = DEFAULT_SCALES,
+    r_scales: Any = DEFAULT_SCALES,
+    delays: Any = DEFAULT_DELAYS,
+    table_forces: Any = DEFAULT_TABLE_FORCES,
+    make_batch: Callable[..., Any] | None = None,
+    progress: bool = False,
+    say: Callable[[str], None] | None = print,
+    plan: PlanHook | None = None,
+    wait: bool = False,
+    **engine: Any,
+) -> pd.DataFrame:
     """Every setting's region map and table in ``out/<delay>/q<q>_r<r>/``, then
     landscape.csv, landscape.png and landscape.txt in ``out``; returns the landscape
     (:data:`COLUMNS`, one row per setting in run order).
@@ -229,35 +292,58 @@ def run_landscape(out: str | os.PathLike[str], base: Config, forces: Any, durati
     say = say or (lambda _msg: None)
     out = Path(out)
     queue = check_queue(engine.get("queue", "each"), engine.get("physics") or "auto")
-    checked = check_landscape(out, base, forces, durations, q_scales, r_scales, delays,
-                              table_forces)
+    checked = check_landscape(
+        out, base, forces, durations, q_scales, r_scales, delays, table_forces
+    )
     n = len(checked["settings"])
     if plan is not None:
-        plan(PlannedWork(base, n * checked["forces"].size * checked["durations"].size, "cells",
-                         extra=n * table_scenarios(base, checked["table_forces"].size)))
+        plan(
+            PlannedWork(
+                base,
+                n * checked["forces"].size * checked["durations"].size,
+                "cells",
+                extra=n * table_scenarios(base, checked["table_forces"].size),
+            )
+        )
     with folder_lock(out, wait=wait):
         return _landscape(out, checked, queue, make_batch, engine, progress, say)
 
 
-def _landscape(out: Path, checked: dict[str, Any], queue: str,
-               make_batch: Callable[..., Any] | None, engine: dict[str, Any], progress: bool,
-               say: Callable[[str], None]) -> pd.DataFrame:
+def _landscape(
+    out: Path,
+    checked: dict[str, Any],
+    queue: str,
+    make_batch: Callable[..., Any] | None,
+    engine: dict[str, Any],
+    progress: bool,
+    say: Callable[[str], None],
+) -> pd.DataFrame:
     """:func:`run_landscape`'s work, its inputs checked and the folder locked."""
     q_scales, r_scales, delays = checked["q_scales"], checked["r_scales"], checked["delays"]
     forces, durations = checked["forces"], checked["durations"]
     table_forces, settings = checked["table_forces"], checked["settings"]
     make_batch = make_batch or batch_function
-    options = {"slots": engine.get("slots"), "full_length": engine.get("full_length", False),
-               "physics": engine.get("physics") or "auto"}
-    say(f"landscape: {len(delays)} delay setting(s) x {q_scales.size} Q scales x "
+    options = {
+        "slots": engine.get("slots"),
+        "full_length": engine.get("full_length", False),
+        "physics": engine.get("physics") or "auto",
+    }
+    say(
+        f"landscape: {len(delays)} delay setting(s) x {q_scales.size} Q scales x "
         f"{r_scales.size} R scales = {len(settings)} settings, each a region map of "
         f"{forces.size} x {durations.size} pushes and a table ({table_forces.size} force(s) + "
-        f"the sustained-push limit); output {out}")
+        f"the sustained-push limit); output {out}"
+    )
     out.mkdir(parents=True, exist_ok=True)
     if queue == "one":  # every setting's map through one engine queue per compiled shape
-        run_maps([(out / name, config) for *_, name, config in settings], forces, durations,
-                 slots=options["slots"], full_length=options["full_length"],
-                 say=lambda text: say(f"landscape: {text}"))
+        run_maps(
+            [(out / name, config) for *_, name, config in settings],
+            forces,
+            durations,
+            slots=options["slots"],
+            full_length=options["full_length"],
+            say=lambda text: say(f"landscape: {text}"),
+        )
     rows: list[dict[str, Any]] = []
     regions: dict[str, pd.DataFrame] = {}
     start = time.perf_counter()
@@ -265,14 +351,20 @@ def _landscape(out: Path, checked: dict[str, Any], queue: str,
         folder = out / name
         t0 = time.perf_counter()
         done = (folder / REGION).exists() and (folder / TABLE).exists()
-        say(f"landscape [{k}/{len(settings)}] {delay.label}, Q x {q:g}, R x {r:g} -> {folder}"
-            + (" (kept: checking)" if done else ""))
+        say(
+            f"landscape [{k}/{len(settings)}] {delay.label}, Q x {q:g}, R x {r:g} -> {folder}"
+            + (" (kept: checking)" if done else "")
+        )
         run_batch = make_batch(config, **options)
         if queue != "one":
-            run_region(folder, config, Grid.of(forces, durations, config), run_batch=run_batch,
-                       progress=progress)
-        run_table_folder(folder, config, table_forces, run_batch=run_batch,
-                             progress=progress)
+            run_region(
+                folder,
+                config,
+                Grid.of(forces, durations, config),
+                run_batch=run_batch,
+                progress=progress,
+            )
+        run_table_folder(folder, config, table_forces, run_batch=run_batch, progress=progress)
         del run_batch
         regions[name] = pd.read_parquet(folder / REGION)
         row = _setting_row(delay, q, r, regions[name], pd.read_csv(folder / TABLE))
@@ -280,33 +372,47 @@ def _landscape(out: Path, checked: dict[str, Any], queue: str,
         frame = _frame(rows, regions, settings)
         write_csv(frame, out / LANDSCAPE_CSV)
         elapsed = time.perf_counter() - start
-        say(f"landscape [{k}/{len(settings)}] area {row['area']:.4g} N s, sustained "
+        say(
+            f"landscape [{k}/{len(settings)}] area {row['area']:.4g} N s, sustained "
             f"{row['sustained_push_limit']:g} N, mean energy {row['mean_recovery_energy']:.3g} J"
-            f" ({time.perf_counter() - t0:.1f} s; {elapsed:.0f} s so far)")
+            f" ({time.perf_counter() - t0:.1f} s; {elapsed:.0f} s so far)"
+        )
     frame = _frame(rows, regions, settings)
     write_csv(frame, out / LANDSCAPE_CSV)
     figure = plot_landscape(frame, out / LANDSCAPE_PNG)  # in the figure style
     text = reading(frame)
     write_atomic(out / LANDSCAPE_TXT, lambda tmp: tmp.write_text(text + "\n"))
     say(text)
-    say(f"wrote {out / LANDSCAPE_CSV}, {figure} and {out / LANDSCAPE_TXT} "
-        f"({time.perf_counter() - start:.0f} s)")
+    say(
+        f"wrote {out / LANDSCAPE_CSV}, {figure} and {out / LANDSCAPE_TXT} "
+        f"({time.perf_counter() - start:.0f} s)"
+    )
     return frame
 
 
-def _setting_row(delay: Delay, q: float, r: float, region: pd.DataFrame,
-                 table: pd.DataFrame) -> dict[str, Any]:
+def _setting_row(
+    delay: Delay, q: float, r: float, region: pd.DataFrame, table: pd.DataFrame
+) -> dict[str, Any]:
     """The landscape's row of one setting: its delay and weights, and its map's numbers."""
-    return {"delay": delay.spec, "delay_ms": delay.ms, "compensated": delay.compensated,
-            "q_scale": q, "r_scale": r, "study": q == 1.0 and r == 1.0,
-            **comparison.numbers(region, table),
-            # QP solves the ADMM did not report solved, over the region's cells (a check
-            # that an extreme weight's numbers are the controller's, not the solver's)
-            "nonconverged_solves": int(region["nonconverged_solves"].sum())}
+    return {
+        "delay": delay.spec,
+        "delay_ms": delay.ms,
+        "compensated": delay.compensated,
+        "q_scale": q,
+        "r_scale": r,
+        "study": q == 1.0 and r == 1.0,
+        **comparison.numbers(region, table),
+        # QP solves the ADMM did not report solved, over the region's cells (a check
+        # that an extreme weight's numbers are the controller's, not the solver's)
+        "nonconverged_solves": int(region["nonconverged_solves"].sum()),
+    }
 
 
-def _frame(rows: list[dict[str, Any]], regions: dict[str, pd.DataFrame],
-           settings: list[tuple[Delay, float, float, str, Config]]) -> pd.DataFrame:
+def _frame(
+    rows: list[dict[str, Any]],
+    regions: dict[str, pd.DataFrame],
+    settings: list[tuple[Delay, float, float, str, Config]],
+) -> pd.DataFrame:
     """The landscape so far, with the paired energy columns (against the base weights of the
     same delay, once that setting has run)."""
     frame = pd.DataFrame(rows)
@@ -339,10 +445,12 @@ def paired_energy(region: pd.DataFrame, base: pd.DataFrame) -> tuple[int, float]
 # ---------------------------------------------------------------------------------------------
 # The figure and the reading
 
-PANELS = (("area", "recoverable area [N s]", "{:.3g}"),
-          ("sustained_push_limit", "sustained-push limit [N]", "{:.3g}"),
-          ("mean_recovery_energy", "mean recovery energy [J]", "{:.2g}"),
-          ("energy_vs_study", "energy vs base weights,\nsame pushes [x]", "{:.2f}"))
+PANELS = (
+    ("area", "recoverable area [N s]", "{:.3g}"),
+    ("sustained_push_limit", "sustained-push limit [N]", "{:.3g}"),
+    ("mean_recovery_energy", "mean recovery energy [J]", "{:.2g}"),
+    ("energy_vs_study", "energy vs base weights,\nsame pushes [x]", "{:.2f}"),
+)
 
 
 def grid_of(frame: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -351,8 +459,9 @@ def grid_of(frame: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray, n
     rs = np.sort(frame["r_scale"].unique())
     values = np.full((qs.size, rs.size), np.nan)
     for _, row in frame.iterrows():
-        values[np.searchsorted(qs, row["q_scale"]), np.searchsorted(rs, row["r_scale"])] = (
-            row[column])
+        values[np.searchsorted(qs, row["q_scale"]), np.searchsorted(rs, row["r_scale"])] = row[
+            column
+        ]
     return qs, rs, values
 
 
@@ -367,8 +476,9 @@ def plot_landscape(frame: pd.DataFrame, path: Path) -> Path:
     delays = list(dict.fromkeys(frame["delay"]))
     narrow = figure_style.current().size == "one-column"
     shape = (len(PANELS), len(delays)) if narrow else (len(delays), len(PANELS))
-    fig, grid = figure_style.subplots(*shape, squeeze=False, stack=False,
-                                      figsize=(4.3 * len(PANELS), 3.9 * len(delays)))
+    fig, grid = figure_style.subplots(
+        *shape, squeeze=False, stack=False, figsize=(4.3 * len(PANELS), 3.9 * len(delays))
+    )
     axes = grid.T if narrow else grid  # axes[i, j]: delay i, number j
     for j, (column, title, fmt) in enumerate(PANELS):
         finite = frame[column].to_numpy(float)
@@ -380,18 +490,38 @@ def plot_landscape(frame: pd.DataFrame, path: Path) -> Path:
             ax = axes[i, j]
             rows = frame[frame["delay"] == delay]
             qs, rs, values = grid_of(rows, column)
-            image = ax.imshow(np.ma.masked_invalid(values), origin="lower", cmap="viridis",
-                              vmin=lo, vmax=hi, aspect="auto")
+            image = ax.imshow(
+                np.ma.masked_invalid(values),
+                origin="lower",
+                cmap="viridis",
+                vmin=lo,
+                vmax=hi,
+                aspect="auto",
+            )
             for a in range(qs.size):
                 for b in range(rs.size):
                     v = values[a, b]
                     dark = np.isfinite(v) and (v - lo) / (hi - lo) < 0.6
-                    ax.text(b, a, "–" if not np.isfinite(v) else fmt.format(v), ha="center",
-                            va="center", fontsize=7, color="white" if dark else "black")
+                    ax.text(
+                        b,
+                        a,
+                        "–" if not np.isfinite(v) else fmt.format(v),
+                        ha="center",
+                        va="center",
+                        fontsize=7,
+                        color="white" if dark else "black",
+                    )
             if 1.0 in qs and 1.0 in rs:
-                ax.add_patch(Rectangle((np.searchsorted(rs, 1.0) - 0.5,
-                                        np.searchsorted(qs, 1.0) - 0.5), 1, 1, fill=False,
-                                       edgecolor="red", linewidth=2.2))
+                ax.add_patch(
+                    Rectangle(
+                        (np.searchsorted(rs, 1.0) - 0.5, np.searchsorted(qs, 1.0) - 0.5),
+                        1,
+                        1,
+                        fill=False,
+                        edgecolor="red",
+                        linewidth=2.2,
+                    )
+                )
             ax.set_xticks(range(rs.size), [f"{v:g}" for v in rs], fontsize=7, rotation=45)
             ax.set_yticks(range(qs.size), [f"{v:g}" for v in qs], fontsize=7)
             ax.set_xlabel("R scale")
@@ -436,36 +566,46 @@ def reading(frame: pd.DataFrame) -> str:
         if len(base):
             b = base.iloc[0]
             rank = int((rows["area"] > b["area"]).sum()) + 1
-            text.append(f"the base weights recover {b['area']:.4g} N s (rank {rank} of "
-                        f"{len(rows)} by area), hold {b['sustained_push_limit']:g} N and "
-                        f"spend {b['mean_recovery_energy']:.3g} J per recovery.")
+            text.append(
+                f"the base weights recover {b['area']:.4g} N s (rank {rank} of "
+                f"{len(rows)} by area), hold {b['sustained_push_limit']:g} N and "
+                f"spend {b['mean_recovery_energy']:.3g} J per recovery."
+            )
         if not best > 0:
             text.append("no setting recovers any push.")
             lines.append(" ".join(text))
             continue
         top = rows[rows["area"] == best]
         plateau = rows[rows["area"] >= 0.9 * best]
-        text.append(f"Largest area {best:.4g} N s at " + ", ".join(_setting(r) for _, r in
-                                                                   top.iterrows())
-                    + f"; {len(plateau)} settings within 10 % of it, "
-                    + f"{int((rows['area'] == 0).sum())} recover nothing.")
+        text.append(
+            f"Largest area {best:.4g} N s at "
+            + ", ".join(_setting(r) for _, r in top.iterrows())
+            + f"; {len(plateau)} settings within 10 % of it, "
+            + f"{int((rows['area'] == 0).sum())} recover nothing."
+        )
         limits = rows["sustained_push_limit"]
         if limits.notna().any():
-            text.append(f"Sustained-push limit from {limits.min():g} to {limits.max():g} N "
-                        f"(largest at {_setting(rows.loc[limits.idxmax()])}).")
+            text.append(
+                f"Sustained-push limit from {limits.min():g} to {limits.max():g} N "
+                f"(largest at {_setting(rows.loc[limits.idxmax()])})."
+            )
         if len(base):
             robust = rows[(rows["area"] >= base.iloc[0]["area"]) & rows["energy_vs_study"].notna()]
             if len(robust):
                 f = robust.loc[robust["energy_vs_study"].idxmin()]
-                text.append(f"Most frugal of the {len(robust)} settings recovering at least the "
-                            f"base's area: {_setting(f)}, {f['energy_vs_study']:.2f} x the base "
-                            f"weights' energy on the {int(f['paired_cells'])} pushes both "
-                            "recover.")
+                text.append(
+                    f"Most frugal of the {len(robust)} settings recovering at least the "
+                    f"base's area: {_setting(f)}, {f['energy_vs_study']:.2f} x the base "
+                    f"weights' energy on the {int(f['paired_cells'])} pushes both "
+                    "recover."
+                )
         ratio = np.round(np.log10(rows["q_scale"] / rows["r_scale"]), 6)
         spread = rows.groupby(ratio)["area"].agg(lambda a: a.max() - a.min())
         multi = rows.groupby(ratio)["area"].size() > 1
         if multi.any():
-            text.append(f"Settings with the same Q/R ratio differ in area by at most "
-                        f"{spread[multi].max():.3g} N s.")
+            text.append(
+                f"Settings with the same Q/R ratio differ in area by at most "
+                f"{spread[multi].max():.3g} N s."
+            )
         lines.append(" ".join(text))
     return "\n".join(lines)

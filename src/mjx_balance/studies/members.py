@@ -51,8 +51,9 @@ def id_problem(ident: Any) -> str | None:
     """Why ``ident`` cannot be a subject's id (None if it can): ids are folder names, of
     letters, digits, '.', '_', '-', starting with a letter or digit, at most ID_LENGTH long."""
     if not isinstance(ident, str) or not ID_PATTERN.fullmatch(ident):
-        return ("is not a folder name (letters, digits, '.', '_', '-', starting with a letter "
-                "or digit)")
+        return (
+            "is not a folder name (letters, digits, '.', '_', '-', starting with a letter or digit)"
+        )
     if len(ident) > ID_LENGTH:
         return f"is {len(ident)} characters long; an id has at most {ID_LENGTH}"
     return None
@@ -79,27 +80,36 @@ def _shown(ident: Any) -> str:
     return text if len(text) <= 40 else f"{text[:20]}...{text[-12:]}"
 
 
-def subject_grid(heights: Sequence[float] | np.ndarray, masses: Sequence[float] | np.ndarray,
-                 sexes: Sequence[str] = ("male",),
-                 ankle_strengths: Sequence[float] | np.ndarray = (1.0,),
-                 hip_strengths: Sequence[float] | np.ndarray = (1.0,)) -> list[Member]:
+def subject_grid(
+    heights: Sequence[float] | np.ndarray,
+    masses: Sequence[float] | np.ndarray,
+    sexes: Sequence[str] = ("male",),
+    ankle_strengths: Sequence[float] | np.ndarray = (1.0,),
+    hip_strengths: Sequence[float] | np.ndarray = (1.0,),
+) -> list[Member]:
     """Every combination of the lists (heights vary slowest), numbered s01, s02, ...; a value
     a Subject refuses raises ParameterError naming it."""
-    subjects = [Subject(float(h), float(m), str(s), float(a), float(p))
-                for h, m, s, a, p in itertools.product(heights, masses, sexes, ankle_strengths,
-                                                       hip_strengths)]
+    subjects = [
+        Subject(float(h), float(m), str(s), float(a), float(p))
+        for h, m, s, a, p in itertools.product(
+            heights, masses, sexes, ankle_strengths, hip_strengths
+        )
+    ]
     return numbered(subjects)
 
 
-def _truncated(rng: np.random.Generator, mean: float, sd: float, low: float, high: float,
-               name: str) -> float:
+def _truncated(
+    rng: np.random.Generator, mean: float, sd: float, low: float, high: float, name: str
+) -> float:
     """One draw of Normal(mean, sd) redrawn until it lies in [low, high]."""
     for _ in range(10_000):
         value = float(rng.normal(mean, sd))
         if low <= value <= high:
             return value
-    raise ParameterError(f"{name}: Normal({mean:g}, {sd:g}) almost never falls in the range "
-                         f"a subject accepts, [{low:g}, {high:g}]; check the mean and SD")
+    raise ParameterError(
+        f"{name}: Normal({mean:g}, {sd:g}) almost never falls in the range "
+        f"a subject accepts, [{low:g}, {high:g}]; check the mean and SD"
+    )
 
 
 def _rounded_within(mass: float, low: float, high: float) -> float:
@@ -108,27 +118,38 @@ def _rounded_within(mass: float, low: float, high: float) -> float:
     return rounded if low <= rounded <= high else mass
 
 
-def population(n: int, seed: int, *, height_mean: float = 1.70, height_sd: float = 0.09,
-               mass_mean: float = 70.0, mass_sd: float = 12.0,
-               female_fraction: float = 0.5) -> list[Member]:
+def population(
+    n: int,
+    seed: int,
+    *,
+    height_mean: float = 1.70,
+    height_sd: float = 0.09,
+    mass_mean: float = 70.0,
+    mass_sd: float = 12.0,
+    female_fraction: float = 0.5,
+) -> list[Member]:
     """``n`` subjects drawn with ``np.random.default_rng(seed)`` (module docstring: sex, then
     truncated-normal height and mass, independent), numbered s01, s02, ..."""
-    checks = {"n": (n, n >= 1 and float(n).is_integer()),
-              "seed": (seed, seed >= 0 and float(seed).is_integer()),
-              "height_sd": (height_sd, height_sd >= 0),
-              "mass_sd": (mass_sd, mass_sd >= 0),
-              "female_fraction": (female_fraction, 0 <= female_fraction <= 1)}
+    checks = {
+        "n": (n, n >= 1 and float(n).is_integer()),
+        "seed": (seed, seed >= 0 and float(seed).is_integer()),
+        "height_sd": (height_sd, height_sd >= 0),
+        "mass_sd": (mass_sd, mass_sd >= 0),
+        "female_fraction": (female_fraction, 0 <= female_fraction <= 1),
+    }
     for name, (value, ok) in checks.items():
         if not (math.isfinite(float(value)) and ok):
-            raise ParameterError(f"population {name} = {value!r}: out of range (n >= 1 and "
-                                 "seed >= 0 whole, SDs >= 0, female_fraction in [0, 1])")
+            raise ParameterError(
+                f"population {name} = {value!r}: out of range (n >= 1 and "
+                "seed >= 0 whole, SDs >= 0, female_fraction in [0, 1])"
+            )
     rng = np.random.default_rng(int(seed))
     subjects = []
     for _ in range(int(n)):
         sex = "female" if rng.random() < female_fraction else "male"
         height = round(_truncated(rng, height_mean, height_sd, *HEIGHT_RANGE, "height"), 4)
-        low = max(SUBJECT_MASS_RANGE[0], BMI_RANGE[0] * height ** 2)  # a body that can be
-        high = min(SUBJECT_MASS_RANGE[1], BMI_RANGE[1] * height ** 2)  # (subject.BMI_RANGE)
+        low = max(SUBJECT_MASS_RANGE[0], BMI_RANGE[0] * height**2)  # a body that can be
+        high = min(SUBJECT_MASS_RANGE[1], BMI_RANGE[1] * height**2)  # (subject.BMI_RANGE)
         mass = _truncated(rng, mass_mean, mass_sd, low, high, "mass")
         subjects.append(Subject(height, _rounded_within(mass, low, high), sex))
     return numbered(subjects)
@@ -166,8 +187,9 @@ def as_members(subjects: Any) -> list[Member]:
     if isinstance(subjects, dict):
         for key, value in subjects.items():
             if not isinstance(value, Subject):
-                raise ParameterError(f"subjects[{_shown(key)}] = {value!r}: expected a Subject "
-                                     "(mb.Subject)")
+                raise ParameterError(
+                    f"subjects[{_shown(key)}] = {value!r}: expected a Subject (mb.Subject)"
+                )
         members = [Member(str(k), v) for k, v in subjects.items()]
     else:
         try:
@@ -176,18 +198,31 @@ def as_members(subjects: Any) -> list[Member]:
             raise ParameterError(
                 f"subjects: expected a Subject (mb.Subject), a sequence of them, a dict id -> "
                 f"Subject or a CSV file's path; got {type(subjects).__name__} "
-                f"({subjects!r})") from None
+                f"({subjects!r})"
+            ) from None
         kinds = {type(s) for s in items}
         if kinds <= {Subject}:
             members = numbered(items)
         elif kinds <= {Member} and all(isinstance(m.subject, Subject) for m in items):
             members = items
         else:
-            bad = next((s for s in items if not (isinstance(s, Subject) or isinstance(
-                s, Member) and isinstance(s.subject, Subject))), None)
+            bad = next(
+                (
+                    s
+                    for s in items
+                    if not (
+                        isinstance(s, Subject)
+                        or isinstance(s, Member)
+                        and isinstance(s.subject, Subject)
+                    )
+                ),
+                None,
+            )
             raise ParameterError(
                 f"subjects: expected Subjects (mb.Subject), got {bad!r} ({type(bad).__name__})"
-                if bad is not None else "subjects: give Subjects (numbered s01, s02, ...) or "
-                "Members (each with its id), not both")
+                if bad is not None
+                else "subjects: give Subjects (numbered s01, s02, ...) or "
+                "Members (each with its id), not both"
+            )
     check_ids(members)
     return members

@@ -44,21 +44,31 @@ CONFIDENCE = 0.95
 Z = NormalDist().inv_cdf(0.5 + CONFIDENCE / 2)  # 1.959964
 LEVELS = (95, 50, 5)  # percent: the boundaries' levels, innermost first
 WIDTHS = (0.10, 0.05)  # the half-widths whose subject counts the planned-work line names
-CELL_COLUMNS = ["force", "duration", "subjects", "recovered_subjects", "p_recover", "p_low",
-                "p_high"]
+CELL_COLUMNS = [
+    "force",
+    "duration",
+    "subjects",
+    "recovered_subjects",
+    "p_recover",
+    "p_low",
+    "p_high",
+]
 RECOVERED_TEXT = OUTCOMES[RECOVERED]
 BELOW = "below"  # a thresholded map's outcome where P < q
 
 
-def wilson(recovered: np.ndarray | int, n: np.ndarray | int,
-           z: float = Z) -> tuple[np.ndarray, np.ndarray]:
+def wilson(
+    recovered: np.ndarray | int, n: np.ndarray | int, z: float = Z
+) -> tuple[np.ndarray, np.ndarray]:
     """Wilson's score interval (module docstring) of ``recovered`` successes out of ``n`` > 0:
     (low, high), elementwise. ValueError for n < 1 or a count outside [0, n]."""
     k = np.asarray(recovered, dtype=float)
     n = np.asarray(n, dtype=float)
     if np.any(n < 1) or np.any(k < 0) or np.any(k > n):
-        raise ValueError(f"wilson: needs 0 <= recovered <= n and n >= 1; got recovered = "
-                         f"{recovered!r}, n = {n!r}")
+        raise ValueError(
+            f"wilson: needs 0 <= recovered <= n and n >= 1; got recovered = "
+            f"{recovered!r}, n = {n!r}"
+        )
     p = k / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z / (1 + z * z / n) * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
@@ -91,8 +101,10 @@ def interval_text(n: int) -> str:
     """One line on what n subjects give: P(recover) per cell, its worst-case half-width, and the
     subjects ±10 % and ±5 % need."""
     needs = ", ".join(f"±{100 * w:g} % needs {subjects_for(w)}" for w in WIDTHS)
-    return (f"P(recover) per cell over {n} subject{'' if n == 1 else 's'}: 95 % Wilson "
-            f"interval within ±{100 * half_width(n):.1f} % at worst ({needs})")
+    return (
+        f"P(recover) per cell over {n} subject{'' if n == 1 else 's'}: 95 % Wilson "
+        f"interval within ±{100 * half_width(n):.1f} % at worst ({needs})"
+    )
 
 
 def cells(regions: dict[str, pd.DataFrame]) -> pd.DataFrame:
@@ -101,8 +113,9 @@ def cells(regions: dict[str, pd.DataFrame]) -> pd.DataFrame:
     ascending. ``regions``: each subject's region map (force, duration, outcome)."""
     if not regions:
         raise ParameterError("a probability map needs at least one subject's region map")
-    every = pd.concat([r[["force", "duration", "outcome"]] for r in regions.values()],
-                      ignore_index=True)
+    every = pd.concat(
+        [r[["force", "duration", "outcome"]] for r in regions.values()], ignore_index=True
+    )
     every["recovered"] = every["outcome"] == RECOVERED_TEXT
     grouped = every.groupby(["force", "duration"], sort=True)["recovered"]
     frame = grouped.agg(subjects="size", recovered_subjects="sum").reset_index()
@@ -118,8 +131,13 @@ def thresholded(frame: pd.DataFrame, percent: int) -> pd.DataFrame:
     """The probability map read as one outcome map: "recovered" where P >= percent / 100, else
     "below" (compared in whole counts, 100 k >= percent n: 19 of 20 is at 95 %, exactly)."""
     ok = 100 * frame["recovered_subjects"].to_numpy() >= percent * frame["subjects"].to_numpy()
-    return pd.DataFrame({"force": frame["force"].to_numpy(), "duration": frame["duration"],
-                         "outcome": np.where(ok, RECOVERED_TEXT, BELOW)})
+    return pd.DataFrame(
+        {
+            "force": frame["force"].to_numpy(),
+            "duration": frame["duration"],
+            "outcome": np.where(ok, RECOVERED_TEXT, BELOW),
+        }
+    )
 
 
 def boundaries(frame: pd.DataFrame, base: pd.DataFrame | None = None) -> pd.DataFrame:

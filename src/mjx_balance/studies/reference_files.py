@@ -83,9 +83,11 @@ def read_reference(path: str | os.PathLike[str]) -> Reference:
     for a file separated by ``;`` or tabs, that the separator must be a comma), more than
     :data:`MAX_ROWS` rows. An identical repeated row is scored once."""
     if not isinstance(path, (str, os.PathLike)):
-        raise TypeError(f"reference: expected a CSV path or the name of a shipped reference "
-                        f"({', '.join(references.SHIPPED)}); got {type(path).__name__} "
-                        f"{path!r}")
+        raise TypeError(
+            f"reference: expected a CSV path or the name of a shipped reference "
+            f"({', '.join(references.SHIPPED)}); got {type(path).__name__} "
+            f"{path!r}"
+        )
     path = references.resolve(path)
     if path.is_dir():
         raise ParameterError(f"{path}: is a folder, not a reference file (a CSV)")
@@ -100,32 +102,40 @@ def read_reference(path: str | os.PathLike[str]) -> Reference:
     lines = _Lines(path)
     header, text = _checked_header(path, header, text, lines)
     if "force" not in text.columns or len(text) == 0:
-        raise ParameterError(f"{path}: a reference file needs a column force and at least one "
-                             f"row{_found(header)} (docs/outputs.md, 'Reference files')")
+        raise ParameterError(
+            f"{path}: a reference file needs a column force and at least one "
+            f"row{_found(header)} (docs/outputs.md, 'Reference files')"
+        )
     if len(text) > MAX_ROWS:
-        raise ParameterError(f"{path}: {len(text)} rows; a reference file holds at most "
-                             f"{MAX_ROWS:,} (a published table has tens, a lab's trials "
-                             "thousands): split it, or give the pushes as a region map")
+        raise ParameterError(
+            f"{path}: {len(text)} rows; a reference file holds at most "
+            f"{MAX_ROWS:,} (a published table has tens, a lab's trials "
+            "thousands): split it, or give the pushes as a region map"
+        )
     unknown = [c for c in text.columns if c not in {"force", "recovered", *MEASURES, *OPTIONAL}]
     if unknown:
-        raise ParameterError(f"{path}: unknown column(s) {', '.join(unknown)}; known: force, "
-                             f"duration, recovered, {', '.join(MEASURES)}, "
-                             f"{', '.join(OPTIONAL[1:])}")
+        raise ParameterError(
+            f"{path}: unknown column(s) {', '.join(unknown)}; known: force, "
+            f"duration, recovered, {', '.join(MEASURES)}, "
+            f"{', '.join(OPTIONAL[1:])}"
+        )
     frame = text.copy()
-    numeric = [c for c in ("force", "duration", "resolution", "tolerance", *MEASURES)
-               if c in text]
+    numeric = [c for c in ("force", "duration", "resolution", "tolerance", *MEASURES) if c in text]
     for column in numeric:
         frame[column] = _numbers(path, text, column, lines)
     if "recovered" in text:
         _read_recovered(path, text, frame, lines)
     kind = "table" if ("recovered" in frame or any(m in frame for m in MEASURES)) else "points"
     if kind == "points" and "duration" not in frame:
-        raise ParameterError(f"{path}: needs either duration (points to draw) or a measure "
-                             f"column ({', '.join(MEASURES[:3])}, ...) or recovered")
+        raise ParameterError(
+            f"{path}: needs either duration (points to draw) or a measure "
+            f"column ({', '.join(MEASURES[:3])}, ...) or recovered"
+        )
     if kind == "table":
         _one_value_each(path, frame, lines)
-    label = (str(frame["label"].iloc[0]) if "label" in frame and frame["label"].iloc[0]
-             else path.stem)
+    label = (
+        str(frame["label"].iloc[0]) if "label" in frame and frame["label"].iloc[0] else path.stem
+    )
     return Reference(path, label, kind, frame, text)
 
 
@@ -140,9 +150,13 @@ class _Lines:
     def __call__(self, row: int) -> str:
         if self._lines is None:
             text = self.path.read_text(encoding="utf-8-sig", errors="replace")
-            self._lines = [i + 1 for i, line in enumerate(text.splitlines())
-                           if line.strip() and not line.lstrip().startswith("#")
-                           and line.replace(",", "").strip()][1:]
+            self._lines = [
+                i + 1
+                for i, line in enumerate(text.splitlines())
+                if line.strip()
+                and not line.lstrip().startswith("#")
+                and line.replace(",", "").strip()
+            ][1:]
         if row < len(self._lines):
             return f"line {self._lines[row]}"
         return f"data row {row + 1}"  # a quoted text over several lines: count rows instead
@@ -158,27 +172,33 @@ def _read_fields(path: Path) -> pd.DataFrame:
     """Every field as text, the header as the first row; ParameterError for a row with more
     fields than the header, an empty file or one that is no CSV."""
     try:
-        return pd.read_csv(path, header=None, dtype=str, keep_default_na=False, comment="#",
-                           encoding="utf-8-sig")
+        return pd.read_csv(
+            path, header=None, dtype=str, keep_default_na=False, comment="#", encoding="utf-8-sig"
+        )
     except FileNotFoundError:
-        raise ParameterError(f"reference file not found: {path} (the shipped references: "
-                             f"{', '.join(references.SHIPPED)})") from None
+        raise ParameterError(
+            f"reference file not found: {path} (the shipped references: "
+            f"{', '.join(references.SHIPPED)})"
+        ) from None
     except pd.errors.EmptyDataError:
-        raise ParameterError(f"{path}: empty; a reference file needs a header line (force, "
-                             "...) and at least one row (docs/outputs.md, 'Reference files')"
-                             ) from None
+        raise ParameterError(
+            f"{path}: empty; a reference file needs a header line (force, "
+            "...) and at least one row (docs/outputs.md, 'Reference files')"
+        ) from None
     except UnicodeDecodeError:
         raise ParameterError(f"{path}: not UTF-8 text") from None
     except pd.errors.ParserError as exc:
         extra = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", str(exc))
         first = _first_line(path)
         if extra and _separated_otherwise(first):
-            raise ParameterError(f"{path}: the header {first!r} is one column: the separator "
-                                 "must be a comma") from None
+            raise ParameterError(
+                f"{path}: the header {first!r} is one column: the separator must be a comma"
+            ) from None
         if extra:
             raise ParameterError(
                 f"{path}, line {extra[2]}: {extra[3]} fields where the header has {extra[1]} "
-                "(a trailing comma, or a comma in an unquoted text: quote it)") from None
+                "(a trailing comma, or a comma in an unquoted text: quote it)"
+            ) from None
         raise ParameterError(f"{path}: not a readable CSV ({exc})") from None
     except Exception as exc:
         raise ParameterError(f"{path}: not a readable CSV ({exc})") from None
@@ -207,8 +227,9 @@ def _found(header: list[str]) -> str:
     return found
 
 
-def _checked_header(path: Path, header: list[str], text: pd.DataFrame,
-                    lines: _Lines) -> tuple[list[str], pd.DataFrame]:
+def _checked_header(
+    path: Path, header: list[str], text: pd.DataFrame, lines: _Lines
+) -> tuple[list[str], pd.DataFrame]:
     """The data under their column names; a column without a name is dropped when it is
     empty (a trailing comma on every line), refused when it holds values; a name given twice
     is refused."""
@@ -220,14 +241,17 @@ def _checked_header(path: Path, header: list[str], text: pd.DataFrame,
         values = text.iloc[:, i]
         if (values != "").any():
             row = int(np.flatnonzero((values != "").to_numpy())[0])
-            raise ParameterError(f"{path}: column {i + 1} has no name in the header but "
-                                 f"holds {values.iloc[row]!r} ({lines(row)})")
+            raise ParameterError(
+                f"{path}: column {i + 1} has no name in the header but "
+                f"holds {values.iloc[row]!r} ({lines(row)})"
+            )
     text = text.iloc[:, keep]
     names = [header[i] for i in keep]
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
-        raise ParameterError(f"{path}: column(s) {', '.join(twice)} given more than once in "
-                             "the header")
+        raise ParameterError(
+            f"{path}: column(s) {', '.join(twice)} given more than once in the header"
+        )
     text.columns = names
     return names, text
 
@@ -243,34 +267,37 @@ def _numbers(path: Path, text: pd.DataFrame, column: str, lines: _Lines) -> pd.S
         bad |= ~given.to_numpy()
     if bad.any():
         row = int(np.flatnonzero(bad)[0])
-        raise ParameterError(f"{path}, {lines(row)}: {column} must be a finite number, got "
-                             f"{text[column].iloc[row]!r}")
+        raise ParameterError(
+            f"{path}, {lines(row)}: {column} must be a finite number, got "
+            f"{text[column].iloc[row]!r}"
+        )
     if column != "force" and (number < 0).any():
         row = int(np.flatnonzero(number < 0)[0])
-        raise ParameterError(f"{path}, {lines(row)}: {column} must not be negative, got "
-                             f"{text[column].iloc[row]!r}")
+        raise ParameterError(
+            f"{path}, {lines(row)}: {column} must not be negative, got {text[column].iloc[row]!r}"
+        )
     return pd.Series(number, index=text.index)
 
 
-def _read_recovered(path: Path, text: pd.DataFrame, frame: pd.DataFrame,
-                    lines: _Lines) -> None:
+def _read_recovered(path: Path, text: pd.DataFrame, frame: pd.DataFrame, lines: _Lines) -> None:
     """The ``recovered`` column as 1.0 / 0.0 / NaN (empty), checked; it needs durations."""
     words = text["recovered"].str.lower()
     bad = ~words.isin(TRUE | FALSE | {""})
     if bad.any():
         row = int(np.flatnonzero(bad)[0])
-        raise ParameterError(f"{path}, {lines(row)}: recovered must be 1/0, true/false or "
-                             f"yes/no, got {text['recovered'].iloc[row]!r}")
-    frame["recovered"] = np.where(words.isin(TRUE), 1.0, np.where(words.isin(FALSE), 0.0,
-                                                                  np.nan))
+        raise ParameterError(
+            f"{path}, {lines(row)}: recovered must be 1/0, true/false or "
+            f"yes/no, got {text['recovered'].iloc[row]!r}"
+        )
+    frame["recovered"] = np.where(words.isin(TRUE), 1.0, np.where(words.isin(FALSE), 0.0, np.nan))
     if "duration" not in frame:
-        raise ParameterError(f"{path}: a recovered value needs the push's duration (a column "
-                             "duration)")
+        raise ParameterError(
+            f"{path}: a recovered value needs the push's duration (a column duration)"
+        )
     missing = frame["recovered"].notna() & frame["duration"].isna()
     if missing.any():
         row = int(np.flatnonzero(missing)[0])
-        raise ParameterError(f"{path}, {lines(row)}: a recovered value needs the push's "
-                             "duration")
+        raise ParameterError(f"{path}, {lines(row)}: a recovered value needs the push's duration")
 
 
 def _one_value_each(path: Path, frame: pd.DataFrame, lines: _Lines) -> None:
@@ -281,8 +308,14 @@ def _one_value_each(path: Path, frame: pd.DataFrame, lines: _Lines) -> None:
     force = pd.factorize(frame["force"])[0]
     keys: list[tuple[str, np.ndarray]] = [(m, force) for m in MEASURES if m in frame]
     if "recovered" in frame:
-        keys.append(("recovered", pd.MultiIndex.from_arrays(
-            [frame["force"], frame["duration"].fillna(-1.0)]).factorize()[0]))
+        keys.append(
+            (
+                "recovered",
+                pd.MultiIndex.from_arrays(
+                    [frame["force"], frame["duration"].fillna(-1.0)]
+                ).factorize()[0],
+            )
+        )
     for column, key in keys:
         values = frame[column].to_numpy(float)
         given = np.flatnonzero(np.isfinite(values))
@@ -295,18 +328,23 @@ def _one_value_each(path: Path, frame: pd.DataFrame, lines: _Lines) -> None:
         if differs.any():
             i = int(np.flatnonzero(differs)[0])
             a, b = int(first["row"].iloc[i]), int(groups["row"].iloc[i])
-            what = (f"push {frame['force'].iloc[a]:g} N x {frame['duration'].iloc[a]:g} s"
-                    if column == "recovered" else f"force {frame['force'].iloc[a]:g} N")
+            what = (
+                f"push {frame['force'].iloc[a]:g} N x {frame['duration'].iloc[a]:g} s"
+                if column == "recovered"
+                else f"force {frame['force'].iloc[a]:g} N"
+            )
             raise ParameterError(
                 f"{path}, {lines.both(a, b)}: two different {column} for the {what} "
                 f"({frame[column].iloc[a]:.12g} and {frame[column].iloc[b]:.12g}); keep the one "
-                "you mean")
+                "you mean"
+            )
         if repeated.any():  # the same value again: scored once
             frame.loc[groups["row"].to_numpy()[repeated], column] = np.nan
 
 
-def read_references(paths: Sequence[str | os.PathLike[str]] | str | os.PathLike[str] | None
-                    ) -> list[Reference]:
+def read_references(
+    paths: Sequence[str | os.PathLike[str]] | str | os.PathLike[str] | None,
+) -> list[Reference]:
     """Every reference file (labels made unique by a suffix: ``study``, ``study_2``).
     ``paths``: a path, a shipped reference's name or a sequence of them (TypeError for
     anything else, naming what is accepted)."""
@@ -314,13 +352,21 @@ def read_references(paths: Sequence[str | os.PathLike[str]] | str | os.PathLike[
         return []
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
-    elif (not isinstance(paths, Sequence) or isinstance(paths, bytes)
-          or not all(isinstance(p, (str, os.PathLike)) for p in paths)):
-        bad = paths if not isinstance(paths, Sequence) or isinstance(paths, bytes) else next(
-            p for p in paths if not isinstance(p, (str, os.PathLike)))
-        raise TypeError(f"reference: expected a CSV path, the name of a shipped reference "
-                        f"({', '.join(references.SHIPPED)}) or a list of them; got "
-                        f"{type(bad).__name__} {bad!r}")
+    elif (
+        not isinstance(paths, Sequence)
+        or isinstance(paths, bytes)
+        or not all(isinstance(p, (str, os.PathLike)) for p in paths)
+    ):
+        bad = (
+            paths
+            if not isinstance(paths, Sequence) or isinstance(paths, bytes)
+            else next(p for p in paths if not isinstance(p, (str, os.PathLike)))
+        )
+        raise TypeError(
+            f"reference: expected a CSV path, the name of a shipped reference "
+            f"({', '.join(references.SHIPPED)}) or a list of them; got "
+            f"{type(bad).__name__} {bad!r}"
+        )
     refs = [read_reference(p) for p in paths]
     seen: set[str] = set()
     for ref in refs:
@@ -333,8 +379,9 @@ def read_references(paths: Sequence[str | os.PathLike[str]] | str | os.PathLike[
     return refs
 
 
-def reference_forces(refs: Sequence[Reference],
-                     forces: Sequence[float] | np.ndarray | None = None) -> list[float]:
+def reference_forces(
+    refs: Sequence[Reference], forces: Sequence[float] | np.ndarray | None = None
+) -> list[float]:
     """The forces the references' tables score (for a table run that covers them), each once
     (forces within :data:`FORCE_RTOL` of each other are one force); with ``forces`` (our
     table's), only those it does not already hold within that tolerance: the same rule
@@ -369,8 +416,9 @@ def nearest_force(known: np.ndarray, wanted: np.ndarray) -> np.ndarray:
     right = np.clip(np.searchsorted(ordered, wanted), 0, len(ordered) - 1)
     left = np.clip(right - 1, 0, len(ordered) - 1)
     with np.errstate(invalid="ignore"):
-        pick = np.where(np.abs(ordered[left] - wanted) <= np.abs(ordered[right] - wanted),
-                        left, right)
+        pick = np.where(
+            np.abs(ordered[left] - wanted) <= np.abs(ordered[right] - wanted), left, right
+        )
     near = ordered[pick]
     return np.where(same_force(wanted, near) & np.isfinite(near), order[pick], -1)
 

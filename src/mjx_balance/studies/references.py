@@ -22,8 +22,11 @@ MAX_BYTES = 256 * 2**20
 
 # name -> (file in data/references/, what it holds)
 SHIPPED: dict[str, tuple[str, str]] = {
-    "study": ("study.csv", "K. Shen, A. Chemori, M. Hayashibe, IEEE Access 2020, Table 2: "
-                           "max acting time and eq. 20 energies of 11 forces, as printed"),
+    "study": (
+        "study.csv",
+        "K. Shen, A. Chemori, M. Hayashibe, IEEE Access 2020, Table 2: "
+        "max acting time and eq. 20 energies of 11 forces, as printed",
+    ),
 }
 
 
@@ -47,8 +50,10 @@ def check_size(path: Path) -> None:
     except OSError:
         return  # not there: the reader says so
     if size > MAX_BYTES:
-        raise ValueError(f"{path}: {size / 2**20:.0f} MiB; a reference file holds at most "
-                         f"{MAX_BYTES // 2**20} MiB (a published table is a few kB)")
+        raise ValueError(
+            f"{path}: {size / 2**20:.0f} MiB; a reference file holds at most "
+            f"{MAX_BYTES // 2**20} MiB (a published table is a few kB)"
+        )
 
 
 def references() -> dict[str, Path]:

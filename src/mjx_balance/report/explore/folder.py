@@ -51,19 +51,42 @@ FIGURE_SUFFIXES = (".png", ".svg", ".pdf", ".gif")
 RECOVERED_TEXT = OUTCOMES[RECOVERED]
 
 # The values a cell shows on hover, in order (units and meanings from measures.units).
-HOVER = ("force", "duration", "outcome", "fall_cause", "fall_time", "settle_time",
-         "first_infeasible_time", "energy_total", "study_energy_total", "hip_share", "strategy",
-         "mos_min")
+HOVER = (
+    "force",
+    "duration",
+    "outcome",
+    "fall_cause",
+    "fall_time",
+    "settle_time",
+    "first_infeasible_time",
+    "energy_total",
+    "study_energy_total",
+    "hip_share",
+    "strategy",
+    "mos_min",
+)
 LABELS = {
-    "force": "force", "duration": "duration", "outcome": "outcome",
-    "fall_cause": "fall cause", "fall_time": "fall time", "settle_time": "settle time",
+    "force": "force",
+    "duration": "duration",
+    "outcome": "outcome",
+    "fall_cause": "fall cause",
+    "fall_time": "fall time",
+    "settle_time": "settle time",
     "first_infeasible_time": "first infeasible QP",
-    "energy_total": "energy, motors' work", "study_energy_total": "energy, the study's (eq. 20)",
-    "hip_share": "hip share", "strategy": "strategy", "mos_min": "min. margin of stability",
-    "mos_min_time": "time of the min. margin", "peak_ankle": "peak |ankle angle|",
-    "peak_hip": "peak |hip angle|", "peak_foot_pitch": "peak |foot pitch|",
-    "cop_min": "CoP, smallest", "cop_max": "CoP, largest", "com_min": "CoM, smallest",
-    "com_max": "CoM, largest", "ankle_saturation_fraction": "ankle input at its bound",
+    "energy_total": "energy, motors' work",
+    "study_energy_total": "energy, the study's (eq. 20)",
+    "hip_share": "hip share",
+    "strategy": "strategy",
+    "mos_min": "min. margin of stability",
+    "mos_min_time": "time of the min. margin",
+    "peak_ankle": "peak |ankle angle|",
+    "peak_hip": "peak |hip angle|",
+    "peak_foot_pitch": "peak |foot pitch|",
+    "cop_min": "CoP, smallest",
+    "cop_max": "CoP, largest",
+    "com_min": "CoM, smallest",
+    "com_max": "CoM, largest",
+    "ankle_saturation_fraction": "ankle input at its bound",
     "hip_saturation_fraction": "hip input at its bound",
     "nonconverged_solves": "QP solves not converged",
 }
@@ -82,8 +105,7 @@ LAYERS = (
 def column_info(column: str) -> dict[str, str]:
     """A column's label, unit and meaning (measures.units)."""
     unit, meaning = describe(column) or ("", "")
-    return {"column": column, "label": LABELS.get(column, column), "unit": unit,
-            "meaning": meaning}
+    return {"column": column, "label": LABELS.get(column, column), "unit": unit, "meaning": meaning}
 
 
 @dataclass(frozen=True)
@@ -110,8 +132,10 @@ class Folder:
         for found in self.maps:
             if found.key == key:
                 return found
-        raise ParameterError(f"map: no map {key!r} in this folder (its maps: "
-                             f"{', '.join(repr(m.key) for m in self.maps[:8]) or 'none'})")
+        raise ParameterError(
+            f"map: no map {key!r} in this folder (its maps: "
+            f"{', '.join(repr(m.key) for m in self.maps[:8]) or 'none'})"
+        )
 
     def shown_path(self, found: MapFolder, *names: str) -> str:
         """A path inside ``found`` as the commands the page prints write it."""
@@ -147,8 +171,11 @@ def _sub_maps(root: Path, parent: Path, prefix: str, order: list[str]) -> list[M
         return []
     names = sorted(p.name for p in parent.iterdir() if p.is_dir() and not p.name.startswith("."))
     names = [n for n in order if n in names] + [n for n in names if n not in order]
-    return [MapFolder(prefix + n, (parent / n).resolve(), n) for n in names
-            if inside(root, parent / n) and is_map(parent / n)]
+    return [
+        MapFolder(prefix + n, (parent / n).resolve(), n)
+        for n in names
+        if inside(root, parent / n) and is_map(parent / n)
+    ]
 
 
 def open_folder(path: str | os.PathLike[str]) -> Folder:
@@ -161,8 +188,11 @@ def open_folder(path: str | os.PathLike[str]) -> Folder:
     manifest = read_json(root / MANIFEST)
     manifest = manifest if isinstance(manifest, dict) else {}
     if manifest.get("kind") == "cohort" or (root / SUBJECTS).is_dir():
-        subjects = manifest.get("cohort", {}).get("subjects", []) if isinstance(
-            manifest.get("cohort"), dict) else []
+        subjects = (
+            manifest.get("cohort", {}).get("subjects", [])
+            if isinstance(manifest.get("cohort"), dict)
+            else []
+        )
         order = [str(s.get("id")) for s in subjects if isinstance(s, dict)]
         kind, maps = "cohort", _sub_maps(root, root / SUBJECTS, SUBJECTS + "/", order)
     elif is_map(root):
@@ -180,11 +210,13 @@ def open_folder(path: str | os.PathLike[str]) -> Folder:
         raise ParameterError(
             f"{shown!r} holds no region map: explore a folder written by `mjx-balance sweep`, "
             "`compare` or `cohort` (region.parquet, or a sweep under way: manifest.json with "
-            "its grid)")
+            "its grid)"
+        )
     return Folder(root, shown, kind, tuple(maps))
 
 
 # -- one map's files, cells and configuration ----------------------------------------------------
+
 
 def _stat(path: Path) -> tuple[int, int] | None:
     try:
@@ -237,10 +269,11 @@ def grid_of(found: MapFolder, cells: pd.DataFrame) -> tuple[np.ndarray, np.ndarr
     manifest = read_json(found.path / MANIFEST)
     region = manifest.get("region") if isinstance(manifest, dict) else None
     if isinstance(region, dict) and region.get("forces") and region.get("durations"):
-        return (np.unique(np.asarray(region["forces"], float)),
-                np.unique(np.asarray(region["durations"], float)))
-    return (np.unique(cells["force"].to_numpy(float)),
-            np.unique(cells["duration"].to_numpy(float)))
+        return (
+            np.unique(np.asarray(region["forces"], float)),
+            np.unique(np.asarray(region["durations"], float)),
+        )
+    return (np.unique(cells["force"].to_numpy(float)), np.unique(cells["duration"].to_numpy(float)))
 
 
 def index_on(values: Sequence[float] | np.ndarray, grid: np.ndarray) -> np.ndarray:
@@ -287,8 +320,9 @@ def on_grid(cells: pd.DataFrame, forces: np.ndarray, durations: np.ndarray) -> d
     return out
 
 
-def boundary_lines(outcome: list, forces: np.ndarray, durations: np.ndarray,
-                   edges: tuple[np.ndarray, np.ndarray]) -> list[list[list[float]]]:
+def boundary_lines(
+    outcome: list, forces: np.ndarray, durations: np.ndarray, edges: tuple[np.ndarray, np.ndarray]
+) -> list[list[list[float]]]:
     """The recovery boundary on the grid (figures.region.recovery_boundary: the top of each
     force's first recovered range of durations) as step polylines of (force, duration) points,
     over the forces whose every cell is computed (a gap where one is not)."""
@@ -297,9 +331,13 @@ def boundary_lines(outcome: list, forces: np.ndarray, durations: np.ndarray,
     complete = np.array([all(v is not None for v in row) for row in grid])
     if not complete.any():
         return []
-    frame = pd.DataFrame({"force": np.repeat(forces[complete], durations.size),
-                          "duration": np.tile(durations, int(complete.sum())),
-                          "outcome": grid[complete].ravel()})
+    frame = pd.DataFrame(
+        {
+            "force": np.repeat(forces[complete], durations.size),
+            "duration": np.tile(durations, int(complete.sum())),
+            "outcome": grid[complete].ravel(),
+        }
+    )
     tops = dict(zip(*recovery_boundary(frame)[["force", "boundary"]].to_numpy().T))
     lines: list[list[list[float]]]  # lines of [x, y] points
     line: list[list[float]]
@@ -328,8 +366,11 @@ def table_points(found: MapFolder) -> list[dict[str, float]]:
         rows = table[["force", "max_acting_time"]].dropna().sort_values("force")
     except Exception:
         return []
-    return [{"force": float(f), "max_acting_time": float(t)}
-            for f, t in rows.to_numpy(float) if math.isfinite(f) and math.isfinite(t)]
+    return [
+        {"force": float(f), "max_acting_time": float(t)}
+        for f, t in rows.to_numpy(float)
+        if math.isfinite(f) and math.isfinite(t)
+    ]
 
 
 def explored(found: MapFolder) -> list[list[float]]:
@@ -355,8 +396,11 @@ def provenance_of(found: MapFolder) -> dict[str, Any]:
 
 def figures(path: Path) -> list[str]:
     """The figure files of a folder (not hidden), by name."""
-    return sorted(p.name for p in path.iterdir()
-                  if p.suffix in FIGURE_SUFFIXES and p.is_file() and not p.name.startswith("."))
+    return sorted(
+        p.name
+        for p in path.iterdir()
+        if p.suffix in FIGURE_SUFFIXES and p.is_file() and not p.name.startswith(".")
+    )
 
 
 def map_json(folder: Folder, found: MapFolder) -> dict[str, Any]:
@@ -369,18 +413,33 @@ def map_json(folder: Folder, found: MapFolder) -> dict[str, Any]:
     outcome = values.get("outcome", [None] * (forces.size * durations.size))
     done = sum(v is not None for v in outcome)
     counts = {name: sum(v == name for v in outcome) for name in OUTCOMES}
-    out = {"key": found.key, "label": found.label, "path": folder.shown_path(found),
-           "forces": forces.tolist(), "durations": durations.tolist(),
-           "force_edges": edges[0].tolist(), "duration_edges": edges[1].tolist(),
-           "log_durations": log, "cells": values, "done": done, "total": len(outcome),
-           "complete": done == len(outcome) and done > 0, "counts": counts,
-           "boundary": boundary_lines(outcome, forces, durations, edges),
-           "table": table_points(found), "explored": explored(found),
-           **provenance_of(found), "files": figures(found.path)}
+    out = {
+        "key": found.key,
+        "label": found.label,
+        "path": folder.shown_path(found),
+        "forces": forces.tolist(),
+        "durations": durations.tolist(),
+        "force_edges": edges[0].tolist(),
+        "duration_edges": edges[1].tolist(),
+        "log_durations": log,
+        "cells": values,
+        "done": done,
+        "total": len(outcome),
+        "complete": done == len(outcome) and done > 0,
+        "counts": counts,
+        "boundary": boundary_lines(outcome, forces, durations, edges),
+        "table": table_points(found),
+        "explored": explored(found),
+        **provenance_of(found),
+        "files": figures(found.path),
+    }
     try:
         config = map_config(found)
-        out.update(convention=config.controller.convention, t_end=config.scenario.t_end,
-                   physics_dt=config.scenario.physics_dt)
+        out.update(
+            convention=config.controller.convention,
+            t_end=config.scenario.t_end,
+            physics_dt=config.scenario.physics_dt,
+        )
     except ParameterError as exc:
         out["error"] = str(exc)
     return out
@@ -394,14 +453,21 @@ def probability(maps: list[dict[str, Any]]) -> dict[str, Any] | None:
     first = maps[0]
     if any(m["forces"] != first["forces"] or m["durations"] != first["durations"] for m in maps):
         return None
-    outcomes = np.array([m["cells"].get("outcome", [None] * m["total"]) for m in maps],
-                        dtype=object)
+    outcomes = np.array(
+        [m["cells"].get("outcome", [None] * m["total"]) for m in maps], dtype=object
+    )
     counted = (outcomes != None).sum(axis=0)  # noqa: E711 - elementwise on an object array
     recovered = (outcomes == RECOVERED_TEXT).sum(axis=0)
     share = [plain(r / n) if n else None for r, n in zip(recovered, counted)]
-    return {"share": share, "counted": [int(n) for n in counted], "subjects": len(maps),
-            **{k: first[k] for k in ("forces", "durations", "force_edges", "duration_edges",
-                                     "log_durations")}}
+    return {
+        "share": share,
+        "counted": [int(n) for n in counted],
+        "subjects": len(maps),
+        **{
+            k: first[k]
+            for k in ("forces", "durations", "force_edges", "duration_edges", "log_durations")
+        },
+    }
 
 
 @dataclass
@@ -429,18 +495,36 @@ def folder_json(folder: Folder, cache: MapCache) -> dict[str, Any]:
     cells), the layers and hover values with their units, the palette, the probability map."""
     maps = [cache.get(folder, m) for m in folder.maps]
     stamp = hashlib.sha1(repr([(m["key"], m["stamp"]) for m in maps]).encode()).hexdigest()
-    brief = ("key", "label", "path", "done", "total", "complete", "boundary", "convention",
-             "t_end", "error")
+    brief = (
+        "key",
+        "label",
+        "path",
+        "done",
+        "total",
+        "complete",
+        "boundary",
+        "convention",
+        "t_end",
+        "error",
+    )
     return {
-        "kind": folder.kind, "name": folder.root.name, "path": folder.shown,
-        "stamp": stamp[:16], "version": __version__,
+        "kind": folder.kind,
+        "name": folder.root.name,
+        "path": folder.shown,
+        "stamp": stamp[:16],
+        "version": __version__,
         "maps": [{k: m.get(k) for k in brief} for m in maps],
         "files": figures(folder.root) if folder.kind != "sweep" else [],
         "probability": probability(maps) if folder.kind == "cohort" else None,
         "hover": [column_info(c) for c in HOVER],
-        "layers": [{**column_info(c), "label": label, "scale": scale, "recovered_only": only}
-                   for c, label, scale, only in LAYERS],
-        "outcomes": [{"name": n, "colour": OUTCOME_COLOURS[n], "hatch": bool(OUTCOME_HATCHES[n])}
-                     for n in OUTCOMES],
-        "series": list(SERIES), "hip_share_threshold": HIP_SHARE_THRESHOLD,
+        "layers": [
+            {**column_info(c), "label": label, "scale": scale, "recovered_only": only}
+            for c, label, scale, only in LAYERS
+        ],
+        "outcomes": [
+            {"name": n, "colour": OUTCOME_COLOURS[n], "hatch": bool(OUTCOME_HATCHES[n])}
+            for n in OUTCOMES
+        ],
+        "series": list(SERIES),
+        "hip_share_threshold": HIP_SHARE_THRESHOLD,
     }

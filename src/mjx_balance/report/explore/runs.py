@@ -60,10 +60,29 @@ PANELS = (
 
 
 # The run's summary values the page lists (units from measures.units).
-SHOWN = ("outcome", "fall_cause", "fall_time", "settle_time", "first_infeasible_time",
-         "energy_total", "study_energy_total", "hip_share", "strategy", "mos_min", "mos_min_time",
-         "peak_ankle", "peak_hip", "peak_foot_pitch", "cop_min", "cop_max", "com_min", "com_max",
-         "ankle_saturation_fraction", "hip_saturation_fraction", "nonconverged_solves")
+SHOWN = (
+    "outcome",
+    "fall_cause",
+    "fall_time",
+    "settle_time",
+    "first_infeasible_time",
+    "energy_total",
+    "study_energy_total",
+    "hip_share",
+    "strategy",
+    "mos_min",
+    "mos_min_time",
+    "peak_ankle",
+    "peak_hip",
+    "peak_foot_pitch",
+    "cop_min",
+    "cop_max",
+    "com_min",
+    "com_max",
+    "ankle_saturation_fraction",
+    "hip_saturation_fraction",
+    "nonconverged_solves",
+)
 
 
 def one_number(query: dict[str, list[str]], name: str) -> float:
@@ -74,24 +93,30 @@ def one_number(query: dict[str, list[str]], name: str) -> float:
     return finite_number(values[0], name) + 0.0  # -0.0 is 0.0
 
 
-def check_cell(query: dict[str, list[str]], config: Config, found: MapFolder,
-               grid: tuple[np.ndarray, np.ndarray]) -> tuple[float, float]:
+def check_cell(
+    query: dict[str, list[str]],
+    config: Config,
+    found: MapFolder,
+    grid: tuple[np.ndarray, np.ndarray],
+) -> tuple[float, float]:
     """(force, duration) of a request, checked (module docstring)."""
     force = one_number(query, "force")
     duration = one_number(query, "duration")
     sc = config.scenario
-    duration = float(check_durations([duration], sc.t_end, "duration",
-                                     physics_dt=sc.physics_dt)[0])
+    duration = float(check_durations([duration], sc.t_end, "duration", physics_dt=sc.physics_dt)[0])
     forces, durations = grid
     tol = 1e-9 * max(1.0, abs(force))
-    in_grid = (np.any(np.abs(forces - force) <= tol)
-               and np.any(np.abs(durations - duration) <= 1e-9))
-    on_table = any(abs(p["force"] - force) <= tol and abs(p["max_acting_time"] - duration) <= 1e-9
-                   for p in table_points(found))
+    in_grid = np.any(np.abs(forces - force) <= tol) and np.any(np.abs(durations - duration) <= 1e-9)
+    on_table = any(
+        abs(p["force"] - force) <= tol and abs(p["max_acting_time"] - duration) <= 1e-9
+        for p in table_points(found)
+    )
     if not (in_grid or on_table):
-        raise ParameterError(f"({force:g} N, {duration:g} s) is not a cell of this map nor a "
-                             "max-acting-time point of its table: the page opens the runs it "
-                             "shows")
+        raise ParameterError(
+            f"({force:g} N, {duration:g} s) is not a cell of this map nor a "
+            "max-acting-time point of its table: the page opens the runs it "
+            "shows"
+        )
     return force, duration
 
 
@@ -107,12 +132,33 @@ def commands(folder: Folder, found: MapFolder, force: float, duration: float) ->
     base = ["--config", config] if has_file else []
     q = shlex.join
     return {
-        "simulate": q(["mjx-balance", "simulate", *base, "--pairs", f"{force!r}:{duration!r}",
-                       "--out", "explore-run"]),
-        "view": q(["mjx-balance", "view", *base, "--force", repr(force), "--duration",
-                   repr(duration)]),
-        "animate": q(["mjx-balance", "animate", *base, "--force", repr(force), "--duration",
-                      repr(duration), "--out", "push.gif"]),
+        "simulate": q(
+            [
+                "mjx-balance",
+                "simulate",
+                *base,
+                "--pairs",
+                f"{force!r}:{duration!r}",
+                "--out",
+                "explore-run",
+            ]
+        ),
+        "view": q(
+            ["mjx-balance", "view", *base, "--force", repr(force), "--duration", repr(duration)]
+        ),
+        "animate": q(
+            [
+                "mjx-balance",
+                "animate",
+                *base,
+                "--force",
+                repr(force),
+                "--duration",
+                repr(duration),
+                "--out",
+                "push.gif",
+            ]
+        ),
     }
 
 
@@ -153,8 +199,9 @@ class Runs:
         if got:
             self.write.release()
 
-    def get(self, found: MapFolder, query: dict[str, list[str]],
-            grid: tuple[np.ndarray, np.ndarray]) -> dict[str, Any]:
+    def get(
+        self, found: MapFolder, query: dict[str, list[str]], grid: tuple[np.ndarray, np.ndarray]
+    ) -> dict[str, Any]:
         """The run a request asks for, as the page's JSON (kept, or computed and kept)."""
         config = map_config(found)
         force, duration = check_cell(query, config, found, grid)
@@ -167,21 +214,27 @@ class Runs:
                 cached = frame is not None
                 if frame is None:
                     frame, note = self._compute(found, config, force, duration)
-        return run_json(frame, config, found=found, folder=self.folder, cached=cached,
-                        note=note)
+        return run_json(frame, config, found=found, folder=self.folder, cached=cached, note=note)
 
-    def _compute(self, found: MapFolder, config: Config, force: float,
-                 duration: float) -> tuple[pd.DataFrame, str | None]:
+    def _compute(
+        self, found: MapFolder, config: Config, force: float, duration: float
+    ) -> tuple[pd.DataFrame, str | None]:
         simulate = self.simulate or reference.simulate_scenario
         started = time.perf_counter()
         summary, frame = simulate(config, force, duration, record=True)
         assert frame is not None  # (record=True)
         frame = frame.reset_index(drop=True)
-        frame.attrs = {"summary": summary_row(summary), "config": config_dict(config),
-                       "computed": {"at": now(), "seconds": time.perf_counter() - started,
-                                    "by": "the scalar reference (MuJoCo C + OSQP)",
-                                    "version": __version__},
-                       "commands": commands(self.folder, found, force, duration)}
+        frame.attrs = {
+            "summary": summary_row(summary),
+            "config": config_dict(config),
+            "computed": {
+                "at": now(),
+                "seconds": time.perf_counter() - started,
+                "by": "the scalar reference (MuJoCo C + OSQP)",
+                "version": __version__,
+            },
+            "commands": commands(self.folder, found, force, duration),
+        }
         path = run_path(found, force, duration)
         try:
             with self.write:
@@ -219,8 +272,15 @@ def panels(config: Config, convention: str) -> list[dict[str, Any]]:
         if columns == ("mos",):
             limits.append({"values": (0.0,), "label": "0: XCoM at the foot's edge"})
         unit = column_info(columns[0])["unit"]
-        out.append({"title": title, "unit": unit, "columns": [column_info(c) for c in columns],
-                    "bounds": limits, "bound_colour": BOUND_COLOUR})
+        out.append(
+            {
+                "title": title,
+                "unit": unit,
+                "columns": [column_info(c) for c in columns],
+                "bounds": limits,
+                "bound_colour": BOUND_COLOUR,
+            }
+        )
     return out
 
 
@@ -231,29 +291,54 @@ def stick_frames(frame: pd.DataFrame, config: Config) -> dict[str, Any]:
     at = np.unique(np.searchsorted(t, np.arange(0.0, t[-1] + 1e-9, FRAME_DT)).clip(0, t.size - 1))
     at = np.unique(np.append(at, t.size - 1))
     rows = frame.iloc[at]
-    pts = segment_points(config.body, *(rows[c].to_numpy(float) for c in
-                                        ("foot_x", "foot_z", "foot_pitch", "q_a", "q_h")))
+    pts = segment_points(
+        config.body,
+        *(rows[c].to_numpy(float) for c in ("foot_x", "foot_z", "foot_pitch", "q_a", "q_h")),
+    )
     out = {name: [rounded(p[:, 0]), rounded(p[:, 1])] for name, p in pts.items()}
-    return {"time": rounded(t[at]), "points": out, "cop": rounded(rows["cop"].to_numpy(float)),
-            "com": rounded(rows["com"].to_numpy(float)), "arrow_m_per_n": ARROW_M_PER_N}
+    return {
+        "time": rounded(t[at]),
+        "points": out,
+        "cop": rounded(rows["cop"].to_numpy(float)),
+        "com": rounded(rows["com"].to_numpy(float)),
+        "arrow_m_per_n": ARROW_M_PER_N,
+    }
 
 
-def run_json(frame: pd.DataFrame, config: Config, *, found: MapFolder, folder: Folder,
-             cached: bool, note: str | None) -> dict[str, Any]:
+def run_json(
+    frame: pd.DataFrame,
+    config: Config,
+    *,
+    found: MapFolder,
+    folder: Folder,
+    cached: bool,
+    note: str | None,
+) -> dict[str, Any]:
     """A run as the page draws it (docs/outputs.md, "mjx-balance explore")."""
     summary = frame.attrs["summary"]
     force, duration = float(summary["force"]), float(summary["duration"])
     at = thin(len(frame))
-    series = {c: rounded(frame[c].to_numpy(float)[at])
-              for _, columns in PANELS for c in columns if c in frame}
+    series = {
+        c: rounded(frame[c].to_numpy(float)[at])
+        for _, columns in PANELS
+        for c in columns
+        if c in frame
+    }
     series["time"] = rounded(frame["time"].to_numpy(float)[at])
     return {
-        "map": found.key, "force": force, "duration": duration, "cached": cached, "note": note,
+        "map": found.key,
+        "force": force,
+        "duration": duration,
+        "cached": cached,
+        "note": note,
         "file": folder.shown_path(found, EXPLORE, run_path(found, force, duration).name),
-        "summary": summary, "computed": frame.attrs.get("computed", {}),
+        "summary": summary,
+        "computed": frame.attrs.get("computed", {}),
         "shown": [column_info(c) for c in SHOWN],
         "commands": commands(folder, found, force, duration),
-        "convention": config.controller.convention, "t_end": config.scenario.t_end,
-        "series": series, "panels": panels(config, config.controller.convention),
+        "convention": config.controller.convention,
+        "t_end": config.scenario.t_end,
+        "series": series,
+        "panels": panels(config, config.controller.convention),
         "figure": stick_frames(frame, config),
     }

@@ -48,11 +48,15 @@ from .runs import Runs
 log = logging.getLogger("mjx_balance")
 
 HOST = "127.0.0.1"
-STATIC = {"index.html": "text/html; charset=utf-8",
-          "explore.js": "text/javascript; charset=utf-8",
-          "explore.css": "text/css; charset=utf-8"}
-PAGE_POLICY = ("default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data:; "
-               "connect-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'")
+STATIC = {
+    "index.html": "text/html; charset=utf-8",
+    "explore.js": "text/javascript; charset=utf-8",
+    "explore.css": "text/css; charset=utf-8",
+}
+PAGE_POLICY = (
+    "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data:; "
+    "connect-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'"
+)
 FILE_POLICY = "sandbox; default-src 'none'; img-src 'self' data:; style-src 'unsafe-inline'"
 
 
@@ -67,8 +71,9 @@ class HttpError(Exception):
 def check_port(port: Any) -> int:
     """A TCP port: a whole number in [0, 65535] (0: a free one)."""
     if isinstance(port, bool) or not isinstance(port, (int, np.integer)) or not 0 <= port <= 65535:
-        raise ParameterError(f"port = {port!r}: must be a whole number in [0, 65535] (0: a free "
-                             "one)")
+        raise ParameterError(
+            f"port = {port!r}: must be a whole number in [0, 65535] (0: a free one)"
+        )
     return int(port)
 
 
@@ -80,10 +85,10 @@ def folder_file(root: Path, text: str) -> Path:
     except UnicodeDecodeError:
         raise HttpError(400, f"{text!r}: not a file name (its %-escapes are not UTF-8)") from None
     parts = [p for p in name.split("/") if p]
-    if ("\x00" in name or "\\" in name or not parts
-            or any(p.startswith(".") for p in parts)):
-        raise HttpError(403, f"refused: {name!r} is not a file of the folder (no '..', no "
-                             "hidden name)")
+    if "\x00" in name or "\\" in name or not parts or any(p.startswith(".") for p in parts):
+        raise HttpError(
+            403, f"refused: {name!r} is not a file of the folder (no '..', no hidden name)"
+        )
     path = root.joinpath(*parts)
     if not inside(root, path):
         raise HttpError(403, f"refused: {name!r} leads outside the folder")
@@ -111,10 +116,15 @@ class Handler(BaseHTTPRequestHandler):
 
     def send(self, status: int, body: bytes, ctype: str, policy: str = PAGE_POLICY) -> None:
         self.send_response(status)
-        for key, value in (("Content-Type", ctype), ("Content-Length", str(len(body))),
-                           ("Cache-Control", "no-store"), ("X-Content-Type-Options", "nosniff"),
-                           ("Referrer-Policy", "no-referrer"), ("Content-Security-Policy", policy),
-                           ("Cross-Origin-Resource-Policy", "same-origin")):
+        for key, value in (
+            ("Content-Type", ctype),
+            ("Content-Length", str(len(body))),
+            ("Cache-Control", "no-store"),
+            ("X-Content-Type-Options", "nosniff"),
+            ("Referrer-Policy", "no-referrer"),
+            ("Content-Security-Policy", policy),
+            ("Cross-Origin-Resource-Policy", "same-origin"),
+        ):
             self.send_header(key, value)
         if status == HTTPStatus.METHOD_NOT_ALLOWED:
             self.send_header("Allow", "GET")
@@ -131,8 +141,10 @@ class Handler(BaseHTTPRequestHandler):
         self.send(status, body, "application/json; charset=utf-8")
 
     def refuse_method(self) -> None:
-        self.send_json(HTTPStatus.METHOD_NOT_ALLOWED,
-                       {"error": f"{self.command} is refused: this server answers GET only"})
+        self.send_json(
+            HTTPStatus.METHOD_NOT_ALLOWED,
+            {"error": f"{self.command} is refused: this server answers GET only"},
+        )
 
     do_POST = do_PUT = do_DELETE = do_PATCH = do_HEAD = do_OPTIONS = refuse_method
 
@@ -149,8 +161,10 @@ class Handler(BaseHTTPRequestHandler):
         except Exception as exc:
             first = (str(exc).splitlines() or [""])[0]
             log.warning(f"explore: {self.path}: {type(exc).__name__}: {first}")
-            self.send_json(HTTPStatus.INTERNAL_SERVER_ERROR,
-                           {"error": f"internal error ({type(exc).__name__}): {first}"})
+            self.send_json(
+                HTTPStatus.INTERNAL_SERVER_ERROR,
+                {"error": f"internal error ({type(exc).__name__}): {first}"},
+            )
 
     def check_host(self) -> None:
         port = self.server.server_address[1]
@@ -163,13 +177,16 @@ class Handler(BaseHTTPRequestHandler):
         if url.path in ("/", "/index.html"):
             return self.static("index.html")
         if url.path.startswith("/static/"):
-            return self.static(url.path[len("/static/"):])
+            return self.static(url.path[len("/static/") :])
         if url.path.startswith("/files/"):
-            path = folder_file(explorer.folder.root, url.path[len("/files/"):])
+            path = folder_file(explorer.folder.root, url.path[len("/files/") :])
             ctype = mimetypes.guess_type(path.name)[0] or "application/octet-stream"
             return self.send(HTTPStatus.OK, path.read_bytes(), ctype, FILE_POLICY)
-        answer = {"/api/folder": explorer.folder_json, "/api/map": explorer.map_json,
-                  "/api/run": explorer.run_json}.get(url.path)
+        answer = {
+            "/api/folder": explorer.folder_json,
+            "/api/map": explorer.map_json,
+            "/api/run": explorer.run_json,
+        }.get(url.path)
         if answer is None:
             raise HttpError(404, f"{url.path!r}: no such page or endpoint")
         return self.send_json(HTTPStatus.OK, answer(query))
@@ -206,9 +223,10 @@ class Explorer:
         try:
             self.server = Server((HOST, port), Handler)
         except OSError as exc:
-            raise ParameterError(f"port {port}: {exc.strerror or exc}"
-                                 + ("; leave the port out for a free one" if port else "")
-                                 ) from None
+            raise ParameterError(
+                f"port {port}: {exc.strerror or exc}"
+                + ("; leave the port out for a free one" if port else "")
+            ) from None
         self.server.explorer = self
         self.cache = MapCache()
         self.runs = Runs(self.folder)
@@ -261,9 +279,12 @@ class Explorer:
     def start(self) -> "Explorer":
         """Serve in a background thread; returns self."""
         if self.thread is None:
-            self.thread = threading.Thread(target=self.server.serve_forever,
-                                           kwargs={"poll_interval": 0.2},
-                                           name="mjx-balance-explore", daemon=True)
+            self.thread = threading.Thread(
+                target=self.server.serve_forever,
+                kwargs={"poll_interval": 0.2},
+                name="mjx-balance-explore",
+                daemon=True,
+            )
             self.thread.start()
         return self
 
@@ -291,5 +312,7 @@ class Explorer:
     def _repr_html_(self) -> str:
         import html
 
-        return (f'<a href="{self.url}" target="_blank">{html.escape(self.url)}</a> explores '
-                f"{html.escape(self.folder.shown)} (<code>.stop()</code> ends it)")
+        return (
+            f'<a href="{self.url}" target="_blank">{html.escape(self.url)}</a> explores '
+            f"{html.escape(self.folder.shown)} (<code>.stop()</code> ends it)"
+        )
