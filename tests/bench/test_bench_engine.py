@@ -154,6 +154,7 @@ def test_cli_dispatch():
         build_parser().parse_args(["bench", "engine", "--physics", "gpu"])
 
 
+@pytest.mark.slow  # a whole bench run; the C path's agreement is tests/rollout/test_cpath.py's
 def test_bench_engine_c_path():
     """The command on the MuJoCo C path: a tiny grid, every call replayed (and checked)."""
     out, figures = run_command("--physics", "c", *TINY)

@@ -70,6 +70,8 @@ def test_the_delay_error_is_validated():
 CELLS = [(0.0, 0.1), (20.0, 0.1), (40.0, 0.3), (120.0, 0.1)]
 
 
+# the compensated controller's own compile; the linear-plant check stays in the default run
+@pytest.mark.slow
 def test_batched_and_reference_compensate_alike():
     """The C path (the reference's physics) and the reference with the same ADMM controller,
     both compensating a 50-ms delay: the same outcomes and fall samples, summaries as close as

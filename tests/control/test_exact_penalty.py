@@ -77,6 +77,7 @@ def test_solvable_qps_keep_their_hard_solution(case):
     assert soft["iters"][ok].mean() <= capped["iters"][ok].mean() + 1
 
 
+@pytest.mark.slow  # OSQP on every infeasible case; the solvable cases stay in the default run
 def test_infeasible_qps_converge_before_the_cap_and_match_the_reference(case):
     config, qp, trajectories, truth = case
     settings = admm.settings_from_controller(config.controller)

@@ -80,6 +80,8 @@ def test_reference_hip_held_by_the_servo_while_the_ankle_works(convention):
         assert summary["peak_hip"] < 0.1 * summary["peak_ankle"]
 
 
+# the servo body's own engine compile; the reference servo tests stay in the default run
+@pytest.mark.slow
 def test_batched_matches_reference_on_servo_body(float32):
     """MJX (float32, springs/dampers/implicit Euler damping on) + ADMM vs mj_step + OSQP.
 

@@ -214,6 +214,8 @@ def test_configuration_is_validated():
 CELLS = [(0.0, 0.1), (15.0, 2.0), (25.0, 2.0), (100.0, 0.1), (-40.0, 0.3)]
 
 
+# the offset-free controller's own compile; its linear-model tests stay in the default run
+@pytest.mark.slow
 def test_batched_and_reference_offset_free_alike():
     """The C path (the reference's physics) and the reference with the same float32 ADMM, both
     offset-free: the same outcomes and fall samples, energies as close as the plain controller's

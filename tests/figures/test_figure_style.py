@@ -267,6 +267,8 @@ def test_column_figures_fit_their_width_with_every_text_inside(tmp_path, name, s
     )
 
 
+# every time-series figure as PDF; one-column PNG and vector region maps stay in the default run
+@pytest.mark.slow
 def test_timeseries_figures_in_pdf_at_one_column(tmp_path):
     """Every time-series file (the single quantities and the panels of pairs, stacked at one
     column) in PDF, 3.5 in wide; the tolerance as in the region's test below."""

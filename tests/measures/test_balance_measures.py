@@ -179,6 +179,8 @@ def test_margin_falls_below_zero_before_a_fall(runs, force, duration, edge):
     assert (np.abs(frame["mos"] - margin) <= moved + 1e-9).all()
 
 
+# the engine at full length over every case; the by-hand measures stay in the default run
+@pytest.mark.slow
 def test_batched_lean_sampling_agrees_with_the_reference(runs):
     """The batched engine without trajectories (the sweeps' path) reads a sample's positions
     from the next step's start and its rates from the sample itself: its CoM velocity and

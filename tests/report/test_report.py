@@ -347,6 +347,7 @@ def test_report_json_records_plan_configuration_and_timings(out):
         assert variants["ankle_only"][1]["config"]["controller"]["input2_bounds"] == [0.0, 0.0]
 
 
+@pytest.mark.slow  # draws every figure of the report again
 def test_html_is_rebuilt_from_saved_tables(out, page, tmp_path, capsys):
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)

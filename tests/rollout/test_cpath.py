@@ -313,6 +313,7 @@ def test_c_path_agrees_with_the_mjx_path(batch_runner, c_frame):
         assert set(near.outcome) != {mjx_frame.outcome[b]}, (force, duration)
 
 
+@pytest.mark.slow  # a second C-path run; the C path's agreement tests stay in the default run
 def test_near_zero_pushes_are_certified_on_the_c_path(c_runner):
     """Rule 5 of certificate.py on the C path, as on the MJX path (test_engine.py): pushes of
     0 N stop at the first check whatever their duration, a 3-N push of 0.05 s before t_end, and

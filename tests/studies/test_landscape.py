@@ -241,6 +241,8 @@ def test_paired_energy_compares_the_same_pushes():
     assert n == 0 and math.isnan(value)
 
 
+# the real rollout for every setting; the stand-in landscape tests stay in the default run
+@pytest.mark.slow
 def test_landscape_numbers_equal_a_direct_compare_with_the_real_rollout(
     tmp_path, batch_runner, float32
 ):
