@@ -44,6 +44,7 @@ GROUPS = {
         [
             "test_engine.py",
             "test_basin.py",
+            "test_lean.py",
             "test_balance_measures.py",
             "test_input_faults.py",
             "test_notebook.py",

@@ -4,9 +4,9 @@ mean (and SD, where given) must also appear in the sentence quoted from the pape
 edited in the table without its source fails."""
 
 import re
-from importlib import resources
-
 import pandas as pd
+
+from mjx_balance.studies.references import people_path
 
 # measure -> (mean, sd or None, unit), as printed in the abstracts (the file's read_in column)
 PRINTED = {
@@ -27,8 +27,7 @@ PRINTED = {
 
 
 def people() -> pd.DataFrame:
-    path = resources.files("mjx_balance") / "data" / "references" / "people.csv"
-    return pd.read_csv(str(path), comment="#", dtype={"n": str})
+    return pd.read_csv(people_path(), comment="#", dtype={"n": str})
 
 
 def test_the_people_reference_holds_the_printed_values():

@@ -30,6 +30,17 @@ SHIPPED: dict[str, tuple[str, str]] = {
 }
 
 
+# Published measurements of people (data/references/people.csv): a table of its own columns
+# (measure, protocol, population, mean, sd, unit, source, doi, quote), held against the
+# protocols' predictions (studies/lean.py), not a --reference file of the push map.
+PEOPLE = "people.csv"
+
+
+def people_path() -> Path:
+    """The people reference's file (docs/studies.md, "People")."""
+    return Path(str(resources.files("mjx_balance") / "data" / "references" / PEOPLE))
+
+
 def shipped_path(name: str) -> Path:
     """The file of the shipped reference ``name`` (KeyError for another name)."""
     file, _ = SHIPPED[name]

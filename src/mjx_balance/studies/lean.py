@@ -1,0 +1,211 @@
+"""Lean and release, people's protocol (Robinovitch et al. 2002, J Neurophysiol 88:613-620): how
+far a body can lean forward and still come back to upright with the feet in place.
+
+Two limits, each as the experiment reports it:
+
+- **static** (the tethered lean): the largest lean at which the body can be *held* still, feet in
+  place, hip straight. Holding lean theta asks the motors for the gravity torques at that pose
+  (MuJoCo's ``qfrc_bias`` at the ankle and hip with zero velocity); the lean is held when those
+  torques, written in the controller's inputs (``LinearModel.torque_map``: in ``paper``
+  tau_ankle = tau1 + tau2, tau_hip = tau2; in ``joint`` u = tau; with a hip servo, the servo
+  holds the hip and the inputs give the ankle's torque alone), lie within the input bounds, and
+  when the CoM (the static centre of pressure) stays over the foot. The smaller of the two
+  angles is the limit; both are reported.
+- **dynamic** (lean and release): the largest initial lean, released from rest (the body rigid,
+  hip straight, zero velocity; the controller starts cold, after its delay), from which the
+  closed loop recovers with the feet in place (the push map's ``recovered``), every smaller lean
+  recovering too. Found on the batched engine (its per-scenario initial state, as the basin's
+  cells): a scan of ``SCAN`` leans, then rounds of ``SCAN`` leans inside the first bracket that
+  fails, until the bracket is ``resolution`` wide.
+
+The lean is the angle of the rigid body (ankle to CoM) from vertical, positive forward: the
+direction in which a positive push moves the CoM (``Plane.com_x`` grows with q_a). People's
+numbers to hold these against ship in ``data/references/people.csv`` (docs/studies.md,
+"People").
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import mujoco
+import numpy as np
+import pandas as pd
+import scipy.optimize
+
+from ..measures.outcomes import RECOVERED
+from ..model.linear import linear_model
+from ..model.params import Config, ParameterError
+from ..rollout import BatchRunner
+from .basin import Plane
+from .references import people_path
+
+SCAN = 16  # leans per batched call (one compiled shape for every round)
+MAX_LEAN_DEG = 30.0  # the scan's upper end: beyond any lean a feet-in-place body recovers
+
+
+@dataclass(frozen=True)
+class LeanLimits:
+    """The lean-and-release limits of one configuration (degrees; torques in N m)."""
+
+    static_deg: float  # held still: min(static_torque_deg, static_foot_deg)
+    static_torque_deg: float  # where the gravity torques leave the input bounds
+    static_foot_deg: float  # where the CoM leaves the foot (the toe)
+    dynamic_deg: float  # released from rest: the largest lean that recovers (every smaller too)
+    resolution_deg: float  # the dynamic limit's bracket width
+    peak_ankle_torque: float  # |tau_ankle| peak of the run at the dynamic limit
+    scenarios: int  # batched scenarios run
+
+    def row(self) -> dict[str, float]:
+        return {name: getattr(self, name) for name in self.__dataclass_fields__}
+
+
+def _bias_torques(plane: Plane, lean: float) -> np.ndarray:
+    """The joint torques [tau_ankle, tau_hip] that hold the rigid lean ``lean`` still."""
+    data, ix = plane.data, plane.ix
+    data.qpos[:] = plane.rest
+    data.qpos[[ix.ankle_qpos, ix.hip_qpos]] = (lean, 0.0)
+    data.qvel[:] = 0.0
+    mujoco.mj_forward(plane.model, data)
+    return data.qfrc_bias[[ix.ankle_dof, ix.hip_dof]].copy()
+
+
+def static_limits(config: Config, plane: Plane | None = None) -> tuple[float, float]:
+    """(torque-limited, foot-limited) static lean limits in degrees, forward."""
+    plane = plane or Plane(config)
+    lm = linear_model(config.body, config.controller.convention, config.scenario.control_dt)
+    (lo1, hi1), (lo2, hi2) = config.controller.input_bounds
+
+    servo = config.body.hip_servo_stiffness > 0
+
+    def excess(lean: float) -> float:  # > 0: the inputs that hold this lean leave the bounds
+        tau = _bias_torques(plane, lean)
+        if servo:  # the hip servo holds the hip; the motors give the ankle's torque alone
+            return max(tau[0] - hi1, lo1 - tau[0])  # tau = Sᵀ u, u2 = 0: u1 = tau_ankle
+        u = np.linalg.solve(lm.torque_map, tau)
+        return max(u[0] - hi1, lo1 - u[0], u[1] - hi2, lo2 - u[1])
+
+    top = math.radians(MAX_LEAN_DEG)
+    if excess(0.0) > 0:
+        torque = 0.0  # even upright rest is beyond the bounds
+    elif excess(top) <= 0:
+        torque = top
+    else:
+        torque = scipy.optimize.brentq(excess, 0.0, top, xtol=1e-10)
+    foot = scipy.optimize.brentq(
+        lambda a: plane.com_x("rigid", a) - plane.toe, 0.0, math.radians(89.0), xtol=1e-10
+    )
+    return math.degrees(torque), math.degrees(foot)
+
+
+def lean_states(plane: Plane, leans_deg: np.ndarray) -> np.ndarray:
+    """Initial joint states [q_a, q_h, dq_a, dq_h] of rigid leans (degrees), at rest."""
+    out = np.zeros((len(leans_deg), 4))
+    out[:, 0] = np.radians(leans_deg)
+    return out
+
+
+def recovers(runner: Any, plane: Plane, leans_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Whether each lean released from rest recovers, and each run's peak |tau_ankle|, in calls
+    of ``SCAN`` leans (the last padded with its first lean)."""
+    ok, peaks = [], []
+    for start in range(0, len(leans_deg), SCAN):
+        part = np.asarray(leans_deg[start : start + SCAN], float)
+        padded = np.concatenate([part, np.full(SCAN - part.size, part[0])])
+        zeros = np.zeros(SCAN)
+        out = runner.run(zeros, zeros, lean_states(plane, padded))
+        ok.append(np.asarray(out["outcome"])[: part.size] == RECOVERED)
+        peaks.append(np.asarray(out["peak_tau_ankle"])[: part.size])
+    return np.concatenate(ok), np.concatenate(peaks)
+
+
+def lean_limits(
+    config: Config,
+    *,
+    resolution: float = 0.05,
+    runner: Any = None,
+    slots: int | None = None,
+    say: Callable[[str], None] | None = None,
+) -> LeanLimits:
+    """The static and dynamic lean limits of ``config`` (module docstring); ``resolution``: the
+    dynamic limit's bracket width in degrees; ``runner``: a batch runner with ``run(forces,
+    durations, inits)`` (default: the batched engine of ``config``)."""
+    if not (isinstance(resolution, (int, float)) and 0.001 <= resolution <= 1.0):
+        raise ParameterError(f"resolution must be within [0.001, 1] degrees, got {resolution!r}")
+    say = say or (lambda _text: None)
+    plane = Plane(config)
+    if not plane.com_x("rigid", 0.01) > plane.com_x("rigid", 0.0):
+        raise RuntimeError("a positive ankle angle does not lean the body forward")
+    torque_deg, foot_deg = static_limits(config, plane)
+    if runner is None:
+        runner = BatchRunner(config, physics="mjx", slots=slots)
+    low, high = 0.0, math.inf  # high: the smallest lean seen failing
+    leans = np.linspace(0.0, MAX_LEAN_DEG, SCAN)
+    runs = 0
+    best_peak = float("nan")
+    while True:
+        ok, peaks = recovers(runner, plane, leans)
+        runs += leans.size
+        failing = np.flatnonzero(~ok)
+        stop = int(failing[0]) if failing.size else leans.size  # the leans below all recover
+        if stop > 0:
+            low, best_peak = float(leans[stop - 1]), float(peaks[stop - 1])
+        elif leans[0] == 0.0:  # upright rest itself does not recover
+            low, high = 0.0, 0.0
+            break
+        if failing.size:
+            high = float(leans[stop])
+        if math.isinf(high):  # every lean of the scan recovers: the limit is beyond it
+            break
+        say(f"lean and release: recovers at {low:.3f} deg, not at {high:.3f} deg")
+        if high - low <= resolution:
+            break
+        leans = np.linspace(low, high, SCAN + 2)[1:-1]
+    return LeanLimits(
+        static_deg=min(torque_deg, foot_deg),
+        static_torque_deg=torque_deg,
+        static_foot_deg=foot_deg,
+        dynamic_deg=low,
+        resolution_deg=0.0 if math.isinf(high) else high - low,
+        peak_ankle_torque=best_peak,
+        scenarios=runs,
+    )
+
+
+# The people reference's rows these limits predict (data/references/people.csv: measure ->
+# the LeanLimits field that predicts it). Not the static recovery limit: there the tether stays
+# on while the subject pulls back to upright (it carries part of the weight), which our static
+# limit, the lean held still without support, is not.
+PREDICTS = {
+    "lean_release_max_angle_young": "dynamic_deg",
+    "lean_release_peak_ankle_torque_young": "peak_ankle_torque",
+}
+
+
+def read_people() -> pd.DataFrame:
+    """The people reference (``data/references/people.csv``), one row per measure."""
+    return pd.read_csv(people_path(), comment="#", dtype={"n": str})
+
+
+def against_people(limits: LeanLimits, people: pd.DataFrame) -> pd.DataFrame:
+    """The people reference's lean-and-release rows beside our prediction: agreement within the
+    published mean +- 2 SD."""
+    rows = []
+    for measure, field in PREDICTS.items():
+        ref = people.set_index("measure").loc[measure]
+        ours = float(getattr(limits, field))
+        low, high = ref["mean"] - 2 * ref["sd"], ref["mean"] + 2 * ref["sd"]
+        rows.append(
+            {
+                "measure": measure,
+                "unit": ref["unit"],
+                "published_mean": ref["mean"],
+                "published_sd": ref["sd"],
+                "ours": ours,
+                "agrees": bool(low <= ours <= high),
+                "source": ref["source"],
+            }
+        )
+    return pd.DataFrame(rows)
