@@ -17,9 +17,10 @@ step k * substeps - d; before t = 0 that is the initial state (upright rest, or 
 ``initial`` state, held there until t = 0: the controller sees it from its first period). The
 plant, the push and the metrics run undelayed; d = 0 is the undelayed loop. With
 scenario.delay_error the measurement is really D + delay_error old while a compensating
-controller assumes D. With controller.delay_compensation the controller predicts the state at t_k from its measurement
-and the inputs it applied since (``linear.delay_predictor``, over the D it assumes) and solves
-the MPC for the prediction; the batched path does the same (``rollout.kernel.prepare``).
+controller assumes D. With controller.delay_compensation the controller predicts the state at
+t_k from its measurement and the inputs it applied since (``linear.delay_predictor``, over the D
+it assumes) and solves the MPC for the prediction; the batched path does the same
+(``rollout.kernel.prepare``).
 """
 
 from __future__ import annotations
