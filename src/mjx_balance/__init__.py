@@ -14,6 +14,8 @@ JAX nor MuJoCo; the API functions import them when called.
 """
 
 import importlib
+import sys
+import types
 
 from .runtime.xla import deterministic_flags
 
@@ -102,3 +104,21 @@ def __getattr__(name: str):
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_LAZY))
+
+
+class _Package(types.ModuleType):
+    """The package's module: its ``report`` is the API function (``mjx_balance.api.report``),
+    also once the ``mjx_balance.report`` subpackage is imported, which makes the import system
+    set the package's attribute of that name to the subpackage (it stays in ``sys.modules``:
+    ``from mjx_balance.report import ...`` reaches it)."""
+
+    @property
+    def report(self):
+        return importlib.import_module(".api", __name__).report
+
+    @report.setter
+    def report(self, _subpackage) -> None:  # the import system's setattr: the module is kept
+        pass
+
+
+sys.modules[__name__].__class__ = _Package

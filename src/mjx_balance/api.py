@@ -31,13 +31,15 @@ options into their arguments, then writes figures and prints.
 from __future__ import annotations
 
 import dataclasses
+import functools
+import inspect
 import logging
 import os
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterator, Union
+from typing import TYPE_CHECKING, Any, Iterator, TypeVar, Union, cast
 
 from .measures.strategy import with_strategy
 from .model.params import Config, ParameterError
@@ -103,6 +105,49 @@ log = logging.getLogger("mjx_balance")
 ConfigLike = Union[Config, Subject, str, "os.PathLike[str]", Mapping[str, Any], None]
 References = Union[str, "os.PathLike[str]", Sequence[Union[str, "os.PathLike[str]"]], None]
 
+# The arguments several API functions share, checked by name before any work, by one checker
+# for every function (a wrong type: TypeError naming the argument; a wrong value: ParameterError)
+FLAGS = ("full_length", "wait", "html_only", "browser")  # True or False (NumPy's bool too)
+SIZES = ("slots", "chunk")  # None or a whole number >= 1 (runs.folders.size_value)
+Function = TypeVar("Function", bound=Callable[..., Any])
+
+
+def check_arguments(values: Mapping[str, Any], required: Sequence[str] = ()) -> None:
+    """Check the shared arguments among ``values`` (name -> value): the flags, ``progress``
+    (True, False or None), ``out`` (a folder's path, not a file's; None only where it is not in
+    ``required``) and the sizes."""
+    for name in FLAGS:
+        value = values.get(name, False)
+        if not isinstance(value, bool) and type(value).__name__ != "bool_":
+            raise TypeError(f"{name} = {value!r}: must be True or False")
+    progress = values.get("progress")
+    if progress is not None and not isinstance(progress, bool):
+        raise TypeError(f"progress = {progress!r}: must be True, False or None")
+    if "out" in values and (values["out"] is not None or "out" in required):
+        out = values["out"]
+        if not isinstance(out, (str, os.PathLike)):
+            raise TypeError(f"out = {out!r}: must be a folder's path (str or os.PathLike)")
+        if Path(out).exists() and not Path(out).is_dir():
+            raise ParameterError(f"out = {os.fspath(out)!r} is a file, not a folder")
+    for name in SIZES:
+        if name in values:
+            size_value(values[name], name)
+
+
+def checked(function: Function) -> Function:
+    """``function`` with its shared arguments checked (:func:`check_arguments`) before it
+    runs; an argument without a default is required (``out`` = None refused there)."""
+    signature = inspect.signature(function)
+    required = [n for n, p in signature.parameters.items() if p.default is p.empty]
+
+    @functools.wraps(function)
+    def run(*args: Any, **kwargs: Any) -> Any:
+        bound = signature.bind(*args, **kwargs)  # a missing or unknown argument: TypeError
+        check_arguments(bound.arguments, required)
+        return function(*args, **kwargs)
+
+    return cast(Function, run)
+
 
 def as_config(config: ConfigLike = None) -> Config:
     """A :class:`Config` from a Config, a :class:`Subject` (its ``config()``), a TOML file's
@@ -136,6 +181,7 @@ def _session(call: str, physics: str = "mjx") -> Iterator[None]:
 # simulate: the scalar reference
 
 
+@checked
 def simulate(
     forces: Values | None = None,
     durations: Values | None = None,
@@ -178,6 +224,7 @@ def _folder(out: str | os.PathLike[str] | None, what: str) -> Iterator[Path]:
         yield Path(tmp)
 
 
+@checked
 def sweep(
     forces: Values,
     durations: Values,
@@ -243,6 +290,7 @@ def sweep(
         return region
 
 
+@checked
 def table(
     forces: Values,
     config: ConfigLike = None,
@@ -346,6 +394,7 @@ def scorecard(
     return score_results(found["table"], refs, runs=found["runs"], region=found["region"])
 
 
+@checked
 def compare(
     configs: "Mapping[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
     *,
@@ -405,6 +454,7 @@ def compare(
         return frame
 
 
+@checked
 def lean_release(
     config: ConfigLike = None, *, resolution: float = 0.05, slots: int | None = None
 ) -> "pd.DataFrame":
@@ -423,6 +473,7 @@ def lean_release(
     return frame
 
 
+@checked
 def basin(
     config: ConfigLike = None,
     *,
@@ -469,6 +520,7 @@ def basin(
         return frame
 
 
+@checked
 def cohort(
     subjects: "Sequence[Subject] | Mapping[str, Subject] | str | os.PathLike[str]",
     *,
@@ -513,12 +565,6 @@ def cohort(
     and every subject's configuration is checked before anything is written (a ValueError or
     TypeError naming the argument)."""
     check_format(format)
-    if progress is not None and not isinstance(progress, bool):
-        raise TypeError(f"progress = {progress!r}: must be True, False or None")
-    if not isinstance(wait, bool):
-        raise TypeError(f"wait = {wait!r}: must be True or False")
-    if not isinstance(out, (str, os.PathLike)):
-        raise TypeError(f"out = {out!r}: must be a folder's path (str or os.PathLike)")
     members = as_members(
         Path(subjects)
         if isinstance(subjects, os.PathLike)
@@ -547,6 +593,7 @@ def cohort(
             return frame
 
 
+@checked
 def landscape(
     config: ConfigLike = None,
     *,
@@ -599,6 +646,7 @@ def landscape(
         return frame
 
 
+@checked
 def sensitivity(
     config: ConfigLike = None,
     *,
@@ -652,6 +700,7 @@ def _report_plan(scale: str, refs, say: Callable[[str], None]) -> Plan:
     return chosen
 
 
+@checked
 def report(
     config: ConfigLike = None,
     *,
@@ -727,6 +776,7 @@ def report(
         return build_report(out)
 
 
+@checked
 def explore(
     folder: str | os.PathLike[str], *, port: int = 0, browser: bool = False, wait: bool = False
 ) -> Explorer:

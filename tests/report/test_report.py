@@ -2,6 +2,7 @@
 numbers of the saved tables, report.json records the plan and the timings, the HTML is rebuilt
 from the tables alone; the study sweep definitions load and run; the study numbers and readings."""
 
+import importlib
 import dataclasses
 import html
 import json
@@ -19,7 +20,6 @@ from support import fake_region, held_sweep
 from tiny_report import ALL, SMALL, selected, tiny_report
 
 import mjx_balance
-from mjx_balance import report
 from mjx_balance.cli import main
 from mjx_balance.measures.outcomes import OUTCOMES
 from mjx_balance.model.params import Config, ParameterError
@@ -27,6 +27,9 @@ from mjx_balance.model.config_files import load_config
 from mjx_balance.runs import load_sweep, parse_grid
 from mjx_balance.studies import catalog as studies
 from mjx_balance.runs.grid import Grid
+
+# the subpackage (``mb.report`` is the API function)
+report = importlib.import_module("mjx_balance.report")
 
 CONVENTIONS = ("paper", "joint")
 

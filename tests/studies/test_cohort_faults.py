@@ -248,7 +248,7 @@ def test_the_api_takes_one_subject(tmp_path, fake_rollout):
         ({"physics": "gpu"}, ValueError, ["physics = 'gpu'", "'auto', 'mjx', 'c'"]),
         ({"physics": None}, ValueError, ["physics = None"]),
         ({"slots": 0}, ValueError, ["slots = 0"]),
-        ({"full_length": "yes"}, ValueError, ["full_length = 'yes'"]),
+        ({"full_length": "yes"}, TypeError, ["full_length = 'yes'"]),  # a type: api.checked
         ({"progress": "yes"}, TypeError, ["progress = 'yes'"]),
         ({"wait": None}, TypeError, ["wait = None"]),
         ({"format": "xls"}, ValueError, ["format = 'xls'"]),
