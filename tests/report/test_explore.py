@@ -197,6 +197,8 @@ def test_a_symbolic_link_out_of_the_folder_is_refused(server, sweep, secret, tmp
     "query, words",
     [
         ("force=abc&duration=0.1", "force: 'abc' is not a number"),
+        ("force=2_0&duration=0.1", "force: '2_0' is not a number"),  # float() reads 20
+        ("force=%D9%A2%D9%A0&duration=0.1", "is not a number"),  # Arabic-Indic digits: 20
         ("force=nan&duration=0.1", "force: must be a finite number"),
         ("force=inf&duration=0.1", "force: must be a finite number"),
         ("force=20&force=30&duration=0.1", "force: give one value (got 2)"),

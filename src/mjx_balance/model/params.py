@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+import re
 import numbers
 import warnings
 from dataclasses import dataclass, field, fields
@@ -81,14 +82,27 @@ def is_number(value: Any) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
+# A number as a user writes one: decimal digits (ASCII) with an optional sign, point and
+# exponent, or inf / nan (refused as not finite where they must be). Python's float() also
+# reads "50_0" (as 500), other scripts' digits and "infinity"; those are refused, so that one
+# text means one number everywhere it is read (grids, pairs, explore's queries).
+NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|[+-]?(?:inf|nan)", re.I)
+
+
+def read_number(text: str, name: str) -> float:
+    """``text`` (spaces around it ignored) as a number written as :data:`NUMBER` reads one;
+    otherwise a ParameterError whose one line names ``name`` and the text."""
+    text = str(text).strip()
+    if not NUMBER.fullmatch(text):
+        raise ParameterError(f"{name}: {text!r} is not a number")
+    return float(text)
+
+
 def finite_number(text: str, name: str) -> float:
     """``text`` (spaces around it ignored) as a finite number; otherwise a ParameterError whose
     one line names ``name`` and the text."""
     text = str(text).strip()
-    try:
-        value = float(text)
-    except ValueError:
-        raise ParameterError(f"{name}: {text!r} is not a number") from None
+    value = read_number(text, name)
     if not math.isfinite(value):
         raise ParameterError(f"{name}: must be a finite number, got {text!r}")
     return value

@@ -12,7 +12,7 @@ from typing import Any, Sequence, Union
 import numpy as np
 import pandas as pd
 
-from ..model.params import Config, ParameterError
+from ..model.params import Config, ParameterError, read_number
 from ..store.folder import GRID_TOL, same_values
 
 
@@ -57,8 +57,10 @@ def parse_grid(spec: str | float | Sequence[float] | np.ndarray, name: str = "gr
 def _number(item: Any, name: str) -> float:
     if isinstance(item, bool):
         raise ParameterError(f"{name}: {item!r} is not a number")
+    if isinstance(item, str):
+        return read_number(item, name)  # one reading of a number (model.params.NUMBER)
     try:
-        return float(item.strip() if isinstance(item, str) else item)
+        return float(item)
     except (TypeError, ValueError):
         raise ParameterError(f"{name}: {item!r} is not a number") from None
 
@@ -149,8 +151,7 @@ def check_durations(
     physics steps (check_whole_steps: then returned snapped to them; ``unique``: each once, as
     a grid's; given pairs may share a duration); returns them."""
     durations = np.asarray(durations, dtype=np.float64)
-    if physics_dt is not None:
-        durations = check_whole_steps(durations, physics_dt, name, unique=unique)
+    # the range first: a duration far beyond t_end would overflow the whole-steps check
     if np.any(durations < 0):
         raise ParameterError(f"{name}: push durations must be >= 0, got {durations.min():g}")
     if np.any(durations > t_end + GRID_TOL):
@@ -158,6 +159,8 @@ def check_durations(
             f"{name}: push durations must not exceed scenario.t_end = {t_end:g} s, "
             f"got {durations.max():g}"
         )
+    if physics_dt is not None:
+        durations = check_whole_steps(durations, physics_dt, name, unique=unique)
     return durations
 
 
