@@ -65,7 +65,12 @@ from .runs import DEFAULT_SWEEP
 from .studies.basin import DEFAULT_V, DEFAULT_X, run_basin
 from .studies.cohort import plan_cohort, run_plan
 from .studies.members import as_members
-from .studies.reference_files import Reference, read_references, reference_forces
+from .studies.reference_files import (
+    Reference,
+    read_references,
+    reference_forces,
+    unused_points,
+)
 from .studies.scorecard import folder_results, write_scorecard
 from .studies.scorecard import scorecard as score_results
 from .report import REPORT_JSON, build_report
@@ -342,6 +347,8 @@ def table(
             physics=physics,
         )
         result = read_table(folder / TABLE)
+        for line in unused_points(refs, has_map=False):  # the API's table draws no map
+            log.warning(line)
         card = write_scorecard(folder, refs)
         if card is not None:
             result.attrs["scorecard"] = card

@@ -534,3 +534,23 @@ def test_the_report_scorecard_table_carries_the_citation(tmp_path):
     assert table["notes"] == ["Doe & Roe, J. Made Up 2026"]
     reading = section["blocks"][0]["text"]
     assert "Sources: lab: Doe & Roe, J. Made Up 2026." in reading
+
+
+def test_a_table_says_when_nothing_uses_a_points_reference(tmp_path, capsys, fake_rollout):
+    """`table --reference points.csv` (pushes to draw, no measure to score) exited 0 with no
+    scorecard and no word: it says why nothing uses the file, and a sweep's folder draws it."""
+    from mjx_balance.cli import main
+
+    points = _write(tmp_path, "points.csv", "force,duration\n20,0.5\n")
+    out = tmp_path / "out"
+    assert main(["table", "--forces", "20", "--reference", str(points), "--out", str(out)]) == 0
+    said = capsys.readouterr()
+    assert f"reference {points}: its pushes (force, duration) are drawn on a region map" in (
+        said.out + said.err
+    )
+    assert not (out / sc.SCORECARD).exists()
+    sweep = tmp_path / "sweep"
+    assert main(["sweep", "--forces", "20", "--durations", "0.5", "--out", str(sweep)]) == 0
+    capsys.readouterr()
+    assert main(["table", "--forces", "20", "--reference", str(points), "--out", str(sweep)]) == 0
+    assert "drawn on a region map" not in "".join(capsys.readouterr())

@@ -318,7 +318,11 @@ def table_command(args: Any) -> int:
     )
     from ..runs.folders import check_batched  # lazy: the runs floor: JAX
     from ..store.files import REGION, TABLE  # lazy: pandas
-    from ..studies.reference_files import read_references, reference_points  # lazy: as above
+    from ..studies.reference_files import (  # lazy: as above
+        read_references,
+        reference_points,
+        unused_points,
+    )
 
     definition = load_sweep(args.sweep, base_config(args, overrides=False)) if args.sweep else None
     config = with_convention(
@@ -371,6 +375,8 @@ def table_command(args: Any) -> int:
                 )
                 log.info(f"wrote {path}")
         report_scorecard(out, refs)
+        for line in unused_points(refs, (out / REGION).exists()):
+            log.warning(line)
         write_exports(out, args)
 
     return in_folder(out, work, wait=getattr(args, "wait", False))

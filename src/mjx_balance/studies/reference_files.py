@@ -429,6 +429,19 @@ def reference_points(refs: Sequence[Reference]) -> pd.DataFrame | None:
     return pd.concat(frames, ignore_index=True) if frames else None
 
 
+def unused_points(refs: Sequence[Reference], has_map: bool) -> list[str]:
+    """One line per points reference (pushes to draw, no table to score) that nothing uses: a
+    table without a region map beside it scores only table references."""
+    if has_map:
+        return []
+    return [
+        f"reference {ref.path}: its pushes (force, duration) are drawn on a region map, and "
+        "this folder has none (sweep --reference draws them); no scorecard from it"
+        for ref in refs
+        if ref.kind == "points"
+    ]
+
+
 def stated_resolution(text: str) -> float:
     """The resolution a printed number states: one unit of its last decimal ("0.45": 0.01,
     "120": 1, "1.2e-3": 1e-4)."""
