@@ -58,13 +58,14 @@ from .studies.compare import load_configs, run_compare
 from .studies.defaults import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES, READINGS
 from .studies.defaults import DEFAULT_FORCES as STUDY_TABLE_FORCES
 from .studies.landscape import run_landscape
-from .studies.lean import against_people, lean_limits, read_people
+from .studies.lean import against_people, lean_limits
 from .studies.sensitivity import run_sensitivity
 from .figures.style import figure_style
 from .runs import DEFAULT_SWEEP
 from .studies.basin import DEFAULT_V, DEFAULT_X, run_basin
 from .studies.cohort import plan_cohort, run_plan
 from .studies.members import as_members
+from .studies.references import read_people
 from .studies.reference_files import (
     Reference,
     read_references,

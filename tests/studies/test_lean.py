@@ -15,6 +15,7 @@ from mjx_balance.model.params import Config, ParameterError
 from mjx_balance.reference import loop as reference
 from mjx_balance.rollout import BatchRunner
 from mjx_balance.studies import lean
+from mjx_balance.studies.references import read_people
 
 # test_basin's configuration and slots: the engine compiled there serves here (support.GROUPS)
 CONFIG = Config().replace(scenario={"t_end": 3.0})
@@ -77,7 +78,7 @@ def test_the_dynamic_limit_is_bracketed_and_the_reference_agrees(limits):
 
 
 def test_the_people_rows_sit_beside_the_prediction(limits):
-    frame = lean.against_people(limits, lean.read_people())
+    frame = lean.against_people(limits, read_people())
     assert list(frame["measure"]) == list(lean.PREDICTS)
     row = frame.set_index("measure").loc["lean_release_max_angle_young"]
     assert row["published_mean"] == 5.9 and row["ours"] == limits.dynamic_deg

@@ -6,7 +6,7 @@ edited in the table without its source fails."""
 import re
 import pandas as pd
 
-from mjx_balance.studies.references import people_path
+from mjx_balance.studies.references import read_people
 
 # measure -> (mean, sd or None, unit), as printed in the abstracts (the file's read_in column)
 PRINTED = {
@@ -27,7 +27,7 @@ PRINTED = {
 
 
 def people() -> pd.DataFrame:
-    return pd.read_csv(people_path(), comment="#", dtype={"n": str})
+    return read_people()
 
 
 def test_the_people_reference_holds_the_printed_values():

@@ -40,7 +40,6 @@ from ..model.linear import linear_model
 from ..model.params import Config, ParameterError
 from ..rollout import BatchRunner
 from .basin import Plane
-from .references import people_path
 
 SCAN = 16  # leans per batched call (one compiled shape for every round)
 MAX_LEAN_DEG = 30.0  # the scan's upper end: beyond any lean a feet-in-place body recovers
@@ -182,11 +181,6 @@ PREDICTS = {
     "lean_release_max_angle_young": "dynamic_deg",
     "lean_release_peak_ankle_torque_young": "peak_ankle_torque",
 }
-
-
-def read_people() -> pd.DataFrame:
-    """The people reference (``data/references/people.csv``), one row per measure."""
-    return pd.read_csv(people_path(), comment="#", dtype={"n": str})
 
 
 def against_people(limits: LeanLimits, people: pd.DataFrame) -> pd.DataFrame:

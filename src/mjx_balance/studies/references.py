@@ -15,6 +15,10 @@ from __future__ import annotations
 import os
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 # The largest reference file read (bytes): a published table is a few kB, a lab's trials or
 # another model's map a few MB; a file beyond this is refused before it is read.
@@ -39,6 +43,13 @@ PEOPLE = "people.csv"
 def people_path() -> Path:
     """The people reference's file (docs/studies.md, "People")."""
     return Path(str(resources.files("mjx_balance") / "data" / "references" / PEOPLE))
+
+
+def read_people() -> "pd.DataFrame":
+    """The people reference, one row per measure (``n`` as printed: text)."""
+    import pandas as pd  # lazy: this module loads without pandas
+
+    return pd.read_csv(people_path(), comment="#", dtype={"n": str})
 
 
 def shipped_path(name: str) -> Path:
