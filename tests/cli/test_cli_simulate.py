@@ -204,3 +204,21 @@ def test_pairs_from_a_data_frame_and_a_file_alike(tmp_path):
         ParameterError, match="pairs: needs columns force and duration.*got columns f, d"
     ):
         parse_pairs(pd.DataFrame({"f": [1.0], "d": [0.1]}))
+
+
+def test_a_diverging_push_writes_nothing_outside_out(tmp_path, short_config, monkeypatch, capfd):
+    """MuJoCo C logs each warning to MUJOCO_LOG.TXT in the working folder and prints it on
+    stdout unless told not to (runtime.version.quiet_mujoco_log); a 1e12-N push makes it warn.
+    Everything the command writes is under --out, and stdout holds only the command's lines."""
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    code = cli.main(
+        ["simulate", "--forces", "1e12", "--durations", "0.1", "--config", str(short_config)]
+        + ["--out", "run"]
+    )
+    out, _ = capfd.readouterr()
+    assert code == 0
+    assert pd.read_csv(work / "run" / "summary.csv")["outcome"].tolist() == ["diverged"]
+    assert sorted(p.name for p in work.iterdir()) == ["run"]
+    assert "QACC" not in out and "WARNING" not in out

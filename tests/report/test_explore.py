@@ -240,6 +240,12 @@ def test_a_cell_is_computed_once_kept_in_the_folder_and_served_from_it(server, s
     assert status == 200 and again["cached"] and again["summary"] == run["summary"]
     assert time.perf_counter() - started < first
     assert [20.0, 0.1] in get(server, "/api/map?map=")[1]["explored"]
+    # another spelling of the cell's force is the same cell: served from the same file, no
+    # file of its own (each spelling was a new run and a new file)
+    for spelling in ("20.00000000001", "2e1", "19.99999999999"):
+        status, again = get(server, f"/api/run?map=&force={spelling}&duration=0.1")
+        assert status == 200 and again["cached"] and again["summary"]["force"] == 20.0
+    assert sorted(p.name for p in path.parent.glob("20*")) == [path.name]
 
 
 def test_a_table_point_opens_its_run_and_a_stale_run_is_computed_again(server, sweep):
@@ -264,8 +270,9 @@ def test_a_table_point_opens_its_run_and_a_stale_run_is_computed_again(server, s
     from mjx_balance.store.files import write_parquet
 
     write_parquet(frame, kept)
-    get(server, "/api/run?map=&force=40&duration=0.74")
-    assert calls == [(40.0, 0.74)] * 2
+    get(server, "/api/run?map=&force=40.00000000001&duration=0.74")
+    assert calls == [(40.0, 0.74)] * 2  # the table point's own values, not the spelling's
+    assert not list(kept.parent.glob("40.00000000001*"))
 
 
 def test_a_refused_write_still_answers_and_a_stopped_server_writes_nothing(sweep, monkeypatch):

@@ -7,6 +7,11 @@ meta-package over mujoco-core and mujoco-studio with no mujoco-mjx of its own). 
 can still drag mujoco to another release, so the physics refuses a mismatched pair at its first
 call (``model.mjcf.build_model``, ``rollout.physics``), not at import: ``import mjx_balance`` and
 ``mjx-balance --version`` stay light and work.
+
+The same first call turns MuJoCo's own log off (:func:`quiet_mujoco_log`): by default MuJoCo C
+appends each warning (``Nan, Inf or huge value in QACC``...) to ``MUJOCO_LOG.TXT`` in the working
+folder, outside any ``--out``, and prints it on stdout. A run reads the same fault from its state
+instead (the ``diverged`` outcome, docs/outputs.md), so the log adds nothing a run keeps.
 """
 
 from __future__ import annotations
@@ -46,7 +51,8 @@ def mujoco_versions() -> tuple[str | None, str | None]:
 def check_mujoco(*, mjx: bool = False) -> None:
     """Refuse, with :class:`InstallError`, an installed mujoco / mujoco-mjx pair of different
     releases and, with ``mjx`` (the MJX physics and the batched paths), a missing mujoco-mjx.
-    MuJoCo's C physics alone (the scalar reference) runs without mujoco-mjx."""
+    MuJoCo's C physics alone (the scalar reference) runs without mujoco-mjx. Then MuJoCo's log
+    is turned off (:func:`quiet_mujoco_log`)."""
     mujoco, mujoco_mjx = mujoco_versions()
     found = f"mujoco {mujoco or 'not installed'}, mujoco-mjx {mujoco_mjx or 'not installed'}"
     if mujoco_mjx is None and mjx:
@@ -59,3 +65,16 @@ def check_mujoco(*, mjx: bool = False) -> None:
             f"mujoco and mujoco-mjx must be the same release (installed: {found}; "
             f"mjx_balance pins both to {MUJOCO}): {INSTALL}"
         )
+    quiet_mujoco_log()
+
+
+@functools.lru_cache(maxsize=1)
+def quiet_mujoco_log() -> None:
+    """MuJoCo C writes no log file and prints no warning, for this process (module docstring):
+    every physics path starts at :func:`check_mujoco`, so no path can write MUJOCO_LOG.TXT."""
+    import mujoco  # lazy: `import mjx_balance` and --version do not load MuJoCo
+
+    log = mujoco.MjLogConfig.get()
+    log.logto_file = False
+    log.logto_console = False
+    log.set()

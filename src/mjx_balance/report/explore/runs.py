@@ -4,7 +4,9 @@ A request names a map (by its key), a force and a duration. Both are checked as 
 line checks ``--force`` and ``--duration``: one finite number each, the duration within
 [0, scenario.t_end] on whole physics steps (``runs.grid.check_durations``, snapped to them); then
 the pair must be a cell of the map or one of its table's max-acting-time points, so that a
-request can only compute what the page shows (and a folder holds at most one file per point).
+request can only compute what the page shows. The run is named by the cell's own values, not
+the request's spelling (``50.00000000001`` and ``50`` name one cell), so a folder holds at most
+one file per point.
 
 The run is the scalar reference's (``reference.loop.simulate_scenario``: MuJoCo C + OSQP) in
 the map's own configuration (its config.toml, else its manifest's), kept in the map's folder as
@@ -106,18 +108,20 @@ def check_cell(
     duration = float(check_durations([duration], sc.t_end, "duration", physics_dt=sc.physics_dt)[0])
     forces, durations = grid
     tol = 1e-9 * max(1.0, abs(force))
-    in_grid = np.any(np.abs(forces - force) <= tol) and np.any(np.abs(durations - duration) <= 1e-9)
-    on_table = any(
-        abs(p["force"] - force) <= tol and abs(p["max_acting_time"] - duration) <= 1e-9
-        for p in table_points(found)
+    # The cell's own values, not the request's spelling: 50.00000000001 and 50 name one cell,
+    # so they share one kept run (explore/F_T.parquet) rather than a run each.
+    near_force = np.flatnonzero(np.abs(forces - force) <= tol)
+    near_duration = np.flatnonzero(np.abs(durations - duration) <= 1e-9)
+    if near_force.size and near_duration.size:
+        return float(forces[near_force[0]]) + 0.0, float(durations[near_duration[0]])
+    for point in table_points(found):
+        if abs(point["force"] - force) <= tol and abs(point["max_acting_time"] - duration) <= 1e-9:
+            return point["force"] + 0.0, point["max_acting_time"]
+    raise ParameterError(
+        f"({force:g} N, {duration:g} s) is not a cell of this map nor a "
+        "max-acting-time point of its table: the page opens the runs it "
+        "shows"
     )
-    if not (in_grid or on_table):
-        raise ParameterError(
-            f"({force:g} N, {duration:g} s) is not a cell of this map nor a "
-            "max-acting-time point of its table: the page opens the runs it "
-            "shows"
-        )
-    return force, duration
 
 
 def run_path(found: MapFolder, force: float, duration: float) -> Path:
