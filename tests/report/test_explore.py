@@ -309,6 +309,55 @@ def test_the_api_serves_in_the_background_until_stopped(sweep):
         mb.explore(sweep, port=70000)
 
 
+def test_a_signal_during_a_run_stops_the_server_once_the_run_has_ended(sweep):
+    """SIGTERM while a clicked cell's run computes: the run ends at its next checkpoint, its
+    client gets 503, and the server returns only after that (the process then exits; were
+    the request's thread still inside MuJoCo's C++ code, the exit would abort with 134). The
+    stand-in run spends 0.3 s between checkpoints, as a long call into C would."""
+    import signal
+    import threading
+
+    from mjx_balance.runtime import signals
+
+    (sweep / "explore" / "20.0_0.1.parquet").unlink(missing_ok=True)
+    started, events, answers = threading.Event(), [], []
+
+    def stand_in(config, force, duration, record=True):
+        started.set()
+        try:
+            for _ in range(100):
+                time.sleep(0.3)
+                signals.check()
+        finally:
+            events.append("run ended")
+
+    def click():
+        answers.append(get(explorer, "/api/run?map=&force=20&duration=0.1")[0])
+
+    def signal_once_the_run_started():
+        if started.wait(30):
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    explorer = Explorer(sweep)
+    explorer.runs.simulate = stand_in
+    watchdog = threading.Timer(60, explorer.server.shutdown)  # the test ends either way
+    watchdog.start()
+    client = threading.Thread(target=click)
+    client.start()
+    threading.Thread(target=signal_once_the_run_started).start()
+    try:
+        with pytest.raises(signals.Terminated):
+            with signals.honoured():
+                explorer.serve_forever()
+        events.append("server returned")
+    finally:
+        watchdog.cancel()
+        explorer.stop()
+    client.join(30)
+    assert events == ["run ended", "server returned"] and answers == [503]
+    assert not (sweep / "explore" / "20.0_0.1.parquet").exists()
+
+
 def test_the_page_ships_as_package_data():
     """Every file of the page matches a package-data glob of pyproject.toml (so the wheel and
     `pip install .` carry it; tests/package/test_packaging.py builds them)."""

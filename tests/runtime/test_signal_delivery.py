@@ -112,6 +112,70 @@ def test_a_ctrl_c_that_osqp_caught_is_delivered():
         checked(caught)
 
 
+def test_a_ctrl_c_that_osqp_caught_in_another_thread_reaches_the_main_thread():
+    """OSQP catches the Ctrl-C in whatever thread solves (the explore server's request
+    threads): the signal is sent again, so the main thread's work ends as on any Ctrl-C, and
+    the solving thread's work ends too (it was raised in the solving thread only, and the
+    main thread served on)."""
+    import threading
+    import types
+
+    import osqp
+
+    from mjx_balance.control.osqp_mpc import checked
+
+    caught = types.SimpleNamespace(
+        info=types.SimpleNamespace(status_val=osqp.SolverStatus.OSQP_SIGINT)
+    )
+    raised = []
+
+    def solve():
+        try:
+            checked(caught)
+        except KeyboardInterrupt as exc:
+            raised.append(type(exc))
+
+    started = time.monotonic()
+    with pytest.raises(signals.Interrupted):
+        with signals.honoured():
+            threading.Thread(target=solve).start()
+            while time.monotonic() - started < 10:  # the main thread's own work
+                time.sleep(0.01)
+    assert time.monotonic() - started < 5 and raised == [signals.Interrupted]
+
+
+def test_a_thread_stops_at_its_next_checkpoint_while_the_main_thread_cleans_up():
+    """After a signal the main thread's clean-up is not cut short (no checkpoint raises there
+    once it caught the signal), but another thread's work ends at its next checkpoint: the
+    scalar reference checks once a control period, so a clicked cell's run ends within one
+    period rather than running on into the process's exit (an abort inside C++ code)."""
+    import threading
+
+    from mjx_balance.model.params import Config
+    from mjx_balance.reference.loop import simulate_scenario
+
+    ended = []
+
+    def run():
+        try:
+            simulate_scenario(Config().replace(scenario={"t_end": 2.0}), 20.0, 0.1)
+            ended.append("finished")
+        except signals.Terminated:
+            ended.append("stopped")
+
+    with signals.honoured():
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5)  # the handler raises here
+        except signals.Terminated as exc:
+            signals.seen(exc)  # the main thread cleans up: its own checkpoints stay quiet
+            signals.check()
+            worker = threading.Thread(target=run)
+            worker.start()
+            worker.join(60)
+    assert ended == ["stopped"]
+
+
 def test_ctrl_c_during_simulate_ends_it(tmp_path):
     """A real simulate (the scalar reference spends most of its time in OSQP's solves), sent
     SIGINT while its pushes run: exit 130, one line, the finished pushes kept."""

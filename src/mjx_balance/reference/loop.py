@@ -289,6 +289,7 @@ def _closed_loop(
     stop = False
     diverged = False
     for k in range(sc.n_control):
+        signals.check()  # a signal ends the run within one period, also in another thread
         u, ok, prim_res, infeasible = controller.act(k, series)
         torques = lm.motor_torques(u)
         series.u_control[k], series.converged[k], series.residual[k] = u, ok, prim_res

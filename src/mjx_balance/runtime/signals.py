@@ -19,6 +19,16 @@ code whose exceptions the runtime ignores (a garbage-collection callback such as
 :func:`honoured` installs this for the span of a command or an API call (in the main thread;
 nested uses share the outer one). While the first signal's exception unwinds the work, further
 signals are recorded only: the clean-up it triggers is not cut short.
+
+Work in other threads (the explore server computes a clicked cell's run in a request's thread):
+
+- its checkpoints (:func:`check`) raise whenever a signal has come, also while the main thread
+  cleans up, so that the thread's work ends within one checkpoint and the process does not
+  exit with a thread inside MuJoCo's or OSQP's C++ code (that aborts: "terminate called
+  without an active exception", exit 134);
+- a signal that a library caught in that thread (:func:`received`: OSQP's Ctrl-C) is sent
+  again to the process, so that the main thread's handler acts on it as on any signal (it was
+  raised in the request's thread only, and the server served on, deaf to later signals).
 """
 
 from __future__ import annotations
@@ -79,9 +89,14 @@ def pending() -> int | None:
 
 def check() -> None:
     """A checkpoint of long work: raise the pending signal's exception, if a signal came and
-    its exception was dropped where it landed (or has not been raised yet)."""
+    its exception was dropped where it landed (or has not been raised yet). Outside the main
+    thread, whenever a signal came (module docstring)."""
     st = _STATE
-    if st.pending is not None and not st.seen:
+    if st.pending is None or st.depth == 0:  # no signal in a block still under way
+        return
+    if threading.current_thread() is not threading.main_thread():
+        raise exception(st.pending)
+    if not st.seen:
         st.dropped = False  # raised here: a re-delivered copy need not raise it again
         raise exception(st.pending)
 
@@ -89,7 +104,11 @@ def check() -> None:
 def received(signum: int) -> None:
     """A signal that a library caught for itself (OSQP's Ctrl-C during a solve) and reported:
     handled as if Python's handler had seen it (raised where the work is; outside a
-    :func:`honoured` block, as Python's KeyboardInterrupt)."""
+    :func:`honoured` block, as Python's KeyboardInterrupt). In a thread other than the main
+    one, the signal is also sent to the process again, so that the main thread acts on it."""
+    if threading.current_thread() is not threading.main_thread():
+        os.kill(os.getpid(), signum)  # the library has put Python's handler back by now
+        raise exception(signum) if _STATE.depth else KeyboardInterrupt
     if _STATE.depth == 0:
         raise KeyboardInterrupt
     _handler(signum, None)

@@ -185,6 +185,10 @@ def read_kept(path: Path, config: Config) -> pd.DataFrame | None:
     return frame
 
 
+class Stopping(RuntimeError):
+    """The server is stopping: no run starts (the server answers 503)."""
+
+
 @dataclass
 class Runs:
     """Runs of a folder's cells, one computed at a time; ``closed`` once the server stops (no
@@ -197,7 +201,8 @@ class Runs:
     simulate: Callable[..., Any] | None = None  # the reference (tests put a stand-in)
 
     def close(self, timeout: float = 5.0) -> None:
-        """No more writes; waits (up to ``timeout``) for a write under way to finish."""
+        """No more writes, no new run; waits (up to ``timeout``) for a write under way to
+        finish."""
         got = self.write.acquire(timeout=timeout)
         self.closed = True
         if got:
@@ -214,6 +219,8 @@ class Runs:
         cached, note = frame is not None, None
         if frame is None:
             with self.compute:
+                if self.closed:  # a request that waited while the server began to stop
+                    raise Stopping("the server is stopping")
                 frame = read_kept(path, config)  # computed meanwhile by another request
                 cached = frame is not None
                 if frame is None:

@@ -27,6 +27,7 @@ less code than it saves. The rules it keeps:
 from __future__ import annotations
 
 import dataclasses
+import contextlib
 import json
 import logging
 import mimetypes
@@ -36,18 +37,19 @@ from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 from urllib.parse import parse_qs, unquote, urlsplit
 
 import numpy as np
 
 from ...model.params import ParameterError
 from .folder import Folder, MapCache, folder_json, inside, open_folder
-from .runs import Runs
+from .runs import Runs, Stopping
 
 log = logging.getLogger("mjx_balance")
 
 HOST = "127.0.0.1"
+ANSWER_END_S = 30.0  # the longest a stopping server waits for the requests under way
 STATIC = {
     "index.html": "text/html; charset=utf-8",
     "explore.js": "text/javascript; charset=utf-8",
@@ -149,6 +151,10 @@ class Handler(BaseHTTPRequestHandler):
     do_POST = do_PUT = do_DELETE = do_PATCH = do_HEAD = do_OPTIONS = refuse_method
 
     def do_GET(self) -> None:
+        with self.server.answering():
+            self.answer()
+
+    def answer(self) -> None:
         try:
             self.check_host()
             self.route(urlsplit(self.path))
@@ -156,7 +162,8 @@ class Handler(BaseHTTPRequestHandler):
             self.send_json(exc.status, {"error": str(exc)})
         except ParameterError as exc:
             self.send_json(HTTPStatus.BAD_REQUEST, {"error": str(exc)})
-        except KeyboardInterrupt:  # Ctrl-C reached the work of this request: the server stops
+        except (KeyboardInterrupt, Stopping):  # a signal reached this request's work, or the
+            # server began to stop before its run started
             self.send_json(HTTPStatus.SERVICE_UNAVAILABLE, {"error": "the server is stopping"})
         except Exception as exc:
             first = (str(exc).splitlines() or [""])[0]
@@ -199,8 +206,35 @@ class Handler(BaseHTTPRequestHandler):
 
 
 class Server(ThreadingHTTPServer):
-    daemon_threads = True  # a request under way does not keep the process alive
+    """Counts the requests being answered, so that a stopping server waits for them
+    (:meth:`wait_answered`) before the process may exit: a request's thread may be inside
+    MuJoCo's, OSQP's or Arrow's C++ code, and a process that exits under it aborts ("terminate
+    called without an active exception", exit 134). After a signal, a run under way ends at
+    its next control period (runtime.signals.check)."""
+
+    daemon_threads = True  # a connection that never sends its request does not hold the exit
     explorer: "Explorer"
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.busy = threading.Condition()
+        self.in_flight = 0
+
+    @contextlib.contextmanager
+    def answering(self) -> Iterator[None]:
+        with self.busy:
+            self.in_flight += 1
+        try:
+            yield
+        finally:
+            with self.busy:
+                self.in_flight -= 1
+                self.busy.notify_all()
+
+    def wait_answered(self, timeout: float = ANSWER_END_S) -> bool:
+        """Wait (up to ``timeout``) until no request is being answered; whether none is."""
+        with self.busy:
+            return self.busy.wait_for(lambda: self.in_flight == 0, timeout)
 
     def handle_error(self, request: Any, client_address: Any) -> None:
         import sys
@@ -298,7 +332,8 @@ class Explorer:
 
     def _close(self) -> None:
         self.runs.close()
-        self.server.server_close()
+        self.server.server_close()  # no new connection
+        self.server.wait_answered()  # the requests under way end (Server)
 
     def __enter__(self) -> "Explorer":
         return self.start()
