@@ -95,6 +95,29 @@ def test_scenarios_are_independent():
     assert first == again
 
 
+def test_runs_in_threads_side_by_side_are_the_runs_alone():
+    """Explore computes cells' runs side by side in threads: each thread has its own OSQP
+    solver (one solver shared by two threads at once gave "Problem data validation" and a
+    segfault), so every run is bit for bit the run computed alone."""
+    import threading
+
+    config = short("paper", 1.0)
+    pushes = [(50.0, 0.1), (-40.0, 0.2), (80.0, 0.05), (20.0, 0.3)]
+    alone = [simulate_scenario(config, f, t, record=False)[0] for f, t in pushes]
+    side_by_side: dict[int, dict] = {}
+
+    def run(i: int) -> None:
+        for _ in range(3):  # long enough to overlap
+            side_by_side[i] = simulate_scenario(config, *pushes[i], record=False)[0]
+
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(len(pushes))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert [side_by_side[i] for i in range(len(pushes))] == alone
+
+
 @pytest.mark.parametrize("convention", CONVENTIONS)
 def test_qp_with_violated_state_bounds_returns_clipped_control(convention):
     controller = ControllerParams(convention=convention, osqp_max_iter=2000)

@@ -154,6 +154,22 @@ def test_the_endpoints_answer_and_anything_else_is_refused(server):
     assert get(server, "/api/folder", host=f"localhost:{server.port}")[0] == 200
 
 
+def test_every_refusal_is_one_short_json_answer(server, caplog):
+    """Also the answers the standard library writes itself: a method it has no handler for
+    (501 as HTML: 405 here, like any method but GET), a request line over 64 kB (414), and
+    a query of more fields than the endpoints take (a 500 and an 8-kB log line: 400)."""
+    for method in ("TRACE", "CONNECT", "BREW"):
+        status, body = get(server, "/api/folder", method=method)
+        assert status == 405 and "answers GET only" in body["error"], method
+    status, body = get(server, "/api/map?" + "&".join(f"x{i}=1" for i in range(1000)))
+    assert status == 400 and "too many query fields" in body["error"]
+    status, body = get(server, "/api/map?map=" + "x" * 70_000)
+    assert status == 414 and body["error"]
+    with caplog.at_level("DEBUG", logger="mjx_balance"):
+        get(server, "/api/run?map=&force=20&duration=0.1&" + "y" * 8000)
+    assert all(len(r.getMessage()) < 600 for r in caplog.records)
+
+
 @pytest.mark.parametrize(
     "path",
     [
@@ -356,6 +372,44 @@ def test_a_signal_during_a_run_stops_the_server_once_the_run_has_ended(sweep):
     client.join(30)
     assert events == ["run ended", "server returned"] and answers == [503]
     assert not (sweep / "explore" / "20.0_0.1.parquet").exists()
+
+
+def test_runs_of_different_cells_are_computed_side_by_side(server, sweep, monkeypatch):
+    """Up to RUN_SLOTS cells' runs at once (a click waited for every run before it: the last
+    of 16 clicks 46 s); two clicks on one cell compute it once."""
+    import threading
+
+    get(server, "/api/run?map=&force=20&duration=0.1")  # a real run, kept: the stand-in's
+    frame = pd.read_parquet(sweep / "explore" / "20.0_0.1.parquet")
+    summary, frame.attrs = frame.attrs["summary"], {}
+    for kept in (sweep / "explore").glob("*.parquet"):
+        kept.unlink()
+    monkeypatch.setattr(server.runs, "slots", threading.BoundedSemaphore(2))
+    calls, running, most = [], [0], [0]
+    lock = threading.Lock()
+
+    def stand_in(config, force, duration, record=True):
+        with lock:
+            calls.append((force, duration))
+            running[0] += 1
+            most[0] = max(most[0], running[0])
+        time.sleep(0.5)
+        with lock:
+            running[0] -= 1
+        return {**summary, "force": force, "duration": duration}, frame.assign(force=force)
+
+    monkeypatch.setattr(server.runs, "simulate", stand_in)
+    cells = ["force=0&duration=0.1", "force=20&duration=0.1", "force=20&duration=0.1"]
+    answers = []
+    clicks = [
+        threading.Thread(target=lambda c=c: answers.append(get(server, f"/api/run?map=&{c}")[0]))
+        for c in cells
+    ]
+    for click in clicks:
+        click.start()
+    for click in clicks:
+        click.join(60)
+    assert answers == [200] * 3 and sorted(calls) == [(0.0, 0.1), (20.0, 0.1)] and most[0] == 2
 
 
 def test_the_page_ships_as_package_data():

@@ -28,6 +28,7 @@ from __future__ import annotations
 import functools
 import math
 import sys
+import threading
 from typing import Any, Iterator, Protocol
 
 import mujoco
@@ -111,11 +112,19 @@ class MPC(Protocol):
         """(u [2] clipped first input, iterate, converged, primal residual) for state x0."""
 
 
-@functools.lru_cache(maxsize=8)
 def reference_mpc(
     controller: ControllerParams, body: BodyParams, control_dt: float
 ) -> ReferenceMPC:
-    """The OSQP controller of a configuration (built once per process and configuration)."""
+    """The OSQP controller of a configuration, built once per thread and configuration: an
+    OSQP solver holds its problem's data and iterates, so two threads solving on one at once
+    corrupt it (explore computes cells' runs side by side)."""
+    return _reference_mpc(controller, body, control_dt, threading.get_ident())
+
+
+@functools.lru_cache(maxsize=8)
+def _reference_mpc(
+    controller: ControllerParams, body: BodyParams, control_dt: float, _thread: int
+) -> ReferenceMPC:
     return ReferenceMPC(build_qp(controller, body, control_dt), controller)
 
 

@@ -14,13 +14,16 @@ the map's own configuration (its config.toml, else its manifest's), kept in the 
 series (docs/outputs.md, "Time-series columns") with the summary row, the configuration, the
 command that reproduces it and when and how long it took in the file's metadata (pandas
 ``attrs``), written atomically (``store.files.write_parquet``). A kept run is used when its
-configuration is the map's; otherwise it is computed again. One run is computed at a time (a
-second request waits for the first, then finds its file if it asked for the same cell).
+configuration is the map's; otherwise it is computed again. Runs of different cells are
+computed side by side, up to one a core (``RUN_SLOTS``; a click on a short run is not queued
+behind a long one); a second request for the same cell waits for the first, then reads its
+file.
 """
 
 from __future__ import annotations
 
 import math
+import os
 import shlex
 import threading
 import time
@@ -189,16 +192,27 @@ class Stopping(RuntimeError):
     """The server is stopping: no run starts (the server answers 503)."""
 
 
+RUN_SLOTS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+
+
 @dataclass
 class Runs:
-    """Runs of a folder's cells, one computed at a time; ``closed`` once the server stops (no
-    file is written after that)."""
+    """Runs of a folder's cells, one cell's at a time, up to ``RUN_SLOTS`` cells side by side;
+    ``closed`` once the server stops (no run starts and no file is written after that)."""
 
     folder: Folder
-    compute: threading.Lock = field(default_factory=threading.Lock)
     write: threading.Lock = field(default_factory=threading.Lock)
     closed: bool = False
     simulate: Callable[..., Any] | None = None  # the reference (tests put a stand-in)
+    slots: threading.BoundedSemaphore = field(
+        default_factory=lambda: threading.BoundedSemaphore(RUN_SLOTS or 1)
+    )
+    cells: dict[Path, threading.Lock] = field(default_factory=dict)  # one lock per cell's file
+    guard: threading.Lock = field(default_factory=threading.Lock)  # of ``cells``
+
+    def cell(self, path: Path) -> threading.Lock:
+        with self.guard:
+            return self.cells.setdefault(path, threading.Lock())
 
     def close(self, timeout: float = 5.0) -> None:
         """No more writes, no new run; waits (up to ``timeout``) for a write under way to
@@ -218,7 +232,7 @@ class Runs:
         frame = read_kept(path, config)
         cached, note = frame is not None, None
         if frame is None:
-            with self.compute:
+            with self.cell(path), self.slots:
                 if self.closed:  # a request that waited while the server began to stop
                     raise Stopping("the server is stopping")
                 frame = read_kept(path, config)  # computed meanwhile by another request

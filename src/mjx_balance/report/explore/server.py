@@ -19,9 +19,12 @@ less code than it saves. The rules it keeps:
                             ``..``, no hidden name, no symbolic link that leads out), never a
                             folder listing; served in a sandbox (no script of a file runs)
 
-- a bad request is answered with ``{"error": "..."}`` (400 for a value, 403 for a refused
-  path, 404 for what is not there), shown in the page; an unexpected failure is one line in
-  the log and a 500 with its message, never a traceback.
+- every answer is JSON ``{"error": "..."}`` when it is not the thing asked for (400 for a
+  value or more than ``MAX_FIELDS`` query fields, 403 for a refused path, 404 for what is not
+  there, 405 for any method but GET, 414 for a request line over 64 kB: also the
+  answers the standard library writes itself, :meth:`Handler.send_error`), shown in the page;
+  an unexpected failure is one line in the log (at most ``LOG_CHARS`` of the path and of the
+  message) and a 500 with its message, never a traceback.
 """
 
 from __future__ import annotations
@@ -49,6 +52,8 @@ from .runs import Runs, Stopping
 log = logging.getLogger("mjx_balance")
 
 HOST = "127.0.0.1"
+MAX_FIELDS = 16  # query fields a request may carry (the endpoints take at most 3)
+LOG_CHARS = 200  # of a request's path and of a message, in a log line
 ANSWER_END_S = 30.0  # the longest a stopping server waits for the requests under way
 STATIC = {
     "index.html": "text/html; charset=utf-8",
@@ -60,6 +65,11 @@ PAGE_POLICY = (
     "connect-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'"
 )
 FILE_POLICY = "sandbox; default-src 'none'; img-src 'self' data:; style-src 'unsafe-inline'"
+
+
+def short(text: str) -> str:
+    """``text`` cut to LOG_CHARS characters (a request's path can be 64 kB)."""
+    return text if len(text) <= LOG_CHARS else text[: LOG_CHARS - 1] + "…"
 
 
 class HttpError(Exception):
@@ -114,7 +124,7 @@ class Handler(BaseHTTPRequestHandler):
     sys_version = ""
 
     def log_message(self, format: str, *args: Any) -> None:
-        log.debug("explore: " + format, *args)
+        log.debug("explore: %s", short(format % args))
 
     def send(self, status: int, body: bytes, ctype: str, policy: str = PAGE_POLICY) -> None:
         self.send_response(status)
@@ -145,10 +155,24 @@ class Handler(BaseHTTPRequestHandler):
     def refuse_method(self) -> None:
         self.send_json(
             HTTPStatus.METHOD_NOT_ALLOWED,
-            {"error": f"{self.command} is refused: this server answers GET only"},
+            {"error": f"{short(self.command)} is refused: this server answers GET only"},
         )
 
     do_POST = do_PUT = do_DELETE = do_PATCH = do_HEAD = do_OPTIONS = refuse_method
+
+    def send_error(self, code: int, message: str | None = None, explain: str | None = None) -> None:
+        """The answers the standard library writes itself (a method without a ``do_``
+        handler: 501, a request line over 64 kB: 414, a malformed request: 400), as JSON like
+        every other answer; a method this server has no handler for is 405, as any other
+        method but GET."""
+        self.close_connection = True
+        if code == HTTPStatus.NOT_IMPLEMENTED and self.command:
+            return self.refuse_method()
+        try:
+            phrase = HTTPStatus(code).phrase
+        except ValueError:
+            phrase = "error"
+        self.send_json(code, {"error": short(message or phrase)})
 
     def do_GET(self) -> None:
         with self.server.answering():
@@ -166,8 +190,8 @@ class Handler(BaseHTTPRequestHandler):
             # server began to stop before its run started
             self.send_json(HTTPStatus.SERVICE_UNAVAILABLE, {"error": "the server is stopping"})
         except Exception as exc:
-            first = (str(exc).splitlines() or [""])[0]
-            log.warning(f"explore: {self.path}: {type(exc).__name__}: {first}")
+            first = short((str(exc).splitlines() or [""])[0])
+            log.warning(f"explore: {short(self.path)}: {type(exc).__name__}: {first}")
             self.send_json(
                 HTTPStatus.INTERNAL_SERVER_ERROR,
                 {"error": f"internal error ({type(exc).__name__}): {first}"},
@@ -180,7 +204,10 @@ class Handler(BaseHTTPRequestHandler):
 
     def route(self, url: Any) -> None:
         explorer = self.server.explorer
-        query = parse_qs(url.query, keep_blank_values=True, max_num_fields=16)
+        try:
+            query = parse_qs(url.query, keep_blank_values=True, max_num_fields=MAX_FIELDS)
+        except ValueError:  # more fields than MAX_FIELDS
+            raise HttpError(400, f"too many query fields: at most {MAX_FIELDS}") from None
         if url.path in ("/", "/index.html"):
             return self.static("index.html")
         if url.path.startswith("/static/"):
