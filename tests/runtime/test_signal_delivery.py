@@ -112,6 +112,31 @@ def test_a_ctrl_c_that_osqp_caught_is_delivered():
         checked(caught)
 
 
+def test_osqps_interrupted_line_is_dropped_and_nothing_else(capsys):
+    """On a Ctrl-C it caught, OSQP writes "Solver interrupted" to sys.stdout before the
+    command's own line; osqp_mpc.solved drops that line only, and puts sys.stdout back."""
+    import types
+
+    import osqp
+
+    from mjx_balance.control.osqp_mpc import OSQP_INTERRUPTED, solved
+
+    result = types.SimpleNamespace(
+        info=types.SimpleNamespace(status_val=osqp.SolverStatus.OSQP_SOLVED)
+    )
+    stdout = sys.stdout
+
+    class Solver:
+        def solve(self, raise_error):
+            sys.stdout.write(OSQP_INTERRUPTED)  # as OSQP's PySys_WriteStdout does
+            sys.stdout.write("a line of the command's own\n")
+            return result
+
+    assert solved(Solver()) is result
+    assert capsys.readouterr().out == "a line of the command's own\n"
+    assert sys.stdout is stdout
+
+
 def test_a_ctrl_c_that_osqp_caught_in_another_thread_reaches_the_main_thread():
     """OSQP catches the Ctrl-C in whatever thread solves (the explore server's request
     threads): the signal is sent again, so the main thread's work ends as on any Ctrl-C, and
@@ -207,8 +232,9 @@ def test_ctrl_c_during_simulate_ends_it(tmp_path):
         time.sleep(0.01)
     time.sleep(1.0)  # inside the first push's solves
     os.kill(proc.pid, signal.SIGINT)
-    _, err = proc.communicate(timeout=120)
+    printed, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
+    assert "Solver interrupted" not in printed  # OSQP's own line (osqp_mpc.solved)
     assert err.strip().splitlines() == [
         "mjx-balance: error: interrupted (SIGINT); what "
         "finished is kept: run the same command to resume"

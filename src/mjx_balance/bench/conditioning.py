@@ -20,6 +20,7 @@ import osqp
 import scipy.sparse as sp
 
 from ..control import admm
+from ..control.osqp_mpc import solved
 from ..control.qp import build_qp, float32_conditioning
 from ..model.params import Config
 
@@ -44,7 +45,7 @@ def osqp_first_input(qp, x0: np.ndarray) -> np.ndarray | None:
         polishing=False,
         max_iter=20000,
     )
-    result = solver.solve()
+    result = solved(solver)
     return np.asarray(result.x[:2]) if result.info.status == "solved" else None
 
 

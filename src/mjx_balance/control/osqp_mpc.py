@@ -9,6 +9,8 @@ QP runs to max_iter and returns its last iterate, as the batched ADMM does by de
 from __future__ import annotations
 
 import signal
+import sys
+import threading
 
 import numpy as np
 import osqp
@@ -61,7 +63,47 @@ def osqp_solve(
     solver.update(q=qp.linear_term(x0), l=lower, u=upper)
     if warm is not None:
         solver.warm_start(x=warm[0], y=warm[1])
-    return checked(solver.solve(raise_error=False))
+    return solved(solver)
+
+
+def solved(solver: osqp.OSQP):
+    """``solver.solve()`` without OSQP's line: while it solves, OSQP listens for SIGINT itself,
+    and on a Ctrl-C it ends the solve and writes "Solver interrupted" to Python's
+    ``sys.stdout`` (before the command's own one line; verbose=False does not silence it).
+    That line alone is dropped (:class:`_WithoutOsqpLine`); the Ctrl-C itself is delivered by
+    :func:`checked`."""
+    global _solving
+    with _stdout_lock:
+        if _solving == 0:
+            sys.stdout = _WithoutOsqpLine(sys.stdout)
+        _solving += 1
+    try:
+        result = solver.solve(raise_error=False)
+    finally:
+        with _stdout_lock:
+            _solving -= 1
+            if _solving == 0 and isinstance(sys.stdout, _WithoutOsqpLine):
+                sys.stdout = sys.stdout.inner
+    return checked(result)
+
+
+OSQP_INTERRUPTED = "Solver interrupted\n"  # what OSQP writes on a Ctrl-C it caught
+_stdout_lock = threading.Lock()  # sys.stdout is swapped once for solves in several threads
+_solving = 0  # solves under way (in any thread)
+
+
+class _WithoutOsqpLine:
+    """``sys.stdout`` while OSQP solves: everything written goes to ``inner`` but OSQP's
+    interrupted line."""
+
+    def __init__(self, inner):
+        self.inner = inner
+
+    def write(self, text: str) -> int:
+        return len(text) if text == OSQP_INTERRUPTED else self.inner.write(text)
+
+    def __getattr__(self, name: str):
+        return getattr(self.inner, name)
 
 
 def checked(result):
@@ -141,7 +183,7 @@ class PenaltyOSQP:
         self.solver.update(q=q, l=lo, u=hi)
         if z_warm is not None:
             self.solver.warm_start(x=np.concatenate([z_warm, np.zeros(self.soft.size)]))
-        result = checked(self.solver.solve(raise_error=False))
+        result = solved(self.solver)
         x = np.array(result.x, dtype=float)
         ok = result.info.status_val == osqp.SolverStatus.OSQP_SOLVED
         z, slack = x[: self.qp.n], x[self.qp.n :]
