@@ -384,6 +384,16 @@ def test_a_mostly_diverged_run_fails_with_one_line(tmp_path, capsys, diverging, 
     assert not (out / "region.png").exists() and not (out / "table.png").exists()
     # the same folder again: the finished numbers are still not results
     assert main(["-q", command, *grid, "--set", "scenario.t_end=2", "--out", str(out)]) == 1
+    # a corrected configuration takes the folder over (it held no result worth keeping; it
+    # refused "made with a different configuration") and computes every cell anew
+    diverging(above=1000.0)
+    assert main(["-q", command, *grid, "--set", "scenario.t_end=3", "--out", str(out)]) == 0
+    assert "holds no results of the configuration it was made with" in capsys.readouterr().err
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["config"]["scenario"]["t_end"] == 3.0
+    assert manifest["runs"][-1]["status"] == "completed"
+    kept = out / ("region.parquet" if command == "sweep" else "table_runs.parquet")
+    assert "diverged" not in set(pd.read_parquet(kept)["outcome"])  # none of the failed run's
 
 
 def test_a_few_diverged_cells_are_results(tmp_path, diverging):

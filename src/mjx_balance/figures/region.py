@@ -740,7 +740,8 @@ def _energy_axes(ax2, table: pd.DataFrame, convention: str) -> None:
         else "joint energy [J]  (∫|τ·dq/dt| dt)"
     )
     ax2.grid(True, which="both", alpha=0.3)
-    ax2.legend(fontsize=7 if study else 8)
+    if ax2.get_legend_handles_labels()[0]:  # none where no energy was measured
+        ax2.legend(fontsize=7 if study else 8)
     ax2.set_title(
         "Energy of the recovered runs"
         + (": the study's (eq. 20), the motors' in grey" if study else ""),

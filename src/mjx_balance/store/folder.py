@@ -42,7 +42,7 @@ import pandas as pd
 
 from ..runtime.fingerprint import differences, numerics
 from ..runtime.version import __version__
-from ..measures.outcomes import OUTCOMES, SUMMARY_COLUMNS
+from ..measures.outcomes import DIVERGED_LIMIT, OUTCOMES, SUMMARY_COLUMNS, diverged_share
 from ..measures.strategy import with_strategy
 from ..model.params import Config, ParameterError, config_warnings
 from ..model.config_files import dumps_config, load_config
@@ -53,6 +53,7 @@ from .files import (
     TABLE,
     TABLE_CELLS,
     TABLE_RUNS,
+    UNITS_SUFFIX,
     with_units,
     write_parquet,
     write_text,
@@ -369,13 +370,17 @@ class OutputFolder:
             return manifest
         differences = config_differences(manifest.get("config", {}), config)
         if differences and not self.holds_results():
-            # A run that failed before its first result (a bad value found late, a signal):
-            # nothing here depends on its configuration, so this run takes the folder over.
+            # A run that failed before its first result (a bad value found late, a signal), or
+            # whose numbers were not results (half or more diverged): nothing here is worth
+            # keeping, so this run takes the folder over, without the failed run's numbers
+            # (which it would otherwise resume from).
             log.warning(
                 "note: %s holds no results of the configuration it was made with; "
                 "starting it anew with this run's configuration",
                 self.path,
             )
+            for path in self.computed_files():  # none, or all of them not results
+                path.unlink(missing_ok=True)
             manifest = {
                 "package": "mjx_balance",
                 "version": __version__,
@@ -418,7 +423,7 @@ class OutputFolder:
             return
         refuse, warn = differences(recorded, numerics())
         warn = [w for w in warn if not w.startswith("package:")]  # said when opened
-        if refuse and self.holds_results():
+        if refuse and self.computed_files():  # even numbers that are not results: not mixed
             raise ParameterError(
                 f"{self.path} was computed under other numerics ({'; '.join(refuse)}); "
                 "resuming would mix rows computed differently. Run with the settings it "
@@ -433,11 +438,37 @@ class OutputFolder:
                 "; ".join(warn),
             )
 
-    def holds_results(self) -> bool:
-        """Whether the folder holds anything computed: a merged table or region, a chunk file,
-        a kept table scenario (a manifest and config.toml alone are not results)."""
+    def computed_files(self) -> list[Path]:
+        """What the folder holds computed: a merged table or region, chunk files, kept table
+        scenarios (a manifest and config.toml alone are not results)."""
         patterns = ("*.parquet", "*.csv", "chunks/*.parquet", f"{TABLE_CELLS}/*.parquet")
-        return any(any(self.path.glob(pattern)) for pattern in patterns)
+        return [path for pattern in patterns for path in sorted(self.path.glob(pattern))]
+
+    def holds_results(self) -> bool:
+        """Whether the folder holds results worth keeping: anything computed
+        (:meth:`computed_files`) unless it is all :meth:`not_results`."""
+        return bool(self.computed_files()) and not self.not_results()
+
+    def not_results(self) -> bool:
+        """Whether every computed file carries outcomes and, all together, they are not
+        results by the rule that failed the run (``measures.outcomes.check_results``: half or
+        more diverged): what a run of extreme settings leaves (every cell diverged). A
+        corrected configuration loses nothing by taking such a folder over. The table
+        (table.csv, made from its scenarios' files) and the units' sidecars are not judged; any
+        other file that cannot be read, or has no outcome column, is a result."""
+        outcomes: list[Any] = []
+        for path in self.computed_files():
+            if path.name == TABLE or path.name.endswith(UNITS_SUFFIX):
+                continue  # made from the scenarios' files (judged) or a sidecar of units
+            try:
+                if path.suffix == ".csv":
+                    frame = pd.read_csv(path, usecols=["outcome"])
+                else:
+                    frame = pd.read_parquet(path, columns=["outcome"])
+            except Exception:  # unreadable, or no outcome column: a result, kept
+                return False
+            outcomes.extend(frame["outcome"].tolist())
+        return bool(outcomes) and diverged_share(outcomes) >= DIVERGED_LIMIT
 
     def _check_lost_manifest(self, config: dict[str, Any]) -> None:
         """Results without a manifest: go on only if config.toml holds this run's configuration."""
