@@ -17,6 +17,11 @@ from mjx_balance.rollout.slots import Slots, refill_tiles
 from mjx_balance.rollout.queue import Queue
 
 
+# refill_tiles as it runs in the engine: inside jit (one program per shape, not one small
+# program per operation).
+jit_refill_tiles = jax.jit(refill_tiles, static_argnames=("tile",))
+
+
 def slots_of(cell, body):
     """Slots whose carry is one number per slot: the body whose rest it holds (-1: a scenario's
     start, 100 + c: cell c's start)."""
@@ -38,7 +43,7 @@ def refill_of(slots, offer_body, used=None, tile=2):
     starts = {"x": 100.0 + jnp.arange(R, dtype=jnp.float32)}
     rests = {"x": jnp.arange(4, dtype=jnp.float32)}  # body b's rest: b
     used = jnp.zeros(R, bool) if used is None else jnp.asarray(used)
-    return refill_tiles(
+    return jit_refill_tiles(
         slots,
         rests,
         used,
@@ -139,7 +144,7 @@ def test_the_refill_follows_its_rule_on_random_slots(tile):
         gated = rng.random() < 0.2  # a period between refills: no slot takes a cell
         slots = slots_of(cell, body)
         R = offer.size
-        new, took = refill_tiles(
+        new, took = jit_refill_tiles(
             slots,
             {"x": jnp.arange(4, dtype=jnp.float32)},
             jnp.asarray(used),

@@ -115,9 +115,9 @@ def test_each_lane_holds_its_own_bodys_compiled_model():
     ]
     runners = [BatchRunner(p.config(BASE), physics="mjx") for p in people]
     stacked, _ = lane_bodies(runners[0], runners, early_stop=True)
-    lanes = lane_arrays(stacked, np.array([2, 0, 1, 3]))
+    lanes = jax.tree.map(np.asarray, lane_arrays(stacked, np.array([2, 0, 1, 3])))
     for lane, runner in zip(range(4), [runners[2], runners[0], runners[1], runners[2]]):
-        mine = jax.tree.leaves(jax.tree.map(lambda v, lane=lane: v[lane], lanes))
+        mine = jax.tree.leaves(jax.tree.map(lambda v, lane=lane: v[lane], lanes))  # numpy
         own = jax.tree.leaves(runner.arrays)
         assert len(mine) == len(own)
         for a, b in zip(mine, own):
