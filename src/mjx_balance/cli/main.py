@@ -67,7 +67,8 @@ class _Version(argparse.Action):
         option_strings,
         dest=argparse.SUPPRESS,
         default=argparse.SUPPRESS,
-        help="print the versions of mjx_balance, JAX, jaxlib and MuJoCo and exit",
+        help="print the versions of mjx_balance, JAX, jaxlib and MuJoCo and exit; with "
+        "--verbose, everything a result depends on (versions, XLA flags, CPU ISA, devices)",
     ):
         super().__init__(option_strings, dest, nargs=0, default=default, help=help)
 
@@ -199,6 +200,13 @@ def main(argv: list[str] | None = None, *, hold_signals_after: bool = False) -> 
     # in the runs floor), and XLA reads its flags when JAX starts
     use_host_cores()
     deterministic_flags()
+    words = sys.argv[1:] if argv is None else list(argv)
+    if "--version" in words and {"-v", "--verbose"} & set(words):
+        # the environment as a run would have it: after the flags above (this starts JAX)
+        from ..store.provenance import environment, environment_text  # lazy: pandas, JAX
+
+        print(environment_text(environment()))
+        return 0
     args = build_parser().parse_args(argv)
     if getattr(args, "no_cache", False):
         from ..runtime import cache  # lazy: after use_host_cores, before JAX starts

@@ -79,6 +79,52 @@ def versions() -> dict[str, str | None]:
     }
 
 
+# The numerical libraries a result's numbers pass through, beside JAX and MuJoCo (versions()).
+NUMERICAL_PACKAGES = ("numpy", "scipy", "osqp", "pandas", "pyarrow", "matplotlib")
+
+
+def environment() -> dict[str, Any]:
+    """Everything a result depends on, for a methods section or a bug report: the versions
+    (:func:`versions`, and :data:`NUMERICAL_PACKAGES`), the numerics fingerprint
+    (``runtime.fingerprint.numerics``: x64, the XLA flags that change numbers, the matmul
+    precision, the CPU's vector ISA as XLA targets it), every XLA flag, the devices JAX runs
+    on (this starts JAX: call it where a run would, after the package set its flags), the
+    operating system and the git commit of a checkout. ``mjx-balance --version --verbose``
+    prints it."""
+    import jax  # lazy: started here to list the devices a run would use
+
+    from ..runtime.fingerprint import numerics  # lazy: light, but only for this report
+
+    jax.devices()
+    found = numerics()
+    return {
+        **versions(),
+        **{name: _distribution_version(name) for name in NUMERICAL_PACKAGES},
+        "x64": found["x64"],
+        "matmul_precision": found["matmul_precision"],
+        "cpu_isa": found["cpu_isa"],
+        "xla_flags": os.environ.get("XLA_FLAGS", "").split(),
+        "result_xla_flags": found["xla_flags"],
+        "device": device_record(),
+        "os": platform.platform(),
+        "git": git_record(),
+    }
+
+
+def environment_text(env: dict[str, Any]) -> str:
+    """:func:`environment` as lines of ``name: value``."""
+
+    def shown(value: Any) -> str:
+        if isinstance(value, dict):
+            return ", ".join(f"{k} {v}" for k, v in value.items()) or "-"
+        if isinstance(value, list):
+            return " ".join(str(v) for v in value) or "-"
+        return "-" if value is None else str(value)
+
+    width = max(len(name) for name in env)
+    return "\n".join(f"{name + ':':{width + 1}} {shown(value)}" for name, value in env.items())
+
+
 def device_record() -> dict[str, Any]:
     """JAX's devices when JAX has started in this process (platform, device kind, count); else
     the host's CPU (the scalar reference runs there, or JAX has not started yet)."""
