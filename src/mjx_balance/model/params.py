@@ -66,7 +66,15 @@ INERTIA_RANGE = (1e-10, 1e4)  # kg m^2
 
 
 class ParameterError(ValueError):
-    """A parameter value breaks a rule; the message names the field and the rule."""
+    """A parameter value breaks a rule; the message names the field and the rule, on one line:
+    a line break in it (a library's message quoted in it, pandas' "Error tokenizing data. C
+    error: ...\n") becomes a space, so the command line's one-line refusal stays one line."""
+
+    def __init__(self, message: Any = "", *args: Any) -> None:
+        text = str(message)
+        if "\n" in text or "\r" in text:
+            text = " ".join(part.strip() for part in text.splitlines() if part.strip())
+        super().__init__(text, *args)
 
 
 class ParameterWarning(UserWarning):
