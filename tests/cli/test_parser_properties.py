@@ -51,6 +51,20 @@ def holds(examples: int, strategy: st.SearchStrategy, check: Callable[[Any], Non
     profile(given(strategy)(check))()
 
 
+def read_file_or_refused(parts: tuple, name: str, read: Callable[[Path], Any], word: str) -> Any:
+    """``read`` of a file made of (header, rows); False when refused (in one line, naming the
+    file or ``word``)."""
+    head, body = parts
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / name
+        path.write_text("\n".join([head, *body]) + "\n")
+        try:
+            return read(path)
+        except ParameterError as exc:
+            one_line(exc, str(path), word)
+            return False
+
+
 def one_line(exc: ParameterError, *names: str) -> None:
     message = str(exc)
     assert message and "\n" not in message and len(message) < 600, message
@@ -193,15 +207,8 @@ def test_a_reference_file_is_read_or_refused(examples):
     )
 
     def check(parts):
-        head, body = parts
-        with tempfile.TemporaryDirectory() as folder:
-            path = Path(folder) / "reference.csv"
-            path.write_text("\n".join([head, *body]) + "\n")
-            try:
-                ref = read_reference(path)
-            except ParameterError as exc:
-                return one_line(exc, str(path), "reference")
-            assert ref is not None
+        ref = read_file_or_refused(parts, "reference.csv", read_reference, "reference")
+        assert ref is False or len(ref.frame) >= 1  # refused, or rows read
 
     holds(examples, st.tuples(header, rows), check)
 
@@ -218,17 +225,12 @@ def test_a_subjects_file_is_read_or_refused(examples):
     )
 
     def check(parts):
-        head, body = parts
-        with tempfile.TemporaryDirectory() as folder:
-            path = Path(folder) / "people.csv"
-            path.write_text("\n".join([head, *body]) + "\n")
-            try:
-                members = read_subjects(path)
-            except ParameterError as exc:
-                return one_line(exc, str(path), "subjects")
-            assert len({m.id for m in members}) == len(members) >= 1
-            for member in members:
-                assert math.isfinite(member.subject.height) and member.subject.height > 0
+        members = read_file_or_refused(parts, "people.csv", read_subjects, "subjects")
+        if members is False:
+            return
+        assert len({m.id for m in members}) == len(members) >= 1
+        for member in members:
+            assert math.isfinite(member.subject.height) and member.subject.height > 0
 
     holds(examples, st.tuples(header, rows), check)
 
