@@ -311,3 +311,24 @@ def test_the_base_map_is_a_result_that_keeps_the_folder(tmp_path):
             run_batches=stand_ins,
             say=None,
         )
+
+
+def test_the_plan_counts_the_subjects_checks_before_the_first_scenario(capsys, monkeypatch):
+    """A 30,000-subject cohort spends 30,000 x SUBJECT_CHECK_SECONDS checking its subjects
+    before its first scenario (the plan said "about 4 min" and then checked for 25 min); the
+    plan line says so, and the limit counts it. The subjects are not checked here: the plan is
+    said before, so the check is stopped at its start."""
+    from mjx_balance.model.params import ParameterError
+    from mjx_balance.runs.chunks import SUBJECT_CHECK_SECONDS, wall_span
+
+    def stopped(*_args, **_kwargs):
+        raise ParameterError("stopped at the subjects' checks")
+
+    monkeypatch.setattr("mjx_balance.studies.cohort.plan_cohort", stopped)
+    words = ["cohort", "--population", "30000", "--seed", "1", "--forces", "0,50"]
+    words += ["--durations", "0.1", "--set", "scenario.t_end=2", "--out", "unused"]
+    assert main(words) == 2
+    printed = capsys.readouterr().out
+    planned = next(line for line in printed.splitlines() if line.startswith("planned work"))
+    setup = wall_span(30000 * SUBJECT_CHECK_SECONDS, 30000 * SUBJECT_CHECK_SECONDS)
+    assert f"after {setup} of checking 30,000 subjects' configurations" in planned, planned

@@ -278,6 +278,7 @@ def cohort_command(args: Any) -> int:
     folder holding another cohort's results) before the folder is made or locked."""
     from ..model.config_files import with_convention  # lazy: not for --help
     from ..runs import DEFAULT_SWEEP  # lazy: the runs floor loads JAX; not for --help
+    from ..runs.chunks import SUBJECT_CHECK_SECONDS  # lazy: as above
     from ..studies.cohort import plan_cohort, run_plan  # lazy: as above
     from ..studies.probability import interval_text  # lazy: as above
 
@@ -305,6 +306,7 @@ def cohort_command(args: Any) -> int:
         "cells",
         extra=0 if tables is None else count * table_scenarios(base, tables.size),
         note=interval_text(count),
+        setup=(count * SUBJECT_CHECK_SECONDS, f"checking {count:,} subjects' configurations"),
     )
     if count > MAX_SUBJECTS:
         raise ParameterError(

@@ -105,6 +105,11 @@ CHUNK_BYTES_PER_SCENARIO = 650
 # The scalar reference (MuJoCo C + OSQP, one scenario at a time: simulate), hard pushes (bounds
 # active: OSQP iterates long) to light ones (BENCHMARKS.md, "The scalar reference's rate").
 REFERENCE_SECONDS_PER_SECOND = (1.0, 15.0)
+# What a cohort spends on each subject before its first scenario: checking its configuration
+# (studies.cohort.plan_cohort: the QP, its conditioning, the batched closed loop's build),
+# 0.038-0.055 s a subject on the 2-core CPU (python docs/scripts/cohort_setup.py; BENCHMARKS.md,
+# "A cohort's set-up"). A 100,000-subject cohort spends about 1.4 h there.
+SUBJECT_CHECK_SECONDS = 0.05
 MAX_PLANNED_SCENARIOS = 2_000_000  # more than this needs --yes
 MAX_PLANNED_HOURS = 24.0  # an estimate (at the slower rate) beyond this needs --yes
 
@@ -139,9 +144,11 @@ def planned_work(
     *,
     rate: tuple[float, float] = SIMULATED_SECONDS_PER_SECOND,
     bytes_per_scenario: int = 2 * CHUNK_BYTES_PER_SCENARIO,
+    setup: tuple[float, str] = (0.0, ""),
 ) -> str:
     """One line: scenarios, chunks (unless ``chunk_size`` is None), simulated time, estimated
-    wall time at ``rate`` (window-s/s: slower, faster) and disk."""
+    wall time at ``rate`` (window-s/s: slower, faster), disk, and ``setup``: (seconds, what)
+    spent before the first scenario (a cohort's subjects checked), when there are any."""
     simulated = n_scenarios * t_end
     longest, shortest = (simulated / r for r in rate)
     disk = n_scenarios * bytes_per_scenario  # (chunks + the merged table, by default)
@@ -156,6 +163,11 @@ def planned_work(
         f"planned work: {n_scenarios:,} {what}{chunks}, {simulated:,.0f} s of scenario "
         f"windows, {wall_span(shortest, longest)} at {low:g}-{high:g} window-s/s "
         f"(2-core CPU, BENCHMARKS.md; compile not included), about {_size(disk)} on disk"
+        + (
+            f", after {wall_span(setup[0], setup[0])} of {setup[1]} before the first scenario"
+            if setup[0] >= 1
+            else ""
+        )
     )
 
 
@@ -171,10 +183,12 @@ def check_planned_work(
     *,
     rate: tuple[float, float] = SIMULATED_SECONDS_PER_SECOND,
     scenarios_limit: int = MAX_PLANNED_SCENARIOS,
+    setup_s: float = 0.0,
 ) -> None:
-    """Refuse work above ``scenarios_limit`` or MAX_PLANNED_HOURS at the slower ``rate``
-    (ParameterError, one line saying how to go ahead anyway: --yes)."""
-    hours = n_scenarios * t_end / rate[0] / 3600
+    """Refuse work above ``scenarios_limit`` or MAX_PLANNED_HOURS at the slower ``rate``, the
+    set-up before the first scenario (``setup_s``) included (ParameterError, one line saying
+    how to go ahead anyway: --yes)."""
+    hours = (n_scenarios * t_end / rate[0] + setup_s) / 3600
     if n_scenarios > scenarios_limit or hours > MAX_PLANNED_HOURS:
         raise ParameterError(
             f"{n_scenarios:,} {what} of {t_end:g} s (up to {hours:,.1f} h on a 2-core CPU) is "
