@@ -217,7 +217,6 @@ def main(argv: list[str] | None = None, *, hold_signals_after: bool = False) -> 
         # lazy: after use_host_cores (pandas, not --help)
         from ..store.provenance import run_context
 
-        words = sys.argv[1:] if argv is None else list(argv)
         # SIGINT and SIGTERM raise Interrupted / Terminated wherever they land, and a signal
         # whose exception the runtime drops (a GC callback) still ends the work (signals.py)
         with (
