@@ -447,17 +447,18 @@ class OutputFolder:
     def holds_results(self) -> bool:
         """Whether the folder holds results worth keeping: anything computed
         (:meth:`computed_files`) unless it is all :meth:`not_results`."""
-        return bool(self.computed_files()) and not self.not_results()
+        files = self.computed_files()
+        return bool(files) and not self.not_results(files)
 
-    def not_results(self) -> bool:
-        """Whether every computed file carries outcomes and, all together, they are not
+    def not_results(self, files: Sequence[Path]) -> bool:
+        """Whether every computed file (``files``) carries outcomes and, all together, they are not
         results by the rule that failed the run (``measures.outcomes.check_results``: half or
         more diverged): what a run of extreme settings leaves (every cell diverged). A
         corrected configuration loses nothing by taking such a folder over. The table
         (table.csv, made from its scenarios' files) and the units' sidecars are not judged; any
         other file that cannot be read, or has no outcome column, is a result."""
         outcomes: list[Any] = []
-        for path in self.computed_files():
+        for path in files:
             if path.name == TABLE or path.name.endswith(UNITS_SUFFIX):
                 continue  # made from the scenarios' files (judged) or a sidecar of units
             try:
