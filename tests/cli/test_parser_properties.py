@@ -88,6 +88,9 @@ def test_a_grid_spec_is_read_or_refused(examples):
         if text.count(":") == 2:
             start, _, step = (float(p) for p in text.split(":"))
             k = np.arange(values.size)
+            # the parser's values are the floats nearest start + k step as written; the float
+            # sum here rounds start, k step and their sum, a few ulps (2.2e-16 relative each),
+            # and its cancellation near 0 is bounded by ulps of |step|: 1e-12 is thousands of ulps
             assert np.allclose(values, start + k * step, rtol=1e-12, atol=1e-12 * abs(step))
 
     holds(examples, text_of(NUMBER_BITS, [":", ",", ", "]), check)
