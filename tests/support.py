@@ -71,6 +71,23 @@ FIRST = [
 ]
 
 
+def extra_module(name: str, extra: str):
+    """The module ``name`` that the package's extra ``extra`` installs (the test extra leaves
+    the notebook kernel and Dask to the slow run: .ci/run installs those extras before it).
+    Without it the test skips with the reason, except under CI=true, where it fails."""
+    import importlib
+
+    import pytest
+
+    try:
+        return importlib.import_module(name)
+    except ImportError:
+        reason = f'{name} is not installed (pip install -e ".[{extra}]")'
+        if os.environ.get("CI", "").lower() == "true":
+            pytest.fail(reason + ", and CI=true: the test must run in CI")
+        pytest.skip(reason)
+
+
 # -- a stand-in rollout ---------------------------------------------------------------------------
 
 DEFAULT_BATCH = "mjx_balance.runs.batch.default_batch"  # what LazyBatch calls

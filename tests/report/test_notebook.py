@@ -4,10 +4,8 @@ one through the public API. Both executions are in the slow run (a kernel compil
 closed loop anew); the default run checks the notebook's calls against the public API."""
 
 import ast
-import importlib
 import inspect
 import json
-import os
 import re
 import sys
 from pathlib import Path
@@ -15,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from support import REPO
+from support import REPO, extra_module
 from tiny_report import tiny_report
 
 from mjx_balance.studies import catalog as studies
@@ -132,8 +130,8 @@ def test_notebook_computes_a_small_result_without_a_saved_report(tmp_path, monke
 def _execute(results: Path, tmp_path: Path, monkeypatch) -> list:
     """Run the notebook with MJX_BALANCE_RESULTS = ``results`` on this interpreter's kernel;
     its code cells with their outputs."""
-    nbformat, nbclient = _needed("nbformat"), _needed("nbclient")
-    _needed("ipykernel")
+    nbformat, nbclient = (extra_module(m, "notebooks") for m in ("nbformat", "nbclient"))
+    extra_module("ipykernel", "notebooks")
     # A kernel spec for this interpreter (the venv the tests run in), found first on JUPYTER_PATH.
     spec = tmp_path / "jupyter" / "kernels" / KERNEL
     spec.mkdir(parents=True)
@@ -154,18 +152,6 @@ def _execute(results: Path, tmp_path: Path, monkeypatch) -> list:
         nb, kernel_name=KERNEL, timeout=600, resources={"metadata": {"path": str(tmp_path)}}
     ).execute()
     return [c for c in nb.cells if c.cell_type == "code"]
-
-
-def _needed(name: str):
-    """The module ``name`` of the extra "notebooks"; without it the test skips with the reason,
-    except under CI=true (.ci/run installs the extra before the slow run), where it fails."""
-    try:
-        return importlib.import_module(name)
-    except ImportError:
-        reason = f'{name} is not installed (pip install -e ".[notebooks]")'
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(reason + ", and CI=true: the notebook test must run in CI")
-        pytest.skip(reason)
 
 
 def _text(cell) -> str:

@@ -6,8 +6,8 @@ worker processes inherit ``MJX_BALANCE_CACHE_DIR`` and load the compiled engine 
 instead of compiling it again (the smallest real configuration: t_end = 1 s, 8 slots, 12 cells
 in 3 chunks of 4; the same process also writes the local table of TABLE_FORCES, which the
 cluster's table must equal). The cluster tests need Dask distributed (the ``cluster`` extra,
-which the ``test`` extra includes) and are skipped without it; the last test checks that
-everything else works without it.
+which .ci/run installs before the slow run) and are in the slow run; without Dask they skip
+(under CI=true they fail). The option's checks and the last test run without Dask.
 """
 
 from __future__ import annotations
@@ -26,21 +26,17 @@ import jax
 import numpy as np
 import pandas as pd
 import pytest
-from support import held_sweep, held_table, tiny_config
+from support import extra_module, held_sweep, held_table, tiny_config
 
 from mjx_balance.measures.outcomes import SUMMARY_COLUMNS
 from mjx_balance.runs.grid import Grid
 
-try:
-    import distributed
-except ImportError:  # the plain install: only the test without Dask runs
-    distributed = None
 
-needs_dask = pytest.mark.skipif(
-    distributed is None,
-    reason="Dask distributed is not installed "
-    '(pip install "mjx_balance[cluster]"; the test extra has it)',
-)
+@pytest.fixture(scope="module")
+def distributed():
+    """Dask distributed (the extra "cluster")."""
+    return extra_module("distributed", "cluster")
+
 
 T_END = 1.0
 FORCES, DURATIONS = "0,60,120,250", "0.1,0.2,0.5"  # recovered, not_settled and fell
@@ -112,7 +108,7 @@ def _sweep(out, cluster, **kwargs):
 
 
 @pytest.mark.slow  # a local Dask cluster: .ci/run runs it after the default suite
-@needs_dask
+@pytest.mark.usefixtures("distributed")
 def test_local_cluster_gives_the_local_bytes(tmp_path, reference):
     """``local:2``: the same region.parquet, byte for byte, as the plain local run; the
     manifest records the slots the workers ran; a rerun finds it complete and starts nothing."""
@@ -130,7 +126,7 @@ def _local_table(reference: Path) -> Path:
 
 
 @pytest.fixture(scope="module")
-def cluster(compile_cache):
+def cluster(compile_cache, distributed):
     """A local cluster of 2 worker processes for the module (nannies restart a killed
     worker; a later test reuses the runners the workers built)."""
     with distributed.LocalCluster(
@@ -141,8 +137,7 @@ def cluster(compile_cache):
 
 
 @pytest.mark.slow  # a local Dask cluster: .ci/run runs it after the default suite
-@needs_dask
-def test_worker_killed_mid_chunk_loses_nothing(tmp_path, reference, cluster):
+def test_worker_killed_mid_chunk_loses_nothing(tmp_path, reference, cluster, distributed):
     """A worker SIGKILLed while it runs a chunk: Dask runs the chunk again elsewhere and the
     sweep (on the scheduler's address) ends complete and byte-identical, each chunk once."""
     local, watch = cluster
@@ -181,8 +176,7 @@ def test_worker_killed_mid_chunk_loses_nothing(tmp_path, reference, cluster):
 
 
 @pytest.mark.slow  # a local Dask cluster: .ci/run runs it after the default suite
-@needs_dask
-def test_table_on_the_cluster_is_the_local_table(tmp_path, reference, cluster):
+def test_table_on_the_cluster_is_the_local_table(tmp_path, reference, cluster, distributed):
     """``table --cluster``: each bisection round's calls run as tasks on the workers (split
     between them) and come back in order; table.csv, table_runs.parquet, every kept part
     file of table_runs/ and the engine record are those of the plain local table."""
@@ -225,8 +219,8 @@ def _other_version():
     provenance.__version__ = "0.0.0+other"
 
 
-@needs_dask
-def test_worker_of_another_version_is_refused(tmp_path):
+@pytest.mark.slow  # a local Dask cluster (one worker process)
+def test_worker_of_another_version_is_refused(tmp_path, distributed):
     """A worker that reports another mjx_balance version is refused at connect time, with a
     message naming it; nothing is computed. A task on such a worker refuses too."""
     from mjx_balance.runs.cluster import (
@@ -283,7 +277,6 @@ def _run_by_value(client, function):
         cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
 
 
-@needs_dask
 def test_cluster_spec_errors():
     from mjx_balance.runs.cluster import ClusterError, parse_cluster
 
@@ -294,7 +287,6 @@ def test_cluster_spec_errors():
             parse_cluster(bad)
 
 
-@needs_dask
 def test_cluster_option_is_checked_before_any_work(tmp_path, capsys):
     """``sweep --cluster`` with a bad spec: usage error (exit 2), nothing created."""
     from mjx_balance import cli

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from PIL import Image
-from support import FakeThresholdBatch, expected_area, expected_max_time
+from support import FakeThresholdBatch, expected_area, expected_max_time, extra_module
 
 import mjx_balance as mb
 from mjx_balance.cli import main
@@ -165,11 +165,12 @@ def test_names_and_boundaries():
     assert xs == [0.0, 5.0]  # from the grid's edge to half-way to the next force
 
 
+@pytest.mark.slow  # a local Dask cluster (one worker process)
 def test_compare_on_a_local_cluster_gives_the_local_numbers(tmp_path, monkeypatch):
     """``compare --cluster local:1``: one connection for every configuration's map
     and table, and the same region maps and compare.csv as the plain run. The stand-ins go to
     the worker by value (it cannot import this test module). Needs Dask (the cluster extra)."""
-    distributed = pytest.importorskip("distributed")
+    distributed = extra_module("distributed", "cluster")
     import cloudpickle
     import support  # the stand-in's module (FakeThresholdBatch)
 
