@@ -54,7 +54,7 @@ argument does not hold as stated): those scenarios run to t_end.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -130,6 +130,9 @@ class Certificate(NamedTuple):
     pitch_per_cop: float
     pitch_floor: float
     floor: np.ndarray  # [12] noise floors of the running peaks (0 where no peak is kept)
+    # 1: a passed check stops the scenario (early stopping); 0: no check ever passes (full
+    # length). Data, so that both modes run one compiled program.
+    stops: Any = 1.0
 
 
 def lqr_gain(qp: CondensedQP, r_diag) -> np.ndarray:
@@ -277,7 +280,7 @@ def check(xp, cert: Certificate, x, acc, push_over, samples_left):
     qp_free = GROWTH * (x @ cert.P @ x) <= cert.qp_level
     # (the current sample is in the band whenever the prediction is, for the default model; kept
     # as a guard for others)
-    ok = push_over & acc.alive & acc.in_band & band & peaks & qp_free
+    ok = push_over & acc.alive & acc.in_band & band & peaks & qp_free & (cert.stops != 0)
     return ok, tail_integrals(xp, cert, x, pred, samples_left)
 
 

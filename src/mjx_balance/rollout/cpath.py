@@ -373,13 +373,13 @@ def pack(
     return floats.astype(dtype), ints
 
 
-def call(arrays, sensors, static, cert, cs: CState, floats, ints, *, early_stop: bool):
+def call(arrays, sensors, static, cert, cs: CState, floats, ints):
     """One control period of one device's slots (pure JAX): fold the physics run since the
     previous call, decide and harvest, refill, solve. Inputs packed (:func:`unpack`). Returns
     the state and two arrays [slots, ...] (one transfer each, :func:`outputs`)."""
     S = static.substeps
     rows, last_qpos, refill_cell, refill_force, refill_push, p = unpack(floats, ints, S)
-    check = checker(cert if early_stop else None)
+    check = checker(cert)
     # 1. the period each busy slot ran since the previous call
     carry, k = folded(arrays, sensors, static, cs, rows, last_qpos)
     # 2. decided scenarios harvested and their slots vacated; vacant slots take new cells
@@ -589,13 +589,13 @@ class CEngine(Engine):
             return self._fn
         t0 = _time.perf_counter()
         r = self.runner
-        sensors, static, early_stop = r.sensors, self.static, self.cert is not None
+        sensors, static = r.sensors, self.static
         treedef = self._treedef
 
         def one(leaves, cs, floats, ints):
             arrays, cert = jax.tree.unflatten(treedef, leaves)
             with jax.default_matmul_precision(MATMUL_PRECISION):
-                return call(arrays, sensors, static, cert, cs, floats, ints, early_stop=early_stop)
+                return call(arrays, sensors, static, cert, cs, floats, ints)
 
         def build():
             run = one

@@ -61,26 +61,32 @@ def default_slots(platform: str) -> int:
 
 def certificate(runner, early_stop: bool):
     """The certificate of ``runner``'s configuration (``certificate.py``) in its dtype, or None
-    (``early_stop`` off, or no certificate applies: then its scenarios run to t_end). Built once
-    per runner (kept on it): a population asks for each body's twice."""
+    (no certificate applies: then its scenarios run to t_end). Without ``early_stop``
+    (``--full-length``) it is the same certificate with ``stops`` 0, whose check never stops a
+    scenario: both modes run one compiled program (the mode is data, not a compile key). Built
+    once per runner (kept on it): a population asks for each body's twice."""
     config = runner.config
-    if not (early_stop and cert_mod.applies(config)):
+    if not cert_mod.applies(config):
         return None
     built = runner.__dict__.setdefault("_certificate", [])
-    if built:
+    if not built:
+        arrays, sensors = runner.arrays, runner.sensors
+        com = float(whole_body_com(arrays.mx, arrays.d0, sensors))
+        rest = (com, com)  # static equilibrium: the CoP lies under the CoM
+        try:
+            cert = cert_mod.build(runner.qp, config.controller, config.scenario, rest=rest)
+        except ValueError as exc:  # e.g. a bound through rest: run to t_end instead
+            if early_stop:
+                warnings.warn(
+                    f"no certified early stop for this configuration: {exc}", stacklevel=4
+                )
+            cert = None
+        built.append(
+            None if cert is None else jax.tree.map(lambda v: jnp.asarray(v, runner.dtype), cert)
+        )
+    if built[0] is None or early_stop:
         return built[0]
-    arrays, sensors = runner.arrays, runner.sensors
-    com = float(whole_body_com(arrays.mx, arrays.d0, sensors))
-    rest = (com, com)  # static equilibrium: the CoP lies under the CoM
-    try:
-        cert = cert_mod.build(runner.qp, config.controller, config.scenario, rest=rest)
-    except ValueError as exc:  # e.g. a bound through rest: run to t_end instead
-        warnings.warn(f"no certified early stop for this configuration: {exc}", stacklevel=4)
-        cert = None
-    built.append(
-        None if cert is None else jax.tree.map(lambda v: jnp.asarray(v, runner.dtype), cert)
-    )
-    return built[0]
+    return built[0]._replace(stops=jnp.zeros((), runner.dtype))
 
 
 def lane_bodies(runner, bodies: Sequence[Any], early_stop: bool) -> tuple[Arrays, Any]:
@@ -245,7 +251,6 @@ class Engine:
         t0 = _time.perf_counter()
         r = self.runner
         sensors, static, periods = r.sensors, self.static, self.block
-        early_stop = self.cert is not None
         packing, tile, lanes = self.packing, self.tile, self.lanes
 
         def call(arrays, cert, slots, cell, force, push, init, body):
@@ -261,7 +266,6 @@ class Engine:
                 refill_init=init,
                 refill_body=body,
                 periods=periods,
-                early_stop=early_stop,
                 packing=packing,
                 tile=tile,
                 lanes=lanes,

@@ -425,7 +425,6 @@ def _run_period(
     done: Finished,
     n_done,
     periods: int,
-    early_stop: bool,
     tile: int | None,
     lanes: bool,
 ) -> tuple[Finished, jax.Array, Slots]:
@@ -437,7 +436,7 @@ def _run_period(
         if lanes
         else (arrays, rest)
     )
-    check = checker(cert if early_stop else None, periods, axis, slots.body if lanes else None)
+    check = checker(cert, periods, axis, slots.body if lanes else None)
     # lanes: the QPs by body tiles of ``tile`` slots (:func:`refill_tiles`)
     carry = period_batch(
         body,
@@ -478,7 +477,6 @@ def block(
     refill_init,
     refill_body,
     periods: int,
-    early_stop: bool,
     packing: Packing,
     tile: int | None = None,
     lanes: bool = False,
@@ -511,7 +509,7 @@ def block(
             refill_force,
             refill_push,
             starts,
-            gated=early_stop and cert is not None,
+            gated=cert is not None,
             refill_body=refill_body,
             tile=tile if lanes else None,
         )
@@ -526,7 +524,6 @@ def block(
             done=done,
             n_done=n_done,
             periods=periods,
-            early_stop=early_stop,
             tile=tile,
             lanes=lanes,
         )
