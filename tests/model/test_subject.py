@@ -197,6 +197,21 @@ def test_contradicting_limits_are_refused_naming_both():
     Config().replace(controller={"input2_bounds": [0, 0]})
 
 
+@pytest.mark.parametrize(
+    "name", ["input1_bounds", "input2_bounds", "state1_bounds", "state2_bounds"]
+)
+@pytest.mark.parametrize("bounds", [[5, 20], [-20, -5], [1e300, 1e300], [-1e300, -1e300]])
+def test_a_bound_that_excludes_rest_is_refused(name, bounds):
+    """An input or angle bound without 0 (the upright rest's value) is refused by name (was:
+    [1e300, 1e300] passed every check and the scalar reference's OSQP set-up raised a
+    traceback; [5, 20] ran pushes from a rest the body cannot hold)."""
+    with pytest.raises(ParameterError) as err:
+        Config().replace(controller={name: bounds})
+    assert f"controller.{name} = [{bounds[0]:g}, {bounds[1]:g}]" in str(err.value)
+    assert "excludes 0" in str(err.value)
+    Config().replace(controller={name: [min(bounds[0], 0), max(bounds[1], 0)]})  # with 0: kept
+
+
 def test_a_never_binding_limit_warns_and_is_in_the_manifest(tmp_path):
     with pytest.warns(ParameterWarning, match=r"cop_bounds = \[-0.2, 0.2\].*foot_length = 0.3"):
         config = Config().replace(controller={"cop_bounds": [-0.2, 0.2]})

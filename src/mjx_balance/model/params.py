@@ -644,6 +644,13 @@ class Config:
 # construction): a contradiction is an error naming both values; a limit that can never bind
 # is a warning (ParameterWarning, the log, and the output folder's manifest, config_warnings).
 EDGE_TOL = 1e-9  # m: a bound this close to the sole's edge counts as on it (float error)
+# the bounds whose quantity is 0 at upright rest (inputs and the convention's angles)
+REST_INSIDE = (
+    ("input1_bounds", "N m"),
+    ("input2_bounds", "N m"),
+    ("state1_bounds", "rad"),
+    ("state2_bounds", "rad"),
+)
 
 
 def check_linked_limits(config: Config) -> None:
@@ -659,6 +666,14 @@ def check_linked_limits(config: Config) -> None:
                 f"body.foot_length = {body.foot_length:g} m (its edges at +-{half:g} m): the "
                 f"upright body's {what} (x = 0) breaks it at rest, so no run means anything; "
                 f"bring the bounds onto the sole or lengthen the foot"
+            )
+    for name, unit in REST_INSIDE:
+        low, high = getattr(ctrl, name)
+        if not low <= 0 <= high:
+            raise ParameterError(
+                f"controller.{name} = [{low:g}, {high:g}] {unit} excludes 0, its value at the "
+                "upright rest the model is linearised about: the body cannot stand at rest "
+                "under it, so no run means anything; give it a range that contains 0"
             )
     (a1, b1), (a2, b2) = ctrl.input1_bounds, ctrl.input2_bounds
     if a1 == b1 and a2 == b2:
