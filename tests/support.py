@@ -71,21 +71,26 @@ FIRST = [
 ]
 
 
+def unavailable(reason: str, what: str = "the test") -> None:
+    """A test's tool or package is missing (``reason``): skip with the reason, except under
+    CI=true, where it fails (``what`` must run in CI: .ci/run installs everything)."""
+    import pytest
+
+    if os.environ.get("CI", "").lower() == "true":
+        pytest.fail(f"{reason}, and CI=true: {what} must run in CI")
+    pytest.skip(reason)
+
+
 def extra_module(name: str, extra: str):
     """The module ``name`` that the package's extra ``extra`` installs (the test extra leaves
-    the notebook kernel and Dask to the slow run: .ci/run installs those extras before it).
-    Without it the test skips with the reason, except under CI=true, where it fails."""
+    the notebook kernel and Dask to the slow run: .ci/run installs those extras before it);
+    without it, :func:`unavailable`."""
     import importlib
-
-    import pytest
 
     try:
         return importlib.import_module(name)
     except ImportError:
-        reason = f'{name} is not installed (pip install -e ".[{extra}]")'
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(reason + ", and CI=true: the test must run in CI")
-        pytest.skip(reason)
+        unavailable(f'{name} is not installed (pip install -e ".[{extra}]")')
 
 
 # -- a stand-in rollout ---------------------------------------------------------------------------

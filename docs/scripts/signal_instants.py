@@ -69,6 +69,22 @@ def region(out: Path) -> pd.DataFrame:
     return frame.reset_index(drop=True)
 
 
+def instant(span: float, k: int, n: int) -> float:
+    """The k-th of n instants spread over ``span`` seconds (the last just before its end)."""
+    return span * k / max(n - 1, 1) * 0.98
+
+
+def stopped(out: Path, at: float, signum: int) -> tuple[subprocess.Popen, str]:
+    """Start the command into ``out``, send ``signum`` ``at`` seconds after its manifest
+    appeared; the ended process and its stderr."""
+    proc = start(out)
+    t0 = wait_for_manifest(out, proc)
+    time.sleep(max(0.0, at - (time.perf_counter() - t0)))
+    os.kill(proc.pid, signum)
+    _, err = proc.communicate()
+    return proc, err
+
+
 def tables(out: Path) -> dict[str, bytes]:
     """Every table a run wrote (each .csv and .parquet file under ``out``), by relative path."""
     return {str(p.relative_to(out)): p.read_bytes()
@@ -88,13 +104,9 @@ def killed(args, span: float, whole: Path) -> int:
     print("|---|---|---|---|---|---|")
     failures = 0
     for k in range(args.instants):
-        at = span * k / max(args.instants - 1, 1) * 0.98
+        at = instant(span, k, args.instants)
         out = args.out / f"KILL-{k:02d}"
-        proc = start(out)
-        t0 = wait_for_manifest(out, proc)
-        time.sleep(max(0.0, at - (time.perf_counter() - t0)))
-        proc.kill()
-        proc.communicate()
+        proc, _ = stopped(out, at, signal.SIGKILL)
         was_killed = proc.returncode == -signal.SIGKILL
         again = start(out)
         _, err = again.communicate()
@@ -104,8 +116,8 @@ def killed(args, span: float, whole: Path) -> int:
         same = sum(got.get(name) == data for name, data in expected.items())
         # killed mid-work: the rerun records it "killed"; a kill after the work ended finds
         # the run "completed"
-        ok = (again.returncode == 0 and same == len(expected) and set(got) == set(expected)
-              and "Traceback" not in err and first in ("killed", "completed", "-"))
+        ok = (again.returncode == 0 and got == expected and "Traceback" not in err
+              and first in ("killed", "completed", "-"))
         failures += not ok
         print(f"| {at:.2f} | {'yes' if was_killed else 'no (ended first)'} | {first} | "
               f"{again.returncode} | {same} | {leftovers(out)} |" + ("" if ok else " <- FAILED"))
@@ -140,13 +152,9 @@ def main() -> int:
     failures = 0
     for signum, code in ((signal.SIGINT, 130), (signal.SIGTERM, 143)):
         for k in range(args.instants):
-            at = span * k / max(args.instants - 1, 1) * 0.98
+            at = instant(span, k, args.instants)
             out = args.out / f"{signum.name}-{k:02d}"
-            proc = start(out)
-            t0 = wait_for_manifest(out, proc)
-            time.sleep(max(0.0, at - (time.perf_counter() - t0)))
-            os.kill(proc.pid, signum)
-            _, err = proc.communicate()
+            proc, err = stopped(out, at, signum)
             lines = err.strip().splitlines()
             status = json.loads((out / "manifest.json").read_text())["runs"][-1]["status"]
             again = start(out)

@@ -11,13 +11,13 @@ must run somewhere."""
 
 from __future__ import annotations
 
-import os
 import shutil
 import time
 
 import pytest
 from browser_audit import chromium
 from explore_folders import sweep_folder
+from support import unavailable
 from webdriver import Browser, chromedriver
 
 from mjx_balance.report.explore import Explorer
@@ -51,9 +51,7 @@ def browser(tmp_path_factory):
             f"{' and '.join(missing)} not installed (Debian: apt-get install chromium "
             "chromium-driver; .ci/run does)"
         )
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(reason + ", and CI=true: the browser test must run in CI")
-        pytest.skip(reason)
+        unavailable(reason, "the browser test")
     b = Browser(chromium(), tmp_path_factory.mktemp("chromium") / "profile")
     yield b
     b.quit()
