@@ -227,7 +227,9 @@ class AdmmMPC:
         from mjx_balance.control import admm as admm_mod
 
         self.qp, self._data, settings = runner.qp, runner.arrays.qp, runner.static.settings
-        self._solve = jax.jit(lambda x, w, o: admm_mod.admm_solve(self._data, x, w, settings, o))
+        self._solve = jax.jit(
+            lambda x, w, o, f: admm_mod.admm_solve(self._data, x, w, settings, o, f)
+        )
         self.reset()
 
     def reset(self) -> None:
@@ -235,14 +237,19 @@ class AdmmMPC:
 
         self._warm = admm_mod.initial_warm(self._data)
 
-    def solve(self, x0, offset=None):
+    def solve(self, x0, offset=None, first=None):
         import jax.numpy as jnp
 
         from mjx_balance.control import admm as admm_mod
 
         offset = np.zeros(self.qp.m) if offset is None else offset  # zero: the plain QP
+        # no rate limit: the kernel's [-inf, inf] (the plain QP's numbers, bit for bit)
+        first = np.array([[-np.inf] * 2, [np.inf] * 2]) if first is None else first
         res = self._solve(
-            jnp.asarray(x0, jnp.float32), self._warm, jnp.asarray(offset, jnp.float32)
+            jnp.asarray(x0, jnp.float32),
+            self._warm,
+            jnp.asarray(offset, jnp.float32),
+            jnp.asarray(first, jnp.float32),
         )
         self._warm = admm_mod.ADMMWarm(*(w.astype(jnp.float32) for w in res.warm_next))
         return (

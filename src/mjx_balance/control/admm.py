@@ -52,7 +52,7 @@ Shapes: n = 2N decision variables, m = 6N constraint rows, state 4, input 2.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -322,10 +322,15 @@ class _Solve(NamedTuple):
 
 
 def _setup(
-    data: ADMMData, x0: jax.Array, settings: ADMMSettings, offset: jax.Array | None
+    data: ADMMData,
+    x0: jax.Array,
+    settings: ADMMSettings,
+    offset: jax.Array | None,
+    first: jax.Array | None = None,
 ) -> _Solve:
     """The per-solve terms at state ``x0`` [4]: only q and the bounds move with x0 (and
-    ``offset`` [m], which moves every row's bounds down)."""
+    ``offset`` [m], which moves every row's bounds down; ``first`` [2, 2], the first input's
+    own [lower, upper] of this solve, which tightens its rows: the rate limit)."""
     dtype = data.MwT.dtype
     x0 = jnp.asarray(x0, dtype)
     alpha = jnp.asarray(settings.alpha, dtype)
@@ -340,7 +345,12 @@ def _setup(
     shift = x0 @ data.bT
     if offset is not None:
         shift = shift + E * jnp.asarray(offset, dtype)
-    lo, hi = data.l0 - shift, data.u0 - shift  # scaled bounds
+    l0, u0 = data.l0, data.u0
+    if first is not None:  # rows 0 and 1 are u_0's (qp.py's row order); E > 0
+        first = jnp.asarray(first, dtype)
+        l0 = l0.at[:2].set(jnp.maximum(l0[:2], E[:2] * first[0]))
+        u0 = u0.at[:2].set(jnp.minimum(u0[:2], E[:2] * first[1]))
+    lo, hi = l0 - shift, u0 - shift  # scaled bounds
     eps_pinf = jnp.asarray(settings.eps_prim_inf, dtype)
     return _Solve(
         alpha=alpha,
@@ -460,10 +470,16 @@ def _start(data: ADMMData, p: _Solve, warm: ADMMWarm) -> _Carry:
 
 
 def _finish(
-    data: ADMMData, p: _Solve, settings: ADMMSettings, carry: _Carry, offset: jax.Array | None
+    data: ADMMData,
+    p: _Solve,
+    settings: ADMMSettings,
+    carry: _Carry,
+    offset: jax.Array | None,
+    first_bounds: jax.Array | None = None,
 ) -> ADMMResult:
     """The result of the last carry: status (the primal infeasibility certificate on δy over
-    the last chunk), unscaled z [n] and y [m], the first input and the shifted warm start."""
+    the last chunk), unscaled z [n] and y [m], the first input (clipped to the input bounds,
+    tightened by ``first_bounds``) and the shifted warm start."""
     dtype = data.MwT.dtype
     if settings.penalty is None:
         certificate = _infeasible(data, p, carry.y, carry.y_check)
@@ -478,8 +494,13 @@ def _finish(
 
     z = carry.x @ data.T.T
     y = p.E * p.rho * carry.y / p.c
-    first = z[:2] if offset is None else z[:2] + jnp.asarray(offset[:2], dtype)
-    u0 = jnp.clip(first, data.input_lower, data.input_upper)
+    head = z[:2] if offset is None else z[:2] + jnp.asarray(offset[:2], dtype)
+    lower, upper = data.input_lower, data.input_upper
+    if first_bounds is not None:
+        first_bounds = jnp.asarray(first_bounds, dtype)
+        lower = jnp.maximum(lower, first_bounds[0])
+        upper = jnp.minimum(upper, first_bounds[1])
+    u0 = jnp.clip(head, lower, upper)
     return ADMMResult(
         z=z,
         u0=u0,
@@ -497,12 +518,18 @@ def admm_solve(
     warm: ADMMWarm,
     settings: ADMMSettings,
     offset: jax.Array | None = None,
+    first: jax.Array | None = None,
 ) -> ADMMResult:
     """Solve the QP at state ``x0`` [4] from ``warm``; pure, jit-able (settings static).
 
     ``offset`` [m] (the offset-free MPC's deviation QP, offset_free.py): every row's bounds
     move down by it, and the first input returned is offset[:2] + z[:2] (the input rows' offset
     is the target input u_s), clipped to the input bounds. None: the plain QP.
+
+    ``first`` [2, 2] ([lower, upper] of u_0, absolute, not offset): this solve's own bounds of
+    the first input, intersected with its rows' (the rate limit: the input applied last plus
+    or minus the most it may change in a period; docs/model.md, "Strength and timing"). With
+    -inf / inf every number is the plain QP's, bit for bit. None: no such bounds.
 
     Batch with ``jax.vmap(admm_solve, in_axes=(None, 0, 0, None))`` (see
     :func:`admm_solve_batch`).
@@ -511,13 +538,13 @@ def admm_solve(
     :func:`_chunk` (``check_every`` :func:`_iteration` s, then :func:`_residuals` and
     :func:`_infeasible`) in a ``lax.while_loop``, :func:`_finish` (status and result).
     """
-    p = _setup(data, x0, settings, offset)
+    p = _setup(data, x0, settings, offset, first)
     carry = jax.lax.while_loop(
         lambda carry: (~carry.stop) & (carry.chunk < settings.n_chunks),
         lambda carry: _chunk(data, p, settings, carry),
         _start(data, p, warm),
     )
-    return _finish(data, p, settings, carry, offset)
+    return _finish(data, p, settings, carry, offset, first)
 
 
 def admm_solve_batch(
@@ -527,9 +554,11 @@ def admm_solve_batch(
     settings: ADMMSettings,
     tile: int | None = None,
     offset: jax.Array | None = None,
+    first: jax.Array | None = None,
 ) -> ADMMResult:
-    """``admm_solve`` vmapped over x0 [B, 4], warm ([B, n], [B, m]) and offset ([B, m] or
-    None), the QP ``data`` shared (one QP per tile of lanes: :func:`admm_solve_tiles`).
+    """``admm_solve`` vmapped over x0 [B, 4], warm ([B, n], [B, m]), offset ([B, m] or None)
+    and first ([B, 2, 2] or None), the QP ``data`` shared (one QP per tile of lanes:
+    :func:`admm_solve_tiles`).
 
     With ``tile`` (a divisor of B), the batch is solved as B / tile sequential tiles
     (``lax.map`` over a vmapped solve): each tile's iterates stay in cache, and a tile whose
@@ -537,21 +566,18 @@ def admm_solve_batch(
     Every lane's iterates are the same whatever its tile: a lane that stopped is held, not
     iterated, while its tile runs on.
     """
-    solve = jax.vmap(
-        lambda x, w, o: admm_solve(data, x, w, settings, o),
-        in_axes=(0, 0, None if offset is None else 0),
-    )
+    # (offset, first): per-lane arguments that may be None (a None has no leaves to map)
+    solve = jax.vmap(lambda x, w, lane: admm_solve(data, x, w, settings, *lane))
+    lane = (offset, first)
     if tile is None or tile >= x0.shape[0]:
-        return solve(x0, warm, offset)
-    return _by_tiles(lambda args: jax.lax.map(lambda a: solve(*a), args), tile, x0, warm, offset)
+        return solve(x0, warm, lane)
+    return _by_tiles(lambda args: jax.lax.map(lambda a: solve(*a), args), tile, x0, warm, lane)
 
 
-def _by_tiles(
-    solve, tile: int, x0: jax.Array, warm: ADMMWarm, offset: jax.Array | None, *leading
-) -> ADMMResult:
-    """``solve((*leading, x0, warm, offset))`` with x0, warm and offset [B, ...] split into
-    B / ``tile`` tiles [B / tile, tile, ...] (``leading``: per-tile arguments, given as they
-    are), and its result merged back to [B, ...]."""
+def _by_tiles(solve, tile: int, x0: jax.Array, warm: ADMMWarm, lane: Any, *leading) -> ADMMResult:
+    """``solve((*leading, x0, warm, lane))`` with x0, warm and every leaf of ``lane`` [B, ...]
+    split into B / ``tile`` tiles [B / tile, tile, ...] (``leading``: per-tile arguments, given
+    as they are), and its result merged back to [B, ...]."""
     batch = x0.shape[0]
     if batch % tile:
         raise ValueError(f"tile {tile} must divide the batch size {batch}")
@@ -559,9 +585,7 @@ def _by_tiles(
     def split(a):
         return a.reshape((batch // tile, tile) + a.shape[1:])
 
-    out = solve(
-        (*leading, split(x0), jax.tree.map(split, warm), None if offset is None else split(offset))
-    )
+    out = solve((*leading, split(x0), jax.tree.map(split, warm), jax.tree.map(split, lane)))
     return jax.tree.map(lambda a: a.reshape((batch,) + a.shape[2:]), out)
 
 
@@ -573,11 +597,12 @@ def admm_solve_tiles(
     settings: ADMMSettings,
     tile: int,
     offset: jax.Array | None = None,
+    first: jax.Array | None = None,
 ) -> ADMMResult:
-    """``admm_solve`` over x0 [B, 4], warm ([B, n], [B, m]) and offset ([B, m] or None) in
-    B / ``tile`` tiles of ``tile`` consecutive lanes, every lane of tile t solving the QP
-    ``bodies[tile_body[t]]`` (``bodies``: QPs stacked [n_bodies, ...], every leaf; tile_body
-    [B / tile] int).
+    """``admm_solve`` over x0 [B, 4], warm ([B, n], [B, m]), offset ([B, m] or None) and
+    first ([B, 2, 2] or None) in B / ``tile`` tiles of ``tile`` consecutive lanes, every lane
+    of tile t solving the QP ``bodies[tile_body[t]]`` (``bodies``: QPs stacked
+    [n_bodies, ...], every leaf; tile_body [B / tile] int).
 
     Within a tile the QP is shared, so its products are [tile, m] x [m, n] matrix products, as
     :func:`admm_solve_batch` computes them for a batch that shares one QP, where one QP per lane
@@ -587,11 +612,9 @@ def admm_solve_tiles(
     without tiles: it runs to the slowest lane's stop.
     """
     solve = jax.vmap(
-        lambda d, x, w, o: admm_solve(d, x, w, settings, o),
-        in_axes=(None, 0, 0, None if offset is None else 0),
+        lambda d, x, w, lane: admm_solve(d, x, w, settings, *lane), in_axes=(None, 0, 0, 0)
     )
     per_tile = jax.vmap(
-        lambda b, x, w, o: solve(jax.tree.map(lambda v: v[b], bodies), x, w, o),
-        in_axes=(0, 0, 0, None if offset is None else 0),
+        lambda b, x, w, lane: solve(jax.tree.map(lambda v: v[b], bodies), x, w, lane)
     )
-    return _by_tiles(lambda args: per_tile(*args), tile, x0, warm, offset, tile_body)
+    return _by_tiles(lambda args: per_tile(*args), tile, x0, warm, (offset, first), tile_body)

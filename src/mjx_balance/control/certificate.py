@@ -49,7 +49,8 @@ After certification the remaining control periods are counted in ``control_perio
 is solved, no input saturates); energies and work go on as the linear prediction says for its
 2 s (up to t_end), what comes later is left out (measured: docs/engine.md); the ADMM iteration
 total counts the periods run. No certificate with a controller delay or a hip servo (the
-argument does not hold as stated): those scenarios run to t_end.
+argument does not hold as stated), nor with a rate limit on the inputs (the LQR law may change
+faster than it allows): those scenarios run to t_end.
 """
 
 from __future__ import annotations
@@ -238,13 +239,15 @@ def push_over(step, n_push, force):
 
 def applies(config) -> bool:
     """Whether a configuration has a certificate (no controller delay, no hip servo, not the
-    offset-free controller, whose observer and target are outside the certified loop)."""
+    offset-free controller, whose observer and target are outside the certified loop, no rate
+    limit, which the LQR law of the argument does not obey)."""
     body = config.body
     return (
         config.scenario.delay_steps == 0
         and body.hip_servo_stiffness == 0
         and body.hip_servo_damping == 0
         and not config.controller.offset_free
+        and config.controller.input_rates is None
     )
 
 

@@ -55,11 +55,13 @@ def osqp_solve(
     x0: np.ndarray,
     warm: tuple[np.ndarray, np.ndarray] | None = None,
     offset: np.ndarray | None = None,
+    first: np.ndarray | None = None,
 ):
     """Solve the QP of measured state ``x0`` [4] (optionally from a primal/dual warm start;
-    ``offset``: the offset-free deviation QP's row offsets, ``qp.bounds``); OSQP's result
-    object; an exception only for a Ctrl-C that OSQP caught (:func:`checked`)."""
-    lower, upper = qp.bounds(x0, offset)
+    ``offset``: the offset-free deviation QP's row offsets, ``first``: the first input's own
+    bounds, ``qp.bounds``); OSQP's result object; an exception only for a Ctrl-C that OSQP
+    caught (:func:`checked`)."""
+    lower, upper = qp.bounds(x0, offset, first)
     solver.update(q=qp.linear_term(x0), l=lower, u=upper)
     if warm is not None:
         solver.warm_start(x=warm[0], y=warm[1])
@@ -168,18 +170,24 @@ class PenaltyOSQP:
             verbose=False,
         )
 
-    def terms(self, x0: np.ndarray, offset: np.ndarray | None = None):
+    def terms(self, x0: np.ndarray, offset: np.ndarray | None = None, first=None):
         """(q, l, u) of the slack QP at state ``x0``."""
-        lower, upper = self.qp.bounds(x0, offset)
+        lower, upper = self.qp.bounds(x0, offset, first)
         k, inf = self.soft.size, np.inf
         q = np.concatenate([self.qp.linear_term(x0), self.weight])
         lo = np.concatenate([lower[self.hard], np.full(k, -inf), lower[self.soft], np.zeros(k)])
         hi = np.concatenate([upper[self.hard], upper[self.soft], np.full(k, inf), np.full(k, inf)])
         return q, lo, hi
 
-    def solve(self, x0: np.ndarray, z_warm: np.ndarray | None, offset: np.ndarray | None = None):
+    def solve(
+        self,
+        x0: np.ndarray,
+        z_warm: np.ndarray | None,
+        offset: np.ndarray | None = None,
+        first: np.ndarray | None = None,
+    ):
         """(z [n], status solved, primal residual, the largest slack: the hard rows' violation)."""
-        q, lo, hi = self.terms(x0, offset)
+        q, lo, hi = self.terms(x0, offset, first)
         self.solver.update(q=q, l=lo, u=hi)
         if z_warm is not None:
             self.solver.warm_start(x=np.concatenate([z_warm, np.zeros(self.soft.size)]))
@@ -227,7 +235,12 @@ class ReferenceMPC:
         self.hard_infeasible: bool | None = None  # the last solve's LP test, when it ran
 
     def _soft(
-        self, x0: np.ndarray, z: np.ndarray, offset: np.ndarray | None, hard: tuple
+        self,
+        x0: np.ndarray,
+        z: np.ndarray,
+        offset: np.ndarray | None,
+        hard: tuple,
+        first: np.ndarray | None = None,
     ) -> tuple[np.ndarray, bool, float]:
         """An unsolved hard QP under the exact penalty: if it is infeasible (the LP test), the
         slack QP's solution (warm-started from the hard iterate), else the hard result as is.
@@ -236,12 +249,12 @@ class ReferenceMPC:
         one (the weights exceed its multipliers), which OSQP reaches reliably on the hard QP,
         while on the slack QP, an LP-like problem, OSQP at eps 1e-8 misses 6 of 64 solvable
         bench states even with 200,000 iterations."""
-        self.hard_infeasible = not self.qp.feasible(x0, offset)
+        self.hard_infeasible = not self.qp.feasible(x0, offset, first)
         if not self.hard_infeasible:
             return hard
         warm = z if np.isfinite(z).all() else None
         assert self._penalty is not None  # (solve calls this only under the exact penalty)
-        z, ok, prim_res, self.violation = self._penalty.solve(x0, warm, offset)
+        z, ok, prim_res, self.violation = self._penalty.solve(x0, warm, offset, first)
         self._z = z if np.isfinite(z).all() else None
         self._y = None if self._z is None else np.zeros(self.qp.m)
         return z, ok, prim_res
@@ -254,10 +267,11 @@ class ReferenceMPC:
         return out
 
     def solve(
-        self, x0: np.ndarray, offset: np.ndarray | None = None
+        self, x0: np.ndarray, offset: np.ndarray | None = None, first: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray, bool, float]:
         """Solve the QP for measured state x0 [4] (with ``offset``: the offset-free deviation
-        QP of x0 = x - x_s, whose first input is offset[:2] + z[:2]; offset_free.py).
+        QP of x0 = x - x_s, whose first input is offset[:2] + z[:2]; offset_free.py; with
+        ``first`` [2, 2]: the first input's own [lower, upper], the rate limit, ``qp.bounds``).
 
         Returns (u [2] first input clipped to its bounds, z [n] the solver's (last) iterate,
         status_ok: OSQP reported SOLVED, primal residual). Never raises on a bad solve.
@@ -269,7 +283,7 @@ class ReferenceMPC:
         else:
             assert self._y is not None  # (set together with _z)
             warm = shift_warm_start(self._z), self._shift_dual(self._y)
-        result = osqp_solve(self._solver, self.qp, x0, warm, offset)
+        result = osqp_solve(self._solver, self.qp, x0, warm, offset, first)
         z = np.array(result.x, dtype=float)
         y = np.array(result.y, dtype=float)
         status_ok = result.info.status_val == osqp.SolverStatus.OSQP_SOLVED
@@ -279,6 +293,6 @@ class ReferenceMPC:
         else:
             self._z = self._y = None
         if self._penalty is not None and not status_ok:
-            z, status_ok, prim_res = self._soft(x0, z, offset, (z, status_ok, prim_res))
-        first = z[:2] if offset is None else z[:2] + np.asarray(offset[:2], float)
-        return self.qp.clip_input(first), z, bool(status_ok), prim_res
+            z, status_ok, prim_res = self._soft(x0, z, offset, (z, status_ok, prim_res), first)
+        head = z[:2] if offset is None else z[:2] + np.asarray(offset[:2], float)
+        return self.qp.clip_input(head, first), z, bool(status_ok), prim_res

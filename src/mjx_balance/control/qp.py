@@ -65,12 +65,20 @@ class CondensedQP:
         return self.F @ x0
 
     def bounds(
-        self, x0: np.ndarray, offset: np.ndarray | None = None
+        self, x0: np.ndarray, offset: np.ndarray | None = None, first: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
         """The bounds at state ``x0``; ``offset`` [m]: the rows' values at the offset-free
-        target, subtracted (the deviation QP, offset_free.py)."""
+        target, subtracted (the deviation QP, offset_free.py); ``first`` [2, 2]: the first
+        input's own [lower, upper] of this solve (absolute), intersected with its rows' (the
+        rate limit, docs/model.md "Strength and timing"; rows 0 and 1 are u_0's)."""
         shift = self.E @ x0 + (0.0 if offset is None else np.asarray(offset, float))
-        return self.lower0 - shift, self.upper0 - shift
+        lower0, upper0 = self.lower0, self.upper0
+        if first is not None:
+            first = np.asarray(first, float)
+            lower0, upper0 = lower0.copy(), upper0.copy()
+            lower0[:2] = np.maximum(lower0[:2], first[0])
+            upper0[:2] = np.minimum(upper0[:2], first[1])
+        return lower0 - shift, upper0 - shift
 
     def predict(self, x0: np.ndarray, z: np.ndarray) -> np.ndarray:
         """Predicted states [N, 4] for input sequence z."""
@@ -81,14 +89,21 @@ class CondensedQP:
             xs.append(x)
         return np.array(xs)
 
-    def clip_input(self, u: np.ndarray) -> np.ndarray:
-        return np.clip(u, self.input_lower, self.input_upper)
+    def clip_input(self, u: np.ndarray, first: np.ndarray | None = None) -> np.ndarray:
+        """``u`` [2] within the input bounds (and ``first``'s [lower, upper], the rate limit)."""
+        if first is None:
+            return np.clip(u, self.input_lower, self.input_upper)
+        first = np.asarray(first, float)
+        lower = np.maximum(self.input_lower, first[0])
+        return np.clip(u, lower, np.minimum(self.input_upper, first[1]))
 
-    def feasible(self, x0: np.ndarray, offset: np.ndarray | None = None) -> bool:
+    def feasible(
+        self, x0: np.ndarray, offset: np.ndarray | None = None, first: np.ndarray | None = None
+    ) -> bool:
         """Whether some input sequence meets every constraint for state ``x0``: the linear
         program min 0 s.t. lower <= C z <= upper, solved by HiGHS (scipy) to its default
         primal feasibility tolerance 1e-7. An exact test, independent of the ADMM and OSQP."""
-        lower, upper = self.bounds(np.asarray(x0, float), offset)
+        lower, upper = self.bounds(np.asarray(x0, float), offset, first)
         lo, hi = np.isfinite(lower), np.isfinite(upper)
         A = np.concatenate([self.C[hi], -self.C[lo]])
         b = np.concatenate([upper[hi], -lower[lo]])

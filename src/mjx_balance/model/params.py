@@ -132,6 +132,9 @@ def _check_types(record: str, obj: Any) -> None:
                 fail(record, f.name, "must be a list of numbers", value)
         elif isinstance(default, (int, float)) and not is_number(value):
             fail(record, f.name, "must be a number", value)
+        elif default is None and value is not None and f.metadata.get("pair"):
+            if not isinstance(value, (list, tuple)) or not all(is_number(v) for v in value):
+                fail(record, f.name, "must be a list of numbers (or left out)", value)
         elif default is None and value is not None and not is_number(value):
             fail(record, f.name, "must be a number (or left out)", value)
 
@@ -318,6 +321,11 @@ class ControllerParams:
     r_diag: tuple[float, ...] = (1e-1, 1e-4)  # 1e-4 * diag(1000, 1)
     input1_bounds: tuple[float, float] = (-20.0, 20.0)  # tau1 (paper) or tau_ankle (joint)
     input2_bounds: tuple[float, float] = (-100.0, 100.0)  # tau2 (paper) or tau_hip (joint)
+    # How fast each input may change, N m/s [input 1, input 2] (docs/model.md, "Strength and
+    # timing"): |u_k - u_{k-1}| <= rate * control_dt, a constraint on the applied input's
+    # change in the QP and the same limit on the actuator. None (left out): no limit, the
+    # study's controller.
+    input_rates: tuple[float, float] | None = field(default=None, metadata={"pair": True})
     state1_bounds: tuple[float, float] = (-0.26, 0.5)  # q1 (paper) or q_a (joint), rad
     state2_bounds: tuple[float, float] = (-0.35, 1.4)  # q2 (paper) or q_h (joint), rad
     cop_bounds: tuple[float, float] = (-0.15, 0.15)  # m
@@ -393,7 +401,18 @@ class ControllerParams:
             "penalty_weights",
         ):
             object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
+        if self.input_rates is not None:
+            object.__setattr__(self, "input_rates", tuple(float(v) for v in self.input_rates))
         check_finite("controller", self)
+        if self.input_rates is not None and (
+            len(self.input_rates) != 2 or not min(self.input_rates) > 0
+        ):
+            fail(
+                "controller",
+                "input_rates",
+                "must be 2 positive numbers, N m/s (or left out: no limit)",
+                self.input_rates,
+            )
         if self.convention not in CONVENTIONS:
             fail("controller", "convention", f"must be one of {CONVENTIONS}", self.convention)
         if not isinstance(self.horizon, int) or self.horizon < 1:
@@ -454,6 +473,13 @@ class ControllerParams:
     def state_bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
         return (self.state1_bounds, self.state2_bounds)
 
+    def rate_steps(self, control_dt: float) -> tuple[float, float]:
+        """The most each input may change in one control period (N m): input_rates *
+        control_dt, inf without a limit."""
+        if self.input_rates is None:
+            return (math.inf, math.inf)
+        return (self.input_rates[0] * control_dt, self.input_rates[1] * control_dt)
+
 
 @dataclass(frozen=True)
 class ScenarioParams:
@@ -477,6 +503,12 @@ class ScenarioParams:
     # s; the measurement is really this much later than controller_delay, which is what a
     # delay-compensated controller assumes (mismatch studies; 0: it knows its delay exactly)
     delay_error: float = 0.0
+    # A run from an initial state (lean and release, the basin) starts with relaxed muscles:
+    # the controller's measurements before t = 0 are upright rest, so it first acts on the
+    # released state one controller_delay later (the onset latency; its inputs start from 0,
+    # as every run's). False: it has seen the initial state all along (a push starts from rest,
+    # where the two are one). Left out of a configuration's files when false.
+    relaxed_start: bool = field(default=False, metadata={"omit_default": True})
 
     def __post_init__(self) -> None:
         _check_types("scenario", self)
@@ -628,15 +660,19 @@ class Config:
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
         """The configuration as nested plain values; an optional field left at None (e.g.
-        ``body.lower_inertia``) is left out, as in a TOML file that does not give it."""
-        return {
-            name: {
-                k: (list(v) if isinstance(v, tuple) else v)
-                for k, v in dataclasses.asdict(getattr(self, name)).items()
-                if v is not None
+        ``body.lower_inertia``) is left out, as in a TOML file that does not give it, and so is
+        a field marked ``omit_default`` at its default (a setting added later: the files and
+        folders of configurations that do not use it read as before)."""
+        out = {}
+        for name in ("body", "controller", "scenario"):
+            section = getattr(self, name)
+            out[name] = {
+                f.name: (list(v) if isinstance(v, tuple) else v)
+                for f in fields(section)
+                if (v := getattr(section, f.name)) is not None
+                and not (f.metadata.get("omit_default") and v == f.default)
             }
-            for name in ("body", "controller", "scenario")
-        }
+        return out
 
 
 # -- linked limits --------------------------------------------------------------------------
@@ -745,7 +781,9 @@ def build_section(cls: type, section: str, values: dict[str, Any]) -> Any:
     coerced = {}
     for key, value in values.items():
         default = known[key].default
-        if isinstance(default, tuple):
+        if isinstance(default, tuple) or (
+            default is None and value is not None and known[key].metadata.get("pair")
+        ):
             if not isinstance(value, (list, tuple)):
                 raise ParameterError(f"{section}.{key} = {value!r}: must be a list of numbers")
             value = tuple(value)

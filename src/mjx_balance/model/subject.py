@@ -259,15 +259,21 @@ class Subject:
         return segments(self.height, self.mass, self.sex)
 
     def controller_values(self, base: ControllerParams) -> dict[str, tuple[float, ...]]:
-        """CoP and CoM bounds at the sole's edges and ``base``'s input bounds scaled."""
+        """CoP and CoM bounds at the sole's edges and ``base``'s input bounds scaled (its input
+        rates too, when it has them: a stronger muscle's torque rises faster in proportion,
+        docs/model.md "Strength and timing")."""
         half = self.body_values()["foot_length"] / 2
         scale = self.mass / STUDY_BODY_MASS
-        return {
+        factors = (scale * self.ankle_strength, scale * self.hip_strength)
+        values: dict[str, tuple[float, ...]] = {
             "cop_bounds": (-half, half),
             "com_bounds": (-half, half),
-            "input1_bounds": tuple(v * scale * self.ankle_strength for v in base.input1_bounds),
-            "input2_bounds": tuple(v * scale * self.hip_strength for v in base.input2_bounds),
+            "input1_bounds": tuple(v * factors[0] for v in base.input1_bounds),
+            "input2_bounds": tuple(v * factors[1] for v in base.input2_bounds),
         }
+        if base.input_rates is not None:
+            values["input_rates"] = tuple(r * f for r, f in zip(base.input_rates, factors))
+        return values
 
     def config(self, base: Config | None = None) -> Config:
         """``base`` (None: the defaults, the study's configuration) with this subject's body."""

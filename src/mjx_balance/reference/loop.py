@@ -107,9 +107,10 @@ class MPC(Protocol):
         """Forget the warm start: scenarios do not depend on each other."""
 
     def solve(
-        self, x0: np.ndarray, offset: np.ndarray | None = None
+        self, x0: np.ndarray, offset: np.ndarray | None = None, first: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray, bool, float]:
-        """(u [2] clipped first input, iterate, converged, primal residual) for state x0."""
+        """(u [2] clipped first input, iterate, converged, primal residual) for state x0
+        (``first`` [2, 2]: the first input's own [lower, upper], the rate limit)."""
 
 
 def reference_mpc(
@@ -203,11 +204,13 @@ class _Controller:
     by scenario.delay_steps; with delay compensation, the prediction from the inputs applied
     since (``applied`` [P, 2], the last P periods' inputs, newest first: linear.predict);
     with offset-free MPC, the disturbance estimate and the previous measurement and input
-    (offset_free.py); the MPC solve."""
+    (offset_free.py); the rate limit's bounds on the first input around the last one applied
+    (``controller.input_rates``); the MPC solve."""
 
     def __init__(self, mpc: MPC, ctrl: ControllerParams, sc: Any, lm: Any, x0: np.ndarray):
         self.mpc, self.lm = mpc, lm
         self.substeps, self.delay_steps = sc.substeps, sc.delay_steps
+        self.relaxed = sc.relaxed_start  # measurements before t = 0: upright rest
         self.compensate = ctrl.delay_compensation and sc.assumed_delay_steps > 0
         if self.compensate:
             self.pred_A, self.pred_G = delay_predictor(
@@ -216,12 +219,20 @@ class _Controller:
             self.applied = np.zeros((self.pred_G.shape[0], 2))
         self.ofs = offset_free_mod.build(mpc.qp, ctrl) if ctrl.offset_free else None
         self.d_hat, self.x_last, self.u_last = np.zeros(2), x0.copy(), np.zeros(2)
+        # the most each input may change in a period (None: no rate limit)
+        self.rate_step = (
+            None if ctrl.input_rates is None else np.array(ctrl.rate_steps(sc.control_dt))
+        )
 
     def act(self, k: int, series: _Series) -> tuple[np.ndarray, bool, float, bool]:
         """(u [2] clipped first input, converged, primal residual, whether an unsolved QP is
         infeasible) at control instant k, from the joint history in ``series``."""
-        s = max(k * self.substeps - self.delay_steps, 0)
-        x_meas = self.lm.state_from_joints(series.history_q[s], series.history_dq[s])
+        s = k * self.substeps - self.delay_steps
+        if s < 0 and self.relaxed:  # before t = 0 a relaxed start's controller saw rest
+            x_meas = self.lm.state_from_joints(np.zeros(2), np.zeros(2))
+        else:
+            s = max(s, 0)
+            x_meas = self.lm.state_from_joints(series.history_q[s], series.history_dq[s])
         if self.compensate:
             x_meas = predict(np, self.pred_A, self.pred_G, x_meas, self.applied)
         offset = None
@@ -232,7 +243,12 @@ class _Controller:
             x_s, _, _, offset = offset_free_mod.steady_state(np, self.ofs, self.d_hat)
             self.x_last, x_meas = x_meas, x_meas - x_s
         mpc = self.mpc
-        u, _, ok, prim_res = mpc.solve(x_meas) if offset is None else mpc.solve(x_meas, offset)
+        extra: dict[str, np.ndarray] = {} if offset is None else {"offset": offset}
+        first = None
+        if self.rate_step is not None:  # the input applied since the last instant, +- a step
+            first = np.stack([self.u_last - self.rate_step, self.u_last + self.rate_step])
+            extra["first"] = first
+        u, _, ok, prim_res = mpc.solve(x_meas, **extra)
         self.u_last = u
         if self.compensate:
             self.applied = np.concatenate([u[None], self.applied[:-1]])
@@ -243,7 +259,7 @@ class _Controller:
             infeasible = hard
         else:
             infeasible = (
-                not ok and np.isfinite(x_meas).all() and not mpc.qp.feasible(x_meas, offset)
+                not ok and np.isfinite(x_meas).all() and not mpc.qp.feasible(x_meas, offset, first)
             )
         return u, ok, prim_res, infeasible
 

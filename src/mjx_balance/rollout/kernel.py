@@ -193,6 +193,12 @@ class Arrays(NamedTuple):
     ofs: offset_free_mod.OffsetFree  # the offset-free controller's matrices (used if enabled)
     settled: jax.Array  # [nq] upright rest with the contact settled (model.mjcf.settled_rest)
     bounds: jax.Array  # [4, 2] the outcome rules' state and input bounds (split_limits)
+    # [2] the most each input may change in a control period (controller.rate_steps; inf: no
+    # rate limit): data, so one program serves bodies with and without a limit
+    rate_step: jax.Array
+    # bool []: a run from an initial state starts with relaxed muscles (scenario.relaxed_start):
+    # the measurements before t = 0 are upright rest (:func:`start`)
+    relaxed: jax.Array
     # int32 []: control periods in the window (t_end / control_dt). The engines read this
     # traced value, so one compiled engine serves every t_end; the padded batch with
     # trajectories scans Static.n_control periods (its output's length) and so compiles per t_end.
@@ -373,7 +379,9 @@ def start(arrays: Arrays, sensors: Sensors, rest: Carry, init: jax.Array) -> Car
     """The carry of a scenario that starts from joint state ``init`` = [q_a, q_h, dq_a, dq_h]
     instead of upright rest (``rest``: :func:`initial_carry`): the foot settled on the floor
     (``arrays.settled``, as the reference), a cold controller, the measurement buffer full of the
-    initial state. init = 0 gives ``rest`` exactly (push scenarios start at qpos = 0)."""
+    initial state (with ``arrays.relaxed``: the state at t = 0 only, rest before it, so that the
+    controller first sees the initial state one delay later). init = 0 gives ``rest`` exactly
+    (push scenarios start at qpos = 0)."""
     init = jnp.asarray(init, rest.x_prev.dtype)
     q, dq = init[:2], init[2:]
     qpos = jnp.where(jnp.any(init != 0), arrays.settled, rest.d.qpos)
@@ -381,9 +389,9 @@ def start(arrays: Arrays, sensors: Sensors, rest: Carry, init: jax.Array) -> Car
         qpos=qpos.at[sensors.joints_q].set(q), qvel=rest.d.qvel.at[sensors.joints_v].set(dq)
     )
     x = state(arrays, q, dq)
-    return rest._replace(
-        d=d, history=jnp.broadcast_to(init, rest.history.shape), q_prev=q, x_prev=x, x_last=x
-    )
+    seen = jnp.broadcast_to(init, rest.history.shape)  # newest first: t = 0, then before it
+    history = jnp.where(arrays.relaxed, rest.history.at[0].set(init), seen)
+    return rest._replace(d=d, history=history, q_prev=q, x_prev=x, x_last=x)
 
 
 class Prepared(NamedTuple):
@@ -395,6 +403,7 @@ class Prepared(NamedTuple):
     x_meas: jax.Array  # [4]
     dist: jax.Array  # [2]
     alive: jax.Array  # bool
+    first: jax.Array  # [2, 2] the first input's [lower, upper] this period (the rate limit)
 
 
 def prepare(arrays: Arrays, static: Static, carry: Carry, rest: Carry | None = None) -> Prepared:
@@ -414,18 +423,22 @@ def prepare(arrays: Arrays, static: Static, carry: Carry, rest: Carry | None = N
     if static.compensate:
         x_meas = linear_mod.predict(jnp, arrays.pred_A, arrays.pred_G, x_meas, carry.inputs)
     x_meas = jnp.where(alive, x_meas, jnp.zeros(4, dtype))
+    # the rate limit: the input applied since the last instant, plus or minus one period's step
+    first = jnp.stack([carry.u_last - arrays.rate_step, carry.u_last + arrays.rate_step])
     if static.offset_free:
         dist = offset_free_mod.observe(
             jnp, arrays.ofs, carry.dist, carry.x_last, carry.u_last, x_meas
         )
         x_s, _, _, offset = offset_free_mod.steady_state(jnp, arrays.ofs, dist)
-        return Prepared(carry, x_meas - x_s, offset, x_meas, dist, alive)
-    return Prepared(carry, x_meas, None, x_meas, carry.dist, alive)
+        return Prepared(carry, x_meas - x_s, offset, x_meas, dist, alive, first)
+    return Prepared(carry, x_meas, None, x_meas, carry.dist, alive, first)
 
 
 def solve(arrays: Arrays, static: Static, pre: Prepared) -> admm_mod.ADMMResult:
     """The MPC's QP at :func:`prepare`'s state, warm-started from the carry."""
-    return admm_mod.admm_solve(arrays.qp, pre.x0, pre.carry.warm, static.settings, pre.offset)
+    return admm_mod.admm_solve(
+        arrays.qp, pre.x0, pre.carry.warm, static.settings, pre.offset, pre.first
+    )
 
 
 def solve_batch(
@@ -442,10 +455,17 @@ def solve_batch(
     if tiles is not None:
         assert tile is not None  # (body tiles come with their lane count: engine.Engine.tile)
         return admm_mod.admm_solve_tiles(
-            tiles[0], tiles[1], pre.x0, pre.carry.warm, static.settings, tile, offset=pre.offset
+            tiles[0],
+            tiles[1],
+            pre.x0,
+            pre.carry.warm,
+            static.settings,
+            tile,
+            offset=pre.offset,
+            first=pre.first,
         )
     return admm_mod.admm_solve_batch(
-        arrays.qp, pre.x0, pre.carry.warm, static.settings, tile, offset=pre.offset
+        arrays.qp, pre.x0, pre.carry.warm, static.settings, tile, offset=pre.offset, first=pre.first
     )
 
 

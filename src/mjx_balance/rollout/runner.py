@@ -117,6 +117,8 @@ class BatchRunner:
             ofs=offset_free.cast(offset_free.build(qp, ctrl), jnp, self.dtype),
             settled=jnp.asarray(settled_rest(self.model), self.dtype),
             bounds=bounds,
+            rate_step=jnp.asarray(ctrl.rate_steps(sc.control_dt), self.dtype),
+            relaxed=jnp.asarray(sc.relaxed_start),
             n_control=jnp.asarray(sc.n_control, jnp.int32),
         )
         self.static = Static(
