@@ -211,9 +211,10 @@ def test_the_kernel_start_sees_rest_before_a_relaxed_release():
 @pytest.mark.slow  # an MJX engine of its own (the delay is a static setting): ~25 s of compile
 def test_batched_and_reference_relaxed_starts_alike():
     """Leans released with relaxed muscles, a 0.1-s onset and the rate limit: the MJX path (the
-    kernel's start and controller; the C path starts at rest only) and the reference loop with the same float32 ADMM give the
-    same outcomes and fall samples; the not-relaxed start recovers from leans the relaxed one
-    cannot (the latency costs something, so the check can fail)."""
+    kernel's start and controller; the C path starts at rest only) and the reference loop with
+    the same float32 ADMM give the same outcomes and fall samples; the not-relaxed start
+    recovers from leans the relaxed one cannot (the latency costs something, so the check can
+    fail)."""
     leans = np.radians([1.0, 1.5, 2.5, 3.0])
     inits = np.zeros((leans.size, 4))
     inits[:, 0] = leans
