@@ -23,7 +23,8 @@ import argparse
 import time
 from pathlib import Path
 
-from mjx_balance.model.config_files import load_config
+from mjx_balance.model.params import Config
+from mjx_balance.runs.definitions import load_sweep
 from mjx_balance.studies.lean import lean_limits
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -53,7 +54,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--resolution", type=float, default=0.05, help="degrees")
     args = parser.parse_args()
-    base = load_config(ROOT / "sweeps" / "study_ankle_only.toml")
+    base = load_sweep(ROOT / "sweeps" / "study_ankle_only.toml", Config()).config
     print("| configuration | static (torque / foot) | dynamic | peak ankle torque | s |")
     print("|---|---|---|---|---|")
     for label, config in rows(base):

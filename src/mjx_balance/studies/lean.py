@@ -12,7 +12,9 @@ Two limits, each as the experiment reports it:
   when the CoM (the static centre of pressure) stays over the foot. The smaller of the two
   angles is the limit; both are reported.
 - **dynamic** (lean and release): the largest initial lean, released from rest (the body rigid,
-  hip straight, zero velocity; the controller starts cold, after its delay), from which the
+  hip straight, zero velocity; the controller starts cold, after its delay; with
+  ``scenario.relaxed_start`` from relaxed muscles, its first torque one delay after release,
+  rising no faster than ``controller.input_rates``), from which the
   closed loop recovers with the feet in place (the push map's ``recovered``), every smaller lean
   recovering too. Found on the batched engine (its per-scenario initial state, as the basin's
   cells): a scan of ``SCAN`` leans, then rounds of ``SCAN`` leans inside the first bracket that
