@@ -58,7 +58,7 @@ from .studies.compare import load_configs, run_compare
 from .studies.defaults import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES, READINGS
 from .studies.defaults import DEFAULT_FORCES as STUDY_TABLE_FORCES
 from .studies.landscape import run_landscape
-from .studies.lean import against_people, lean_limits
+from .studies.lean import against_people, lean_limits, read_lean_limits, run_lean
 from .studies.sensitivity import run_sensitivity
 from .figures.style import figure_style
 from .runs import DEFAULT_SWEEP
@@ -464,18 +464,38 @@ def compare(
 
 @checked
 def lean_release(
-    config: ConfigLike = None, *, resolution: float = 0.05, slots: int | None = None
+    config: ConfigLike = None,
+    *,
+    resolution: float = 0.05,
+    slots: int | None = None,
+    out: str | os.PathLike[str] | None = None,
+    wait: bool = False,
+    plan: PlanHook | None = None,
 ) -> "pd.DataFrame":
-    """People's lean-and-release protocol (Robinovitch et al. 2002; ``studies.lean``) on the
-    batched engine: the largest lean held still (static) and the largest lean released from
-    rest that recovers with the feet in place (dynamic, bracketed to ``resolution`` degrees),
-    beside the people reference's measures of the same protocol (``data/references/people.csv``;
-    ``agrees``: within the published mean +- 2 SD). ``.attrs["limits"]``: every limit
-    (``LeanLimits.row``: the static limit's torque and foot parts, the bracket, the peak ankle
-    torque at the dynamic limit, the scenarios run)."""
+    """People's lean-and-release protocol (Robinovitch et al. 2002; ``studies.lean``;
+    ``mjx-balance lean``) on the batched engine: the largest lean held still (static) and the
+    largest lean released from rest that recovers with the feet in place (dynamic, bracketed to
+    ``resolution`` degrees), beside the people reference's measures of the same protocol
+    (``data/references/people.csv``; ``agrees``: within the published mean +- 2 SD).
+    ``.attrs["limits"]``: every limit (``LeanLimits.row``: the static limit's torque and foot
+    parts, the bracket, the peak ankle torque at the dynamic limit, the scenarios run). With
+    ``out``: also written there (lean.csv, lean_limits.csv, a manifest; a folder made with
+    another configuration is refused). ``wait``, ``plan``: as :func:`compare`."""
     config = as_config(config)
     with _session("lean"):
-        limits = lean_limits(config, resolution=resolution, slots=slots)
+        if out is not None:
+            frame = run_lean(
+                out,
+                config,
+                resolution=resolution,
+                slots=size_value(slots, "slots"),
+                say=log.info,
+                plan=plan,
+                wait=wait,
+            )
+            frame.attrs["limits"] = read_lean_limits(out)
+            return frame
+        limits = lean_limits(config, resolution=resolution, slots=size_value(slots, "slots"))
     frame = against_people(limits, read_people())
     frame.attrs["limits"] = limits.row()
     return frame

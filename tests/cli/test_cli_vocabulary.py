@@ -33,6 +33,7 @@ MODEL_COMMANDS = {
     "compare": ["A", "--out", "OUT"],
     "landscape": ["--out", "OUT"],
     "basin": ["--out", "OUT"],
+    "lean": ["--out", "OUT"],
     "cohort": ["--heights", "1.7", "--masses", "70", "--out", "OUT"],
     "sensitivity": ["--out", "OUT"],
     "animate": ["--force", "10", "--out", "OUT.gif"],

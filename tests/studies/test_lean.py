@@ -88,3 +88,35 @@ def test_the_people_rows_sit_beside_the_prediction(limits):
 def test_bad_resolution_is_refused():
     with pytest.raises(ParameterError, match="resolution"):
         lean.lean_limits(CONFIG, resolution=0.0, runner=object())
+
+
+def test_the_lean_folder_holds_the_limits_and_refuses_another_configuration(tmp_path, limits):
+    """``mb.lean_release(out=)`` (``mjx-balance lean``): lean.csv is the people rows beside the
+    limits of lean_limits.csv, every column with a unit; the folder refuses a configuration
+    other than its own before any work, and takes the same one again."""
+    import pandas as pd
+
+    import mjx_balance as mb
+    from mjx_balance.measures import units
+
+    out = tmp_path / "lean"
+    with jax.enable_x64(False):
+        frame = mb.lean_release(CONFIG, out=out, resolution=1.0, slots=ENGINE_SLOTS)
+    written = pd.read_csv(out / lean.LEAN_CSV)
+    limits_row = frame.attrs["limits"]
+    assert set(limits_row) == set(lean.LeanLimits.__dataclass_fields__)
+    assert 0 < limits_row["resolution_deg"] <= 1.0
+    # the same engine and lean scan as the fixture's, only a coarser last bracket
+    assert abs(limits_row["dynamic_deg"] - limits.dynamic_deg) <= 1.0
+    assert list(written["measure"]) == list(lean.PREDICTS)
+    assert (
+        written.set_index("measure").loc["lean_release_max_angle_young", "ours"]
+        == (limits_row["dynamic_deg"])
+    )
+    for name in (lean.LEAN_CSV, lean.LIMITS_CSV):
+        assert units.unknown(pd.read_csv(out / name).columns) == [], name
+    with pytest.raises(ParameterError, match="different configuration"):
+        mb.lean_release(CONFIG.replace(scenario={"t_end": 4.0}), out=out, resolution=1.0)
+    with pytest.raises(ParameterError, match="resolution"):
+        mb.lean_release(CONFIG, out=tmp_path / "bad", resolution=2.0)
+    assert not (tmp_path / "bad").exists()  # refused before the folder was made

@@ -29,7 +29,9 @@ numbers to hold these against ship in ``data/references/people.csv`` (docs/studi
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable
 
 import mujoco
@@ -41,7 +43,11 @@ from ..measures.outcomes import RECOVERED
 from ..model.linear import linear_model
 from ..model.params import Config, ParameterError
 from ..rollout import BatchRunner
+from ..runs.chunks import PlanHook, PlannedWork
+from ..store.files import write_csv
+from ..store.folder import OutputFolder, folder_lock
 from .basin import Plane
+from .references import read_people
 
 SCAN = 16  # leans per batched call (one compiled shape for every round)
 MAX_LEAN_DEG = 30.0  # the scan's upper end: beyond any lean a feet-in-place body recovers
@@ -122,6 +128,14 @@ def recovers(runner: Any, plane: Plane, leans_deg: np.ndarray) -> tuple[np.ndarr
     return np.concatenate(ok), np.concatenate(peaks)
 
 
+def check_resolution(resolution: Any) -> None:
+    """Refuse a bracket width outside [0.001, 1] degrees (one line)."""
+    if isinstance(resolution, bool) or not (
+        isinstance(resolution, (int, float)) and 0.001 <= resolution <= 1.0
+    ):
+        raise ParameterError(f"resolution must be within [0.001, 1] degrees, got {resolution!r}")
+
+
 def lean_limits(
     config: Config,
     *,
@@ -133,8 +147,7 @@ def lean_limits(
     """The static and dynamic lean limits of ``config`` (module docstring); ``resolution``: the
     dynamic limit's bracket width in degrees; ``runner``: a batch runner with ``run(forces,
     durations, inits)`` (default: the batched engine of ``config``)."""
-    if not (isinstance(resolution, (int, float)) and 0.001 <= resolution <= 1.0):
-        raise ParameterError(f"resolution must be within [0.001, 1] degrees, got {resolution!r}")
+    check_resolution(resolution)
     say = say or (lambda _text: None)
     plane = Plane(config)
     if not plane.com_x("rigid", 0.01) > plane.com_x("rigid", 0.0):
@@ -205,3 +218,63 @@ def against_people(limits: LeanLimits, people: pd.DataFrame) -> pd.DataFrame:
             }
         )
     return pd.DataFrame(rows)
+
+
+LEAN_CSV = "lean.csv"  # the people reference's rows beside our prediction
+LIMITS_CSV = "lean_limits.csv"  # every limit (LeanLimits.row)
+
+
+def planned_scenarios(resolution: float) -> int:
+    """The most scenarios :func:`lean_limits` runs: the scan, then rounds of SCAN leans, each
+    shrinking the bracket by SCAN + 1, until it is ``resolution`` wide."""
+    bracket, rounds = MAX_LEAN_DEG / (SCAN - 1), 0
+    while bracket > resolution:
+        bracket, rounds = bracket / (SCAN + 1), rounds + 1
+    return SCAN * (1 + rounds)
+
+
+def run_lean(
+    out: str | os.PathLike[str],
+    config: Config,
+    *,
+    resolution: float = 0.05,
+    slots: int | None = None,
+    say: Callable[[str], None] = print,
+    plan: PlanHook | None = None,
+    wait: bool = False,
+) -> pd.DataFrame:
+    """Lean and release of ``config`` in OUT (``mjx-balance lean``): lean.csv (the people
+    reference's rows of the protocol beside our prediction, ``agrees`` within 2 SD) and
+    lean_limits.csv (every limit). Every input is checked, then ``plan`` hears the work, then
+    the limits are found under OUT's lock (``wait``: for another run that holds it); a folder
+    made with another configuration is refused. Returns lean.csv's rows."""
+    check_resolution(resolution)
+    if plan is not None:
+        plan(PlannedWork(config, planned_scenarios(resolution), "leans", note="lean and release"))
+    out = Path(out)
+    with folder_lock(out, wait=wait):
+        folder = OutputFolder(out, config)
+        manifest = folder.open()
+        manifest["lean"] = {"resolution": resolution}
+        folder.write_manifest(manifest)
+        limits = lean_limits(config, resolution=resolution, slots=slots, say=say)
+        frame = against_people(limits, read_people())
+        write_csv(frame, out / LEAN_CSV)
+        write_csv(pd.DataFrame([limits.row()]), out / LIMITS_CSV)
+    say(
+        f"lean and release: static {limits.static_deg:.2f} deg (torque "
+        f"{limits.static_torque_deg:.2f}, foot {limits.static_foot_deg:.2f}), dynamic "
+        f"{limits.dynamic_deg:.2f} deg, peak ankle torque {limits.peak_ankle_torque:.1f} N m; "
+        f"{int(frame.agrees.sum())} of {len(frame)} people's measures agree"
+    )
+    say(f"wrote {out / LEAN_CSV} and {out / LIMITS_CSV}")
+    return frame
+
+
+def read_lean_limits(out: str | os.PathLike[str]) -> dict[str, float]:
+    """lean_limits.csv of OUT as :meth:`LeanLimits.row` gives it."""
+    row = pd.read_csv(Path(out) / LIMITS_CSV).iloc[0]
+    return {
+        name: int(row[name]) if name == "scenarios" else float(row[name])
+        for name in LeanLimits.__dataclass_fields__
+    }
