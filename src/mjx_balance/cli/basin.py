@@ -15,7 +15,7 @@ from .options import (
     common_options,
     figure_options,
     format_option,
-    positive_int,
+    slots_option,
     wait_option,
     yes_option,
 )
@@ -53,12 +53,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument(
         "--push-durations", default="0.1,0.2,0.5", help="durations [s] of those push cells"
     )
-    p.add_argument(
-        "--slots",
-        type=positive_int,
-        default=None,
-        help="scenarios in flight per device (default: 32 on a CPU, 4096 on a GPU)",
-    )
+    slots_option(p)
     p.add_argument(
         "--full-length",
         action="store_true",

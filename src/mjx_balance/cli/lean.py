@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from .common import in_folder, load_run_config, planner
-from .options import common_options, positive_float, positive_int, wait_option, yes_option
+from .options import common_options, positive_float, slots_option, wait_option, yes_option
 
 
 def resolution_degrees(text: str) -> float:
@@ -36,12 +36,7 @@ def add_parser(sub: Any) -> None:
         default=0.05,
         help="width of the dynamic limit's final bracket [deg] (default 0.05)",
     )
-    p.add_argument(
-        "--slots",
-        type=positive_int,
-        default=None,
-        help="scenarios in flight per device (default: 32 on a CPU, 4096 on a GPU)",
-    )
+    slots_option(p)
     wait_option(p)
     yes_option(p)
     common_options(

@@ -408,6 +408,17 @@ def cluster_option(p: argparse.ArgumentParser) -> None:
     )
 
 
+def slots_option(p: argparse.ArgumentParser, default: str = "", more: str = "") -> None:
+    """--slots: the engine's scenarios in flight per device (``default``: more on the default,
+    ``more``: the command's own words after it)."""
+    p.add_argument(
+        "--slots",
+        type=positive_int,
+        default=None,
+        help=f"scenarios in flight per device (default: 32 on a CPU, 4096 on a GPU{default}){more}",
+    )
+
+
 def engine_options(p: argparse.ArgumentParser) -> None:
     """Options of the continuous-batching engine (sweep, table, bench)."""
     p.add_argument(
@@ -416,14 +427,11 @@ def engine_options(p: argparse.ArgumentParser) -> None:
         help="run every scenario to t_end (no early stop of certified recoveries; "
         "falls still end a scenario), for validation",
     )
-    p.add_argument(
-        "--slots",
-        type=positive_int,
-        default=None,
-        help="scenarios in flight per device (default: 32 on a CPU, 4096 on a GPU; "
-        "64 on the C path); "
-        "results are bit-identical for any chunk, device count or order at one "
-        "slot count, so a sweep folder keeps the count it started with",
+    slots_option(
+        p,
+        "; 64 on the C path",
+        "; results are bit-identical for any chunk, device count or order at one slot count, "
+        "so a sweep folder keeps the count it started with",
     )
     physics_option(p)
 
