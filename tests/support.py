@@ -227,6 +227,7 @@ class AdmmMPC:
         from mjx_balance.control import admm as admm_mod
 
         self.qp, self._data, settings = runner.qp, runner.arrays.qp, runner.static.settings
+        self._step = np.asarray(runner.arrays.rate_step)  # float32, as the kernel holds it
         self._solve = jax.jit(
             lambda x, w, o, f: admm_mod.admm_solve(self._data, x, w, settings, o, f)
         )
@@ -236,6 +237,7 @@ class AdmmMPC:
         from mjx_balance.control import admm as admm_mod
 
         self._warm = admm_mod.initial_warm(self._data)
+        self._last = np.zeros(2, np.float32)  # the input applied last (the kernel's u_last)
 
     def solve(self, x0, offset=None, first=None):
         import jax.numpy as jnp
@@ -243,8 +245,13 @@ class AdmmMPC:
         from mjx_balance.control import admm as admm_mod
 
         offset = np.zeros(self.qp.m) if offset is None else offset  # zero: the plain QP
-        # no rate limit: the kernel's [-inf, inf] (the plain QP's numbers, bit for bit)
-        first = np.array([[-np.inf] * 2, [np.inf] * 2]) if first is None else first
+        # the rate limit's bounds as the kernel forms them, in float32 from its own last input
+        # and step (the reference's float64 `first` can round an ulp apart); no limit: the
+        # kernel's [-inf, inf] (the plain QP's numbers, bit for bit)
+        if first is None:
+            first = np.array([[-np.inf] * 2, [np.inf] * 2])
+        else:
+            first = np.stack([self._last - self._step, self._last + self._step])
         res = self._solve(
             jnp.asarray(x0, jnp.float32),
             self._warm,
@@ -252,6 +259,8 @@ class AdmmMPC:
             jnp.asarray(first, jnp.float32),
         )
         self._warm = admm_mod.ADMMWarm(*(w.astype(jnp.float32) for w in res.warm_next))
+        u0 = np.asarray(res.u0, np.float32)
+        self._last = np.where(np.isfinite(u0), u0, 0).astype(np.float32)
         return (
             np.asarray(res.u0, float),
             np.asarray(res.z, float),

@@ -482,6 +482,8 @@ def lean_release(
     ``out``: also written there (lean.csv, lean_limits.csv, a manifest; a folder made with
     another configuration is refused). ``wait``, ``plan``: as :func:`compare`."""
     config = as_config(config)
+    if out is None and (wait or plan is not None):
+        raise ParameterError("wait and plan apply to a run written in a folder: give out=")
     with _session("lean"):
         if out is not None:
             frame = run_lean(

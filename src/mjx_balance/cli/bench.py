@@ -231,12 +231,30 @@ def _pipeline_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print a final JSON line with the figures")
 
 
+def study_controller_config(args: argparse.Namespace, command: str) -> Any:
+    """The run's configuration for a benchmark that times the study's controller with the
+    solvers side by side (IPOPT and the C closed loop take no rate limit): a rate limit is
+    refused in one line (``bench engine`` runs it)."""
+    from ..model.params import ParameterError  # (light: no JAX)
+
+    config = load_run_config(args)
+    if config.controller.input_rates is not None:
+        raise ParameterError(
+            f"bench {command} times the study's controller, whose solvers here (CasADi/IPOPT, "
+            "the C closed loop) take no rate limit: leave controller.input_rates out, or time "
+            "a rate-limited controller with bench engine"
+        )
+    return config
+
+
 def pipeline_command(args: argparse.Namespace) -> int:
     """``mjx-balance bench``: batched pipeline vs scalar reference vs the study's toolchain."""
     from ..bench import pipeline  # lazy: JAX and MuJoCo load when the command runs
 
     config, ref_config = pipeline.benchmark_configs(
-        load_run_config(args), getattr(args, "t_end", None), getattr(args, "osqp_max_iter", None)
+        study_controller_config(args, "pipeline"),
+        getattr(args, "t_end", None),
+        getattr(args, "osqp_max_iter", None),
     )
     sc = config.scenario
     counts = pipeline.scenario_counts(args.scenarios, args.reference, args.ipopt)
@@ -446,7 +464,7 @@ def solver_command(args: argparse.Namespace) -> int:
     """``mjx-balance bench solver``: batched ADMM vs OSQP vs CasADi/IPOPT on the same states."""
     from ..bench import solver  # lazy: JAX: imported when this command runs
 
-    config = load_run_config(args)
+    config = study_controller_config(args, "solver")
     batches = [int(b) for b in args.batch.split(",") if b.strip()]
     run = solver.measure(
         config,
@@ -530,7 +548,7 @@ def physics_command(args: argparse.Namespace) -> int:
     """``mjx-balance bench physics``: per scenario-step costs, MJX and MuJoCo C side by side."""
     from ..bench import physics  # lazy: JAX: imported when this command runs
 
-    config = load_run_config(args)
+    config = study_controller_config(args, "physics")
     print(
         f"physics paths side by side: {args.slots} slots, {args.seconds:g} s windows "
         f"(about two minutes on 2 cores)"

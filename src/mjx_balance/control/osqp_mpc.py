@@ -170,7 +170,9 @@ class PenaltyOSQP:
             verbose=False,
         )
 
-    def terms(self, x0: np.ndarray, offset: np.ndarray | None = None, first=None):
+    def terms(
+        self, x0: np.ndarray, offset: np.ndarray | None = None, first: np.ndarray | None = None
+    ):
         """(q, l, u) of the slack QP at state ``x0``."""
         lower, upper = self.qp.bounds(x0, offset, first)
         k, inf = self.soft.size, np.inf
