@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ..model.params import Config
+from ..model.params import ParameterError
 from .common import load_run_config
 from .options import (
     EPILOG,
@@ -235,8 +236,6 @@ def study_controller_config(args: argparse.Namespace, command: str) -> Any:
     """The run's configuration for a benchmark that times the study's controller with the
     solvers side by side (IPOPT and the C closed loop take no rate limit): a rate limit is
     refused in one line (``bench engine`` runs it)."""
-    from ..model.params import ParameterError  # (light: no JAX)
-
     config = load_run_config(args)
     if config.controller.input_rates is not None:
         raise ParameterError(
