@@ -243,6 +243,7 @@ class AdmmMPC:
         import jax.numpy as jnp
 
         from mjx_balance.control import admm as admm_mod
+        from mjx_balance.control.qp import rate_bounds
 
         offset = np.zeros(self.qp.m) if offset is None else offset  # zero: the plain QP
         # the rate limit's bounds as the kernel forms them, in float32 from its own last input
@@ -251,7 +252,7 @@ class AdmmMPC:
         if first is None:
             first = np.array([[-np.inf] * 2, [np.inf] * 2])
         else:
-            first = np.stack([self._last - self._step, self._last + self._step])
+            first = rate_bounds(np, self._last, self._step)
         res = self._solve(
             jnp.asarray(x0, jnp.float32),
             self._warm,

@@ -58,14 +58,13 @@ from .studies.compare import load_configs, run_compare
 from .studies.defaults import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES, READINGS
 from .studies.defaults import DEFAULT_FORCES as STUDY_TABLE_FORCES
 from .studies.landscape import run_landscape
-from .studies.lean import against_people, lean_limits, read_lean_limits, run_lean
+from .studies.lean import lean_limits, run_lean, scored
 from .studies.sensitivity import run_sensitivity
 from .figures.style import figure_style
 from .runs import DEFAULT_SWEEP
 from .studies.basin import DEFAULT_V, DEFAULT_X, run_basin
 from .studies.cohort import plan_cohort, run_plan
 from .studies.members import as_members
-from .studies.references import read_people
 from .studies.reference_files import (
     Reference,
     read_references,
@@ -484,23 +483,13 @@ def lean_release(
     config = as_config(config)
     if out is None and (wait or plan is not None):
         raise ParameterError("wait and plan apply to a run written in a folder: give out=")
+    slots = size_value(slots, "slots")
     with _session("lean"):
-        if out is not None:
-            frame = run_lean(
-                out,
-                config,
-                resolution=resolution,
-                slots=size_value(slots, "slots"),
-                say=log.info,
-                plan=plan,
-                wait=wait,
-            )
-            frame.attrs["limits"] = read_lean_limits(out)
-            return frame
-        limits = lean_limits(config, resolution=resolution, slots=size_value(slots, "slots"))
-    frame = against_people(limits, read_people())
-    frame.attrs["limits"] = limits.row()
-    return frame
+        if out is None:
+            return scored(lean_limits(config, resolution=resolution, slots=slots))
+        return run_lean(
+            out, config, resolution=resolution, slots=slots, say=log.info, plan=plan, wait=wait
+        )
 
 
 @checked

@@ -115,6 +115,13 @@ class CondensedQP:
         return result.status == 0
 
 
+def rate_bounds(xp, u_last, step):
+    """The first input's own [lower, upper] [2, 2] under the rate limit: the input applied
+    last plus or minus the most it may change in a period (``step`` [2]; inf: no limit), for
+    array namespace ``xp`` (numpy or jax.numpy, each in its arrays' dtype)."""
+    return xp.stack([u_last - step, u_last + step])
+
+
 def shift_warm_start(z: np.ndarray) -> np.ndarray:
     """Previous solution shifted one step, the last input repeated (works on batches [..., n])."""
     return np.concatenate([z[..., 2:], z[..., -2:]], axis=-1)

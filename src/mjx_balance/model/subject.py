@@ -260,8 +260,8 @@ class Subject:
 
     def controller_values(self, base: ControllerParams) -> dict[str, tuple[float, ...]]:
         """CoP and CoM bounds at the sole's edges and ``base``'s input bounds scaled (its input
-        rates too, when it has them: a stronger muscle's torque rises faster in proportion,
-        docs/model.md "Strength and timing")."""
+        rates too, when it has them, by the same factors: an assumption, docs/model.md
+        "Strength and timing")."""
         half = self.body_values()["foot_length"] / 2
         scale = self.mass / STUDY_BODY_MASS
         factors = (scale * self.ankle_strength, scale * self.hip_strength)

@@ -42,7 +42,7 @@ from ..model.mjcf import build_model, indices, settled_rest
 from ..control.osqp_mpc import ReferenceMPC
 from ..measures.outcomes import SUMMARY_COLUMNS, Limits
 from ..model.params import BodyParams, Config, ControllerParams
-from ..control.qp import CondensedQP, build_qp
+from ..control.qp import CondensedQP, build_qp, rate_bounds
 from ..runtime import signals
 
 TIMESERIES_COLUMNS = [
@@ -246,7 +246,7 @@ class _Controller:
         extra: dict[str, np.ndarray] = {} if offset is None else {"offset": offset}
         first = None
         if self.rate_step is not None:  # the input applied since the last instant, +- a step
-            first = np.stack([self.u_last - self.rate_step, self.u_last + self.rate_step])
+            first = rate_bounds(np, self.u_last, self.rate_step)
             extra["first"] = first
         u, _, ok, prim_res = mpc.solve(x_meas, **extra)
         self.u_last = u

@@ -40,6 +40,7 @@ import numpy as np
 from ..control import admm as admm_mod
 from ..model import linear as linear_mod
 from ..control import offset_free as offset_free_mod
+from ..control.qp import rate_bounds
 from ..measures import outcomes
 from ..measures.outcomes import Limits
 from .physics import advance, mjx, step
@@ -423,8 +424,7 @@ def prepare(arrays: Arrays, static: Static, carry: Carry, rest: Carry | None = N
     if static.compensate:
         x_meas = linear_mod.predict(jnp, arrays.pred_A, arrays.pred_G, x_meas, carry.inputs)
     x_meas = jnp.where(alive, x_meas, jnp.zeros(4, dtype))
-    # the rate limit: the input applied since the last instant, plus or minus one period's step
-    first = jnp.stack([carry.u_last - arrays.rate_step, carry.u_last + arrays.rate_step])
+    first = rate_bounds(jnp, carry.u_last, arrays.rate_step)  # the rate limit
     if static.offset_free:
         dist = offset_free_mod.observe(
             jnp, arrays.ofs, carry.dist, carry.x_last, carry.u_last, x_meas

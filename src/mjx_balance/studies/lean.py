@@ -220,6 +220,14 @@ def against_people(limits: LeanLimits, people: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def scored(limits: LeanLimits) -> pd.DataFrame:
+    """:func:`against_people` with the people reference, every limit in
+    ``.attrs["limits"]`` (:meth:`LeanLimits.row`): what ``mb.lean_release`` returns."""
+    frame = against_people(limits, read_people())
+    frame.attrs["limits"] = limits.row()
+    return frame
+
+
 LEAN_CSV = "lean.csv"  # the people reference's rows beside our prediction
 LIMITS_CSV = "lean_limits.csv"  # every limit (LeanLimits.row)
 
@@ -247,7 +255,7 @@ def run_lean(
     reference's rows of the protocol beside our prediction, ``agrees`` within 2 SD) and
     lean_limits.csv (every limit). Every input is checked, then ``plan`` hears the work, then
     the limits are found under OUT's lock (``wait``: for another run that holds it); a folder
-    made with another configuration is refused. Returns lean.csv's rows."""
+    made with another configuration is refused. Returns lean.csv's rows (:func:`scored`)."""
     check_resolution(resolution)
     if plan is not None:
         plan(PlannedWork(config, planned_scenarios(resolution), "leans", note="lean and release"))
@@ -258,7 +266,7 @@ def run_lean(
         manifest["lean"] = {"resolution": resolution}
         folder.write_manifest(manifest)
         limits = lean_limits(config, resolution=resolution, slots=slots, say=say)
-        frame = against_people(limits, read_people())
+        frame = scored(limits)
         write_csv(frame, out / LEAN_CSV)
         write_csv(pd.DataFrame([limits.row()]), out / LIMITS_CSV)
     say(
@@ -269,12 +277,3 @@ def run_lean(
     )
     say(f"wrote {out / LEAN_CSV} and {out / LIMITS_CSV}")
     return frame
-
-
-def read_lean_limits(out: str | os.PathLike[str]) -> dict[str, float]:
-    """lean_limits.csv of OUT as :meth:`LeanLimits.row` gives it."""
-    row = pd.read_csv(Path(out) / LIMITS_CSV).iloc[0]
-    return {
-        name: int(row[name]) if name == "scenarios" else float(row[name])
-        for name in LeanLimits.__dataclass_fields__
-    }
