@@ -90,9 +90,6 @@ def test_bad_resolution_is_refused():
         lean.lean_limits(CONFIG, resolution=0.0, runner=object())
 
 
-# slow: in the engine group, the README run's longest chain (299.5-303.3 s cold with it, against
-# the 300-s target); the command's options stay in the default run (test_every_option)
-@pytest.mark.slow
 def test_the_lean_folder_holds_the_limits_and_refuses_another_configuration(tmp_path, limits):
     """``mb.lean_release(out=)`` (``mjx-balance lean``): lean.csv is the people rows beside the
     limits of lean_limits.csv, every column with a unit; the folder refuses a configuration
