@@ -59,6 +59,8 @@ from .studies.defaults import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORC
 from .studies.defaults import DEFAULT_FORCES as STUDY_TABLE_FORCES
 from .studies.landscape import run_landscape
 from .studies.lean import lean_limits, run_lean, scored
+from .studies.people import run_people
+from .studies.pull import pull_limits
 from .studies.sensitivity import run_sensitivity
 from .figures.style import figure_style
 from .runs import DEFAULT_SWEEP
@@ -490,6 +492,49 @@ def lean_release(
         return run_lean(
             out, config, resolution=resolution, slots=slots, say=log.info, plan=plan, wait=wait
         )
+
+
+@checked
+def waist_pull(
+    config: ConfigLike = None,
+    *,
+    resolution: float = 0.5,
+    ramp: float = 5.0,
+    slots: int | None = None,
+) -> "pd.DataFrame":
+    """People's waist pull (the Spring Scale Test of DePasquale & Toscano 2009;
+    ``studies.pull``) on the batched engine: the largest horizontal pull at the hip joint,
+    rising linearly over ``ramp`` s (0: at once) and then held to the window's end, that the
+    body withstands with its feet in place, forward and backward, in newtons and in % of body
+    weight (bracketed to ``resolution`` N). One row (``PullLimits.row``: both limits, the
+    brackets' width, the weight, the peak ankle torque at each limit, the scenarios run)."""
+    import pandas as pd  # lazy: as the module's other pandas users
+
+    config = as_config(config)
+    slots = size_value(slots, "slots")
+    with _session("waist pull"):
+        limits = pull_limits(config, resolution=resolution, ramp=ramp, slots=slots, say=log.info)
+    return pd.DataFrame([limits.row()])
+
+
+@checked
+def people(
+    *,
+    out: str | os.PathLike[str],
+    slots: int | None = None,
+    wait: bool = False,
+    plan: PlanHook | None = None,
+) -> "pd.DataFrame":
+    """The people scorecard (``mjx-balance people``; ``studies.people``): every measure of the
+    people reference beside what the shipped human bodies (``human``, ``human_older``)
+    predict by lean and release and the held waist pull, in ``out`` (people.csv,
+    people_limits.csv, people.png, a manifest). Each row's ``kind``: predicted (``agrees``
+    within the published mean +- 2 SD), an input taken from that row, or not modelled; a row
+    that is not a predicted agreement carries its measured ``reason``. ``wait``, ``plan``: as
+    :func:`compare`."""
+    slots = size_value(slots, "slots")
+    with _session("people"):
+        return run_people(out, slots=slots, say=log.info, plan=plan, wait=wait)
 
 
 @checked

@@ -62,6 +62,7 @@ BASE = {
     "basin": ["basin", "--x-com", "0", "--v-com", "0", "--push-forces", "none"],
     "sensitivity": ["sensitivity", "--forces", "10"],
     "lean": ["lean"],
+    "people": ["people"],
     "animate": ["animate", "--force", "10"],
     "report": ["report", "--scale", "tiny"],
     "model": ["model"],

@@ -339,9 +339,10 @@ def config_options(
     else:
         p.add_argument(
             "--config",
-            type=input_file,
+            type=sweep_file,
             default=None,
-            help="TOML configuration file (body, controller, scenario)",
+            help="TOML configuration file (body, controller, scenario), or the name of one "
+            "the package ships (human, human_older: the human bodies, docs/model.md)",
         )
     p.add_argument(
         "--set",

@@ -83,9 +83,9 @@ def segment_points(body: BodyParams, foot_x, foot_z, foot_pitch, q_a, q_h) -> di
     def rot(angle, x, z):  # rotation about +y: a positive angle tilts +z towards +x
         return (np.cos(angle) * x + np.sin(angle) * z, -np.sin(angle) * x + np.cos(angle) * z)
 
-    hx = body.foot_length / 2
-    heel = np.stack(rot(foot_pitch, -hx, 0.0), -1) + np.stack([foot_x, foot_z], -1)
-    toe = np.stack(rot(foot_pitch, hx, 0.0), -1) + np.stack([foot_x, foot_z], -1)
+    back, front = body.sole_edges
+    heel = np.stack(rot(foot_pitch, back, 0.0), -1) + np.stack([foot_x, foot_z], -1)
+    toe = np.stack(rot(foot_pitch, front, 0.0), -1) + np.stack([foot_x, foot_z], -1)
     ankle = np.stack(rot(foot_pitch, 0.0, body.ankle_height), -1) + np.stack([foot_x, foot_z], -1)
     tilt1 = foot_pitch + q_a
     tilt2 = tilt1 + q_h

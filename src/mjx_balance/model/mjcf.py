@@ -65,8 +65,10 @@ def mjcf(body: BodyParams = BodyParams(), physics_dt: float = 0.002, foot: str =
             '      <joint name="foot_z" type="slide" axis="0 0 1"/>\n'
             '      <joint name="foot_pitch" type="hinge" axis="0 1 0"/>\n'
         )
+    # the sole's centre ahead of the ankle (0 for the study's centred foot: the same text)
+    cx = (0.5 - b.ankle_position) * b.foot_length
     cells = "".join(
-        f'      <geom name="{name}" class="load_cell" pos="{sx * hx:.6g} {sy * hy:.6g} {r:.6g}"/>\n'
+        f'      <geom name="{name}" class="load_cell" pos="{cx + sx * hx:.6g} {sy * hy:.6g} {r:.6g}"/>\n'
         for name, sx, sy in zip(LOAD_CELLS, (1, 1, -1, -1), (1, -1, 1, -1))
     )
 
@@ -97,7 +99,7 @@ def mjcf(body: BodyParams = BodyParams(), physics_dt: float = 0.002, foot: str =
           friction="{b.friction:.6g} 0.005 0.0001" rgba="0.85 0.85 0.85 1"/>
     <body name="foot" pos="0 0 0">
 {foot_joints}      <inertial pos="0 0 {b.foot_thickness / 2:.9g}" mass="{b.foot_mass:.9g}" diaginertia="{fmt(foot_inertia)}"/>
-      <geom name="sole" type="box" size="{hx:.6g} {hy:.6g} {b.foot_thickness / 2:.6g}" pos="0 0 {b.foot_thickness / 2:.6g}" rgba="0.3 0.3 0.3 1"/>
+      <geom name="sole" type="box" size="{hx:.6g} {hy:.6g} {b.foot_thickness / 2:.6g}" pos="{cx:.6g} 0 {b.foot_thickness / 2:.6g}" rgba="0.3 0.3 0.3 1"/>
 {cells}      <body name="lower" pos="0 0 {b.ankle_height:.9g}">
         <joint name="ankle" type="hinge" axis="0 1 0"/>
         <inertial pos="0 0 {b.lower_com:.9g}" mass="{b.lower_mass:.9g}" diaginertia="{fmt(lower_i)}"/>
@@ -176,12 +178,6 @@ def indices(model: mujoco.MjModel) -> Indices:
         floor_geom=gid("floor"),
         cell_geoms=tuple(gid(n) for n in LOAD_CELLS),
     )
-
-
-def cell_x(body: BodyParams) -> np.ndarray:
-    """Sole-frame x of the four load cells, in LOAD_CELLS order."""
-    hx = body.foot_length / 2
-    return np.array([hx, hx, -hx, -hx])
 
 
 def settled_rest(model: mujoco.MjModel, seconds: float = 1.0) -> np.ndarray:

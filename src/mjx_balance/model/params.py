@@ -51,6 +51,7 @@ MAX_PHYSICS_DT = 0.01  # s
 MAX_STEPS = 2**31 - 1  # physics steps of one window: an int32 count on the device
 MASS_RANGE = (1e-3, 1e4)  # kg
 LENGTH_RANGE = (1e-3, 10.0)  # m
+ANKLE_POSITION_RANGE = (0.05, 0.95)  # fraction of the foot from the heel: the ankle on the sole
 MAX_GRAVITY = 100.0  # m/s^2
 MIN_GRAVITY = 0.1  # m/s^2
 # - friction <= 2: the load cells are pyramidal-cone contacts, whose normal direction MuJoCo
@@ -202,6 +203,11 @@ class BodyParams:
     foot_inertia: float | None = None
     lower_inertia: float | None = None
     upper_inertia: float | None = None
+    # Where the ankle sits along the sole: its distance from the heel as a fraction of
+    # foot_length (docs/model.md, "Strength and timing"). 0.5, the study's foot, centred on the
+    # ankle; a person's ankle sits nearer the heel. The sole and its load cells move, the foot's
+    # CoM stays below the ankle (where the study's linear CoM puts it).
+    ankle_position: float = field(default=0.5, metadata={"omit_default": True})
 
     def __post_init__(self) -> None:
         _check_types("body", self)
@@ -257,6 +263,14 @@ class BodyParams:
             value = getattr(self, name)
             if not 0 <= value <= length:
                 fail("body", name, f"must lie on the segment, in [0, {length}]", value)
+        if not ANKLE_POSITION_RANGE[0] <= self.ankle_position <= ANKLE_POSITION_RANGE[1]:
+            fail(
+                "body",
+                "ankle_position",
+                f"must lie in [{ANKLE_POSITION_RANGE[0]:g}, {ANKLE_POSITION_RANGE[1]:g}] (the "
+                "ankle's distance from the heel, a fraction of foot_length)",
+                self.ankle_position,
+            )
         if not 0 <= self.ankle_height <= LENGTH_RANGE[1]:
             fail(
                 "body", "ankle_height", f"must lie in [0, {LENGTH_RANGE[1]:g}] m", self.ankle_height
@@ -293,6 +307,12 @@ class BodyParams:
         if self.upper_inertia is not None:
             return self.upper_inertia
         return self.upper_mass * self.upper_length**2 / 12.0
+
+    @property
+    def sole_edges(self) -> tuple[float, float]:
+        """(heel, toe): the sole's ends ahead of the ankle [m] (the heel's is negative)."""
+        heel = -self.ankle_position * self.foot_length
+        return heel, heel + self.foot_length
 
     @property
     def foot_pitch_inertia(self) -> float:
@@ -509,6 +529,10 @@ class ScenarioParams:
     # as every run's). False: it has seen the initial state all along (a push starts from rest,
     # where the two are one). Left out of a configuration's files when false.
     relaxed_start: bool = field(default=False, metadata={"omit_default": True})
+    # A push that rises linearly from 0 to its force over push_ramp seconds, then holds (a pull
+    # loaded gradually, as a spring-scale test's; people's protocols, docs/studies.md). 0: a
+    # step, the study's push. Data of the compiled program; left out of files when 0.
+    push_ramp: float = field(default=0.0, metadata={"omit_default": True})
 
     def __post_init__(self) -> None:
         _check_types("scenario", self)
@@ -540,6 +564,10 @@ class ScenarioParams:
             fail("scenario", "duration", "must be >= 0", self.duration)
         if self.duration > self.t_end:
             fail("scenario", "duration", f"must not exceed t_end = {self.t_end}", self.duration)
+        if not 0 <= self.push_ramp <= self.t_end:
+            fail(
+                "scenario", "push_ramp", f"must lie in [0, t_end = {self.t_end}] s", self.push_ramp
+            )
         self._check_steps()
         if self.push_body not in ("upper", "hip"):
             fail("scenario", "push_body", "must be 'upper' or 'hip'", self.push_body)
@@ -613,6 +641,16 @@ class ScenarioParams:
     def n_control(self) -> int:
         """Control periods in one scenario."""
         return int(round(self.t_end / self.control_dt))
+
+    @property
+    def ramp_steps(self) -> int:
+        """Physics steps over which a push rises to its force (0: a step)."""
+        return int(round(self.push_ramp / self.physics_dt))
+
+    def ramp_factor(self, i: int) -> float:
+        """The share of the force a push applies at physics step i (i = 0 first): (i + 1) / the
+        ramp's steps, at most 1 (1 throughout without a ramp)."""
+        return 1.0 if self.ramp_steps == 0 else min((i + 1) / self.ramp_steps, 1.0)
 
     @property
     def delay_steps(self) -> int:
@@ -693,13 +731,13 @@ def check_linked_limits(config: Config) -> None:
     """Refuse a configuration whose limits contradict each other (the message names both
     values) and warn for a limit that can never bind (:func:`config_warnings`)."""
     body, ctrl = config.body, config.controller
-    half = body.foot_length / 2
+    heel, toe = body.sole_edges
     for name, what in (("cop_bounds", "CoP"), ("com_bounds", "CoM")):
         low, high = getattr(ctrl, name)
-        if low > half + EDGE_TOL or high < -half - EDGE_TOL:
+        if low > toe + EDGE_TOL or high < heel - EDGE_TOL:
             raise ParameterError(
                 f"controller.{name} = [{low:g}, {high:g}] m lies wholly outside the sole of "
-                f"body.foot_length = {body.foot_length:g} m (its edges at +-{half:g} m): the "
+                f"body.foot_length = {body.foot_length:g} m ({sole_text(body)}): the "
                 f"upright body's {what} (x = 0) breaks it at rest, so no run means anything; "
                 f"bring the bounds onto the sole or lengthen the foot"
             )
@@ -722,17 +760,25 @@ def check_linked_limits(config: Config) -> None:
         warn_parameter(message)
 
 
+def sole_text(body: BodyParams) -> str:
+    """ "its edges at +-0.15 m" (the study's centred foot) or "heel at -0.05 m, toe at 0.2 m"."""
+    heel, toe = body.sole_edges
+    if body.ankle_position == 0.5:
+        return f"its edges at +-{toe:g} m"
+    return f"heel at {heel:g} m, toe at {toe:g} m from the ankle"
+
+
 def config_warnings(config: Config) -> list[str]:
     """The limits of ``config`` that can never bind, one sentence each (empty: none). Recorded
     in an output folder's manifest (``config_warnings``)."""
     body, ctrl = config.body, config.controller
-    half = body.foot_length / 2
+    heel, toe = body.sole_edges
     low, high = ctrl.cop_bounds
     out = []
-    if low < -half - EDGE_TOL or high > half + EDGE_TOL:
+    if low < heel - EDGE_TOL or high > toe + EDGE_TOL:
         out.append(
             f"controller.cop_bounds = [{low:g}, {high:g}] m reaches beyond the sole of "
-            f"body.foot_length = {body.foot_length:g} m (its edges at +-{half:g} m): "
+            f"body.foot_length = {body.foot_length:g} m ({sole_text(body)}): "
             "the CoP cannot leave the sole (the foot tips first), so the bound can never "
             "bind beyond the edge"
         )

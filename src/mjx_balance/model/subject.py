@@ -43,6 +43,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from .params import (
+    BodyParams,
     Config,
     ControllerParams,
     ParameterError,
@@ -178,9 +179,8 @@ def segments(height: float, mass: float, sex: str = "male") -> dict[str, float]:
 
 
 # -- subjects -------------------------------------------------------------------------------
-# The study's body (BodyParams' defaults) weighs 66.3 kg: a subject's torque bounds are the
-# configuration's bounds (read as those of that body) times mass / 66.3 times a strength factor.
-STUDY_BODY_MASS = 66.3  # kg, BodyParams().total_mass
+# A subject's torque bounds are the base configuration's bounds, read as those of the base's
+# own body, times mass / that body's total mass (the study's: 66.3 kg) times a strength factor.
 HEIGHT_RANGE = (0.5, 2.5)  # m: small children to the tallest adults
 SUBJECT_MASS_RANGE = (5.0, 300.0)  # kg
 # Body mass index mass / height^2 [kg/m^2]: height and mass each in range can still make no
@@ -217,7 +217,8 @@ class Subject:
     from de Leva (1996) Table 4 (:func:`segments`; docs/model.md, "Subjects"): every segment's
     mass, length, CoM and pitch inertia, the foot's length and mass, CoP and CoM bounds at the
     sole's edges (+-foot_length / 2, as the study's +-0.15 m on its 0.30-m foot), and the input
-    bounds of ``base`` times ``mass / 66.3`` (the study's body mass) times ``ankle_strength``
+    bounds of ``base`` times ``mass / M_base`` (the base body's total mass: the study's 66.3 kg,
+    the human bodies' 73 kg) times ``ankle_strength``
     (input 1) or ``hip_strength`` (input 2)."""
 
     height: float
@@ -258,16 +259,20 @@ class Subject:
         """The body's values this subject derives (``SUBJECT_BODY_KEYS``)."""
         return segments(self.height, self.mass, self.sex)
 
-    def controller_values(self, base: ControllerParams) -> dict[str, tuple[float, ...]]:
-        """CoP and CoM bounds at the sole's edges and ``base``'s input bounds scaled (its input
-        rates too, when it has them, by the same factors: an assumption, docs/model.md
-        "Strength and timing")."""
-        half = self.body_values()["foot_length"] / 2
-        scale = self.mass / STUDY_BODY_MASS
+    def controller_values(
+        self, base: ControllerParams, body: BodyParams
+    ) -> dict[str, tuple[float, ...]]:
+        """CoP and CoM bounds at the sole's edges (the ankle ``body.ankle_position`` of the
+        foot's length from the heel) and ``base``'s input bounds, read as those of ``body``,
+        scaled by mass (its input rates too, when it has them, by the same factors: an
+        assumption, docs/model.md "Strength and timing")."""
+        length = self.body_values()["foot_length"]
+        edges = (-body.ankle_position * length, (1 - body.ankle_position) * length)
+        scale = self.mass / body.total_mass
         factors = (scale * self.ankle_strength, scale * self.hip_strength)
         values: dict[str, tuple[float, ...]] = {
-            "cop_bounds": (-half, half),
-            "com_bounds": (-half, half),
+            "cop_bounds": edges,
+            "com_bounds": edges,
             "input1_bounds": tuple(v * factors[0] for v in base.input1_bounds),
             "input2_bounds": tuple(v * factors[1] for v in base.input2_bounds),
         }
@@ -279,7 +284,8 @@ class Subject:
         """``base`` (None: the defaults, the study's configuration) with this subject's body."""
         base = Config() if base is None else base
         return base.replace(
-            body=self.body_values(), controller=self.controller_values(base.controller)
+            body=self.body_values(),
+            controller=self.controller_values(base.controller, base.body),
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -333,7 +339,7 @@ def check_subject_conflicts(subject: Subject, sections: dict[str, Any]) -> None:
             values = (
                 subject.body_values()
                 if section == "body"
-                else {"cop_bounds": "+-foot_length / 2", "com_bounds": "+-foot_length / 2"}
+                else {"cop_bounds": "the sole's edges", "com_bounds": "the sole's edges"}
             )
             derived_value = values[key]
             shown = f"{derived_value:.6g}" if isinstance(derived_value, float) else derived_value

@@ -326,7 +326,11 @@ def _closed_loop(
         data.ctrl[:] = torques
         for j in range(sc.substeps):
             i = k * sc.substeps + j
-            push = push_wrench(data, upper, force, sc.push_body) if i < n_push else 0.0
+            push = (
+                push_wrench(data, upper, force * sc.ramp_factor(i), sc.push_body)
+                if i < n_push
+                else 0.0
+            )
             data.xfrc_applied[upper] = push
             warned = _bad_value_warnings(data)
             mujoco.mj_step(model, data)

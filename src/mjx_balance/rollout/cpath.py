@@ -135,6 +135,8 @@ def unsupported(config: Config, trajectories: bool = False) -> str | None:
             "the C path pushes at the upper body's CoM only (scenario.push_body = "
             f"{config.scenario.push_body!r} needs the MJX path)"
         )
+    if config.scenario.push_ramp > 0:
+        return "the C path pushes with a step only (scenario.push_ramp > 0 needs the MJX path)"
     if trajectories:
         return "the C path returns summaries only (per-step series come from the MJX path)"
     return None

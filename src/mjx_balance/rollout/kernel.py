@@ -200,6 +200,9 @@ class Arrays(NamedTuple):
     # bool []: a run from an initial state starts with relaxed muscles (scenario.relaxed_start):
     # the measurements before t = 0 are upright rest (:func:`start`)
     relaxed: jax.Array
+    # [] physics steps over which a push rises linearly to its force (scenario.ramp_steps; 0:
+    # a step, the study's): data, so one program serves both
+    ramp_steps: jax.Array
     # int32 []: control periods in the window (t_end / control_dt). The engines read this
     # traced value, so one compiled engine serves every t_end; the padded batch with
     # trajectories scans Static.n_control periods (its output's length) and so compiles per t_end.
@@ -668,7 +671,11 @@ def physics_period(
         return carry._replace(q_prev=s.q, x_prev=s.x, acc=acc)
 
     def push(i: jax.Array) -> jax.Array:
-        return jnp.where(i < n_push, force, jnp.zeros((), dtype))
+        """The push at step i: its force (times the ramp's share while it rises), 0 after."""
+        ramp = arrays.ramp_steps
+        share = jnp.minimum((i + 1).astype(dtype) / jnp.maximum(ramp, 1), 1)
+        on = jnp.where(ramp > 0, force * share, force)  # without a ramp exactly the force
+        return jnp.where(i < n_push, on, jnp.zeros((), dtype))
 
     def record(carry: Carry, d: mjx.Data, s: Sample) -> Carry:
         """The new physics state and the controller's (delayed) measurement buffer."""

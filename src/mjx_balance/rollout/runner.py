@@ -119,6 +119,7 @@ class BatchRunner:
             bounds=bounds,
             rate_step=jnp.asarray(ctrl.rate_steps(sc.control_dt), self.dtype),
             relaxed=jnp.asarray(sc.relaxed_start),
+            ramp_steps=jnp.asarray(sc.ramp_steps, self.dtype),
             n_control=jnp.asarray(sc.n_control, jnp.int32),
         )
         self.static = Static(

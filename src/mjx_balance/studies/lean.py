@@ -17,7 +17,7 @@ Two limits, each as the experiment reports it:
   rising no faster than ``controller.input_rates``), from which the
   closed loop recovers with the feet in place (the push map's ``recovered``), every smaller lean
   recovering too. Found on the batched engine (its per-scenario initial state, as the basin's
-  cells): a scan of ``SCAN`` leans, then rounds of ``SCAN`` leans inside the first bracket that
+  cells) by ``thresholds.largest_passing``: a scan, then rounds inside the first bracket that
   fails, until the bracket is ``resolution`` wide.
 
 The lean is the angle of the rigid body (ankle to CoM) from vertical, positive forward: the
@@ -48,8 +48,8 @@ from ..store.files import write_csv
 from ..store.folder import OutputFolder, folder_lock
 from .basin import Plane
 from .references import read_people
+from .thresholds import SCAN, agreement, largest_passing, planned_runs
 
-SCAN = 16  # leans per batched call (one compiled shape for every round)
 MAX_LEAN_DEG = 30.0  # the scan's upper end: beyond any lean a feet-in-place body recovers
 
 
@@ -155,36 +155,22 @@ def lean_limits(
     torque_deg, foot_deg = static_limits(config, plane)
     if runner is None:
         runner = BatchRunner(config, physics="mjx", slots=slots)
-    low, high = 0.0, math.inf  # high: the smallest lean seen failing
-    leans = np.linspace(0.0, MAX_LEAN_DEG, SCAN)
-    runs = 0
-    best_peak = float("nan")
-    while True:
-        ok, peaks = recovers(runner, plane, leans)
-        runs += leans.size
-        failing = np.flatnonzero(~ok)
-        stop = int(failing[0]) if failing.size else leans.size  # the leans below all recover
-        if stop > 0:
-            low, best_peak = float(leans[stop - 1]), float(peaks[stop - 1])
-        elif leans[0] == 0.0:  # upright rest itself does not recover
-            low, high = 0.0, 0.0
-            break
-        if failing.size:
-            high = float(leans[stop])
-        if math.isinf(high):  # every lean of the scan recovers: the limit is beyond it
-            break
-        say(f"lean and release: recovers at {low:.3f} deg, not at {high:.3f} deg")
-        if high - low <= resolution:
-            break
-        leans = np.linspace(low, high, SCAN + 2)[1:-1]
+    found = largest_passing(
+        lambda leans: recovers(runner, plane, leans),
+        MAX_LEAN_DEG,
+        resolution,
+        lambda low, high: say(
+            f"lean and release: recovers at {low:.3f} deg, not at {high:.3f} deg"
+        ),
+    )
     return LeanLimits(
         static_deg=min(torque_deg, foot_deg),
         static_torque_deg=torque_deg,
         static_foot_deg=foot_deg,
-        dynamic_deg=low,
-        resolution_deg=0.0 if math.isinf(high) else high - low,
-        peak_ankle_torque=best_peak,
-        scenarios=runs,
+        dynamic_deg=found.low,
+        resolution_deg=found.width,
+        peak_ankle_torque=found.peak,
+        scenarios=found.runs,
     )
 
 
@@ -200,24 +186,10 @@ PREDICTS = {
 
 def against_people(limits: LeanLimits, people: pd.DataFrame) -> pd.DataFrame:
     """The people reference's lean-and-release rows beside our prediction: agreement within the
-    published mean +- 2 SD."""
-    rows = []
-    for measure, field in PREDICTS.items():
-        ref = people.set_index("measure").loc[measure]
-        ours = float(getattr(limits, field))
-        low, high = ref["mean"] - 2 * ref["sd"], ref["mean"] + 2 * ref["sd"]
-        rows.append(
-            {
-                "measure": measure,
-                "unit": ref["unit"],
-                "published_mean": ref["mean"],
-                "published_sd": ref["sd"],
-                "ours": ours,
-                "agrees": bool(low <= ours <= high),
-                "source": ref["source"],
-            }
-        )
-    return pd.DataFrame(rows)
+    published mean +- 2 SD (``thresholds.agreement``)."""
+    return pd.DataFrame(
+        [agreement(m, float(getattr(limits, f)), people) for m, f in PREDICTS.items()]
+    )
 
 
 def scored(limits: LeanLimits) -> pd.DataFrame:
@@ -233,12 +205,8 @@ LIMITS_CSV = "lean_limits.csv"  # every limit (LeanLimits.row)
 
 
 def planned_scenarios(resolution: float) -> int:
-    """The most scenarios :func:`lean_limits` runs: the scan, then rounds of SCAN leans, each
-    shrinking the bracket by SCAN + 1, until it is ``resolution`` wide."""
-    bracket, rounds = MAX_LEAN_DEG / (SCAN - 1), 0
-    while bracket > resolution:
-        bracket, rounds = bracket / (SCAN + 1), rounds + 1
-    return SCAN * (1 + rounds)
+    """The most scenarios :func:`lean_limits` runs (``thresholds.planned_runs``)."""
+    return planned_runs(MAX_LEAN_DEG, resolution)
 
 
 def run_lean(
