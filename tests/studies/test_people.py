@@ -198,3 +198,12 @@ def test_a_push_ramp_rises_then_holds():
     for bad in (-0.1, 13.0):
         with pytest.raises(ParameterError, match="push_ramp"):
             Config().replace(scenario={"push_ramp": bad})
+
+
+def test_the_table_points_the_people_reference_to_its_command(capsys):
+    from mjx_balance.cli.main import build_parser
+
+    with pytest.raises(SystemExit) as exit_info:
+        build_parser().parse_args(["table", "--reference", "people", "--out", "x"])
+    assert exit_info.value.code == 2
+    assert "mjx-balance people" in capsys.readouterr().err

@@ -114,6 +114,11 @@ def reference_file(text: str) -> str:
     """A reference CSV file, or the name of a shipped one (``study``: studies.references)."""
     if text in references.SHIPPED:
         return text
+    if text == "people" and not Path(text).exists():
+        raise argparse.ArgumentTypeError(
+            "the people reference holds people's protocols (lean and release, the waist "
+            "pull), not a push table: mjx-balance people --out DIR scores it"
+        )
     try:
         references.check_size(Path(text))  # before input_file reads it whole
         return input_file(text)

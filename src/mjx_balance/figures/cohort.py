@@ -280,7 +280,7 @@ def plot_probability(
     )
     fig.legend(
         loc="outside lower center",
-        ncol=4 if width > 5 else 2,
+        ncol=2,  # four columns ran past the figure's edges at the screen size
         frameon=False,
         title="per force, the longest duration up to which",
     )
