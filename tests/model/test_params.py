@@ -143,3 +143,17 @@ def test_shipped_model_is_the_generated_default():
     assert shipped == mjcf()
     with open(default_model_path()) as fh:
         assert fh.read() == mjcf()
+
+
+def test_a_sweep_definition_as_a_plain_config_says_where_it_goes(tmp_path):
+    """A file with a [sweep] table given where a configuration goes (``--config``,
+    ``load_config``) is refused with the command that runs it, not as an unknown section; a
+    shipped configuration is found by name."""
+    from mjx_balance.model.config_files import load_config
+    from mjx_balance.runs.definitions import find_sweep
+
+    path = tmp_path / "grid.toml"
+    path.write_text('[sweep]\nforces = "0:10:10"\n[scenario]\nt_end = 2.0\n')
+    with pytest.raises(ParameterError, match="sweep --sweep grid"):
+        load_config(path)
+    assert load_config(find_sweep("human")).body.ankle_position == 0.4415

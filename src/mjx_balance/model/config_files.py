@@ -68,6 +68,12 @@ def load_config(path: str | os.PathLike[str]) -> Config:
     """Load a TOML configuration file; every value not given takes its default."""
     path = Path(path)
     data = read_toml(path)
+    if "sweep" in data:  # a sweep definition: its grid needs the sweep command
+        raise ParameterError(
+            f"{path}: a sweep definition (its [sweep] table is a grid): run it with "
+            f"mjx-balance sweep --sweep {path.stem}; a --config file gives body, controller, "
+            "scenario and subject only"
+        )
     try:
         return config_from_dict(data)
     except ParameterError as exc:
