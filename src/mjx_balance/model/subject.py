@@ -216,7 +216,8 @@ class Subject:
     ``config(base)`` is ``base`` (default: the study's configuration) with this person's body
     from de Leva (1996) Table 4 (:func:`segments`; docs/model.md, "Subjects"): every segment's
     mass, length, CoM and pitch inertia, the foot's length and mass, CoP and CoM bounds at the
-    sole's edges (+-foot_length / 2, as the study's +-0.15 m on its 0.30-m foot), and the input
+    sole's ends under ``base``'s ``ankle_position`` (the study's centred foot: +-foot_length / 2,
+    as its +-0.15 m on its 0.30-m foot), and the input
     bounds of ``base`` times ``mass / M_base`` (the base body's total mass: the study's 66.3 kg,
     the human bodies' 73 kg) times ``ankle_strength``
     (input 1) or ``hip_strength`` (input 2)."""
