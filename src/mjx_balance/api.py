@@ -60,7 +60,7 @@ from .studies.defaults import DEFAULT_FORCES as STUDY_TABLE_FORCES
 from .studies.landscape import run_landscape
 from .studies.lean import lean_limits, run_lean, scored
 from .studies.people import run_people
-from .studies.pull import pull_limits
+from .studies.pull import pull_limits, run_pull
 from .studies.sensitivity import run_sensitivity
 from .figures.style import figure_style
 from .runs import DEFAULT_SWEEP
@@ -501,18 +501,36 @@ def waist_pull(
     resolution: float = 0.5,
     ramp: float = 5.0,
     slots: int | None = None,
+    out: str | os.PathLike[str] | None = None,
+    wait: bool = False,
+    plan: PlanHook | None = None,
 ) -> "pd.DataFrame":
     """People's waist pull (the Spring Scale Test of DePasquale & Toscano 2009;
     ``studies.pull``) on the batched engine: the largest horizontal pull at the hip joint,
     rising linearly over ``ramp`` s (0: at once) and then held to the window's end, that the
     body withstands with its feet in place, forward and backward, in newtons and in % of body
     weight (bracketed to ``resolution`` N). One row (``PullLimits.row``: both limits, the
-    brackets' width, the weight, the peak ankle torque at each limit, the scenarios run)."""
+    brackets' width, the weight, the peak ankle torque at each limit, the scenarios run).
+    With ``out``: also written there (pull.csv, a manifest; a folder made with another
+    configuration is refused; ``mjx-balance pull``). ``wait``, ``plan``: as :func:`compare`."""
     import pandas as pd  # lazy: as the module's other pandas users
 
     config = as_config(config)
+    if out is None and (wait or plan is not None):
+        raise ParameterError("wait and plan apply to a run written in a folder: give out=")
     slots = size_value(slots, "slots")
     with _session("waist pull"):
+        if out is not None:
+            return run_pull(
+                out,
+                config,
+                resolution=resolution,
+                ramp=ramp,
+                slots=slots,
+                say=log.info,
+                plan=plan,
+                wait=wait,
+            )
         limits = pull_limits(config, resolution=resolution, ramp=ramp, slots=slots, say=log.info)
     return pd.DataFrame([limits.row()])
 

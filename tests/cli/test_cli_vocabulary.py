@@ -34,6 +34,7 @@ MODEL_COMMANDS = {
     "landscape": ["--out", "OUT"],
     "basin": ["--out", "OUT"],
     "lean": ["--out", "OUT"],
+    "pull": ["--out", "OUT"],
     "cohort": ["--heights", "1.7", "--masses", "70", "--out", "OUT"],
     "sensitivity": ["--out", "OUT"],
     "animate": ["--force", "10", "--out", "OUT.gif"],

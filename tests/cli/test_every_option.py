@@ -63,6 +63,7 @@ BASE = {
     "sensitivity": ["sensitivity", "--forces", "10"],
     "lean": ["lean"],
     "people": ["people"],
+    "pull": ["pull"],
     "animate": ["animate", "--force", "10"],
     "report": ["report", "--scale", "tiny"],
     "model": ["model"],
@@ -95,6 +96,7 @@ ACCEPTED = {
     ("basin", "--push-durations"): {"0"},
     ("landscape", "--delays"): {"0"},
     ("landscape", "--delay"): {"0"},
+    ("pull", "--ramp"): {"0"},  # a pull of 0-s rise is applied at once (a step)
     # empty: the default (a strength of 1, every study)
     ("cohort", "--ankle-strengths"): {""},
     ("cohort", "--hip-strengths"): {""},

@@ -91,3 +91,23 @@ def test_the_people_folder_scores_every_row(tmp_path):
     with pytest.raises(ParameterError, match="resolution"):
         people.run_people(tmp_path / "bad", pull_resolution=0.0)
     assert not (tmp_path / "bad").exists()
+
+
+def test_the_pull_folder_holds_the_limits_and_refuses_another_configuration(tmp_path):
+    """``mb.waist_pull(out=)`` (``mjx-balance pull``): pull.csv is the limits' row, every column
+    with a unit; a ramp beyond the window is refused before the folder is made; another
+    configuration is refused by the folder."""
+    import mjx_balance as mb
+
+    config = people.human_config("human_older").replace(scenario={"t_end": 4.0})
+    out = tmp_path / "pull"
+    frame = mb.waist_pull(config, resolution=10.0, ramp=2.0, out=out)
+    written = pd.read_csv(out / pull.PULL_CSV)
+    assert list(written.columns) == list(frame.columns) and len(written) == 1
+    assert units.unknown(written.columns) == []
+    assert written["ramp_s"].iloc[0] == 2.0 and written["forward_n"].iloc[0] > 0
+    with pytest.raises(ParameterError, match="push_ramp"):
+        mb.waist_pull(config, ramp=5.0, out=tmp_path / "bad")
+    assert not (tmp_path / "bad").exists()
+    with pytest.raises(ParameterError, match="different configuration"):
+        mb.waist_pull(config.replace(scenario={"t_end": 5.0}), resolution=10.0, out=out)

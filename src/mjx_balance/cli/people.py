@@ -1,4 +1,5 @@
-"""``mjx-balance people``: the people scorecard (``mjx_balance.studies.people``).
+"""``mjx-balance people`` (the people scorecard, ``mjx_balance.studies.people``) and
+``mjx-balance pull`` (people's waist pull, ``mjx_balance.studies.pull``).
 
 The parser is built without the library (``--help`` stays light); the command imports it when
 it runs.
@@ -10,8 +11,33 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from .common import in_folder, planner
-from .options import out_folder, slots_option, wait_option, yes_option
+from .common import in_folder, load_run_config, planner
+from .options import (
+    common_options,
+    nonnegative_float,
+    out_folder,
+    slots_option,
+    wait_option,
+    yes_option,
+)
+
+MAX_RAMP = 600.0  # s: a rise time beyond any window this tool runs (the window checks it too)
+
+
+def ramp_seconds(text: str) -> float:
+    """A pull's rise time within [0, 600] s."""
+    value = nonnegative_float(text)
+    if value > MAX_RAMP:
+        raise argparse.ArgumentTypeError(f"must lie within [0, {MAX_RAMP:g}] s, got {text!r}")
+    return value
+
+
+def resolution_newtons(text: str) -> float:
+    """A bracket width within [0.01, 10] N."""
+    value = nonnegative_float(text)
+    if not 0.01 <= value <= 10.0:
+        raise argparse.ArgumentTypeError(f"must lie within [0.01, 10] N, got {text!r}")
+    return value
 
 
 def add_parser(sub: Any) -> None:
@@ -35,6 +61,36 @@ def add_parser(sub: Any) -> None:
         "every body), people.png, manifest.json",
     )
     p.set_defaults(target="mjx_balance.cli.people:people_command")
+    add_pull_parser(sub)
+
+
+def add_pull_parser(sub: Any) -> None:
+    """The ``pull`` sub-command's options."""
+    p = sub.add_parser(
+        "pull",
+        help="the waist pull (DePasquale & Toscano 2009's spring-scale test): the largest "
+        "pull at the hip, rising over --ramp seconds and then held to the window's end, "
+        "that the body withstands with its feet in place, forward and backward, in N and "
+        "in %% of body weight (pull.csv)",
+    )
+    p.add_argument(
+        "--ramp",
+        type=ramp_seconds,
+        default=5.0,
+        help="the pull's rise time [s] before it is held (default 5; 0: applied at once; "
+        "at most the window, scenario.t_end)",
+    )
+    p.add_argument(
+        "--resolution",
+        type=resolution_newtons,
+        default=0.5,
+        help="width of the limits' final brackets [N] (default 0.5)",
+    )
+    slots_option(p)
+    wait_option(p)
+    yes_option(p)
+    common_options(p, out_help="output folder: pull.csv (the limits), manifest.json")
+    p.set_defaults(target="mjx_balance.cli.people:pull_command")
 
 
 def people_command(args: argparse.Namespace) -> int:
@@ -47,6 +103,28 @@ def people_command(args: argparse.Namespace) -> int:
         api.people(
             out=out,
             slots=args.slots,
+            wait=getattr(args, "wait", False),
+            plan=planner(args),
+        )
+
+    return in_folder(out, work, lock=False)  # the API takes the folder's lock
+
+
+def pull_command(args: argparse.Namespace) -> int:
+    """The limits in --out: ``mjx_balance.waist_pull`` with the options resolved (every input
+    checked before the folder is touched, the plan line, the lock)."""
+    from .. import api  # lazy: JAX, MuJoCo; not for --help
+
+    config = load_run_config(args)
+    out = Path(args.out)
+
+    def work() -> None:
+        api.waist_pull(
+            config,
+            resolution=args.resolution,
+            ramp=args.ramp,
+            slots=args.slots,
+            out=out,
             wait=getattr(args, "wait", False),
             plan=planner(args),
         )

@@ -17,14 +17,20 @@ an upper bound of theirs: people may step earlier by choice.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+import pandas as pd
 
 from ..measures.outcomes import NOT_SETTLED, RECOVERED
 from ..model.params import Config, ParameterError
 from ..rollout import BatchRunner
+from ..runs.chunks import PlanHook, PlannedWork
+from ..store.files import write_csv
+from ..store.folder import OutputFolder, folder_lock
 from .thresholds import Bracket, largest_passing, planned_runs
 
 RAMP = 5.0  # s: the pull's default rise time (then held to t_end)
@@ -136,3 +142,44 @@ def planned_pulls(config: Config, resolution: float) -> int:
     """The most scenarios :func:`pull_limits` runs (both directions)."""
     top = MAX_PULL * config.body.total_mass * config.body.gravity
     return len(DIRECTIONS) * planned_runs(top, resolution)
+
+
+PULL_CSV = "pull.csv"  # one row: PullLimits.row
+
+
+def run_pull(
+    out: str | os.PathLike[str],
+    config: Config,
+    *,
+    resolution: float = 0.5,
+    ramp: float = RAMP,
+    slots: int | None = None,
+    say: Callable[[str], None] = print,
+    plan: PlanHook | None = None,
+    wait: bool = False,
+) -> pd.DataFrame:
+    """The waist pull of ``config`` in OUT (``mjx-balance pull``): pull.csv (one row, the
+    limits). Every input is checked, then ``plan`` hears the work, then the limits are found
+    under OUT's lock (``wait``: for another run that holds it); a folder made with another
+    configuration is refused. Returns pull.csv's row."""
+    check_pull_resolution(resolution)
+    pulled(config, ramp)  # the ramp checked (within the window) before the folder is made
+    if plan is not None:
+        work = planned_pulls(config, resolution)
+        plan(PlannedWork(config, work, "pulls", note=f"the waist pull, {ramp:g}-s rise"))
+    out = Path(out)
+    with folder_lock(out, wait=wait):
+        folder = OutputFolder(out, config)
+        manifest = folder.open()
+        manifest["pull"] = {"resolution": resolution, "ramp": ramp}
+        folder.write_manifest(manifest)
+        limits = pull_limits(config, resolution=resolution, ramp=ramp, slots=slots, say=say)
+        frame = pd.DataFrame([limits.row()])
+        write_csv(frame, out / PULL_CSV)
+    say(
+        f"waist pull ({ramp:g}-s rise, then held): forward {limits.forward_pct:.2f} % of body "
+        f"weight ({limits.forward_n:.1f} N), backward {limits.backward_pct:.2f} % "
+        f"({limits.backward_n:.1f} N)"
+    )
+    say(f"wrote {out / PULL_CSV}")
+    return frame
