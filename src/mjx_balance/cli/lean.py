@@ -6,20 +6,14 @@ it runs.
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 from typing import Any
 
 from .common import in_folder, load_run_config, planner
-from .options import common_options, positive_float, slots_option, wait_option, yes_option
+from .options import common_options, number_within, slots_option, wait_option, yes_option
 
 
-def resolution_degrees(text: str) -> float:
-    """A bracket width within [0.001, 1] degrees."""
-    value = positive_float(text)
-    if not 0.001 <= value <= 1.0:
-        raise argparse.ArgumentTypeError(f"must lie within [0.001, 1] degrees, got {text!r}")
-    return value
+resolution_degrees = number_within(0.001, 1.0, "degrees")  # a bracket width
 
 
 def add_parser(sub: Any) -> None:

@@ -24,6 +24,7 @@ import argparse
 import math
 import os
 from pathlib import Path
+from typing import Callable
 
 from ..model.params import CONVENTIONS, ParameterError
 from ..model.config_files import parse_override
@@ -48,6 +49,21 @@ def _number(text: str) -> float:
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
     return value
+
+
+def number_within(low: float, high: float, unit: str) -> Callable[[str], float]:
+    """An argument type: a finite number within [``low``, ``high``] ``unit``."""
+
+    def parse(text: str) -> float:
+        value = _number(text)
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(
+                f"must lie within [{low:g}, {high:g}] {unit}, got {text!r}"
+            )
+        return value
+
+    parse.__doc__ = f"A finite number within [{low:g}, {high:g}] {unit}."
+    return parse
 
 
 def finite_float(text: str) -> float:

@@ -14,7 +14,7 @@ from typing import Any
 from .common import in_folder, load_run_config, planner
 from .options import (
     common_options,
-    nonnegative_float,
+    number_within,
     out_folder,
     slots_option,
     wait_option,
@@ -22,22 +22,8 @@ from .options import (
 )
 
 MAX_RAMP = 600.0  # s: a rise time beyond any window this tool runs (the window checks it too)
-
-
-def ramp_seconds(text: str) -> float:
-    """A pull's rise time within [0, 600] s."""
-    value = nonnegative_float(text)
-    if value > MAX_RAMP:
-        raise argparse.ArgumentTypeError(f"must lie within [0, {MAX_RAMP:g}] s, got {text!r}")
-    return value
-
-
-def resolution_newtons(text: str) -> float:
-    """A bracket width within [0.01, 10] N."""
-    value = nonnegative_float(text)
-    if not 0.01 <= value <= 10.0:
-        raise argparse.ArgumentTypeError(f"must lie within [0.01, 10] N, got {text!r}")
-    return value
+ramp_seconds = number_within(0.0, MAX_RAMP, "s")  # a pull's rise time
+resolution_newtons = number_within(0.01, 10.0, "N")  # a bracket width
 
 
 def add_parser(sub: Any) -> None:

@@ -41,14 +41,20 @@ import scipy.optimize
 
 from ..measures.outcomes import RECOVERED
 from ..model.linear import linear_model
-from ..model.params import Config, ParameterError
+from ..model.params import Config
 from ..rollout import BatchRunner
 from ..runs.chunks import PlanHook, PlannedWork
 from ..store.files import write_csv
-from ..store.folder import OutputFolder, folder_lock
 from .basin import Plane
 from .references import read_people
-from .thresholds import SCAN, agreement, largest_passing, planned_runs
+from .thresholds import (
+    SCAN,
+    agreement,
+    check_bracket,
+    largest_passing,
+    planned_runs,
+    protocol_folder,
+)
 
 MAX_LEAN_DEG = 30.0  # the scan's upper end: beyond any lean a feet-in-place body recovers
 
@@ -130,10 +136,7 @@ def recovers(runner: Any, plane: Plane, leans_deg: np.ndarray) -> tuple[np.ndarr
 
 def check_resolution(resolution: Any) -> None:
     """Refuse a bracket width outside [0.001, 1] degrees (one line)."""
-    if isinstance(resolution, bool) or not (
-        isinstance(resolution, (int, float)) and 0.001 <= resolution <= 1.0
-    ):
-        raise ParameterError(f"resolution must be within [0.001, 1] degrees, got {resolution!r}")
+    check_bracket(resolution, 0.001, 1.0, "degrees")
 
 
 def lean_limits(
@@ -228,11 +231,7 @@ def run_lean(
     if plan is not None:
         plan(PlannedWork(config, planned_scenarios(resolution), "leans", note="lean and release"))
     out = Path(out)
-    with folder_lock(out, wait=wait):
-        folder = OutputFolder(out, config)
-        manifest = folder.open()
-        manifest["lean"] = {"resolution": resolution}
-        folder.write_manifest(manifest)
+    with protocol_folder(out, config, {"lean": {"resolution": resolution}}, wait=wait):
         limits = lean_limits(config, resolution=resolution, slots=slots, say=say)
         frame = scored(limits)
         write_csv(frame, out / LEAN_CSV)

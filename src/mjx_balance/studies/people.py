@@ -34,11 +34,10 @@ from ..model.params import Config
 from ..runs.chunks import PlanHook, PlannedWork
 from ..runs.definitions import find_sweep
 from ..store.files import write_csv
-from ..store.folder import OutputFolder, folder_lock
 from .lean import LeanLimits, check_resolution, lean_limits, planned_scenarios
 from .pull import RAMP, PullLimits, check_pull_resolution, planned_pulls, pull_limits
 from .references import read_people
-from .thresholds import agreement
+from .thresholds import agreement, protocol_folder
 
 BODIES = ("human", "human_older")  # shipped configurations (sweeps/), young and older
 
@@ -204,11 +203,14 @@ PEOPLE_LIMITS_CSV = "people_limits.csv"  # every limit of every body
 PEOPLE_FIGURE = "people.png"  # people.png: the predicted rows against the published ranges
 
 
-def planned_people(lean_resolution: float, pull_resolution: float) -> int:
-    """The most scenarios :func:`run_people` runs (every body, both protocols)."""
+def planned_people(
+    configs: dict[str, Config], lean_resolution: float, pull_resolution: float
+) -> int:
+    """The most scenarios :func:`run_people` runs on ``configs`` (every body, both
+    protocols)."""
     return sum(
-        planned_scenarios(lean_resolution) + 2 * planned_pulls(human_config(b), pull_resolution)
-        for b in BODIES
+        planned_scenarios(lean_resolution) + 2 * planned_pulls(c, pull_resolution)
+        for c in configs.values()
     )
 
 
@@ -229,18 +231,17 @@ def run_people(
     check_pull_resolution(pull_resolution)
     configs = {b: human_config(b) for b in BODIES}
     if plan is not None:
-        total = planned_people(lean_resolution, pull_resolution)
+        total = planned_people(configs, lean_resolution, pull_resolution)
         plan(PlannedWork(configs[BODIES[0]], total, "scenarios", note="the people scorecard"))
     out = Path(out)
-    with folder_lock(out, wait=wait):
-        folder = OutputFolder(out, configs[BODIES[0]])
-        manifest = folder.open()
-        manifest["people"] = {
+    settings = {
+        "people": {
             "bodies": {b: c.to_dict() for b, c in configs.items()},
             "lean_resolution": lean_resolution,
             "pull_resolution": pull_resolution,
         }
-        folder.write_manifest(manifest)
+    }
+    with protocol_folder(out, configs[BODIES[0]], settings, wait=wait):
         results = {}
         for body, config in configs.items():
             say(f"people: {body}")

@@ -26,12 +26,11 @@ import numpy as np
 import pandas as pd
 
 from ..measures.outcomes import NOT_SETTLED, RECOVERED
-from ..model.params import Config, ParameterError
+from ..model.params import Config
 from ..rollout import BatchRunner
 from ..runs.chunks import PlanHook, PlannedWork
 from ..store.files import write_csv
-from ..store.folder import OutputFolder, folder_lock
-from .thresholds import Bracket, largest_passing, planned_runs
+from .thresholds import Bracket, check_bracket, largest_passing, planned_runs, protocol_folder
 
 RAMP = 5.0  # s: the pull's default rise time (then held to t_end)
 MAX_PULL = 0.6  # the scan's top, a fraction of body weight: beyond any pull feet in place hold
@@ -59,10 +58,7 @@ class PullLimits:
 
 def check_pull_resolution(resolution: Any) -> None:
     """Refuse a bracket width outside [0.01, 10] N (one line)."""
-    if isinstance(resolution, bool) or not (
-        isinstance(resolution, (int, float)) and 0.01 <= resolution <= 10.0
-    ):
-        raise ParameterError(f"resolution must be within [0.01, 10] N, got {resolution!r}")
+    check_bracket(resolution, 0.01, 10.0, "N")
 
 
 def pulled(config: Config, ramp: float = 0.0) -> Config:
@@ -168,11 +164,8 @@ def run_pull(
         work = planned_pulls(config, resolution)
         plan(PlannedWork(config, work, "pulls", note=f"the waist pull, {ramp:g}-s rise"))
     out = Path(out)
-    with folder_lock(out, wait=wait):
-        folder = OutputFolder(out, config)
-        manifest = folder.open()
-        manifest["pull"] = {"resolution": resolution, "ramp": ramp}
-        folder.write_manifest(manifest)
+    settings = {"pull": {"resolution": resolution, "ramp": ramp}}
+    with protocol_folder(out, config, settings, wait=wait):
         limits = pull_limits(config, resolution=resolution, ramp=ramp, slots=slots, say=say)
         frame = pd.DataFrame([limits.row()])
         write_csv(frame, out / PULL_CSV)

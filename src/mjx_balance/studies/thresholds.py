@@ -13,11 +13,16 @@ and holds it against the published value.
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Callable
+from pathlib import Path
+from typing import Any, Callable, Iterator
 
 import numpy as np
 import pandas as pd
+
+from ..model.params import Config, ParameterError
+from ..store.folder import OutputFolder, folder_lock
 
 SCAN = 16  # values per batched call (one compiled shape for every round)
 
@@ -66,6 +71,31 @@ def largest_passing(
         if high - low <= resolution:
             return Bracket(low, high, peak, runs)
         values = np.linspace(low, high, SCAN + 2)[1:-1]
+
+
+def check_bracket(resolution: Any, low: float, high: float, unit: str) -> None:
+    """Refuse a bracket width that is not a number within [``low``, ``high``] ``unit`` (one
+    line, before any work)."""
+    if isinstance(resolution, bool) or not (
+        isinstance(resolution, (int, float)) and low <= resolution <= high
+    ):
+        raise ParameterError(
+            f"resolution must be within [{low:g}, {high:g}] {unit}, got {resolution!r}"
+        )
+
+
+@contextmanager
+def protocol_folder(
+    out: Path, config: Config, settings: dict[str, Any], *, wait: bool = False
+) -> Iterator[None]:
+    """OUT under its lock, opened for ``config`` (a folder made with another configuration is
+    refused) with the protocol's ``settings`` ({name: values}) recorded in its manifest."""
+    with folder_lock(out, wait=wait):
+        folder = OutputFolder(out, config)
+        manifest = folder.open()
+        manifest.update(settings)
+        folder.write_manifest(manifest)
+        yield
 
 
 def planned_runs(top: float, resolution: float) -> int:
