@@ -340,3 +340,22 @@ def main(argv: list[str] | None = None) -> None:
 
 if __name__ == "__main__":
     main()
+
+
+def capture_window(config, frame, force: float, duration: float, at: float, samples: int):
+    """The one-step capture margins (measures/capture.py) of a reference run's recorded
+    capture point (``frame``: its time series, with ``xcom``) at every sample within
+    ``samples`` of the decision instant ``at`` [s]: another path whose decision instant lies
+    within those samples must report one of them, up to its own rounding of the capture point.
+    Returns (smallest, largest)."""
+    import numpy as np
+
+    from mjx_balance.measures import capture
+
+    model = capture.step_model(config)
+    time = frame["time"].to_numpy()
+    i = int(np.argmin(np.abs(time - at)))
+    near = slice(max(0, i - samples), min(time.size, i + samples + 1))
+    remaining = np.ceil(duration / model.physics_dt - 1e-9) * model.physics_dt - time[near]
+    margin, _ = capture.margins(model, frame["xcom"].to_numpy()[near], force, remaining, 1)
+    return float(margin.min()), float(margin.max())

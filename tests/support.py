@@ -108,9 +108,12 @@ class FakeThresholdBatch:
         c: float = 30.0,
         window: tuple[float, float] | None = None,
         fail_on_call: int | None = None,
+        one_step: float | None = None,
     ):
         self.c, self.window, self.fail_on_call = c, window, fail_on_call
+        self.one_step = one_step  # a fall with |F| T < one_step needs one step, else none do
         self.calls: list[int] = []
+        self.cells: list[tuple[float, float]] = []  # the (force, duration) of every call
 
     def recovered(self, forces, durations):
         ok = np.abs(forces) * durations < self.c
@@ -123,6 +126,10 @@ class FakeThresholdBatch:
             self.calls.append(-1)
             raise KeyboardInterrupt("fake interruption")
         self.calls.append(len(forces))
+        # each call's cells once (a padded call repeats its last one)
+        self.cells += dict.fromkeys(
+            (round(float(f), 9), round(float(d), 9)) for f, d in zip(forces, durations)
+        )
         forces = np.asarray(forces, dtype=np.float32)  # like a float32 rollout
         durations = np.asarray(durations, dtype=np.float32)
         ok = self.recovered(forces.astype(np.float64), durations.astype(np.float64))
@@ -134,6 +141,9 @@ class FakeThresholdBatch:
         out["energy_ankle"] = np.abs(forces) * durations
         out["energy_hip"] = 2 * np.abs(forces) * durations
         out["energy_total"] = 3 * np.abs(forces) * durations
+        impulse = np.abs(forces.astype(np.float64)) * durations.astype(np.float64)
+        one = self.one_step is not None and impulse < (self.one_step or 0.0)
+        out["steps_needed"] = np.where(ok, 0.0, np.where(one, 1.0, np.inf))
         return out
 
 

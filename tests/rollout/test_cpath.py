@@ -178,10 +178,35 @@ def test_c_path_matches_the_reference(c_runner, c_frame):
     mpc = AdmmMPC(c_runner)
     assert {"recovered", "fell", "not_settled"} <= set(c_frame["outcome"])
     for b, (force, duration) in enumerate(CELLS):
-        ref = reference.simulate_scenario(CONFIG, force, duration, record=False, mpc=mpc)[0]
+        ref, series = reference.simulate_scenario(CONFIG, force, duration, mpc=mpc)
         mine = c_frame.iloc[b]
         assert mine.outcome == ref["outcome"], (force, duration)
         assert mine.fall_cause == ref["fall_cause"]
+        # the capture columns (measures/capture.py): the decision instant is the first sample
+        # past a threshold, so round-off moves it by a sample at most where the capture point
+        # crosses it; the margin is then the reference's at one of those samples
+        assert mine.steps_needed == ref["steps_needed"] or (
+            np.isnan(mine.steps_needed) and np.isnan(ref["steps_needed"])
+        )
+        if ref["outcome"] == "fell":
+            within(
+                mine.decision_time,
+                ref["decision_time"],
+                atol=CONFIG.scenario.physics_dt + 1e-12,
+                msg=force,
+                why="one sample (comment)",
+            )
+            low, high = margins.capture_window(
+                CONFIG, series, force, duration, ref["decision_time"], 1
+            )
+            within(
+                np.clip(mine.capture_margin, low, high),
+                mine.capture_margin,
+                atol=tol_capture(CONFIG, ref, force, duration),
+                msg=force,
+                why="the margin at one of those samples, up to the loop's rounding of the "
+                "CoM (margins.closed_loop_rounding) and float32 kinematics",
+            )
         for key in ("fall_time", "settle_time"):
             within(
                 mine[key],
@@ -299,6 +324,19 @@ def test_c_path_matches_the_reference(c_runner, c_frame):
                 why=why + ", of the pair's absolute work",
             )
         assert mine.nonconverged_solves == ref["nonconverged_solves"]
+
+
+def tol_capture(config, ref, force, duration) -> float:
+    """The capture point's rounding [m]: the loop's relative rounding of the CoM
+    (margins.closed_loop_rounding) of its largest excursion, plus float32 kinematics of the CoM
+    and of the CoM velocity's excursion over omega0."""
+    tol = margins.closed_loop_rounding(config, ref, force, duration)["com"]
+    com = max(abs(ref["com_min"]), abs(ref["com_max"]))
+    vel = max(abs(ref["com_vel_min"]), abs(ref["com_vel_max"]))
+    from mjx_balance.measures import capture
+
+    omega0 = capture.step_model(config).omega0
+    return tol * (com + vel / omega0) + 2 * margins.kinematics_rounding(config) + 1e-9
 
 
 def test_c_path_agrees_with_the_mjx_path(batch_runner, c_frame):

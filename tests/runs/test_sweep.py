@@ -597,3 +597,24 @@ def test_cli_end_to_end_with_the_mjx_rollout(tmp_path, monkeypatch, batch_runner
     for name in ("region.png", "energy.png", "table.png"):
         data = (out / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000, name
+
+
+def test_the_table_bisects_the_one_step_limit_too():
+    """max_acting_time_one_step (capturability): the largest T whose pushes up to it all
+    recover in place or with one step, by the same bisection; the cells the in-place rounds ran
+    are read back, not run again (a fake where one step saves every fall below F T = 60)."""
+    forces = [1, 5, 20, 50, 120]
+    fake = FakeThresholdBatch(c=30.0, one_step=60.0)
+    table = sweep.max_acting_time(forces, Config(), run_batch=fake, progress=False, say=None)
+    table = table.table.set_index("force")
+    for force in forces:
+        assert table.loc[force, "max_acting_time"] == expected_max_time(force, 30.0, 12.0)
+        assert table.loc[force, "max_acting_time_one_step"] == expected_max_time(
+            force, 60.0, 12.0
+        ), force
+    # every cell is run once: the one-step rounds read the in-place rounds' cells back
+    assert len(fake.cells) == len(set(fake.cells))
+    plain = FakeThresholdBatch(c=30.0)  # no fall is saved by a step: no call beyond those
+    sweep.max_acting_time(forces, Config(), run_batch=plain, progress=False, say=None)
+    assert len(plain.cells) == len(set(plain.cells))
+    assert (table["max_acting_time_one_step"] >= table["max_acting_time"]).all()

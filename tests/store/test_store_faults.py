@@ -413,7 +413,7 @@ def test_file_size_limit_leaves_no_damaged_figure(tmp_path, fake_rollout, capsys
     out = tmp_path / "limited"
     assert cli_sweep(out) == 0
     (out / "region.parquet").unlink()  # merged again from the chunks, then the figures redrawn
-    cut = run_fake_sweep(out, file_limit=30_000)
+    cut = run_fake_sweep(out, file_limit=40_000)
     assert cut.returncode == 1, cut.stderr
     lines = error_lines(cut.stderr)
     assert len(lines) == 1 and "File too large" in lines[0] and str(out) in lines[0]

@@ -99,7 +99,7 @@ def test_a_bad_pull_resolution_is_refused(resolution):
 
 def _results(dynamic, peak, forward_pct):
     """Stand-in results of both bodies (only the fields the scorecard reads matter)."""
-    lean = LeanLimits(9.0, 12.0, 9.0, dynamic, 0.05, peak, 48)
+    lean = LeanLimits(9.0, 12.0, 9.0, dynamic, 0.05, peak, 48, one_step_deg=20.0)
     weight = 700.0
     pulls = pull.PullLimits(
         5.0, forward_pct * weight / 100, forward_pct, 10.0, 10 / 7, 0.5, weight, 50.0, 20.0, 96
@@ -131,8 +131,12 @@ def test_every_people_row_has_a_kind_and_the_scorecard_scores_by_hand():
     config = people.human_config("human")
     assert latency["kind"] == "input" and pd.isna(latency["agrees"])
     assert latency["ours"] == 1000 * config.scenario.controller_delay
+    women = rows.loc["lean_release_single_step_max_angle_young_women"]
+    assert women["kind"] == "not modelled" and math.isnan(women["ours"])
+    # a single step: the one-step lean limit, a predicted row without an SD, never agreeing
     step = rows.loc["lean_release_single_step_max_angle_young_men"]
-    assert step["kind"] == "not modelled" and math.isnan(step["ours"])
+    assert step["kind"] == "predicted" and step["ours"] == 20.0 and step["agrees"] is False
+    assert step["reason"].startswith("no SD")
 
 
 def test_every_row_we_do_not_predict_says_why():

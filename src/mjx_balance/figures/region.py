@@ -31,6 +31,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib import patheffects
 from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
@@ -59,6 +60,19 @@ CONVENTION_TEXT = {
 FORCE_LABEL = "push force F [N]  (+ forward)"
 DURATION_LABEL = "push duration T [s]"
 LOG_SPAN = 10.0  # a duration axis spanning more than this ratio (a decade) is logarithmic
+
+
+# The step boundaries (_step_lines): white over the outcome colours, dashed for one step,
+# dotted for two, each with a thin black edge so that it reads on every cell colour.
+STEP_STYLES = {
+    n: {
+        "color": "white",
+        "lw": 2.0,
+        "ls": dashes,
+        "path_effects": [patheffects.withStroke(linewidth=3.6, foreground="black")],
+    }
+    for n, dashes in ((1, (0, (5, 2))), (2, (0, (1, 1.2))))
+}
 
 
 def _minor_log_label(value: float, _pos=None) -> str:
@@ -132,12 +146,19 @@ def pivot(region: pd.DataFrame, column: str) -> tuple[np.ndarray, np.ndarray, np
     return forces, durations, table.to_numpy()
 
 
-def recovery_boundary(region: pd.DataFrame) -> pd.DataFrame:
+def recovery_boundary(region: pd.DataFrame, steps: int | None = None) -> pd.DataFrame:
     """Per force, the longest grid duration up to which every grid duration recovered
-    (0 if the shortest fails), and whether a longer duration recovers again (not monotone)."""
+    (0 if the shortest fails), and whether a longer duration recovers again (not monotone).
+    ``steps``: recovered with at most that many steps instead (``steps_needed``, capturability:
+    a cell that did not fall needs none)."""
     rows = []
     for force, group in region.sort_values("duration").groupby("force"):
-        ok = (group["outcome"] == RECOVERED_TEXT).to_numpy()
+        ok = (
+            (group["outcome"] == RECOVERED_TEXT).to_numpy()
+            if steps is None
+            else (group["outcome"] == RECOVERED_TEXT).to_numpy()
+            | (group["steps_needed"].to_numpy() <= steps)
+        )
         durations = group["duration"].to_numpy()
         first_fail = int(np.argmin(ok)) if not ok.all() else ok.size
         rows.append(
@@ -230,13 +251,16 @@ def _table_beside(path: str | Path, region: pd.DataFrame) -> pd.DataFrame | None
     return table if {"force", "max_acting_time"} <= set(table.columns) else None
 
 
-def boundary_line(ax, region: pd.DataFrame, fx: np.ndarray, dy: np.ndarray, **line_style):
-    """Draw the recovery boundary on the grid (:func:`recovery_boundary`) as a step line along
-    the top of each force's first recovered range of durations (black, 2 pt, unless
-    ``line_style``, matplotlib's ``plot`` keywords, says otherwise); returns the line."""
+def boundary_line(
+    ax, region: pd.DataFrame, fx: np.ndarray, dy: np.ndarray, steps: int | None = None, **line_style
+):
+    """Draw the recovery boundary on the grid (:func:`recovery_boundary`, with at most
+    ``steps`` steps if given) as a step line along the top of each force's first recovered
+    range of durations (black, 2 pt, unless ``line_style``, matplotlib's ``plot`` keywords,
+    says otherwise); returns the line."""
     forces = np.sort(region["force"].unique())
     durations = np.sort(region["duration"].unique())
-    boundary = recovery_boundary(region).set_index("force").reindex(forces)
+    boundary = recovery_boundary(region, steps).set_index("force").reindex(forces)
     d_index = {d: i for i, d in enumerate(durations)}
     tops = np.array(
         [dy[d_index[b] + 1] if b in d_index else dy[0] for b in boundary["boundary"].to_numpy()]
@@ -339,7 +363,8 @@ def _boundary_lines(
     """Draw the recovery boundary, the hip's takeover and non-monotone marks; returns handles."""
     # Boundary on the grid: a step line along the top of each force's first recovered range.
     boundary = recovery_boundary(region).set_index("force").reindex(forces)
-    handles = [boundary_line(ax, region, fx, dy)]
+    handles = [boundary_line(ax, region, fx, dy, label="feet in place: recovery boundary")]
+    handles += _step_lines(ax, region, fx, dy)
     if "energy_hip" in region:
         over = takeover_line(
             ax,
@@ -369,6 +394,17 @@ def _boundary_lines(
         )
         handles.append(mark)
     return handles
+
+
+def _step_lines(ax, region: pd.DataFrame, fx: np.ndarray, dy: np.ndarray) -> list:
+    """The boundaries with one and with two steps (``steps_needed``, capturability: docs/model.md,
+    "Stepping: capturability"), where the region has the column; returns their handles."""
+    if "steps_needed" not in region:
+        return []
+    return [
+        boundary_line(ax, region, fx, dy, steps=n, label=label, **STEP_STYLES[n])
+        for n, label in ((1, "with one step (capturability)"), (2, "with two steps"))
+    ]
 
 
 def _impulse_legend(ax, fx: np.ndarray, dy: np.ndarray, log: bool) -> list:
@@ -510,6 +546,22 @@ def _table_overlay(ax, table: pd.DataFrame, fx: np.ndarray, dy: np.ndarray) -> l
             label="max acting time above the grid (table.csv)",
         )
         handles.append(high)
+    if "max_acting_time_one_step" in t:
+        one = t["max_acting_time_one_step"].to_numpy(dtype=float)[inside]
+        on_grid = np.isfinite(one) & (one >= dy[0]) & (one <= dy[-1])
+        if on_grid.any():
+            (steps,) = ax.plot(
+                force[on_grid],
+                one[on_grid],
+                "s--",
+                color="#1f3fbf",
+                mfc="white",
+                mew=1.5,
+                ms=5,
+                lw=1.2,
+                label="max acting time with one step (table.csv)",
+            )
+            handles.append(steps)
     return handles
 
 

@@ -21,7 +21,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from . import outcomes
+from . import capture, outcomes
 from .outcomes import DIVERGED, FELL, OUTCOMES, RECOVERED, Limits
 from ..model.params import ControllerParams, ScenarioParams
 
@@ -377,6 +377,8 @@ def summarize(
     infeasible: np.ndarray | None = None,
     com_vel: np.ndarray | None = None,
     mos: np.ndarray | None = None,
+    xcom: np.ndarray | None = None,
+    steps: capture.StepModel | None = None,
 ) -> dict[str, Any]:
     """The per-scenario summary row (keys = SUMMARY_COLUMNS) from the sample series.
 
@@ -388,6 +390,8 @@ def summarize(
     clipped input; converged [K] bool; residual [K] primal residual; infeasible [K] bool, the
     period's QP found infeasible (None: never). com_vel, mos [n] (optional): the CoM's
     velocity and the margin of stability in the push's direction (NaN columns without them).
+    xcom [n] (optional) and ``steps`` (``capture.step_model``): the capture point, read at
+    the fall sample for the capture columns (NaN columns without them).
     completed: the series reach t_end (False when the caller stopped early at a fall or a
     non-finite value). Series may run past a fall; they are cut at the first fall sample.
     """
@@ -428,4 +432,26 @@ def summarize(
         "fall_cause": outcomes.FALL_CAUSES[cause],
         "first_infeasible_time": first_infeasible,
         **_balance_columns(time, com_vel, mos, end),
+        **_capture_columns(steps, code, xcom, end, force, duration),
     }
+
+
+def _capture_columns(
+    steps: capture.StepModel | None,
+    code: int,
+    xcom: np.ndarray | None,
+    end: int,
+    force: float,
+    duration: float,
+) -> dict[str, float]:
+    """The capture columns (``capture.columns``) at the decision sample
+    (``capture.decision_index``) of a run that fell at sample ``end - 1``; NaN without the
+    series or the step model."""
+    if steps is None or xcom is None:
+        return {name: math.nan for name in capture.STEP_COLUMNS}
+    xi, when = math.nan, math.nan
+    if code == FELL and end > 0:
+        i = capture.decision_index(xcom, force, duration, steps, end)
+        xi, when = float(np.asarray(xcom, float)[i]), (i + 1) * steps.physics_dt
+    cols = capture.columns(steps, np.asarray([code]), [when], [xi], [force], [duration])
+    return {name: float(v[0]) for name, v in cols.items()}

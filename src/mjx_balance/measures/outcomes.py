@@ -91,6 +91,9 @@ SUMMARY_COLUMNS = [
     "com_vel_max",
     "mos_min",
     "mos_min_time",
+    "steps_needed",
+    "capture_margin",
+    "decision_time",
 ]
 
 

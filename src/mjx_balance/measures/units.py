@@ -68,6 +68,22 @@ UNITS: dict[str, tuple[str, str]] = {
     "com_vel_max": ("m/s", "largest whole-body CoM x velocity"),
     "mos_min": ("m", "smallest margin of stability in the push's direction (Hof et al. 2005)"),
     "mos_min_time": ("s", "time of the first sample with the smallest margin"),
+    "steps_needed": (
+        "1",
+        "fewest steps that capture the body from the decision instant (capturability): 0 "
+        "without a fall, "
+        "1 or 2, inf where two do not; NaN if diverged",
+    ),
+    "capture_margin": (
+        "m",
+        "one-step capture margin of the capture point at the decision instant (>= 0: one "
+        "step captures); NaN without a fall",
+    ),
+    "decision_time": (
+        "s",
+        "decision instant of a fall: the first sample the feet in place cannot hold "
+        "(capturability), else the fall sample; NaN without a fall",
+    ),
     "hip_share": ("1", "energy_hip / energy_total"),
     "strategy": ("", "ankle or hip_ankle for a recovered run, empty otherwise"),
     # --- the time series (reference.loop.TIMESERIES_COLUMNS)
@@ -104,6 +120,11 @@ UNITS: dict[str, tuple[str, str]] = {
     "evaluations": ("1", "count of scenarios evaluated for this force"),
     "note": ("", "free text"),
     "sustained_push_limit": ("N", "largest force the body holds for the whole window"),
+    "max_acting_time_one_step": (
+        "s",
+        "largest T such that every push up to it recovers in place or with one step "
+        "(capturability)",
+    ),
     # --- compare.csv and landscape.csv (studies.catalog.region_numbers and the study's own)
     "name": ("", "the configuration's name"),
     "t_end": ("s", "the scenario's window"),
@@ -137,6 +158,16 @@ UNITS: dict[str, tuple[str, str]] = {
     "p_recover": ("1", "P(recover | F, T): recovered_subjects / subjects"),
     "p_low": ("1", "lower bound of P's 95 % Wilson interval"),
     "p_high": ("1", "upper bound of P's 95 % Wilson interval"),
+    "one_step_subjects": (
+        "1",
+        "count of the subjects that recover there in place or with one step (steps_needed <= 1)",
+    ),
+    "p_one_step": (
+        "1",
+        "P(recover in place or with one step | F, T): one_step_subjects / subjects",
+    ),
+    "p_one_step_low": ("1", "lower bound of p_one_step's 95 % Wilson interval"),
+    "p_one_step_high": ("1", "upper bound of p_one_step's 95 % Wilson interval"),
     "boundary_p95": ("s", "longest grid duration up to which P(recover) >= 0.95 at every one"),
     "boundary_p50": ("s", "longest grid duration up to which P(recover) >= 0.5 at every one"),
     "boundary_p5": ("s", "longest grid duration up to which P(recover) >= 0.05 at every one"),
@@ -166,6 +197,11 @@ UNITS: dict[str, tuple[str, str]] = {
     "static_torque_deg": ("deg", "lean whose gravity torques leave the input bounds"),
     "static_foot_deg": ("deg", "lean at which the CoM leaves the toe"),
     "dynamic_deg": ("deg", "largest lean released from rest that recovers (every smaller too)"),
+    "one_step_deg": (
+        "deg",
+        "largest lean released from rest that recovers in place or with one step (every smaller "
+        "too; capturability)",
+    ),
     "resolution_deg": ("deg", "width of the dynamic limit's final bracket"),
     "peak_ankle_torque": ("N m", "largest |ankle motor torque| of the run at the dynamic limit"),
     "scenarios": ("1", "batched scenarios run"),

@@ -52,6 +52,18 @@ MAX_STEPS = 2**31 - 1  # physics steps of one window: an int32 count on the devi
 MASS_RANGE = (1e-3, 1e4)  # kg
 LENGTH_RANGE = (1e-3, 10.0)  # m
 ANKLE_POSITION_RANGE = (0.05, 0.95)  # fraction of the foot from the heel: the ankle on the sole
+# The step of measures/capture.py: a step of 0 (no step) to 1.5 heights (beyond any person's
+# lunge) and a swing from 0.05 s to 5 s (a step slower than that is no recovery step).
+STEP_LENGTH_RANGE = (0.0, 1.5)  # fraction of the body's height
+STEP_TIME_RANGE = (0.05, 5.0)  # s
+# The default step (docs/model.md, "Stepping: capturability"): a forward step of 35 % of body
+# height, the longest of the single recovery steps with which young and elderly women recovered
+# from a forward lean (Hsiao-Wecksler & Robinovitch 2007, Clin Biomech 22:574-580: 15, 25, 35 %);
+# 0.3 s from the perturbation to the foot's placement ("The stepping strategy needs at least
+# 300 ms (30% of a stride) before foot placement", Hof et al. 2010, J Exp Biol 213:2655: 10
+# young adults, mean age 20 years, lateral pushes while walking).
+STEP_LENGTH = 0.35  # of the body's height
+STEP_TIME = 0.3  # s
 MAX_GRAVITY = 100.0  # m/s^2
 MIN_GRAVITY = 0.1  # m/s^2
 # - friction <= 2: the load cells are pyramidal-cone contacts, whose normal direction MuJoCo
@@ -208,6 +220,12 @@ class BodyParams:
     # ankle; a person's ankle sits nearer the heel. The sole and its load cells move, the foot's
     # CoM stays below the ankle (where the study's linear CoM puts it).
     ankle_position: float = field(default=0.5, metadata={"omit_default": True})
+    # The step the feet-in-place body could take (docs/model.md, "Stepping: capturability";
+    # measures/capture.py): the longest step, ankle to ankle, as a fraction of the body's height
+    # (so a subject's scales with its height), and the shortest time from the decision to step
+    # to the foot's landing. The defaults are young adults' (STEP_LENGTH, STEP_TIME: sources).
+    step_length: float = field(default=STEP_LENGTH, metadata={"omit_default": True})
+    step_time: float = field(default=STEP_TIME, metadata={"omit_default": True})
 
     def __post_init__(self) -> None:
         _check_types("body", self)
@@ -271,6 +289,22 @@ class BodyParams:
                 "ankle's distance from the heel, a fraction of foot_length)",
                 self.ankle_position,
             )
+        if not STEP_LENGTH_RANGE[0] <= self.step_length <= STEP_LENGTH_RANGE[1]:
+            fail(
+                "body",
+                "step_length",
+                f"must lie in [{STEP_LENGTH_RANGE[0]:g}, {STEP_LENGTH_RANGE[1]:g}] (the longest "
+                "step, ankle to ankle, a fraction of the body's height)",
+                self.step_length,
+            )
+        if not STEP_TIME_RANGE[0] <= self.step_time <= STEP_TIME_RANGE[1]:
+            fail(
+                "body",
+                "step_time",
+                f"must lie in [{STEP_TIME_RANGE[0]:g}, {STEP_TIME_RANGE[1]:g}] s (from the "
+                "decision to step to the foot's landing)",
+                self.step_time,
+            )
         if not 0 <= self.ankle_height <= LENGTH_RANGE[1]:
             fail(
                 "body", "ankle_height", f"must lie in [0, {LENGTH_RANGE[1]:g}] m", self.ankle_height
@@ -292,6 +326,11 @@ class BodyParams:
     @property
     def total_mass(self) -> float:
         return self.foot_mass + self.lower_mass + self.upper_mass
+
+    @property
+    def height(self) -> float:
+        """The upright body's height from the sole to the top of the upper body [m]."""
+        return self.ankle_height + self.lower_length + self.upper_length
 
     @property
     def lower_pitch_inertia(self) -> float:

@@ -35,7 +35,7 @@ import mujoco
 import numpy as np
 import pandas as pd
 
-from ..measures import metrics, outcomes
+from ..measures import capture, metrics, outcomes
 from ..control import offset_free as offset_free_mod
 from ..model.linear import delay_predictor, predict
 from ..model.mjcf import build_model, indices, settled_rest
@@ -416,7 +416,16 @@ def simulate_scenario(
     sl = slice(0, n)
     xcom, mos = margin_series(model, ix, force, s.com[sl], s.com_vel[sl], s.cell_x[sl])
     summary = _summary_of(
-        s, config, force, duration, n, k_done, completed=(n == n_steps), diverged=diverged, mos=mos
+        s,
+        config,
+        force,
+        duration,
+        n,
+        k_done,
+        completed=(n == n_steps),
+        diverged=diverged,
+        mos=mos,
+        xcom=xcom,
     )
     if not record:
         return summary, None
@@ -437,6 +446,7 @@ def _summary_of(
     completed: bool,
     diverged: bool,
     mos: np.ndarray,
+    xcom: np.ndarray,
 ) -> dict[str, Any]:
     """The run's summary row (``metrics.summarize``) of its first n samples and k_done periods."""
     sc, ctrl = config.scenario, config.controller
@@ -467,6 +477,8 @@ def _summary_of(
         infeasible=s.infeasible[:k_done],
         com_vel=s.com_vel[sl],
         mos=mos,
+        xcom=xcom,
+        steps=capture.step_model(config),
     )
 
 

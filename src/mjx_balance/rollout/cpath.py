@@ -300,9 +300,11 @@ def fold_period(
     *,
     torques: jax.Array,
     u: jax.Array,
+    push: tuple[jax.Array, jax.Array] | None = None,
 ) -> Carry:
     """The S samples of period k (decoded ``rows`` [S, ROW]; ``last_qpos`` [nq] the last
-    sample's) folded into one slot's carry; torques [2] and u [2] held during the period."""
+    sample's) folded into one slot's carry; torques [2] and u [2] held during the period;
+    ``push``: the slot's (force, push steps), for the decision instant (kernel.sample_update)."""
     dtype = arrays.d0.qpos.dtype
     S = static.substeps
     d = mjx.kinematics(arrays.mx, arrays.d0.replace(qpos=last_qpos.astype(dtype)))
@@ -317,7 +319,7 @@ def fold_period(
     def one(carry: Carry, inputs):
         j, r = inputs
         q, dq = r[Q], r[DQ]
-        _, mos_toe, mos_heel = outcomes.stability_margins(
+        xcom, mos_toe, mos_heel = outcomes.stability_margins(
             jnp, r[COM], r[VCOM], r[HEEL], r[TOE], omega0
         )
         s = Sample(
@@ -333,6 +335,7 @@ def fold_period(
             com_vel=r[VCOM],
             mos_toe=mos_toe,
             mos_heel=mos_heel,
+            xcom=xcom,
         )
         acc = sample_update(
             carry.acc,
@@ -343,6 +346,7 @@ def fold_period(
             carry.q_prev,
             carry.x_prev,
             limits_of(arrays, static),
+            None if push is None else (*push, arrays.capture),
         )
         return carry._replace(
             acc=acc, q_prev=s.q, x_prev=s.x, history=remember(carry.history, s)
@@ -412,11 +416,13 @@ def folded(
     """Step 1 of a call: the samples of the period each slot ran (``cs.ran``) folded into its
     carry (:func:`fold_period`); the carry and the periods done."""
 
-    def fold(c, r, q, k, t, u):
-        return fold_period(arrays, sensors, static, c, r, q, k, torques=t, u=u)
+    def fold(c, r, q, k, t, u, f, n):
+        return fold_period(arrays, sensors, static, c, r, q, k, torques=t, u=u, push=(f, n))
 
     slots = cs.slots
-    carry = jax.vmap(fold)(slots.carry, rows, last_qpos, slots.k, cs.torques, cs.u)
+    carry = jax.vmap(fold)(
+        slots.carry, rows, last_qpos, slots.k, cs.torques, cs.u, slots.force, slots.n_push
+    )
     return select(cs.ran, carry, slots.carry), jnp.where(cs.ran, slots.k + 1, slots.k)
 
 

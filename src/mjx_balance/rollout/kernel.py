@@ -41,7 +41,7 @@ from ..control import admm as admm_mod
 from ..model import linear as linear_mod
 from ..control import offset_free as offset_free_mod
 from ..control.qp import rate_bounds
-from ..measures import outcomes
+from ..measures import capture, outcomes
 from ..measures.outcomes import Limits
 from .physics import advance, mjx, step
 from .sensing import Sample, Sensors, joints, measure, measure_step, state, with_positions
@@ -90,6 +90,10 @@ class Accumulators(NamedTuple):
     mos_toe_step: jax.Array  # int32, the step of it (-1: none)
     mos_heel_min: jax.Array  # smallest heel margin
     mos_heel_step: jax.Array  # int32
+    # the decision instant (measures/capture.py): the first sample whose 0-step capture margin
+    # is negative, else the fall sample; its step (-1: none) and its capture point
+    decision_step: jax.Array  # int32
+    decision_xcom: jax.Array
 
     @staticmethod
     def initial(dtype) -> "Accumulators":
@@ -137,6 +141,8 @@ class Accumulators(NamedTuple):
             mos_toe_step=i0 - 1,
             mos_heel_min=f(inf),
             mos_heel_step=i0 - 1,
+            decision_step=i0 - 1,
+            decision_xcom=f(math.nan),
         )
 
 
@@ -203,6 +209,9 @@ class Arrays(NamedTuple):
     # [] physics steps over which a push rises linearly to its force (scenario.ramp_steps; 0:
     # a step, the study's): data, so one program serves both
     ramp_steps: jax.Array
+    # [5] the step model's (cop_back, cop_front, push_gain, omega0, physics_dt), the decision
+    # instant's (measures/capture.py, StepModel.data): a body's data
+    capture: jax.Array
     # int32 []: control periods in the window (t_end / control_dt). The engines read this
     # traced value, so one compiled engine serves every t_end; the padded batch with
     # trajectories scans Static.n_control periods (its output's length) and so compiles per t_end.
@@ -253,12 +262,14 @@ def sample_update(
     q_prev: jax.Array,
     x_prev: jax.Array,
     limits: Limits,
+    push: tuple[jax.Array, jax.Array, jax.Array] | None = None,
 ) -> Accumulators:
     """Fold the sample of physics step ``i`` into the accumulators: divergence (a non-finite
     value, or one beyond MuJoCo's bound MAX_VALUE as in the reference), the fall test, the
     settle band, peaks, extremes and energies. ``torques`` / ``u`` are held during step
-    i; ``q_prev`` / ``x_prev`` are the previous sample's joint angles and state. Nothing
-    changes once the scenario is dead (fallen or diverged)."""
+    i; ``q_prev`` / ``x_prev`` are the previous sample's joint angles and state; ``push``:
+    (force, push steps, ``Arrays.capture``) for the decision instant (None: the fall sample).
+    Nothing changes once the scenario is dead (fallen or diverged)."""
     excess = outcomes.bound_excess(jnp, s.x, limits)
     finite = (
         jnp.isfinite(s.q).all()
@@ -272,6 +283,12 @@ def sample_update(
     falls = cause != outcomes.NO_CAUSE
     band = outcomes.in_settle_band(jnp, s.q, s.dq, limits)
     newly_fell = ok & falls
+    lost = jnp.asarray(False)
+    if push is not None:
+        force, n_push, data = push
+        remaining = (n_push - i - 1).astype(data.dtype) * data[4]
+        lost = capture.hold_margin(jnp, s.xcom, force, remaining, data) < 0
+    decides = ok & (acc.decision_step < 0) & (lost | falls)
 
     def upd(old, new):
         return jnp.where(ok, new, old)
@@ -319,6 +336,8 @@ def sample_update(
         mos_toe_step=jnp.where(ok & (s.mos_toe < acc.mos_toe_min), i, acc.mos_toe_step),
         mos_heel_min=upd(acc.mos_heel_min, jnp.minimum(acc.mos_heel_min, s.mos_heel)),
         mos_heel_step=jnp.where(ok & (s.mos_heel < acc.mos_heel_min), i, acc.mos_heel_step),
+        decision_step=jnp.where(decides, i, acc.decision_step),
+        decision_xcom=jnp.where(decides, s.xcom, acc.decision_xcom),
     )
 
 
@@ -666,7 +685,15 @@ def physics_period(
     def fold(carry: Carry, s: Sample, i: jax.Array) -> Carry:
         """Carry after the complete sample ``s`` of physics step ``i``."""
         acc = sample_update(
-            carry.acc, s, i, torques, u, carry.q_prev, carry.x_prev, limits_of(arrays, static)
+            carry.acc,
+            s,
+            i,
+            torques,
+            u,
+            carry.q_prev,
+            carry.x_prev,
+            limits_of(arrays, static),
+            (force, n_push, arrays.capture),
         )
         return carry._replace(q_prev=s.q, x_prev=s.x, acc=acc)
 

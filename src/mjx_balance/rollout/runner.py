@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from ..control import admm as admm_mod
-from ..measures import outcomes
+from ..measures import capture, outcomes
 from ..control import offset_free
 from ..model.linear import S as JOINT_TO_ABS
 from ..model.linear import LinearModel, delay_predictor
@@ -120,6 +120,7 @@ class BatchRunner:
             rate_step=jnp.asarray(ctrl.rate_steps(sc.control_dt), self.dtype),
             relaxed=jnp.asarray(sc.relaxed_start),
             ramp_steps=jnp.asarray(sc.ramp_steps, self.dtype),
+            capture=jnp.asarray(capture.step_model(config).data(), self.dtype),
             n_control=jnp.asarray(sc.n_control, jnp.int32),
         )
         self.static = Static(
@@ -341,7 +342,11 @@ class BatchRunner:
         ``self.last_trajectories`` (arrays [B, n_steps, ...], plus time [n_steps])."""
         forces, durations = self._inputs(forces, durations)
         acc, series = self.run_raw(forces, durations, inits)
-        summary = {"force": forces, "duration": durations, **summarize(acc, self.config, forces)}
+        summary = {
+            "force": forces,
+            "duration": durations,
+            **summarize(acc, self.config, forces, durations),
+        }
         if series is not None:
             sc = self.config.scenario
             n_steps = sc.n_control * sc.substeps
@@ -363,7 +368,7 @@ class BatchRunner:
                 {
                     "force": forces[index],
                     "duration": durations[index],
-                    **summarize(acc, self.config, forces[index]),
+                    **summarize(acc, self.config, forces[index], durations[index]),
                     "periods": raw["periods"],
                     "certified": raw["certified"],
                 },
@@ -376,9 +381,12 @@ class BatchRunner:
         return summary_frame(summary, self.config.controller.convention, extra=False)
 
 
-def summarize(acc: Accumulators, config: Config, force=None) -> dict[str, np.ndarray]:
+def summarize(
+    acc: Accumulators, config: Config, force=None, duration=None
+) -> dict[str, np.ndarray]:
     """Summary columns from the final accumulators [B] (host side, float64); ``force`` [B]
-    picks each margin of stability's edge (None: forward pushes)."""
+    picks each margin of stability's edge (None: forward pushes); ``force`` and ``duration``
+    [B] are the push still on after a fall for the capture columns (None: no push)."""
     sc = config.scenario
     dt = sc.physics_dt
 
@@ -432,6 +440,14 @@ def summarize(acc: Accumulators, config: Config, force=None) -> dict[str, np.nda
         ),
         "admm_iterations": np.asarray(acc.admm_iterations, np.int64),
         **balance_columns(acc, dt, force),
+        **capture.columns(
+            capture.step_model(config),
+            outcome,
+            (f64(acc.decision_step) + 1) * dt,
+            f64(acc.decision_xcom),
+            0.0 if force is None else force,
+            0.0 if duration is None else duration,
+        ),
     }
 
 

@@ -121,6 +121,7 @@ class Sample(NamedTuple):
     com_vel: Any = math.nan  # whole-body CoM x velocity
     mos_toe: Any = math.nan  # margins of stability (outcomes.stability_margins)
     mos_heel: Any = math.nan
+    xcom: Any = math.nan  # extrapolated CoM, the capture point (outcomes.stability_margins)
 
 
 def joints(sensors: Sensors, d: mjx.Data) -> tuple[jax.Array, jax.Array]:
@@ -165,13 +166,14 @@ def with_positions(s: Sample, arrays: Any, sensors: Sensors, d: mjx.Data) -> Sam
     margins of stability of the body and geom positions in ``d``."""
     com = whole_body_com(arrays.mx, d, sensors)
     com_vel = com_velocity(arrays.mx, d, sensors, s.qvel)
-    _, mos_toe, mos_heel = margins(arrays, sensors, com, com_vel, d.geom_xpos[sensors.cells, 0])
+    xcom, mos_toe, mos_heel = margins(arrays, sensors, com, com_vel, d.geom_xpos[sensors.cells, 0])
     return s._replace(
         cell_low=cell_heights(arrays.mx, d, sensors),
         com=com,
         com_vel=com_vel,
         mos_toe=mos_toe,
         mos_heel=mos_heel,
+        xcom=xcom,
     )
 
 

@@ -76,6 +76,7 @@ TABLE_COLUMNS = [
     "evaluations",
     "note",
     "sustained_push_limit",
+    "max_acting_time_one_step",
 ]
 
 
@@ -181,24 +182,50 @@ def max_acting_time(
     widest = int(np.diff(np.concatenate([[0], steps])).max())
     say(_plan_text(n_f, n_c, points_per_round, resolution, batch, config.controller.convention))
     bar = _table_bar(n_f, n_c, widest, points_per_round, progress)
+    options: dict[str, Any] = dict(
+        batch=batch, resolution=resolution, points_per_round=points_per_round, cells=cells
+    )
     try:
         brackets, runs = _bracket_rounds(
-            run_batch,
-            forces,
-            steps,
-            n_max,
-            config,
-            batch=batch,
-            resolution=resolution,
-            points_per_round=points_per_round,
-            cells=cells,
-            bar=bar,
+            run_batch, forces, steps, n_max, config, bar=bar, **options
         )
     finally:
         bar.close()
+    one_step = None
+    if "steps_needed" in runs[0]:
+        # with one step (capturability): the same coarse scan's rows, further rounds where
+        # the one-step bracket is open; a cell the first rounds ran is read back, not run again
+        if cells is None:
+            options["cells"] = TableCells(None, config.controller.convention)
+            for frame in runs:
+                options["cells"].add(frame)
+        bar = progress_bar(
+            n_f * bracket_cost(widest, points_per_round), 0, progress, desc="table, one step"
+        )
+        try:
+            one_step, more = _bracket_rounds(
+                run_batch,
+                forces,
+                steps,
+                n_max,
+                config,
+                bar=bar,
+                within=1,
+                coarse_frame=runs[0],
+                **options,
+            )
+        finally:
+            bar.close()
+        runs += more
 
     table = _table_of(forces, brackets, steps, resolution, t_end, config)
-    runs_frame = pd.concat(runs, ignore_index=True)
+    table["max_acting_time_one_step"] = (
+        np.round(one_step.lo * resolution, 12) if one_step is not None else np.nan
+    )
+    # every scenario once (the one-step rounds read back cells the in-place rounds ran)
+    runs_frame = pd.concat(runs, ignore_index=True).drop_duplicates(
+        ["force", "duration"], ignore_index=True
+    )
     seconds = time.perf_counter() - start
     say(f"table: {len(runs_frame)} scenarios in {seconds:.1f} s")
     return TableResult(table, runs_frame, seconds)
@@ -270,24 +297,28 @@ def _bracket_rounds(
     points_per_round: int,
     cells: TableCells | None,
     bar: Any,
+    within: int | None = None,
+    coarse_frame: pd.DataFrame | None = None,
 ) -> tuple[Brackets, list[pd.DataFrame]]:
-    """The coarse scan of the durations ``steps`` (in resolution units) for every force [n_f],
-    then refine rounds until every bracket is one resolution step wide; returns the brackets
-    and each call's summary rows (the coarse scan first). ``bar`` counts the scenarios (its
+    """The coarse scan of the durations ``steps`` (in resolution units) for every force [n_f]
+    (or its rows ``coarse_frame``, already run), then refine rounds until every bracket is one
+    resolution step wide (``within``: :func:`recovers`); returns the brackets and each call's
+    summary rows (the coarse scan first, when run here). ``bar`` counts the scenarios (its
     total, an upper estimate, is set to the count at the end)."""
     n_f, n_c = forces.size, steps.size
     runs: list[pd.DataFrame] = []
-    coarse_frame = evaluate_cells(
-        run_batch,
-        np.repeat(forces, n_c),
-        np.round(np.tile(steps * resolution, n_f), 12),
-        config,
-        batch,
-        None,
-        cells,
-    )
-    runs.append(coarse_frame)
-    brackets = coarse_brackets(coarse_frame, steps, n_max)
+    if coarse_frame is None:
+        coarse_frame = evaluate_cells(
+            run_batch,
+            np.repeat(forces, n_c),
+            np.round(np.tile(steps * resolution, n_f), 12),
+            config,
+            batch,
+            None,
+            cells,
+        )
+        runs.append(coarse_frame)
+    brackets = coarse_brackets(coarse_frame, steps, n_max, within)
 
     def work_left() -> int:
         return sum(
@@ -300,7 +331,7 @@ def _bracket_rounds(
         if not brackets.active().size:
             break
         frame = refine_round(
-            brackets, forces, run_batch, config, batch, resolution, points_per_round, cells
+            brackets, forces, run_batch, config, batch, resolution, points_per_round, cells, within
         )
         runs.append(frame)
         advance(bar, work_left())
@@ -352,13 +383,25 @@ class Brackets:
         return np.flatnonzero((self.hi - self.lo > 1) & (self.hi <= self.n_max))
 
 
-def coarse_brackets(coarse_frame: pd.DataFrame, steps: np.ndarray, n_max: int) -> Brackets:
+def recovers(frame: pd.DataFrame, within: int | None = None) -> np.ndarray:
+    """Which runs recover: in place (outcome recovered), or with ``within`` steps at most
+    (``steps_needed``, capturability: a run that did not fall needs none)."""
+    ok = frame["outcome"].to_numpy() == OUTCOMES[RECOVERED]
+    if within is None:
+        return ok
+    return ok | (frame["steps_needed"].to_numpy(float) <= within)
+
+
+def coarse_brackets(
+    coarse_frame: pd.DataFrame, steps: np.ndarray, n_max: int, within: int | None = None
+) -> Brackets:
     """Brackets from the coarse scan (rows force-major, ``steps`` durations per force): the
     first failure brackets T between the last recovered coarse duration and it; a recovered
-    coarse duration beyond it marks the force not monotone."""
+    coarse duration beyond it marks the force not monotone. ``within``: recovered with at
+    most that many steps (:func:`recovers`)."""
     n_c = steps.size
     n_f = len(coarse_frame) // n_c
-    recovered = (coarse_frame["outcome"].to_numpy() == OUTCOMES[RECOVERED]).reshape(n_f, n_c)
+    recovered = recovers(coarse_frame, within).reshape(n_f, n_c)
     rows = coarse_frame.to_dict("records")
     coarse_rows = [rows[i * n_c : (i + 1) * n_c] for i in range(n_f)]
     first_fail = np.where(recovered.all(axis=1), n_c, np.argmin(recovered, axis=1))
@@ -440,11 +483,12 @@ def refine_round(
     resolution: float,
     points_per_round: int,
     cells: TableCells | None = None,
+    within: int | None = None,
 ) -> pd.DataFrame:
     """One round of bisection (k-section for points_per_round = k > 1): evaluate k points
     inside each active bracket, all forces in one batch of the fixed size n_f * k (or calls of
-    ``batch``); each bracket shrinks to the gap around its first failing point. Updates ``b``
-    and returns the round's summary rows."""
+    ``batch``); each bracket shrinks to the gap around its first failing point (``within``:
+    :func:`recovers`). Updates ``b`` and returns the round's summary rows."""
     k_points = int(points_per_round)
     owner: list[int] | np.ndarray  # (lists while gathered, then arrays)
     points: list[int] | np.ndarray
@@ -459,7 +503,7 @@ def refine_round(
     frame = evaluate_cells(
         run_batch, forces[owner], durations, config, batch, forces.size * k_points, cells
     )
-    ok = frame["outcome"].to_numpy() == OUTCOMES[RECOVERED]
+    ok = recovers(frame, within)
     rows = frame.to_dict("records")
     for i in np.unique(owner):
         mine = np.flatnonzero(owner == i)  # ascending durations
@@ -536,6 +580,7 @@ def table_row(
         "energy_u2_max": _get(energy_max, "energy_u2"),
         "convention": config.controller.convention,
         "sustained_push_limit": float("nan"),  # a configuration's, set by run_table
+        "max_acting_time_one_step": float("nan"),  # the one-step rounds', set by the caller
         "evaluations": int(b.evaluations[i]),
         "note": note,
     }

@@ -94,7 +94,7 @@ class Population:
             out[body] = {
                 "force": self.cell_f,
                 "duration": self.cell_d,
-                **summarize(acc, self.configs[body], self.cell_f),
+                **summarize(acc, self.configs[body], self.cell_f, self.cell_d),
                 "periods": part["periods"],
                 "certified": part["certified"],
             }

@@ -571,15 +571,17 @@ class TableCells:
     """The table's evaluated scenarios, kept in ``DIR/table_runs/``: each batch call's summary
     rows in one parquet file ``part-NNNNN.parquet``, written atomically as the call returns.
     A cell is a (force, duration) pair; a file that does not read back whole, or holds rows of
-    another convention, is ignored (its cells are run again)."""
+    another convention, is ignored (its cells are run again). ``folder`` None: the rows are
+    kept in memory only (a table made without a folder, whose later rounds read back what the
+    earlier ones ran)."""
 
-    def __init__(self, folder: str | Path, convention: str):
-        self.path = Path(folder) / TABLE_CELLS
+    def __init__(self, folder: str | Path | None, convention: str):
+        self.path = None if folder is None else Path(folder) / TABLE_CELLS
         self.convention = convention
         self.rows: dict[tuple[float, float], dict[str, Any]] = {}
         self.parts = 0
         self.dtypes: pd.Series | None = None
-        for part in sorted(self.path.glob("part-*.parquet")):
+        for part in sorted(self.path.glob("part-*.parquet")) if self.path else []:
             self.parts = max(self.parts, int(part.stem.split("-")[1]) + 1)
             try:
                 frame = pd.read_parquet(part)
@@ -618,9 +620,10 @@ class TableCells:
         """Keep a batch call's rows: written to their part file, then remembered."""
         if frame.empty:
             return
-        self.path.mkdir(parents=True, exist_ok=True)
-        write_parquet(frame, self.path / f"part-{self.parts:05d}.parquet")
-        self.parts += 1
+        if self.path is not None:
+            self.path.mkdir(parents=True, exist_ok=True)
+            write_parquet(frame, self.path / f"part-{self.parts:05d}.parquet")
+            self.parts += 1
         self._remember(frame)
 
     def frame(self, forces: np.ndarray, durations: np.ndarray) -> pd.DataFrame:

@@ -19,6 +19,10 @@ Two limits, each as the experiment reports it:
   recovering too. Found on the batched engine (its per-scenario initial state, as the basin's
   cells) by ``thresholds.largest_passing``: a scan, then rounds inside the first bracket that
   fails, until the bracket is ``resolution`` wide.
+- **one step** (Thelen et al. 1997's single-step protocol): the largest lean released from rest
+  from which the body recovers in place or would with one step (``steps_needed`` <= 1: the
+  capture columns of the same feet-in-place runs, docs/model.md "Stepping: capturability"),
+  every smaller lean too; the same search.
 
 The lean is the angle of the rigid body (ankle to CoM) from vertical, positive forward: the
 direction in which a positive push moves the CoM (``Plane.com_x`` grows with q_a). People's
@@ -70,6 +74,9 @@ class LeanLimits:
     resolution_deg: float  # the dynamic limit's bracket width
     peak_ankle_torque: float  # |tau_ankle| peak of the run at the dynamic limit
     scenarios: int  # batched scenarios run
+    # released from rest: the largest lean that recovers in place or with one step (every
+    # smaller too; steps_needed, capturability, docs/model.md "Stepping: capturability")
+    one_step_deg: float = float("nan")
 
     def row(self) -> dict[str, float]:
         return {name: getattr(self, name) for name in self.__dataclass_fields__}
@@ -120,16 +127,22 @@ def lean_states(plane: Plane, leans_deg: np.ndarray) -> np.ndarray:
     return out
 
 
-def recovers(runner: Any, plane: Plane, leans_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Whether each lean released from rest recovers, and each run's peak |tau_ankle|, in calls
-    of ``SCAN`` leans (the last padded with its first lean)."""
+def recovers(
+    runner: Any, plane: Plane, leans_deg: np.ndarray, within: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Whether each lean released from rest recovers (``within``: in place or with at most that
+    many steps, ``steps_needed``), and each run's peak |tau_ankle|, in calls of ``SCAN`` leans
+    (the last padded with its first lean)."""
     ok, peaks = [], []
     for start in range(0, len(leans_deg), SCAN):
         part = np.asarray(leans_deg[start : start + SCAN], float)
         padded = np.concatenate([part, np.full(SCAN - part.size, part[0])])
         zeros = np.zeros(SCAN)
         out = runner.run(zeros, zeros, lean_states(plane, padded))
-        ok.append(np.asarray(out["outcome"])[: part.size] == RECOVERED)
+        passed = np.asarray(out["outcome"]) == RECOVERED
+        if within is not None:
+            passed |= np.asarray(out["steps_needed"]) <= within
+        ok.append(passed[: part.size])
         peaks.append(np.asarray(out["peak_tau_ankle"])[: part.size])
     return np.concatenate(ok), np.concatenate(peaks)
 
@@ -166,6 +179,14 @@ def lean_limits(
             f"lean and release: recovers at {low:.3f} deg, not at {high:.3f} deg"
         ),
     )
+    stepped = largest_passing(
+        lambda leans: recovers(runner, plane, leans, within=1),
+        MAX_LEAN_DEG,
+        resolution,
+        lambda low, high: say(
+            f"lean and release, one step: recovers at {low:.3f} deg, not at {high:.3f} deg"
+        ),
+    )
     return LeanLimits(
         static_deg=min(torque_deg, foot_deg),
         static_torque_deg=torque_deg,
@@ -173,7 +194,8 @@ def lean_limits(
         dynamic_deg=found.low,
         resolution_deg=found.width,
         peak_ankle_torque=found.peak,
-        scenarios=found.runs,
+        scenarios=found.runs + stepped.runs,
+        one_step_deg=stepped.low,
     )
 
 
@@ -208,8 +230,9 @@ LIMITS_CSV = "lean_limits.csv"  # every limit (LeanLimits.row)
 
 
 def planned_scenarios(resolution: float) -> int:
-    """The most scenarios :func:`lean_limits` runs (``thresholds.planned_runs``)."""
-    return planned_runs(MAX_LEAN_DEG, resolution)
+    """The most scenarios :func:`lean_limits` runs (``thresholds.planned_runs``: in place, and
+    with one step)."""
+    return 2 * planned_runs(MAX_LEAN_DEG, resolution)
 
 
 def run_lean(
@@ -239,7 +262,8 @@ def run_lean(
     say(
         f"lean and release: static {limits.static_deg:.2f} deg (torque "
         f"{limits.static_torque_deg:.2f}, foot {limits.static_foot_deg:.2f}), dynamic "
-        f"{limits.dynamic_deg:.2f} deg, peak ankle torque {limits.peak_ankle_torque:.1f} N m; "
+        f"{limits.dynamic_deg:.2f} deg, peak ankle torque {limits.peak_ankle_torque:.1f} N m, "
+        f"with one step {limits.one_step_deg:.2f} deg; "
         f"{int(frame.agrees.sum())} of {len(frame)} people's measures agree"
     )
     say(f"wrote {out / LEAN_CSV} and {out / LIMITS_CSV}")

@@ -12,7 +12,8 @@ Each reference row is one of three kinds (:data:`ROWS`):
 - ``predicted``: a protocol's output, held against the published mean +- 2 SD (``agrees``);
 - ``input``: a number the body takes from that very row (the onset latency, the rate of torque
   development): shown so the reader sees what went in, never counted as agreement;
-- ``not modelled``: a protocol the tool does not run yet (a step, a moving platform).
+- ``not modelled``: a protocol or a body the tool does not have yet (a moving platform, a
+  woman's body).
 
 Every predicted row that does not agree, and every row not modelled, carries the reason found
 by measurement (people.csv's ``reason`` column, written from docs/studies.md's tables).
@@ -54,7 +55,8 @@ class Row:
 
 LEAN = "mjx-balance lean --config {body}"
 PULL = "mjx_balance.waist_pull: the pull at the hip rising over 5 s, then held, {body}"
-STEP = "a step (the body keeps its feet in place)"
+ONE_STEP = LEAN + " (one step: capturability from the feet-in-place runs)"
+WOMEN = "a woman's body (the shipped human bodies are men's)"
 ROWS: dict[str, Row] = {
     "lean_release_static_recovery_limit_young": Row(
         "predicted", "human", "lean.static_deg", LEAN + " (static limit)"
@@ -71,10 +73,14 @@ ROWS: dict[str, Row] = {
     "lean_release_ankle_rtd_young": Row(
         "input", "human", "ankle_rate", "controller.input_rates[0] of {body}"
     ),
-    "lean_release_single_step_max_angle_young_men": Row("not modelled", settings=STEP),
-    "lean_release_single_step_max_angle_older_men": Row("not modelled", settings=STEP),
-    "lean_release_single_step_max_angle_young_women": Row("not modelled", settings=STEP),
-    "lean_release_single_step_max_angle_older_women": Row("not modelled", settings=STEP),
+    "lean_release_single_step_max_angle_young_men": Row(
+        "predicted", "human", "lean.one_step_deg", ONE_STEP
+    ),
+    "lean_release_single_step_max_angle_older_men": Row(
+        "predicted", "human_older", "lean.one_step_deg", ONE_STEP
+    ),
+    "lean_release_single_step_max_angle_young_women": Row("not modelled", settings=WOMEN),
+    "lean_release_single_step_max_angle_older_women": Row("not modelled", settings=WOMEN),
     "waist_pull_step_threshold_older_fallers": Row(
         "predicted", "human_older", "pull.forward_pct", PULL + " (forward)"
     ),

@@ -53,6 +53,9 @@ CELL_COLUMNS = [
     "p_low",
     "p_high",
 ]
+# With the subjects' capture column (steps_needed, measures/capture.py): P(recover in place or
+# with at most one step) and its interval beside P(recover in place)
+STEP_CELL_COLUMNS = ["one_step_subjects", "p_one_step", "p_one_step_low", "p_one_step_high"]
 RECOVERED_TEXT = OUTCOMES[RECOVERED]
 BELOW = "below"  # a thresholded map's outcome where P < q
 
@@ -110,21 +113,31 @@ def interval_text(n: int) -> str:
 def cells(regions: dict[str, pd.DataFrame]) -> pd.DataFrame:
     """cohort_probability.csv: per cell (force, duration), the subjects whose map holds it, those
     that recover, P = recovered / subjects and its Wilson interval; forces then durations
-    ascending. ``regions``: each subject's region map (force, duration, outcome)."""
+    ascending. ``regions``: each subject's region map (force, duration, outcome). Where every
+    map has ``steps_needed`` (capturability), also the subjects that recover in place or with
+    one step, P of that and its Wilson interval (STEP_CELL_COLUMNS)."""
     if not regions:
         raise ParameterError("a probability map needs at least one subject's region map")
-    every = pd.concat(
-        [r[["force", "duration", "outcome"]] for r in regions.values()], ignore_index=True
-    )
+    steps = all("steps_needed" in r for r in regions.values())
+    keep = ["force", "duration", "outcome"] + (["steps_needed"] if steps else [])
+    every = pd.concat([r[keep] for r in regions.values()], ignore_index=True)
     every["recovered"] = every["outcome"] == RECOVERED_TEXT
-    grouped = every.groupby(["force", "duration"], sort=True)["recovered"]
-    frame = grouped.agg(subjects="size", recovered_subjects="sum").reset_index()
-    k = frame["recovered_subjects"].to_numpy(int)
+    columns = {"subjects": ("recovered", "size"), "recovered_subjects": ("recovered", "sum")}
+    if steps:
+        every["one_step"] = every["recovered"] | (every["steps_needed"] <= 1)
+        columns["one_step_subjects"] = ("one_step", "sum")
+    frame = every.groupby(["force", "duration"], sort=True).agg(**columns).reset_index()
     n = frame["subjects"].to_numpy(int)
+    k = frame["recovered_subjects"].to_numpy(int)
     frame["subjects"], frame["recovered_subjects"] = n, k
     frame["p_recover"] = k / n
     frame["p_low"], frame["p_high"] = wilson(k, n)
-    return frame[CELL_COLUMNS]
+    if not steps:
+        return frame[CELL_COLUMNS]
+    k1 = frame["one_step_subjects"].to_numpy(int)
+    frame["one_step_subjects"], frame["p_one_step"] = k1, k1 / n
+    frame["p_one_step_low"], frame["p_one_step_high"] = wilson(k1, n)
+    return frame[CELL_COLUMNS + STEP_CELL_COLUMNS]
 
 
 def thresholded(frame: pd.DataFrame, percent: int) -> pd.DataFrame:

@@ -50,6 +50,9 @@ SUBJECTS = "subjects"
 FIGURE_SUFFIXES = (".png", ".svg", ".pdf", ".gif")
 RECOVERED_TEXT = OUTCOMES[RECOVERED]
 
+# steps_needed's inf on the page (JSON has no infinity): two steps do not capture
+NOT_WITHIN = "more than 2"
+
 # The values a cell shows on hover, in order (units and meanings from measures.units).
 HOVER = (
     "force",
@@ -64,6 +67,8 @@ HOVER = (
     "hip_share",
     "strategy",
     "mos_min",
+    "steps_needed",
+    "capture_margin",
 )
 LABELS = {
     "force": "force",
@@ -89,6 +94,9 @@ LABELS = {
     "ankle_saturation_fraction": "ankle input at its bound",
     "hip_saturation_fraction": "hip input at its bound",
     "nonconverged_solves": "QP solves not converged",
+    "steps_needed": "steps needed (capturability)",
+    "capture_margin": "one-step capture margin",
+    "decision_time": "decision to step",
 }
 # The map's layers: (column, label, scale, recovered cells only)
 LAYERS = (
@@ -315,17 +323,23 @@ def on_grid(cells: pd.DataFrame, forces: np.ndarray, durations: np.ndarray) -> d
             continue
         values: list = [None] * (forces.size * durations.size)
         for i, v in zip(at.tolist(), cells[column].to_numpy()[keep].tolist()):
-            values[i] = plain(v)
+            values[i] = NOT_WITHIN if column == "steps_needed" and v == math.inf else plain(v)
         out[column] = values
     return out
 
 
 def boundary_lines(
-    outcome: list, forces: np.ndarray, durations: np.ndarray, edges: tuple[np.ndarray, np.ndarray]
+    outcome: list,
+    forces: np.ndarray,
+    durations: np.ndarray,
+    edges: tuple[np.ndarray, np.ndarray],
+    steps_needed: list | None = None,
+    steps: int | None = None,
 ) -> list[list[list[float]]]:
     """The recovery boundary on the grid (figures.region.recovery_boundary: the top of each
-    force's first recovered range of durations) as step polylines of (force, duration) points,
-    over the forces whose every cell is computed (a gap where one is not)."""
+    force's first recovered range of durations; with ``steps``, recovered with at most that
+    many steps, from the cells' ``steps_needed`` hover values) as step polylines of (force,
+    duration) points, over the forces whose every cell is computed (a gap where one is not)."""
     fx, dy = edges
     grid = np.asarray(outcome, dtype=object).reshape(forces.size, durations.size)
     complete = np.array([all(v is not None for v in row) for row in grid])
@@ -338,7 +352,15 @@ def boundary_lines(
             "outcome": grid[complete].ravel(),
         }
     )
-    tops = dict(zip(*recovery_boundary(frame)[["force", "boundary"]].to_numpy().T))
+    if steps is not None:
+        if steps_needed is None:
+            return []
+        need = np.asarray(steps_needed, dtype=object).reshape(forces.size, durations.size)
+        # NOT_WITHIN (inf) or None (NaN: diverged): never within ``steps``
+        frame["steps_needed"] = [
+            v if isinstance(v, (int, float)) else math.inf for v in need[complete].ravel()
+        ]
+    tops = dict(zip(*recovery_boundary(frame, steps)[["force", "boundary"]].to_numpy().T))
     lines: list[list[list[float]]]  # lines of [x, y] points
     line: list[list[float]]
     lines, line = [], []
@@ -428,6 +450,11 @@ def map_json(folder: Folder, found: MapFolder) -> dict[str, Any]:
         "complete": done == len(outcome) and done > 0,
         "counts": counts,
         "boundary": boundary_lines(outcome, forces, durations, edges),
+        # with one and with two steps (capturability), where the cells have steps_needed
+        "step_boundaries": [
+            boundary_lines(outcome, forces, durations, edges, values.get("steps_needed"), n)
+            for n in (1, 2)
+        ],
         "table": table_points(found),
         "explored": explored(found),
         **provenance_of(found),

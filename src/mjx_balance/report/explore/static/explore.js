@@ -199,6 +199,14 @@
     for (const pts of (own && own.boundary) || []) {
       line(g, pts, x, y, {stroke: "#000", "stroke-width": 3, class: "own-boundary"});
     }
+    // with one step (dashed) and with two (dotted): capturability (docs/model.md)
+    ((own && own.step_boundaries) || []).forEach((lines, k) => {
+      for (const pts of lines) {
+        line(g, pts, x, y, {stroke: "#000", "stroke-width": 4.5, class: "step-boundary"});
+        line(g, pts, x, y, {stroke: "#fff", "stroke-width": 2.5, class: "step-boundary",
+                            "stroke-dasharray": k ? "1.5 2.5" : "7 3"});
+      }
+    });
   }
 
   function drawMarks(root, x, y, g) {
@@ -274,7 +282,11 @@
     w.textContent = "white: not computed (yet)";
     if (S.key !== PROBABILITY) {
       const [b] = item();
-      b.textContent = "black line: recovery boundary on the grid";
+      b.textContent = "black line: recovery boundary on the grid (feet in place)";
+      if (((S.map.step_boundaries || [])[0] || []).length) {
+        const [st] = item();
+        st.textContent = "white dashed: with one step; white dotted: with two (capturability)";
+      }
       if ((S.map.table || []).length) {
         const [t] = item();
         t.textContent = "blue: max acting time (table.csv)";

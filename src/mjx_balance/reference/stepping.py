@@ -1,0 +1,108 @@
+"""A reduced model that takes the step: the check of the capture columns by simulation
+(docs/studies.md, "Stepping"; measures/capture.py is the closed form it checks).
+
+From the full model's CoM state at a run's decision instant (the reference's recorded series),
+the linear inverted pendulum (the same omega0, CoP reach, push and step as
+``capture.step_model``) is simulated with a stepping controller instead of the closed form's
+best strategy:
+
+- stance: the CoP drives the capture point xi to the point where the CoP that holds it lies
+  in the middle m of the foot's reach, xi* = a + m - f / omega0^2 (a the stance ankle, f the
+  push per unit mass), p = xi + f / omega0^2 + (xi - xi*) (gain 1), clipped to the reach;
+- the first step starts at the decision instant (the feet in place can no longer hold xi,
+  by the instant's definition); a further step starts when, after a landing, the CoP that
+  would hold xi (xi + f / omega0^2) lies outside the foot's reach, forwards or backwards (a
+  reactive stepper: it does not know when the push will end, as the closed form does);
+- a step lands ``step_time`` after it starts, the new ankle placed so that the CoP that holds
+  the capture point at the landing instant, xi + f / omega0^2 with a push still on, lies
+  at the middle of the new foot's reach, at most ``step_length`` away, forwards or backwards
+  (an instantaneous support change);
+- the body is captured when, after the push and the last landing, xi and v settle over the
+  last foot (``SETTLED``) within ``AFTER`` seconds.
+
+Between control instants the pendulum moves exactly (piecewise-constant p and f: x - c moves as
+cosh / sinh of omega0 t, c = p - f / omega0^2), so the only differences from the closed form are
+the controller's: its CoP is not held at the edge, and its later steps react instead of being
+planned.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ..measures.capture import MAX_STEPS, StepModel
+
+DT = 0.002  # s: the controller's period (the physics step of the full model)
+AFTER = 3.0  # s: the time the pendulum has after the push and the last landing to settle
+SETTLED = (0.01, 0.01)  # (m, m/s): |xi - ankle| and |v| of a captured pendulum
+
+
+class SteppingRun(NamedTuple):
+    """The reduced model's run: steps taken, captured or not, the last ankle [m]."""
+
+    steps: int
+    captured: bool
+    ankle: float
+
+
+def steps_to_capture(
+    model: StepModel, x: float, v: float, force: float, remaining: float
+) -> SteppingRun:
+    """Simulate the stepping pendulum from CoM x [m, ahead of the stance ankle] and velocity v
+    [m/s] at the decision instant, the push ``force`` [N] on for ``remaining`` [s] more (see
+    the module docstring). A fall backwards is mirrored (the heel's reach, steps backwards)."""
+    w = model.omega0
+    direction = 1.0 if x + v / w >= 0.5 * (model.cop_back + model.cop_front) else -1.0
+    front = model.cop_front if direction > 0 else -model.cop_back
+    back = model.cop_back if direction > 0 else -model.cop_front
+    middle = 0.5 * (front + back)
+    x, v, f = direction * x, direction * v, direction * model.push_gain * force
+    ankle, steps, t = 0.0, 0, 0.0
+    swing_end: float | None = model.step_time  # the first step starts now (module docstring)
+    quiet_from: float | None = None
+    end = max(remaining, 0.0) + MAX_STEPS * model.step_time + AFTER
+    while t < end:
+        push = f if t < remaining else 0.0
+        if swing_end is not None and t >= swing_end - 1e-12:  # landing
+            # the CoP that holds the capture point against a push still on, xi + f / w^2, at
+            # the middle of the new foot's reach
+            need = x + v / w + push / w**2 - middle
+            ankle = min(ankle + model.step_length, max(ankle - model.step_length, need))
+            steps, swing_end = steps + 1, None
+        xi = x + v / w
+        held = xi + push / w**2  # the CoP that holds xi
+        if swing_end is None and not ankle + back <= held <= ankle + front and steps < MAX_STEPS:
+            swing_end = t + model.step_time  # no CoP of this foot holds xi: step again
+        # hold xi where the CoP that holds it lies in the middle of the reach
+        target = ankle + middle - push / w**2
+        p = min(max(xi + (xi - target) + push / w**2, ankle + back), ankle + front)
+        c = p - push / w**2
+        y = x - c
+        ch, sh = math.cosh(w * DT), math.sinh(w * DT)
+        x, v = c + y * ch + v / w * sh, y * w * sh + v * ch
+        t += DT
+        calm = abs(x + v / w - ankle - middle) <= SETTLED[0] and abs(v) <= SETTLED[1]
+        if calm and t >= remaining and swing_end is None:
+            quiet_from = t if quiet_from is None else quiet_from
+            if t - quiet_from >= 0.5:
+                return SteppingRun(steps, True, direction * ankle)
+        else:
+            quiet_from = None
+        if abs(x - ankle) > 2 * model.step_length + 1.0:  # long gone: a fall
+            break
+    return SteppingRun(steps, False, direction * ankle)
+
+
+def simulated_steps(model: StepModel, frame, force: float, duration: float, at: float) -> float:
+    """The reduced model's answer for a reference run (its time series ``frame``, with ``com``
+    and ``com_vel``) decided at ``at`` [s]: the steps it took when captured, inf otherwise."""
+    time = frame["time"].to_numpy()
+    i = int(np.argmin(np.abs(time - at)))
+    remaining = math.ceil(duration / model.physics_dt - 1e-9) * model.physics_dt - time[i]
+    run = steps_to_capture(
+        model, float(frame["com"].iloc[i]), float(frame["com_vel"].iloc[i]), force, remaining
+    )
+    return float(run.steps) if run.captured else math.inf
