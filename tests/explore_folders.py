@@ -19,14 +19,15 @@ TABLE_FORCES = "20,40"
 
 
 def sweep_folder(out: Path) -> Path:
-    """A finished sweep folder with its table (the stand-in recovers iff F T < 30 N s)."""
+    """A finished sweep folder with its table (the stand-in recovers iff F T < 30 N s; one step
+    saves a fall with F T < 35 N s)."""
     import pytest
     from support import DEFAULT_BATCH, FakeThresholdBatch, cli_sweep
 
     from mjx_balance.cli import main
 
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(DEFAULT_BATCH, lambda config, **_: FakeThresholdBatch())
+        patch.setattr(DEFAULT_BATCH, lambda config, **_: FakeThresholdBatch(one_step=35.0))
         assert cli_sweep(out, "-q", *T_END) == 0
         assert main(["-q", "table", "--forces", TABLE_FORCES, *T_END, "--out", str(out)]) == 0
     return out

@@ -81,6 +81,13 @@ def test_a_sweep_folder_is_one_map_with_its_table_and_boundary(sweep):
     # the boundary's top at 40 N is the edge between 0.5 s (recovered) and 1 s (fell)
     assert data["boundary"] and data["boundary"][0][-1][1] == pytest.approx(0.75)
     assert "region.png" in data["files"]
+    # capturability: one step saves 30 N for 1 s (F T = 30), not 40 N for 1 s (40 >= 35)
+    need = data["cells"]["steps_needed"]
+    assert need[3 * 3 + 2] == 1 and need[4 * 3 + 2] == explore_folder.NOT_WITHIN
+    one, two = data["step_boundaries"]
+    # at 30 N: the grid's top edge (1 s), where the boundary in place is at 0.75 s
+    assert one[0][-3][1] == pytest.approx(1.0) and data["boundary"][0][-3][1] == pytest.approx(0.75)
+    assert one[0][-1][1] == pytest.approx(0.75) and two == one  # at 40 N: as in place
 
 
 def test_compare_and_cohort_folders_are_one_map_per_variant_or_subject(sweep, tmp_path):

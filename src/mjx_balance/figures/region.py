@@ -401,10 +401,13 @@ def _step_lines(ax, region: pd.DataFrame, fx: np.ndarray, dy: np.ndarray) -> lis
     "Stepping: capturability"), where the region has the column; returns their handles."""
     if "steps_needed" not in region:
         return []
-    return [
-        boundary_line(ax, region, fx, dy, steps=n, label=label, **STEP_STYLES[n])
-        for n, label in ((1, "with one step (capturability)"), (2, "with two steps"))
-    ]
+    top = region["duration"].max()
+    handles = []
+    for n, label in ((1, "with one step (capturability)"), (2, "with two steps")):
+        if (recovery_boundary(region, n)["boundary"] >= top).all():
+            label += ": the whole grid, on its top edge"
+        handles.append(boundary_line(ax, region, fx, dy, steps=n, label=label, **STEP_STYLES[n]))
+    return handles
 
 
 def _impulse_legend(ax, fx: np.ndarray, dy: np.ndarray, log: bool) -> list:

@@ -6,17 +6,18 @@ the linear inverted pendulum (the same omega0, CoP reach, push and step as
 ``capture.step_model``) is simulated with a stepping controller instead of the closed form's
 best strategy:
 
-- stance: the CoP drives the capture point xi to the point where the CoP that holds it lies
-  in the middle m of the foot's reach, xi* = a + m - f / omega0^2 (a the stance ankle, f the
-  push per unit mass), p = xi + f / omega0^2 + (xi - xi*) (gain 1), clipped to the reach;
+- stance: the CoP drives the capture point xi to a hold point xi* (a the stance ankle, f the
+  push per unit mass, s = f / omega0^2 its CoP shift), p = xi + s + (xi - xi*) (gain 1),
+  clipped to the reach; xi* is as near the reach's middle as keeps the holding CoP xi* + s
+  ``MARGIN`` of the reach inside either edge, so that a push whose shift fits in the foot
+  leaves xi held when it ends;
 - the first step starts at the decision instant (the feet in place can no longer hold xi,
   by the instant's definition); a further step starts when, after a landing, the CoP that
   would hold xi (xi + f / omega0^2) lies outside the foot's reach, forwards or backwards (a
   reactive stepper: it does not know when the push will end, as the closed form does);
-- a step lands ``step_time`` after it starts, the new ankle placed so that the CoP that holds
-  the capture point at the landing instant, xi + f / omega0^2 with a push still on, lies
-  at the middle of the new foot's reach, at most ``step_length`` away, forwards or backwards
-  (an instantaneous support change);
+- a step lands ``step_time`` after it starts, the new ankle placed so that the capture point
+  at the landing instant is the new foot's hold point, at most ``step_length`` away, forwards
+  or backwards (an instantaneous support change);
 - the body is captured when, after the push and the last landing, xi and v settle over the
   last foot (``SETTLED``) within ``AFTER`` seconds.
 
@@ -36,6 +37,7 @@ import numpy as np
 from ..measures.capture import MAX_STEPS, StepModel
 
 DT = 0.002  # s: the controller's period (the physics step of the full model)
+MARGIN = 0.1  # the share of the CoP's reach the controller keeps to spare at each edge
 AFTER = 3.0  # s: the time the pendulum has after the push and the last landing to settle
 SETTLED = (0.01, 0.01)  # (m, m/s): |xi - ankle| and |v| of a captured pendulum
 
@@ -58,7 +60,14 @@ def steps_to_capture(
     direction = 1.0 if x + v / w >= 0.5 * (model.cop_back + model.cop_front) else -1.0
     front = model.cop_front if direction > 0 else -model.cop_back
     back = model.cop_back if direction > 0 else -model.cop_front
-    middle = 0.5 * (front + back)
+    middle, margin = 0.5 * (front + back), MARGIN * (front - back)
+
+    def hold_point(shift: float) -> float:
+        """Where xi is held (ahead of the ankle) under a push whose CoP shift is ``shift``: the
+        CoP xi + shift within the reach with ``margin`` to spare, xi as near the reach's middle
+        as that allows (so that it is held when the push ends, if the shift fits)."""
+        return min(max(middle, back - shift + margin), front - shift - margin)
+
     x, v, f = direction * x, direction * v, direction * model.push_gain * force
     ankle, steps, t = 0.0, 0, 0.0
     swing_end: float | None = model.step_time  # the first step starts now (module docstring)
@@ -67,17 +76,16 @@ def steps_to_capture(
     while t < end:
         push = f if t < remaining else 0.0
         if swing_end is not None and t >= swing_end - 1e-12:  # landing
-            # the CoP that holds the capture point against a push still on, xi + f / w^2, at
-            # the middle of the new foot's reach
-            need = x + v / w + push / w**2 - middle
+            # the new foot where the capture point is its hold point (below)
+            xi = x + v / w
+            need = xi - hold_point(push / w**2)
             ankle = min(ankle + model.step_length, max(ankle - model.step_length, need))
             steps, swing_end = steps + 1, None
         xi = x + v / w
         held = xi + push / w**2  # the CoP that holds xi
         if swing_end is None and not ankle + back <= held <= ankle + front and steps < MAX_STEPS:
             swing_end = t + model.step_time  # no CoP of this foot holds xi: step again
-        # hold xi where the CoP that holds it lies in the middle of the reach
-        target = ankle + middle - push / w**2
+        target = ankle + hold_point(push / w**2)
         p = min(max(xi + (xi - target) + push / w**2, ankle + back), ankle + front)
         c = p - push / w**2
         y = x - c
