@@ -113,7 +113,11 @@ class FakeThresholdBatch:
         self.c, self.window, self.fail_on_call = c, window, fail_on_call
         self.one_step = one_step  # a fall with |F| T < one_step needs one step, else none do
         self.calls: list[int] = []
-        self.cells: list[tuple[float, float]] = []  # the (force, duration) of every call
+        self.cells: list[set[tuple[float, float]]] = []  # each call's (force, duration) cells
+
+    def all_cells(self) -> set[tuple[float, float]]:
+        """Every cell any call ran."""
+        return set().union(*self.cells)
 
     def recovered(self, forces, durations):
         ok = np.abs(forces) * durations < self.c
@@ -126,9 +130,8 @@ class FakeThresholdBatch:
             self.calls.append(-1)
             raise KeyboardInterrupt("fake interruption")
         self.calls.append(len(forces))
-        # each call's cells once (a padded call repeats its last one)
-        self.cells += dict.fromkeys(
-            (round(float(f), 9), round(float(d), 9)) for f, d in zip(forces, durations)
+        self.cells.append(
+            {(round(float(f), 6), round(float(d), 6)) for f, d in zip(forces, durations)}
         )
         forces = np.asarray(forces, dtype=np.float32)  # like a float32 rollout
         durations = np.asarray(durations, dtype=np.float32)

@@ -32,24 +32,6 @@ FORCES = "0:120:10"  # 13 forces
 BATCH = 16  # every call has exactly this many scenarios
 
 
-class CellLog(FakeThresholdBatch):
-    """FakeThresholdBatch that records the cells (force, duration) of every call."""
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self.cells: list[set[tuple[float, float]]] = []
-
-    def __call__(self, forces, durations):
-        out = super().__call__(forces, durations)
-        self.cells.append(
-            {(round(float(f), 6), round(float(d), 6)) for f, d in zip(forces, durations)}
-        )
-        return out
-
-    def all_cells(self) -> set[tuple[float, float]]:
-        return set().union(*self.cells)
-
-
 def table(out: Path, fake, forces: str = FORCES):
     return held_table(out, Config(), forces, run_batch=fake, batch=BATCH, progress=False, say=None)
 
@@ -63,7 +45,7 @@ def same_files(a: Path, b: Path) -> None:
 def whole(tmp_path_factory):
     """An uninterrupted table and the cells it ran."""
     out = tmp_path_factory.mktemp("whole")
-    fake = CellLog()
+    fake = FakeThresholdBatch()
     table(out, fake)
     return out, fake
 
@@ -72,13 +54,13 @@ def whole(tmp_path_factory):
 def test_table_interrupted_after_its_coarse_scan_resumes(tmp_path, whole, k):
     whole_out, whole_fake = whole
     assert len(whole_fake.calls) > k
-    cut = CellLog(fail_on_call=k)
+    cut = FakeThresholdBatch(fail_on_call=k)
     with pytest.raises(KeyboardInterrupt):
         table(tmp_path, cut)
     assert not (tmp_path / store_files.TABLE).exists()
     assert len(list((tmp_path / store_files.TABLE_CELLS).glob("part-*.parquet"))) == k - 1
     kept = cut.all_cells()
-    resumed = CellLog()
+    resumed = FakeThresholdBatch()
     table(tmp_path, resumed)
     assert set(resumed.calls) == {BATCH}  # the fixed padded size
     assert not resumed.all_cells() & kept  # nothing kept is run again
@@ -134,7 +116,7 @@ def test_table_killed_by_sigkill_resumes(tmp_path, whole):
     kept = TableCells(out, "paper").rows
     assert len(kept) >= 13 * sweep.coarse_steps(12.0, 0.01).size  # the coarse scan at least
     (out / store_files.TABLE_CELLS / ".part-00099.parquet.x.tmp").write_text("left by a kill")
-    resumed = CellLog()
+    resumed = FakeThresholdBatch()
     with jax.enable_x64(False):  # the numerics the killed process ran under (its default)
         table(out, resumed)
     assert set(resumed.calls) == {BATCH}
@@ -152,14 +134,14 @@ def test_overlapping_force_list_reuses_the_cells(tmp_path):
         held_table(out, Config(), forces, run_batch=fake, progress=False, say=None)
 
     fresh = tmp_path / "fresh"
-    bisect(fresh, CellLog(), "20,50,80")
+    bisect(fresh, FakeThresholdBatch(), "20,50,80")
     out = tmp_path / "out"
-    bisect(out, CellLog(), "20,50")
-    second = CellLog()
+    bisect(out, FakeThresholdBatch(), "20,50")
+    second = FakeThresholdBatch()
     bisect(out, second, "20,50,80")
     assert second.calls and {f for f, _d in second.all_cells()} == {80.0}
     same_files(out, fresh)
-    third = CellLog()
+    third = FakeThresholdBatch()
     bisect(out, third, "50")  # every cell of 50 N is kept: no call at all
     assert third.calls == []
 
@@ -168,11 +150,11 @@ def test_overlapping_force_list_in_fixed_batches_reuses_the_coarse_scan(tmp_path
     """In batches of a fixed size the points per round depend on the force count, so only the
     coarse scan is sure to be shared; what is shared is not run again."""
     fresh = tmp_path / "fresh"
-    table(fresh, CellLog(), "20,50,80")
+    table(fresh, FakeThresholdBatch(), "20,50,80")
     out = tmp_path / "out"
-    first = CellLog()
+    first = FakeThresholdBatch()
     table(out, first, "20,50")
-    second = CellLog()
+    second = FakeThresholdBatch()
     table(out, second, "20,50,80")
     assert set(second.calls) == {BATCH}
     assert not first.all_cells() & second.all_cells()
@@ -183,11 +165,11 @@ def test_overlapping_force_list_in_fixed_batches_reuses_the_coarse_scan(tmp_path
 
 def test_damaged_part_file_is_run_again(tmp_path, whole):
     whole_out, _ = whole
-    table(tmp_path, CellLog())
+    table(tmp_path, FakeThresholdBatch())
     part = sorted((tmp_path / store_files.TABLE_CELLS).glob("part-*.parquet"))[3]
     part.write_bytes(part.read_bytes()[:100])
     (tmp_path / store_files.TABLE).unlink()
-    again = CellLog()
+    again = FakeThresholdBatch()
     table(tmp_path, again)
     assert again.calls == [BATCH]  # only the damaged call's cells
     same_files(tmp_path, whole_out)
@@ -248,10 +230,10 @@ def test_bad_manifest_is_one_clear_error(tmp_path, text, problem, run):
 
 
 def test_rebuilt_manifest_keeps_the_table(tmp_path, capsys):
-    table(tmp_path, CellLog(), "20,50")
+    table(tmp_path, FakeThresholdBatch(), "20,50")
     before = json.loads((tmp_path / store_files.MANIFEST).read_text())
     (tmp_path / store_files.MANIFEST).unlink()
-    idle = CellLog(fail_on_call=1)
+    idle = FakeThresholdBatch(fail_on_call=1)
     assert (
         held_table(tmp_path, Config(), "20,50", run_batch=idle, batch=BATCH, progress=False) is None
     )
@@ -265,9 +247,9 @@ def test_rebuilt_manifest_keeps_the_table(tmp_path, capsys):
 def test_rebuilt_manifest_without_a_table_resumes_from_the_kept_cells(tmp_path, whole):
     whole_out, _ = whole
     with pytest.raises(KeyboardInterrupt):
-        table(tmp_path, CellLog(fail_on_call=10))
+        table(tmp_path, FakeThresholdBatch(fail_on_call=10))
     (tmp_path / store_files.MANIFEST).unlink()
-    resumed = CellLog()
+    resumed = FakeThresholdBatch()
     table(tmp_path, resumed)
     assert len(resumed.calls) == len(whole[1].calls) - 9  # the 9 kept calls are not rerun
     assert "table" in json.loads((tmp_path / store_files.MANIFEST).read_text())
@@ -278,7 +260,7 @@ def test_lost_manifest_with_kept_cells_of_another_configuration_is_refused(tmp_p
     """Cells kept in table_runs/ (no table yet, no manifest) are results: they are reused only
     when config.toml matches this run's configuration."""
     with pytest.raises(KeyboardInterrupt):
-        table(tmp_path, CellLog(fail_on_call=3))
+        table(tmp_path, FakeThresholdBatch(fail_on_call=3))
     (tmp_path / store_files.MANIFEST).unlink()
     other = Config().replace(scenario={"t_end": 6.0})
     with pytest.raises(ParameterError, match="config.toml differs"):

@@ -388,13 +388,10 @@ def summarize(
     convention's input held during step i. q0 [2], x0 [4]: the state at t = 0.
     Control series (one entry per control instant k, t_k = k control_dt): u_control [K, 2] the
     clipped input; converged [K] bool; residual [K] primal residual; infeasible [K] bool, the
-    period's QP found infeasible (None: never). com_vel, mos [n] (optional): the CoM's
-    velocity and the margin of stability in the push's direction (NaN columns without them).
-    xcom [n] (optional) and ``steps`` (``capture.step_model``): the capture point, read at
-    the fall sample for the capture columns (NaN columns without them).
-    completed: the series reach t_end (False when the caller stopped early at a fall or a
-    non-finite value). Series may run past a fall; they are cut at the first fall sample.
-    """
+    period's QP found infeasible (None: never). com_vel, mos, xcom [n], ``steps`` (optional):
+    CoM velocity, margin of stability (push's direction), capture point, ``capture.step_model``
+    (NaN columns without them). completed: the series reach t_end (False when the caller stopped
+    early at a fall or a non-finite value). Series are cut at the first fall sample."""
     time = np.asarray(time, float)
     q, dq, x = np.asarray(q, float), np.asarray(dq, float), np.asarray(x, float)
     tau, u = np.asarray(tau, float), np.asarray(u, float)
@@ -416,7 +413,6 @@ def summarize(
             limits=limits,
         )
     )
-
     code = _outcome_code(completed, diverged, fell, time, q, dq, limits)
     cause = _fall_cause(code, end, foot_pitch, cell_low_z, excess, q, limits)
     settle = settle_time(time, q, dq, limits) if code == RECOVERED else math.nan
@@ -431,8 +427,8 @@ def summarize(
         "max_bound_violation": _max_violation(excess, end),
         "fall_cause": outcomes.FALL_CAUSES[cause],
         "first_infeasible_time": first_infeasible,
-        **_balance_columns(time, com_vel, mos, end),
-        **_capture_columns(steps, code, xcom, end, force, duration),
+        **_balance_columns(time, com_vel, mos, end)
+        | _capture_columns(steps, code, xcom, end, force, duration),
     }
 
 
@@ -454,4 +450,5 @@ def _capture_columns(
         i = capture.decision_index(xcom, force, duration, steps, end)
         xi, when = float(np.asarray(xcom, float)[i]), (i + 1) * steps.physics_dt
     cols = capture.columns(steps, np.asarray([code]), [when], [xi], [force], [duration])
-    return {name: float(v[0]) for name, v in cols.items()}
+    # NaN as math.nan itself, as every other column's: rows compare equal (``is`` before ==)
+    return {name: math.nan if np.isnan(v[0]) else float(v[0]) for name, v in cols.items()}

@@ -289,22 +289,7 @@ class BodyParams:
                 "ankle's distance from the heel, a fraction of foot_length)",
                 self.ankle_position,
             )
-        if not STEP_LENGTH_RANGE[0] <= self.step_length <= STEP_LENGTH_RANGE[1]:
-            fail(
-                "body",
-                "step_length",
-                f"must lie in [{STEP_LENGTH_RANGE[0]:g}, {STEP_LENGTH_RANGE[1]:g}] (the longest "
-                "step, ankle to ankle, a fraction of the body's height)",
-                self.step_length,
-            )
-        if not STEP_TIME_RANGE[0] <= self.step_time <= STEP_TIME_RANGE[1]:
-            fail(
-                "body",
-                "step_time",
-                f"must lie in [{STEP_TIME_RANGE[0]:g}, {STEP_TIME_RANGE[1]:g}] s (from the "
-                "decision to step to the foot's landing)",
-                self.step_time,
-            )
+        self._check_step()
         if not 0 <= self.ankle_height <= LENGTH_RANGE[1]:
             fail(
                 "body", "ankle_height", f"must lie in [0, {LENGTH_RANGE[1]:g}] m", self.ankle_height
@@ -322,6 +307,25 @@ class BodyParams:
                     "kg m^2 (plausible range), or be left out for the uniform shape's",
                     value,
                 )
+
+    def _check_step(self) -> None:
+        """The step's length and time within their ranges (STEP_LENGTH_RANGE, STEP_TIME_RANGE)."""
+        if not STEP_LENGTH_RANGE[0] <= self.step_length <= STEP_LENGTH_RANGE[1]:
+            fail(
+                "body",
+                "step_length",
+                f"must lie in [{STEP_LENGTH_RANGE[0]:g}, {STEP_LENGTH_RANGE[1]:g}] (the longest "
+                "step, ankle to ankle, a fraction of the body's height)",
+                self.step_length,
+            )
+        if not STEP_TIME_RANGE[0] <= self.step_time <= STEP_TIME_RANGE[1]:
+            fail(
+                "body",
+                "step_time",
+                f"must lie in [{STEP_TIME_RANGE[0]:g}, {STEP_TIME_RANGE[1]:g}] s (from the "
+                "decision to step to the foot's landing)",
+                self.step_time,
+            )
 
     @property
     def total_mass(self) -> float:

@@ -346,7 +346,7 @@ def fold_period(
             carry.q_prev,
             carry.x_prev,
             limits_of(arrays, static),
-            None if push is None else (*push, arrays.capture),
+            push=None if push is None else (*push, arrays.capture),
         )
         return carry._replace(
             acc=acc, q_prev=s.q, x_prev=s.x, history=remember(carry.history, s)

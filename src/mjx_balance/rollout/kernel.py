@@ -253,6 +253,27 @@ def remember(history: jax.Array, s: Sample) -> jax.Array:
     return jnp.concatenate([jnp.concatenate([s.q, s.dq])[None], history[:-1]])
 
 
+def cannot_hold(
+    s: Sample, i: jax.Array, push: tuple[jax.Array, jax.Array, jax.Array] | None
+) -> jax.Array:
+    """Whether the feet in place can no longer hold the capture point after step ``i``
+    (``capture.hold_margin`` < 0: the decision instant's test); ``push``: (force, push steps,
+    ``Arrays.capture``), None: never (the decision is the fall sample)."""
+    if push is None:
+        return jnp.asarray(False)
+    force, n_push, data = push
+    remaining = (n_push - i - 1).astype(data.dtype) * data[4]
+    return capture.hold_margin(jnp, s.xcom, force, remaining, data) < 0
+
+
+def decision(acc: Accumulators, decides: jax.Array, s: Sample, i: jax.Array) -> dict:
+    """The decision instant's accumulators, set at step ``i`` where ``decides``."""
+    return {
+        "decision_step": jnp.where(decides, i, acc.decision_step),
+        "decision_xcom": jnp.where(decides, s.xcom, acc.decision_xcom),
+    }
+
+
 def sample_update(
     acc: Accumulators,
     s: Sample,
@@ -262,14 +283,14 @@ def sample_update(
     q_prev: jax.Array,
     x_prev: jax.Array,
     limits: Limits,
+    *,
     push: tuple[jax.Array, jax.Array, jax.Array] | None = None,
 ) -> Accumulators:
     """Fold the sample of physics step ``i`` into the accumulators: divergence (a non-finite
     value, or one beyond MuJoCo's bound MAX_VALUE as in the reference), the fall test, the
-    settle band, peaks, extremes and energies. ``torques`` / ``u`` are held during step
-    i; ``q_prev`` / ``x_prev`` are the previous sample's joint angles and state; ``push``:
-    (force, push steps, ``Arrays.capture``) for the decision instant (None: the fall sample).
-    Nothing changes once the scenario is dead (fallen or diverged)."""
+    settle band, peaks, extremes, energies, the decision instant (``push``: :func:`cannot_hold`).
+    ``torques`` / ``u`` are held during step i; ``q_prev`` / ``x_prev`` are the previous
+    sample's. Nothing changes once the scenario is dead (fallen or diverged)."""
     excess = outcomes.bound_excess(jnp, s.x, limits)
     finite = (
         jnp.isfinite(s.q).all()
@@ -283,12 +304,6 @@ def sample_update(
     falls = cause != outcomes.NO_CAUSE
     band = outcomes.in_settle_band(jnp, s.q, s.dq, limits)
     newly_fell = ok & falls
-    lost = jnp.asarray(False)
-    if push is not None:
-        force, n_push, data = push
-        remaining = (n_push - i - 1).astype(data.dtype) * data[4]
-        lost = capture.hold_margin(jnp, s.xcom, force, remaining, data) < 0
-    decides = ok & (acc.decision_step < 0) & (lost | falls)
 
     def upd(old, new):
         return jnp.where(ok, new, old)
@@ -336,8 +351,7 @@ def sample_update(
         mos_toe_step=jnp.where(ok & (s.mos_toe < acc.mos_toe_min), i, acc.mos_toe_step),
         mos_heel_min=upd(acc.mos_heel_min, jnp.minimum(acc.mos_heel_min, s.mos_heel)),
         mos_heel_step=jnp.where(ok & (s.mos_heel < acc.mos_heel_min), i, acc.mos_heel_step),
-        decision_step=jnp.where(decides, i, acc.decision_step),
-        decision_xcom=jnp.where(decides, s.xcom, acc.decision_xcom),
+        **decision(acc, ok & (acc.decision_step < 0) & (cannot_hold(s, i, push) | falls), s, i),
     )
 
 
@@ -682,18 +696,12 @@ def physics_period(
     dtype = arrays.d0.qpos.dtype
     S = static.substeps
 
+    limits, pushed = limits_of(arrays, static), (force, n_push, arrays.capture)
+
     def fold(carry: Carry, s: Sample, i: jax.Array) -> Carry:
         """Carry after the complete sample ``s`` of physics step ``i``."""
         acc = sample_update(
-            carry.acc,
-            s,
-            i,
-            torques,
-            u,
-            carry.q_prev,
-            carry.x_prev,
-            limits_of(arrays, static),
-            (force, n_push, arrays.capture),
+            carry.acc, s, i, torques, u, carry.q_prev, carry.x_prev, limits, push=pushed
         )
         return carry._replace(q_prev=s.q, x_prev=s.x, acc=acc)
 

@@ -182,41 +182,16 @@ def max_acting_time(
     widest = int(np.diff(np.concatenate([[0], steps])).max())
     say(_plan_text(n_f, n_c, points_per_round, resolution, batch, config.controller.convention))
     bar = _table_bar(n_f, n_c, widest, points_per_round, progress)
-    options: dict[str, Any] = dict(
-        batch=batch, resolution=resolution, points_per_round=points_per_round, cells=cells
-    )
+    options: dict[str, Any] = dict(batch=batch, resolution=resolution, cells=cells)
+    options["points_per_round"] = points_per_round
+    reserve = n_f * bracket_cost(widest, points_per_round)  # the one-step rounds' most
     try:
         brackets, runs = _bracket_rounds(
-            run_batch, forces, steps, n_max, config, bar=bar, **options
+            run_batch, forces, steps, n_max, config, bar=bar, reserve=reserve, **options
         )
+        one_step = _one_step_rounds(run_batch, forces, steps, n_max, config, bar, runs, options)
     finally:
         bar.close()
-    one_step = None
-    if "steps_needed" in runs[0]:
-        # with one step (capturability): the same coarse scan's rows, further rounds where
-        # the one-step bracket is open; a cell the first rounds ran is read back, not run again
-        if cells is None:
-            options["cells"] = TableCells(None, config.controller.convention)
-            for frame in runs:
-                options["cells"].add(frame)
-        bar = progress_bar(
-            n_f * bracket_cost(widest, points_per_round), 0, progress, desc="table, one step"
-        )
-        try:
-            one_step, more = _bracket_rounds(
-                run_batch,
-                forces,
-                steps,
-                n_max,
-                config,
-                bar=bar,
-                within=1,
-                coarse_frame=runs[0],
-                **options,
-            )
-        finally:
-            bar.close()
-        runs += more
 
     table = _table_of(forces, brackets, steps, resolution, t_end, config)
     table["max_acting_time_one_step"] = (
@@ -229,6 +204,33 @@ def max_acting_time(
     seconds = time.perf_counter() - start
     say(f"table: {len(runs_frame)} scenarios in {seconds:.1f} s")
     return TableResult(table, runs_frame, seconds)
+
+
+def _one_step_rounds(
+    run_batch: Any,
+    forces: np.ndarray,
+    steps: np.ndarray,
+    n_max: int,
+    config: Config,
+    bar: Any,
+    runs: list[pd.DataFrame],
+    options: dict[str, Any],
+) -> Brackets | None:
+    """The brackets with one step (capturability, ``steps_needed`` <= 1; None where the rows
+    lack it): the in-place rounds' coarse scan ``runs[0]``, then rounds where the one-step
+    bracket is still open; a cell the in-place rounds ran is read back, not run again (from
+    ``options["cells"]``, or kept in memory here). Appends the new rounds' rows to ``runs``."""
+    if "steps_needed" not in runs[0]:
+        return None
+    if options["cells"] is None:
+        options = {**options, "cells": TableCells(None, config.controller.convention)}
+        for frame in runs:
+            options["cells"].add(frame)
+    one_step, more = _bracket_rounds(
+        run_batch, forces, steps, n_max, config, bar=bar, within=1, coarse_frame=runs[0], **options
+    )
+    runs += more
+    return one_step
 
 
 def _plan_text(
@@ -246,10 +248,11 @@ def _plan_text(
 
 def _table_bar(n_f: int, n_c: int, widest: int, points_per_round: int, progress: bool | None):
     """The table's progress bar, over the most scenarios its coarse scan and rounds can take."""
-    # a fixed total: the most scenarios the coarse scan and the rounds can take (the bar
-    # counts those run and those a force no longer needs once its bracket has closed)
+    # a fixed total: the most scenarios the coarse scan and the rounds, in place and with one
+    # step, can take (the bar counts those run and those a force no longer needs once its
+    # bracket has closed)
     return progress_bar(
-        n_f * (n_c + bracket_cost(widest, points_per_round)), 0, progress, desc="table"
+        n_f * (n_c + 2 * bracket_cost(widest, points_per_round)), 0, progress, desc="table"
     )
 
 
@@ -299,12 +302,14 @@ def _bracket_rounds(
     bar: Any,
     within: int | None = None,
     coarse_frame: pd.DataFrame | None = None,
+    reserve: int = 0,
 ) -> tuple[Brackets, list[pd.DataFrame]]:
     """The coarse scan of the durations ``steps`` (in resolution units) for every force [n_f]
     (or its rows ``coarse_frame``, already run), then refine rounds until every bracket is one
     resolution step wide (``within``: :func:`recovers`); returns the brackets and each call's
     summary rows (the coarse scan first, when run here). ``bar`` counts the scenarios (its
-    total, an upper estimate, is set to the count at the end)."""
+    total, an upper estimate, is set to the count at the end; ``reserve`` of it is left for
+    rounds that follow)."""
     n_f, n_c = forces.size, steps.size
     runs: list[pd.DataFrame] = []
     if coarse_frame is None:
@@ -321,7 +326,7 @@ def _bracket_rounds(
     brackets = coarse_brackets(coarse_frame, steps, n_max, within)
 
     def work_left() -> int:
-        return sum(
+        return reserve + sum(
             bracket_cost(int(brackets.hi[i] - brackets.lo[i]), points_per_round)
             for i in brackets.active()
         )
@@ -331,7 +336,15 @@ def _bracket_rounds(
         if not brackets.active().size:
             break
         frame = refine_round(
-            brackets, forces, run_batch, config, batch, resolution, points_per_round, cells, within
+            brackets,
+            forces,
+            run_batch,
+            config,
+            batch,
+            resolution,
+            points_per_round,
+            cells=cells,
+            within=within,
         )
         runs.append(frame)
         advance(bar, work_left())
@@ -482,6 +495,7 @@ def refine_round(
     batch: int | None,
     resolution: float,
     points_per_round: int,
+    *,
     cells: TableCells | None = None,
     within: int | None = None,
 ) -> pd.DataFrame:
