@@ -501,6 +501,10 @@ def _hatch_outcomes(ax, fx: np.ndarray, dy: np.ndarray, outcome: np.ndarray) -> 
             )
 
 
+# table.csv's max acting times on the map: blue, open markers
+TABLE_MARKS = {"color": "#1f3fbf", "mfc": "white", "mew": 1.5, "ms": 5}
+
+
 def _table_overlay(ax, table: pd.DataFrame, fx: np.ndarray, dy: np.ndarray) -> list:
     """The bisected max acting time of the table's forces inside the map's force range."""
     t = table.sort_values("force")
@@ -517,12 +521,9 @@ def _table_overlay(ax, table: pd.DataFrame, fx: np.ndarray, dy: np.ndarray) -> l
             force[shown],
             tmax[shown],
             "o-",
-            color="#1f3fbf",
-            mfc="white",
-            mew=1.5,
-            ms=5,
             lw=1.5,
             label="max acting time, bisected to 0.01 s (table.csv)",
+            **TABLE_MARKS,
         )
         handles.append(curve)
     below = tmax < dy[0]
@@ -557,12 +558,9 @@ def _table_overlay(ax, table: pd.DataFrame, fx: np.ndarray, dy: np.ndarray) -> l
                 force[on_grid],
                 one[on_grid],
                 "s--",
-                color="#1f3fbf",
-                mfc="white",
-                mew=1.5,
-                ms=5,
                 lw=1.2,
                 label="max acting time with one step (table.csv)",
+                **TABLE_MARKS,
             )
             handles.append(steps)
     return handles
