@@ -165,6 +165,9 @@ def test_the_scorecard_figure_draws_every_scored_row():
     labels = [t.get_text() for t in fig.axes[0].get_yticklabels()]
     scored = card[card.kind.isin(("predicted", "input")) & card.published_sd.notna()]
     assert len(labels) == len(scored)
+    # the predicted rows without an SD (the single-step limits) are given in the title
+    title = fig.axes[0].get_title()
+    assert "single step max angle young men: ours 20 vs 32.5 deg" in title
     plt.close(fig)
 
 

@@ -4,7 +4,8 @@ One row per reference measure that we predict or take as an input: our value's d
 the published mean in published standard deviations, (ours - mean) / SD, on one axis, with the
 agreement band (+-2 SD) shaded; each row is labelled with both values in the paper's units. A
 predicted row is a filled circle (bluish green inside the band, vermillion outside), an input a
-grey diamond. The title counts the rows not modelled (people.csv lists them with why).
+grey diamond. The title counts the rows not modelled (people.csv lists them with why) and
+gives the predicted rows without a published SD, which the axis cannot place, by value.
 """
 
 from __future__ import annotations
@@ -54,7 +55,14 @@ def people_figure(card: pd.DataFrame) -> Any:
     title = "People's measures beside the human bodies"
     if len(missing):
         title += f"\n({len(missing)} rows not modelled, listed in people.csv with why)"
-    ax.set_title(title, fontsize=9)
+    unscaled = card[(card.kind == "predicted") & card.published_sd.isna()]
+    if len(unscaled):  # no SD to place them on the axis: their values in the title
+        pairs = "\n".join(
+            f"{r.measure.replace('_', ' ')}: ours {r.ours:.3g} vs {r.published_mean:g} {r.unit}"
+            for r in unscaled.itertuples()
+        )
+        title += f"\nwithout a published SD (not on the axis):\n{pairs}"
+    ax.set_title(title, fontsize=9 if not len(unscaled) else 7)
     return fig
 
 
