@@ -87,6 +87,8 @@ def test_hover_click_and_a_second_click_served_from_the_folder(browser, page, fo
     b.wait(lambda: len(b.find_all("#map-svg rect.cell")) == 15, 30, "the map's 15 cells")
     loaded = time.perf_counter() - started
     assert b.find_all("#map-svg path.own-boundary"), "the recovery boundary is drawn"
+    # with one step and with two (the stand-in's capturability): a black edge and a white dash
+    assert len(b.find_all("#map-svg path.step-boundary")) == 4, "the step boundaries"
     assert len(b.find_all("#map-svg .table-point")) == 2  # table.csv's 20 and 40 N
     assert "recovered (" in text(b, "#legend") and "15 of 15 cells computed" in text(b, "#status")
 

@@ -200,7 +200,8 @@
       line(g, pts, x, y, {stroke: "#000", "stroke-width": 3, class: "own-boundary"});
     }
     // with one step (dashed) and with two (dotted): capturability (docs/model.md)
-    ((own && own.step_boundaries) || []).forEach((lines, k) => {
+    const steps = S.key !== PROBABILITY && S.map ? S.map.step_boundaries : null;
+    (steps || []).forEach((lines, k) => {
       for (const pts of lines) {
         line(g, pts, x, y, {stroke: "#000", "stroke-width": 4.5, class: "step-boundary"});
         line(g, pts, x, y, {stroke: "#fff", "stroke-width": 2.5, class: "step-boundary",
