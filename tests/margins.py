@@ -351,11 +351,12 @@ def capture_window(config, frame, force: float, duration: float, at: float, samp
     import numpy as np
 
     from mjx_balance.measures import capture
+    from mjx_balance.model.params import push_steps
 
     model = capture.step_model(config)
     time = frame["time"].to_numpy()
     i = int(np.argmin(np.abs(time - at)))
     near = slice(max(0, i - samples), min(time.size, i + samples + 1))
-    remaining = np.ceil(duration / model.physics_dt - 1e-9) * model.physics_dt - time[near]
+    remaining = push_steps(duration, model.physics_dt) * model.physics_dt - time[near]
     margin, _ = capture.margins(model, frame["xcom"].to_numpy()[near], force, remaining, 1)
     return float(margin.min()), float(margin.max())

@@ -26,7 +26,7 @@ from collections import Counter
 import numpy as np
 
 from mjx_balance.measures import capture
-from mjx_balance.model.params import Config
+from mjx_balance.model.params import Config, push_steps
 from mjx_balance.reference import loop as reference
 from mjx_balance.reference.stepping import simulated_steps
 from mjx_balance.rollout import BatchRunner
@@ -41,7 +41,7 @@ def steps_at(model, frame, force, duration, at):
     """The fewest steps (1, 2; inf) the closed form gives from the decision instant ``at``."""
     time = frame["time"].to_numpy()
     i = int(np.argmin(np.abs(time - at)))
-    remaining = math.ceil(duration / model.physics_dt - 1e-9) * model.physics_dt - time[i]
+    remaining = push_steps(duration, model.physics_dt) * model.physics_dt - time[i]
     xi = frame["xcom"].to_numpy()[i]
     for n in (1, 2):
         if capture.margins(model, xi, force, remaining, n)[0] >= 0:
@@ -86,9 +86,7 @@ def main() -> None:
             continue
         simulated = simulated_steps(model, frame, force, duration, ref["decision_time"])
         pairs[(ref["steps_needed"], simulated)] += 1
-        end = min(
-            math.ceil(duration / model.physics_dt - 1e-9) * model.physics_dt, ref["fall_time"]
-        )
+        end = min(push_steps(duration, model.physics_dt) * model.physics_dt, ref["fall_time"])
         cells[(force, duration)] = {
             "decision": ref["steps_needed"],
             "fall": steps_at(model, frame, force, duration, ref["fall_time"]),

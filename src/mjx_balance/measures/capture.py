@@ -43,6 +43,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..model.linear import linear_model
+from ..model.params import push_steps
 from .outcomes import DIVERGED, FELL
 
 # The most steps :func:`columns` tries; a run that two steps do not capture gets inf.
@@ -175,8 +176,7 @@ def columns(
     outcome = np.asarray(outcome)
     fell = outcome == FELL
     at = np.where(fell, np.asarray(decision_time, np.float64), 0.0)
-    n_push = np.ceil(np.asarray(duration, np.float64) / model.physics_dt - 1e-9)
-    remaining = n_push * model.physics_dt - at
+    remaining = push_steps(duration, model.physics_dt) * model.physics_dt - at
     xi = np.where(fell, np.asarray(xcom, np.float64), 0.0)
     needed = np.where(fell, math.inf, 0.0)
     one = np.full(outcome.shape, math.nan)
@@ -198,7 +198,6 @@ def decision_index(xcom: np.ndarray, force: float, duration: float, model: StepM
     the first sample whose :func:`hold_margin` is negative, else the fall sample. ``xcom`` [n]:
     the capture point after each physics step i (t = (i + 1) dt)."""
     i = np.arange(end)
-    n_push = math.ceil(duration / model.physics_dt - 1e-9)
-    remaining = (n_push - i - 1) * model.physics_dt
+    remaining = (push_steps(duration, model.physics_dt) - i - 1) * model.physics_dt
     lost = hold_margin(np, np.asarray(xcom, np.float64)[:end], force, remaining, model.data()) < 0
     return int(np.flatnonzero(lost)[0]) if lost.any() else end - 1

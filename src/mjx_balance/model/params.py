@@ -25,6 +25,7 @@ import warnings
 from dataclasses import dataclass, field, fields
 from typing import Any
 
+import numpy as np
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +77,12 @@ MAX_FRICTION = 2.0
 #   the mass and length ranges above span 1e-10 (1e-3 kg, 1e-3 m) to 1e4 * 10^2 / 12 ~ 8e3.
 INERTIA_FIELDS = ("foot_inertia", "lower_inertia", "upper_inertia")
 INERTIA_RANGE = (1e-10, 1e4)  # kg m^2
+
+
+def push_steps(durations: Any, physics_dt: float) -> np.ndarray:
+    """n_push = ceil(T / dt - 1e-9) physics steps with a push of ``durations`` [s] on (float64
+    on the host): the one rounding every path, the reference and the capture columns use."""
+    return np.ceil(np.asarray(durations, np.float64) / physics_dt - 1e-9).astype(np.int32)
 
 
 class ParameterError(ValueError):

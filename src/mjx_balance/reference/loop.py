@@ -26,7 +26,6 @@ it assumes) and solves the MPC for the prediction; the batched path does the sam
 from __future__ import annotations
 
 import functools
-import math
 import sys
 import threading
 from typing import Any, Iterator, Protocol
@@ -41,7 +40,7 @@ from ..model.linear import delay_predictor, predict
 from ..model.mjcf import build_model, indices, settled_rest
 from ..control.osqp_mpc import ReferenceMPC
 from ..measures.outcomes import SUMMARY_COLUMNS, Limits
-from ..model.params import BodyParams, Config, ControllerParams
+from ..model.params import BodyParams, Config, ControllerParams, push_steps
 from ..control.qp import CondensedQP, build_qp, rate_bounds
 from ..runtime import signals
 
@@ -408,7 +407,7 @@ def simulate_scenario(
         s,
         _Controller(mpc, ctrl, sc, lm, s.x0),
         force=force,
-        n_push=math.ceil(duration / sc.physics_dt - 1e-9),
+        n_push=int(push_steps(duration, sc.physics_dt)),
         sc=sc,
         limits=limits,
     )

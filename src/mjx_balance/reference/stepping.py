@@ -35,6 +35,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..measures.capture import MAX_STEPS, StepModel
+from ..model.params import push_steps
 
 DT = 0.002  # s: the controller's period (the physics step of the full model)
 MARGIN = 0.1  # the share of the CoP's reach the controller keeps to spare at each edge
@@ -109,7 +110,7 @@ def simulated_steps(model: StepModel, frame, force: float, duration: float, at: 
     and ``com_vel``) decided at ``at`` [s]: the steps it took when captured, inf otherwise."""
     time = frame["time"].to_numpy()
     i = int(np.argmin(np.abs(time - at)))
-    remaining = math.ceil(duration / model.physics_dt - 1e-9) * model.physics_dt - time[i]
+    remaining = push_steps(duration, model.physics_dt) * model.physics_dt - time[i]
     run = steps_to_capture(
         model, float(frame["com"].iloc[i]), float(frame["com_vel"].iloc[i]), force, remaining
     )

@@ -29,7 +29,7 @@ from ..model.linear import S as JOINT_TO_ABS
 from ..model.linear import LinearModel, delay_predictor
 from ..measures.metrics import study_energies
 from ..measures.outcomes import FELL, RECOVERED, Limits, summary_frame
-from ..model.params import Config, ControllerParams, ScenarioParams
+from ..model.params import Config, ControllerParams, ScenarioParams, push_steps
 from ..control.qp import build_qp
 from ..runtime.compiled import get_or_compile
 from .cpath import CEngine, unsupported
@@ -38,11 +38,6 @@ from .kernel import Accumulators, Arrays, Static, scenario, split_limits
 from ..model.mjcf import settled_rest
 from .physics import canonical_hfield_bounds, mj_model, mjx_model, rest_data
 from .sensing import sensors
-
-
-def push_steps(durations: np.ndarray, physics_dt: float) -> np.ndarray:
-    """n_push = ceil(T / dt - 1e-9) physics steps with the push on (float64 on the host)."""
-    return np.ceil(np.asarray(durations, np.float64) / physics_dt - 1e-9).astype(np.int32)
 
 
 def _bucket(n: int, minimum: int = 8) -> int:

@@ -38,7 +38,7 @@ import scipy.optimize
 from ..reference import loop as reference
 from ..model.mjcf import indices, settled_rest
 from ..measures.outcomes import FALL_CAUSES, OUTCOMES
-from ..model.params import Config, ParameterError
+from ..model.params import Config, ParameterError, push_steps
 from ..runs.grid import check_durations, describe, parse_grid
 from ..runs.folders import check_float32_grid
 from ..store.files import write_csv, write_parquet
@@ -323,7 +323,7 @@ def push_ends(
     rows = []
     dt = config.scenario.physics_dt
     for force, duration in tqdm(cells, unit="push", disable=not progress, desc="push ends"):
-        n_push = math.ceil(duration / dt - 1e-9)
+        n_push = int(push_steps(duration, dt))
         summary, series = reference.simulate_scenario(config, force, duration)
         assert series is not None  # (record=True, the default)
         row = {"force": force, "duration": duration, "outcome": summary["outcome"]}
