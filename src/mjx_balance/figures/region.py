@@ -37,6 +37,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.ticker import FuncFormatter
 
+from ..measures.capture import saved
 from ..measures.outcomes import OUTCOMES, RECOVERED
 from ..measures.strategy import HIP_SHARE_THRESHOLD, takeover
 from ..model.params import Config
@@ -153,12 +154,8 @@ def recovery_boundary(region: pd.DataFrame, steps: int | None = None) -> pd.Data
     a cell that did not fall needs none)."""
     rows = []
     for force, group in region.sort_values("duration").groupby("force"):
-        ok = (
-            (group["outcome"] == RECOVERED_TEXT).to_numpy()
-            if steps is None
-            else (group["outcome"] == RECOVERED_TEXT).to_numpy()
-            | (group["steps_needed"].to_numpy() <= steps)
-        )
+        in_place = (group["outcome"] == RECOVERED_TEXT).to_numpy()
+        ok = saved(in_place, group.get("steps_needed"), steps)
         durations = group["duration"].to_numpy()
         first_fail = int(np.argmin(ok)) if not ok.all() else ok.size
         rows.append(

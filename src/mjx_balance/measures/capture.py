@@ -2,7 +2,8 @@
 (docs/model.md, "Stepping: capturability").
 
 The feet-in-place run is simulated (MuJoCo, the MPC); the step is not. At the *decision
-instant*, the first sample at which the feet-in-place response fails (the fall sample of
+instant*, the first sample at which the feet in place can no longer hold the capture point
+(:func:`hold_margin` < 0, the push's remaining part counted; else the fall sample of
 ``outcomes.falls``: the foot pitches, a heel or toe lifts, a state leaves its bound), the body is
 reduced to the linear inverted pendulum (LIPM) at its CoM height above the ankle, whose
 divergent component is the instantaneous capture point xi = x + v / omega0 (the extrapolated
@@ -108,16 +109,36 @@ def step_model(config: Any) -> StepModel:
     )
 
 
+def facing(xp: Any, xcom: Any, back: Any, front: Any) -> tuple[Any, Any, Any]:
+    """(direction, front edge, back edge) of a fall, mirrored so that it runs forwards: +1
+    where the capture point ``xcom`` lies ahead of the middle of the CoP's reach [``back``,
+    ``front``] (a forward fall: steps forward, the front edge ahead), -1 behind (a backward
+    fall: the heel's reach as the front edge, steps backward). numpy or jax.numpy (``xp``)."""
+    ahead = xcom >= 0.5 * (back + front)
+    return xp.where(ahead, 1.0, -1.0), xp.where(ahead, front, -back), xp.where(ahead, back, -front)
+
+
+def saved(recovered: Any, steps_needed: Any, within: int | None) -> np.ndarray:
+    """Which runs count as recovered: in place (``recovered``, bool), or, with ``within`` not
+    None, with at most that many steps (``steps_needed``; a run that did not fall needs none).
+    The one rule of the one-step boundaries, tables, lean limits and probability maps;
+    ``steps_needed`` is not read (may be None) when ``within`` is None."""
+    ok = np.asarray(recovered, bool)
+    if within is None:
+        return ok
+    if steps_needed is None:
+        raise KeyError("steps_needed: the runs lack the capture columns")
+    return ok | (np.asarray(steps_needed, np.float64) <= within)
+
+
 def hold_margin(xp: Any, xcom: Any, force: Any, remaining: Any, data: Any) -> Any:
     """The 0-step capture margin [m] (:func:`margins` with no step, written once for numpy
     and jax.numpy): how far the capture point ``xcom`` lies inside what the stance foot can
     still hold with the push ``force`` on for ``remaining`` [s] more, edge - shift (1 -
     exp(-omega0 remaining)) - xi in the fall's direction. Negative: the feet in place cannot
     hold it; the first such sample is the decision instant. ``data``: StepModel.data()."""
-    back, front, gain, w = data[0], data[1], data[2], data[3]
-    ahead = xcom >= 0.5 * (back + front)
-    direction = xp.where(ahead, 1.0, -1.0)
-    edge = xp.where(ahead, front, -back)
+    gain, w = data[2], data[3]
+    direction, edge, _ = facing(xp, xcom, data[0], data[1])
     shift = direction * gain * force / w**2
     return edge - shift * (1 - xp.exp(-w * xp.maximum(remaining, 0 * remaining))) - direction * xcom
 
@@ -136,8 +157,7 @@ def margins(
     )
     xcom, force, remaining = np.broadcast_arrays(xcom, force, remaining)
     w, dt, length = model.omega0, model.step_time, model.step_length
-    direction = np.where(xcom >= 0.5 * (model.cop_back + model.cop_front), 1.0, -1.0)
-    reach = np.where(direction > 0, model.cop_front, -model.cop_back)
+    direction, reach, _ = facing(np, xcom, model.cop_back, model.cop_front)
     shift = direction * model.push_gain * force / w**2  # the push as a CoP offset, m
     landings = dt * np.arange(1, steps + 1)
     cuts = np.sort(

@@ -34,7 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..measures.capture import MAX_STEPS, StepModel
+from ..measures.capture import MAX_STEPS, StepModel, facing
 from ..model.params import push_steps
 
 DT = 0.002  # s: the controller's period (the physics step of the full model)
@@ -58,9 +58,9 @@ def steps_to_capture(
     [m/s] at the decision instant, the push ``force`` [N] on for ``remaining`` [s] more (see
     the module docstring). A fall backwards is mirrored (the heel's reach, steps backwards)."""
     w = model.omega0
-    direction = 1.0 if x + v / w >= 0.5 * (model.cop_back + model.cop_front) else -1.0
-    front = model.cop_front if direction > 0 else -model.cop_back
-    back = model.cop_back if direction > 0 else -model.cop_front
+    direction, front, back = (
+        float(e) for e in facing(np, x + v / w, model.cop_back, model.cop_front)
+    )
     middle, margin = 0.5 * (front + back), MARGIN * (front - back)
 
     def hold_point(shift: float) -> float:

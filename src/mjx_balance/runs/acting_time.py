@@ -23,6 +23,7 @@ from typing import Any, Callable, Iterable, Sequence
 import numpy as np
 import pandas as pd
 
+from ..measures.capture import saved
 from ..measures.outcomes import NOT_SETTLED, OUTCOMES, RECOVERED, check_results
 from ..model.params import Config, ParameterError
 from .batch import LazyBatch, RunBatch, evaluate, evaluate_batches, resume_engine
@@ -399,10 +400,8 @@ class Brackets:
 def recovers(frame: pd.DataFrame, within: int | None = None) -> np.ndarray:
     """Which runs recover: in place (outcome recovered), or with ``within`` steps at most
     (``steps_needed``, capturability: a run that did not fall needs none)."""
-    ok = frame["outcome"].to_numpy() == OUTCOMES[RECOVERED]
-    if within is None:
-        return ok
-    return ok | (frame["steps_needed"].to_numpy(float) <= within)
+    in_place = frame["outcome"].to_numpy() == OUTCOMES[RECOVERED]
+    return saved(in_place, frame.get("steps_needed"), within)
 
 
 def coarse_brackets(

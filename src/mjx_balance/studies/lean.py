@@ -43,6 +43,7 @@ import numpy as np
 import pandas as pd
 import scipy.optimize
 
+from ..measures.capture import saved
 from ..measures.outcomes import RECOVERED
 from ..model.linear import linear_model
 from ..model.params import Config
@@ -139,9 +140,7 @@ def recovers(
         padded = np.concatenate([part, np.full(SCAN - part.size, part[0])])
         zeros = np.zeros(SCAN)
         out = runner.run(zeros, zeros, lean_states(plane, padded))
-        passed = np.asarray(out["outcome"]) == RECOVERED
-        if within is not None:
-            passed |= np.asarray(out["steps_needed"]) <= within
+        passed = saved(np.asarray(out["outcome"]) == RECOVERED, out.get("steps_needed"), within)
         ok.append(passed[: part.size])
         peaks.append(np.asarray(out["peak_tau_ankle"])[: part.size])
     return np.concatenate(ok), np.concatenate(peaks)

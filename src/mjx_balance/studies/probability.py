@@ -37,6 +37,7 @@ import numpy as np
 import pandas as pd
 
 from ..figures.region import recovery_boundary
+from ..measures.capture import saved
 from ..measures.outcomes import OUTCOMES, RECOVERED
 from ..model.params import ParameterError
 
@@ -124,7 +125,7 @@ def cells(regions: dict[str, pd.DataFrame]) -> pd.DataFrame:
     every["recovered"] = every["outcome"] == RECOVERED_TEXT
     columns = {"subjects": ("recovered", "size"), "recovered_subjects": ("recovered", "sum")}
     if steps:
-        every["one_step"] = every["recovered"] | (every["steps_needed"] <= 1)
+        every["one_step"] = saved(every["recovered"], every["steps_needed"], 1)
         columns["one_step_subjects"] = ("one_step", "sum")
     frame = every.groupby(["force", "duration"], sort=True).agg(**columns).reset_index()
     n = frame["subjects"].to_numpy(int)
