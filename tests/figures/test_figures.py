@@ -20,6 +20,7 @@ from support import (
     FakeThresholdBatch,
     fake_region,
     grid_cells,
+    push_energy,
     synthetic_series,
 )
 
@@ -293,3 +294,30 @@ def test_timeseries_figures_write_states_and_inputs(tmp_path):
     names = {p.name for p in paths}
     assert {"states.png", "inputs.png", "energy.png", "ankle_angle.png", "cop.png"} <= names
     assert all(p.stat().st_size > 5_000 for p in paths)
+
+
+def test_the_step_boundaries_join_the_legend_and_it_stays_on_the_figure():
+    """With steps_needed (capturability) the map's key gains the two step boundaries; on a
+    grid where one step saves every fall the label says so, and the key, with every line the
+    default sweep's map draws (the hip's takeover too), still lies inside the figure (a longer
+    label once pushed it past both edges)."""
+    region = fake_region(
+        grid_cells(
+            np.arange(0, 160, 10.0),
+            [0.05, 0.1, 0.2, 0.5, 1.0, 1.5],
+            lambda f, d: "recovered" if f * d < 20 else "fell",
+        ),
+        steps_needed=lambda f, d: 0.0 if f * d < 20 else 1.0,
+        energy_hip=lambda f, d: push_energy(f, d) * (0.5 if f >= 30 else 0.1),
+    )
+    table = pd.DataFrame({"force": [20.0, 50.0], "max_acting_time": [0.99, 0.39]})
+    fig = region_plots.region_map(region, table=table)
+    ax = fig.axes[0]
+    texts = _legend_texts(ax)
+    assert "with one step: whole grid (top edge)" in texts
+    assert "with two steps: whole grid (top edge)" in texts
+    assert any(t.startswith("hip takes over") for t in texts), texts
+    fig.canvas.draw()
+    box, page = ax.get_legend().get_window_extent(), fig.bbox
+    assert page.x0 <= box.x0 and box.x1 <= page.x1, (box, page)
+    plt.close(fig)

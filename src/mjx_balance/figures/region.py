@@ -402,7 +402,7 @@ def _step_lines(ax, region: pd.DataFrame, fx: np.ndarray, dy: np.ndarray) -> lis
     handles = []
     for n, label in ((1, "with one step (capturability)"), (2, "with two steps")):
         if (recovery_boundary(region, n)["boundary"] >= top).all():
-            label += ": the whole grid, on its top edge"
+            label = label.split(" (")[0] + ": whole grid (top edge)"
         handles.append(boundary_line(ax, region, fx, dy, steps=n, label=label, **STEP_STYLES[n]))
     return handles
 
@@ -468,16 +468,21 @@ def _outcome_legend(
         + grid_text(forces, durations),
         fontsize=9,
     )
-    ax.legend(
-        handles=outcome_handles + handles,
-        loc="upper center",
-        bbox_to_anchor=(0.5, -0.1),
-        ncol=3,
-        fontsize=8,
-        frameon=False,
-        title=f"{len(region)} cells by outcome (count)",
-        title_fontsize=8,
-    )
+    fig = ax.get_figure()
+    for ncol in (3, 2, 1):  # three columns where they fit in the figure's width, else fewer
+        legend = ax.legend(
+            handles=outcome_handles + handles,
+            loc="upper center",
+            bbox_to_anchor=(0.5, -0.1),
+            ncol=ncol,
+            fontsize=8,
+            frameon=False,
+            title=f"{len(region)} cells by outcome (count)",
+            title_fontsize=8,
+        )
+        renderer = fig.canvas.get_renderer()
+        if legend.get_window_extent(renderer).width <= fig.bbox.width:
+            break
 
 
 def _hatch_outcomes(ax, fx: np.ndarray, dy: np.ndarray, outcome: np.ndarray) -> None:
