@@ -25,8 +25,6 @@ import warnings
 from dataclasses import dataclass, field, fields
 from typing import Any
 
-import numpy as np
-
 log = logging.getLogger(__name__)
 
 CONVENTIONS = ("paper", "joint")
@@ -79,9 +77,12 @@ INERTIA_FIELDS = ("foot_inertia", "lower_inertia", "upper_inertia")
 INERTIA_RANGE = (1e-10, 1e4)  # kg m^2
 
 
-def push_steps(durations: Any, physics_dt: float) -> np.ndarray:
+def push_steps(durations: Any, physics_dt: float) -> Any:
     """n_push = ceil(T / dt - 1e-9) physics steps with a push of ``durations`` [s] on (float64
-    on the host): the one rounding every path, the reference and the capture columns use."""
+    on the host, int32 array): the one rounding every path, the reference and the capture
+    columns use."""
+    import numpy as np  # lazy: `import mjx_balance` stays light (tests/api/test_api.py)
+
     return np.ceil(np.asarray(durations, np.float64) / physics_dt - 1e-9).astype(np.int32)
 
 
