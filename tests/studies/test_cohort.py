@@ -207,6 +207,11 @@ def test_a_cohort_resumes_subject_by_subject(tmp_path):
         (["--heights", "1.6"], "--heights and --masses go together"),
         (["--population", "3"], "--population needs --seed"),
         (["--population", "3", "--seed", "1", "--sexes", "female"], "--sexes goes with"),
+        (["--population", "3", "--seed", "1", "--ages", "30"], "--ages goes with"),
+        (["--heights", "1.6", "--masses", "60", "--age-mean", "70"], "--age-mean goes with"),
+        (["--population", "3", "--seed", "1", "--age-sd", "5"], "--age-sd goes with --age-mean"),
+        (["--heights", "1.6", "--masses", "60", "--ages", "12"], "subject.age = 12"),
+        (["--population", "3", "--seed", "1", "--age-mean", "15"], "age_mean"),
         (
             ["--heights", "1.6", "--masses", "60", "--subject", "height=1.7,mass=70"],
             "--subject is one person",

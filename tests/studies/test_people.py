@@ -108,6 +108,8 @@ def _results(dynamic, peak, forward_pct):
     for body in people.BODIES:
         config = people.human_config(body)
         out[body] = people.BodyResults(config, lean, pulls, pulls)
+    for body in people.WOMEN:  # lean and release only
+        out[body] = people.BodyResults(people.human_config(body), lean, None, None)
     return out
 
 
@@ -131,8 +133,12 @@ def test_every_people_row_has_a_kind_and_the_scorecard_scores_by_hand():
     config = people.human_config("human")
     assert latency["kind"] == "input" and pd.isna(latency["agrees"])
     assert latency["ours"] == 1000 * config.scenario.controller_delay
-    women = rows.loc["lean_release_single_step_max_angle_young_women"]
-    assert women["kind"] == "not modelled" and math.isnan(women["ours"])
+    platform = rows.loc["platform_translation_max_no_step_young"]
+    assert platform["kind"] == "not modelled" and math.isnan(platform["ours"])
+    # the women's single-step rows: the women's bodies, their subject in the settings
+    women = rows.loc["lean_release_single_step_max_angle_older_women"]
+    assert women["kind"] == "predicted" and women["body"] == "human_older_women"
+    assert women["ours"] == 20.0 and "sex=female,age=73.7" in women["settings"]
     # a single step: the one-step lean limit, a predicted row without an SD, never agreeing
     step = rows.loc["lean_release_single_step_max_angle_young_men"]
     assert step["kind"] == "predicted" and step["ours"] == 20.0 and step["agrees"] is False
@@ -146,6 +152,18 @@ def test_every_row_we_do_not_predict_says_why():
     for measure, row in people.ROWS.items():
         if row.kind != "predicted":
             assert reasons[measure].startswith(("an input", "not modelled")), measure
+
+
+def test_the_womens_bodies_are_de_levas_reference_woman_at_the_studys_ages():
+    """Wojcik et al. 1999's young (25.0 yr) and older (73.7 yr) women: de Leva's reference
+    woman's segments on the young man's body, strength and timing by age and sex."""
+    expected = segments(1.735, 61.9, "female")
+    young, older = (people.human_config(name) for name in people.WOMEN)
+    for config in (young, older):
+        for key, value in expected.items():
+            assert math.isclose(getattr(config.body, key), value, rel_tol=1e-12), key
+    assert young.controller.input1_bounds[0] < older.controller.input1_bounds[0] < 0  # weaker
+    assert young.scenario.controller_delay < older.scenario.controller_delay
 
 
 def test_the_human_body_is_de_levas_reference_man():

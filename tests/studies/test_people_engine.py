@@ -78,13 +78,15 @@ def test_the_people_folder_scores_every_row(tmp_path):
     written = pd.read_csv(out / people.PEOPLE_CSV, keep_default_na=False)
     assert list(written["measure"]) == list(card["measure"])
     predicted = card[card.kind == "predicted"]
-    assert predicted["ours"].notna().all() and len(predicted) >= 5
+    assert predicted["ours"].notna().all() and len(predicted) >= 9
     assert (card[card.kind == "not modelled"]["ours"].isna()).all()
     not_agreeing = card[card.agrees.ne(True)]
     assert (not_agreeing["reason"].str.len() > 0).all()
     limits = pd.read_csv(out / people.PEOPLE_LIMITS_CSV)
-    assert set(limits["body"]) == set(people.BODIES)
+    assert set(limits["body"]) == {*people.BODIES, *people.WOMEN}
     assert set(limits["protocol"]) == {"lean", "pull", "pull_step"}
+    women = limits[limits["body"].isin(list(people.WOMEN))]
+    assert set(women["protocol"]) == {"lean"}  # lean and release only
     for name in (people.PEOPLE_CSV, people.PEOPLE_LIMITS_CSV):
         assert units.unknown(pd.read_csv(out / name).columns) == [], name
     assert (out / people.PEOPLE_FIGURE).stat().st_size > 0

@@ -113,12 +113,20 @@ def _source_options(p: argparse.ArgumentParser) -> None:
         help="factors on the mass-scaled hip torque bound (default: 1)",
     )
     source.add_argument(
+        "--ages",
+        default=None,
+        metavar="GRID",
+        help="ages [yr]: each subject a person of that age and sex, strength and timing "
+        "scaled from the base read as a young man's (--config human; docs/model.md, 'Age and "
+        "sex'; default: no age, the base's strength scaled by mass)",
+    )
+    source.add_argument(
         "--subjects",
         type=input_file,
         default=None,
         metavar="FILE.csv",
         help="participants: a CSV file with columns height, mass and "
-        "optionally id, sex, ankle_strength, hip_strength, notes (names "
+        "optionally id, sex, ankle_strength, hip_strength, age, notes (names "
         "in any case; lines starting with # are comments)",
     )
     _population_options(source)
@@ -165,6 +173,19 @@ def _population_options(source: Any) -> None:
         default=None,
         help="probability that a subject is female (default: 0.5)",
     )
+    source.add_argument(
+        "--age-mean",
+        type=finite_float,
+        default=None,
+        help="the population's mean age [yr]: subjects with ages (as --ages) drawn from a "
+        "normal distribution truncated to 18-110 yr (default: no age)",
+    )
+    source.add_argument(
+        "--age-sd",
+        type=nonnegative_float,
+        default=None,
+        help="its standard deviation [yr] (with --age-mean; default: 0)",
+    )
 
 
 def sexes(text: str) -> list[str]:
@@ -201,7 +222,7 @@ def chosen_source(args: argparse.Namespace) -> str:
         raise ParameterError("--heights and --masses go together")
     if source == "population" and args.seed is None:
         raise ParameterError("--population needs --seed (the same seed, the same subjects)")
-    grid_only = ("sexes", "ankle_strengths", "hip_strengths")
+    grid_only = ("sexes", "ankle_strengths", "hip_strengths", "ages")
     stray = [n for n in grid_only if getattr(args, n) is not None and source != "grid"]
     if stray:
         raise ParameterError(f"--{stray[0].replace('_', '-')} goes with --heights and --masses")
@@ -212,6 +233,8 @@ def chosen_source(args: argparse.Namespace) -> str:
     ]
     if stray:  # an option that would be ignored: the user meant something else
         raise ParameterError(f"--{stray[0].replace('_', '-')} goes with --population")
+    if args.age_sd is not None and args.age_mean is None:
+        raise ParameterError("--age-sd goes with --age-mean")
     return source
 
 
@@ -222,6 +245,8 @@ POPULATION_DEFAULTS = {
     "mass_mean": 70.0,
     "mass_sd": 12.0,
     "female_fraction": 0.5,
+    "age_mean": None,
+    "age_sd": None,
 }
 
 
@@ -243,7 +268,7 @@ def subject_count(args: argparse.Namespace) -> int | None:
         parse_grid(args.masses, "--masses").size,
         len(args.sexes or ["male"]),
     ]
-    for name in ("ankle_strengths", "hip_strengths"):
+    for name in ("ankle_strengths", "hip_strengths", "ages"):
         option = getattr(args, name)
         sizes.append(parse_grid(option, f"--{name.replace('_', '-')}").size if option else 1)
     return math.prod(sizes)
@@ -269,6 +294,7 @@ def members_from(args: argparse.Namespace) -> list:
         args.sexes or ["male"],
         parse_grid(args.ankle_strengths, "--ankle-strengths") if args.ankle_strengths else [1.0],
         parse_grid(args.hip_strengths, "--hip-strengths") if args.hip_strengths else [1.0],
+        parse_grid(args.ages, "--ages") if args.ages else [None],
     )
 
 

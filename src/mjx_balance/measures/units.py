@@ -151,6 +151,7 @@ UNITS: dict[str, tuple[str, str]] = {
     "sex": ("", "male or female (de Leva's table)"),
     "ankle_strength": ("1", "factor on the mass-scaled ankle torque bound"),
     "hip_strength": ("1", "factor on the mass-scaled hip torque bound"),
+    "age": ("yr", "the subject's age (strength and timing by age and sex; empty: none given)"),
     "statistic": ("", "mean, sd (n - 1), p5, p50 or p95 over the subjects"),
     # --- cohort_probability.csv and cohort_probability_boundaries.csv (studies.probability)
     "subjects": ("1", "count of subjects whose map holds the cell"),

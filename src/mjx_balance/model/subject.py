@@ -42,6 +42,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any, NamedTuple
 
+from .ageing import AGE_RANGE, ageing
 from .params import (
     BodyParams,
     Config,
@@ -220,20 +221,29 @@ class Subject:
     as its +-0.15 m on its 0.30-m foot), and the input
     bounds of ``base`` times ``mass / M_base`` (the base body's total mass: the study's 66.3 kg,
     the human bodies' 73 kg) times ``ankle_strength``
-    (input 1) or ``hip_strength`` (input 2)."""
+    (input 1) or ``hip_strength`` (input 2).
+
+    With an ``age`` [yr], the base is read as a young man's body (``sweeps/human.toml``) and
+    the subject's strength, rate of torque development, onset latency and step time are a
+    person's of that age and sex (``model.ageing``; docs/model.md, "Age and sex"); without one
+    (the default) the sex changes the segments only."""
 
     height: float
     mass: float
     sex: str = "male"
     ankle_strength: float = 1.0
     hip_strength: float = 1.0
+    age: float | None = None  # yr; None: the base's strength and timing, scaled by mass only
 
     def __post_init__(self) -> None:
-        for name in ("height", "mass", "ankle_strength", "hip_strength"):
+        named = ("height", "mass", "ankle_strength", "hip_strength")
+        for name in named + (("age",) if self.age is not None else ()):
             if not is_number(getattr(self, name)):
                 fail("subject", name, "must be a number", getattr(self, name))
             object.__setattr__(self, name, float(getattr(self, name)))
         check_finite("subject", self)
+        if self.age is not None:
+            check_range("subject", self, ("age",), *AGE_RANGE, "yr")
         if self.sex not in SEXES:
             fail("subject", "sex", f"must be one of {SEXES}", self.sex)
         check_range("subject", self, ("height",), *HEIGHT_RANGE, "m")
@@ -271,35 +281,65 @@ class Subject:
         edges = (-body.ankle_position * length, (1 - body.ankle_position) * length)
         scale = self.mass / body.total_mass
         factors = (scale * self.ankle_strength, scale * self.hip_strength)
+        bounds = [base.input1_bounds, base.input2_bounds]
+        rates = factors
+        if self.age is not None:  # a person's strength and rate at this age and sex
+            aged = ageing(self.age, self.sex)
+            (low, high), hip = bounds
+            bounds = [(low * aged.plantarflexion, high * aged.dorsiflexion), hip]
+            factors = (factors[0], factors[1] * aged.hip)
+            rates = (rates[0] * aged.rate, rates[1] * aged.rate)
         values: dict[str, tuple[float, ...]] = {
             "cop_bounds": edges,
             "com_bounds": edges,
-            "input1_bounds": tuple(v * factors[0] for v in base.input1_bounds),
-            "input2_bounds": tuple(v * factors[1] for v in base.input2_bounds),
+            "input1_bounds": tuple(v * factors[0] for v in bounds[0]),
+            "input2_bounds": tuple(v * factors[1] for v in bounds[1]),
         }
         if base.input_rates is not None:
-            values["input_rates"] = tuple(r * f for r, f in zip(base.input_rates, factors))
+            values["input_rates"] = tuple(r * f for r, f in zip(base.input_rates, rates))
         return values
+
+    def timing(self, base: Config) -> dict[str, dict[str, float]]:
+        """The onset latency (on the physics step's grid) and the step's landing time of a
+        subject with an age (``model.ageing``); empty without one."""
+        if self.age is None:
+            return {}
+        aged = ageing(self.age, self.sex)
+        dt = base.scenario.physics_dt
+        delay = round(dt * round((base.scenario.controller_delay + aged.onset) / dt), 12)
+        return {
+            "scenario": {"controller_delay": delay},
+            "body": {"step_time": base.body.step_time + aged.step_time},
+        }
 
     def config(self, base: Config | None = None) -> Config:
         """``base`` (None: the defaults, the study's configuration) with this subject's body."""
         base = Config() if base is None else base
+        timing = self.timing(base)
         return base.replace(
-            body=self.body_values(),
+            body={**self.body_values(), **timing.get("body", {})},
             controller=self.controller_values(base.controller, base.body),
+            **({"scenario": timing["scenario"]} if timing else {}),
         )
 
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """The fields (``age`` only when given: records of subjects without one unchanged)."""
+        record = dataclasses.asdict(self)
+        if self.age is None:
+            del record["age"]
+        return record
 
     def describe(self) -> str:
-        """``height=1.62,mass=58,sex=female`` (the --subject form; strengths when not 1)."""
+        """``height=1.62,mass=58,sex=female`` (the --subject form; strengths when not 1, the
+        age when given)."""
         parts = [f"height={self.height:g}", f"mass={self.mass:g}", f"sex={self.sex}"]
         parts += [
             f"{n}={getattr(self, n):g}"
             for n in ("ankle_strength", "hip_strength")
             if getattr(self, n) != 1.0
         ]
+        if self.age is not None:
+            parts.append(f"age={self.age:g}")
         return ",".join(parts)
 
 

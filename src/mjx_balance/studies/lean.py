@@ -62,6 +62,9 @@ from .thresholds import (
 )
 
 MAX_LEAN_DEG = 30.0  # the scan's upper end: beyond any lean a feet-in-place body recovers
+# The one-step scan's upper end: people's single-step limits reach 32.5 deg (young men, Thelen
+# et al. 1997), beyond the feet-in-place scan's; no one-step recovery from 60 deg was reported
+MAX_STEP_LEAN_DEG = 60.0
 
 
 @dataclass(frozen=True)
@@ -180,7 +183,7 @@ def lean_limits(
     )
     stepped = largest_passing(
         lambda leans: recovers(runner, plane, leans, within=1),
-        MAX_LEAN_DEG,
+        MAX_STEP_LEAN_DEG,
         resolution,
         lambda low, high: say(
             f"lean and release, one step: recovers at {low:.3f} deg, not at {high:.3f} deg"
@@ -231,7 +234,7 @@ LIMITS_CSV = "lean_limits.csv"  # every limit (LeanLimits.row)
 def planned_scenarios(resolution: float) -> int:
     """The most scenarios :func:`lean_limits` runs (``thresholds.planned_runs``: in place, and
     with one step)."""
-    return 2 * planned_runs(MAX_LEAN_DEG, resolution)
+    return planned_runs(MAX_LEAN_DEG, resolution) + planned_runs(MAX_STEP_LEAN_DEG, resolution)
 
 
 def run_lean(

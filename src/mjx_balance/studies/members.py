@@ -8,7 +8,8 @@ with ``seed``; subject by subject: sex (female with probability ``female_fractio
 height ~ Normal(height_mean, height_sd) and mass ~ Normal(mass_mean, mass_sd), independent,
 each redrawn until it lies in the range a Subject accepts (``subject.HEIGHT_RANGE``, then
 ``SUBJECT_MASS_RANGE`` narrowed to the body mass indices of ``BMI_RANGE`` at that height): a
-truncated normal. The same seed gives the same subjects.
+truncated normal; with ``age_mean``, then age ~ Normal(age_mean, age_sd) in ``ageing.AGE_RANGE``
+(to 0.1 yr). The same seed gives the same subjects.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..model.params import ParameterError
+from ..model.ageing import AGE_RANGE
 from ..model.subject import BMI_RANGE, HEIGHT_RANGE, SUBJECT_MASS_RANGE, Subject, subject_rows
 
 ID_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
@@ -86,13 +88,14 @@ def subject_grid(
     sexes: Sequence[str] = ("male",),
     ankle_strengths: Sequence[float] | np.ndarray = (1.0,),
     hip_strengths: Sequence[float] | np.ndarray = (1.0,),
+    ages: Sequence[float | None] | np.ndarray = (None,),
 ) -> list[Member]:
-    """Every combination of the lists (heights vary slowest), numbered s01, s02, ...; a value
-    a Subject refuses raises ParameterError naming it."""
+    """Every combination of the lists (heights vary slowest, ages fastest), numbered s01, s02,
+    ...; a value a Subject refuses raises ParameterError naming it."""
     subjects = [
-        Subject(float(h), float(m), str(s), float(a), float(p))
-        for h, m, s, a, p in itertools.product(
-            heights, masses, sexes, ankle_strengths, hip_strengths
+        Subject(float(h), float(m), str(s), float(a), float(p), None if y is None else float(y))
+        for h, m, s, a, p, y in itertools.product(
+            heights, masses, sexes, ankle_strengths, hip_strengths, ages
         )
     ]
     return numbered(subjects)
@@ -127,21 +130,27 @@ def population(
     mass_mean: float = 70.0,
     mass_sd: float = 12.0,
     female_fraction: float = 0.5,
+    age_mean: float | None = None,
+    age_sd: float | None = None,
 ) -> list[Member]:
     """``n`` subjects drawn with ``np.random.default_rng(seed)`` (module docstring: sex, then
-    truncated-normal height and mass, independent), numbered s01, s02, ..."""
+    truncated-normal height and mass, independent, then with ``age_mean`` a truncated-normal
+    age), numbered s01, s02, ..."""
     checks = {
         "n": (n, n >= 1 and float(n).is_integer()),
         "seed": (seed, seed >= 0 and float(seed).is_integer()),
         "height_sd": (height_sd, height_sd >= 0),
         "mass_sd": (mass_sd, mass_sd >= 0),
         "female_fraction": (female_fraction, 0 <= female_fraction <= 1),
+        "age_mean": (age_mean, age_mean is None or AGE_RANGE[0] <= age_mean <= AGE_RANGE[1]),
+        "age_sd": (age_sd, age_sd is None or age_sd >= 0),
     }
     for name, (value, ok) in checks.items():
-        if not (math.isfinite(float(value)) and ok):
+        if not ((value is None or math.isfinite(float(value))) and ok):
             raise ParameterError(
                 f"population {name} = {value!r}: out of range (n >= 1 and "
-                "seed >= 0 whole, SDs >= 0, female_fraction in [0, 1])"
+                "seed >= 0 whole, SDs >= 0, female_fraction in [0, 1], age_mean in "
+                f"[{AGE_RANGE[0]:g}, {AGE_RANGE[1]:g}] yr)"
             )
     rng = np.random.default_rng(int(seed))
     subjects = []
@@ -151,7 +160,10 @@ def population(
         low = max(SUBJECT_MASS_RANGE[0], BMI_RANGE[0] * height**2)  # a body that can be
         high = min(SUBJECT_MASS_RANGE[1], BMI_RANGE[1] * height**2)  # (subject.BMI_RANGE)
         mass = _truncated(rng, mass_mean, mass_sd, low, high, "mass")
-        subjects.append(Subject(height, _rounded_within(mass, low, high), sex))
+        age = None  # drawn last: a population without ages draws what it drew before
+        if age_mean is not None:
+            age = round(_truncated(rng, age_mean, age_sd or 0.0, *AGE_RANGE, "age"), 1)
+        subjects.append(Subject(height, _rounded_within(mass, low, high), sex, age=age))
     return numbered(subjects)
 
 

@@ -5,15 +5,16 @@ Two bodies, each a shipped configuration whose every number is a cited measureme
 (``sweeps/human.toml``, a young man; ``sweeps/human_older.toml``, an older man; docs/model.md,
 "Human bodies"), each run through the protocols on the batched engine: lean and release
 (``studies.lean``, with the ankle strategy alone, as that experiment asked) and the held waist
-pull (``studies.pull``, loaded gradually as a spring-scale test, and at once).
+pull (``studies.pull``, loaded gradually as a spring-scale test, and at once); and two women
+(:data:`WOMEN`: the young man's body as a young and an older woman, ``model.ageing``) through
+lean and release, for the women's single-step rows.
 
 Each reference row is one of three kinds (:data:`ROWS`):
 
 - ``predicted``: a protocol's output, held against the published mean +- 2 SD (``agrees``);
 - ``input``: a number the body takes from that very row (the onset latency, the rate of torque
   development): shown so the reader sees what went in, never counted as agreement;
-- ``not modelled``: a protocol or a body the tool does not have yet (a moving platform, a
-  woman's body).
+- ``not modelled``: a protocol the tool does not have yet (a moving platform).
 
 Every predicted row that does not agree, and every row not modelled, carries the reason found
 by measurement (people.csv's ``reason`` column, written from docs/studies.md's tables).
@@ -32,6 +33,7 @@ import pandas as pd
 from ..figures.people import plot_people
 from ..model.config_files import load_config
 from ..model.params import Config
+from ..model.subject import Subject
 from ..runs.chunks import PlanHook, PlannedWork
 from ..runs.definitions import find_sweep
 from ..store.files import write_csv
@@ -41,6 +43,14 @@ from .references import read_people
 from .thresholds import agreement, protocol_folder
 
 BODIES = ("human", "human_older")  # shipped configurations (sweeps/), young and older
+# Women's bodies for the single-step rows of Wojcik et al. 1999 (young women mean 25.0 yr, older
+# women 73.7 yr; their statures and masses are not in the abstract: de Leva's reference woman,
+# 1.735 m and 61.9 kg): the young man's body as a woman of that age (model.ageing: strength and
+# timing by age and sex, each from a cited measurement). Lean and release only.
+WOMEN = {
+    "human_women": Subject(1.735, 61.9, "female", age=25.0),
+    "human_older_women": Subject(1.735, 61.9, "female", age=73.7),
+}
 
 
 @dataclass(frozen=True)
@@ -56,7 +66,10 @@ class Row:
 LEAN = "mjx-balance lean --config {body}"
 PULL = "mjx_balance.waist_pull: the pull at the hip rising over 5 s, then held, {body}"
 ONE_STEP = LEAN + " (one step: capturability from the feet-in-place runs)"
-WOMEN = "a woman's body (the shipped human bodies are men's)"
+ONE_STEP_WOMAN = (
+    "mjx-balance lean --config human --subject {subject} (one step: capturability from the "
+    "feet-in-place runs)"
+)
 ROWS: dict[str, Row] = {
     "lean_release_static_recovery_limit_young": Row(
         "predicted", "human", "lean.static_deg", LEAN + " (static limit)"
@@ -79,8 +92,12 @@ ROWS: dict[str, Row] = {
     "lean_release_single_step_max_angle_older_men": Row(
         "predicted", "human_older", "lean.one_step_deg", ONE_STEP
     ),
-    "lean_release_single_step_max_angle_young_women": Row("not modelled", settings=WOMEN),
-    "lean_release_single_step_max_angle_older_women": Row("not modelled", settings=WOMEN),
+    "lean_release_single_step_max_angle_young_women": Row(
+        "predicted", "human_women", "lean.one_step_deg", ONE_STEP_WOMAN
+    ),
+    "lean_release_single_step_max_angle_older_women": Row(
+        "predicted", "human_older_women", "lean.one_step_deg", ONE_STEP_WOMAN
+    ),
     "waist_pull_step_threshold_older_fallers": Row(
         "predicted", "human_older", "pull.forward_pct", PULL + " (forward)"
     ),
@@ -103,8 +120,8 @@ class BodyResults:
 
     config: Config
     lean: LeanLimits
-    pull: PullLimits  # the pull loaded gradually (pull.RAMP), as a spring-scale test
-    pull_step: PullLimits  # the pull applied at once and held (the sustained push's loading)
+    pull: PullLimits | None  # the pull loaded gradually (pull.RAMP), as a spring-scale test
+    pull_step: PullLimits | None  # the pull applied at once and held (the sustained push's)
 
     def value(self, name: str) -> float:
         """``lean.<field>``, ``pull.<field>`` or an input (``delay_ms``, ``ankle_rate``)."""
@@ -120,13 +137,18 @@ class BodyResults:
         """The limits as people_limits.csv rows (body, protocol, measure, value)."""
         out = []
         for protocol in ("lean", "pull", "pull_step"):
-            for measure, value in getattr(self, protocol).row().items():
+            limits = getattr(self, protocol)
+            if limits is None:  # not run on this body
+                continue
+            for measure, value in limits.row().items():
                 out.append({"body": body, "protocol": protocol, "measure": measure, "value": value})
         return out
 
 
 def human_config(name: str) -> Config:
-    """The shipped human body ``name`` (BODIES)."""
+    """The shipped human body ``name`` (BODIES) or a woman's (WOMEN: on the young man's)."""
+    if name in WOMEN:
+        return WOMEN[name].config(load_config(find_sweep(BODIES[0])))
     return load_config(find_sweep(name))
 
 
@@ -157,14 +179,17 @@ def body_results(
     pull_resolution: float = 0.5,
     slots: int | None = None,
     say: Callable[[str], None] | None = None,
+    pull: bool = True,
 ) -> BodyResults:
     """Lean and release with the ankle strategy alone (:func:`ankle_strategy`, as the
-    experiment asked) and the held waist pull of ``config`` (ankle and hip), each on the
-    batched engine."""
+    experiment asked) and, with ``pull``, the held waist pull of ``config`` (ankle and hip),
+    each on the batched engine."""
     ankle = ankle_strategy(config)
     lean = lean_limits(ankle, resolution=lean_resolution, slots=slots, say=say)
     pulls = [
         pull_limits(config, resolution=pull_resolution, ramp=ramp, slots=slots, say=say)
+        if pull
+        else None
         for ramp in (RAMP, 0.0)
     ]
     return BodyResults(config, lean, *pulls)
@@ -187,7 +212,10 @@ def scorecard(results: dict[str, BodyResults], people: pd.DataFrame | None = Non
                 "population": ref["population"],
                 "kind": row.kind,
                 "body": row.body,
-                "settings": row.settings.format(body=row.body),
+                "settings": row.settings.format(
+                    body=row.body,
+                    subject=WOMEN[row.body].describe() if row.body in WOMEN else "",
+                ),
                 "unit": ref["unit"],
                 "published_mean": ref["mean"],
                 "published_sd": ref["sd"],
@@ -215,8 +243,9 @@ def planned_people(
     """The most scenarios :func:`run_people` runs on ``configs`` (every body, both
     protocols)."""
     return sum(
-        planned_scenarios(lean_resolution) + 2 * planned_pulls(c, pull_resolution)
-        for c in configs.values()
+        planned_scenarios(lean_resolution)
+        + (0 if name in WOMEN else 2 * planned_pulls(c, pull_resolution))
+        for name, c in configs.items()
     )
 
 
@@ -235,7 +264,7 @@ def run_people(
     bodies (a folder made with other bodies is refused). Returns people.csv's rows."""
     check_resolution(lean_resolution)
     check_pull_resolution(pull_resolution)
-    configs = {b: human_config(b) for b in BODIES}
+    configs = {b: human_config(b) for b in (*BODIES, *WOMEN)}
     if plan is not None:
         total = planned_people(configs, lean_resolution, pull_resolution)
         plan(PlannedWork(configs[BODIES[0]], total, "scenarios", note="the people scorecard"))
@@ -257,6 +286,7 @@ def run_people(
                 pull_resolution=pull_resolution,
                 slots=slots,
                 say=say,
+                pull=body not in WOMEN,
             )
         card = scorecard(results)
         limits = pd.DataFrame([r for b, res in results.items() for r in res.rows(b)])
