@@ -239,7 +239,7 @@ def chosen_source(args: argparse.Namespace) -> str:
 
 
 # --population's distributions when not given (studies.members.population's defaults)
-POPULATION_DEFAULTS = {
+POPULATION_DEFAULTS: dict[str, float | None] = {
     "height_mean": 1.70,
     "height_sd": 0.09,
     "mass_mean": 70.0,
@@ -283,7 +283,7 @@ def members_from(args: argparse.Namespace) -> list:
     if source == "csv":
         return members.read_subjects(args.subjects)
     if source == "population":
-        given = {
+        given: dict[str, Any] = {
             k: v if getattr(args, k) is None else getattr(args, k)
             for k, v in POPULATION_DEFAULTS.items()
         }

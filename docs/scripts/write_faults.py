@@ -1,0 +1,202 @@
+"""Every write site faulted (docs/reliability.md, "Every write site faulted"): a small run of a
+command, and again with its k-th file opened for writing failing, for every k.
+
+    python docs/scripts/write_faults.py --command sweep [--out /tmp/write_faults] [--limit N]
+
+The shim ``write_faults.c`` (compiled here with the C compiler, loaded with LD_PRELOAD) counts
+every file opened for writing under the run's folder (its tables, chunks, manifests, locks,
+exports, figures, the report) and under the compilation cache, in every library of the process
+(Python, Arrow, matplotlib, XLA). A first run counts them: the write sites (distinct paths, digits
+and temporary names folded) and the opens. Then for each k, a fresh folder and the same command
+with the k-th open failing: where the counted run wrote through that open, ``ENOSPC`` or ``EIO``
+(in turn) at its first write and every later one, as a full disk or a failing one; where it did
+not (a temporary file made, then written through another open), ``EROFS`` at the open itself.
+Each faulted run must
+
+- exit non-zero with one line on stderr naming the file and the cause, no traceback; or exit 0
+  where the fault struck the compilation cache (a cache that cannot be written costs a compile,
+  not the run) with every table as the clean run's;
+- leave no table (a .csv or .parquet file) that differs from the clean run's other than by
+  being absent, and no temporary file;
+
+and the same command rerun without a fault in the same folder must exit 0 with every table byte
+for byte the clean run's. Last, a run on an empty compilation cache whose first entry cannot be
+written must complete as the clean run. The table printed is the one in docs/reliability.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import errno
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+T_END = ["--set", "scenario.t_end=1"]
+COMMANDS = {
+    "sweep": ["sweep", "--forces", "0,80", "--durations", "0.1,0.5", *T_END],
+    "table": ["table", "--forces", "40", *T_END],
+    "simulate": ["simulate", "--forces", "0,60", "--durations", "0.2", *T_END],
+    "cohort": ["cohort", "--heights", "1.6,1.8", "--masses", "60", "--forces", "0,80",
+               "--durations", "0.2", *T_END],
+    "report": ["report", "--scale", "tiny", "--studies", "backward"],
+}
+ERRNOS = (errno.ENOSPC, errno.EIO, errno.EROFS)
+
+
+def shim(build: Path) -> Path:
+    """The shim, compiled into ``build``."""
+    library = build / "write_faults.so"
+    subprocess.run(["cc", "-shared", "-fPIC", "-O2", "-w", "-o", str(library),
+                    str(HERE / "write_faults.c")], check=True)
+    return library
+
+
+def run(argv, out: Path, cache: Path, library: Path, log: Path, fail_at: int = 0,
+        code: int = 0) -> subprocess.CompletedProcess:
+    env = dict(os.environ, LD_PRELOAD=str(library), WF_ROOT=f"{out}:{cache}", WF_LOG=str(log),
+               WF_FAIL_AT=str(fail_at), WF_ERRNO=str(code),
+               MJX_BALANCE_CACHE_DIR=str(cache))
+    return subprocess.run([sys.executable, "-m", "mjx_balance", "-q", *argv, "--out", str(out)],
+                          env=env, capture_output=True, text=True)
+
+
+def tables(out: Path) -> dict[str, bytes]:
+    """Every table under ``out`` (each .csv and .parquet file), by relative path."""
+    return {str(p.relative_to(out)): p.read_bytes()
+            for p in sorted(out.rglob("*")) if p.is_file() and p.suffix in (".csv", ".parquet")}
+
+
+def temporary(out: Path) -> list[str]:
+    return [str(p) for p in out.rglob("*") if p.name.startswith(".") and ".tmp" in p.name]
+
+
+def site(path: str, out: Path, cache: Path) -> str:
+    """A write site: the path under its root with digits and temporary names folded."""
+    for root, name in ((out, "OUT"), (cache, "CACHE")):
+        if path.startswith(str(root)):
+            path = name + path[len(str(root)):]
+    path = re.sub(r"/\.([^/]+)\.[^./]+\.tmp$", r"/.\1.*.tmp", path)
+    path = re.sub(r"/tmp[a-z0-9_]{6,}", "/tmp*", path)
+    path = re.sub(r"[0-9a-f]{16,}", "<hash>", path)
+    return re.sub(r"\d+", "#", path)
+
+
+def entries(log: Path, kind: str) -> dict[int, str]:
+    """The log's ``kind`` lines ("open", "write", "fault") as count -> path."""
+    out = {}
+    for line in log.read_text().splitlines() if log.exists() else []:
+        word, n, path = line.split(" ", 2)
+        if word == kind:
+            out.setdefault(int(n), path)
+    return out
+
+
+def struck(log: Path) -> str | None:
+    faults = entries(log, "fault")
+    return next(iter(faults.values())) if faults else None
+
+
+def verdict(proc, path: str | None, code: int, cache: Path, clean: dict, out: Path) -> str:
+    """'' when the faulted run behaved, else what went wrong."""
+    lines = proc.stderr.strip().splitlines()
+    got = tables(out)
+    stray = [n for n, data in got.items() if clean.get(n) != data]
+    if stray:
+        return f"table {stray[0]} differs from the clean run's"
+    if "Traceback" in proc.stderr:
+        return "traceback"
+    if path is None:  # opened but never written: nothing failed
+        return "" if proc.returncode == 0 else f"exit {proc.returncode} without a fault"
+    if proc.returncode == 0:
+        return "" if path.startswith(str(cache)) else "exit 0 after a failed write"
+    if len(lines) != 1:
+        return f"{len(lines)} lines on stderr"
+    if os.strerror(code) not in lines[0]:
+        return "the cause is not named"
+    if Path(path).name not in lines[0] and str(Path(path).parent) not in lines[0]:
+        return "the file is not named"
+    return ""
+
+
+def cold_cache(argv, root: Path, library: Path, clean: dict) -> str:
+    """A run on an empty compilation cache whose first cache entry cannot be written: it
+    must complete with the clean run's tables (a cache that cannot be written costs a compile
+    next time, not this run). '' when it does."""
+    cache, out, log = root / "cold-cache", root / "cold", root / "cold.log"
+    proc = run(argv, out, cache, library, log, 1, errno.ENOSPC)
+    path = struck(log)
+    if path is None or not path.startswith(str(cache)):
+        return f"the fault struck {path}, not the cache"
+    if proc.returncode != 0 or "Traceback" in proc.stderr:
+        return f"exit {proc.returncode}: {proc.stderr.strip()[-200:]}"
+    return "" if tables(out) == clean else "tables differ"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--command", choices=sorted(COMMANDS), default="sweep")
+    parser.add_argument("--out", type=Path, default=Path("/tmp/write_faults"))
+    parser.add_argument("--limit", type=int, default=0, help="fault at most N opens (0: all)")
+    args = parser.parse_args()
+    shutil.rmtree(args.out, ignore_errors=True)
+    args.out.mkdir(parents=True)
+    library = shim(Path(tempfile.mkdtemp(dir=args.out)))
+    argv = COMMANDS[args.command]
+    cache = args.out / "cache"
+    clean_out, log = args.out / "clean", args.out / "clean.log"
+    first = run(argv, clean_out, cache, library, log)
+    assert first.returncode == 0, first.stderr
+    # counted once the cache has settled (the run after the first records the cache entries
+    # it checked, verified.json: a write the later runs do not make), so that the k-th open of
+    # the counted run is the k-th of every faulted run
+    for name in ("settle", "counted"):
+        counted = run(argv, args.out / name, cache, library, args.out / f"{name}.log")
+        assert counted.returncode == 0, counted.stderr
+    clean = tables(clean_out)
+    cold = cold_cache(argv, args.out, library, clean)
+    paths = entries(args.out / "counted.log", "open")
+    written = entries(args.out / "counted.log", "write")
+    sites = sorted({site(p, args.out / "counted", cache) for p in paths.values()})
+    n = len(paths) if not args.limit else min(args.limit, len(paths))
+    print(f"{args.command}: {len(paths)} files opened for writing ({len(written)} written "
+          f"through), {len(sites)} write sites, {len(clean)} tables; faulting opens 1..{n}")
+    for s in sites:
+        print(f"  site {s}")
+    print("| k | file | errno | exit | stderr | rerun exit | tables identical | verdict |")
+    print("|---|---|---|---|---|---|---|---|")
+    failures = 0
+    for k in range(1, n + 1):
+        if k in written:  # ENOSPC, EIO in turn
+            code = ERRNOS[sorted(written).index(k) % 2]
+        else:
+            code = errno.EROFS
+        out, log = args.out / f"k{k:03d}", args.out / f"k{k:03d}.log"
+        proc = run(argv, out, cache, library, log, k, code)
+        path = struck(log)
+        problem = verdict(proc, path, code, cache, clean, out)
+        left = temporary(out)
+        if left and not problem:
+            problem = f"temporary file left: {left[0]}"
+        again = run(argv, out, cache, library, args.out / f"k{k:03d}.rerun.log")
+        same = again.returncode == 0 and tables(out) == clean
+        if not same and not problem:
+            problem = f"the rerun: exit {again.returncode}, tables differ"
+        failures += bool(problem)
+        shown = site(path, out, cache) if path else "(not written)"
+        line = proc.stderr.strip().splitlines()[-1][:90] if proc.stderr.strip() else ""
+        print(f"| {k} | {shown} | {errno.errorcode[code]} | {proc.returncode} | {line} | "
+              f"{again.returncode} | {'yes' if same else 'NO'} | {problem or 'ok'} |", flush=True)
+    print(f"cold cache, its first entry's write failing (ENOSPC): {cold or 'ok'}")
+    failures += bool(cold)
+    print(f"{failures} failed of {n + 1}")
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
