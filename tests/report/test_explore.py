@@ -454,3 +454,63 @@ def test_the_browser_is_opened_only_where_a_window_can_open(sweep, monkeypatch):
     explorer = mb.explore(sweep, browser=True)
     explorer.stop()
     assert opened == [explorer.url]
+
+
+KILLED_WRITER = """
+import os, signal, sys
+from pathlib import Path
+import pandas as pd
+from mjx_balance.report.explore import Explorer, runs
+from mjx_balance.store.files import write_atomic
+
+def half_then_killed(frame, path):  # the kept run's atomic write, killed half-way
+    def write(tmp):
+        Path(tmp).write_bytes(b"PAR1" + b"half a parquet file")
+        os.kill(os.getpid(), signal.SIGKILL)
+    write_atomic(path, write)
+
+runs.write_parquet = half_then_killed
+explorer = Explorer(Path(sys.argv[1]))
+frame = pd.read_parquet(Path(sys.argv[1]) / "explore" / "20.0_0.1.parquet")
+explorer.runs.simulate = lambda config, f, d, record=True: (
+    {**frame.attrs["summary"], "force": f, "duration": d}, frame.assign(force=f, duration=d)
+)
+explorer.run_json({"map": [""], "force": ["30"], "duration": ["0.5"]})
+"""
+
+
+def test_a_server_killed_while_keeping_a_run_serves_no_half_file(server, sweep, tmp_path):
+    """SIGKILL in the middle of writing a cell's kept run (issue 53, item 2): the run's file is
+    written beside its name and renamed whole, so the kill leaves only a hidden temporary file:
+    the next server computes the cell again, never reads or serves the half file (/files/
+    refuses hidden names), and keeps the run whole."""
+    import signal
+    import subprocess
+    import sys
+
+    get(server, "/api/run?map=&force=20&duration=0.1")  # the real run, kept (the stand-in's)
+    folder = tmp_path / "killed"
+    shutil.copytree(sweep, folder, ignore=shutil.ignore_patterns(".lock", "escape.txt"))
+    proc = subprocess.run(
+        [sys.executable, "-c", KILLED_WRITER, str(folder)], capture_output=True, text=True
+    )
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    kept = folder / "explore" / "30.0_0.5.parquet"
+    left = list(kept.parent.glob(".30.0_0.5.parquet.*.tmp"))
+    assert not kept.exists() and len(left) == 1 and left[0].read_bytes().startswith(b"PAR1half")
+    with Explorer(folder) as again:
+        status, _ = get(again, f"/files/explore/{left[0].name}")
+        assert status == 403  # a hidden name is never served
+        calls = []
+        frame = pd.read_parquet(folder / "explore" / "20.0_0.1.parquet")
+
+        def stand_in(config, force, duration, record=True):
+            calls.append((force, duration))
+            return {**frame.attrs["summary"], "force": force, "duration": duration}, frame.assign(
+                force=force, duration=duration
+            )
+
+        again.runs.simulate = stand_in
+        status, run = get(again, "/api/run?map=&force=30&duration=0.5")
+        assert status == 200 and not run["cached"] and calls == [(30.0, 0.5)]
+    assert pd.read_parquet(kept).attrs["summary"]["force"] == 30.0  # whole, read back
