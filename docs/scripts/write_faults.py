@@ -119,7 +119,8 @@ def verdict(proc, path: str | None, code: int, cache: Path, clean: dict, out: Pa
         return f"{len(lines)} lines on stderr"
     if os.strerror(code) not in lines[0]:
         return "the cause is not named"
-    if Path(path).name not in lines[0] and str(Path(path).parent) not in lines[0]:
+    name = re.sub(r"^\.(.+)\.[^.]+\.tmp$", r"\1", Path(path).name)  # an atomic write's target
+    if name not in lines[0] and Path(path).name not in lines[0]:
         return "the file is not named"
     return ""
 

@@ -696,3 +696,57 @@ def test_a_sweep_refuses_a_folder_of_another_kind(tmp_path, capsys, fake_rollout
     ]
     assert sorted(p.name for p in out.iterdir()) == [".lock", "manifest.json"]
     assert json.loads((out / "manifest.json").read_text()) == manifest
+
+
+def test_a_failed_write_names_the_file_and_its_cause(tmp_path):
+    """Arrow's write errors carry no file and no errno (only "[errno 28]" in their text), and
+    Python's name the temporary file: write_atomic raises an OSError naming the file being
+    written with the errno's own words (docs/scripts/write_faults.py found chunk writes named
+    only by their folder)."""
+    from mjx_balance.store.files import write_atomic
+
+    def arrow_like(tmp):
+        raise OSError("Error writing bytes to file. Detail: [errno 28] No space left on device")
+
+    target = tmp_path / "chunk-00000.parquet"
+    with pytest.raises(OSError) as caught:
+        write_atomic(target, arrow_like)
+    assert caught.value.errno == errno.ENOSPC and caught.value.filename == str(target)
+    assert caught.value.strerror == os.strerror(errno.ENOSPC)
+
+    def refused(tmp):
+        raise PermissionError(errno.EROFS, os.strerror(errno.EROFS), str(tmp))
+
+    with pytest.raises(OSError) as caught:
+        write_atomic(target, refused)
+    assert caught.value.filename == str(target) and caught.value.errno == errno.EROFS
+    assert not list(tmp_path.iterdir())  # no temporary file left
+
+
+def test_a_completed_run_whose_manifest_cannot_be_written_fails(
+    tmp_path, fake_rollout, capsys, monkeypatch
+):
+    """The run's last record (completed, its end) failing to be written is an error, one line
+    naming manifest.json, exit 1 (it ended with exit 0 and a manifest saying 'running');
+    after a failed run the same failure is not reported again over the first."""
+    from mjx_balance.store import provenance
+
+    real = provenance.write_text
+    state = {"completed": 0}
+
+    def full_at_the_end(text, path):
+        if '"completed"' in text:
+            state["completed"] += 1
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+        real(text, path)
+
+    monkeypatch.setattr(provenance, "write_text", full_at_the_end)
+    out = tmp_path / "out"
+    capsys.readouterr()
+    assert cli_sweep(out) == 1 and state["completed"] == 1
+    lines = error_lines(capsys.readouterr().err)
+    assert len(lines) == 1 and "manifest.json" in lines[0] and "No space left" in lines[0]
+    monkeypatch.setattr(provenance, "write_text", real)
+    assert cli_sweep(out) == 0  # the rerun completes and records it
+    runs = json.loads((out / "manifest.json").read_text())["runs"]
+    assert runs[-1]["status"] == "completed"

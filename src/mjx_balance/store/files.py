@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import tempfile
 import threading
 from pathlib import Path
@@ -50,7 +51,10 @@ def write_atomic(path: Path, write: Callable[[Path], object]) -> None:
     The file gets the mode a plain ``open`` would give it (0o666 less the umask), not
     mkstemp's 0o600, so that collaborators sharing the folder can read it."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise named(exc, path) from exc
     os.close(fd)
     try:
         write(Path(tmp))
@@ -58,9 +62,27 @@ def write_atomic(path: Path, write: Callable[[Path], object]) -> None:
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise named(exc, path) from exc
         raise
+
+
+_ERRNO_IN_TEXT = re.compile(r"\[errno (\d+)\]", re.IGNORECASE)
+
+
+def named(exc: OSError, path: Path) -> OSError:
+    """``exc`` as an OSError naming the file being written (``path``, not its temporary file)
+    with its errno and the system's words for it: Arrow's write errors carry neither (their
+    text holds ``[errno 28]``), Python's name the temporary file."""
+    code = exc.errno
+    if code is None:
+        found = _ERRNO_IN_TEXT.search(str(exc))
+        code = int(found.group(1)) if found else None
+    if code is None:
+        return exc
+    return OSError(code, os.strerror(code), str(path))  # the errno's subclass (PermissionError...)
 
 
 def write_figure(fig: Any, path: str | Path, **savefig: Any) -> Path:

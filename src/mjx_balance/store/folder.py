@@ -270,8 +270,11 @@ def folder_lock(path: str | os.PathLike[str], *, wait: bool = False) -> Iterator
     status = "interrupted"
     try:
         started = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"PID {os.getpid()}, started {started}\n".encode(), 0)
+        try:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"PID {os.getpid()}, started {started}\n".encode(), 0)
+        except OSError as exc:  # a descriptor's error names no file: name the lock
+            raise OSError(exc.errno, exc.strerror, str(folder / LOCK)) from exc
         with _held(key, me):
             try:
                 yield
@@ -280,8 +283,10 @@ def folder_lock(path: str | os.PathLike[str], *, wait: bool = False) -> Iterator
                 status = "failed"
                 raise
     finally:
-        finish_run(folder, status)
-        os.close(fd)  # releases the flock
+        try:
+            finish_run(folder, status)  # raises a failed write only after a completed run
+        finally:
+            os.close(fd)  # releases the flock
 
 
 @contextmanager

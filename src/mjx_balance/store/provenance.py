@@ -227,7 +227,9 @@ def with_run(manifest: dict[str, Any], **changes: Any) -> dict[str, Any]:
 
 def finish_run(folder: Path, status: str) -> None:
     """Record the end time and how the run ended in the folder's manifest, if this run wrote
-    one; a failure here (the disk that just failed the run) is not reported again."""
+    one. A write that fails here is raised when the run completed (its results are whole but
+    the manifest would still say it is running); after a failed or interrupted run it is not
+    reported again (the disk that just failed the run)."""
     path = folder / MANIFEST
     try:
         manifest = json.loads(path.read_text())
@@ -236,8 +238,11 @@ def finish_run(folder: Path, status: str) -> None:
             isinstance(r, dict) and r.get("run_id") == _RUN["run_id"] for r in runs
         ):
             return
-        write_text(
-            json.dumps(with_run(manifest, ended=now(), status=status), indent=2) + "\n", path
-        )
-    except Exception:
-        pass
+        text = json.dumps(with_run(manifest, ended=now(), status=status), indent=2) + "\n"
+    except Exception:  # no manifest of this run's: nothing to record
+        return
+    try:
+        write_text(text, path)
+    except OSError:
+        if status == "completed":
+            raise
