@@ -197,19 +197,36 @@ def simulate(
     pairs: Any = None,
     progress: bool | None = None,
 ) -> "tuple[pd.DataFrame, pd.DataFrame]":
-    """Every (force, duration) push through the scalar reference closed loop (MuJoCo C physics,
-    the MPC solved by OSQP), one scenario at a time: the cross product of ``forces`` and
-    ``durations`` (every force for the first duration, then the next), or the given ``pairs``
-    in their order (``"20:0.7,30:0.45"``, a CSV file with columns force and duration, or a
-    sequence of (force, duration): the study's own pushes as one experiment).
+    """Pushes through the scalar reference closed loop, one scenario at a time.
 
-    Returns ``(summary, series)``: one summary row per push (``outcomes.SUMMARY_COLUMNS``, as
-    ``mjx-balance simulate`` writes summary.csv, plus ``hip_share`` and ``strategy``:
-    ``measures.strategy``) and the time series of every push (one row per physics step,
-    ``reference.TIMESERIES_COLUMNS``, as it writes timeseries.parquet).
-    ``progress``: a progress bar on stderr (None: where someone watches, a terminal or a
-    notebook; True: always; False: never). Raises ParameterError for a bad value before any
-    work."""
+    MuJoCo C physics with the MPC solved by OSQP: the cross product of ``forces`` and
+    ``durations`` (every force for the first duration, then the next), or the given ``pairs`` in
+    their order (``mjx-balance simulate``).
+
+    Args:
+        forces: Push forces [N]: start:stop:step or a comma list (a string), or a sequence of
+            numbers.
+        durations: Push durations [s]: start:stop:step or a comma list (a string), or a sequence
+            of numbers.
+        config: The configuration: a ``Config``, a TOML file's path, a dict of ``body`` /
+            ``controller`` / ``scenario`` tables, a ``Subject``, or None (the study's).
+        pairs: Instead of the cross product, these (force, duration) pushes in order:
+            ``20:0.7,30:0.45``, a CSV file with columns force and duration, or a sequence of
+            pairs.
+        progress: A progress bar on stderr: None where someone watches (a terminal, a notebook),
+            True always, False never.
+
+    Returns:
+        The pair ``(summary, series)``, one summary row per push (``outcomes.SUMMARY_COLUMNS``, as
+        summary.csv, plus ``hip_share`` and ``strategy``) and the time series of every push (one
+        row per physics step, ``reference.TIMESERIES_COLUMNS``, as timeseries.parquet).
+
+    Raises:
+        ParameterError: a bad value, before any work.
+
+    Example:
+        >>> summary, series = mb.simulate([40, 120], [0.1])
+    """
     config = as_config(config)
     todo = check_pushes(config, forces, durations, pairs).todo  # before any work
     with signals.honoured():
@@ -248,28 +265,48 @@ def sweep(
     reference: References = None,
     format: str | None = None,
 ) -> "pd.DataFrame":
-    """The recoverable region: one summary row per (force, duration) cell, force-major (all
-    durations of the first force, then the next), as region.parquet holds it.
+    """The recoverable region: one summary row per (force, duration) cell, on the batched engine.
 
-    ``out``: the output folder, written as ``mjx-balance sweep`` writes it (manifest, chunks,
-    region.parquet; resumed by a later call with the same configuration and grid), without the
-    figures; None: computed in a temporary folder, nothing kept. ``chunk``: scenarios per chunk
-    file (default from the memory budget), ``slots``: scenarios in flight per device,
-    ``full_length``: run every scenario that does not fall to t_end, ``progress``: a progress
-    bar on stderr (None: in a terminal or a notebook; True: always; False: never), ``wait``:
-    wait for another run that holds ``out``, ``cluster``: run the chunks on a Dask cluster
-    (``"local:N"``, a scheduler address or file, or a ``distributed.Client``; ``pip install
-    "mjx_balance[cluster]"``, docs/cluster.md),
-    ``physics``: "auto", "mjx" or "c" (MuJoCo C physics; docs/engine.md). ``reference``:
-    reference CSV file(s) (:func:`scorecard`): their ``recovered`` rows are scored against
-    the map's cells (a table's measures need :func:`table`), into ``out``'s scorecard.csv and
-    the returned frame's ``.attrs["scorecard"]``. ``format``: ``"csv"``, ``"parquet"`` or
-    ``"both"``: every table of ``out`` also in that format beside its own file (a CSV with its
-    units in ``NAME.units.csv``; docs/outputs.md, "Units and exports"); None: as today.
+    Rows are force-major (all durations of the first force, then the next), as region.parquet
+    holds them. Besides the summary columns each row has ``hip_share`` (the hip's share of the
+    motors' work) and ``strategy`` (``ankle`` / ``hip_ankle`` for recovered cells).
 
-    Besides the summary columns, each row has ``hip_share`` (the hip's share of the motors'
-    work) and ``strategy`` (``ankle`` / ``hip_ankle`` for recovered cells;
-    ``measures.strategy``)."""
+    Args:
+        forces: Push forces [N]: start:stop:step or a comma list (a string), or a sequence of
+            numbers.
+        durations: Push durations [s]: start:stop:step or a comma list (a string), or a sequence
+            of numbers.
+        config: The configuration: a ``Config``, a TOML file's path, a dict of ``body`` /
+            ``controller`` / ``scenario`` tables, a ``Subject``, or None (the study's).
+        out: The output folder, written and resumed as ``mjx-balance sweep`` writes it
+            (manifest, chunks, region.parquet), without the figures; None: a temporary folder,
+            nothing kept.
+        chunk: Scenarios per chunk file (None: from the memory budget).
+        slots: Scenarios in flight per device (None: from the memory budget).
+        full_length: Run every scenario that does not fall to t_end (no early stop).
+        progress: A progress bar on stderr: None where someone watches (a terminal, a notebook),
+            True always, False never.
+        wait: Wait for another run that holds ``out`` instead of refusing at once.
+        cluster: Run the work on a Dask cluster: ``"local:N"``, a scheduler address or file, or
+            a ``distributed.Client`` (``pip install "mjx_balance[cluster]"``; docs/cluster.md).
+            None: in this process.
+        physics: ``"auto"``, ``"mjx"`` or ``"c"`` (MuJoCo C physics; docs/engine.md).
+        reference: Reference CSV file(s) or a shipped reference's name (:func:`scorecard`):
+            their ``recovered`` rows are scored against the map's cells, into ``out``'s
+            scorecard.csv and the returned frame's ``.attrs["scorecard"]``.
+        format: ``"csv"``, ``"parquet"`` or ``"both"``: every table of ``out`` also in that
+            format (a CSV with its units in ``NAME.units.csv``; docs/outputs.md, "Units and
+            exports"); None: as written.
+
+    Returns:
+        The region (``pandas.DataFrame``), one row per cell.
+
+    Raises:
+        ParameterError: a bad value or grid, before any folder is made.
+
+    Example:
+        >>> region = mb.sweep("0:150:50", [0.1, 0.3])
+    """
     import pandas as pd
 
     config = as_config(config)
@@ -314,20 +351,43 @@ def table(
     figure_format: str | None = None,
     figure_size: str | None = None,
 ) -> "pd.DataFrame":
-    """The robustness table: for each force, the max acting time (the largest duration, to
-    0.01 s, such that every push up to it recovers) and the energies (``TABLE_COLUMNS``), as
-    ``mjx-balance table`` writes table.csv (read back from it). ``out``: the output folder
-    (table.csv, table_runs.parquet, the scenarios run kept for a resume), without the figure;
-    None: a temporary folder, nothing kept. ``cluster``: run the bisection's batch calls on a
-    Dask cluster (``"local:N"``, a scheduler address or file, or a ``distributed.Client``;
-    ``pip install "mjx_balance[cluster]"``, docs/cluster.md); the table is the same.
-    ``physics``: "auto", "mjx" or "c" (as :func:`sweep`). ``reference``: reference CSV
-    file(s) (:func:`scorecard`): their table forces join ``forces``, and ``out`` gets
-    scorecard.csv and scorecard.png; the returned table carries the scorecard in
-    ``.attrs["scorecard"]``. ``format``: as :func:`sweep` (every table of ``out`` also as CSV,
-    parquet or both). ``figure_format``: "png", "svg" or "pdf";
-    ``figure_size``: "screen", "one-column" or "two-column" (docs/outputs.md, "Figures");
-    None: the style in effect (:func:`figure_style`; png at screen size unless set)."""
+    """The robustness table: per force, the max acting time and the energies.
+
+    The max acting time is the largest duration, to 0.01 s, such that every push up to it
+    recovers (``TABLE_COLUMNS``, as ``mjx-balance table`` writes table.csv, read back from it).
+
+    Args:
+        forces: Table forces [N]: start:stop:step or a comma list (a string), or a sequence of
+            numbers.
+        config: The configuration: a ``Config``, a TOML file's path, a dict of ``body`` /
+            ``controller`` / ``scenario`` tables, a ``Subject``, or None (the study's).
+        out: The output folder (table.csv, table_runs.parquet: the scenarios run, kept for a
+            resume), without the figure; None: a temporary folder, nothing kept.
+        slots: Scenarios in flight per device (None: from the memory budget).
+        full_length: Run every scenario that does not fall to t_end (no early stop).
+        progress: A progress bar on stderr: None where someone watches (a terminal, a notebook),
+            True always, False never.
+        wait: Wait for another run that holds ``out`` instead of refusing at once.
+        cluster: Run the bisection's batch calls on a Dask cluster (as :func:`sweep`); the table
+            is the same.
+        physics: ``"auto"``, ``"mjx"`` or ``"c"`` (MuJoCo C physics; docs/engine.md).
+        reference: Reference CSV file(s) or a shipped reference's name (:func:`scorecard`):
+            their table forces join ``forces``, ``out`` gets scorecard.csv and scorecard.png,
+            and the table carries the scorecard in ``.attrs["scorecard"]``.
+        format: ``"csv"``, ``"parquet"`` or ``"both"``: every table of ``out`` also in that
+            format (a CSV with its units in ``NAME.units.csv``; docs/outputs.md, "Units and
+            exports"); None: as written.
+        figure_format: ``"png"``, ``"svg"`` or ``"pdf"``; None: the style in effect
+            (:func:`figure_style`; png unless set).
+        figure_size: ``"screen"``, ``"one-column"`` or ``"two-column"`` (docs/outputs.md,
+            "Figures"); None: the style in effect.
+
+    Returns:
+        The table (``pandas.DataFrame``), one row per force.
+
+    Raises:
+        ParameterError: a bad value, before any folder is made.
+    """
     config = as_config(config)
     check_format(format)
     refs = read_references(reference)
@@ -372,16 +432,26 @@ def _with_forces(forces: "Any", refs: "list[Reference]") -> "Any":
 def scorecard(
     ours: "str | os.PathLike[str] | pd.DataFrame", reference: References
 ) -> "pd.DataFrame":
-    """The reproduction scorecard (``studies.scorecard``): every row and measure of the
-    reference file(s) beside ours, with our uncertainty, the differences, the tolerance (the
-    reference's stated or printed resolution plus our bisection step, never fitted) and whether
-    the difference is within it. ``ours``: a sweep or table folder (its table.csv,
-    table_runs.parquet and region.parquet are read; nothing is written) or a table DataFrame
-    as :func:`table` returns it. ``reference``: a CSV path, the name of a shipped reference
-    (``"study"``: :func:`references`), or a list of them (docs/outputs.md, "Reference files");
-    a row's ``reason`` is carried, never inferred. TypeError for an ``ours`` or
-    ``reference`` of another type, ValueError for a table without a numeric ``force``
-    column."""
+    """Our table beside reference tables, row by row and measure by measure.
+
+    Each row and measure of the reference file(s) beside ours, with our uncertainty, the
+    difference, the tolerance (the reference's stated or printed resolution plus our bisection
+    step, never fitted) and whether the difference is within it (``studies.scorecard``). A row's
+    ``reason`` is carried from the reference, never inferred.
+
+    Args:
+        ours: A sweep or table folder (its table.csv, table_runs.parquet and region.parquet are
+            read; nothing is written), or a table as :func:`table` returns it.
+        reference: A CSV path, the name of a shipped reference (``study``: :func:`references`),
+            or a list of them (docs/outputs.md, ``Reference files``).
+
+    Returns:
+        The scorecard (``pandas.DataFrame``).
+
+    Raises:
+        TypeError: ``ours`` or ``reference`` of another type.
+        ValueError: a table without a numeric ``force`` column.
+    """
     import pandas as pd
 
     from .studies.scorecard import check_ours  # lazy: a name of the scorecard's, for one check
@@ -423,19 +493,49 @@ def compare(
     wait: bool = False,
     plan: PlanHook | None = None,
 ) -> "pd.DataFrame":
-    """Several configurations on one grid (``mjx-balance compare``): each one's region map and
-    table in ``out/<name>/``, then ``out/compare.csv`` (returned: area, mean recovery energy,
-    sustained-push limit, max acting times, one row per configuration) and ``out/compare.png``
-    (every recovery boundary on one plane). ``configs``: name -> configuration (a Config, a
-    dict or a TOML path), or a list of TOML paths (named by their stems). Grids default to the
-    default sweep's. ``format``: as :func:`sweep` (every table in ``out`` and its configuration
-    folders also as CSV, parquet or both). ``figure_format``: "png", "svg" or "pdf";
-    ``figure_size``: "screen", "one-column" or "two-column" (docs/outputs.md, "Figures");
-    None: the style in effect (:func:`figure_style`; png at screen size unless set).
-    ``queue``: "each" or "one" (every map through one engine queue, per-lane QPs: MJX only;
-    ``mjx-balance compare --queue``). ``wait``: as :func:`sweep`; ``plan``: called once with
-    the planned work (``runs.chunks.PlannedWork``) after every check, before anything is
-    written (the command line says it and refuses too much work without --yes)."""
+    """Several configurations on one grid (``mjx-balance compare``).
+
+    Each configuration's region map and table in ``out/<name>/``, then ``out/compare.csv`` and
+    ``out/compare.png`` (every recovery boundary on one plane).
+
+    Args:
+        configs: Name -> configuration (a Config, a dict or a TOML path), or a list of TOML
+            paths (named by their stems).
+        out: The output folder (resumable).
+        forces: Push forces [N]: start:stop:step or a comma list (a string), or a sequence of
+            numbers (None: the default sweep's).
+        durations: Push durations [s]: start:stop:step or a comma list (a string), or a sequence
+            of numbers (None: the default sweep's).
+        table_forces: Also each configuration's table at these forces (None: no table).
+        slots: Scenarios in flight per device (None: from the memory budget).
+        full_length: Run every scenario that does not fall to t_end (no early stop).
+        physics: ``"auto"``, ``"mjx"`` or ``"c"`` (MuJoCo C physics; docs/engine.md).
+        cluster: Run the work on a Dask cluster: ``"local:N"``, a scheduler address or file, or
+            a ``distributed.Client`` (``pip install "mjx_balance[cluster]"``; docs/cluster.md).
+            None: in this process.
+        queue: ``each`` (every map its own engine run) or ``one`` (every map through one engine
+            queue with per-lane QPs; MJX only).
+        progress: A progress bar on stderr: None where someone watches (a terminal, a notebook),
+            True always, False never.
+        format: ``"csv"``, ``"parquet"`` or ``"both"``: every table of ``out`` also in that
+            format (a CSV with its units in ``NAME.units.csv``; docs/outputs.md, "Units and
+            exports"); None: as written.
+        figure_format: ``"png"``, ``"svg"`` or ``"pdf"``; None: the style in effect
+            (:func:`figure_style`; png unless set).
+        figure_size: ``"screen"``, ``"one-column"`` or ``"two-column"`` (docs/outputs.md,
+            "Figures"); None: the style in effect.
+        wait: Wait for another run that holds ``out`` instead of refusing at once.
+        plan: Called once with the planned work (``runs.chunks.PlannedWork``) after every check,
+            before anything is written (the command line says it and refuses too much work
+            without --yes).
+
+    Returns:
+        compare.csv's rows (area, mean recovery energy, sustained-push limit and max acting times,
+        one row per configuration).
+
+    Raises:
+        ParameterError: a bad value, before any folder is made.
+    """
     check_format(format)
     named: dict[str, Config]  # (the configurations, each checked)
     if isinstance(configs, Mapping):
@@ -473,15 +573,32 @@ def lean_release(
     wait: bool = False,
     plan: PlanHook | None = None,
 ) -> "pd.DataFrame":
-    """People's lean-and-release protocol (Robinovitch et al. 2002; ``studies.lean``;
-    ``mjx-balance lean``) on the batched engine: the largest lean held still (static) and the
-    largest lean released from rest that recovers with the feet in place (dynamic, bracketed to
-    ``resolution`` degrees), beside the people reference's measures of the same protocol
-    (``data/references/people.csv``; ``agrees``: within the published mean +- 2 SD).
-    ``.attrs["limits"]``: every limit (``LeanLimits.row``: the static limit's torque and foot
-    parts, the bracket, the peak ankle torque at the dynamic limit, the scenarios run). With
-    ``out``: also written there (lean.csv, lean_limits.csv, a manifest; a folder made with
-    another configuration is refused). ``wait``, ``plan``: as :func:`compare`."""
+    """People's lean-and-release protocol (Robinovitch et al. 2002) on the batched engine.
+
+    The largest lean held still (static), the largest lean released from rest that recovers with
+    the feet in place (dynamic) and with one step (capturability), beside the people reference's
+    measures of the same protocol (``agrees``: within the published mean +- 2 SD).
+
+    Args:
+        config: The configuration: a ``Config``, a TOML file's path, a dict of ``body`` /
+            ``controller`` / ``scenario`` tables, a ``Subject``, or None (the study's).
+        resolution: The dynamic limit's bracket width [deg], in [0.001, 1].
+        slots: Scenarios in flight per device (None: from the memory budget).
+        out: Also write the results there (lean.csv, lean_limits.csv, a manifest; a folder made
+            with another configuration is refused); None: nothing written.
+        wait: Wait for another run that holds ``out`` instead of refusing at once. (with
+            ``out``)
+        plan: Called once with the planned work (``runs.chunks.PlannedWork``) after every check,
+            before anything is written (the command line says it and refuses too much work
+            without --yes).
+
+    Returns:
+        The people rows of the protocol beside ours, every limit in ``.attrs["limits"]``
+        (``LeanLimits.row``).
+
+    Raises:
+        ParameterError: a bad value, before any work.
+    """
     config = as_config(config)
     if out is None and (wait or plan is not None):
         raise ParameterError("wait and plan apply to a run written in a folder: give out=")
@@ -505,14 +622,33 @@ def waist_pull(
     wait: bool = False,
     plan: PlanHook | None = None,
 ) -> "pd.DataFrame":
-    """People's waist pull (the Spring Scale Test of DePasquale & Toscano 2009;
-    ``studies.pull``) on the batched engine: the largest horizontal pull at the hip joint,
-    rising linearly over ``ramp`` s (0: at once) and then held to the window's end, that the
-    body withstands with its feet in place, forward and backward, in newtons and in % of body
-    weight (bracketed to ``resolution`` N). One row (``PullLimits.row``: both limits, the
-    brackets' width, the weight, the peak ankle torque at each limit, the scenarios run).
-    With ``out``: also written there (pull.csv, a manifest; a folder made with another
-    configuration is refused; ``mjx-balance pull``). ``wait``, ``plan``: as :func:`compare`."""
+    """People's waist pull (DePasquale & Toscano 2009's Spring Scale Test), batched.
+
+    The largest horizontal pull at the hip joint, rising linearly over ``ramp`` seconds and then
+    held to the window's end, that the body withstands with its feet in place, forward and
+    backward, in newtons and in % of body weight.
+
+    Args:
+        config: The configuration: a ``Config``, a TOML file's path, a dict of ``body`` /
+            ``controller`` / ``scenario`` tables, a ``Subject``, or None (the study's).
+        resolution: The limits' bracket width [N].
+        ramp: The pull's rise time [s] (0: at once).
+        slots: Scenarios in flight per device (None: from the memory budget).
+        out: Also write the result there (pull.csv, a manifest; another configuration's folder
+            is refused); None: nothing written.
+        wait: Wait for another run that holds ``out`` instead of refusing at once. (with
+            ``out``)
+        plan: Called once with the planned work (``runs.chunks.PlannedWork``) after every check,
+            before anything is written (the command line says it and refuses too much work
+            without --yes).
+
+    Returns:
+        One row (``PullLimits.row``), with both limits, the brackets' width, the weight, the
+        peak ankle torque at each limit, the scenarios run.
+
+    Raises:
+        ParameterError: a bad value, before any work.
+    """
     import pandas as pd  # lazy: as the module's other pandas users
 
     config = as_config(config)
@@ -543,13 +679,26 @@ def people(
     wait: bool = False,
     plan: PlanHook | None = None,
 ) -> "pd.DataFrame":
-    """The people scorecard (``mjx-balance people``; ``studies.people``): every measure of the
-    people reference beside what the shipped human bodies (``human``, ``human_older``)
-    predict by lean and release and the held waist pull, in ``out`` (people.csv,
-    people_limits.csv, people.png, a manifest). Each row's ``kind``: predicted (``agrees``
-    within the published mean +- 2 SD), an input taken from that row, or not modelled; a row
-    that is not a predicted agreement carries its measured ``reason``. ``wait``, ``plan``: as
-    :func:`compare`."""
+    """The people scorecard (``mjx-balance people``): published measurements of people beside ours.
+
+    Every measure of the people reference beside what the shipped human bodies (``human``,
+    ``human_older``) and two women's bodies predict by lean and release, its single-step limit
+    and the held waist pull, in ``out`` (people.csv, people_limits.csv, people.png, a manifest).
+    Each row's ``kind``: predicted (``agrees`` within the published mean +- 2 SD), an input taken
+    from that row, or not modelled; a row that is not a predicted agreement carries its measured
+    ``reason``.
+
+    Args:
+        out: The output folder.
+        slots: Scenarios in flight per device (None: from the memory budget).
+        wait: Wait for another run that holds ``out`` instead of refusing at once.
+        plan: Called once with the planned work (``runs.chunks.PlannedWork``) after every check,
+            before anything is written (the command line says it and refuses too much work
+            without --yes).
+
+    Returns:
+        people.csv's rows.
+    """
     slots = size_value(slots, "slots")
     with _session("people"):
         return run_people(out, slots=slots, say=log.info, plan=plan, wait=wait)
@@ -573,15 +722,44 @@ def basin(
     wait: bool = False,
     plan: PlanHook | None = None,
 ) -> "pd.DataFrame":
-    """The recovery basin (``mjx-balance basin``): one unpushed scenario per (x_com, v_com)
-    cell from the ``posture`` family's initial state, in ``out`` (basin.parquet, basin.png;
-    resumable). Returns basin.parquet's rows. ``pushes``: None or (forces, durations) whose
-    end-of-push states are drawn (pushes.csv). Grids default to -0.2:0.2:0.02 m and
-    -0.6:0.6:0.06 m/s. ``format``: as :func:`sweep` (basin.parquet and pushes.csv also as CSV,
-    parquet or both). ``figure_format``: "png", "svg" or "pdf";
-    ``figure_size``: "screen", "one-column" or "two-column" (docs/outputs.md, "Figures");
-    None: the style in effect (:func:`figure_style`; png at screen size unless set).
-    ``wait``, ``plan``: as :func:`compare`."""
+    """The recovery basin (``mjx-balance basin``): which initial CoM states recover with no push.
+
+    One unpushed scenario per (x_com, v_com) cell from the ``posture`` family's initial state, in
+    ``out`` (basin.parquet, basin.png; resumable).
+
+    Args:
+        config: The configuration: a ``Config``, a TOML file's path, a dict of ``body`` /
+            ``controller`` / ``scenario`` tables, a ``Subject``, or None (the study's).
+        out: The output folder.
+        x_com: CoM positions relative to the ankle [m]: start:stop:step or a comma list (a
+            string), or a sequence of numbers (None: -0.2:0.2:0.02).
+        v_com: CoM velocities [m/s]: start:stop:step or a comma list (a string), or a sequence
+            of numbers (None: -0.6:0.6:0.06).
+        posture: ``rigid`` (the body straight, leaning at the ankle) or ``trunk`` (upright legs,
+            the trunk tilted at the hip).
+        pushes: None, or (forces, durations) whose end-of-push states are drawn (pushes.csv).
+        slots: Scenarios in flight per device (None: from the memory budget).
+        full_length: Run every scenario that does not fall to t_end (no early stop).
+        progress: A progress bar on stderr: None where someone watches (a terminal, a notebook),
+            True always, False never.
+        format: ``"csv"``, ``"parquet"`` or ``"both"``: every table of ``out`` also in that
+            format (a CSV with its units in ``NAME.units.csv``; docs/outputs.md, "Units and
+            exports"); None: as written.
+        figure_format: ``"png"``, ``"svg"`` or ``"pdf"``; None: the style in effect
+            (:func:`figure_style`; png unless set).
+        figure_size: ``"screen"``, ``"one-column"`` or ``"two-column"`` (docs/outputs.md,
+            "Figures"); None: the style in effect.
+        wait: Wait for another run that holds ``out`` instead of refusing at once.
+        plan: Called once with the planned work (``runs.chunks.PlannedWork``) after every check,
+            before anything is written (the command line says it and refuses too much work
+            without --yes).
+
+    Returns:
+        basin.parquet's rows.
+
+    Raises:
+        ParameterError: a bad value, before any folder is made.
+    """
     check_format(format)
     with _session("basin"), figure_style(figure_format, figure_size):
         frame = run_basin(
@@ -621,31 +799,58 @@ def cohort(
     figure_format: str | None = None,
     figure_size: str | None = None,
 ) -> "pd.DataFrame":
-    """A cohort (``mjx-balance cohort``): each subject's region map (its body from
-    :class:`Subject` on ``config``, default the study's configuration) in
-    ``out/subjects/<id>/``, then ``out/cohort.csv`` (returned: one row per subject, its body,
-    recoverable area [N s], mean recovery energy, ...), ``out/cohort_summary.csv`` (mean, SD,
-    5/50/95th percentiles), the probability map (``out/cohort_probability.csv``: P(recover)
-    per cell with its 95 % Wilson interval; ``out/cohort_probability_boundaries.csv``: the
-    95/50/5 % boundaries and the base body's, from its own map in ``out/base/``) and the
-    figures (docs/outputs.md, "cohort"). The returned frame carries the probability map's
-    tables in ``.attrs["probability"]`` and ``.attrs["probability_boundaries"]`` and the
-    interval's worst-case half-width in ``.attrs["half_width"]``. Resumable: a rerun skips
-    finished subjects and resumes a partial one.
+    """A population's region maps and its probability map (``mjx-balance cohort``).
 
-    ``subjects``: one Subject (id s01), a sequence of Subjects (ids s01, s02, ...), a dict
-    id -> Subject, or a CSV file's path (columns height, mass and optionally id, sex,
-    ankle_strength, hip_strength, notes; docs/outputs.md, "mjx-balance cohort").
-    Grids default to the default sweep's. ``table_forces``: also each subject's table (max
-    acting time at these forces and the sustained-push limit; default: none, the limit NaN).
-    ``slots``, ``full_length``, ``physics``, ``progress``, ``wait``, ``format``,
-    ``figure_format``, ``figure_size``: as :func:`sweep` and :func:`compare`. ``queue``:
-    "each" (every subject its own engine run: the bytes of ``sweep --subject``), "one" (every
-    subject through one engine queue with per-lane bodies, MJX only) or "auto" (one on the MJX
-    path without a cluster, else each; a resumed folder's own queue; ``mjx-balance cohort
-    --queue``). Every argument
-    and every subject's configuration is checked before anything is written (a ValueError or
-    TypeError naming the argument)."""
+    Each subject's region map (its body from :class:`Subject` on ``config``) in
+    ``out/subjects/<id>/``, then ``out/cohort.csv``, ``out/cohort_summary.csv`` (mean, SD,
+    5/50/95th percentiles), the probability map (``cohort_probability.csv``: P(recover) per cell
+    with its 95 % Wilson interval; ``cohort_probability_boundaries.csv``: the 95/50/5 %
+    boundaries and the base body's, from its own map in ``out/base/``) and the figures
+    (docs/outputs.md, "mjx-balance cohort"). Resumable: a rerun skips finished subjects and
+    resumes a partial one. Every argument and every subject's configuration is checked before
+    anything is written.
+
+    Args:
+        subjects: One Subject (id s01), a sequence of Subjects (ids s01, s02, ...), a dict id ->
+            Subject, or a CSV file's path (columns height, mass and optionally id, sex,
+            ankle_strength, hip_strength, age, notes).
+        out: The output folder.
+        forces: Push forces [N]: start:stop:step or a comma list (a string), or a sequence of
+            numbers (None: the default sweep's).
+        durations: Push durations [s]: start:stop:step or a comma list (a string), or a sequence
+            of numbers (None: the default sweep's).
+        config: The configuration: a ``Config``, a TOML file's path, a dict of ``body`` /
+            ``controller`` / ``scenario`` tables, a ``Subject``, or None (the study's). The
+            subjects' bodies go on it.
+        table_forces: Also each subject's table at these forces (max acting times and the
+            sustained-push limit; None: no table).
+        slots: Scenarios in flight per device (None: from the memory budget).
+        full_length: Run every scenario that does not fall to t_end (no early stop).
+        physics: ``"auto"``, ``"mjx"`` or ``"c"`` (MuJoCo C physics; docs/engine.md).
+        queue: ``each`` (every subject its own engine run: the bytes of ``sweep --subject``),
+            ``one`` (one engine queue with per-lane bodies, MJX only) or ``auto`` (one on the
+            MJX path without a cluster, else each; a resumed folder's own).
+        progress: A progress bar on stderr: None where someone watches (a terminal, a notebook),
+            True always, False never.
+        wait: Wait for another run that holds ``out`` instead of refusing at once.
+        format: ``"csv"``, ``"parquet"`` or ``"both"``: every table of ``out`` also in that
+            format (a CSV with its units in ``NAME.units.csv``; docs/outputs.md, "Units and
+            exports"); None: as written.
+        figure_format: ``"png"``, ``"svg"`` or ``"pdf"``; None: the style in effect
+            (:func:`figure_style`; png unless set).
+        figure_size: ``"screen"``, ``"one-column"`` or ``"two-column"`` (docs/outputs.md,
+            "Figures"); None: the style in effect.
+
+    Returns:
+        cohort.csv's rows (one per subject, with its body, recoverable area [N s], mean recovery
+        energy, ...), with the probability map's tables in ``.attrs["probability"]`` and
+        ``.attrs["probability_boundaries"]`` and the interval's worst half-width in
+        ``.attrs["half_width"]``.
+
+    Raises:
+        ParameterError: a bad argument or subject, naming it, before anything is written.
+        TypeError: an argument of the wrong type, naming it.
+    """
     check_format(format)
     members = as_members(
         Path(subjects)
@@ -697,13 +902,46 @@ def landscape(
     figure_size: str | None = None,
     plan: PlanHook | None = None,
 ) -> "pd.DataFrame":
-    """The weight landscape (``mjx-balance landscape``): for every delay setting (``delays``:
-    a comma list in ms, a trailing c for the delay-compensated controller) and every Q and R
-    scale, the region map and table of ``config`` with those weights, in
-    ``out/<delay>/q<q>_r<r>/`` (resumable), then landscape.csv (returned: area, sustained-push
-    limit, mean recovery energy per setting), landscape.png and landscape.txt. Grids default
-    to the default sweep's. ``slots``, ``full_length``, ``physics``, ``queue``, ``progress``,
-    ``wait``, ``format``, ``figure_format``, ``figure_size``, ``plan``: as :func:`compare`."""
+    """The weight landscape (``mjx-balance landscape``): the maps over Q and R scales and delays.
+
+    For every delay setting and every Q and R scale, the region map and table of ``config`` with
+    those weights in ``out/<delay>/q<q>_r<r>/`` (resumable), then landscape.csv, landscape.png
+    and landscape.txt.
+
+    Args:
+        config: The configuration: a ``Config``, a TOML file's path, a dict of ``body`` /
+            ``controller`` / ``scenario`` tables, a ``Subject``, or None (the study's).
+        out: The output folder.
+        forces: Push forces [N]: start:stop:step or a comma list (a string), or a sequence of
+            numbers (None: the default sweep's).
+        durations: Push durations [s]: start:stop:step or a comma list (a string), or a sequence
+            of numbers (None: the default sweep's).
+        q_scales: Factors on the state weights Q (None: the sweep definition's).
+        r_scales: Factors on the input weights R (None: the sweep definition's).
+        delays: A comma list of delays in ms, a trailing c for the delay-compensated controller
+            (e.g. ``0,100c``).
+        table_forces: Each setting's table at these forces (None: the definition's).
+        slots: Scenarios in flight per device (None: from the memory budget).
+        full_length: Run every scenario that does not fall to t_end (no early stop).
+        physics: ``"auto"``, ``"mjx"`` or ``"c"`` (MuJoCo C physics; docs/engine.md).
+        queue: ``each`` or ``one`` (as :func:`compare`).
+        progress: A progress bar on stderr: None where someone watches (a terminal, a notebook),
+            True always, False never.
+        wait: Wait for another run that holds ``out`` instead of refusing at once.
+        format: ``"csv"``, ``"parquet"`` or ``"both"``: every table of ``out`` also in that
+            format (a CSV with its units in ``NAME.units.csv``; docs/outputs.md, "Units and
+            exports"); None: as written.
+        figure_format: ``"png"``, ``"svg"`` or ``"pdf"``; None: the style in effect
+            (:func:`figure_style`; png unless set).
+        figure_size: ``"screen"``, ``"one-column"`` or ``"two-column"`` (docs/outputs.md,
+            "Figures"); None: the style in effect.
+        plan: Called once with the planned work (``runs.chunks.PlannedWork``) after every check,
+            before anything is written (the command line says it and refuses too much work
+            without --yes).
+
+    Returns:
+        landscape.csv's rows (area, sustained-push limit and mean recovery energy per setting).
+    """
     check_format(format)
     with _session("landscape"), figure_style(figure_format, figure_size):
         frame = run_landscape(
@@ -745,12 +983,38 @@ def sensitivity(
     figure_size: str | None = None,
     plan: PlanHook | None = None,
 ) -> "pd.DataFrame":
-    """The robustness table under every reading of the study (``mjx-balance sensitivity``):
-    each reading's table (``readings``: keys of ``studies.defaults.READINGS``, default all) on
-    ``config`` in ``out/<reading>/`` (resumable), then sensitivity.csv (returned: the spread
-    per force), sensitivity.png and sensitivity.txt (what holds under every reading).
-    ``slots``, ``full_length``, ``physics``, ``cluster``, ``progress``, ``wait``,
-    ``figure_format``, ``figure_size``, ``plan``: as :func:`compare`."""
+    """The robustness table under every reading of the study (``mjx-balance sensitivity``).
+
+    Each reading's table on ``config`` in ``out/<reading>/`` (resumable), then sensitivity.csv
+    (the spread per force), sensitivity.png and sensitivity.txt (what holds under every reading).
+
+    Args:
+        config: The configuration: a ``Config``, a TOML file's path, a dict of ``body`` /
+            ``controller`` / ``scenario`` tables, a ``Subject``, or None (the study's).
+        out: The output folder.
+        forces: Table forces [N]: start:stop:step or a comma list (a string), or a sequence of
+            numbers (None: the study's).
+        readings: Keys of ``studies.defaults.READINGS`` (None: all).
+        slots: Scenarios in flight per device (None: from the memory budget).
+        full_length: Run every scenario that does not fall to t_end (no early stop).
+        physics: ``"auto"``, ``"mjx"`` or ``"c"`` (MuJoCo C physics; docs/engine.md).
+        cluster: Run the work on a Dask cluster: ``"local:N"``, a scheduler address or file, or
+            a ``distributed.Client`` (``pip install "mjx_balance[cluster]"``; docs/cluster.md).
+            None: in this process.
+        progress: A progress bar on stderr: None where someone watches (a terminal, a notebook),
+            True always, False never.
+        wait: Wait for another run that holds ``out`` instead of refusing at once.
+        figure_format: ``"png"``, ``"svg"`` or ``"pdf"``; None: the style in effect
+            (:func:`figure_style`; png unless set).
+        figure_size: ``"screen"``, ``"one-column"`` or ``"two-column"`` (docs/outputs.md,
+            "Figures"); None: the style in effect.
+        plan: Called once with the planned work (``runs.chunks.PlannedWork``) after every check,
+            before anything is written (the command line says it and refuses too much work
+            without --yes).
+
+    Returns:
+        sensitivity.csv's rows.
+    """
     with _session("sensitivity"), figure_style(figure_format, figure_size):
         return run_sensitivity(
             out,
@@ -799,18 +1063,38 @@ def report(
     wait: bool = False,
     say: Callable[[str], None] | None = None,
 ) -> Path:
-    """The HTML report (``mjx-balance report``): the study's experiments under each of
-    ``conventions`` (default: every convention) and the studies beyond it (``studies``: a
-    comma list of keys, "all" or "none") on ``config``, their tables saved in ``out``
-    (resumable), then ``out/report.html``; returns its path. ``scale``: "tiny" (2-s runs on
-    tiny grids), "default" or "dense"; ``backend``: the tables' and maps' batch function,
-    "mjx" or "reference" (default: the scale's); ``sweeps``: a folder of study sweep
-    definitions (default: the shipped ones); ``reference``: reference table(s) scored in the
-    report (kept in ``out/references/``; their forces join the table); ``html_only``: only
-    redraw the figures and the page from the tables saved in ``out``. Every input is checked
-    before the folder is made; the work runs under the folder's lock (``wait``: as
-    :func:`sweep`). ``say``: where the lines about the work go (default: the ``mjx_balance``
-    logger)."""
+    """The HTML report (``mjx-balance report``): the study's experiments and the studies beyond it.
+
+    The experiments under each of ``conventions`` and the studies on ``config``, their tables
+    saved in ``out`` (resumable), then ``out/report.html``. Every input is checked before the
+    folder is made; the work runs under the folder's lock.
+
+    Args:
+        config: The configuration: a ``Config``, a TOML file's path, a dict of ``body`` /
+            ``controller`` / ``scenario`` tables, a ``Subject``, or None (the study's).
+        out: The output folder.
+        scale: ``tiny`` (2-s runs on tiny grids), ``default`` or ``dense``.
+        backend: The tables' and maps' batch function, ``mjx`` or ``reference`` (None: the
+            scale's).
+        studies: A comma list of study keys, ``all`` or ``none`` (None: the scale's).
+        conventions: The conventions to run the experiments in (None: every convention).
+        sweeps: A folder of study sweep definitions (None: the shipped ones).
+        reference: Reference table(s) scored in the report (kept in ``out/references/``; their
+            forces join the table).
+        cluster: Run the work on a Dask cluster: ``"local:N"``, a scheduler address or file, or
+            a ``distributed.Client`` (``pip install "mjx_balance[cluster]"``; docs/cluster.md).
+            None: in this process.
+        physics: ``"auto"``, ``"mjx"`` or ``"c"`` (MuJoCo C physics; docs/engine.md).
+        html_only: Only redraw the figures and the page from the tables saved in ``out``.
+        wait: Wait for another run that holds ``out`` instead of refusing at once.
+        say: Where the lines about the work go (None: the ``mjx_balance`` logger).
+
+    Returns:
+        The path of report.html.
+
+    Raises:
+        ParameterError: a bad value, before the folder is made.
+    """
     say = say or log.info
     refs = read_references(reference)  # a bad file is refused before any work
     chosen = _report_plan(scale, refs, say)
@@ -862,17 +1146,27 @@ def report(
 def explore(
     folder: str | os.PathLike[str], *, port: int = 0, browser: bool = False, wait: bool = False
 ) -> Explorer:
-    """A page on this machine (``http://127.0.0.1:PORT/``, port 0: a free one) that draws the
-    maps of a sweep, compare or cohort folder and opens any cell's run: computed on demand by
-    the scalar reference in the map's own configuration and kept in the folder
-    (``explore/<force>_<duration>.parquet``), so a second click is served from there
+    """A page on this machine that draws a folder's maps and opens any cell's run.
+
+    Served at ``http://127.0.0.1:PORT/`` for a sweep, compare or cohort folder; a cell's run is
+    computed on demand by the scalar reference in the map's own configuration and kept in the
+    folder (``explore/<force>_<duration>.parquet``), so a second click is served from there
     (docs/outputs.md, "mjx-balance explore").
 
-    Returns the running :class:`~mjx_balance.report.explore.Explorer` (its ``url``; a notebook
-    shows it as a link; ``.stop()`` ends it). ``browser``: open the page in the default web
-    browser; ``wait``: serve in this thread until Ctrl-C (KeyboardInterrupt), as
-    ``mjx-balance explore`` does, instead of in a background thread. Raises ParameterError for
-    a folder without a region map or a port that cannot be bound."""
+    Args:
+        folder: A sweep, compare or cohort folder.
+        port: The port (0: a free one).
+        browser: Open the page in the default web browser.
+        wait: Serve in this thread until Ctrl-C, as ``mjx-balance explore`` does, instead of in
+            a background thread.
+
+    Returns:
+        The running :class:`~mjx_balance.report.explore.Explorer` (its ``url``; a notebook shows
+        it as a link; ``.stop()`` ends it).
+
+    Raises:
+        ParameterError: a folder without a region map, or a port that cannot be bound.
+    """
     explorer = Explorer(folder, port=port)
     log.info(
         f"explore: {explorer.folder.shown} at {explorer.url}"

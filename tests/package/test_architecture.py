@@ -230,13 +230,23 @@ def unmarked_function_imports(found: list[Import]) -> list[str]:
     ]
 
 
+def _docstring_lines(node: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
+    """The lines of a function's docstring: the limit is on its code (the public API's
+    docstrings carry Args, Returns and Raises sections: tests/package/test_api_docs.py)."""
+    first = node.body[0]
+    if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant):
+        if isinstance(first.value.value, str):
+            return first.end_lineno - first.lineno + 1
+    return 0
+
+
 def long_functions(root: Path, package: str) -> list[str]:
     bad = []
     for module, path in _modules(root, package).items():
         for node in ast.walk(ast.parse(path.read_text())):
             if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 continue
-            length = node.end_lineno - node.lineno + 1
+            length = node.end_lineno - node.lineno + 1 - _docstring_lines(node)
             if length > MAX_LINES:
                 bad.append(f"{module}:{node.lineno} {node.name} has {length} lines")
             args = node.args.posonlyargs + node.args.args

@@ -480,7 +480,7 @@ explorer.run_json({"map": [""], "force": ["30"], "duration": ["0.5"]})
 
 
 def test_a_server_killed_while_keeping_a_run_serves_no_half_file(server, sweep, tmp_path):
-    """SIGKILL in the middle of writing a cell's kept run (issue 53, item 2): the run's file is
+    """SIGKILL in the middle of writing a cell's kept run: the run's file is
     written beside its name and renamed whole, so the kill leaves only a hidden temporary file:
     the next server computes the cell again, never reads or serves the half file (/files/
     refuses hidden names), and keeps the run whole."""

@@ -297,13 +297,24 @@ def region_map(
     impulses: bool = True,
     ax=None,
 ):
-    """Draw the outcome map of ``region`` on ``ax`` (None: a new figure); returns the Figure.
+    """Draw the outcome map of a region; the recovery boundary on it.
 
-    Cells as in :func:`cell_bounds` (the axes' limits are the grid's cell bounds), coloured by
-    outcome; the legend names every outcome class with its number of cells (0 included). The
-    black step line is the recovery boundary on the grid (the top of each force's first
-    recovered range of durations); ``table`` (table.csv) adds the bisected max acting time of
-    its forces. ``impulses`` draws labelled lines of constant impulse F T.
+    Cells are coloured by outcome (the axes' limits are the grid's cell bounds), the legend names
+    every outcome class with its number of cells; the black step line is the recovery boundary
+    (the top of each force's first recovered range of durations), with the boundaries with one
+    and two steps.
+
+    Args:
+        region: A region map: region.parquet's rows (:func:`sweep`'s frame).
+        config: The region's configuration (its bounds and units; None: the study's).
+        reference: A reference table whose points are drawn over the map (None: none).
+        table: A robustness table (table.csv) whose bisected max acting times are drawn (None:
+            none).
+        impulses: Draw labelled lines of constant impulse F T.
+        ax: The matplotlib Axes to draw on (None: a new figure).
+
+    Returns:
+        The Figure.
     """
     forces, durations, outcome = pivot(region, "outcome")
     codes = np.full(outcome.shape, np.nan)
@@ -585,9 +596,19 @@ def plot_region(
 
 
 def energy_map(region: pd.DataFrame, *, config: Config | None = None, ax=None):
-    """Draw the total joint energy (∫|τ_ankle dq_a| + |τ_hip dq_h| dt) of the recovered cells on
-    ``ax`` (None: a new figure), log colour scale; the cells that did not recover are grey and
-    their energy is not drawn. Cells as in :func:`cell_bounds`. Returns the Figure."""
+    """Draw the total joint energy of a region's recovered cells.
+
+    The energy is the integral of |tau_ankle dq_a| + |tau_hip dq_h|, on a log colour scale; the
+    cells that did not recover are grey.
+
+    Args:
+        region: A region map: region.parquet's rows (:func:`sweep`'s frame).
+        config: The region's configuration (its bounds and units; None: the study's).
+        ax: The matplotlib Axes to draw on (None: a new figure).
+
+    Returns:
+        The Figure.
+    """
     recovered = region.assign(
         energy=np.where(region["outcome"] == RECOVERED_TEXT, region["energy_total"], np.nan)
     )
@@ -805,12 +826,19 @@ def _energy_axes(ax2, table: pd.DataFrame, convention: str) -> None:
 
 
 def table_figure(table: pd.DataFrame, *, config: Config | None = None, axes=None):
-    """Max acting time against force (``axes[0]``) and the energies of the recovered runs of
-    the table (``axes[1]``); ``axes`` None: a new figure. Returns the Figure.
+    """Draw a robustness table: max acting time and the energies against force.
 
-    Energies are drawn only for runs that recovered (table.csv leaves the others NaN; an
-    older table's ``_01`` energies of a run that did not recover are left out by its
-    ``outcome_01``); the forces whose T = 0.1 s push did not recover are marked on the axis."""
+    Energies are drawn only for runs that recovered; the forces whose T = 0.1 s push did not
+    recover are marked on the axis.
+
+    Args:
+        table: table.csv's rows (:func:`table`'s frame).
+        config: The region's configuration (its bounds and units; None: the study's).
+        axes: Two matplotlib Axes (max acting time, energies; None: a new figure).
+
+    Returns:
+        The Figure.
+    """
     table = table.sort_values("force")
     t_end = config.scenario.t_end if config else None
     if axes is None:

@@ -42,12 +42,19 @@ def weight_rows(weights: pd.DataFrame, convention: str) -> list[tuple[list, str]
 
 
 def weight_figure(weights: pd.DataFrame, convention: str, axes=None):
-    """Bar charts: the energies for each Q (left) and each R (right) setting; in the paper
-    convention the study's (eq. 20) on top and the motors' below, in the joint convention the
-    motors' (:func:`weight_rows`). A setting that did not recover has no bars (its energy up
-    to the fall or t_end is not a recovery cost), only its outcome written where they would be.
-    ``axes``: matplotlib Axes to draw on, two per row (two Axes: the headline row only; None:
-    a new figure). Returns the Figure."""
+    """Bar charts of the energies for each Q and each R weight setting.
+
+    In the paper convention the study's energy (its eq. 20) on top and the motors' below; in the
+    joint convention the motors'. A setting that did not recover has no bars, only its outcome.
+
+    Args:
+        weights: A report's weight-study rows.
+        convention: ``"paper"`` or ``"joint"``.
+        axes: The Axes to draw on, two per row (two: the headline row only; None: a new figure).
+
+    Returns:
+        The Figure.
+    """
     import matplotlib.pyplot as plt
     from matplotlib.patches import Patch
 
@@ -121,8 +128,15 @@ def _weight_bars(axes, weights: pd.DataFrame, parts: list, ylabel: str) -> None:
 
 
 def conventions_figure(tables: dict[str, pd.DataFrame], ax=None):
-    """Max acting time against force, one line per convention, on ``ax`` (None: a new
-    figure). Returns the Figure."""
+    """Draw max acting time against force, one line per convention.
+
+    Args:
+        tables: Convention -> its robustness table.
+        ax: The matplotlib Axes to draw on (None: a new figure).
+
+    Returns:
+        The Figure.
+    """
     import matplotlib.pyplot as plt
 
     if ax is None:

@@ -32,9 +32,20 @@ def strategy_map(
     threshold: float = HIP_SHARE_THRESHOLD,
     ax=None,
 ):
-    """The hip's share of the motors' work in each recovered cell (colour), the cells that did
-    not recover grey, the recovery boundary (black) and the hip's take-over line at
-    ``threshold`` (dashed). Returns the Figure."""
+    """Draw the hip's share of the motors' work in each recovered cell.
+
+    The cells that did not recover are grey; the recovery boundary is black and the hip's
+    take-over line at ``threshold`` dashed.
+
+    Args:
+        region: A region map: region.parquet's rows (:func:`sweep`'s frame).
+        config: The region's configuration (its bounds and units; None: the study's).
+        threshold: The hip's share above which a recovery counts as ``hip_ankle``.
+        ax: The matplotlib Axes to draw on (None: a new figure).
+
+    Returns:
+        The Figure.
+    """
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
     import matplotlib.pyplot as plt

@@ -123,10 +123,22 @@ def check_size(value: str) -> str:
 
 @contextmanager
 def figure_style(format: str | None = None, size: str | None = None) -> Iterator[FigureStyle]:
-    """Figures drawn and saved inside are in ``format`` (png, svg, pdf) and ``size`` (screen,
-    one-column, two-column); None keeps the style in effect. Column sizes also set matplotlib's
-    font sizes for the figures drawn inside. Raises ParameterError (a ValueError) for an unknown
-    value."""
+    """A context in which figures are drawn and saved in a format and a size.
+
+    Column sizes also set matplotlib's font sizes for the figures drawn inside.
+
+    Args:
+        format: ``"png"``, ``"svg"`` or ``"pdf"`` (None: the style in effect).
+        size: ``"screen"``, ``"one-column"`` (3.5 in) or ``"two-column"`` (7.2 in) (None: the
+            style in effect).
+
+    Raises:
+        ParameterError: an unknown value.
+
+    Example:
+        >>> with mb.figure_style(format="pdf", size="one-column"):
+        ...     mb.save_figure(mb.region_map(region), "region.pdf")
+    """
     before = current()
     style = FigureStyle(
         check_format(format) if format is not None else before.format,
@@ -196,9 +208,19 @@ def subplots(
 
 
 def save(fig: Any, path: str | Path, *, dpi: int = 120, close: bool = True) -> Path:
-    """Save ``fig`` atomically in the current style (module docstring): the path's .png becomes
-    the format's suffix, a column size fits the figure to the column; returns the path written.
-    ``close``: close the figure afterwards (also on a failed write)."""
+    """Save a figure atomically in the current style.
+
+    The path's .png becomes the format's suffix; a column size fits the figure to the column.
+
+    Args:
+        fig: The Figure.
+        path: Where to save it.
+        dpi: Dots per inch for raster formats (None: the style's).
+        close: Close the figure afterwards (also on a failed write).
+
+    Returns:
+        The path written.
+    """
     import matplotlib
 
     from ..store.files import write_figure  # lazy: the store floor loads pandas

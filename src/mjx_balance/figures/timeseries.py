@@ -388,10 +388,23 @@ def timeseries_figure(
     ax=None,
     legend: bool = True,
 ):
-    """Draw one quantity (a key of QUANTITIES) of every run on ``ax`` (None: a new figure):
-    the push window shaded, the bound that applies to it (config given), the time axis
-    trimmed to the action (``full_window``: up to t_end), zoomed on the runs that did not fall
-    when a fall goes far beyond them. Returns the Figure."""
+    """Draw one quantity of every run of :func:`simulate`'s series over time.
+
+    The push window is shaded, the bound that applies drawn (with ``config``), the time axis
+    trimmed to the action and zoomed on the runs that did not fall when a fall goes far beyond.
+
+    Args:
+        df: The time series (:func:`simulate`'s second frame).
+        quantity: A key of ``QUANTITIES`` (e.g. ``"ankle_angle"``, ``"cop"``).
+        config: The runs' configuration (its bounds are drawn; None: none).
+        summary: The runs' summary rows (their outcomes label the lines; None: none).
+        full_window: Draw up to t_end instead of trimming to the action.
+        ax: The matplotlib Axes to draw on (None: a new figure).
+        legend: Draw the legend.
+
+    Returns:
+        The Figure.
+    """
     q = QUANTITIES[quantity]
     if ax is None:
         fig, ax = style.subplots(figsize=(7.5, 4.6))

@@ -65,7 +65,19 @@ def read_toml(path: str | Path, what: str = "configuration file") -> dict[str, A
 
 
 def load_config(path: str | os.PathLike[str]) -> Config:
-    """Load a TOML configuration file; every value not given takes its default."""
+    """Load a TOML configuration file; every value not given takes its default.
+
+    Args:
+        path: The TOML file: ``[body]``, ``[controller]``, ``[scenario]`` and optionally
+            ``[subject]`` tables (the shipped ones are in the repository's sweeps/; the
+            command line's ``--config human`` finds them by name).
+
+    Returns:
+        The ``Config``.
+
+    Raises:
+        ParameterError: an unknown key, a bad value or an unreadable file, naming it.
+    """
     path = Path(path)
     data = read_toml(path)
     if "sweep" in data:  # a sweep definition: its grid needs the sweep command

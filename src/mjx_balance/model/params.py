@@ -87,9 +87,15 @@ def push_steps(durations: Any, physics_dt: float) -> Any:
 
 
 class ParameterError(ValueError):
-    """A parameter value breaks a rule; the message names the field and the rule, on one line:
-    a line break in it (a library's message quoted in it, pandas' "Error tokenizing data. C
-    error: ...\n") becomes a space, so the command line's one-line refusal stays one line."""
+    """A parameter value breaks a rule (a ``ValueError``).
+
+    The message names the field and the rule, on one line: a line break in it (a library's
+    message quoted in it) becomes a space, so the command line's one-line refusal stays one line.
+
+    Args:
+        message: What is wrong, naming the field and the rule.
+        args: Further arguments, as ``ValueError``'s.
+    """
 
     def __init__(self, message: Any = "", *args: Any) -> None:
         text = str(message)
@@ -717,7 +723,18 @@ class ScenarioParams:
 
 @dataclass(frozen=True)
 class Config:
-    """Everything one run needs: body, controller, scenario."""
+    """Everything one run needs: the body, the controller and the scenario.
+
+    Frozen: ``.replace(body={...}, controller={...}, scenario={...})`` returns a changed copy
+    with every value checked; ``to_dict()`` gives the nested plain values (docs/model.md).
+
+    Attributes:
+        body: The body (``BodyParams``): segments, foot, contact, strength's stepping data.
+        controller: The MPC (``ControllerParams``): convention, horizon, weights, bounds,
+            solver.
+        scenario: The push and the run (``ScenarioParams``): window, time steps, delay, push
+            point.
+    """
 
     body: BodyParams = field(default_factory=BodyParams)
     controller: ControllerParams = field(default_factory=ControllerParams)

@@ -211,22 +211,33 @@ SUBJECT_CONTROLLER_KEYS = ("cop_bounds", "com_bounds")
 
 @dataclass(frozen=True)
 class Subject:
-    """A person: stature ``height`` [m], body ``mass`` [kg], ``sex`` ("male" or "female") and
-    strength factors for the ankle and the hip (1: the mass-scaled study's body).
+    """A person: stature, mass, sex, strength and (optionally) age.
 
-    ``config(base)`` is ``base`` (default: the study's configuration) with this person's body
-    from de Leva (1996) Table 4 (:func:`segments`; docs/model.md, "Subjects"): every segment's
-    mass, length, CoM and pitch inertia, the foot's length and mass, CoP and CoM bounds at the
-    sole's ends under ``base``'s ``ankle_position`` (the study's centred foot: +-foot_length / 2,
-    as its +-0.15 m on its 0.30-m foot), and the input
-    bounds of ``base`` times ``mass / M_base`` (the base body's total mass: the study's 66.3 kg,
-    the human bodies' 73 kg) times ``ankle_strength``
-    (input 1) or ``hip_strength`` (input 2).
+    ``config(base)`` is ``base`` (None: the study's configuration) with this person's body from
+    de Leva (1996) Table 4 (docs/model.md, "Subjects"): every segment's mass, length, CoM and
+    pitch inertia, the foot, CoP and CoM bounds at the sole's ends under ``base``'s
+    ``ankle_position``, and ``base``'s input bounds times ``mass / M_base`` (the base body's total
+    mass: the study's 66.3 kg, the human bodies' 73 kg) times ``ankle_strength`` (input 1) or
+    ``hip_strength`` (input 2). With an ``age``, the base is read as a young man's body
+    (``sweeps/human.toml``) and the strength, rate of torque development, onset latency and step
+    time are a person's of that age and sex (``model.ageing``; docs/model.md, "Age and sex");
+    without one, the sex changes the segments only.
 
-    With an ``age`` [yr], the base is read as a young man's body (``sweeps/human.toml``) and
-    the subject's strength, rate of torque development, onset latency and step time are a
-    person's of that age and sex (``model.ageing``; docs/model.md, "Age and sex"); without one
-    (the default) the sex changes the segments only."""
+    Args:
+        height: Stature [m], 0.5-2.5 (with a body mass index of 10-60 kg/m^2).
+        mass: Body mass [kg], 5-300.
+        sex: ``"male"`` or ``"female"`` (de Leva's table).
+        ankle_strength: Factor on the mass-scaled ankle torque bound, in (0, 10].
+        hip_strength: Factor on the mass-scaled hip torque bound, in (0, 10].
+        age: Age [yr], 18-110, or None (no age: the base's strength and timing, scaled by mass).
+
+    Raises:
+        ParameterError: a value out of its range, naming it.
+
+    Example:
+        >>> base = mb.load_config("sweeps/human.toml")
+        >>> config = mb.Subject(1.62, 58.0, "female", age=70).config(base)
+    """
 
     height: float
     mass: float

@@ -20,9 +20,13 @@ from ..studies.experiments import REPORT_JSON, WEIGHTS_RECOVERING, read_record
 def load_results(out: str | Path) -> dict[str, Any]:
     """Every saved table of a report folder (what the figures and the notebook read).
 
-    Returns {"record": report.json, "config": the base Config, "conventions": {convention:
-    {"summary", "timeseries", "weights", "table", "region"}}, "studies": {key: {"variants"
-    (their report.json entries), "regions": {variant key: region map}, "numbers"}}}.
+    Args:
+        out: The report folder (``mjx-balance report --out DIR``).
+
+    Returns:
+        A dict ``{"record": report.json, "config": the base Config, "conventions": {convention:
+        {"summary", "timeseries", "weights", "table", "region"}}, "studies": {key: {"variants"
+        (their report.json entries), "regions": {variant key: region map}, "numbers"}}}``.
     """
     out = Path(out)
     record = read_record(out / REPORT_JSON)

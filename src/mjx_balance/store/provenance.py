@@ -84,13 +84,17 @@ NUMERICAL_PACKAGES = ("numpy", "scipy", "osqp", "pandas", "pyarrow", "matplotlib
 
 
 def environment() -> dict[str, Any]:
-    """Everything a result depends on, for a methods section or a bug report: the versions
-    (:func:`versions`, and :data:`NUMERICAL_PACKAGES`), the numerics fingerprint
-    (``runtime.fingerprint.numerics``: x64, the XLA flags that change numbers, the matmul
-    precision, the CPU's vector ISA as XLA targets it), every XLA flag, the devices JAX runs
-    on (this starts JAX: call it where a run would, after the package set its flags), the
-    operating system and the git commit of a checkout. ``mjx-balance --version --verbose``
-    prints it."""
+    """Everything a result depends on, for a methods section or a bug report.
+
+    The versions (the package, Python, JAX, jaxlib, MuJoCo and the numerical libraries), the
+    numerics fingerprint (x64, the XLA flags that change numbers, the matmul precision, the CPU's
+    vector ISA as XLA targets it), every XLA flag, the devices JAX runs on (this starts JAX:
+    call it where a run would), the operating system and the git commit of a checkout.
+    ``mjx-balance --version --verbose`` prints it.
+
+    Returns:
+        A dict of plain values.
+    """
     import jax  # lazy: started here to list the devices a run would use
 
     from ..runtime.fingerprint import numerics  # lazy: light, but only for this report

@@ -149,6 +149,18 @@ STUDIES: tuple[Study, ...] = (
 
 
 def study(key: str) -> Study:
+    """A study beyond the paper by its key.
+
+    Args:
+        key: ``ankle_only``, ``backward``, ``delay``, ``offset_free``, ``older_adult``,
+            ``recovery_definition`` or ``push_height``.
+
+    Returns:
+        The study (its question and its variants).
+
+    Raises:
+        ParameterError: an unknown key, listing the known ones.
+    """
     for s in STUDIES:
         if s.key == key:
             return s
@@ -202,7 +214,15 @@ def cell_widths(values: np.ndarray) -> np.ndarray:
 
 
 def region_numbers(region: pd.DataFrame) -> dict[str, float]:
-    """area [N s], fraction, recovered cells, cells, reference duration and f_max_ref [N]."""
+    """A region's numbers.
+
+    Args:
+        region: A region map: region.parquet's rows (:func:`sweep`'s frame).
+
+    Returns:
+        ``area`` [N s], ``fraction``, ``recovered_cells``, ``cells``, the reference duration
+        ``t_ref`` and ``f_max_ref`` [N] (the largest force recovered at it).
+    """
     forces = np.sort(region["force"].unique())
     durations = np.sort(region["duration"].unique())
     wf = dict(zip(forces, cell_widths(forces)))
@@ -354,7 +374,16 @@ def _change_text(change: float, relative: float, scale: float) -> str:
 
 
 def reading(st: Study, numbers: pd.DataFrame, region: pd.DataFrame) -> str:
-    """One paragraph on a study's maps, written from ``numbers`` (``compare``/``signed_halves``)."""
+    """One paragraph on a study's maps, written from their numbers.
+
+    Args:
+        st: The study (:func:`study`).
+        numbers: Its variants' numbers (``compare``/``signed_halves``).
+        region: The base variant's region map, when the reading needs it (None: not used).
+
+    Returns:
+        The paragraph.
+    """
     rows = numbers.to_dict("records")
     grid = grid_text(region)
     t_ref = rows[0]["t_ref"]

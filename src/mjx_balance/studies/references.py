@@ -79,8 +79,13 @@ def check_size(path: Path) -> None:
 
 
 def references() -> dict[str, Path]:
-    """Every shipped reference: name -> its file (a CSV to read with ``comment="#"``, or to
-    pass by name as ``reference=`` / ``--reference``)."""
+    """Every reference table that ships with the package.
+
+    Returns:
+        Name -> its file (a CSV to read with ``comment="#"``, or to pass by name as
+        ``reference=`` / ``--reference``): ``"study"``, the study's Table 2 as printed, cited, each
+        differing row with its measured reason; ``"people"``, published measurements of people.
+    """
     return {name: shipped_path(name) for name in SHIPPED}
 
 
