@@ -100,6 +100,17 @@ def test_compare_and_cohort_folders_are_one_map_per_variant_or_subject(sweep, tm
     share = answer["probability"]
     assert share["subjects"] == 2 and set(share["share"]) == {0.0, 1.0}  # two equal maps
     assert all(m["boundary"] for m in answer["maps"])
+    # the 95 % Wilson interval per cell (as cohort_probability.csv), the 95/50/5 % boundaries
+    # (with two equal maps, each the maps' own) and no base boundary (no base/ folder)
+    from mjx_balance.studies.probability import wilson
+
+    for p, low, high in zip(share["share"], share["low"], share["high"]):
+        assert (low, high) == tuple(float(v) for v in wilson(round(2 * p), 2))
+    assert share["levels"] == {level: answer["maps"][0]["boundary"] for level in ("95", "50", "5")}
+    assert share["base"] == []
+    shutil.copytree(sweep, tmp_path / "coh" / "base", ignore=shutil.ignore_patterns(".lock"))
+    based = explore_folder.folder_json(open_folder(tmp_path / "coh"), explore_folder.MapCache())
+    assert based["probability"]["base"] == answer["maps"][0]["boundary"]
 
 
 def test_a_folder_without_a_map_is_refused(tmp_path):

@@ -168,3 +168,38 @@ def test_a_folder_being_written_refreshes(browser, folder, tmp_path):
         assert "white: not computed" in text(b, "#legend")
         last.write_bytes(held)
         b.wait(lambda: "15 of 15 cells computed" in text(b, "#status"), 30, "the refresh")
+
+
+def test_a_cohorts_share_map_draws_its_boundaries_and_interval(browser, folder, tmp_path):
+    """The cohort view: the share of subjects recovering per cell, its 95 % Wilson interval on
+    hover, the 95/50/5 % boundaries and the base body's, as cohort_probability.png draws
+    them."""
+    from explore_folders import shaped_like
+
+    cohort = shaped_like("cohort", folder, tmp_path / "cohort", ["s01", "s02", "s03"])
+    shutil.copytree(folder, cohort / "base", ignore=shutil.ignore_patterns(".lock", "explore"))
+    b = browser
+    with Explorer(cohort) as explorer:
+        b.get(explorer.url)
+        b.wait(lambda: b.find_all("#map-select option"), 30, "the map choice")
+        b.execute(
+            "const s = document.getElementById('map-select'); s.value = '*share';"
+            "s.dispatchEvent(new Event('change'));"
+        )
+        b.wait(lambda: b.find_all("#map-svg path.level-boundary"), 30, "the level boundaries")
+        levels = {
+            e
+            for e in b.execute(
+                "return [...document.querySelectorAll('#map-svg path.level-boundary')]"
+                ".map((p) => p.getAttribute('data-level')).filter((v) => v);"
+            )
+        }
+        assert levels == {"95", "50", "5"}
+        assert b.find_all("#map-svg path.base-boundary"), "the base body's boundary"
+        legend = text(b, "#legend")
+        assert "base configuration's body recovers" in legend and "P(recover) ≥ 95 %" in legend
+        b.hover(cell(b, "20", "0.5"))
+        tip = b.wait(lambda: text(b, "#tooltip"), 10, "the tooltip")
+        # three copies of one map: all three recover there, Wilson (0.4385, 1)
+        assert "share recovering" in tip and "(of 3 subjects)" in tip
+        assert "95 % interval" in tip and "0.4385 to 1 (Wilson)" in tip, tip

@@ -43,6 +43,8 @@ from ...model.params import Config, ParameterError
 from ...model.config_files import config_from_dict, load_config
 from ...runtime.version import __version__
 from ...store.files import CONFIG, MANIFEST, REGION, TABLE
+from ...studies.cohort import BASE
+from ...studies.probability import LEVELS, wilson
 
 EXPLORE = "explore"  # a map folder's computed runs: explore/<force>_<duration>.parquet
 CHUNKS = "chunks"
@@ -472,9 +474,12 @@ def map_json(folder: Folder, found: MapFolder) -> dict[str, Any]:
     return out
 
 
-def probability(maps: list[dict[str, Any]]) -> dict[str, Any] | None:
+def probability(maps: list[dict[str, Any]], base: Path | None = None) -> dict[str, Any] | None:
     """Per cell, the share of the subjects whose map recovers it, over the subjects that have
-    the cell computed (``counted``); None unless every map has the same grid."""
+    the cell computed (``counted``), with its 95 % Wilson interval (``low``, ``high``: as
+    cohort_probability.csv), the 95/50/5 % boundaries and the base body's (``base``: its
+    folder, the cohort's base/), as cohort_probability.png draws them; None unless every map
+    has the same grid."""
     if len(maps) < 2:
         return None
     first = maps[0]
@@ -486,15 +491,43 @@ def probability(maps: list[dict[str, Any]]) -> dict[str, Any] | None:
     counted = (outcomes != None).sum(axis=0)  # noqa: E711 - elementwise on an object array
     recovered = (outcomes == RECOVERED_TEXT).sum(axis=0)
     share = [plain(r / n) if n else None for r, n in zip(recovered, counted)]
+    low, high = wilson(recovered, np.maximum(counted, 1))
+    forces, durations = np.asarray(first["forces"]), np.asarray(first["durations"])
+    edges = (np.asarray(first["force_edges"]), np.asarray(first["duration_edges"]))
+    levels = {}
+    for percent in LEVELS:  # "recovered" where k / n >= percent %, compared in whole counts
+        at = [
+            None if not n else (RECOVERED_TEXT if 100 * k >= percent * n else "below")
+            for k, n in zip(recovered, counted)
+        ]
+        levels[str(percent)] = boundary_lines(at, forces, durations, edges)
     return {
         "share": share,
+        "low": [plain(v) if n else None for v, n in zip(low, counted)],
+        "high": [plain(v) if n else None for v, n in zip(high, counted)],
         "counted": [int(n) for n in counted],
         "subjects": len(maps),
+        "levels": levels,
+        "base": base_boundary(base, forces, durations, edges),
         **{
             k: first[k]
             for k in ("forces", "durations", "force_edges", "duration_edges", "log_durations")
         },
     }
+
+
+def base_boundary(
+    base: Path | None, forces: np.ndarray, durations: np.ndarray, edges: tuple
+) -> list[list[list[float]]]:
+    """The base body's recovery boundary on the cohort's grid (its map in ``base``, the
+    probability figure's reference line); empty where there is none yet."""
+    if base is None or not base.is_dir():
+        return []
+    cells = _cells(MapFolder("base", base, "base"))
+    if cells.empty:
+        return []
+    outcome = on_grid(cells, forces, durations).get("outcome")
+    return [] if outcome is None else boundary_lines(outcome, forces, durations, edges)
 
 
 @dataclass
@@ -542,7 +575,7 @@ def folder_json(folder: Folder, cache: MapCache) -> dict[str, Any]:
         "version": __version__,
         "maps": [{k: m.get(k) for k in brief} for m in maps],
         "files": figures(folder.root) if folder.kind != "sweep" else [],
-        "probability": probability(maps) if folder.kind == "cohort" else None,
+        "probability": (probability(maps, folder.root / BASE) if folder.kind == "cohort" else None),
         "hover": [column_info(c) for c in HOVER],
         "layers": [
             {**column_info(c), "label": label, "scale": scale, "recovered_only": only}

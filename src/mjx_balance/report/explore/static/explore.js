@@ -11,6 +11,9 @@
   const NO_VALUE = "#d9d9d9";
   const PUSH_COLOUR = "#f4a582";
   const PROBABILITY = "*share";  // the map select's entry of a cohort's share of subjects
+  // the share map's lines: the base body's boundary, and the levels' (cohort_probability.png)
+  const BASE_COLOUR = "#d55e00";
+  const LEVEL_DASHES = [["95", "none"], ["50", "7 3"], ["5", "1.5 2.5"]];
   const S = {folder: null, map: null, key: null, layer: "outcome", request: 0, cell: null,
              timer: null, run: null, frame: 0, playing: false};
 
@@ -199,6 +202,21 @@
     for (const pts of (own && own.boundary) || []) {
       line(g, pts, x, y, {stroke: "#000", "stroke-width": 3, class: "own-boundary"});
     }
+    // the share map: the base body's boundary (orange) and where 95 / 50 / 5 % of the
+    // subjects recover (solid / dashed / dotted), as cohort_probability.png draws them
+    if (S.key === PROBABILITY) {
+      const p = S.folder.probability;
+      for (const pts of p.base || []) {
+        line(g, pts, x, y, {stroke: BASE_COLOUR, "stroke-width": 9, class: "base-boundary"});
+      }
+      for (const [level, dash] of LEVEL_DASHES) {
+        for (const pts of (p.levels || {})[level] || []) {
+          line(g, pts, x, y, {stroke: "#fff", "stroke-width": 4.5, class: "level-boundary"});
+          line(g, pts, x, y, {stroke: "#000", "stroke-width": 2, "stroke-dasharray": dash,
+                              class: "level-boundary", "data-level": level});
+        }
+      }
+    }
     // with one step (dashed) and with two (dotted): capturability (docs/model.md)
     const steps = S.key !== PROBABILITY && S.map ? S.map.step_boundaries : null;
     (steps || []).forEach((lines, k) => {
@@ -281,6 +299,23 @@
     }
     const [w] = item();
     w.textContent = "white: not computed (yet)";
+    if (S.key === PROBABILITY) {
+      const p = S.folder.probability;
+      if ((p.base || []).length) {
+        const [s] = item();
+        const sw = svg("svg", {viewBox: "0 0 28 14"}, s);
+        svg("line", {x1: 0, y1: 7, x2: 28, y2: 7, "stroke-width": 5, stroke: BASE_COLOUR}, sw);
+        s.appendChild(document.createTextNode("the base configuration's body recovers"));
+      }
+      for (const [level, dash] of LEVEL_DASHES) {
+        if (!((p.levels || {})[level] || []).length) continue;
+        const [s] = item();
+        const sw = svg("svg", {viewBox: "0 0 28 14"}, s);
+        svg("line", {x1: 0, y1: 7, x2: 28, y2: 7, "stroke-width": 2, stroke: "#000",
+                     "stroke-dasharray": dash}, sw);
+        s.appendChild(document.createTextNode(`P(recover) ≥ ${level} %`));
+      }
+    }
     if (S.key !== PROBABILITY) {
       const [b] = item();
       b.textContent = "black line: recovery boundary on the grid (feet in place)";
@@ -329,6 +364,8 @@
       return [["force", fmt(force, "N")], ["duration", fmt(duration, "s")],
               ["share recovering", g.share[i] === null ? "–"
                 : `${num(g.share[i])} (of ${g.counted[i]} subjects)`],
+              ["95 % interval", g.share[i] === null || g.low === undefined ? "–"
+                : `${num(g.low[i])} to ${num(g.high[i])} (Wilson)`],
               ["", "pick a subject's map to open a run"]];
     }
     if (!g.cells.outcome || g.cells.outcome[i] === null) {
