@@ -169,3 +169,19 @@ def test_every_command_refuses_absurd_work_unless_yes(tmp_path, capsys, monkeypa
     assert not out.exists()
     with pytest.raises(Reached):
         main([*HUGE[command], "--yes", "--out", str(out)])
+
+
+def test_a_short_window_is_planned_as_the_rates_window():
+    """The engine's rate was measured on 12-s windows decided early, so a 2-s window is planned
+    as one (1,001,000 cells of 2 s: 2.1 to 3.2 h, as such a sweep's progress bar showed, not
+    the 21 to 32 min a window-proportional plan said); the scalar reference runs every window
+    whole, so its plan stays proportional."""
+    from mjx_balance.runs import chunks
+
+    assert "about 2.1 to 3.2 h" in chunks.planned_work(1_001_000, 2.0, None)
+    assert "about 21 to 32 min" in chunks.planned_work(1_001_000, 2.0, None, window_floor=0)
+    twelve = chunks.planned_work(1000, 12.0, None)
+    assert (
+        twelve.split(" at ")[0].split(", ")[-1]
+        == chunks.planned_work(1000, 1.0, None).split(" at ")[0].split(", ")[-1]
+    )

@@ -88,14 +88,19 @@ def guard_work(
 
     t_end = config.scenario.t_end
     rate = chunks.REFERENCE_SECONDS_PER_SECOND if reference else chunks.SIMULATED_SECONDS_PER_SECOND
+    floor = 0.0 if reference else chunks.RATE_WINDOW  # the reference runs every window whole
     disk = {} if not reference else {"bytes_per_scenario": reference_bytes(config)}
     logging.getLogger("mjx_balance").info(
-        chunks.planned_work(n_scenarios, t_end, chunk_size, what, rate=rate, setup=setup, **disk)
+        chunks.planned_work(
+            n_scenarios, t_end, chunk_size, what, rate=rate, setup=setup, window_floor=floor, **disk
+        )
         + (f" (+ about {extra:,} table scenarios)" if extra else "")
         + (f"; {note}" if note else "")
     )
     if not getattr(args, "yes", False):
-        chunks.check_planned_work(n_scenarios + extra, t_end, what, rate=rate, setup_s=setup[0])
+        chunks.check_planned_work(
+            n_scenarios + extra, t_end, what, rate=rate, setup_s=setup[0], window_floor=floor
+        )
 
 
 def table_scenarios(config: Config, n_forces: int) -> int:

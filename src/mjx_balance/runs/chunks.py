@@ -99,6 +99,12 @@ def chunk_slices(n_cells: int, chunk_size: int) -> list[slice]:
 # "The pipeline benchmark") and the dense study map ("The dense study map"). A GPU is far
 # faster (the estimate is then pessimistic: --yes).
 SIMULATED_SECONDS_PER_SECOND = (88 * 12.0, 130 * 12.0)
+# Those rates were measured on 12-s windows whose scenarios the engine decides early (a fall, a
+# certified recovery: 1.29 s simulated per scenario on average, BENCHMARKS.md), so a shorter
+# window does not make a scenario cheaper: the engine's work is planned as at least a 12-s
+# window each (a plan proportional to the window said 21-32 min for 1,001,000 cells of 2 s, which
+# ran at the 2-3.5 h its progress bar showed). The scalar reference runs every window whole.
+RATE_WINDOW = 12.0
 # Disk per scenario in a chunk file, rounded up from a default sweep's 64-row chunks
 # (BENCHMARKS.md, "Disk"); the merged region.parquet holds the same rows again.
 CHUNK_BYTES_PER_SCENARIO = 650
@@ -145,12 +151,14 @@ def planned_work(
     rate: tuple[float, float] = SIMULATED_SECONDS_PER_SECOND,
     bytes_per_scenario: int = 2 * CHUNK_BYTES_PER_SCENARIO,
     setup: tuple[float, str] = (0.0, ""),
+    window_floor: float = RATE_WINDOW,
 ) -> str:
     """One line: scenarios, chunks (unless ``chunk_size`` is None), simulated time, estimated
-    wall time at ``rate`` (window-s/s: slower, faster), disk, and ``setup``: (seconds, what)
-    spent before the first scenario (a cohort's subjects checked), when there are any."""
+    wall time at ``rate`` (window-s/s: slower, faster; each scenario at least ``window_floor``
+    seconds of window, RATE_WINDOW), disk, and ``setup``: (seconds, what) spent before the
+    first scenario (a cohort's subjects checked), when there are any."""
     simulated = n_scenarios * t_end
-    longest, shortest = (simulated / r for r in rate)
+    longest, shortest = (n_scenarios * max(t_end, window_floor) / r for r in rate)
     disk = n_scenarios * bytes_per_scenario  # (chunks + the merged table, by default)
     low, high = rate
     chunks = "" if chunk_size is None else math.ceil(n_scenarios / chunk_size)
@@ -162,7 +170,13 @@ def planned_work(
     return (
         f"planned work: {n_scenarios:,} {what}{chunks}, {simulated:,.0f} s of scenario "
         f"windows, {wall_span(shortest, longest)} at {low:g}-{high:g} window-s/s "
-        f"(2-core CPU, BENCHMARKS.md; compile not included), about {_size(disk)} on disk"
+        + (
+            f"(each scenario as a {window_floor:g}-s window: decided early, a shorter one costs "
+            "no less; "
+            if t_end < window_floor
+            else "("
+        )
+        + f"2-core CPU, BENCHMARKS.md; compile not included), about {_size(disk)} on disk"
         + (
             f", after {wall_span(setup[0], setup[0])} of {setup[1]} before the first scenario"
             if setup[0] >= 1
@@ -184,11 +198,13 @@ def check_planned_work(
     rate: tuple[float, float] = SIMULATED_SECONDS_PER_SECOND,
     scenarios_limit: int = MAX_PLANNED_SCENARIOS,
     setup_s: float = 0.0,
+    window_floor: float = RATE_WINDOW,
 ) -> None:
-    """Refuse work above ``scenarios_limit`` or MAX_PLANNED_HOURS at the slower ``rate``, the
-    set-up before the first scenario (``setup_s``) included (ParameterError, one line saying
-    how to go ahead anyway: --yes)."""
-    hours = (n_scenarios * t_end / rate[0] + setup_s) / 3600
+    """Refuse work above ``scenarios_limit`` or MAX_PLANNED_HOURS at the slower ``rate`` (each
+    scenario at least ``window_floor`` seconds of window), the set-up before the first
+    scenario (``setup_s``) included (ParameterError, one line saying how to go ahead anyway:
+    --yes)."""
+    hours = (n_scenarios * max(t_end, window_floor) / rate[0] + setup_s) / 3600
     if n_scenarios > scenarios_limit or hours > MAX_PLANNED_HOURS:
         raise ParameterError(
             f"{n_scenarios:,} {what} of {t_end:g} s (up to {hours:,.1f} h on a 2-core CPU) is "
