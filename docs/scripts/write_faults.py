@@ -145,6 +145,9 @@ def cold_cache(argv, root: Path, library: Path, clean: dict) -> str:
     must complete with the clean run's tables (a cache that cannot be written costs a compile
     next time, not this run). '' when it does."""
     cache, out, log = root / "cold-cache", root / "cold", root / "cold.log"
+    clean_log = root / "clean.log"  # the clean run, on its own empty cache
+    if not any(p.startswith(str(root / "cache")) for p in entries(clean_log, "open").values()):
+        return ""  # the command compiles nothing (simulate: MuJoCo C and OSQP)
     proc = run(argv, out, cache, library, log, 1, errno.ENOSPC)
     path = struck(log)
     if path is None or not path.startswith(str(cache)):
