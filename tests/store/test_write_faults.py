@@ -1,7 +1,8 @@
 """Every write site faulted (docs/scripts/write_faults.py; docs/reliability.md, "Every write
 site faulted"): a small simulate run with each of its files opened for writing failing in turn
 (ENOSPC or EIO at the write, EROFS at the open) ends in one line naming the file and the cause,
-leaves no table that differs from a clean run's, and reruns to the clean run's bytes. The shim
+leaves no table that differs from a clean run's, and reruns to the clean run's bytes: its first
+four opens (the lock, and a push's request made, written and synced), about 2 minutes. The shim
 is C, loaded with LD_PRELOAD: the test needs a C compiler and Linux (skipped without them, the
 reason said). The slow run: each command's full enumeration is the script's."""
 
@@ -35,7 +36,9 @@ def _script():
 def test_every_write_of_a_simulate_run_faulted(tmp_path, monkeypatch, capsys):
     script = _script()
     monkeypatch.setattr(
-        sys, "argv", ["write_faults.py", "--command", "simulate", "--out", str(tmp_path)]
+        sys,
+        "argv",
+        ["write_faults.py", "--command", "simulate", "--limit", "4", "--out", str(tmp_path)],
     )
     assert script.main() == 0, capsys.readouterr().out
     printed = capsys.readouterr().out
