@@ -97,9 +97,10 @@ ACCEPTED = {
     ("landscape", "--delays"): {"0"},
     ("landscape", "--delay"): {"0"},
     ("pull", "--ramp"): {"0"},  # a pull of 0-s rise is applied at once (a step)
-    # empty: the default (a strength of 1, every study)
+    # empty: the default (a strength of 1, no age, every study)
     ("cohort", "--ankle-strengths"): {""},
     ("cohort", "--hip-strengths"): {""},
+    ("cohort", "--ages"): {""},
     ("report", "--studies"): {""},
     ("report", "--sweeps"): {"dir"},  # a folder of sweep files
 }
