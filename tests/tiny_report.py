@@ -70,6 +70,9 @@ def tiny_report(tmp_path_factory, which: str = ALL) -> Path:
         assert printed.startswith("[report 1/")
         assert f"[report {stages}/{stages}, " in printed
         assert f"tables saved in {out} (" in stderr.getvalue()
+        # no progress bar where no one watches (stderr is not a terminal here): a bar's
+        # carriage returns would make a redirected log of one error line many lines
+        assert "\r" not in stderr.getvalue()
         assert printed.endswith(f"wrote {out / 'report.html'}\n")
         _CACHE[which] = out
     return _CACHE[which]

@@ -39,6 +39,7 @@ from ..runs import (
 )
 from ..runs.folders import batch_function, run_region, run_table_folder
 from ..runs.grid import Grid
+from ..runs.progress import wanted
 from ..store.files import write_csv, write_parquet, write_text
 from ..reference.loop import simulate_scenario
 from ..reference.loop import simulate_many
@@ -182,7 +183,7 @@ class Batches:
             Grid.of(forces, durations, config),
             run_batch=self(config),
             chunk=chunk,
-            progress=not quiet,
+            progress=False if quiet else None,  # where someone watches (runs.progress.wanted)
             say=None if quiet else print,
             cluster=self.cluster,
         )
@@ -323,7 +324,10 @@ def timeseries_stage(run: ReportRun, convention: str) -> None:
 
     def work() -> None:
         summary, series = simulate_many(
-            cfg, list(plan.timeseries_forces), [plan.push_duration], progress=not run.quiet
+            cfg,
+            list(plan.timeseries_forces),
+            [plan.push_duration],
+            progress=not run.quiet and wanted(None),
         )
         write_csv(summary, folder / "summary.csv", units=False)
         write_parquet(series, folder / "timeseries.parquet")
@@ -416,7 +420,7 @@ def table_folder(run: ReportRun, folder: Path, cfg: Config) -> None:
         list(run.plan.table_forces),
         run_batch=run.batches(cfg),
         batch=None if run.backend == "reference" else run.chunk,
-        progress=not run.quiet,
+        progress=False if run.quiet else None,
         say=run.sweep_log,
         sustained=run.plan.sustained,
     )
