@@ -383,8 +383,9 @@ def config_options(
         help="a person's body from de Leva's (1996) segment table: stature H [m], "
         "mass M [kg], sex male (default) or female, optional ankle_strength "
         "and hip_strength factors (default 1) on the mass-scaled torque "
-        "bounds; replaces the --config file's [subject] and goes under a sweep "
-        "definition and --set (docs/model.md, 'Subjects')",
+        "bounds, optional age [yr] (that age's and sex's strength and timing on "
+        "--config human: docs/model.md, 'Age and sex'); replaces the --config file's "
+        "[subject] and goes under a sweep definition and --set (docs/model.md, 'Subjects')",
     )
 
 
