@@ -64,6 +64,10 @@ class Ageing(NamedTuple):
     step_time: float  # s added to body.step_time
 
 
+# What a subject without an age gets: nothing changed (its sex changes the segments only)
+NO_AGEING = Ageing(1.0, 1.0, 1.0, 1.0, 0.0, 0.0)
+
+
 def share(age: float) -> float:
     """How far ``age`` lies from the young group's age to the older group's, in [0, 1]."""
     young, older = AGES

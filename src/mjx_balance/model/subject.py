@@ -42,7 +42,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from .ageing import AGE_RANGE, ageing
+from .ageing import AGE_RANGE, NO_AGEING, Ageing, ageing
 from .params import (
     BodyParams,
     Config,
@@ -292,30 +292,33 @@ class Subject:
         edges = (-body.ankle_position * length, (1 - body.ankle_position) * length)
         scale = self.mass / body.total_mass
         factors = (scale * self.ankle_strength, scale * self.hip_strength)
-        bounds = [base.input1_bounds, base.input2_bounds]
-        rates = factors
-        if self.age is not None:  # a person's strength and rate at this age and sex
-            aged = ageing(self.age, self.sex)
-            (low, high), hip = bounds
-            bounds = [(low * aged.plantarflexion, high * aged.dorsiflexion), hip]
-            factors = (factors[0], factors[1] * aged.hip)
-            rates = (rates[0] * aged.rate, rates[1] * aged.rate)
+        aged = self.aged()  # x 1.0 without an age: the mass-scaled values exactly
+        low, high = base.input1_bounds
         values: dict[str, tuple[float, ...]] = {
             "cop_bounds": edges,
             "com_bounds": edges,
-            "input1_bounds": tuple(v * factors[0] for v in bounds[0]),
-            "input2_bounds": tuple(v * factors[1] for v in bounds[1]),
+            "input1_bounds": (
+                low * aged.plantarflexion * factors[0],
+                high * aged.dorsiflexion * factors[0],
+            ),
+            "input2_bounds": tuple(v * (factors[1] * aged.hip) for v in base.input2_bounds),
         }
         if base.input_rates is not None:
-            values["input_rates"] = tuple(r * f for r, f in zip(base.input_rates, rates))
+            values["input_rates"] = tuple(
+                r * (f * aged.rate) for r, f in zip(base.input_rates, factors)
+            )
         return values
+
+    def aged(self) -> Ageing:
+        """What this subject's age and sex change (``model.ageing``; nothing without an age)."""
+        return NO_AGEING if self.age is None else ageing(self.age, self.sex)
 
     def timing(self, base: Config) -> dict[str, dict[str, float]]:
         """The onset latency (on the physics step's grid) and the step's landing time of a
         subject with an age (``model.ageing``); empty without one."""
         if self.age is None:
             return {}
-        aged = ageing(self.age, self.sex)
+        aged = self.aged()
         dt = base.scenario.physics_dt
         delay = round(dt * round((base.scenario.controller_delay + aged.onset) / dt), 12)
         return {

@@ -142,6 +142,12 @@ def wall_span(shortest: float, longest: float) -> str:
     return f"about {low} to {high}"
 
 
+def planned_seconds(n_scenarios: int, t_end: float, rate: float, window_floor: float) -> float:
+    """Wall seconds of ``n_scenarios`` windows of ``t_end`` at ``rate`` window-s/s, each
+    counted as at least ``window_floor`` seconds (RATE_WINDOW)."""
+    return n_scenarios * max(t_end, window_floor) / rate
+
+
 def planned_work(
     n_scenarios: int,
     t_end: float,
@@ -158,7 +164,7 @@ def planned_work(
     seconds of window, RATE_WINDOW), disk, and ``setup``: (seconds, what) spent before the
     first scenario (a cohort's subjects checked), when there are any."""
     simulated = n_scenarios * t_end
-    longest, shortest = (n_scenarios * max(t_end, window_floor) / r for r in rate)
+    longest, shortest = (planned_seconds(n_scenarios, t_end, r, window_floor) for r in rate)
     disk = n_scenarios * bytes_per_scenario  # (chunks + the merged table, by default)
     low, high = rate
     chunks = "" if chunk_size is None else math.ceil(n_scenarios / chunk_size)
@@ -204,7 +210,7 @@ def check_planned_work(
     scenario at least ``window_floor`` seconds of window), the set-up before the first
     scenario (``setup_s``) included (ParameterError, one line saying how to go ahead anyway:
     --yes)."""
-    hours = (n_scenarios * max(t_end, window_floor) / rate[0] + setup_s) / 3600
+    hours = (planned_seconds(n_scenarios, t_end, rate[0], window_floor) + setup_s) / 3600
     if n_scenarios > scenarios_limit or hours > MAX_PLANNED_HOURS:
         raise ParameterError(
             f"{n_scenarios:,} {what} of {t_end:g} s (up to {hours:,.1f} h on a 2-core CPU) is "

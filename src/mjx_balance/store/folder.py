@@ -54,6 +54,7 @@ from .files import (
     TABLE_CELLS,
     TABLE_RUNS,
     UNITS_SUFFIX,
+    named,
     with_units,
     write_parquet,
     write_text,
@@ -274,7 +275,7 @@ def folder_lock(path: str | os.PathLike[str], *, wait: bool = False) -> Iterator
             os.ftruncate(fd, 0)
             os.pwrite(fd, f"PID {os.getpid()}, started {started}\n".encode(), 0)
         except OSError as exc:  # a descriptor's error names no file: name the lock
-            raise OSError(exc.errno, exc.strerror, str(folder / LOCK)) from exc
+            raise named(exc, folder / LOCK) from exc
         with _held(key, me):
             try:
                 yield

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from statistics import NormalDist
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -141,10 +142,16 @@ def cells(regions: dict[str, pd.DataFrame]) -> pd.DataFrame:
     return frame[CELL_COLUMNS + STEP_CELL_COLUMNS]
 
 
+def at_level(recovered: Any, subjects: Any, percent: int) -> np.ndarray:
+    """Where P = recovered / subjects >= percent / 100, compared in whole counts (100 k >=
+    percent n: 19 of 20 is at 95 %, exactly); elementwise."""
+    return 100 * np.asarray(recovered) >= percent * np.asarray(subjects)
+
+
 def thresholded(frame: pd.DataFrame, percent: int) -> pd.DataFrame:
     """The probability map read as one outcome map: "recovered" where P >= percent / 100, else
-    "below" (compared in whole counts, 100 k >= percent n: 19 of 20 is at 95 %, exactly)."""
-    ok = 100 * frame["recovered_subjects"].to_numpy() >= percent * frame["subjects"].to_numpy()
+    "below" (:func:`at_level`)."""
+    ok = at_level(frame["recovered_subjects"], frame["subjects"], percent)
     return pd.DataFrame(
         {
             "force": frame["force"].to_numpy(),

@@ -44,7 +44,7 @@ from ...model.config_files import config_from_dict, load_config
 from ...runtime.version import __version__
 from ...store.files import CONFIG, MANIFEST, REGION, TABLE
 from ...studies.cohort import BASE
-from ...studies.probability import LEVELS, wilson
+from ...studies.probability import BELOW, LEVELS, at_level, wilson
 
 EXPLORE = "explore"  # a map folder's computed runs: explore/<force>_<duration>.parquet
 CHUNKS = "chunks"
@@ -495,10 +495,10 @@ def probability(maps: list[dict[str, Any]], base: Path | None = None) -> dict[st
     forces, durations = np.asarray(first["forces"]), np.asarray(first["durations"])
     edges = (np.asarray(first["force_edges"]), np.asarray(first["duration_edges"]))
     levels = {}
-    for percent in LEVELS:  # "recovered" where k / n >= percent %, compared in whole counts
+    for percent in LEVELS:  # as the probability figure's lines (studies.probability.at_level)
         at = [
-            None if not n else (RECOVERED_TEXT if 100 * k >= percent * n else "below")
-            for k, n in zip(recovered, counted)
+            None if not n else (RECOVERED_TEXT if ok else BELOW)
+            for ok, n in zip(at_level(recovered, counted, percent), counted)
         ]
         levels[str(percent)] = boundary_lines(at, forces, durations, edges)
     return {
