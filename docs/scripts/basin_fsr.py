@@ -1,5 +1,5 @@
 """The human body's recovery basin beside Pai & Patton's (1997) feasible stability region
-(docs/studies.md, "People"): the young human body with the ankle strategy alone (an inverted
+(docs/people.md, "People"): the young human body with the ankle strategy alone (an inverted
 pendulum on a foot, as their model), released from a rigid posture at each (x_com, v_com), on
 the batched engine (``mb.basin``); their boundary points, converted to this body, drawn on it.
 

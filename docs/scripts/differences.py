@@ -1,4 +1,4 @@
-"""The differences from the study, and their measured causes (issue 27.5; docs/studies.md).
+"""The differences from the study, and their measured causes (issue 27.5; docs/study.md).
 
     python docs/scripts/differences.py relax        # one relaxation at a time, scalar reference
     python docs/scripts/differences.py margins      # the ankle bound from which each push recovers

@@ -1,4 +1,4 @@
-"""Lean and release with people's strength and timing (docs/studies.md, "People"): the static
+"""Lean and release with people's strength and timing (docs/people.md, "People"): the static
 and dynamic lean limits of the ankle-only body as measured strength, the onset latency, the
 relaxed start and the rate of torque development are added one at a time.
 

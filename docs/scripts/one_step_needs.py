@@ -1,5 +1,5 @@
 """What the single-step rows' published means ask of the step (people.csv's reasons for the
-four single-step rows; docs/studies.md, "The people scorecard").
+four single-step rows; docs/people.md, "The people scorecard").
 
 For each body of the people scorecard that predicts a single-step row (the young and the older
 man, the young and the older woman), the one-step lean limit as shipped, then, bisected with the

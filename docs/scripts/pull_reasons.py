@@ -1,4 +1,4 @@
-"""Why the older human body's waist-pull limit is below people's (docs/studies.md, "People"):
+"""Why the older human body's waist-pull limit is below people's (docs/people.md, "People"):
 the limit of ``sweeps/human_older.toml``, then one change at a time, each on the batched
 engine (``mb.waist_pull``; the pull at the hip, forward and backward, 0.5-N brackets).
 

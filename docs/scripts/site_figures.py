@@ -1,5 +1,6 @@
 """Draw every figure of the documentation site (docs/figures/) again, each by the command whose
-output it is, as docs/studies.md and docs/outputs.md give the command beside the figure.
+output it is, as the site's pages (docs/study.md, docs/people.md, ...) give the command beside
+the figure.
 
     python docs/scripts/site_figures.py [--only NAME[,NAME...]] [--work /tmp/site_figures]
 

@@ -1,5 +1,5 @@
 """The capture columns checked by simulation, and what the decision instant's choice moves
-(docs/studies.md, "Stepping").
+(docs/beyond.md, "Stepping").
 
     python docs/scripts/stepping_check.py [study|human|human_older] [--forces SPEC]
         [--durations SPEC]

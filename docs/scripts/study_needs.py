@@ -1,5 +1,5 @@
 """What the study's body would need to meet people's lean-and-release limit (issue 49, item 6;
-docs/studies.md, "People"): the factor on its ankle bounds with which the ankle-only study
+docs/people.md, "People"): the factor on its ankle bounds with which the ankle-only study
 body's dynamic limit reaches the people reference's 5.9 +- 1.1 deg (Robinovitch et al. 2002):
 its mean and the lower edge of agreement (mean - 2 SD, 3.7 deg), without and with people's
 timing (the 0.1-s compensated onset, the relaxed start, 372 N m/s rising: docs/model.md,

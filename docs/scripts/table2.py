@@ -1,5 +1,5 @@
 """The study's Table 2 beside ours: what its energies and max acting times measure
-(docs/studies.md, "The study's Table 2, row by row").
+(docs/study.md, "The study's Table 2, row by row").
 
     python docs/scripts/table2.py runs            # the Table 2 pushes on the scalar reference (kept)
     python docs/scripts/table2.py energy          # every candidate reading of the energy vs the 57 values

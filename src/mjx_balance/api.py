@@ -1151,7 +1151,7 @@ def explore(
     Served at ``http://127.0.0.1:PORT/`` for a sweep, compare or cohort folder; a cell's run is
     computed on demand by the scalar reference in the map's own configuration and kept in the
     folder (``explore/<force>_<duration>.parquet``), so a second click is served from there
-    (docs/outputs.md, "mjx-balance explore").
+    (docs/explore.md, "mjx-balance explore").
 
     Args:
         folder: A sweep, compare or cohort folder.

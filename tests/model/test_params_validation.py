@@ -214,6 +214,6 @@ def test_at_the_friction_limit_the_body_stands():
 @pytest.mark.parametrize("field", ["settle_angle_tol", "settle_rate_tol", "t_end"])
 @pytest.mark.parametrize("value", [0.0, -0.01, float("nan")])
 def test_the_definition_of_recovery_is_validated(field, value):
-    """The settle band and the window (docs/studies.md varies them) are checked like the rest."""
+    """The settle band and the window (docs/study.md varies them) are checked like the rest."""
     with pytest.raises(ParameterError, match=f"scenario.{field}"):
         Config().replace(scenario={field: value})

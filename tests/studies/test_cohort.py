@@ -370,7 +370,7 @@ def test_subjects_share_one_compiled_program():
     """Everything a compiled program is keyed on (``BatchRunner._shape_key``: tree structure,
     shapes, static settings) is the same for bodies of other sizes and strengths: the body,
     the QP and the torque bounds are traced arguments, so a cohort compiles once (measured:
-    docs/studies.md, "Cohorts"). Builds the runners only; nothing is compiled."""
+    docs/cohorts.md, "Cohorts"). Builds the runners only; nothing is compiled."""
     from mjx_balance.rollout.runner import BatchRunner
 
     small = BatchRunner(Subject(1.52, 48, "female", ankle_strength=0.6).config())

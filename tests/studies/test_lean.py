@@ -64,7 +64,7 @@ def test_the_dynamic_limit_is_bracketed_and_the_reference_agrees(limits):
     side (the ADMM's eps 1e-4 moves the boundary by far less than a degree in the push map:
     docs/model.md, "Agreement")."""
     # (not below the static limit: released, the controller bends the hip, which the static
-    # lean, hip straight, does not; docs/studies.md, "People")
+    # lean, hip straight, does not; docs/people.md, "People")
     assert 0 < limits.dynamic_deg < lean.MAX_LEAN_DEG
     assert limits.resolution_deg <= 0.05
     assert limits.peak_ankle_torque > 0 and limits.scenarios > 0

@@ -9,7 +9,7 @@ near vertical while the lower body tilts, so |q_hip| ~ |q_ankle|), so an angle r
 number in both conventions (motor torques and joint rates), and it needs nothing the summary row
 does not already hold, so a sweep computes it for the whole plane.
 
-What its distribution shows (docs/studies.md, "The strategy map"): in the linear regime (no
+What its distribution shows (docs/beyond.md, "The strategy map"): in the linear regime (no
 bound active, short pushes) the share is a property of the controller, 0.13-0.15 for the study's
 MPC at every force: the mode of the distribution. It rises from there continuously, with the
 ankle's torque bound saturating (short strong pushes, up to 0.66) and with the length of a push

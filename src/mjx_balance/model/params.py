@@ -587,7 +587,7 @@ class ScenarioParams:
     # where the two are one). Left out of a configuration's files when false.
     relaxed_start: bool = field(default=False, metadata={"omit_default": True})
     # A push that rises linearly from 0 to its force over push_ramp seconds, then holds (a pull
-    # loaded gradually, as a spring-scale test's; people's protocols, docs/studies.md). 0: a
+    # loaded gradually, as a spring-scale test's; people's protocols, docs/people.md). 0: a
     # step, the study's push. Data of the compiled program; left out of files when 0.
     push_ramp: float = field(default=0.0, metadata={"omit_default": True})
 

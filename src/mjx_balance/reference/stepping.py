@@ -1,5 +1,5 @@
 """A reduced model that takes the step: the check of the capture columns by simulation
-(docs/studies.md, "Stepping"; measures/capture.py is the closed form it checks).
+(docs/beyond.md, "Stepping"; measures/capture.py is the closed form it checks).
 
 From the full model's CoM state at a run's decision instant (the reference's recorded series),
 the linear inverted pendulum (the same omega0, CoP reach, push and step as

@@ -3,7 +3,7 @@ HTML report drawn from them, and the explore page. docs/architecture.md, "The mo
 modules; docs/outputs.md, "mjx-balance report", describes the folder.
 
 :func:`run_report` (``studies/experiments.py``) runs, for both conventions, every experiment of
-the study (docs/studies.md, "The study's figures and tables, one by one") and then the studies
+the study (docs/study.md, "The study's figures and tables, one by one") and then the studies
 of ``studies/catalog.py``, saving each result table in DIR before any figure is drawn:
 
     DIR/report.json                    what was run: plan, base configuration, studies, timings

@@ -7,7 +7,7 @@ and the strategy map inside each convention's region section.
                            (``studies.scorecard``; column ``convention``)
 
 Nothing here infers why a row differs: a reason comes from the reference file's ``reason``
-column, and the measured causes of the known differences are in docs/studies.md.
+column, and the measured causes of the known differences are in docs/study.md.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from .blocks import img
 REFERENCES_DIR = "references"
 STUDY = "study"  # the shipped study table, scored in every report's paper convention
 SCORECARD_HEADING = "Scorecard: the reference tables beside ours"
-DIFFERENCES_DOC = "docs/studies.md, 'Differences from the study, and their measured causes'"
+DIFFERENCES_DOC = "docs/study.md, 'Differences from the study, and their measured causes'"
 
 
 def store_references(out: str | Path, paths: Sequence[str | Path] | None) -> list[Path]:

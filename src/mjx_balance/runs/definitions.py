@@ -19,7 +19,7 @@ from ..model.params import Config, ParameterError
 from ..model.config_files import read_toml
 from ..model.subject import with_sections
 
-# The robustness table of the study (docs/studies.md, "The study's Table 2, row by row").
+# The robustness table of the study (docs/study.md, "The study's Table 2, row by row").
 STUDY_TABLE_FORCES = (5, 10, 15, 20, 30, 40, 50, 60, 80, 100, 120)
 
 # The built-in default sweep (the README's main job; the same as the shipped default.toml): a coarse

@@ -123,7 +123,7 @@ STUDIES: tuple[Study, ...] = (
         "The settle band that defines a recovery (every angle within 0.01 rad and every "
         "rate within 0.05 rad/s at t_end) is made ten times tighter and ten times looser; "
         "the window is the same. (Windows of 6, 12 and 24 s and the max acting times under "
-        "each definition: docs/studies.md.)",
+        "each definition: docs/study.md.)",
         (
             Variant("band_base", "0.01 rad, 0.05 rad/s (base)", None),
             Variant(

@@ -13,7 +13,7 @@ POSTURES = {
 # studies.landscape: 7 Q and R scales a decade apart around the base weights (1): Q/R ratios
 # from 1e-6 to 1e6 of the base's; no delay, and the human-like 100 ms with the
 # delay-compensated controller (a plain MPC keeps no recoverable area at 20 ms or more:
-# docs/studies.md); each setting's table (max acting time at 50 N)
+# docs/beyond.md, "Delay"); each setting's table (max acting time at 50 N)
 DEFAULT_SCALES = "0.001,0.01,0.1,1,10,100,1000"
 DEFAULT_DELAYS = "0,100c"
 DEFAULT_TABLE_FORCES = "50"  # N

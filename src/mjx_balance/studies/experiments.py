@@ -49,7 +49,7 @@ from ..runs import cluster as cluster_mod
 REPORT_JSON = "report.json"
 CONFIG_TOML = "config.toml"
 WEIGHTS_RECOVERING = "weights_recovering.csv"  # the weight study on a push that recovers
-# Q = s I4: the study's Fig. 14 (docs/studies.md, "The study's figures and tables, one by one")
+# Q = s I4: the study's Fig. 14 (docs/study.md, "The study's figures and tables, one by one")
 Q_SCALES = (1e3, 1e4, 1e5, 1e6, 1e7)
 R_SCALES = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8)  # R = s diag(1000, 1)
 REFERENCE_CHUNK = 8  # scenarios per sweep chunk with the reference batch function
@@ -313,7 +313,7 @@ def run_stage(
 
 
 # ---------------------------------------------------------------------------------------------
-# The study's experiments (docs/studies.md, "The study's figures and tables, one by one"), one
+# The study's experiments (docs/study.md, "The study's figures and tables, one by one"), one
 # convention at a time
 
 

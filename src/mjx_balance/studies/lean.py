@@ -26,7 +26,7 @@ Two limits, each as the experiment reports it:
 
 The lean is the angle of the rigid body (ankle to CoM) from vertical, positive forward: the
 direction in which a positive push moves the CoM (``Plane.com_x`` grows with q_a). People's
-numbers to hold these against ship in ``data/references/people.csv`` (docs/studies.md,
+numbers to hold these against ship in ``data/references/people.csv`` (docs/people.md,
 "People").
 """
 

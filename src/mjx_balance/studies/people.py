@@ -1,5 +1,5 @@
 """The people scorecard: every measure of the people reference (``data/references/people.csv``)
-beside what the shipped human bodies predict (docs/studies.md, "People").
+beside what the shipped human bodies predict (docs/people.md, "People").
 
 Two bodies, each a shipped configuration whose every number is a cited measurement
 (``sweeps/human.toml``, a young man; ``sweeps/human_older.toml``, an older man; docs/model.md,
@@ -17,7 +17,7 @@ Each reference row is one of three kinds (:data:`ROWS`):
 - ``not modelled``: a protocol the tool does not have yet (a moving platform).
 
 Every predicted row that does not agree, and every row not modelled, carries the reason found
-by measurement (people.csv's ``reason`` column, written from docs/studies.md's tables).
+by measurement (people.csv's ``reason`` column, written from docs/people.md's tables).
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 A shipped reference is a reference file (docs/outputs.md, "Reference files") kept as package
 data in ``mjx_balance/data/references/``: published numbers as printed, cited in its
 ``source`` column, with the measured ``reason`` of every row that differs from ours
-(docs/studies.md). ``--reference NAME`` on ``sweep``, ``table`` and ``report``, and
+(docs/study.md, docs/people.md). ``--reference NAME`` on ``sweep``, ``table`` and ``report``, and
 ``reference=NAME`` in the Python API, read it as they read a file; a file that happens to be
 named like one is given with a path (``./study``).
 
@@ -41,7 +41,7 @@ PEOPLE = "people.csv"
 
 
 def people_path() -> Path:
-    """The people reference's file (docs/studies.md, "People")."""
+    """The people reference's file (docs/people.md, "People")."""
     return Path(str(resources.files("mjx_balance") / "data" / "references" / PEOPLE))
 
 

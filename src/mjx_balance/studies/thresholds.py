@@ -7,7 +7,7 @@ and holds it against the published value.
   is ``resolution`` wide: every call has the same shape, so one compiled program serves all.
   The threshold is the largest value seen passing with every smaller scanned value passing too.
 - :func:`agreement` is the people reference's rule: a prediction agrees when it lies within the
-  published mean +- 2 SD (docs/studies.md, "People").
+  published mean +- 2 SD (docs/people.md, "People").
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ The page is served on this machine only (127.0.0.1) by the standard library's
 reference (MuJoCo C + OSQP) in the map's own configuration and keeps the run in the map's
 folder (``explore/<force>_<duration>.parquet``), so the next click on it is served from there.
 
-docs/outputs.md, "mjx-balance explore", describes the page and its endpoints;
+docs/explore.md, "mjx-balance explore", describes the page and its endpoints;
 docs/architecture.md, "The modules", maps this package's modules.
 """
 

@@ -428,7 +428,7 @@ def figures(path: Path) -> list[str]:
 
 
 def map_json(folder: Folder, found: MapFolder) -> dict[str, Any]:
-    """One map as the page draws it (docs/outputs.md, "mjx-balance explore")."""
+    """One map as the page draws it (docs/explore.md, "mjx-balance explore")."""
     cells = _cells(found)
     forces, durations = grid_of(found, cells)
     log = log_durations(durations)

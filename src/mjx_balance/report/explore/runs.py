@@ -342,7 +342,7 @@ def run_json(
     cached: bool,
     note: str | None,
 ) -> dict[str, Any]:
-    """A run as the page draws it (docs/outputs.md, "mjx-balance explore")."""
+    """A run as the page draws it (docs/explore.md, "mjx-balance explore")."""
     summary = frame.attrs["summary"]
     force, duration = float(summary["force"]), float(summary["duration"])
     at = thin(len(frame))
