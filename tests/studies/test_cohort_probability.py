@@ -141,6 +141,34 @@ def test_p_per_cell_is_the_count_over_the_subjects_maps():
     assert (first["subjects"], first["recovered_subjects"]) == (2, 2)
 
 
+def test_p_with_one_step_counts_the_falls_one_step_saves():
+    """With every map's steps_needed, the one-step columns count the subjects that recover in
+    place or need at most one step (counted by hand); a map without the column leaves them
+    out. Added one map at a time (Tally, what a cohort does) or all at once, the same frame."""
+    forces, durations = [0, 10], [0.1, 0.2]
+    a = region(forces, durations, [[1, 1], [0, 0]])
+    b = region(forces, durations, [[1, 0], [0, 0]])
+    a["steps_needed"] = [0.0, 0.0, 1.0, 2.0]  # its falls: one step saves the first
+    b["steps_needed"] = [0.0, 1.0, np.inf, 1.0]  # (inf: no step count saves it)
+    cells = probability.cells({"a": a, "b": b})
+    assert list(cells.columns) == probability.CELL_COLUMNS + probability.STEP_CELL_COLUMNS
+    assert cells["recovered_subjects"].tolist() == [2, 1, 0, 0]
+    assert cells["one_step_subjects"].tolist() == [2, 2, 1, 1]  # by hand from the above
+    assert cells["one_step_subjects"].dtype == cells["subjects"].dtype == np.int64
+    lo, hi = probability.wilson(np.array([2, 2, 1, 1]), 2)
+    assert cells["p_one_step_low"].tolist() == lo.tolist()
+    assert cells["p_one_step_high"].tolist() == hi.tolist()
+    tally = probability.Tally()
+    for one in (b, a):
+        tally.add(one)
+    pd.testing.assert_frame_equal(tally.cells(), cells, check_exact=True)
+    without = probability.cells({"a": a, "b": b.drop(columns="steps_needed")})
+    assert list(without.columns) == probability.CELL_COLUMNS
+    pd.testing.assert_frame_equal(without, cells[probability.CELL_COLUMNS], check_exact=True)
+    with pytest.raises(ParameterError, match="at least one"):
+        probability.Tally().cells()
+
+
 def cells_of(counts: dict[tuple[float, float], int], n: int) -> pd.DataFrame:
     """A probability map from recovered counts per (force, duration) over n subjects."""
     frame = pd.DataFrame(
@@ -313,13 +341,15 @@ def test_the_base_map_is_a_result_that_keeps_the_folder(tmp_path):
         )
 
 
-def test_the_plan_counts_the_subjects_checks_before_the_first_scenario(capsys, monkeypatch):
-    """A 30,000-subject cohort spends 30,000 x SUBJECT_CHECK_SECONDS checking its subjects
-    before its first scenario (the plan said "about 4 min" and then checked for 25 min); the
-    plan line says so, and the limit counts it. The subjects are not checked here: the plan is
+def test_the_plan_counts_the_subjects_set_up_before_and_during_the_run(capsys, monkeypatch):
+    """A 30,000-subject cohort checks its representatives and builds its first queue's closed
+    loops before its first scenario, then every other subject's when its queue starts (the
+    plan once said "about 4 min" and then checked every subject for 25 min first); the plan
+    line says both, and the limit counts them. The subjects are not checked here: the plan is
     said before, so the check is stopped at its start."""
     from mjx_balance.model.params import ParameterError
-    from mjx_balance.runs.chunks import SUBJECT_CHECK_SECONDS, wall_span
+    from mjx_balance.runs.chunks import SUBJECT_CHECK_SECONDS, SUBJECT_SETUP_SECONDS, wall_span
+    from mjx_balance.runs.population import FIRST_QUEUE
 
     def stopped(*_args, **_kwargs):
         raise ParameterError("stopped at the subjects' checks")
@@ -330,5 +360,12 @@ def test_the_plan_counts_the_subjects_checks_before_the_first_scenario(capsys, m
     assert main(words) == 2
     printed = capsys.readouterr().out
     planned = next(line for line in printed.splitlines() if line.startswith("planned work"))
-    setup = wall_span(30000 * SUBJECT_CHECK_SECONDS, 30000 * SUBJECT_CHECK_SECONDS)
-    assert f"after {setup} of checking 30,000 subjects' configurations" in planned, planned
+    checked = cohort.checked_first(30000)
+    assert 0 < checked <= 24  # each sex's extremes of six values
+    before = checked * SUBJECT_CHECK_SECONDS + FIRST_QUEUE * SUBJECT_SETUP_SECONDS
+    during = (30001 - FIRST_QUEUE) * SUBJECT_SETUP_SECONDS
+    assert (
+        f"after {wall_span(before, before)} of checking {checked} subjects' configurations and "
+        f"building {FIRST_QUEUE} closed loops before the first scenario" in planned
+    ), planned
+    assert f"plus {wall_span(during, during)} of building 29,985 more closed loops" in planned

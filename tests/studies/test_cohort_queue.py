@@ -26,6 +26,62 @@ def test_queues_split_the_bodies_by_cells():
     assert population.queues(4, 10, limit=1000) == [range(0, 4)]
 
 
+def test_the_first_queue_is_short_and_each_next_one_twice_the_last():
+    """The first scenario waits for the first queue's bodies only (each built when its queue
+    starts): 16 bodies, then 32, 64, ... up to the cell limit, every body once, in order."""
+    parts = population.queues(1000, 2, limit=200, first=16)
+    assert [len(p) for p in parts] == [16, 32, 64] + [100] * 8 + [88]  # 112 + 800 + 88
+    assert [i for p in parts for i in p] == list(range(1000))
+    assert population.queues(3, 2, limit=200) == [range(0, 3)]
+    capped = population.queues(5000, 2, limit=20_000, bodies=1024)  # a queue's bodies' memory
+    assert max(len(p) for p in capped) == 1024 and sum(len(p) for p in capped) == 5000
+    assert population.queues(40, 50, limit=200, first=16) == [
+        range(4 * k, 4 * k + 4) for k in range(10)
+    ]
+
+
+def test_a_refused_body_is_named_before_its_queue_runs(tmp_path):
+    """A map's configuration is checked when its queue starts (a large cohort's subjects are
+    not all checked before the folder is made): a refusal names the map by ``label`` and no
+    body of that queue has run (nothing written, nothing compiled)."""
+    refused = BASE.replace(controller={"admm_rho": 1e-300})  # float32 makes it 0
+    maps = [(tmp_path / "ok", BASE), (tmp_path / "bad", lambda: refused)]
+    with pytest.raises(ParameterError, match=r"^subject 'bad': controller.admm_rho = 1e-300"):
+        population.run_maps(
+            maps,
+            np.array([0.0, 50.0]),
+            np.array([0.1]),
+            label=lambda folder: f"subject {folder.name!r}",
+        )
+    assert not any(tmp_path.iterdir())
+
+
+def test_a_large_cohort_checks_its_representatives_before_the_folder(tmp_path, monkeypatch):
+    """Up to CHECKED_FIRST subjects every configuration is checked before the folder is made;
+    beyond, each sex's extremes of every body value (and the base), the rest when their queue
+    starts (test above)."""
+    checked = []
+    monkeypatch.setattr(cohort, "check_batched", lambda config, *grids: checked.append(config))
+    small = cohort_members.population(cohort.CHECKED_FIRST, 5, age_mean=60, age_sd=15)
+    cohort.plan_cohort(tmp_path / "small", small, BASE, "0,50", "0.1")
+    assert len(checked) == cohort.CHECKED_FIRST + 1  # and the base
+    checked.clear()
+    large = cohort_members.population(500, 5, age_mean=60, age_sd=15)
+    cohort.plan_cohort(tmp_path / "large", large, BASE, "0,50", "0.1")
+    picked = cohort.representatives(large)
+    assert len(checked) == len(picked) + 1 <= cohort.checked_first(500) + 1
+    assert checked[-1] == BASE
+    for sex in ("male", "female"):
+        same = [m.subject for m in large if m.subject.sex == sex]
+        mine = [m.subject for m in picked if m.subject.sex == sex]
+        for value in ("height", "mass", "age"):
+            values = [getattr(s, value) for s in same]
+            assert {min(values), max(values)} <= {getattr(s, value) for s in mine}
+        bmi = [s.mass / s.height**2 for s in same]
+        assert {min(bmi), max(bmi)} <= {s.mass / s.height**2 for s in mine}
+    assert not (tmp_path / "large").exists()
+
+
 def test_a_served_batch_hands_back_the_rows_asked_for():
     columns = {
         "force": np.array([0.0, 0.0, 10.0, 10.0]),

@@ -298,13 +298,34 @@ def members_from(args: argparse.Namespace) -> list:
     )
 
 
+def subject_setup(count: int) -> tuple[tuple[float, str], tuple[float, str]]:
+    """The plan's set-up of ``count`` subjects (``guard_work``'s ``setup``, ``during``):
+    before the first scenario, the subjects checked before the folder is made
+    (``studies.cohort.checked_first``) and the first queue's closed loops built; during the
+    run, every other map's closed loop (the base body's too), built when its queue starts."""
+    from ..runs.chunks import SUBJECT_CHECK_SECONDS, SUBJECT_SETUP_SECONDS  # lazy: JAX
+    from ..runs.population import FIRST_QUEUE  # lazy: as above
+    from ..studies.cohort import checked_first  # lazy: as above
+
+    checked, first = checked_first(count), min(count + 1, FIRST_QUEUE)
+    return (
+        (
+            checked * SUBJECT_CHECK_SECONDS + first * SUBJECT_SETUP_SECONDS,
+            f"checking {checked:,} subjects' configurations and building {first} closed loops",
+        ),
+        (
+            (count + 1 - first) * SUBJECT_SETUP_SECONDS,
+            f"building {count + 1 - first:,} more closed loops",
+        ),
+    )
+
+
 def cohort_command(args: Any) -> int:
     """Every subject's region map in OUT/subjects/<id>/, then cohort.csv, the summary and the
     figures. Everything is checked (the subjects, the grids, every subject's configuration, a
     folder holding another cohort's results) before the folder is made or locked."""
     from ..model.config_files import with_convention  # lazy: not for --help
     from ..runs import DEFAULT_SWEEP  # lazy: the runs floor loads JAX; not for --help
-    from ..runs.chunks import SUBJECT_CHECK_SECONDS  # lazy: as above
     from ..studies.cohort import plan_cohort, run_plan  # lazy: as above
     from ..studies.probability import interval_text  # lazy: as above
 
@@ -325,6 +346,7 @@ def cohort_command(args: Any) -> int:
         members = members_from(args)
         count = len(members)
     # the subjects' maps and the base body's (the probability figure's reference boundary)
+    setup, during = subject_setup(count)
     guard_work(
         args,
         base,
@@ -332,7 +354,8 @@ def cohort_command(args: Any) -> int:
         "cells",
         extra=0 if tables is None else count * table_scenarios(base, tables.size),
         note=interval_text(count),
-        setup=(count * SUBJECT_CHECK_SECONDS, f"checking {count:,} subjects' configurations"),
+        setup=setup,
+        during=during,
     )
     if count > MAX_SUBJECTS:
         raise ParameterError(

@@ -77,13 +77,15 @@ def guard_work(
     reference: bool = False,
     note: str = "",
     setup: tuple[float, str] = (0.0, ""),
+    during: tuple[float, str] = (0.0, ""),
 ) -> None:
     """Say the planned work (one line: scenarios, estimated time and disk) and refuse it above
     the limit unless --yes, before anything is compiled or written. ``extra``: scenarios
     beyond ``n_scenarios`` (a table's); ``reference``: run one at a time by the scalar
     reference (its rate), not by the batched engine; ``note``: what the work will give,
     appended to the line after a semicolon; ``setup``: (seconds, what) spent before the first
-    scenario, counted in the line and the limit."""
+    scenario, ``during``: (seconds, what) of set-up spread over the run, each counted in the
+    line and the limit."""
     from ..runs import chunks  # lazy: the runs floor loads JAX
 
     t_end = config.scenario.t_end
@@ -92,14 +94,27 @@ def guard_work(
     disk = {} if not reference else {"bytes_per_scenario": reference_bytes(config)}
     logging.getLogger("mjx_balance").info(
         chunks.planned_work(
-            n_scenarios, t_end, chunk_size, what, rate=rate, setup=setup, window_floor=floor, **disk
+            n_scenarios,
+            t_end,
+            chunk_size,
+            what,
+            rate=rate,
+            setup=setup,
+            during=during,
+            window_floor=floor,
+            **disk,
         )
         + (f" (+ about {extra:,} table scenarios)" if extra else "")
         + (f"; {note}" if note else "")
     )
     if not getattr(args, "yes", False):
         chunks.check_planned_work(
-            n_scenarios + extra, t_end, what, rate=rate, setup_s=setup[0], window_floor=floor
+            n_scenarios + extra,
+            t_end,
+            what,
+            rate=rate,
+            setup_s=setup[0] + during[0],
+            window_floor=floor,
         )
 
 

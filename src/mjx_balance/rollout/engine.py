@@ -59,6 +59,14 @@ def default_slots(platform: str) -> int:
     return 32 if platform == "cpu" else 4096
 
 
+def slot_layout(runner, slots: int | None) -> tuple[str, int, int]:
+    """The platform, the device count and the slots per device an engine of ``runner`` with
+    ``slots`` (None: :func:`default_slots`) runs."""
+    devices: list[Any] = [None] if runner.mesh is None else list(runner.mesh.devices.flat)
+    platform = (jax.local_devices()[0] if runner.mesh is None else devices[0]).platform
+    return platform, len(devices), int(slots or default_slots(platform))
+
+
 def certificate(runner, early_stop: bool):
     """The certificate of ``runner``'s configuration (``certificate.py``) in its dtype, or None
     (no certificate applies: then its scenarios run to t_end). Without ``early_stop``
@@ -89,12 +97,15 @@ def certificate(runner, early_stop: bool):
     return built[0]._replace(stops=jnp.zeros((), runner.dtype))
 
 
-def lane_bodies(runner, bodies: Sequence[Any], early_stop: bool) -> tuple[Arrays, Any]:
+def lane_bodies(
+    runner, bodies: Sequence[Any], early_stop: bool, size: int | None = None
+) -> tuple[Arrays, Any]:
     """The arrays and certificates of ``bodies`` (runners whose compiled programs agree with
-    ``runner``'s: the same shapes and static settings) stacked along a first axis, padded to a
-    power of two (at least 2) with copies of the last (padding is never a cell's body).
-    Raises ValueError for bodies of another shape, or some with a certificate and some
-    without."""
+    ``runner``'s: the same shapes and static settings) stacked along a first axis, padded with
+    copies of the last (padding is never a cell's body) to ``size`` bodies, by default the
+    next power of two (at least 2): the stacked length is a compile key, so queues padded to
+    one size share one program. Raises ValueError for bodies of another shape, or some with a
+    certificate and some without, or more bodies than ``size``."""
     if not bodies:
         raise ValueError("bodies: at least one")
     key = runner._shape_key(1, runner.static._replace(n_control=None))
@@ -109,18 +120,28 @@ def lane_bodies(runner, bodies: Sequence[Any], early_stop: bool) -> tuple[Arrays
         raise ValueError("bodies: some have a certificate and some not; run them apart")
     # at least two: with one, XLA would see that every lane gathers the same body and could
     # compute it as a shared body, whose rounding differs
-    size = max(2, 1 << (len(bodies) - 1).bit_length())
-    padded = list(bodies) + [bodies[-1]] * (size - len(bodies))
-    certs += [certs[-1]] * (len(padded) - len(certs))
+    size = padded_size(len(bodies)) if size is None else int(size)
+    if not max(2, len(bodies)) <= size:
+        raise ValueError(f"bodies: {len(bodies)} do not fit a stack of {size} (at least 2)")
 
     def stack(trees):  # on the host: jnp.stack or jnp.asarray would compile a program per leaf
-        return jax.tree.map(lambda *v: jax.device_put(np.stack([np.asarray(x) for x in v])), *trees)
+        def leaf(*values):
+            rows = np.stack([np.asarray(v) for v in values])
+            pad = np.broadcast_to(rows[-1:], (size - len(values), *rows.shape[1:]))
+            return jax.device_put(np.concatenate([rows, pad]))
 
-    arrays = stack([b.arrays for b in padded])
+        return jax.tree.map(leaf, *trees)
+
+    arrays = stack([b.arrays for b in bodies])
     _, whole = runner._shardings()
     if whole is not None:
         arrays = jax.device_put(arrays, whole)
     return arrays, None if certs[0] is None else stack(certs)
+
+
+def padded_size(count: int) -> int:
+    """The stacked length of ``count`` bodies: the next power of two, at least 2."""
+    return max(2, 1 << (max(1, count) - 1).bit_length())
 
 
 def cells_of(forces, n_push) -> tuple[np.ndarray, np.ndarray, int]:
@@ -170,7 +191,8 @@ class Engine:
     (:meth:`stream`'s ``bodies``); their arrays are stacked, padded to a power of two so that
     populations of similar size share one compiled program. Each ``tile`` slots (default
     :data:`LANE_TILE`) then hold one body at a time and solve its QP together
-    (:func:`slots.refill_tiles`). None: one body, shared by every slot.
+    (:func:`slots.refill_tiles`). None: one body, shared by every slot. stack: the bodies'
+    stacked length (:func:`lane_bodies`' ``size``; default the next power of two).
     """
 
     def __init__(
@@ -183,11 +205,10 @@ class Engine:
         refill: int | None = None,
         tile: int | None = None,
         bodies: Sequence[Any] | None = None,
+        stack: int | None = None,
     ):
         self.runner = runner
-        devices: list[Any] = [None] if runner.mesh is None else list(runner.mesh.devices.flat)
-        self.n_devices = len(devices)
-        platform = (jax.local_devices()[0] if runner.mesh is None else devices[0]).platform
+        platform, self.n_devices, self.slots = slot_layout(runner, slots)
         if platform == "cpu" and not deterministic_flags():
             warnings.warn(
                 "JAX started before mjx_balance could set its XLA options "
@@ -196,7 +217,6 @@ class Engine:
                 "JAX",
                 stacklevel=3,
             )
-        self.slots = int(slots or default_slots(platform))
         if self.slots < 1:
             raise ValueError(f"slots must be >= 1, got {slots}")
         # a call runs at most a scenario's length (short scenarios refill sooner), in whole
@@ -217,7 +237,7 @@ class Engine:
         if self.lanes:
             assert bodies is not None  # (self.lanes says so)
             self.n_bodies = len(bodies)
-            self.arrays, self.cert = lane_bodies(runner, bodies, self.early_stop)
+            self.arrays, self.cert = lane_bodies(runner, bodies, self.early_stop, stack)
         else:
             self.n_bodies = 1
             self.arrays, self.cert = runner.arrays, certificate(runner, self.early_stop)

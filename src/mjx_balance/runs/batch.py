@@ -44,6 +44,9 @@ class LazyBatch:
     """
 
     queue = "each"  # its cells run with this body alone (runs.population: "one")
+    # whether its configuration was checked as runs.folders.check_batched checks it before
+    # its cells ran (runs.population's served maps: built through checked_runner)
+    checked = False
 
     def __init__(
         self,

@@ -111,11 +111,13 @@ CHUNK_BYTES_PER_SCENARIO = 650
 # The scalar reference (MuJoCo C + OSQP, one scenario at a time: simulate), hard pushes (bounds
 # active: OSQP iterates long) to light ones (BENCHMARKS.md, "The scalar reference's rate").
 REFERENCE_SECONDS_PER_SECOND = (1.0, 15.0)
-# What a cohort spends on each subject before its first scenario: checking its configuration
-# (studies.cohort.plan_cohort: the QP, its conditioning, the batched closed loop's build),
-# 0.038-0.055 s a subject on the 2-core CPU (python docs/scripts/cohort_setup.py; BENCHMARKS.md,
-# "A cohort's set-up"). A 100,000-subject cohort spends about 1.4 h there.
+# What a cohort spends on a subject's configuration: checked before the folder is made
+# (studies.cohort.plan_cohort: the QP, its conditioning, the batched closed loop's build;
+# every subject of a small cohort, a large one's representatives), and on the MJX path's one
+# queue its closed loop built and checked again when its queue starts (runs.population), on
+# the 2-core CPU (python docs/scripts/cohort_setup.py; BENCHMARKS.md, "A cohort's set-up").
 SUBJECT_CHECK_SECONDS = 0.05
+SUBJECT_SETUP_SECONDS = 0.08
 MAX_PLANNED_SCENARIOS = 2_000_000  # more than this needs --yes
 MAX_PLANNED_HOURS = 24.0  # an estimate (at the slower rate) beyond this needs --yes
 
@@ -158,11 +160,13 @@ def planned_work(
     bytes_per_scenario: int = 2 * CHUNK_BYTES_PER_SCENARIO,
     setup: tuple[float, str] = (0.0, ""),
     window_floor: float = RATE_WINDOW,
+    during: tuple[float, str] = (0.0, ""),
 ) -> str:
     """One line: scenarios, chunks (unless ``chunk_size`` is None), simulated time, estimated
     wall time at ``rate`` (window-s/s: slower, faster; each scenario at least ``window_floor``
-    seconds of window, RATE_WINDOW), disk, and ``setup``: (seconds, what) spent before the
-    first scenario (a cohort's subjects checked), when there are any."""
+    seconds of window, RATE_WINDOW), disk, ``during``: (seconds, what) of set-up spread over
+    the run (a cohort's subjects built queue by queue), and ``setup``: (seconds, what) spent
+    before the first scenario, each when there is any."""
     simulated = n_scenarios * t_end
     longest, shortest = (planned_seconds(n_scenarios, t_end, r, window_floor) for r in rate)
     disk = n_scenarios * bytes_per_scenario  # (chunks + the merged table, by default)
@@ -182,7 +186,13 @@ def planned_work(
             if t_end < window_floor
             else "("
         )
-        + f"2-core CPU, BENCHMARKS.md; compile not included), about {_size(disk)} on disk"
+        + "2-core CPU, BENCHMARKS.md; compile not included)"
+        + (
+            f" plus {wall_span(during[0], during[0])} of {during[1]} during the run"
+            if during[0] >= 1
+            else ""
+        )
+        + f", about {_size(disk)} on disk"
         + (
             f", after {wall_span(setup[0], setup[0])} of {setup[1]} before the first scenario"
             if setup[0] >= 1

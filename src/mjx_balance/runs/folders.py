@@ -115,6 +115,16 @@ def check_closed_loop(config: Config) -> None:
     conditioning, the closed loop's build), remembered per configuration: the command line
     checks before it makes the folder and ``run_region`` checks again, at no second cost.
     A refused configuration raises each time (exceptions are not remembered)."""
+    checked_runner(config)
+
+
+def checked_runner(config: Config, **runner: Any) -> BatchRunner:
+    """The batched closed loop of ``config`` (``BatchRunner(config, **runner)``), built only
+    when the configuration passes the checks that need no compile: the ADMM's settings must
+    be float32 numbers whose reciprocals are too, the QP must build and float32 must resolve
+    it; a failed build is refused too (ParameterError naming the value or the cause). A
+    population builds its bodies' runners through this, so each is checked by the one rule
+    :func:`check_batched` applies."""
     c = config.controller
     low, high = FLOAT32_RANGE
     for name in ("admm_rho", "admm_eps_abs", "admm_eps_rel", "admm_sigma"):
@@ -145,7 +155,7 @@ def check_closed_loop(config: Config) -> None:
             "study's: 20 x 0.01 s) or run the scalar reference (mjx-balance simulate)"
         )
     try:  # everything else the batched closed loop builds (models, observer, predictor)
-        BatchRunner(config)
+        return BatchRunner(config, **runner)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
         raise ParameterError(
             f"the batched closed loop cannot be built from this configuration "
@@ -276,7 +286,8 @@ def run_region(
         raise TypeError(f"run_region takes a Grid (runs.grid.Grid.of), got {type(grid).__name__}")
     grid.fits(config)
     chunk, slots = size_value(chunk, "chunk"), size_value(slots, "slots")
-    if run_batch is None or isinstance(run_batch, LazyBatch):  # the batched engine's run
+    batched = run_batch is None or isinstance(run_batch, LazyBatch)  # the batched engine's
+    if batched and not getattr(run_batch, "checked", False):
         check_batched(config, (grid.forces, "forces"), (grid.durations, "durations"))
     if run_batch is None:
         run_batch = batch_function(config, slots=slots, full_length=full_length, physics=physics)
@@ -321,7 +332,8 @@ def run_table_folder(
     Returns None when the folder already held this table."""
     forces = grid_values(forces, "forces")
     batch, slots = size_value(batch, "batch"), size_value(slots, "slots")
-    if run_batch is None or isinstance(run_batch, LazyBatch):  # the batched engine's run
+    batched = run_batch is None or isinstance(run_batch, LazyBatch)  # the batched engine's
+    if batched and not getattr(run_batch, "checked", False):
         check_batched(config, (forces, "forces"))
     if run_batch is None:
         run_batch = batch_function(config, slots=slots, full_length=full_length, physics=physics)

@@ -28,27 +28,37 @@ import numpy as np
 from ..measures.outcomes import summary_frame
 from ..model.params import Config, ParameterError
 from ..rollout import BatchRunner
-from ..rollout.engine import Engine, certificate
+from ..rollout.engine import Engine, certificate, padded_size, slot_layout
 from ..rollout.kernel import Accumulators
 from ..rollout.runner import push_steps, summarize
 from ..store.files import REGION
 from .batch import LazyBatch
-from .folders import run_region
+from .folders import checked_runner, run_region
 from .grid import Grid, grid_cells
 
 # Cells in one queue at most (its bodies' grids together): an interrupted population loses at
 # most one queue's work, and the host keeps one queue's summaries. At least QUEUE_CELLS, and
 # QUEUE_REFILLS times the engine's slots (every device's), so that an accelerator's thousands
-# of slots get a queue long enough to keep them busy (docs/studies.md, "Cohorts").
+# of slots get a queue long enough to keep them busy (docs/cohorts.md, "Cohorts").
 QUEUE_CELLS = 20_000
 QUEUE_REFILLS = 40
+# Bodies in the first queue: each body's closed loop is built and checked when its queue
+# starts (about 0.07 s a body on the 2-core CPU: BENCHMARKS.md, "A cohort's set-up"), so the
+# first scenario waits for this many; each next queue holds twice the one before, up to the
+# cell limit.
+FIRST_QUEUE = 16
+# Bodies in one queue at most: the engine holds each queue body's arrays and certificate,
+# stacked (about 0.3 MB a body: 0.1 MB of model, QP and observer, 0.19 MB of certificate), and
+# every queue is stacked to one length (one compiled program), so a cohort's memory stays
+# flat in its subjects at about 300 MB of bodies.
+QUEUE_BODIES = 1024
 
 
 class Population:
     """The runners and the shared engine of ``configs`` (bodies of one compiled program's
     shapes; the first one's engine settings), for the cells of ``forces`` x ``durations``.
     ``slots``, ``early_stop``: as a sweep's; ``runners``: the configurations' runners, when
-    already built."""
+    already built; ``stack``: the bodies' stacked length (``Engine``'s)."""
 
     def __init__(
         self,
@@ -59,6 +69,7 @@ class Population:
         slots: int | None = None,
         early_stop: bool = True,
         runners: Sequence[Any] | None = None,
+        stack: int | None = None,
     ):
         self.configs = list(configs)
         self.runners = (
@@ -70,7 +81,7 @@ class Population:
             ]
         )
         self.engine = Engine(
-            self.runners[0], slots=slots, early_stop=early_stop, bodies=self.runners
+            self.runners[0], slots=slots, early_stop=early_stop, bodies=self.runners, stack=stack
         )
         self.slots, self.early_stop = self.engine.slots, early_stop
         self.cell_f, self.cell_d = grid_cells(forces, durations)
@@ -127,7 +138,7 @@ def check_queue(queue: Any, physics: Any = "auto", cluster: Any = None) -> str:
 
 
 def run_maps(
-    maps: Sequence[tuple[Path, Config]],
+    maps: Sequence[tuple[Path, Config | Callable[[], Config]]],
     forces: np.ndarray,
     durations: np.ndarray,
     *,
@@ -135,65 +146,131 @@ def run_maps(
     full_length: bool = False,
     say: Callable[[str], None] | None = None,
     update: Callable[[int], None] | None = None,
+    label: Callable[[Path], str] = str,
 ) -> None:
-    """The region maps of ``maps`` ((folder, configuration) pairs; those whose folder holds its
-    region.parquet are skipped) through one engine queue per compiled program: configurations
-    of one program's shapes and static settings, with a certificate or all without, share a
-    queue (``Engine``'s ``bodies``); each map is then written to its folder as its ``sweep``
-    writes one (``runs.folders.run_region`` with a :class:`ServedBatch`). ``update(n)``: n
-    more cells decided."""
+    """The region maps of ``maps`` ((folder, configuration) pairs, the configuration or a
+    function giving it; those whose folder holds its region.parquet are skipped) through
+    engine queues, each then written to its folder as its ``sweep`` writes one
+    (``runs.folders.run_region`` with a :class:`ServedBatch`). ``update(n)``: n more cells
+    decided.
+
+    The maps go in order into queues (:func:`queues`: a first short one, then doubling up to
+    the cell limit); a queue's bodies are built when it starts (``checked_runner``: each
+    configuration checked as ``check_batched`` checks it; a refusal is a ParameterError
+    naming ``label(folder)``), so the first scenario never waits for the last body's set-up
+    and the host holds one queue's bodies at a time. In a queue, configurations of one
+    program's shapes and static settings, with a certificate or all without, share an engine
+    (``Engine``'s ``bodies``); every engine's bodies are stacked to one length, so each
+    program compiles once for the whole run."""
     say = say or (lambda _msg: None)
     early_stop = not full_length
-    groups: dict[Any, list[tuple[Path, Config, Any]]] = {}
-    for folder, config in maps:
-        if (Path(folder) / REGION).exists():
-            continue
-        runner = BatchRunner(config, slots=slots, early_stop=early_stop, physics="mjx")
-        key = (
-            runner._shape_key(1, runner.static._replace(n_control=None)),
-            certificate(runner, early_stop) is None,
-        )
-        groups.setdefault(key, []).append((Path(folder), config, runner))
+    todo = [i for i, (folder, _) in enumerate(maps) if not (Path(folder) / REGION).exists()]
+    if not todo:
+        return
     cells = forces.size * durations.size
-    for members in groups.values():
-        people = Population(
-            [c for _, c, _ in members],
-            forces,
-            durations,
+    first = _built(maps[todo[0]], slots, early_stop, label)
+    _, devices, per_device = slot_layout(first[2], slots)
+    limit = max(QUEUE_CELLS, QUEUE_REFILLS * per_device * devices)
+    parts = queues(len(todo), cells, limit)
+    stack, prepared = padded_size(max(len(p) for p in parts)), set()
+    for part in parts:
+        built = [first if k == 0 else _built(maps[todo[k]], slots, early_stop, label) for k in part]
+        groups: dict[Any, list[tuple[Path, Config, Any]]] = {}
+        for folder, config, runner in built:
+            key = (
+                runner._shape_key(1, runner.static._replace(n_control=None)),
+                certificate(runner, early_stop) is None,
+            )
+            groups.setdefault(key, []).append((folder, config, runner))
+        for key, members in groups.items():
+            people = Population(
+                [c for _, c, _ in members],
+                forces,
+                durations,
+                slots=slots,
+                early_stop=early_stop,
+                runners=[r for _, _, r in members],
+                stack=stack,
+            )
+            if key not in prepared:  # its program: compiled, or loaded from the cache, once
+                prepared.add(key)
+                _prepare(people.engine, len(members), say)
+            say(f"{len(members)} maps ({len(members) * cells} cells) in one engine queue")
+            _run_queue(people, members, forces, durations, slots, full_length, update)
+
+
+def _built(
+    item: tuple[Path, Config | Callable[[], Config]],
+    slots: int | None,
+    early_stop: bool,
+    label: Callable[[Path], str],
+) -> tuple[Path, Config, Any]:
+    """A map's folder, configuration and checked runner (``checked_runner``), a refusal named
+    by ``label(folder)``."""
+    folder, config = Path(item[0]), item[1]
+    try:
+        config = config if isinstance(config, Config) else config()
+        runner = checked_runner(config, slots=slots, early_stop=early_stop, physics="mjx")
+    except ParameterError as exc:
+        raise ParameterError(f"{label(folder)}: {exc}") from None
+    return folder, config, runner
+
+
+def _prepare(engine: Engine, bodies: int, say: Callable[[str], None]) -> None:
+    """``engine``'s program compiled (or loaded from the cache) before its queue's first
+    progress update, with a line saying so."""
+    t0 = time.perf_counter()
+    say(
+        f"preparing the engine ({bodies} bodies, each lane its own; compiled on first use, "
+        "or loaded from the cache) ..."
+    )
+    engine.block_fn()
+    if time.perf_counter() - t0 > 1:
+        say(f"engine ready ({time.perf_counter() - t0:.0f} s)")
+
+
+def _run_queue(
+    people: Population,
+    members: list[tuple[Path, Config, Any]],
+    forces: np.ndarray,
+    durations: np.ndarray,
+    slots: int | None,
+    full_length: bool,
+    update: Callable[[int], None] | None,
+) -> None:
+    """One queue's maps (``people``: bodies of one program) through its engine, then each
+    written to its folder."""
+    columns = people.run(range(len(members)), update=update)
+    for i, (folder, config, _) in enumerate(members):
+        run_region(
+            folder,
+            config,
+            Grid.of(forces, durations, config),
             slots=slots,
-            early_stop=early_stop,
-            runners=[r for _, _, r in members],
+            full_length=full_length,
+            progress=False,
+            run_batch=people.batch(i, columns.pop(i)),
         )
-        t0 = time.perf_counter()
-        say(
-            f"preparing the engine ({len(members)} bodies, each lane its own; compiled on "
-            "first use, or loaded from the cache) ..."
-        )
-        people.engine.block_fn()  # before the progress bar's first update
-        if time.perf_counter() - t0 > 1:
-            say(f"engine ready ({time.perf_counter() - t0:.0f} s)")
-        lanes = people.engine.slots * people.engine.n_devices
-        for part in queues(len(members), cells, max(QUEUE_CELLS, QUEUE_REFILLS * lanes)):
-            say(f"{len(part)} maps ({len(part) * cells} cells) in one engine queue")
-            columns = people.run(part, update=update)
-            for i in part:
-                folder, config, _ = members[i]
-                run_region(
-                    folder,
-                    config,
-                    Grid.of(forces, durations, config),
-                    slots=slots,
-                    full_length=full_length,
-                    progress=False,
-                    run_batch=people.batch(i, columns.pop(i)),
-                )
 
 
-def queues(count: int, cells: int, limit: int = QUEUE_CELLS) -> list[range]:
-    """The bodies 0..count-1 split into consecutive queues of at most ``limit`` cells (at
-    least one body each), of equal size but the last."""
-    per = max(1, limit // max(1, cells))
-    return [range(s, min(count, s + per)) for s in range(0, count, per)]
+def queues(
+    count: int,
+    cells: int,
+    limit: int = QUEUE_CELLS,
+    first: int = FIRST_QUEUE,
+    bodies: int = QUEUE_BODIES,
+) -> list[range]:
+    """The bodies 0..count-1 split into consecutive queues: at most ``limit`` cells and
+    ``bodies`` bodies each (at least one body), the first of at most ``first`` bodies and
+    each next one twice the one before, so that the first scenario waits for a few bodies'
+    set-up only."""
+    per = max(1, min(bodies, limit // max(1, cells)))
+    size, start, out = max(1, min(first, per)), 0, []
+    while start < count:
+        out.append(range(start, min(count, start + size)))
+        start += size
+        size = min(per, 2 * size)
+    return out
 
 
 class ServedBatch(LazyBatch):
@@ -219,6 +296,7 @@ class ServedBatch(LazyBatch):
         return True
 
     queue = "one"  # what a sweep folder records: its cells ran with per-lane bodies
+    checked = True  # its cells ran from a runner built through checked_runner
 
     def engine_record(self) -> dict[str, Any]:
         assert self.slots is not None  # (given to __init__, an int)

@@ -33,19 +33,23 @@ cohort_area.png, cohort_boundaries.png, cohort_probability.png, cohort_regions.p
 Subjects share one compiled program: the body, the QP, the certificate and the torque bounds
 are traced arguments of the batched closed loop (``rollout.kernel.split_limits``,
 ``rollout.physics.canonical_hfield_bounds``), so only the first subject compiles (or none, with
-the persistent cache warm; docs/studies.md, "Cohorts", has the measured cost).
+the persistent cache warm; docs/cohorts.md, "Cohorts", has the measured cost).
 
 Who the subjects are (a grid, a sampled population, a CSV file): ``members.py``.
 
 Everything is checked before the folder is made or locked (:func:`plan_cohort`: the ids, the
-grids, the engine's options and every subject's configuration as the batched closed loop will
-run it), so a refused cohort writes nothing. A cohort folder none of whose subjects holds a
+grids, the engine's options and, up to :data:`CHECKED_FIRST` subjects, every subject's
+configuration as the batched closed loop will run it; beyond, the :func:`representatives`,
+and every subject again when its queue starts), so a refused cohort writes nothing, and a
+large one's first scenario waits for a few subjects' set-up only (``runs.population``: queues
+of 16 bodies, then twice as many each, up to 1,024). A cohort folder none of whose subjects holds a
 result (a run refused or stopped before its first result) is taken over by a run with another
 configuration or other subjects, as a sweep folder is (``store.folder``).
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from collections.abc import Callable, Sequence
@@ -84,6 +88,9 @@ BOUNDARIES_CSV = "cohort_probability_boundaries.csv"
 SUBJECTS = "subjects"
 BASE = "base"  # the base configuration's own map: the probability figure's reference boundary
 SMALL_COHORT = 16  # cohort_regions.png: one panel per subject up to this many
+# Cohorts of up to this many subjects have every configuration checked before the folder is
+# made (about 0.1 s each); larger ones their representatives (plan_cohort)
+CHECKED_FIRST = 64
 CHOSEN = 8  # cohort_boundaries.png: at most this many subjects' boundaries
 SUBJECT_COLUMNS = ["id", "height", "mass", "sex", "ankle_strength", "hip_strength"]
 STATISTICS = ("mean", "sd", "p5", "p50", "p95")
@@ -170,14 +177,19 @@ class CohortPlan:
     out: Path
     members: tuple[Member, ...]
     base: Config
-    configs: dict[str, Config]
     forces: np.ndarray
     durations: np.ndarray
     tables: np.ndarray | None
     engine: dict[str, Any]
+    recorded: dict[str, Any]  # what the manifest records (built once: 3 s for 100,000 subjects)
 
     def record(self) -> dict[str, Any]:
-        return _record(self.members, self.base, self.forces, self.durations, self.tables)
+        return self.recorded
+
+    def config(self, member: Member) -> Config:
+        """``member``'s configuration (``Subject.config(base)``: a formula, built when its map
+        runs, so a cohort holds one queue's configurations at a time)."""
+        return member.subject.config(self.base)
 
 
 def check_engine(
@@ -228,12 +240,16 @@ def plan_cohort(
     **engine: Any,
 ) -> CohortPlan:
     """Check a cohort before anything is written or locked: the ids, the grids, the engine's
-    options (:func:`check_engine`), every subject's configuration (``Subject.config(base)``,
+    options (:func:`check_engine`), the subjects' configurations (``Subject.config(base)``,
     the durations on its physics steps, and with ``batched`` everything the batched closed
     loop refuses: ``runs.folders.check_batched``; the base configuration too, whose map the
-    cohort also runs) and a folder
-    ``out`` that holds another cohort's results. ParameterError (exit code 2) for the first
-    problem, naming it."""
+    cohort also runs) and a folder ``out`` that holds another cohort's results.
+    ParameterError (exit code 2) for the first problem, naming it.
+
+    A cohort of at most :data:`CHECKED_FIRST` subjects has every subject checked here; a
+    larger one its :func:`representatives` (each sex's extremes of every body value), and
+    every subject again when its map's queue starts (``runs.population.run_maps``), so its
+    first scenario does not wait for the last subject's check (0.05-0.1 s each)."""
     members = tuple(members)
     check_ids(members)
     out = Path(out)
@@ -246,18 +262,17 @@ def plan_cohort(
     grids = [(forces, "forces")] + ([] if tables is None else [(tables, "table forces")])
     for values, name in grids:
         check_float32_grid(values, name)
-    if batched and len(members) > SMALL_COHORT and say is not None:
-        say(f"cohort: checking the {len(members)} subjects' configurations")
     durations = duration_values(durations, base)  # a subject changes no scenario value
-    configs = {}
-    for member in members:
+    checked = members if len(members) <= CHECKED_FIRST else representatives(members)
+    if batched and len(checked) > SMALL_COHORT and say is not None:
+        say(f"cohort: checking {len(checked)} of the {len(members)} subjects' configurations")
+    for member in checked:
         try:
             config = member.subject.config(base)
             if batched:
                 check_batched(config, *grids, (durations, "durations"))
         except ParameterError as exc:
             raise ParameterError(f"subject {member.id!r}: {exc}") from None
-        configs[member.id] = config
     if batched:  # the base map (the reference boundary) runs on the same engine
         try:
             check_batched(base, (forces, "forces"), (durations, "durations"))
@@ -267,14 +282,46 @@ def plan_cohort(
             ) from None
     if out.exists() and not out.is_dir():
         raise ParameterError(f"--out {out}: is a file, not a folder")
-    open_manifest(out, _record(members, base, forces, durations, tables), base)
-    return CohortPlan(out, members, base, configs, forces, durations, tables, engine)
+    recorded = _record(members, base, forces, durations, tables)
+    open_manifest(out, recorded, base)
+    return CohortPlan(out, members, base, forces, durations, tables, engine, recorded)
+
+
+def representatives(members: Sequence[Member]) -> list[Member]:
+    """The subjects whose configurations bound the others': per sex, the first one with the
+    least and the greatest height, mass, body mass index, ankle and hip strength and age
+    (the configuration is a formula of these: ``Subject.config``), in the members' order."""
+    picked: set[int] = set()
+    for sex in sorted({m.subject.sex for m in members}):
+        same = [i for i, m in enumerate(members) if m.subject.sex == sex]
+        for value in _BOUNDING:
+            known = [i for i in same if value(members[i].subject) is not None]
+            if known:
+                picked.add(min(known, key=lambda i: value(members[i].subject)))
+                picked.add(max(known, key=lambda i: value(members[i].subject)))
+    return [members[i] for i in sorted(picked)]
+
+
+def checked_first(count: int) -> int:
+    """How many of ``count`` subjects :func:`plan_cohort` checks before the folder is made: all
+    up to :data:`CHECKED_FIRST`, else at most :func:`representatives`' number."""
+    return count if count <= CHECKED_FIRST else min(count, 2 * 2 * len(_BOUNDING))
+
+
+_BOUNDING: tuple[Callable[[Any], Any], ...] = (
+    lambda s: s.height,
+    lambda s: s.mass,
+    lambda s: s.mass / s.height**2,
+    lambda s: s.ankle_strength,
+    lambda s: s.hip_strength,
+    lambda s: s.age,
+)
 
 
 def resolved_queue(out: Path, queue: Any, physics: Any, cluster: Any) -> Any:
     """``queue`` "auto" (the default) resolved: the queue the maps in ``out`` were started
     with (a folder refuses to be resumed under the other: its results differ by float rounding),
-    else "one" on the MJX path without a cluster (one engine queue: docs/studies.md,
+    else "one" on the MJX path without a cluster (one engine queue: docs/cohorts.md,
     "Cohorts", has its speed), else "each". Anything else is returned as given (checked by
     :func:`check_engine`)."""
     if not isinstance(queue, str) or queue != "auto":
@@ -289,9 +336,11 @@ def resolved_queue(out: Path, queue: Any, physics: Any, cluster: Any) -> Any:
     return "one" if physics in ("auto", "mjx") and cluster is None else "each"
 
 
-def subject_numbers(member: Member, folder: Path) -> dict[str, Any]:
-    """The cohort.csv row of a finished subject's folder."""
-    region = pd.read_parquet(folder / REGION)
+def subject_numbers(
+    member: Member, folder: Path, region: pd.DataFrame | None = None
+) -> dict[str, Any]:
+    """The cohort.csv row of a finished subject's folder (``region``: its map, when read)."""
+    region = pd.read_parquet(folder / REGION) if region is None else region
     table = pd.read_csv(folder / TABLE) if (folder / TABLE).exists() else None
     return {**member.record(), **numbers(region, table)}
 
@@ -376,17 +425,20 @@ def run_plan(
         else:
             for member in members:
                 finished = (folders[member.id] / REGION).exists()
-                _run_subject(
-                    member,
-                    folders[member.id],
-                    plan.configs[member.id],
-                    forces,
-                    durations,
-                    plan.tables,
-                    run_batches=run_batches,
-                    say=say,
-                    engine=run_options(plan.engine),
-                )
+                try:  # a large cohort's subject is checked here (plan_cohort)
+                    _run_subject(
+                        member,
+                        folders[member.id],
+                        plan.config(member),
+                        forces,
+                        durations,
+                        plan.tables,
+                        run_batches=run_batches,
+                        say=say,
+                        engine=run_options(plan.engine),
+                    )
+                except ParameterError as exc:
+                    raise ParameterError(f"subject {member.id!r}: {exc}") from None
                 if not finished:
                     bar.update(cells)
             say(f"cohort: the base configuration's body (the reference boundary) -> {out / BASE}")
@@ -424,19 +476,23 @@ def _run_queued(
         f"{plan.out / BASE}, in the same queue"
     )
     run_maps(
-        [(folders[m.id], plan.configs[m.id]) for m in members] + [(plan.out / BASE, plan.base)],
+        [(folders[m.id], functools.partial(plan.config, m)) for m in members]
+        + [(plan.out / BASE, plan.base)],
         plan.forces,
         plan.durations,
         slots=plan.engine["slots"],
         full_length=plan.engine["full_length"],
         update=bar.update,
         say=lambda text: say(f"cohort: {text}"),
+        label=lambda folder: (
+            "the base configuration" if folder == plan.out / BASE else f"subject {folder.name!r}"
+        ),
     )
     if plan.tables is not None:
         for member in members:
             run_table_folder(
                 folders[member.id],
-                plan.configs[member.id],
+                plan.config(member),
                 plan.tables,
                 progress=False,
                 **run_options(plan.engine),
@@ -487,16 +543,21 @@ def write_outputs(
     (cohort_probability_boundaries.csv's) and ``half_width`` (the interval's worst-case
     half-width over these subjects, ``studies.probability.half_width``). ``label``: the base
     body's name in the probability figure (:func:`base_label`)."""
-    frame = pd.DataFrame([subject_numbers(m, folders[m.id]) for m in members])
+    rows, tally = [], probability.Tally()
+    for m in members:  # one map at a time: the host keeps the rows and the counts
+        region = pd.read_parquet(folders[m.id] / REGION)
+        rows.append(subject_numbers(m, folders[m.id], region))
+        tally.add(region)
+    frame = pd.DataFrame(rows)
     write_csv(frame, out / COHORT_CSV)
     write_csv(summary(frame), out / SUMMARY_CSV)
-    regions = {m.id: pd.read_parquet(folders[m.id] / REGION) for m in members}
     base = pd.read_parquet(out / BASE / REGION)
-    cells = probability.cells(regions)
+    cells = tally.cells()
     lines = probability.boundaries(cells, base)
     write_csv(cells, out / PROBABILITY_CSV)
     write_csv(lines, out / BOUNDARIES_CSV)
-    figures = draw(out, frame, regions)
+    drawn = frame["id"] if len(frame) <= SMALL_COHORT else chosen(frame)
+    figures = draw(out, frame, {i: pd.read_parquet(folders[i] / REGION) for i in drawn})
     levels = {p / 100: probability.thresholded(cells, p) for p in probability.LEVELS}
     figures.append(
         cohort_figures.plot_probability(
@@ -530,7 +591,9 @@ def chosen(frame: pd.DataFrame, count: int = CHOSEN) -> list[str]:
 
 
 def draw(out: Path, frame: pd.DataFrame, regions: dict[str, pd.DataFrame]) -> list[Path]:
-    """The cohort's figures (module docstring)."""
+    """The cohort's figures (module docstring). ``regions``: the maps of the subjects drawn
+    (:func:`chosen`, or every subject of a cohort of at most :data:`SMALL_COHORT`), in
+    cohort.csv's order; every map holds the cohort's whole grid, so theirs give the axes."""
     paths = [cohort_figures.plot_area(frame, out / "cohort_area.png")]
     picks = chosen(frame)
     every = pd.concat(regions.values())

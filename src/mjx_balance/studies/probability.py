@@ -11,7 +11,7 @@ probabilities p whose score test ``|k/n - p| <= z sqrt(p (1 - p) / n)`` accepts,
 quantile of 0.975. Chosen over Clopper-Pearson's exact interval: averaged over the true P,
 Wilson's coverage is 95.0-95.4 % for 10 to 400 subjects where Clopper-Pearson's is 95.8-98.4 %
 with intervals 3-17 % wider (it keeps 95 % at every P by being wider than it needs on average;
-Brown, Cai and DasGupta 2001; docs/studies.md, "Cohorts", has the computation). Wilson's
+Brown, Cai and DasGupta 2001; docs/cohorts.md, "Cohorts", has the computation). Wilson's
 interval stays inside [0, 1], has a width at k = 0 and k = n (0/10 gives [0, 0.278]) where the
 normal approximation's collapses to a point, and its width has a closed form, so the subjects a
 width needs are a formula (:func:`subjects_for`). Its price: near P = 0 and 1 its coverage can
@@ -117,29 +117,61 @@ def cells(regions: dict[str, pd.DataFrame]) -> pd.DataFrame:
     that recover, P = recovered / subjects and its Wilson interval; forces then durations
     ascending. ``regions``: each subject's region map (force, duration, outcome). Where every
     map has ``steps_needed`` (capturability), also the subjects that recover in place or with
-    one step, P of that and its Wilson interval (STEP_CELL_COLUMNS)."""
-    if not regions:
-        raise ParameterError("a probability map needs at least one subject's region map")
-    steps = all("steps_needed" in r for r in regions.values())
-    keep = ["force", "duration", "outcome"] + (["steps_needed"] if steps else [])
-    every = pd.concat([r[keep] for r in regions.values()], ignore_index=True)
-    every["recovered"] = every["outcome"] == RECOVERED_TEXT
-    columns = {"subjects": ("recovered", "size"), "recovered_subjects": ("recovered", "sum")}
-    if steps:
-        every["one_step"] = saved(every["recovered"], every["steps_needed"], 1)
-        columns["one_step_subjects"] = ("one_step", "sum")
-    frame = every.groupby(["force", "duration"], sort=True).agg(**columns).reset_index()
-    n = frame["subjects"].to_numpy(int)
-    k = frame["recovered_subjects"].to_numpy(int)
-    frame["subjects"], frame["recovered_subjects"] = n, k
-    frame["p_recover"] = k / n
-    frame["p_low"], frame["p_high"] = wilson(k, n)
-    if not steps:
-        return frame[CELL_COLUMNS]
-    k1 = frame["one_step_subjects"].to_numpy(int)
-    frame["one_step_subjects"], frame["p_one_step"] = k1, k1 / n
-    frame["p_one_step_low"], frame["p_one_step_high"] = wilson(k1, n)
-    return frame[CELL_COLUMNS + STEP_CELL_COLUMNS]
+    one step, P of that and its Wilson interval (STEP_CELL_COLUMNS). :class:`Tally` counts the
+    maps one at a time (a large cohort's are never all in memory)."""
+    tally = Tally()
+    for region in regions.values():
+        tally.add(region)
+    return tally.cells()
+
+
+class Tally:
+    """:func:`cells`' counts, added one subject's region map at a time (:meth:`add`); the host
+    keeps a count per cell, not the maps."""
+
+    def __init__(self) -> None:
+        self.counts: pd.DataFrame | None = None
+        self.steps = True  # every map so far has steps_needed
+
+    def add(self, region: pd.DataFrame) -> None:
+        """One subject's region map (force, duration, outcome; steps_needed where it has it)."""
+        self.steps = self.steps and "steps_needed" in region
+        recovered = region["outcome"] == RECOVERED_TEXT
+        part = pd.DataFrame(
+            {
+                "force": region["force"],
+                "duration": region["duration"],
+                "subjects": 1,
+                "recovered_subjects": recovered.astype(np.int64),
+            }
+        )
+        if self.steps:
+            one_step = saved(recovered, region["steps_needed"], 1)
+            part["one_step_subjects"] = np.asarray(one_step).astype(np.int64)
+        counts = part.groupby(["force", "duration"], sort=True).sum()
+        if self.counts is None:
+            self.counts = counts
+        else:  # counts stay whole: float64 holds them exactly
+            self.counts = self.counts.add(counts, fill_value=0)
+        if not self.steps and "one_step_subjects" in self.counts:
+            self.counts = self.counts.drop(columns="one_step_subjects")
+
+    def cells(self) -> pd.DataFrame:
+        """cohort_probability.csv's frame of the maps added (:func:`cells`)."""
+        if self.counts is None:
+            raise ParameterError("a probability map needs at least one subject's region map")
+        frame = self.counts.sort_index().reset_index()
+        n = frame["subjects"].to_numpy().astype(int)
+        k = frame["recovered_subjects"].to_numpy().astype(int)
+        frame["subjects"], frame["recovered_subjects"] = n, k
+        frame["p_recover"] = k / n
+        frame["p_low"], frame["p_high"] = wilson(k, n)
+        if not self.steps:
+            return frame[CELL_COLUMNS]
+        k1 = frame["one_step_subjects"].to_numpy().astype(int)
+        frame["one_step_subjects"], frame["p_one_step"] = k1, k1 / n
+        frame["p_one_step_low"], frame["p_one_step_high"] = wilson(k1, n)
+        return frame[CELL_COLUMNS + STEP_CELL_COLUMNS]
 
 
 def at_level(recovered: Any, subjects: Any, percent: int) -> np.ndarray:
