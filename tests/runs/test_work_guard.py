@@ -185,3 +185,32 @@ def test_a_short_window_is_planned_as_the_rates_window():
         twelve.split(" at ")[0].split(", ")[-1]
         == chunks.planned_work(1000, 1.0, None).split(" at ")[0].split(", ")[-1]
     )
+
+
+@pytest.mark.parametrize(
+    "argv, startup",
+    [
+        (["table", "--forces", "50", "--set", "scenario.t_end=2"], "ENGINE_STARTUP"),
+        (["simulate", "--forces", "50", "--durations", "0.1"], "REFERENCE_STARTUP"),
+    ],
+)
+def test_the_plan_counts_the_start_up(tmp_path, capsys, monkeypatch, argv, startup):
+    """A tiny run's plan said "under 1 s" and took 21 s (a table of one force): the plan line
+    now says the start-up beside the work (runs.chunks: measured tiny runs, cold and warm), and
+    the limit counts it."""
+    from mjx_balance.runs import chunks
+
+    low, high, what = getattr(chunks, startup)
+    assert 1 <= low < high
+    limits = []
+
+    def limit(*_args, setup_s=0.0, **_kwargs):  # the guard's check: the seconds it counted
+        limits.append(setup_s)
+        raise Reached
+
+    monkeypatch.setattr(chunks, "check_planned_work", limit)
+    with pytest.raises(Reached):
+        main([*argv, "--out", str(tmp_path / "out")])
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("planned work"))
+    assert f"plus {chunks.wall_span(low, high)} of start-up ({what})" in line, line
+    assert limits == [high]

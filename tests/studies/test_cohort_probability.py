@@ -342,8 +342,8 @@ def test_the_base_map_is_a_result_that_keeps_the_folder(tmp_path):
 
 
 def test_the_plan_counts_the_subjects_set_up_before_and_during_the_run(capsys, monkeypatch):
-    """A 30,000-subject cohort checks its representatives and builds its first queue's closed
-    loops before its first scenario, then every other subject's when its queue starts (the
+    """A 30,000-subject cohort checks its representatives and sets up its first queue's maps
+    before its first scenario, then every other subject's when its queue starts (the
     plan once said "about 4 min" and then checked every subject for 25 min first); the plan
     line says both, and the limit counts them. The subjects are not checked here: the plan is
     said before, so the check is stopped at its start."""
@@ -366,6 +366,6 @@ def test_the_plan_counts_the_subjects_set_up_before_and_during_the_run(capsys, m
     during = (30001 - FIRST_QUEUE) * SUBJECT_SETUP_SECONDS
     assert (
         f"after {wall_span(before, before)} of checking {checked} subjects' configurations and "
-        f"building {FIRST_QUEUE} closed loops before the first scenario" in planned
+        f"setting up {FIRST_QUEUE} maps before the first scenario" in planned
     ), planned
-    assert f"plus {wall_span(during, during)} of building 29,985 more closed loops" in planned
+    assert f"plus {wall_span(during, during)} of setting up 29,985 more maps" in planned

@@ -301,8 +301,9 @@ def members_from(args: argparse.Namespace) -> list:
 def subject_setup(count: int) -> tuple[tuple[float, str], tuple[float, str]]:
     """The plan's set-up of ``count`` subjects (``guard_work``'s ``setup``, ``during``):
     before the first scenario, the subjects checked before the folder is made
-    (``studies.cohort.checked_first``) and the first queue's closed loops built; during the
-    run, every other map's closed loop (the base body's too), built when its queue starts."""
+    (``studies.cohort.checked_first``) and the first queue's maps set up; during the run,
+    every other map's (the base body's too): its closed loop built when its queue starts, its
+    folder written after."""
     from ..runs.chunks import SUBJECT_CHECK_SECONDS, SUBJECT_SETUP_SECONDS  # lazy: JAX
     from ..runs.population import FIRST_QUEUE  # lazy: as above
     from ..studies.cohort import checked_first  # lazy: as above
@@ -311,11 +312,12 @@ def subject_setup(count: int) -> tuple[tuple[float, str], tuple[float, str]]:
     return (
         (
             checked * SUBJECT_CHECK_SECONDS + first * SUBJECT_SETUP_SECONDS,
-            f"checking {checked:,} subjects' configurations and building {first} closed loops",
+            f"checking {checked:,} subjects' configurations and setting up {first} maps",
         ),
         (
             (count + 1 - first) * SUBJECT_SETUP_SECONDS,
-            f"building {count + 1 - first:,} more closed loops",
+            f"setting up {count + 1 - first:,} more maps (each one's closed loop built, its "
+            "folder written)",
         ),
     )
 

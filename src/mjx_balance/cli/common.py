@@ -91,6 +91,7 @@ def guard_work(
     t_end = config.scenario.t_end
     rate = chunks.REFERENCE_SECONDS_PER_SECOND if reference else chunks.SIMULATED_SECONDS_PER_SECOND
     floor = 0.0 if reference else chunks.RATE_WINDOW  # the reference runs every window whole
+    startup = chunks.REFERENCE_STARTUP if reference else chunks.ENGINE_STARTUP
     disk = {} if not reference else {"bytes_per_scenario": reference_bytes(config)}
     logging.getLogger("mjx_balance").info(
         chunks.planned_work(
@@ -101,6 +102,7 @@ def guard_work(
             rate=rate,
             setup=setup,
             during=during,
+            startup=startup,
             window_floor=floor,
             **disk,
         )
@@ -113,7 +115,7 @@ def guard_work(
             t_end,
             what,
             rate=rate,
-            setup_s=setup[0] + during[0],
+            setup_s=setup[0] + during[0] + startup[1],
             window_floor=floor,
         )
 

@@ -111,13 +111,22 @@ CHUNK_BYTES_PER_SCENARIO = 650
 # The scalar reference (MuJoCo C + OSQP, one scenario at a time: simulate), hard pushes (bounds
 # active: OSQP iterates long) to light ones (BENCHMARKS.md, "The scalar reference's rate").
 REFERENCE_SECONDS_PER_SECOND = (1.0, 15.0)
-# What a cohort spends on a subject's configuration: checked before the folder is made
-# (studies.cohort.plan_cohort: the QP, its conditioning, the batched closed loop's build;
-# every subject of a small cohort, a large one's representatives), and on the MJX path's one
-# queue its closed loop built and checked again when its queue starts (runs.population), on
-# the 2-core CPU (python docs/scripts/cohort_setup.py; BENCHMARKS.md, "A cohort's set-up").
+# What a cohort spends on a subject outside the engine: its configuration checked before the
+# folder is made (studies.cohort.plan_cohort: the QP, its conditioning, the batched closed
+# loop's build; every subject of a small cohort, a large one's representatives), and its map
+# set up in the one queue (runs.population: its closed loop built and checked when its queue
+# starts, its folder written from the queue's results), on the 2-core CPU (python
+# docs/scripts/cohort_setup.py; BENCHMARKS.md, "A cohort's set-up").
 SUBJECT_CHECK_SECONDS = 0.05
-SUBJECT_SETUP_SECONDS = 0.08
+# What a command spends before its first scenario, besides its own checks: on the batched path
+# the engine's program loaded from the compile cache or compiled, with the process's start
+# (JAX, the runners); the scalar reference starts MuJoCo and OSQP and draws each push's
+# figures. Fewest and most seconds on the 2-core CPU, rounded out from tiny runs' 8.9-10.6 s
+# with the compile cache warm and 25.6-28.0 s cold, and simulate's 4.4-4.5 s for one push
+# (python docs/scripts/startup.py; BENCHMARKS.md, "A cohort's set-up and memory").
+ENGINE_STARTUP = (10.0, 30.0, "the engine's program loaded from the compile cache, or compiled")
+REFERENCE_STARTUP = (4.0, 5.0, "the process started, the models built")
+SUBJECT_SETUP_SECONDS = 0.09
 MAX_PLANNED_SCENARIOS = 2_000_000  # more than this needs --yes
 MAX_PLANNED_HOURS = 24.0  # an estimate (at the slower rate) beyond this needs --yes
 
@@ -161,12 +170,14 @@ def planned_work(
     setup: tuple[float, str] = (0.0, ""),
     window_floor: float = RATE_WINDOW,
     during: tuple[float, str] = (0.0, ""),
+    startup: tuple[float, float, str] = (0.0, 0.0, ""),
 ) -> str:
     """One line: scenarios, chunks (unless ``chunk_size`` is None), simulated time, estimated
     wall time at ``rate`` (window-s/s: slower, faster; each scenario at least ``window_floor``
-    seconds of window, RATE_WINDOW), disk, ``during``: (seconds, what) of set-up spread over
-    the run (a cohort's subjects built queue by queue), and ``setup``: (seconds, what) spent
-    before the first scenario, each when there is any."""
+    seconds of window, RATE_WINDOW), ``startup``: (fewest, most seconds, what) before the work
+    starts (ENGINE_STARTUP, REFERENCE_STARTUP), disk, ``during``: (seconds, what) of set-up
+    spread over the run (a cohort's subjects built queue by queue), and ``setup``: (seconds,
+    what) spent before the first scenario, each when there is any."""
     simulated = n_scenarios * t_end
     longest, shortest = (planned_seconds(n_scenarios, t_end, r, window_floor) for r in rate)
     disk = n_scenarios * bytes_per_scenario  # (chunks + the merged table, by default)
@@ -186,7 +197,12 @@ def planned_work(
             if t_end < window_floor
             else "("
         )
-        + "2-core CPU, BENCHMARKS.md; compile not included)"
+        + "2-core CPU, BENCHMARKS.md)"
+        + (
+            f" plus {wall_span(startup[0], startup[1])} of start-up ({startup[2]})"
+            if startup[1] >= 1
+            else ""
+        )
         + (
             f" plus {wall_span(during[0], during[0])} of {during[1]} during the run"
             if during[0] >= 1

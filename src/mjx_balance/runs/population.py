@@ -43,14 +43,15 @@ from .grid import Grid, grid_cells
 QUEUE_CELLS = 20_000
 QUEUE_REFILLS = 40
 # Bodies in the first queue: each body's closed loop is built and checked when its queue
-# starts (about 0.07 s a body on the 2-core CPU: BENCHMARKS.md, "A cohort's set-up"), so the
+# starts (0.04-0.05 s a body on the 2-core CPU: BENCHMARKS.md, "A cohort's set-up"), so the
 # first scenario waits for this many; each next queue holds twice the one before, up to the
 # cell limit.
 FIRST_QUEUE = 16
-# Bodies in one queue at most: the engine holds each queue body's arrays and certificate,
-# stacked (about 0.3 MB a body: 0.1 MB of model, QP and observer, 0.19 MB of certificate), and
-# every queue is stacked to one length (one compiled program), so a cohort's memory stays
-# flat in its subjects at about 300 MB of bodies.
+# Bodies in one queue at most: a queue's runners are built together (about 1.2 MB each) and
+# its engine holds their arrays and certificates stacked (0.29 MB a body: 0.10 MB of model,
+# QP and observer, 0.19 MB of certificate), every queue stacked to one length (one compiled
+# program), so a cohort's memory stays flat in its subjects (BENCHMARKS.md, "A cohort's
+# set-up and memory").
 QUEUE_BODIES = 1024
 
 
@@ -72,7 +73,7 @@ class Population:
         stack: int | None = None,
     ):
         self.configs = list(configs)
-        self.runners = (
+        built = (
             list(runners)
             if runners is not None
             else [
@@ -80,8 +81,10 @@ class Population:
                 for c in self.configs
             ]
         )
+        # the engine keeps the bodies' stacked arrays and the first runner, not every runner
+        # (about 1.2 MB a body: MuJoCo's and MJX's models, the QP's factors)
         self.engine = Engine(
-            self.runners[0], slots=slots, early_stop=early_stop, bodies=self.runners, stack=stack
+            built[0], slots=slots, early_stop=early_stop, bodies=built, stack=stack
         )
         self.slots, self.early_stop = self.engine.slots, early_stop
         self.cell_f, self.cell_d = grid_cells(forces, durations)
@@ -174,15 +177,12 @@ def run_maps(
     parts = queues(len(todo), cells, limit)
     stack, prepared = padded_size(max(len(p) for p in parts)), set()
     for part in parts:
-        built = [first if k == 0 else _built(maps[todo[k]], slots, early_stop, label) for k in part]
-        groups: dict[Any, list[tuple[Path, Config, Any]]] = {}
-        for folder, config, runner in built:
-            key = (
-                runner._shape_key(1, runner.static._replace(n_control=None)),
-                certificate(runner, early_stop) is None,
-            )
-            groups.setdefault(key, []).append((folder, config, runner))
-        for key, members in groups.items():
+        groups = _groups(
+            [first if k == 0 else _built(maps[todo[k]], slots, early_stop, label) for k in part],
+            early_stop,
+        )
+        for key in list(groups):  # each queue's bodies released before the next are built
+            members = groups.pop(key)
             people = Population(
                 [c for _, c, _ in members],
                 forces,
@@ -195,8 +195,26 @@ def run_maps(
             if key not in prepared:  # its program: compiled, or loaded from the cache, once
                 prepared.add(key)
                 _prepare(people.engine, len(members), say)
-            say(f"{len(members)} maps ({len(members) * cells} cells) in one engine queue")
-            _run_queue(people, members, forces, durations, slots, full_length, update)
+            maps_of = [(folder, config) for folder, config, _ in members]
+            del members  # the runners: the engine holds what it needs of them
+            say(f"{len(maps_of)} maps ({len(maps_of) * cells} cells) in one engine queue")
+            _run_queue(people, maps_of, forces, durations, slots, full_length, update)
+            del people
+
+
+def _groups(
+    built: list[tuple[Path, Config, Any]], early_stop: bool
+) -> dict[Any, list[tuple[Path, Config, Any]]]:
+    """Built maps by compiled program: the runner's shapes and static settings, and whether
+    it has a certificate (an engine's bodies share both)."""
+    groups: dict[Any, list[tuple[Path, Config, Any]]] = {}
+    for folder, config, runner in built:
+        key = (
+            runner._shape_key(1, runner.static._replace(n_control=None)),
+            certificate(runner, early_stop) is None,
+        )
+        groups.setdefault(key, []).append((folder, config, runner))
+    return groups
 
 
 def _built(
@@ -231,7 +249,7 @@ def _prepare(engine: Engine, bodies: int, say: Callable[[str], None]) -> None:
 
 def _run_queue(
     people: Population,
-    members: list[tuple[Path, Config, Any]],
+    members: list[tuple[Path, Config]],
     forces: np.ndarray,
     durations: np.ndarray,
     slots: int | None,
@@ -241,7 +259,7 @@ def _run_queue(
     """One queue's maps (``people``: bodies of one program) through its engine, then each
     written to its folder."""
     columns = people.run(range(len(members)), update=update)
-    for i, (folder, config, _) in enumerate(members):
+    for i, (folder, config) in enumerate(members):
         run_region(
             folder,
             config,
