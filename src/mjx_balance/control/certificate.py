@@ -240,10 +240,12 @@ def push_over(step, n_push, force):
 def applies(config) -> bool:
     """Whether a configuration has a certificate (no controller delay, no hip servo, not the
     offset-free controller, whose observer and target are outside the certified loop, no rate
-    limit, which the LQR law of the argument does not obey)."""
+    limit, which the LQR law of the argument does not obey) and is the MPC's (control/law.py:
+    another controller's loop is not the one certified)."""
     body = config.body
     return (
-        config.scenario.delay_steps == 0
+        config.controller.kind == "mpc"
+        and config.scenario.delay_steps == 0
         and body.hip_servo_stiffness == 0
         and body.hip_servo_damping == 0
         and not config.controller.offset_free

@@ -23,7 +23,7 @@ import re
 import numbers
 import warnings
 from dataclasses import dataclass, field, fields
-from typing import Any
+from typing import Any, NoReturn
 
 log = logging.getLogger(__name__)
 
@@ -108,7 +108,7 @@ class ParameterWarning(UserWarning):
     """A configuration that runs but holds a limit that can never bind (``config_warnings``)."""
 
 
-def fail(record: str, name: str, rule: str, value: Any) -> None:
+def fail(record: str, name: str, rule: str, value: Any) -> NoReturn:
     raise ParameterError(f"{record}.{name} = {value!r}: {rule}")
 
 
@@ -143,11 +143,47 @@ def finite_number(text: str, name: str) -> float:
     return value
 
 
+def as_table(record: str, name: str, value: Any) -> tuple:
+    """A table field's value (a dict, or (name, value) pairs) as sorted (name, value) pairs,
+    each value a number, a bool, a string or a list of numbers (kept as a tuple): hashable,
+    so a configuration stays a key."""
+    items = value.items() if isinstance(value, dict) else value
+    try:
+        pairs = [(k, v) for k, v in items]
+    except (TypeError, ValueError):
+        fail(record, name, "must be a table of names and values", value)
+    out = []
+    for key, item in pairs:
+        if isinstance(item, (list, tuple)) and all(is_number(v) for v in item):
+            item = tuple(item)
+        elif not isinstance(item, (bool, str)) and not is_number(item):
+            fail(record, name, f"{key}: must be a number, true/false, a string or a list of numbers", value)
+        if not isinstance(key, str) or not key.isidentifier():
+            fail(record, name, f"{key!r}: names must be Python identifiers", value)
+        out.append((key, item))
+    return tuple(sorted(out))
+
+
+def _check_kind(ctrl: Any) -> None:
+    """The controller's kind is a built-in one or 'package.module:factory'; options belong to
+    a factory; offset-free is the MPC's own (control/law.py)."""
+    kind = ctrl.kind
+    module, sep, name = kind.partition(":")
+    if kind not in ("mpc", "lqr", "pd") and not (sep and module.strip() and name.strip()):
+        fail("controller", "kind", "must be mpc, lqr, pd or 'package.module:factory'", kind)
+    if ctrl.options and not sep:
+        fail("controller", "options", f"are a factory's arguments; kind {kind!r} takes none", dict(ctrl.options))
+    if kind != "mpc" and ctrl.offset_free:
+        fail("controller", "offset_free", f"is the MPC's observer; kind {kind!r} has none", True)
+
+
 def _check_types(record: str, obj: Any) -> None:
     """Each field holds what its default is: a number (never a bool), a list of numbers (no
     nested lists, no bools, no strings), a bool or a string."""
     for f in fields(obj):
         value, default = getattr(obj, f.name), f.default
+        if f.metadata.get("table"):
+            continue  # (as_table checked it)
         if isinstance(default, bool):
             if not isinstance(value, bool):
                 fail(record, f.name, "must be true or false", value)
@@ -463,8 +499,16 @@ class ControllerParams:
     # a stable operating point (measured in the linear plant: 0 and 0.1 diverge, 0.2 and 0.3
     # settle; tests/control/test_offset_free.py, docs/model.md).
     target_margin: float = 0.2
+    # Which controller balances the body (control/law.py, docs/model.md "Bring your own
+    # controller"): "mpc" (this record's MPC), "lqr", "pd", or "package.module:factory", a
+    # user's function; ``options``: the keyword arguments of a factory's call (the TOML table
+    # [controller.options]), as sorted (name, value) pairs. Both left out of a configuration's
+    # files at their defaults, so the MPC's folders read as before.
+    kind: str = field(default="mpc", metadata={"omit_default": True})
+    options: tuple = field(default=(), metadata={"omit_default": True, "table": True})
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "options", as_table("controller", "options", self.options))
         _check_types("controller", self)
         object.__setattr__(self, "q_diag", tuple(float(v) for v in self.q_diag))
         object.__setattr__(self, "r_diag", tuple(float(v) for v in self.r_diag))
@@ -494,6 +538,7 @@ class ControllerParams:
             fail("controller", "convention", f"must be one of {CONVENTIONS}", self.convention)
         if not isinstance(self.horizon, int) or self.horizon < 1:
             fail("controller", "horizon", "must be an integer >= 1", self.horizon)
+        _check_kind(self)
         if len(self.q_diag) != 4 or min(self.q_diag) < 0:
             fail("controller", "q_diag", "must be 4 non-negative numbers", self.q_diag)
         if len(self.r_diag) != 2 or min(self.r_diag) <= 0:
@@ -773,7 +818,11 @@ class Config:
         for name in ("body", "controller", "scenario"):
             section = getattr(self, name)
             out[name] = {
-                f.name: (list(v) if isinstance(v, tuple) else v)
+                f.name: (
+                    {k: (list(t) if isinstance(t, tuple) else t) for k, t in v}
+                    if f.metadata.get("table")
+                    else (list(v) if isinstance(v, tuple) else v)
+                )
                 for f in fields(section)
                 if (v := getattr(section, f.name)) is not None
                 and not (f.metadata.get("omit_default") and v == f.default)
@@ -895,7 +944,9 @@ def build_section(cls: type, section: str, values: dict[str, Any]) -> Any:
     coerced = {}
     for key, value in values.items():
         default = known[key].default
-        if isinstance(default, tuple) or (
+        if known[key].metadata.get("table"):
+            value = as_table(section, key, value)
+        elif isinstance(default, tuple) or (
             default is None and value is not None and known[key].metadata.get("pair")
         ):
             if not isinstance(value, (list, tuple)):

@@ -35,6 +35,7 @@ import numpy as np
 import pandas as pd
 
 from ..measures import capture, metrics, outcomes
+from ..control import law as law_mod
 from ..control import offset_free as offset_free_mod
 from ..model.linear import delay_predictor, predict
 from ..model.mjcf import build_model, indices, settled_rest
@@ -126,6 +127,54 @@ def _reference_mpc(
     controller: ControllerParams, body: BodyParams, control_dt: float, _thread: int
 ) -> ReferenceMPC:
     return ReferenceMPC(build_qp(controller, body, control_dt), controller)
+
+
+class LawReference:
+    """A controller of control/law.py in the scalar reference (``controller.kind`` other than
+    "mpc"): the batched path's ``act`` jitted once, unbatched, fed the reference's state in
+    JAX's default float; its input limited to the input bounds and the rate limit as the
+    batched path limits it (``rollout.kernel.act``). No QP: nothing is tested for
+    infeasibility."""
+
+    hard_infeasible = False
+
+    def __init__(self, controller: law_mod.Controller, qp: CondensedQP, limits: Limits):
+        import jax
+        import jax.numpy as jnp
+
+        self.qp, self.law = qp, controller.law
+        self.dtype = jnp.zeros(()).dtype
+        self.params = law_mod.cast(controller.params, self.dtype)
+        self.lower = np.asarray(limits.input_lower, float)
+        self.upper = np.asarray(limits.input_upper, float)
+        self._act = jax.jit(controller.law.act)
+        self.reset()
+
+    def reset(self) -> None:
+        self.state = self.law.init(self.params)
+
+    def solve(
+        self, x0: np.ndarray, offset: np.ndarray | None = None, first: np.ndarray | None = None
+    ) -> tuple[np.ndarray, None, bool, float]:
+        import jax.numpy as jnp
+
+        u, self.state, status = self._act(self.params, jnp.asarray(x0, self.dtype), self.state)
+        lower, upper = self.lower, self.upper
+        if first is not None:
+            lower, upper = np.maximum(lower, first[0]), np.minimum(upper, first[1])
+        u = np.minimum(np.maximum(np.asarray(u, float).reshape(2), lower), upper)
+        return u, None, bool(status.converged), float(status.residual)
+
+
+def reference_controller(config: Config) -> "MPC":
+    """The reference's controller of ``config``: OSQP on the MPC's QP
+    (:func:`reference_mpc`), or the configuration's controller of control/law.py
+    (:class:`LawReference`)."""
+    ctrl, body, sc = config.controller, config.body, config.scenario
+    made = law_mod.controller_of(config)
+    if made is None:
+        return reference_mpc(ctrl, body, sc.control_dt)
+    return LawReference(made, build_qp(ctrl, body, sc.control_dt), Limits.from_params(sc, ctrl))
 
 
 # MuJoCo's checks of non-finite or huge values; each resets the data when it fires.
@@ -376,7 +425,8 @@ def simulate_scenario(
     ``force`` [N] (+ forward) and ``duration`` [s] override config.scenario's; the summary row
     has the keys ``outcomes.SUMMARY_COLUMNS``; the time series has ``TIMESERIES_COLUMNS``, one
     row per physics step (time = (i+1) dt), ending at the fall sample if the body fell.
-    ``mpc``: the controller (default: OSQP, :func:`reference_mpc`); it is reset first.
+    ``mpc``: the controller (default: :func:`reference_controller`, OSQP for the MPC); it
+    is reset first.
     ``initial``: the initial joint state [q_a, q_h, dq_a, dq_h] (default upright rest; the
     foot as at rest), as the batched engine's per-scenario initial state.
     """
@@ -384,7 +434,7 @@ def simulate_scenario(
     body, ctrl, sc = config.body, config.controller, config.scenario
     model = _model(body, sc.physics_dt)
     if mpc is None:
-        mpc = reference_mpc(ctrl, body, sc.control_dt)
+        mpc = reference_controller(config)
     mpc.reset()
     limits = Limits.from_params(sc, ctrl)
     lm = mpc.qp.linear

@@ -38,6 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..control import admm as admm_mod
+from ..control import law as law_mod
 from ..model import linear as linear_mod
 from ..control import offset_free as offset_free_mod
 from ..control.qp import rate_bounds
@@ -158,6 +159,9 @@ class Static(NamedTuple):
     limits: Limits  # thresholds of the outcome rules; the bounds are Arrays.bounds (None here)
     compensate: bool = False  # delay compensation (linear.delay_predictor)
     offset_free: bool = False  # the disturbance observer and steady-state target
+    # a controller of control/law.py in the MPC's place (None: the MPC, solved by admm.py);
+    # its parameters are Arrays.law
+    law: law_mod.Law | None = None
 
 
 def split_limits(limits: Limits, dtype: Any) -> tuple[Limits, jax.Array]:
@@ -216,6 +220,9 @@ class Arrays(NamedTuple):
     # traced value, so one compiled engine serves every t_end; the padded batch with
     # trajectories scans Static.n_control periods (its output's length) and so compiles per t_end.
     n_control: jax.Array
+    # the parameters of Static.law (a pytree; () for the MPC): data, so a cohort's bodies,
+    # each with its own, share one program
+    law: Any = ()
 
 
 # MuJoCo's bound on qpos, qvel, qacc and ctrl (mjMAXVAL): beyond it, or NaN, the C library
@@ -235,6 +242,7 @@ class Carry(NamedTuple):
     dist: jax.Array  # [2] offset-free: the disturbance estimate
     x_last: jax.Array  # [4] offset-free: the previous control instant's measured state
     u_last: jax.Array  # [2] offset-free: the input applied since
+    law_state: Any = ()  # Static.law's own carried state (law.init), () for the MPC
 
 
 def select(pred: jax.Array, a: Any, b: Any) -> Any:
@@ -357,7 +365,7 @@ def sample_update(
 
 def period_update(
     acc: Accumulators,
-    res: admm_mod.ADMMResult,
+    res: "admm_mod.ADMMResult | LawResult",
     u: jax.Array,
     torques: jax.Array,
     limits: Limits,
@@ -409,6 +417,7 @@ def initial_carry(arrays: Arrays, sensors: Sensors, static: Static) -> Carry:
         dist=jnp.zeros(2, dtype),
         x_last=x0,
         u_last=jnp.zeros(2, dtype),
+        law_state=() if static.law is None else static.law.init(arrays.law),
     )
 
 
@@ -453,7 +462,9 @@ def prepare(arrays: Arrays, static: Static, carry: Carry, rest: Carry | None = N
     alive = carry.acc.alive
     if rest is not None:
         carry = carry._replace(
-            d=select(alive, carry.d, arrays.d0), warm=select(alive, carry.warm, rest.warm)
+            d=select(alive, carry.d, arrays.d0),
+            warm=select(alive, carry.warm, rest.warm),
+            law_state=select(alive, carry.law_state, rest.law_state),
         )
     measured = carry.history[static.delay_steps]
     x_meas = state(arrays, measured[:2], measured[2:])
@@ -470,8 +481,44 @@ def prepare(arrays: Arrays, static: Static, carry: Carry, rest: Carry | None = N
     return Prepared(carry, x_meas, None, x_meas, carry.dist, alive, first)
 
 
-def solve(arrays: Arrays, static: Static, pre: Prepared) -> admm_mod.ADMMResult:
-    """The MPC's QP at :func:`prepare`'s state, warm-started from the carry."""
+class LawResult(NamedTuple):
+    """A :data:`Static.law` controller's period in the fields of ``admm.ADMMResult`` that
+    :func:`conclude` reads (its status as a solve's), and its next carried state."""
+
+    u0: jax.Array  # [2] its input, limited to the input bounds and the rate limit
+    status: jax.Array  # int32: admm.SOLVED or MAX_ITER (law.Status.converged)
+    prim_res: jax.Array
+    iters: jax.Array
+    warm_next: admm_mod.ADMMWarm  # the carry's, unchanged
+    law_state: Any
+
+
+def act(arrays: Arrays, static: Static, pre: Prepared) -> LawResult:
+    """:data:`Static.law`'s period at :func:`prepare`'s state: its input limited to the
+    body's input bounds and the rate limit (``pre.first``), as the MPC's QP limits its own."""
+    assert static.law is not None
+    u, law_state, status = static.law.act(arrays.law, pre.x0, pre.carry.law_state)
+    dtype = pre.x0.dtype
+    u = jnp.asarray(u, dtype).reshape(2)
+    lower = jnp.maximum(arrays.bounds[2], pre.first[0])
+    upper = jnp.minimum(arrays.bounds[3], pre.first[1])
+    return LawResult(
+        u0=jnp.minimum(jnp.maximum(u, lower), upper),
+        status=jnp.where(
+            jnp.asarray(status.converged, bool), admm_mod.SOLVED, admm_mod.MAX_ITER
+        ).astype(jnp.int32),
+        prim_res=jnp.asarray(status.residual, dtype),
+        iters=jnp.asarray(status.iterations, jnp.int32),
+        warm_next=pre.carry.warm,
+        law_state=law_state,
+    )
+
+
+def solve(arrays: Arrays, static: Static, pre: Prepared) -> Any:
+    """The MPC's QP at :func:`prepare`'s state, warm-started from the carry (or, with
+    :data:`Static.law`, that controller's :func:`act`)."""
+    if static.law is not None:
+        return act(arrays, static, pre)
     return admm_mod.admm_solve(
         arrays.qp, pre.x0, pre.carry.warm, static.settings, pre.offset, pre.first
     )
@@ -487,7 +534,12 @@ def solve_batch(
     """:func:`solve` over a batch of :func:`prepare` results, ``arrays.qp`` shared
     (``admm_solve_batch``: with ``tile``, sequential tiles of that many lanes, each stopping at
     its own slowest). ``tiles``: (the bodies' QPs stacked, each tile's body), every tile of
-    ``tile`` lanes solving its body's QP (``admm_solve_tiles``; ``arrays.qp`` unused)."""
+    ``tile`` lanes solving its body's QP (``admm_solve_tiles``; ``arrays.qp`` unused). With
+    :data:`Static.law`, that controller's :func:`act` on every lane (``arrays`` per lane with
+    ``tiles``, shared without)."""
+    if static.law is not None:
+        axis = None if tiles is None else 0
+        return jax.vmap(lambda a, p: act(a, static, p), in_axes=(axis, 0))(arrays, pre)
     if tiles is not None:
         assert tile is not None  # (body tiles come with their lane count: engine.Engine.tile)
         return admm_mod.admm_solve_tiles(
@@ -509,7 +561,7 @@ def conclude(
     arrays: Arrays,
     static: Static,
     pre: Prepared,
-    res: admm_mod.ADMMResult,
+    res: "admm_mod.ADMMResult | LawResult",
     k: jax.Array,
     rest: Carry | None = None,
 ) -> tuple[Carry, jax.Array, jax.Array]:
@@ -529,14 +581,21 @@ def conclude(
     carry = carry._replace(
         warm=warm, acc=acc, inputs=inputs, dist=pre.dist, x_last=pre.x_meas, u_last=u
     )
+    if static.law is not None:
+        carry = carry._replace(law_state=res.law_state)
     if rest is not None:
         kept = select(
             pre.alive,
-            (carry.history, carry.inputs, carry.dist, carry.x_last, carry.u_last),
-            (rest.history, rest.inputs, rest.dist, rest.x_last, rest.u_last),
+            (carry.history, carry.inputs, carry.dist, carry.x_last, carry.u_last, carry.law_state),
+            (rest.history, rest.inputs, rest.dist, rest.x_last, rest.u_last, rest.law_state),
         )
         carry = carry._replace(
-            history=kept[0], inputs=kept[1], dist=kept[2], x_last=kept[3], u_last=kept[4]
+            history=kept[0],
+            inputs=kept[1],
+            dist=kept[2],
+            x_last=kept[3],
+            u_last=kept[4],
+            law_state=kept[5],
         )
     return carry, u, torques
 
@@ -623,7 +682,7 @@ def conclude_batch(
     arrays: Arrays,
     static: Static,
     pre: Prepared,
-    res: admm_mod.ADMMResult,
+    res: "admm_mod.ADMMResult | LawResult",
     k: jax.Array,
     rest: Carry | None = None,
     axis: int | None = None,
@@ -665,7 +724,7 @@ def advance_period(
     sensors: Sensors,
     static: Static,
     pre: Prepared,
-    res: admm_mod.ADMMResult,
+    res: "admm_mod.ADMMResult | LawResult",
     k: jax.Array,
     force: jax.Array,
     n_push: jax.Array,

@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from ..control import admm as admm_mod
+from ..control import law as law_mod
 from ..measures import capture, outcomes
 from ..control import offset_free
 from ..model.linear import S as JOINT_TO_ABS
@@ -101,6 +102,7 @@ class BatchRunner:
         to_state = np.linalg.solve(lm.P, JOINT_TO_ABS)
         compensate, pred_A, pred_G = _delay_prediction(lm, ctrl, sc)
         limits, bounds = split_limits(Limits.from_params(sc, ctrl), self.dtype)
+        law = law_mod.controller_of(config)  # None: the MPC
         self.arrays = Arrays(
             mx=canonical_hfield_bounds(mx, self.model),
             d0=d0,
@@ -117,6 +119,7 @@ class BatchRunner:
             ramp_steps=jnp.asarray(sc.ramp_steps, self.dtype),
             capture=jnp.asarray(capture.step_model(config).data(), self.dtype),
             n_control=jnp.asarray(sc.n_control, jnp.int32),
+            law=() if law is None else law_mod.cast(law.params, self.dtype),
         )
         self.static = Static(
             n_control=sc.n_control,
@@ -128,6 +131,7 @@ class BatchRunner:
             limits=limits,
             compensate=compensate,
             offset_free=ctrl.offset_free,
+            law=None if law is None else law.law,
         )
         devices = list(jax.local_devices() if devices is None else devices)
         self.mesh = jax.sharding.Mesh(np.array(devices), ("batch",)) if len(devices) > 1 else None

@@ -21,7 +21,7 @@ import numpy as np
 from ..control.qp import build_qp, float32_conditioning, qp_bytes
 from ..model.params import Config, ParameterError
 from ..model.mjcf import build_model
-from ..reference.loop import reference_mpc
+from ..reference.loop import reference_controller
 from ..rollout.runner import BatchRunner
 from ..runtime import cache
 from ..store.folder import folder_lock, require_lock
@@ -169,7 +169,7 @@ def check_reference(config: Config) -> None:
     MuJoCo model that cannot be built from it."""
     check_memory(config, batched=False)
     try:
-        reference_mpc(config.controller, config.body, config.scenario.control_dt)
+        reference_controller(config)
         build_model(config.body, config.scenario.physics_dt)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
         raise ParameterError(
