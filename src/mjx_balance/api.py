@@ -41,6 +41,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterator, TypeVar, Union, cast
 
+from .control import law
 from .measures.strategy import with_strategy
 from .model.params import Config, ParameterError
 from .model.config_files import config_from_dict, load_config
@@ -54,7 +55,7 @@ from .runtime import signals
 from .store.provenance import run_context
 from .reference import loop as reference
 from .store.files import TABLE, check_format, export_tables_said
-from .studies.compare import load_configs, run_compare
+from .studies.compare import load_configs, run_compare, with_controllers
 from .studies.defaults import DEFAULT_DELAYS, DEFAULT_SCALES, DEFAULT_TABLE_FORCES, READINGS
 from .studies.defaults import DEFAULT_FORCES as STUDY_TABLE_FORCES
 from .studies.landscape import run_landscape
@@ -156,9 +157,13 @@ def checked(function: Function) -> Function:
     return cast(Function, run)
 
 
-def as_config(config: ConfigLike = None) -> Config:
+def as_config(config: ConfigLike = None, controller: Any = None) -> Config:
     """A :class:`Config` from a Config, a :class:`Subject` (its ``config()``), a TOML file's
-    path, a dict of tables or None."""
+    path, a dict of tables or None; with ``controller`` (a kind or a module-level factory
+    function: control/law.py), that controller in the MPC's place."""
+    if controller is not None:
+        kind = law.kind_of(controller)
+        return as_config(config).replace(controller={"kind": kind})
     if config is None:
         return Config()
     if isinstance(config, Config):
@@ -194,6 +199,7 @@ def simulate(
     durations: Values | None = None,
     config: ConfigLike = None,
     *,
+    controller: Any = None,
     pairs: Any = None,
     progress: bool | None = None,
 ) -> "tuple[pd.DataFrame, pd.DataFrame]":
@@ -210,6 +216,9 @@ def simulate(
             of numbers.
         config: The configuration: a ``Config``, a TOML file's path, a dict of ``body`` /
             ``controller`` / ``scenario`` tables, a ``Subject``, or None (the study's).
+        controller: The controller in the configuration's place: ``"mpc"``, ``"lqr"``,
+            ``"pd"``, ``"package.module:factory"`` or a module-level factory function
+            (docs/model.md, "Bring your own controller"); None: the configuration's.
         pairs: Instead of the cross product, these (force, duration) pushes in order:
             ``20:0.7,30:0.45``, a CSV file with columns force and duration, or a sequence of
             pairs.
@@ -227,7 +236,7 @@ def simulate(
     Example:
         >>> summary, series = mb.simulate([40, 120], [0.1])
     """
-    config = as_config(config)
+    config = as_config(config, controller)
     todo = check_pushes(config, forces, durations, pairs).todo  # before any work
     with signals.honoured():
         summary, series = reference.simulate_pairs(config, todo, progress=wanted(progress))
@@ -254,6 +263,7 @@ def sweep(
     durations: Values,
     config: ConfigLike = None,
     *,
+    controller: Any = None,
     out: str | os.PathLike[str] | None = None,
     chunk: int | None = None,
     slots: int | None = None,
@@ -278,6 +288,9 @@ def sweep(
             of numbers.
         config: The configuration: a ``Config``, a TOML file's path, a dict of ``body`` /
             ``controller`` / ``scenario`` tables, a ``Subject``, or None (the study's).
+        controller: The controller in the configuration's place: ``"mpc"``, ``"lqr"``,
+            ``"pd"``, ``"package.module:factory"`` or a module-level factory function
+            (docs/model.md, "Bring your own controller"); None: the configuration's.
         out: The output folder, written and resumed as ``mjx-balance sweep`` writes it
             (manifest, chunks, region.parquet), without the figures; None: a temporary folder,
             nothing kept.
@@ -309,7 +322,7 @@ def sweep(
     """
     import pandas as pd
 
-    config = as_config(config)
+    config = as_config(config, controller)
     grid = Grid.of(forces, durations, config)  # checked once, before any folder
     check_format(format)
     refs = read_references(reference)
@@ -339,6 +352,7 @@ def table(
     forces: Values,
     config: ConfigLike = None,
     *,
+    controller: Any = None,
     out: str | os.PathLike[str] | None = None,
     slots: int | None = None,
     full_length: bool = False,
@@ -361,6 +375,9 @@ def table(
             numbers.
         config: The configuration: a ``Config``, a TOML file's path, a dict of ``body`` /
             ``controller`` / ``scenario`` tables, a ``Subject``, or None (the study's).
+        controller: The controller in the configuration's place: ``"mpc"``, ``"lqr"``,
+            ``"pd"``, ``"package.module:factory"`` or a module-level factory function
+            (docs/model.md, "Bring your own controller"); None: the configuration's.
         out: The output folder (table.csv, table_runs.parquet: the scenarios run, kept for a
             resume), without the figure; None: a temporary folder, nothing kept.
         slots: Scenarios in flight per device (None: from the memory budget).
@@ -388,7 +405,7 @@ def table(
     Raises:
         ParameterError: a bad value, before any folder is made.
     """
-    config = as_config(config)
+    config = as_config(config, controller)
     check_format(format)
     refs = read_references(reference)
     forces = _with_forces(grid_values(forces, "forces"), refs)
@@ -475,9 +492,10 @@ def scorecard(
 
 @checked
 def compare(
-    configs: "Mapping[str, ConfigLike] | Sequence[str | os.PathLike[str]]",
+    configs: "Mapping[str, ConfigLike] | Sequence[str | os.PathLike[str]] | None" = None,
     *,
     out: str | os.PathLike[str],
+    controllers: "Sequence[Any] | None" = None,
     forces: Values | None = None,
     durations: Values | None = None,
     table_forces: Values | None = None,
@@ -500,8 +518,11 @@ def compare(
 
     Args:
         configs: Name -> configuration (a Config, a dict or a TOML path), or a list of TOML
-            paths (named by their stems).
+            paths (named by their stems); None: the defaults (with ``controllers``).
         out: The output folder (resumable).
+        controllers: Every configuration under each of these controllers (``"mpc"``,
+            ``"lqr"``, ``"pd"``, ``"package.module:factory"`` or a module-level factory
+            function; docs/model.md, "Bring your own controller"), each named by its kind.
         forces: Push forces [N]: start:stop:step or a comma list (a string), or a sequence of
             numbers (None: the default sweep's).
         durations: Push durations [s]: start:stop:step or a comma list (a string), or a sequence
@@ -538,10 +559,13 @@ def compare(
     """
     check_format(format)
     named: dict[str, Config]  # (the configurations, each checked)
-    if isinstance(configs, Mapping):
+    if configs is None and controllers:
+        named = {"base": Config()}
+    elif isinstance(configs, Mapping):
         named = {str(name): as_config(c) for name, c in configs.items()}
     else:
-        named = load_configs([str(p) for p in configs])
+        named = load_configs([str(p) for p in configs or []])
+    named = with_controllers(named, [law.kind_of(c) for c in controllers or []])
     with _session("compare"), figure_style(figure_format, figure_size):
         frame = run_compare(
             out,

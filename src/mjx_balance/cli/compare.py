@@ -10,7 +10,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from ..model.params import ParameterError
+from ..model.params import Config, ParameterError
 from ..model.config_files import apply_overrides, with_convention
 from ..studies.defaults import (  # light
     DEFAULT_SWEEP_DURATIONS,
@@ -19,6 +19,7 @@ from ..studies.defaults import (  # light
 )
 from .common import in_folder, planner, progress_enabled
 from .options import (
+    controller_kinds,
     cluster_option,
     config_options,
     engine_options,
@@ -58,6 +59,16 @@ def add_parser(sub: Any) -> None:
         "own (repeatable; after the positional FILEs)",
     )
     config_options(p, repeat=True)
+    p.add_argument(
+        "--controllers",
+        type=controller_kinds,
+        default=None,
+        metavar="LIST",
+        help="every configuration under each of these controllers, comma-separated: "
+        "mpc, lqr, pd, package.module:factory (docs/model.md, 'Bring your own "
+        "controller'); without FILEs, the base configuration under each, "
+        "named by its kind",
+    )
     p.add_argument(
         "--forces",
         default=None,
@@ -108,7 +119,7 @@ def variants_and_base(args: Any) -> tuple[list[tuple[str | None, str]], str | No
     """([(name or None, file)], base file or None) from the options."""
     variants = [(None, path) for path in args.variants or []] + list(args.variant or [])
     configs = args.config or []
-    if not variants:
+    if not variants and not getattr(args, "controllers", None):
         raise ParameterError(
             "compare needs at least one configuration: compare FILE ... "
             "or --variant NAME=FILE (--config names the base configuration)"
@@ -128,11 +139,15 @@ def compare_command(args: Any) -> int:
     from ..studies.compare import load_base, load_configs  # lazy: as above
 
     variants, base = variants_and_base(args)
-    configs = load_configs(
-        [path for _, path in variants],
-        base=load_base(base, getattr(args, "subject", None)),
-        names=[name for name, _ in variants],
-    )
+    base_config = load_base(base, getattr(args, "subject", None))
+    if variants:
+        configs = load_configs(
+            [path for _, path in variants],
+            base=base_config,
+            names=[name for name, _ in variants],
+        )
+    else:  # --controllers alone: the base configuration under each
+        configs = {"base": base_config or Config()}
     configs = {
         name: with_convention(apply_overrides(config, args.set), args.convention)
         for name, config in configs.items()
@@ -143,6 +158,7 @@ def compare_command(args: Any) -> int:
         api.compare(
             configs,
             out=out,
+            controllers=args.controllers,
             forces=args.forces,
             durations=args.durations,
             table_forces=args.table_forces,

@@ -24,7 +24,7 @@ import argparse
 import math
 import os
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 from ..model.params import CONVENTIONS, ParameterError
 from ..model.config_files import parse_override
@@ -185,6 +185,37 @@ def setting(text: str) -> str:
     except ParameterError as exc:
         raise argparse.ArgumentTypeError(str(exc).removeprefix(f"--set {text!r}: ")) from None
     return text
+
+
+KINDS = ("mpc", "lqr", "pd")  # control/law.py's built-in controllers
+
+
+def controller_kind(text: str) -> str:
+    """A --controller KIND: mpc, lqr, pd or package.module:factory (found when the
+    configuration is checked)."""
+    module, sep, name = text.partition(":")
+    identifiers = module.replace(".", "_").isidentifier() and name.replace(".", "_").isidentifier()
+    if text in KINDS or (sep and identifiers):
+        return text
+    raise argparse.ArgumentTypeError(
+        f"expected {', '.join(KINDS)} or package.module:factory, got {text!r}"
+    )
+
+
+def controller_kinds(text: str) -> list[str]:
+    """A --controllers LIST: comma-separated --controller KINDs, each named once."""
+    kinds = [controller_kind(part.strip()) for part in text.split(",")]
+    if len(set(kinds)) != len(kinds):
+        raise argparse.ArgumentTypeError(f"a controller named twice in {text!r}")
+    return kinds
+
+
+class ControllerSetting(argparse.Action):
+    """--controller KIND as ``--set controller.kind=KIND``, in the command line's order."""
+
+    def __call__(self, parser: Any, namespace: Any, value: Any, option: Any = None) -> None:
+        settings = list(getattr(namespace, "set", None) or [])
+        namespace.set = settings + [f"controller.kind={value}"]
 
 
 def subject(text: str) -> Subject:
@@ -374,6 +405,18 @@ def config_options(
         help="override one value of the configuration, e.g. --set "
         "controller.horizon=30 --set scenario.t_end=6 (repeatable; checked "
         "as in a TOML file; applied after --config and a sweep definition)",
+    )
+    p.add_argument(
+        "--controller",
+        type=controller_kind,
+        action=ControllerSetting,
+        dest="controller_kind",
+        default=None,
+        metavar="KIND",
+        help="the controller that balances the body: mpc (the default: the study's "
+        "constrained MPC), lqr, pd, or package.module:factory, your own "
+        "(docs/model.md, 'Bring your own controller'); the same as --set "
+        "controller.kind=KIND",
     )
     p.add_argument(
         "--subject",

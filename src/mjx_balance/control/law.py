@@ -49,9 +49,7 @@ class Status(NamedTuple):
 
 def solved(xp: Any, dtype: Any) -> Status:
     """The status of a closed-form law: converged, no iterations, no residual."""
-    return Status(
-        xp.asarray(True), xp.asarray(0, xp.int32), xp.asarray(-np.inf, dtype)
-    )
+    return Status(xp.asarray(True), xp.asarray(0, xp.int32), xp.asarray(-np.inf, dtype))
 
 
 class Law(NamedTuple):
@@ -152,7 +150,9 @@ def factory_of(kind: str) -> Callable[..., Controller]:
     try:
         module = importlib.import_module(module_name)
     except ImportError as exc:
-        raise ParameterError(f"controller.kind {kind!r}: cannot import {module_name} ({exc})") from None
+        raise ParameterError(
+            f"controller.kind {kind!r}: cannot import {module_name} ({exc})"
+        ) from None
     target: Any = module
     for part in name.split("."):
         target = getattr(target, part, None)

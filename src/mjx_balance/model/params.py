@@ -157,7 +157,8 @@ def as_table(record: str, name: str, value: Any) -> tuple:
         if isinstance(item, (list, tuple)) and all(is_number(v) for v in item):
             item = tuple(item)
         elif not isinstance(item, (bool, str)) and not is_number(item):
-            fail(record, name, f"{key}: must be a number, true/false, a string or a list of numbers", value)
+            rule = f"{key}: must be a number, true/false, a string or a list of numbers"
+            fail(record, name, rule, value)
         if not isinstance(key, str) or not key.isidentifier():
             fail(record, name, f"{key!r}: names must be Python identifiers", value)
         out.append((key, item))
@@ -172,7 +173,8 @@ def _check_kind(ctrl: Any) -> None:
     if kind not in ("mpc", "lqr", "pd") and not (sep and module.strip() and name.strip()):
         fail("controller", "kind", "must be mpc, lqr, pd or 'package.module:factory'", kind)
     if ctrl.options and not sep:
-        fail("controller", "options", f"are a factory's arguments; kind {kind!r} takes none", dict(ctrl.options))
+        rule = f"are a factory's arguments; kind {kind!r} takes none"
+        fail("controller", "options", rule, dict(ctrl.options))
     if kind != "mpc" and ctrl.offset_free:
         fail("controller", "offset_free", f"is the MPC's observer; kind {kind!r} has none", True)
 

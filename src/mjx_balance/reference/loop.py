@@ -155,7 +155,7 @@ class LawReference:
 
     def solve(
         self, x0: np.ndarray, offset: np.ndarray | None = None, first: np.ndarray | None = None
-    ) -> tuple[np.ndarray, None, bool, float]:
+    ) -> tuple[np.ndarray, np.ndarray, bool, float]:
         import jax.numpy as jnp
 
         u, self.state, status = self._act(self.params, jnp.asarray(x0, self.dtype), self.state)
@@ -163,7 +163,7 @@ class LawReference:
         if first is not None:
             lower, upper = np.maximum(lower, first[0]), np.minimum(upper, first[1])
         u = np.minimum(np.maximum(np.asarray(u, float).reshape(2), lower), upper)
-        return u, None, bool(status.converged), float(status.residual)
+        return u, u, bool(status.converged), float(status.residual)  # (no iterate but u)
 
 
 def reference_controller(config: Config) -> "MPC":

@@ -514,7 +514,7 @@ def act(arrays: Arrays, static: Static, pre: Prepared) -> LawResult:
     )
 
 
-def solve(arrays: Arrays, static: Static, pre: Prepared) -> Any:
+def solve(arrays: Arrays, static: Static, pre: Prepared) -> "admm_mod.ADMMResult | LawResult":
     """The MPC's QP at :func:`prepare`'s state, warm-started from the carry (or, with
     :data:`Static.law`, that controller's :func:`act`)."""
     if static.law is not None:
@@ -530,7 +530,7 @@ def solve_batch(
     pre: Prepared,
     tile: int | None,
     tiles: tuple[admm_mod.ADMMData, jax.Array] | None = None,
-) -> admm_mod.ADMMResult:
+) -> "admm_mod.ADMMResult | LawResult":
     """:func:`solve` over a batch of :func:`prepare` results, ``arrays.qp`` shared
     (``admm_solve_batch``: with ``tile``, sequential tiles of that many lanes, each stopping at
     its own slowest). ``tiles``: (the bodies' QPs stacked, each tile's body), every tile of
@@ -581,7 +581,7 @@ def conclude(
     carry = carry._replace(
         warm=warm, acc=acc, inputs=inputs, dist=pre.dist, x_last=pre.x_meas, u_last=u
     )
-    if static.law is not None:
+    if isinstance(res, LawResult):  # (static.law's period)
         carry = carry._replace(law_state=res.law_state)
     if rest is not None:
         kept = select(
@@ -673,7 +673,7 @@ def prepare_batch(
     )(arrays, carry, rest)
 
 
-def solve_lanes(arrays: Arrays, static: Static, pre: Prepared) -> admm_mod.ADMMResult:
+def solve_lanes(arrays: Arrays, static: Static, pre: Prepared) -> "admm_mod.ADMMResult | LawResult":
     """:func:`solve` vmapped over a batch of :func:`prepare` results (the C path's solve)."""
     return jax.vmap(lambda p: solve(arrays, static, p))(pre)
 

@@ -84,6 +84,31 @@ def check_names(names: Sequence[str]) -> None:
         seen.add(name.lower())
 
 
+def controller_name(kind: str) -> str:
+    """A controller kind's folder name: the kind itself for a built-in one, the factory's name
+    for ``package.module:factory`` (dots and other characters as '_')."""
+    name = kind.rpartition(":")[2]
+    return re.sub(r"[^A-Za-z0-9._-]", "_", name)
+
+
+def with_controllers(configs: dict[str, Config], kinds: Sequence[str]) -> dict[str, Config]:
+    """Every configuration under every controller kind (``compare --controllers``): named by
+    the kind (:func:`controller_name`) for one configuration, ``NAME-kind`` for several, each
+    checked as the configuration's own values are."""
+    if not kinds:
+        return configs
+    names = [controller_name(kind) for kind in kinds]
+    if len(set(names)) != len(names):  # two factories of one name: their whole kinds
+        names = [re.sub(r"[^A-Za-z0-9._-]", "_", kind) for kind in kinds]
+    out = {}
+    for label, config in configs.items():
+        for kind, name in zip(kinds, names):
+            key = name if len(configs) == 1 else f"{label}-{name}"
+            out[key] = config.replace(controller={"kind": kind})
+    check_names(list(out))
+    return out
+
+
 def load_configs(
     paths: Sequence[str | Path],
     base: Config | None = None,
