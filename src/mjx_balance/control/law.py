@@ -28,6 +28,8 @@ and share one compiled program.
 from __future__ import annotations
 
 import importlib
+import os
+import sys
 from typing import Any, Callable, NamedTuple
 
 import numpy as np
@@ -134,6 +136,19 @@ def pd(config: Config) -> Controller:
     return Controller(FEEDBACK._replace(name="pd"), {"gain": gain})
 
 
+def importable(name: str) -> Any:
+    """Module ``name``, from the Python path or else from the current folder (as ``python -m``
+    finds a module there; a console script's path does not hold it)."""
+    try:
+        return importlib.import_module(name)
+    except ModuleNotFoundError as exc:
+        here = os.getcwd()
+        if exc.name != name.partition(".")[0] or here in sys.path:
+            raise
+        sys.path.append(here)
+        return importlib.import_module(name)
+
+
 def factory_of(kind: str) -> Callable[..., Controller]:
     """The factory ``kind`` names ("lqr", "pd" or "package.module:factory"); ParameterError
     in one line when it cannot be found."""
@@ -148,7 +163,7 @@ def factory_of(kind: str) -> Callable[..., Controller]:
             f"'package.module:factory', got {kind!r}"
         )
     try:
-        module = importlib.import_module(module_name)
+        module = importable(module_name)
     except ImportError as exc:
         raise ParameterError(
             f"controller.kind {kind!r}: cannot import {module_name} ({exc})"

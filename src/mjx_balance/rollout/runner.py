@@ -46,6 +46,30 @@ def _bucket(n: int, minimum: int = 8) -> int:
     return max(minimum, 1 << max(0, math.ceil(math.log2(max(n, 1)))))
 
 
+def _static(
+    config: Config,
+    settings: admm_mod.ADMMSettings,
+    limits: Limits,
+    compensate: bool,
+    trajectories: bool,
+    law: law_mod.Controller | None,
+) -> Static:
+    """The compile-time part of a runner's configuration (``kernel.Static``)."""
+    sc = config.scenario
+    return Static(
+        n_control=sc.n_control,
+        substeps=sc.substeps,
+        delay_steps=sc.delay_steps,
+        push_at_hip=sc.push_body == "hip",
+        settings=settings,
+        trajectories=trajectories,
+        limits=limits,
+        compensate=compensate,
+        offset_free=config.controller.offset_free,
+        law=None if law is None else law.law,
+    )
+
+
 def _delay_prediction(
     lm: LinearModel, ctrl: ControllerParams, sc: ScenarioParams
 ) -> tuple[bool, np.ndarray, np.ndarray]:
@@ -121,18 +145,7 @@ class BatchRunner:
             n_control=jnp.asarray(sc.n_control, jnp.int32),
             law=() if law is None else law_mod.cast(law.params, self.dtype),
         )
-        self.static = Static(
-            n_control=sc.n_control,
-            substeps=sc.substeps,
-            delay_steps=sc.delay_steps,
-            push_at_hip=sc.push_body == "hip",
-            settings=settings,
-            trajectories=trajectories,
-            limits=limits,
-            compensate=compensate,
-            offset_free=ctrl.offset_free,
-            law=None if law is None else law.law,
-        )
+        self.static = _static(config, settings, limits, compensate, trajectories, law)
         devices = list(jax.local_devices() if devices is None else devices)
         self.mesh = jax.sharding.Mesh(np.array(devices), ("batch",)) if len(devices) > 1 else None
         if self.mesh is not None:  # the shared arrays, replicated on every device once

@@ -156,6 +156,8 @@ def checked_runner(config: Config, **runner: Any) -> BatchRunner:
         )
     try:  # everything else the batched closed loop builds (models, observer, predictor)
         return BatchRunner(config, **runner)
+    except ParameterError:  # (a controller's factory, named by control/law.py)
+        raise
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
         raise ParameterError(
             f"the batched closed loop cannot be built from this configuration "
@@ -171,6 +173,8 @@ def check_reference(config: Config) -> None:
     try:
         reference_controller(config)
         build_model(config.body, config.scenario.physics_dt)
+    except ParameterError:  # (a controller's factory, named by control/law.py)
+        raise
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
         raise ParameterError(
             f"the scalar reference cannot be built from this configuration "

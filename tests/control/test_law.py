@@ -1,0 +1,103 @@
+"""Controllers behind one interface (control/law.py; docs/model.md, "Bring your own
+controller"): the configuration's kind and options, the built-in LQR and PD designs, a user's
+factory refused in one line when it fails, and every law on the batched path against the same
+law in the scalar reference."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from margins import within
+
+from mjx_balance.control import law
+from mjx_balance.model.config_files import config_from_dict, dumps_config
+from mjx_balance.model.linear import S, linear_model, mass_gravity_abs
+from mjx_balance.model.params import Config, ParameterError
+
+
+def test_kind_and_options_round_trip_and_stay_out_of_the_mpcs_files():
+    # the MPC's configuration files read as before: no kind, no options written
+    assert "kind" not in dumps_config(Config())
+    config = config_from_dict(
+        {"controller": {"kind": "law_examples:integral_lqr", "options": {"ki": 2}}}
+    )
+    assert config.controller.options == (("ki", 2),)
+    import tomllib
+
+    assert config_from_dict(tomllib.loads(dumps_config(config))) == config
+
+
+@pytest.mark.parametrize(
+    "controller, words",
+    [
+        ({"kind": "foo"}, "controller.kind"),
+        ({"kind": "lqr", "options": {"a": 1}}, "controller.options"),
+        ({"kind": "pd", "offset_free": True}, "controller.offset_free"),
+        ({"kind": "a:b", "options": {"a": {"x": 1}}}, "controller.options"),
+    ],
+)
+def test_a_bad_kind_or_option_is_refused_by_name(controller, words):
+    with pytest.raises(ParameterError, match=words):
+        config_from_dict({"controller": controller})
+
+
+@pytest.mark.parametrize(
+    "kind, words",
+    [
+        ("no_such_module_x:make", "cannot import no_such_module_x"),
+        ("law_examples:nothing", "has no function nothing"),
+        ("law_examples:broken", "the factory failed: RuntimeError: no weights here"),
+        ("law_examples:not_a_controller", "returned dict"),
+    ],
+)
+def test_a_users_factory_that_fails_is_named_in_one_line(kind, words):
+    config = Config().replace(controller={"kind": kind})
+    with pytest.raises(ParameterError, match=words) as caught:
+        law.controller_of(config)
+    assert "\n" not in str(caught.value)
+
+
+def test_lqr_is_the_riccati_fixed_point_of_the_mpcs_model_and_weights():
+    """The gain against the Riccati difference equation iterated to its fixed point (an
+    independent computation: the DARE's stabilising solution is that iteration's limit, reached
+    geometrically; 3000 control periods = 30 s is far past the slowest closed-loop mode)."""
+    config = Config()
+    ctrl = config.controller
+    lm = linear_model(config.body, ctrl.convention, config.scenario.control_dt)
+    Q, R = np.diag(ctrl.q_diag), np.diag(ctrl.r_diag)
+    P = Q.copy()
+    for _ in range(3000):
+        K = np.linalg.solve(R + lm.B.T @ P @ lm.B, lm.B.T @ P @ lm.A)
+        P = Q + lm.A.T @ P @ (lm.A - lm.B @ K)
+    gain = law.lqr(config).params["gain"]
+    within(gain, K, rtol=1e-6, atol=1e-6 * np.abs(K).max(), why="the iteration's convergence")
+    assert np.abs(np.linalg.eigvals(lm.A - lm.B @ gain)).max() < 1  # stabilising
+
+
+@pytest.mark.parametrize("convention", ["paper", "joint"])
+def test_pd_cancels_gravity_and_is_critically_damped_at_each_joint(convention):
+    """In joint coordinates the PD's torques are -(G + Kp) q - Kd dq with Kp, Kd diagonal, so
+    the linear body's closed loop M q'' = -Kp q - Kd dq: Kd_i^2 = 4 M_ii Kp_i (critical
+    damping) and Kp_i = M_ii w^2 with w twice the falling rate; both conventions give the same
+    joint torques."""
+    config = Config().replace(controller={"convention": convention})
+    lm = linear_model(config.body, convention, config.scenario.control_dt)
+    M_abs, G_abs, _ = mass_gravity_abs(config.body)
+    M, G = S.T @ M_abs @ S, S.T @ G_abs @ S
+    gain = law.pd(config).params["gain"]
+    # joint torques of a joint state (q, dq): u = -gain x(q, dq), tau = torque_map u
+    joint_gain = (
+        lm.torque_map
+        @ gain
+        @ np.block(
+            [
+                [np.linalg.solve(lm.P, S), np.zeros((2, 2))],
+                [np.zeros((2, 2)), np.linalg.solve(lm.P, S)],
+            ]
+        )
+    )
+    Kp, Kd = joint_gain[:, :2] - G, joint_gain[:, 2:]
+    rate = np.sqrt(np.max(np.linalg.eigvals(np.linalg.solve(M, G)).real))
+    bound = 1e-9 * np.abs(joint_gain).max()  # float64 rounding of the products above
+    within(Kp, np.diag(np.diag(M) * (2 * rate) ** 2), atol=bound, why="float64 rounding")
+    within(Kd**2, 4 * np.diag(np.diag(M)) * Kp, atol=bound * np.abs(Kd).max(), why="rounding")
