@@ -263,8 +263,8 @@ def sweep(
     durations: Values,
     config: ConfigLike = None,
     *,
-    controller: Any = None,
     out: str | os.PathLike[str] | None = None,
+    controller: Any = None,
     chunk: int | None = None,
     slots: int | None = None,
     full_length: bool = False,
@@ -288,12 +288,12 @@ def sweep(
             of numbers.
         config: The configuration: a ``Config``, a TOML file's path, a dict of ``body`` /
             ``controller`` / ``scenario`` tables, a ``Subject``, or None (the study's).
-        controller: The controller in the configuration's place: ``"mpc"``, ``"lqr"``,
-            ``"pd"``, ``"package.module:factory"`` or a module-level factory function
-            (docs/model.md, "Bring your own controller"); None: the configuration's.
         out: The output folder, written and resumed as ``mjx-balance sweep`` writes it
             (manifest, chunks, region.parquet), without the figures; None: a temporary folder,
             nothing kept.
+        controller: The controller in the configuration's place: ``"mpc"``, ``"lqr"``,
+            ``"pd"``, ``"package.module:factory"`` or a module-level factory function
+            (docs/model.md, "Bring your own controller"); None: the configuration's.
         chunk: Scenarios per chunk file (None: from the memory budget).
         slots: Scenarios in flight per device (None: from the memory budget).
         full_length: Run every scenario that does not fall to t_end (no early stop).
@@ -352,8 +352,8 @@ def table(
     forces: Values,
     config: ConfigLike = None,
     *,
-    controller: Any = None,
     out: str | os.PathLike[str] | None = None,
+    controller: Any = None,
     slots: int | None = None,
     full_length: bool = False,
     progress: bool | None = None,
@@ -375,11 +375,11 @@ def table(
             numbers.
         config: The configuration: a ``Config``, a TOML file's path, a dict of ``body`` /
             ``controller`` / ``scenario`` tables, a ``Subject``, or None (the study's).
+        out: The output folder (table.csv, table_runs.parquet: the scenarios run, kept for a
+            resume), without the figure; None: a temporary folder, nothing kept.
         controller: The controller in the configuration's place: ``"mpc"``, ``"lqr"``,
             ``"pd"``, ``"package.module:factory"`` or a module-level factory function
             (docs/model.md, "Bring your own controller"); None: the configuration's.
-        out: The output folder (table.csv, table_runs.parquet: the scenarios run, kept for a
-            resume), without the figure; None: a temporary folder, nothing kept.
         slots: Scenarios in flight per device (None: from the memory budget).
         full_length: Run every scenario that does not fall to t_end (no early stop).
         progress: A progress bar on stderr: None where someone watches (a terminal, a notebook),

@@ -101,3 +101,26 @@ def test_pd_cancels_gravity_and_is_critically_damped_at_each_joint(convention):
     bound = 1e-9 * np.abs(joint_gain).max()  # float64 rounding of the products above
     within(Kp, np.diag(np.diag(M) * (2 * rate) ** 2), atol=bound, why="float64 rounding")
     within(Kd**2, 4 * np.diag(np.diag(M)) * Kp, atol=bound * np.abs(Kd).max(), why="rounding")
+
+
+def test_a_factory_function_is_recorded_by_its_import_name_and_a_lambda_refused():
+    import law_examples
+
+    from mjx_balance import api
+
+    config = api.as_config(None, controller=law_examples.integral_lqr)
+    assert config.controller.kind == "law_examples:integral_lqr"
+    assert law.controller_of(config).law.name == "integral"
+    with pytest.raises(ParameterError, match="module-level factory function"):
+        api.as_config(None, controller=lambda config: law.lqr(config))
+
+
+def test_compare_names_each_controller_and_crosses_configurations():
+    from mjx_balance.studies.compare import with_controllers
+
+    kinds = ["mpc", "lqr", "law_examples:integral_lqr"]
+    one = with_controllers({"base": Config()}, kinds)
+    assert list(one) == ["mpc", "lqr", "integral_lqr"]
+    assert [c.controller.kind for c in one.values()] == kinds
+    two = with_controllers({"a": Config(), "b": Config()}, ["mpc", "pd"])
+    assert list(two) == ["a-mpc", "a-pd", "b-mpc", "b-pd"]
