@@ -34,7 +34,13 @@ FALL_TOL = 0.01  # s
 
 
 @pytest.mark.parametrize(
-    "kind, options", [("lqr", {}), ("pd", {}), ("law_examples:integral_lqr", {"ki": 200.0})]
+    "kind, options",
+    [
+        ("lqr", {}),
+        ("pd", {}),
+        ("law_examples:integral_lqr", {"ki": 200.0}),
+        ("mjx_balance.control.policy:mlp", {}),
+    ],
 )
 def test_a_law_on_the_batched_path_matches_it_in_the_reference(kind, options):
     """Also the law's own state: with ki = 200 the integral law settles at 50 N in 0.55 s

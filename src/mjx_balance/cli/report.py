@@ -47,7 +47,7 @@ def add_parser(sub: Any) -> None:
         "--studies",
         default="all",
         help="comma list of studies (ankle_only, backward, delay, older_adult, "
-        "recovery_definition, push_height), 'all' or 'none'",
+        "recovery_definition, controllers, push_height), 'all' or 'none'",
     )
     p.add_argument(
         "--sweeps",

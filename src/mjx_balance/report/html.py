@@ -667,9 +667,10 @@ def study_section(page: Page, key: str, res: dict) -> dict:
         _row(*images),
         _table(numbers, STUDY_SHOWN),
         _paragraph(catalog.reading(st, numbers, first), "reading"),
-        *(
+        *(  # (a QP's infeasibility: the MPC's; another controller solves none)
             _paragraph(f"{v['label']}: " + catalog.infeasibility_text(res["regions"][v["key"]]))
             for v in res["variants"]
+            if v.get("config", {}).get("controller", {}).get("kind", "mpc") == "mpc"
         ),
     )
 

@@ -100,7 +100,7 @@ def key_numbers(results: dict[str, Any]) -> list[str]:
             line[:-1] + f" ({_study_grid(st['delay'])})."
             for line in _delay_lines(st["delay"]["numbers"])
         ]
-    for key in ("older_adult", "push_height"):
+    for key in ("older_adult", "controllers", "push_height"):
         if key in st:
             rows = st[key]["numbers"]
             lines.append(

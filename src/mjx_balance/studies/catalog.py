@@ -137,6 +137,20 @@ STUDIES: tuple[Study, ...] = (
         ),
     ),
     Study(
+        "controllers",
+        "Controllers on one map: the MPC, LQR, PD and a learned policy",
+        "The study's MPC is replaced by its peers of the controller interface (docs/model.md, "
+        '"Bring your own controller"): an LQR of the same model and weights, saturated; a '
+        "PD at each joint with gravity compensation; and an MLP policy fitted offline to "
+        "imitate the MPC. The body, the push and the outcome rules are the same.",
+        (
+            Variant("mpc", "the study's MPC (base)", None),
+            Variant("lqr", "LQR, saturated", "study_controller_lqr.toml"),
+            Variant("pd", "PD with gravity compensation", "study_controller_pd.toml"),
+            Variant("mlp", "MLP policy imitating the MPC", "study_controller_mlp.toml"),
+        ),
+    ),
+    Study(
         "push_height",
         "Push height: upper-body CoM vs hip",
         "The same force acts at the hip joint instead of the upper body's centre of mass.",
@@ -153,7 +167,7 @@ def study(key: str) -> Study:
 
     Args:
         key: ``ankle_only``, ``backward``, ``delay``, ``offset_free``, ``older_adult``,
-            ``recovery_definition`` or ``push_height``.
+            ``recovery_definition``, ``controllers`` or ``push_height``.
 
     Returns:
         The study (its question and its variants).
