@@ -167,3 +167,20 @@ def test_a_policy_file_of_another_convention_or_shape_is_refused_in_one_line(tmp
         policy.mlp(Config(), weights=str(bad))
     with pytest.raises(ParameterError, match="cannot be read"):
         policy.mlp(Config(), weights=str(tmp_path / "missing.npz"))
+
+
+def test_compare_rows_name_the_controller_and_its_mean_settle_time():
+    import pandas as pd
+
+    from mjx_balance.studies.compare import mean_settle_time
+
+    region = pd.DataFrame(
+        {
+            "force": [0.0, 10.0, 20.0],
+            "duration": [0.1, 0.1, 0.1],
+            "outcome": ["recovered", "recovered", "fell"],
+            "settle_time": [0.0, 0.8, float("nan")],
+        }
+    )
+    assert mean_settle_time(region) == 0.4  # the recovered cells' mean; the fall left out
+    assert np.isnan(mean_settle_time(region[region.outcome == "fell"]))

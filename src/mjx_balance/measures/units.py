@@ -136,6 +136,8 @@ UNITS: dict[str, tuple[str, str]] = {
     "f_max_ref": ("N", "largest force recovering at t_ref"),
     "rest_recovered": ("1", "1 if every unpushed cell recovers, 0 if not, NaN without one"),
     "mean_recovery_energy": ("J", "mean energy_total of the recovered cells"),
+    "controller": ("", "the controller's kind (controller.kind: mpc, lqr, pd, module:factory)"),
+    "mean_settle_time": ("s", "mean settle_time of the recovered cells"),
     "delay": ("", "the delay setting (e.g. 100c)"),
     "delay_ms": ("ms", "the controller delay"),
     "compensated": ("", "True for the delay-compensated controller"),

@@ -16,6 +16,9 @@ sustained_push_limit
     the largest force held for the whole window (table.csv, ``acting_time.sustained_push_limit``)
 max_acting_time_<F>N
     the max acting time [s] at each table force
+
+and, in compare.csv only (cohort.csv shares the numbers above), ``controller`` (the
+configuration's controller.kind) and ``mean_settle_time`` [s] of the recovered cells.
 """
 
 from __future__ import annotations
@@ -226,6 +229,14 @@ def numbers(region: pd.DataFrame, table: pd.DataFrame | None) -> dict[str, float
     return row
 
 
+def mean_settle_time(region: pd.DataFrame) -> float:
+    """The mean settle time [s] of a map's recovered cells (NaN without one): how fast a
+    controller brings the body back, beside what it costs (``mean_recovery_energy``). The
+    mean, not the median: most small pushes never leave the settle band (settle time 0)."""
+    recovered = region[catalog.is_recovered(region)]
+    return float(recovered["settle_time"].mean()) if len(recovered) else float("nan")
+
+
 def check_compare(
     out: str | Path, configs: dict[str, Config], forces: Any, durations: Any, table_forces: Any
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -372,8 +383,10 @@ def _compare(
             {
                 "name": name,
                 "convention": config.controller.convention,
+                "controller": config.controller.kind,
                 "t_end": config.scenario.t_end,
                 **numbers(regions[name], tables[name]),
+                "mean_settle_time": mean_settle_time(regions[name]),
             }
         )
     frame = pd.DataFrame(rows)
