@@ -525,3 +525,27 @@ def test_a_server_killed_while_keeping_a_run_serves_no_half_file(server, sweep, 
         status, run = get(again, "/api/run?map=&force=30&duration=0.5")
         assert status == 200 and not run["cached"] and calls == [(30.0, 0.5)]
     assert pd.read_parquet(kept).attrs["summary"]["force"] == 30.0  # whole, read back
+
+
+def test_a_click_runs_the_folders_own_controller(tmp_path):
+    """A map of another controller (docs/model.md, "Bring your own controller") opens its
+    cells with that controller: the run is the scalar reference of the folder's configuration,
+    here the LQR's, not the MPC's."""
+    from explore_folders import T_END
+    from support import DEFAULT_BATCH, FakeThresholdBatch, cli_sweep
+
+    from mjx_balance.reference import loop as reference
+
+    folder = tmp_path / "lqr"
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(DEFAULT_BATCH, lambda config, **_: FakeThresholdBatch())
+        assert cli_sweep(folder, "-q", *T_END, "--controller", "lqr") == 0
+    config = mb.load_config(folder / "config.toml")
+    assert config.controller.kind == "lqr"
+    with Explorer(folder) as server:
+        status, run = get(server, "/api/run?map=&force=30&duration=0.1")
+    assert status == 200
+    lqr = reference.simulate_scenario(config, 30.0, 0.1, record=False)[0]
+    mpc = reference.simulate_scenario(config.replace(controller={"kind": "mpc"}), 30.0, 0.1)[0]
+    assert lqr["energy_total"] != mpc["energy_total"]  # the two controllers' runs differ
+    assert run["summary"]["energy_total"] == lqr["energy_total"]
