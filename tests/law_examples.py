@@ -53,3 +53,32 @@ def act_nan(params, x, state):
 def diverging(config: Config) -> law.Controller:
     """A law whose input is NaN: every scenario is a diverged status, never an exception."""
     return law.Controller(law.Law("nan", law.no_state, act_nan), {})
+
+
+def act_three(params, x, state):
+    return jnp.zeros(3, x.dtype), state, law.solved(jnp, x.dtype)
+
+
+def three_inputs(config: Config) -> law.Controller:
+    """A law whose input has 3 entries (refused before any run)."""
+    return law.Controller(law.Law("three", law.no_state, act_three), {})
+
+
+def act_branching(params, x, state):
+    if x[0] > 0:  # Python control flow on a traced value: JAX cannot trace it
+        return -x[:2], state, law.solved(jnp, x.dtype)
+    return x[:2], state, law.solved(jnp, x.dtype)
+
+
+def branching(config: Config) -> law.Controller:
+    """A law that branches in Python on the state (refused before any run)."""
+    return law.Controller(law.Law("branching", law.no_state, act_branching), {})
+
+
+def act_growing(params, x, state):
+    return -x[:2], jnp.concatenate([state, x[:1]]), law.solved(jnp, x.dtype)
+
+
+def growing_state(config: Config) -> law.Controller:
+    """A law whose state grows every period (the loop cannot carry it; refused)."""
+    return law.Controller(law.Law("growing", init_integral, act_growing), {"gain": np.zeros(2)})

@@ -48,6 +48,9 @@ def test_a_bad_kind_or_option_is_refused_by_name(controller, words):
         ("law_examples:nothing", "has no function nothing"),
         ("law_examples:broken", "the factory failed: RuntimeError: no weights here"),
         ("law_examples:not_a_controller", "returned dict"),
+        ("law_examples:three_inputs", "u of shape \\(3,\\), not 2 inputs"),
+        ("law_examples:branching", "JAX cannot trace its law: TracerBoolConversionError"),
+        ("law_examples:growing_state", "a state of another structure, shape or dtype"),
     ],
 )
 def test_a_users_factory_that_fails_is_named_in_one_line(kind, words):

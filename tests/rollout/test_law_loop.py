@@ -25,12 +25,25 @@ T_END = 3.0
 # ADMM against OSQP): what remains is MJX's float32 physics with its capped contact solver
 # against MuJoCo C in float64, through a stable loop, which the MPC's tolerance already bounds
 # (tests/rollout/test_rollout.py, ANGLE_TOL, 5e-3 rad, derived there). Measured on a 2-core AMD
-# EPYC: see the printed figures (docs/reliability.md).
+# EPYC over the windows of :func:`compared`: at most 5.8e-4 rad (the PD at rest, its stiff gains
+# on the foot's settling), 12 % of it; the others 5e-4 rad or less.
 ANGLE_TOL = 5e-3  # rad
 # A fall is decided at a sample where the body crosses a threshold fast: the same fall sample
 # within a few physics steps (the angles agree to ANGLE_TOL; the pitch rate at the fall is
 # about 1 rad/s, so 5e-3 rad is 5 ms, 2.5 steps): 0.01 s.
 FALL_TOL = 0.01  # s
+
+
+def compared(config: Config, ref: dict, series) -> int:
+    """How many samples the angles are compared over: a recovery's whole run, a fall's up to
+    its decision instant (``decision_time``, docs/model.md "Stepping: capturability"): from
+    there the feet in place cannot hold the body, the inputs sit at their bounds and the loop
+    no longer feeds the state back, so float32 rounding grows as in the open-loop unstable
+    body (test_rollout.py, PHYSICS_TOL's comment), no longer bounded by the stable loop's
+    ANGLE_TOL. (The MPC's own test stops at its first infeasible QP for the same reason.)"""
+    if ref["outcome"] != "fell":
+        return len(series)
+    return int(round(ref["decision_time"] / config.scenario.physics_dt))
 
 
 @pytest.mark.parametrize(
@@ -58,10 +71,14 @@ def test_a_law_on_the_batched_path_matches_it_in_the_reference(kind, options):
         ref, ref_series = reference.simulate_scenario(config, force, 0.1, record=True)
         outcomes.append(ref["outcome"])
         assert OUTCOMES[summary["outcome"][b]] == ref["outcome"], (kind, force)
-        n = len(ref_series) - 1  # up to the sample before the fall (either path's)
+        n = compared(config, ref, ref_series)
+        assert n * config.scenario.physics_dt > 0.2  # (a window that tests something)
         q = series["qpos"][b, :n][:, [ix.ankle_qpos, ix.hip_qpos]]
         diff = np.abs(q - ref_series[["q_a", "q_h"]].to_numpy()[:n])
-        print(f"\n{kind} {force:5.1f} N: {ref['outcome']}, max |angle diff| {np.nanmax(diff):.2e}")
+        print(
+            f"\n{kind} {force:5.1f} N: {ref['outcome']}, max |angle diff| "
+            f"{np.nanmax(diff):.2e} over {n * config.scenario.physics_dt:.3f} s"
+        )
         within(np.nanmax(diff), 0.0, atol=ANGLE_TOL, msg=(kind, force), why="ANGLE_TOL (comment)")
         within(
             summary["fall_time"][b],

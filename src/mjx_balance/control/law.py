@@ -198,7 +198,41 @@ def controller_of(config: Config) -> Controller | None:
             f"controller.kind {ctrl.kind!r}: the factory returned {type(made).__name__}, "
             "not mjx_balance.control.law.Controller"
         )
+    check_traced(made, ctrl.kind)
     return made
+
+
+def check_traced(made: Controller, kind: str) -> None:
+    """Trace ``init`` and ``act`` once on a state of shape [4] (``jax.eval_shape``: nothing
+    compiles or runs) and refuse in one line what the loop cannot carry: a law JAX cannot
+    trace (e.g. Python ``if`` on the state), an input that is not 2 numbers, a state whose
+    structure, shapes or dtypes ``act`` changes, a Status that is not three scalars."""
+    import jax
+    import jax.numpy as jnp
+
+    params = cast(made.params, jnp.float32)
+    x = jax.ShapeDtypeStruct((4,), jnp.float32)
+
+    def fail(what: str) -> ParameterError:
+        return ParameterError(
+            f'controller.kind {kind!r}: {what} (docs/model.md, "Bring your own controller")'
+        )
+
+    try:
+        state = jax.eval_shape(made.law.init, params)
+        u, after, status = jax.eval_shape(made.law.act, params, x, state)
+    except Exception as exc:  # a user's law: why JAX cannot trace it, in one line
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        raise fail(f"JAX cannot trace its law: {type(exc).__name__}: {first}") from None
+    if tuple(u.shape) not in ((2,), (1, 2), (2, 1)):
+        raise fail(f"act returns u of shape {tuple(u.shape)}, not 2 inputs")
+    shape = jax.tree.map(lambda v: (v.shape, v.dtype), state)
+    if jax.tree.structure(after) != jax.tree.structure(state) or shape != jax.tree.map(
+        lambda v: (v.shape, v.dtype), after
+    ):
+        raise fail("act returns a state of another structure, shape or dtype than init's")
+    if not isinstance(status, Status) or any(jnp.shape(v) != () for v in status):
+        raise fail("act's third result must be a law.Status of three scalars")
 
 
 def kind_of(controller: Any) -> str:
