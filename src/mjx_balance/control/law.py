@@ -226,10 +226,12 @@ def check_traced(made: Controller, kind: str) -> None:
         raise fail(f"JAX cannot trace its law: {type(exc).__name__}: {first}") from None
     if tuple(u.shape) not in ((2,), (1, 2), (2, 1)):
         raise fail(f"act returns u of shape {tuple(u.shape)}, not 2 inputs")
-    shape = jax.tree.map(lambda v: (v.shape, v.dtype), state)
-    if jax.tree.structure(after) != jax.tree.structure(state) or shape != jax.tree.map(
-        lambda v: (v.shape, v.dtype), after
-    ):
+
+    def described(tree: Any) -> list:  # (the structure, then each leaf's shape and dtype)
+        leaves, structure = jax.tree.flatten(tree)
+        return [str(structure)] + [(v.shape, v.dtype) for v in leaves]
+
+    if described(after) != described(state):
         raise fail("act returns a state of another structure, shape or dtype than init's")
     if not isinstance(status, Status) or any(jnp.shape(v) != () for v in status):
         raise fail("act's third result must be a law.Status of three scalars")
