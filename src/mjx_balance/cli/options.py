@@ -26,7 +26,7 @@ import os
 from pathlib import Path
 from typing import Any, Callable
 
-from ..model.params import CONVENTIONS, ParameterError
+from ..model.params import CONTROLLER_KINDS, CONVENTIONS, ParameterError
 from ..model.config_files import parse_override
 from ..model.subject import Subject, parse_subject
 from ..studies import references
@@ -187,18 +187,15 @@ def setting(text: str) -> str:
     return text
 
 
-KINDS = ("mpc", "lqr", "pd")  # control/law.py's built-in controllers
-
-
 def controller_kind(text: str) -> str:
     """A --controller KIND: mpc, lqr, pd or package.module:factory (found when the
     configuration is checked)."""
     module, sep, name = text.partition(":")
     identifiers = module.replace(".", "_").isidentifier() and name.replace(".", "_").isidentifier()
-    if text in KINDS or (sep and identifiers):
+    if text in CONTROLLER_KINDS or (sep and identifiers):
         return text
     raise argparse.ArgumentTypeError(
-        f"expected {', '.join(KINDS)} or package.module:factory, got {text!r}"
+        f"expected {', '.join(CONTROLLER_KINDS)} or package.module:factory, got {text!r}"
     )
 
 

@@ -38,8 +38,6 @@ import scipy.linalg
 from ..model.linear import S, linear_model, mass_gravity_abs
 from ..model.params import Config, ParameterError
 
-BUILT_IN = ("mpc", "lqr", "pd")
-
 
 class Status(NamedTuple):
     """What a controller reports of one period's computation (counted into the summary)."""
@@ -83,6 +81,16 @@ def cast(params: Any, dtype: Any) -> Any:
         return jnp.asarray(array, dtype) if floating else jnp.asarray(array)
 
     return jax.tree.map(one, params)
+
+
+def limited(xp: Any, u: Any, lower: Any, upper: Any, first: Any = None) -> Any:
+    """A controller's input ``u`` [2] within the body's input bounds [lower, upper] and, with
+    ``first`` ([2, 2], ``qp.rate_bounds``), the rate limit: what the loop holds, on the
+    batched path (``rollout.kernel.act``) and in the reference alike (``xp``: numpy or
+    jax.numpy)."""
+    if first is not None:
+        lower, upper = xp.maximum(lower, first[0]), xp.minimum(upper, first[1])
+    return xp.minimum(xp.maximum(u, lower), upper)
 
 
 def no_state(params: Any) -> tuple:
@@ -136,6 +144,9 @@ def pd(config: Config) -> Controller:
     return Controller(FEEDBACK._replace(name="pd"), {"gain": gain})
 
 
+BUILT_IN: dict[str, Callable[[Config], Controller]] = {"lqr": lqr, "pd": pd}  # (and "mpc")
+
+
 def importable(name: str) -> Any:
     """Module ``name``, from the Python path or else from the current folder (as ``python -m``
     finds a module there; a console script's path does not hold it)."""
@@ -150,18 +161,12 @@ def importable(name: str) -> Any:
 
 
 def factory_of(kind: str) -> Callable[..., Controller]:
-    """The factory ``kind`` names ("lqr", "pd" or "package.module:factory"); ParameterError
-    in one line when it cannot be found."""
-    if kind == "lqr":
-        return lqr
-    if kind == "pd":
-        return pd
-    module_name, sep, name = kind.partition(":")
-    if not sep or not module_name or not name:
-        raise ParameterError(
-            f"controller.kind: expected one of {', '.join(BUILT_IN)} or "
-            f"'package.module:factory', got {kind!r}"
-        )
+    """The factory ``kind`` names ("lqr", "pd" or "package.module:factory", a form the
+    configuration's check has made sure of); ParameterError in one line when it cannot be
+    found."""
+    if kind in BUILT_IN:
+        return BUILT_IN[kind]
+    module_name, _, name = kind.partition(":")
     try:
         module = importable(module_name)
     except ImportError as exc:

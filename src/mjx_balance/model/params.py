@@ -28,6 +28,8 @@ from typing import Any, NoReturn
 log = logging.getLogger(__name__)
 
 CONVENTIONS = ("paper", "joint")
+# the built-in values of controller.kind (control/law.py); any other is package.module:factory
+CONTROLLER_KINDS = ("mpc", "lqr", "pd")
 
 # Plausible ranges: outside them the physics or the numerics break, so a value there is refused
 # rather than simulated (each message names the field and the range).
@@ -170,8 +172,9 @@ def _check_kind(ctrl: Any) -> None:
     a factory; offset-free is the MPC's own (control/law.py)."""
     kind = ctrl.kind
     module, sep, name = kind.partition(":")
-    if kind not in ("mpc", "lqr", "pd") and not (sep and module.strip() and name.strip()):
-        fail("controller", "kind", "must be mpc, lqr, pd or 'package.module:factory'", kind)
+    if kind not in CONTROLLER_KINDS and not (sep and module.strip() and name.strip()):
+        built_in = ", ".join(CONTROLLER_KINDS)
+        fail("controller", "kind", f"must be {built_in} or 'package.module:factory'", kind)
     if ctrl.options and not sep:
         rule = f"are a factory's arguments; kind {kind!r} takes none"
         fail("controller", "options", rule, dict(ctrl.options))

@@ -159,10 +159,7 @@ class LawReference:
         import jax.numpy as jnp
 
         u, self.state, status = self._act(self.params, jnp.asarray(x0, self.dtype), self.state)
-        lower, upper = self.lower, self.upper
-        if first is not None:
-            lower, upper = np.maximum(lower, first[0]), np.minimum(upper, first[1])
-        u = np.minimum(np.maximum(np.asarray(u, float).reshape(2), lower), upper)
+        u = law_mod.limited(np, np.asarray(u, float).reshape(2), self.lower, self.upper, first)
         return u, u, bool(status.converged), float(status.residual)  # (no iterate but u)
 
 

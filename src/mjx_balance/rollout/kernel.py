@@ -500,10 +500,8 @@ def act(arrays: Arrays, static: Static, pre: Prepared) -> LawResult:
     u, law_state, status = static.law.act(arrays.law, pre.x0, pre.carry.law_state)
     dtype = pre.x0.dtype
     u = jnp.asarray(u, dtype).reshape(2)
-    lower = jnp.maximum(arrays.bounds[2], pre.first[0])
-    upper = jnp.minimum(arrays.bounds[3], pre.first[1])
     return LawResult(
-        u0=jnp.minimum(jnp.maximum(u, lower), upper),
+        u0=law_mod.limited(jnp, u, arrays.bounds[2], arrays.bounds[3], pre.first),
         status=jnp.where(
             jnp.asarray(status.converged, bool), admm_mod.SOLVED, admm_mod.MAX_ITER
         ).astype(jnp.int32),
