@@ -87,10 +87,11 @@ def check_names(names: Sequence[str]) -> None:
         seen.add(name.lower())
 
 
-def controller_name(kind: str) -> str:
+def controller_name(kind: str, whole: bool = False) -> str:
     """A controller kind's folder name: the kind itself for a built-in one, the factory's name
-    for ``package.module:factory`` (dots and other characters as '_')."""
-    name = kind.rpartition(":")[2]
+    for ``package.module:factory`` (``whole``: the whole kind), characters other than letters,
+    digits, '.', '_' and '-' as '_'."""
+    name = kind if whole else kind.rpartition(":")[2]
     return re.sub(r"[^A-Za-z0-9._-]", "_", name)
 
 
@@ -102,7 +103,7 @@ def with_controllers(configs: dict[str, Config], kinds: Sequence[str]) -> dict[s
         return configs
     names = [controller_name(kind) for kind in kinds]
     if len(set(names)) != len(names):  # two factories of one name: their whole kinds
-        names = [re.sub(r"[^A-Za-z0-9._-]", "_", kind) for kind in kinds]
+        names = [controller_name(kind, whole=True) for kind in kinds]
     out = {}
     for label, config in configs.items():
         for kind, name in zip(kinds, names):
