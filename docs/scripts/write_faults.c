@@ -3,7 +3,8 @@
  * fail with WF_ERRNO: EROFS at the open itself, any other errno (ENOSPC, EIO) at its first
  * write and every later one (the open succeeds, as on a full disk). WF_LOG receives one line
  * per counted open ("open <n> <path>") and one when the fault strikes ("fault <n> <path>").
- * The open and write calls of every library in the process go through here: Python's files,
+ * The open and write calls (write, pwrite, writev, sendfile, copy_file_range) of every
+ * library in the process go through here: Python's files and copies,
  * Arrow's parquet writer, matplotlib's, XLA's compilation cache. */
 #define _GNU_SOURCE
 #include <errno.h>
@@ -192,6 +193,20 @@ ssize_t writev(int fd, const struct iovec *iov, int iovcnt) {
     if (strikes(fd)) return -1;
     long r = syscall(SYS_writev, fd, iov, iovcnt);
     return r; /* syscall(): -1 and errno on failure */
+}
+/* shutil.copyfile writes through sendfile (Python's fast copy on Linux), other copies through
+ * copy_file_range: the same writes, the same faults. off_t is 64 bits on x86-64 Linux. */
+ssize_t sendfile(int out_fd, int in_fd, off_t *offset, size_t count) {
+    if (strikes(out_fd)) return -1;
+    return syscall(SYS_sendfile, out_fd, in_fd, offset, count);
+}
+ssize_t sendfile64(int out_fd, int in_fd, off_t *offset, size_t count) {
+    return sendfile(out_fd, in_fd, offset, count);
+}
+ssize_t copy_file_range(int in_fd, off_t *in_off, int out_fd, off_t *out_off, size_t len,
+                        unsigned int flags) {
+    if (strikes(out_fd)) return -1;
+    return syscall(SYS_copy_file_range, in_fd, in_off, out_fd, out_off, len, flags);
 }
 int close(int fd) {
     if (fd >= 0 && fd < MAX_FD) {

@@ -2,7 +2,7 @@
 command, and again with its k-th file opened for writing failing, for every k.
 
     python docs/scripts/write_faults.py --command sweep [--out /tmp/write_faults] [--limit N]
-        [--per-site]
+        [--per-site] [--shard I/N] [--sites REGEX]
 
 The shim ``write_faults.c`` (compiled here with the C compiler, loaded with LD_PRELOAD) counts
 every file opened for writing under the run's folder (its tables, chunks, manifests, locks,
@@ -100,6 +100,23 @@ def site(path: str, out: Path, cache: Path) -> str:
     return re.sub(r"\d+", "#", path)
 
 
+def role(site_name: str) -> str:
+    """A write site's file name, its folder left out: the one writer behind a file of that name
+    in any of a run's folders (a sweep's region.parquet under paper/ and under joint/)."""
+    return site_name.rsplit("/", 1)[-1]
+
+
+def roles_first(chosen: list[int], sites: dict[int, str], written: dict[int, str]) -> list[int]:
+    """``chosen`` with each role's first open (written through and not) before the rest, so
+    that a run stopped early has faulted every role once; each part in the order of k."""
+    seen, first, rest = set(), [], []
+    for k in chosen:
+        key = (role(sites[k]), k in written)
+        (rest if key in seen else first).append(k)
+        seen.add(key)
+    return first + rest
+
+
 def entries(log: Path, kind: str) -> dict[int, str]:
     """The log's ``kind`` lines ("open", "write", "fault") as count -> path."""
     out = {}
@@ -169,7 +186,14 @@ def main() -> int:
     parser.add_argument("--limit", type=int, default=0, help="fault at most N opens (0: all)")
     parser.add_argument("--per-site", action="store_true",
                         help="fault each write site's first open written through and its first "
-                        "open not written through, instead of every open")
+                        "open not written through, instead of every open; each file name's "
+                        "first before the rest")
+    parser.add_argument("--shard", default="1/1",
+                        help="I/N: fault only the I-th of every N chosen opens (harnesses side "
+                        "by side, each with its own --out)")
+    parser.add_argument("--sites", default="",
+                        help="fault only the opens whose write site matches this regular "
+                        "expression (e.g. 'sensitivity/[a-z_]+/[^.]')")
     args = parser.parse_args()
     shutil.rmtree(args.out, ignore_errors=True)
     args.out.mkdir(parents=True)
@@ -196,7 +220,13 @@ def main() -> int:
         firsts = {}
         for k in sorted(paths):
             firsts.setdefault((site(paths[k], args.out / "counted", cache), k in written), k)
-        chosen = sorted(firsts.values())
+        named = {k: site(p, args.out / "counted", cache) for k, p in paths.items()}
+        chosen = roles_first(sorted(firsts.values()), named, written)
+    if args.sites:
+        chosen = [k for k in chosen if re.search(args.sites, site(paths[k], args.out / "counted",
+                                                                  cache))]
+    index, shards = (int(v) for v in args.shard.split("/"))
+    chosen = chosen[index - 1::shards]
     print(f"{args.command}: {len(paths)} files opened for writing ({len(written)} written "
           f"through), {len(sites)} write sites, {len(clean)} tables; faulting "
           + (f"{len(chosen)} opens (each site's first, written and not)" if args.per_site

@@ -182,9 +182,9 @@ def test_a_configuration_file_is_loaded_or_refused(examples):
                 config = load_config(path)
             except ParameterError as exc:
                 return one_line(exc, str(path), "config")
-            from mjx_balance.model.config_files import save_config
+            from mjx_balance.model.config_files import dumps_config
 
-            save_config(config, path)
+            path.write_text(dumps_config(config))
             assert load_config(path) == config
 
     holds(examples, lines, check)

@@ -723,6 +723,47 @@ def test_a_failed_write_names_the_file_and_its_cause(tmp_path):
     assert not list(tmp_path.iterdir())  # no temporary file left
 
 
+def test_a_copied_folder_cut_short_is_never_read_as_finished(tmp_path, monkeypatch):
+    """The report copies a finished sweep or table made earlier in the same report
+    (store.files.copy_folder); a disk filling half-way through a file's copy leaves every
+    copied file whole, no temporary file and not the file that marks the folder finished
+    (table.csv), so the next run copies again. shutil.copytree wrote each file in place and
+    table.csv first: a half table.csv was the finished mark."""
+    from mjx_balance.store.files import copy_folder
+
+    source, target = tmp_path / "done", tmp_path / "copy"
+    (source / "table_runs").mkdir(parents=True)
+    files = {
+        "table.csv": b"force\n1\n" * 200,
+        "config.toml": b"x = 1\n" * 200,
+        "table_runs/part-00000.parquet": b"p" * 5000,
+        "manifest.json": b"{}" * 300,
+    }
+    for name, data in files.items():
+        (source / name).write_bytes(data)
+    real, calls = shutil.copyfile, []
+
+    def full_disk_on_the_third(src, dst, **kw):
+        calls.append(src)
+        if len(calls) == 3:
+            Path(dst).write_bytes(Path(src).read_bytes()[:100])  # half, then the disk is full
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(dst))
+        return real(src, dst, **kw)
+
+    monkeypatch.setattr(shutil, "copyfile", full_disk_on_the_third)
+    with pytest.raises(OSError) as caught:
+        copy_folder(source, target, "table.csv")
+    assert caught.value.errno == errno.ENOSPC and str(target) in caught.value.filename
+    assert not (target / "table.csv").exists()
+    kept = [p for p in target.rglob("*") if p.is_file()]
+    assert len(kept) == 2 and all(p.read_bytes() == files[p.relative_to(target).as_posix()]
+                                  for p in kept)  # fmt: skip
+    monkeypatch.setattr(shutil, "copyfile", real)
+    copy_folder(source, target, "table.csv")
+    assert {p.relative_to(target).as_posix(): p.read_bytes()
+            for p in target.rglob("*") if p.is_file()} == files  # fmt: skip
+
+
 def test_a_completed_run_whose_manifest_cannot_be_written_fails(
     tmp_path, fake_rollout, capsys, monkeypatch
 ):

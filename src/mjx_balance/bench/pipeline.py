@@ -46,7 +46,7 @@ import numpy as np
 
 from ..measures.outcomes import OUTCOMES
 from ..model.params import Config
-from ..model.config_files import save_config
+from ..model.config_files import dumps_config
 from .ipopt import study_mpc
 from ..reference import loop as reference
 from ..rollout import BatchRunner
@@ -54,6 +54,7 @@ from ..rollout.cpath import PATHS, resolve, unsupported
 from .. import runs as sweep
 from ..runs.grid import Grid
 from ..store.folder import folder_lock
+from ..store.files import write_text
 
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 FORCE_RANGE = (0.0, 150.0)
@@ -509,7 +510,7 @@ def compile_cache_times(
     On a failure: {"compile_cache_error": the reason}."""
     with tempfile.TemporaryDirectory(prefix="mjx_balance-bench-cache-") as tmp:
         config_path = Path(tmp) / "config.toml"
-        save_config(config, config_path)
+        write_text(dumps_config(config), config_path)
         env = {**os.environ, "MJX_BALANCE_CACHE_DIR": str(Path(tmp) / "jax")}
         argv = [
             sys.executable,

@@ -483,10 +483,7 @@ def solver_command(args: argparse.Namespace) -> int:
         run.seconds,
     )
     if args.out:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "bench_solver.json").write_text(json.dumps(figures, indent=1))
-        print(f"figures written to {out / 'bench_solver.json'}")
+        write_figures(Path(args.out), figures, "bench_solver.json")
     if args.json:
         print(json.dumps(figures))
     return 0
@@ -605,10 +602,7 @@ def engine_command(args: argparse.Namespace) -> int:
     end = figures["load_average_end"]
     print(f"\nload average {end[0]:.2f} {end[1]:.2f} {end[2]:.2f} at the end")
     if args.out:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "bench_engine.json").write_text(json.dumps(figures, indent=1))
-        print(f"figures written to {out / 'bench_engine.json'}")
+        write_figures(Path(args.out), figures, "bench_engine.json")
     if args.json:
         print(json.dumps(figures))
     return 0
@@ -685,3 +679,12 @@ def engine_table(fig: dict) -> list[str]:
             f"counted as 0 (below the no-op's correction): {', '.join(fig['below_resolution'])}"
         )
     return lines
+
+
+def write_figures(out: Path, figures: dict, name: str) -> None:
+    """A benchmark's figures as JSON into ``out/name`` (made), written atomically."""
+    from ..store.files import write_text  # lazy: pandas loads when a benchmark writes
+
+    out.mkdir(parents=True, exist_ok=True)
+    write_text(json.dumps(figures, indent=1), out / name)
+    print(f"figures written to {out / name}")

@@ -99,10 +99,6 @@ def dumps_config(config: Config) -> str:
     return tomli_w.dumps(config.to_dict())
 
 
-def save_config(config: Config, path: str | Path) -> None:
-    Path(path).write_text(dumps_config(config))
-
-
 def with_convention(config: Config, convention: str | None) -> Config:
     """``config`` with the controller's convention replaced (unchanged for None)."""
     return config.replace(controller={"convention": convention}) if convention else config

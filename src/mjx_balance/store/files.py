@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import tempfile
 import threading
 from pathlib import Path
@@ -67,6 +68,27 @@ def write_atomic(path: Path, write: Callable[[Path], object]) -> None:
         if isinstance(exc, OSError):
             raise named(exc, path) from exc
         raise
+
+
+def copy_folder(source: Path, target: Path, last: str) -> None:
+    """Copy the folder ``source`` into ``target`` (made, or merged into), each file atomically
+    and the file ``last`` (the one whose presence marks the folder finished) after every other:
+    a copy cut short (a full disk) raises the first error, naming the file, and leaves whole
+    files and no ``last``, so it is never read back as a finished folder and the next run
+    copies again. Times are kept (``shutil.copy2``); temporary files are not copied.
+    (``shutil.copytree`` writes each file in place and goes on past a failed one, raising a
+    list of errors at the end.)"""
+    source, target = Path(source), Path(target)
+    files = [
+        p
+        for p in sorted(source.rglob("*"))
+        if p.is_file() and not (p.name.startswith(".") and p.name.endswith(".tmp"))
+    ]
+    files.sort(key=lambda p: p == source / last)  # stable: the mark last
+    for src in files:
+        dst = target / src.relative_to(source)
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(dst, lambda tmp, src=src: shutil.copy2(src, tmp))  # type: ignore[misc]  # mypy cannot infer a lambda with a default argument
 
 
 _ERRNO_IN_TEXT = re.compile(r"\[errno (\d+)\]", re.IGNORECASE)

@@ -41,7 +41,7 @@ from ..measures.outcomes import FALL_CAUSES, OUTCOMES
 from ..model.params import Config, ParameterError, push_steps
 from ..runs.grid import check_durations, describe, parse_grid
 from ..runs.folders import check_float32_grid
-from ..store.files import write_csv, write_parquet
+from ..store.files import write_csv, write_parquet, write_text
 from ..store.folder import OutputFolder, folder_lock, same_values
 from ..runs.chunks import PlanHook, PlannedWork
 from ..rollout import BatchRunner
@@ -252,7 +252,7 @@ def _basin(
         write_csv(ends, out / PUSHES)
     figure = plot_basin(frame, plane, out / BASIN_PNG, ends, posture)  # in the figure style
     text = reading(frame, ends)
-    (out / BASIN_TXT).write_text(text + "\n")
+    write_text(text + "\n", out / BASIN_TXT)
     say(text)
     say(f"wrote {out / BASIN}, {figure} and {out / BASIN_TXT}")
     return frame

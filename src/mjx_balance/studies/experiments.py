@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,7 +39,7 @@ from ..runs import (
 from ..runs.folders import batch_function, run_region, run_table_folder
 from ..runs.grid import Grid
 from ..runs.progress import wanted
-from ..store.files import write_csv, write_parquet, write_text
+from ..store.files import REGION, TABLE, copy_folder, write_csv, write_parquet, write_text
 from ..reference.loop import simulate_scenario
 from ..reference.loop import simulate_many
 from . import sensitivity
@@ -176,7 +175,7 @@ class Batches:
         key = (config, tuple(forces), tuple(durations))
         done = self._regions.get(key)
         if done is not None and not (folder / "region.parquet").exists():
-            shutil.copytree(done, folder, dirs_exist_ok=True)
+            copy_folder(done, folder, REGION)
         run_region(
             folder,
             config,
@@ -528,7 +527,7 @@ def run_sensitivity_stage(run: ReportRun) -> None:
             and (done / "table.csv").exists()
             and not (folder / key / "table.csv").exists()
         ):
-            shutil.copytree(done, folder / key, dirs_exist_ok=True)
+            copy_folder(done, folder / key, TABLE)
         table_folder(run, folder / key, cfg)
         tables[key] = pd.read_csv(folder / key / "table.csv")
     sensitivity.write_sensitivity(folder, tables, say=run.sweep_log or (lambda _m: None))
