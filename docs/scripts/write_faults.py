@@ -47,7 +47,9 @@ COMMANDS = {
     "cohort": ["cohort", "--heights", "1.6,1.8", "--masses", "60", "--forces", "0,80",
                "--durations", "0.2", *T_END],
     "report": ["report", "--scale", "tiny", "--studies", "backward"],
+    "explore": ["sweep", "--forces", "0,80", "--durations", "0.1,0.5", *T_END],  # its map
 }
+CLICK = "/api/run?map=&force=80&duration=0.5"  # explore: the cell clicked
 ERRNOS = (errno.ENOSPC, errno.EIO, errno.EROFS)
 
 
@@ -132,6 +134,11 @@ def struck(log: Path) -> str | None:
     return next(iter(faults.values())) if faults else None
 
 
+def target(path: str) -> str:
+    """The file a write to ``path`` makes: an atomic write's target for its temporary file."""
+    return re.sub(r"^\.(.+)\.[^.]+\.tmp$", r"\1", Path(path).name)
+
+
 def verdict(proc, path: str | None, code: int, cache: Path, clean: dict, out: Path) -> str:
     """'' when the faulted run behaved, else what went wrong."""
     lines = proc.stderr.strip().splitlines()
@@ -156,8 +163,7 @@ def verdict(proc, path: str | None, code: int, cache: Path, clean: dict, out: Pa
         return f"{len(lines)} lines on stderr"
     if os.strerror(code) not in lines[0]:
         return "the cause is not named"
-    name = re.sub(r"^\.(.+)\.[^.]+\.tmp$", r"\1", Path(path).name)  # an atomic write's target
-    if name not in lines[0] and Path(path).name not in lines[0]:
+    if target(path) not in lines[0] and Path(path).name not in lines[0]:
         return "the file is not named"
     return ""
 
@@ -179,6 +185,96 @@ def cold_cache(argv, root: Path, library: Path, clean: dict) -> str:
     return "" if tables(out) == clean else "tables differ"
 
 
+def serve(folder: Path, library: Path, log: Path, fail_at: int = 0, code: int = 0):
+    """``explore FOLDER`` under the shim (every write under FOLDER counted), one click on
+    :data:`CLICK`, then Ctrl-C: (HTTP status, its JSON, the server's exit code, its stderr)."""
+    import json
+    import signal
+    import time
+    import urllib.request
+
+    env = dict(os.environ, LD_PRELOAD=str(library), WF_ROOT=str(folder), WF_LOG=str(log),
+               WF_FAIL_AT=str(fail_at), WF_ERRNO=str(code))
+    proc = subprocess.Popen([sys.executable, "-m", "mjx_balance", "explore", str(folder),
+                             "--no-browser"], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    first = proc.stdout.readline()  # "explore: FOLDER at http://127.0.0.1:PORT/ (...)"
+    found = re.search(r"http://127\.0\.0\.1:\d+/", first)
+    if found is None:
+        proc.kill()
+        out, err = proc.communicate()
+        return 0, {}, proc.returncode, first + out + err
+    try:
+        with urllib.request.urlopen(found.group(0).rstrip("/") + CLICK, timeout=300) as answer:
+            status, data = answer.status, json.loads(answer.read())
+    except urllib.error.HTTPError as exc:
+        status, data = exc.code, json.loads(exc.read() or b"{}")
+    time.sleep(0.5)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    return status, data, proc.returncode, err
+
+
+def kept_frame(folder: Path):
+    """The clicked cell's kept run (its columns; the attrs hold when it was computed)."""
+    import pandas as pd
+
+    path = folder / "explore" / "80.0_0.5.parquet"
+    return pd.read_parquet(path) if path.exists() else None
+
+
+def explore_faults(args, library: Path) -> int:
+    """Every file explore's click writes faulted in turn (see the module's docstring): the
+    click is answered (200) with the run and a note naming the file and the cause, no half
+    or temporary file is left, the server stops on Ctrl-C (130) without a traceback, and a
+    later server on the same folder computes the cell again and keeps it whole."""
+    proc = subprocess.run([sys.executable, "-m", "mjx_balance", "-q", *COMMANDS["explore"],
+                           "--out", str(args.out / "map")], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    clean_dir, log = args.out / "clean", args.out / "clean.log"
+    shutil.copytree(args.out / "map", clean_dir)
+    status, data, code, err = serve(clean_dir, library, log)
+    assert status == 200 and data.get("note") is None and code == 130, (status, data, err)
+    clean = kept_frame(clean_dir)
+    paths, written = entries(log, "open"), entries(log, "write")
+    print(f"explore: {len(paths)} files opened for writing ({len(written)} written through) by "
+          f"one click; faulting each (ENOSPC and EIO where written through, else EROFS)")
+    print("| k | file | errno | status | note | exit | rerun kept whole and equal | verdict |")
+    print("|---|---|---|---|---|---|---|---|")
+    failures = 0
+    faults = [(k, c) for k in sorted(paths) for c in (ERRNOS[:2] if k in written else ERRNOS[2:])]
+    for k, errno_ in faults:
+        name = f"k{k:03d}-{errno.errorcode[errno_]}"
+        folder, log = args.out / name, args.out / f"{name}.log"
+        shutil.copytree(args.out / "map", folder)
+        status, data, code, err = serve(folder, library, log, k, errno_)
+        path, note = struck(log), str(data.get("note"))
+        problem = ""
+        if status != 200 or not data.get("summary"):
+            problem = f"answered {status}"
+        elif path and (os.strerror(errno_) not in note or target(path) not in note):
+            problem = "the note does not name the cause and the file"
+        elif code != 130 or "Traceback" in err:
+            problem = f"the server ended with {code}"
+        elif temporary(folder):
+            problem = "temporary file left"
+        else:
+            half = kept_frame(folder) if (folder / "explore").exists() else None
+            if half is not None and not half.equals(clean):
+                problem = "a kept run differs"
+        status2, data2, code2, _ = serve(folder, library, args.out / f"{name}.rerun.log")
+        again = kept_frame(folder)
+        same = status2 == 200 and again is not None and again.equals(clean)
+        if not same and not problem:
+            problem = "the rerun did not keep the run"
+        failures += bool(problem)
+        shown = site(path, folder, folder) if path else "(not written)"
+        print(f"| {k} | {shown} | {errno.errorcode[errno_]} | {status} | {note[:80]} | {code} | "
+              f"{'yes' if same else 'NO'} | {problem or 'ok'} |", flush=True)
+    print(f"{failures} failed of {len(faults)}")
+    return 1 if failures else 0
+
+
 def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("--command", choices=sorted(COMMANDS), default="sweep")
@@ -198,6 +294,8 @@ def main() -> int:
     shutil.rmtree(args.out, ignore_errors=True)
     args.out.mkdir(parents=True)
     library = shim(Path(tempfile.mkdtemp(dir=args.out)))
+    if args.command == "explore":
+        return explore_faults(args, library)
     argv = COMMANDS[args.command]
     cache = args.out / "cache"
     clean_out, log = args.out / "clean", args.out / "clean.log"

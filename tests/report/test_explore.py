@@ -322,7 +322,8 @@ def test_a_refused_write_still_answers_and_a_stopped_server_writes_nothing(sweep
     found = explorer.folder.maps[0]
     config = explore_folder.map_config(found)
     frame, note = explorer.runs._compute(found, config, 30.0, 0.5)
-    assert note == "not kept in the folder: Permission denied" and len(frame)
+    kept = sweep / "explore" / "30.0_0.5.parquet"
+    assert note == f"not kept in the folder: Permission denied ({kept})" and len(frame)
     explorer.stop()
     monkeypatch.undo()
     frame, note = explorer.runs._compute(found, config, 30.0, 0.5)

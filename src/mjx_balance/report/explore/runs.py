@@ -271,7 +271,7 @@ class Runs:
                 path.parent.mkdir(exist_ok=True)
                 write_parquet(frame, path)
         except OSError as exc:
-            return frame, f"not kept in the folder: {exc.strerror or exc}"
+            return frame, f"not kept in the folder: {exc.strerror or exc} ({path})"
         return frame, None
 
 
