@@ -2,7 +2,8 @@
 site faulted"): a small simulate run with each of its files opened for writing failing in turn
 (ENOSPC or EIO at the write, EROFS at the open) ends in one line naming the file and the cause,
 leaves no table that differs from a clean run's, and reruns to the clean run's bytes: its first
-four opens (the lock, and a push's request made, written and synced), about 2 minutes. The shim
+four opens (the lock, and a push's request made, written and synced), about 2 minutes; and
+explore's click, every one of its opens. The shim
 is C, loaded with LD_PRELOAD: the test needs a C compiler and Linux (skipped without them, the
 reason said). The slow run: each command's full enumeration is the script's."""
 
@@ -43,6 +44,20 @@ def test_every_write_of_a_simulate_run_faulted(tmp_path, monkeypatch, capsys):
     assert script.main() == 0, capsys.readouterr().out
     printed = capsys.readouterr().out
     assert "0 failed of" in printed and "<- " not in printed
+    assert "| ENOSPC |" in printed and "| EIO |" in printed and "| EROFS |" in printed
+
+
+def test_every_write_of_an_explore_click_faulted(tmp_path, monkeypatch, capsys):
+    """explore's click keeps its run in the folder (3 opens: made, written, synced): each
+    faulted, the click is still answered with the run and a note naming the cause and the
+    file, the server stops on Ctrl-C, and a later server keeps the run whole (about 3 min)."""
+    script = _script()
+    monkeypatch.setattr(
+        sys, "argv", ["write_faults.py", "--command", "explore", "--out", str(tmp_path)]
+    )
+    assert script.main() == 0, capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "0 failed of 4" in printed
     assert "| ENOSPC |" in printed and "| EIO |" in printed and "| EROFS |" in printed
 
 
