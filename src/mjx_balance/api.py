@@ -1085,6 +1085,7 @@ def report(
     physics: str = "auto",
     html_only: bool = False,
     wait: bool = False,
+    progress: bool | None = None,
     say: Callable[[str], None] | None = None,
 ) -> Path:
     """The HTML report (``mjx-balance report``): the study's experiments and the studies beyond it.
@@ -1111,6 +1112,8 @@ def report(
         physics: ``"auto"``, ``"mjx"`` or ``"c"`` (MuJoCo C physics; docs/engine.md).
         html_only: Only redraw the figures and the page from the tables saved in ``out``.
         wait: Wait for another run that holds ``out`` instead of refusing at once.
+        progress: The numbered stage lines and the progress bars: None where someone watches
+            (bars) and always (lines), True always, False never (the command's ``-q``).
         say: Where the lines about the work go (None: the ``mjx_balance`` logger).
 
     Returns:
@@ -1153,6 +1156,7 @@ def report(
                     sweeps=None if sweeps is None else Path(sweeps),
                     cluster=cluster,
                     physics=physics,
+                    quiet=progress is False,
                 )
             say(f"tables saved in {out} ({record['seconds']:.0f} s)")
         store_references(

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from ..model.params import CONVENTIONS, ParameterError
-from .common import in_folder, load_run_config
+from .common import in_folder, load_run_config, progress_enabled
 from .options import (
     cluster_option,
     config_options,
@@ -106,6 +106,7 @@ def report_command(args: Any) -> int:
     config = None if html_only else load_run_config(args)
     out = Path(args.out)
     result = {}
+    watched = progress_enabled(args)
 
     def work() -> None:
         result["path"] = api.report(
@@ -121,7 +122,8 @@ def report_command(args: Any) -> int:
             physics=getattr(args, "physics", None) or "auto",
             html_only=html_only,
             wait=getattr(args, "wait", False),
-            say=lambda text: print(text, file=sys.stderr),
+            progress=None if watched else False,  # -q: only warnings and errors
+            say=(lambda text: print(text, file=sys.stderr)) if watched else (lambda _t: None),
         )  # stdout: the page's path alone
 
     code = in_folder(out, work, lock=False)  # the API takes the folder's lock
