@@ -741,6 +741,7 @@ def test_a_copied_folder_cut_short_is_never_read_as_finished(tmp_path, monkeypat
     }
     for name, data in files.items():
         (source / name).write_bytes(data)
+    (source / ".lock").write_text("held by another run\n")  # a record, not copied
     real, calls = shutil.copyfile, []
 
     def full_disk_on_the_third(src, dst, **kw):

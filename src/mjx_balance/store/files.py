@@ -75,14 +75,17 @@ def copy_folder(source: Path, target: Path, last: str) -> None:
     and the file ``last`` (the one whose presence marks the folder finished) after every other:
     a copy cut short (a full disk) raises the first error, naming the file, and leaves whole
     files and no ``last``, so it is never read back as a finished folder and the next run
-    copies again. Times are kept (``shutil.copy2``); temporary files are not copied.
+    copies again. Times are kept (``shutil.copy2``); temporary files and the folder's lock (a
+    record of who holds it; the copy's own run takes the copy's) are not copied.
     (``shutil.copytree`` writes each file in place and goes on past a failed one, raising a
     list of errors at the end.)"""
     source, target = Path(source), Path(target)
     files = [
         p
         for p in sorted(source.rglob("*"))
-        if p.is_file() and not (p.name.startswith(".") and p.name.endswith(".tmp"))
+        if p.is_file()
+        and p.name != LOCK
+        and not (p.name.startswith(".") and p.name.endswith(".tmp"))
     ]
     files.sort(key=lambda p: p == source / last)  # stable: the mark last
     for src in files:
