@@ -174,7 +174,7 @@ class Batches:
         report."""
         key = (config, tuple(forces), tuple(durations))
         done = self._regions.get(key)
-        if done is not None and not (folder / "region.parquet").exists():
+        if done is not None and not (folder / REGION).exists():
             copy_folder(done, folder, REGION)
         run_region(
             folder,
@@ -524,12 +524,12 @@ def run_sensitivity_stage(run: ReportRun) -> None:
         done = run.out / convention / "table"
         if (
             cfg == with_convention(run.config, convention)
-            and (done / "table.csv").exists()
-            and not (folder / key / "table.csv").exists()
+            and (done / TABLE).exists()
+            and not (folder / key / TABLE).exists()
         ):
             copy_folder(done, folder / key, TABLE)
         table_folder(run, folder / key, cfg)
-        tables[key] = pd.read_csv(folder / key / "table.csv")
+        tables[key] = pd.read_csv(folder / key / TABLE)
     sensitivity.write_sensitivity(folder, tables, say=run.sweep_log or (lambda _m: None))
 
 
