@@ -2,7 +2,7 @@
 command, and again with its k-th file opened for writing failing, for every k.
 
     python docs/scripts/write_faults.py --command sweep [--out /tmp/write_faults] [--limit N]
-        [--per-site] [--shard I/N] [--sites REGEX]
+        [--per-site] [--shard I/N] [--sites REGEX] [--done EARLIER.txt ...]
 
 The shim ``write_faults.c`` (compiled here with the C compiler, loaded with LD_PRELOAD) counts
 every file opened for writing under the run's folder (its tables, chunks, manifests, locks,
@@ -117,6 +117,19 @@ def roles_first(chosen: list[int], sites: dict[int, str], written: dict[int, str
         (rest if key in seen else first).append(k)
         seen.add(key)
     return first + rest
+
+
+def done_before(outputs: list[Path]) -> set[tuple[str, bool]]:
+    """The faults an earlier harness's printed table passed ("ok"), as (site, written
+    through): an enumeration cut short goes on where it stopped, the counted run's numbering
+    aside (the earlier run may have counted other opens before the same site)."""
+    row = re.compile(r"^\| \d+ \| (\S+) \| (E[A-Z]+) \|.*\| ok \|$")
+    found = set()
+    for output in outputs:
+        for line in output.read_text().splitlines():
+            if match := row.match(line.strip()):
+                found.add((match.group(1), match.group(2) != "EROFS"))
+    return found
 
 
 def entries(log: Path, kind: str) -> dict[int, str]:
@@ -290,6 +303,9 @@ def main() -> int:
     parser.add_argument("--sites", default="",
                         help="fault only the opens whose write site matches this regular "
                         "expression (e.g. 'sensitivity/[a-z_]+/[^.]')")
+    parser.add_argument("--done", type=Path, nargs="*", default=[],
+                        help="earlier harnesses' printed output: skip the faults their tables "
+                        "passed (the same site, written through or not)")
     args = parser.parse_args()
     shutil.rmtree(args.out, ignore_errors=True)
     args.out.mkdir(parents=True)
@@ -323,6 +339,10 @@ def main() -> int:
     if args.sites:
         chosen = [k for k in chosen if re.search(args.sites, site(paths[k], args.out / "counted",
                                                                   cache))]
+    if args.done:
+        passed = done_before(args.done)
+        chosen = [k for k in chosen
+                  if (site(paths[k], args.out / "counted", cache), k in written) not in passed]
     index, shards = (int(v) for v in args.shard.split("/"))
     chosen = chosen[index - 1::shards]
     print(f"{args.command}: {len(paths)} files opened for writing ({len(written)} written "
