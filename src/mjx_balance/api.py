@@ -1156,7 +1156,7 @@ def report(
                     sweeps=None if sweeps is None else Path(sweeps),
                     cluster=cluster,
                     physics=physics,
-                    quiet=progress is False,
+                    progress=progress,
                 )
             say(f"tables saved in {out} ({record['seconds']:.0f} s)")
         store_references(

@@ -313,8 +313,8 @@ def test_a_quiet_report_prints_its_page_alone(tmp_path, capsys, monkeypatch, qui
     stage ended in two lines). The work and the page are stand-ins: this is the wiring."""
     seen = {}
 
-    def work(out, *args, quiet=False, **kwargs):
-        seen["quiet"] = quiet
+    def work(out, *args, progress=None, **kwargs):
+        seen["progress"] = progress
         return {"seconds": 1.0}
 
     from mjx_balance import api
@@ -325,9 +325,28 @@ def test_a_quiet_report_prints_its_page_alone(tmp_path, capsys, monkeypatch, qui
     argv = ["report", "--scale", "tiny", "--studies", "none", "--out", str(out)]
     assert main((["-q"] if quiet else []) + argv) == 0
     captured = capsys.readouterr()
-    assert seen == {"quiet": quiet}
+    assert seen == {"progress": False if quiet else None}
     assert captured.out == f"wrote {out / 'report.html'}\n"
     assert (captured.err == "") if quiet else (f"tables saved in {out}" in captured.err)
+
+
+@pytest.mark.parametrize("progress", [None, True, False])
+def test_the_reports_progress_reaches_its_work_as_given(tmp_path, monkeypatch, progress):
+    """``mb.report(progress=...)`` means what it means on every API function (None where
+    someone watches, True always, False never) and reaches the work as given (was: True read
+    as None, the bars only on a terminal). The work and the page are stand-ins."""
+    seen = {}
+
+    def work(out, *args, progress=None, **kwargs):
+        seen["progress"] = progress
+        return {"seconds": 1.0}
+
+    from mjx_balance import api
+
+    monkeypatch.setattr(api, "run_report", work)
+    monkeypatch.setattr(api, "build_report", lambda out: out / "report.html")
+    api.report(out=tmp_path / "report", scale="tiny", studies="none", progress=progress, say=print)
+    assert seen == {"progress": progress}
 
 
 def test_sensitivity_section_runs_every_reading_and_reuses_the_experiments_tables(out, page):
@@ -424,7 +443,7 @@ def test_report_refuses_another_configuration(out):
             Config().replace(body={"upper_mass": 40.0}),
             report.PLANS["tiny"],
             study_list=[],
-            quiet=True,
+            progress=False,
         )
 
 

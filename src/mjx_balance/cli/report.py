@@ -106,7 +106,7 @@ def report_command(args: Any) -> int:
     config = None if html_only else load_run_config(args)
     out = Path(args.out)
     result = {}
-    watched = progress_enabled(args)
+    loud = progress_enabled(args)  # not -q
 
     def work() -> None:
         result["path"] = api.report(
@@ -122,8 +122,8 @@ def report_command(args: Any) -> int:
             physics=getattr(args, "physics", None) or "auto",
             html_only=html_only,
             wait=getattr(args, "wait", False),
-            progress=None if watched else False,  # -q: only warnings and errors
-            say=(lambda text: print(text, file=sys.stderr)) if watched else (lambda _t: None),
+            progress=None if loud else False,  # -q: only warnings and errors
+            say=(lambda text: print(text, file=sys.stderr)) if loud else (lambda _t: None),
         )  # stdout: the page's path alone
 
     code = in_folder(out, work, lock=False)  # the API takes the folder's lock

@@ -168,10 +168,10 @@ class Batches:
         forces: np.ndarray,
         durations: np.ndarray,
         chunk: int,
-        quiet: bool,
+        progress: bool | None,
     ) -> None:
         """``runs.folders.run_region``, or a copy of an identical sweep made earlier in this
-        report."""
+        report (``progress``: as :func:`run_report`'s)."""
         key = (config, tuple(forces), tuple(durations))
         done = self._regions.get(key)
         if done is not None and not (folder / REGION).exists():
@@ -182,8 +182,8 @@ class Batches:
             Grid.of(forces, durations, config),
             run_batch=self(config),
             chunk=chunk,
-            progress=False if quiet else None,  # where someone watches (runs.progress.wanted)
-            say=None if quiet else print,
+            progress=progress,
+            say=None if progress is False else print,
             cluster=self.cluster,
         )
         self._regions.setdefault(key, folder)
@@ -286,11 +286,11 @@ class ReportRun:
     region_durations: np.ndarray
     chunk: int  # one batch size for every sweep and table: the MJX runner compiles once
     sweeps: Path | None  # folder of the study sweep definitions (None: the repository's)
-    quiet: bool
+    progress: bool | None  # bars: None where someone watches, True always, False never
 
     @property
     def sweep_log(self) -> Callable[[str], None] | None:
-        return None if self.quiet else print
+        return None if self.progress is False else print  # -q: no maps' lines
 
     def save_record(self) -> None:
         write_json(self.out / REPORT_JSON, self.record)
@@ -326,7 +326,7 @@ def timeseries_stage(run: ReportRun, convention: str) -> None:
             cfg,
             list(plan.timeseries_forces),
             [plan.push_duration],
-            progress=not run.quiet and wanted(None),
+            progress=wanted(run.progress),
         )
         write_csv(summary, folder / "summary.csv", units=False)
         write_parquet(series, folder / "timeseries.parquet")
@@ -397,7 +397,7 @@ def region_stage(run: ReportRun, convention: str) -> None:
         forces,
         durations,
         run.chunk,
-        run.quiet,
+        run.progress,
     )
 
 
@@ -419,7 +419,7 @@ def table_folder(run: ReportRun, folder: Path, cfg: Config) -> None:
         list(run.plan.table_forces),
         run_batch=run.batches(cfg),
         batch=None if run.backend == "reference" else run.chunk,
-        progress=False if run.quiet else None,
+        progress=run.progress,
         say=run.sweep_log,
         sustained=run.plan.sustained,
     )
@@ -459,7 +459,7 @@ def run_variant(run: ReportRun, study: catalog.Study, variant: catalog.Variant) 
         forces,
         durations,
         run.chunk,
-        run.quiet,
+        run.progress,
     )
     return {
         "key": variant.key,
@@ -546,7 +546,7 @@ def start_report(
     study_list: list[catalog.Study],
     conventions: tuple[str, ...],
     sweeps: Path | None,
-    quiet: bool,
+    progress: bool | None,
     physics: str = "auto",
 ) -> ReportRun:
     """Open report.json in ``out`` and set up what the steps share (``config``: the base
@@ -554,7 +554,7 @@ def start_report(
     out.mkdir(parents=True, exist_ok=True)
     record = open_record(out, config, plan, backend, conventions)
     n_variants = sum(len(s.variants) for s in study_list)
-    log = StageLog(5 * len(conventions) + n_variants + 1, quiet)  # + 1: the sensitivity
+    log = StageLog(5 * len(conventions) + n_variants + 1, progress is False)  # + 1: sensitivity
     forces = parse_grid(plan.region_forces, "region forces")
     durations = parse_grid(plan.region_durations, "region durations")
     return ReportRun(
@@ -569,7 +569,7 @@ def start_report(
         region_durations=durations,
         chunk=sweep_chunk_size(config, backend, forces.size * durations.size),
         sweeps=sweeps,
-        quiet=quiet,
+        progress=progress,
     )
 
 
@@ -582,7 +582,7 @@ def run_report(
     study_list: list[catalog.Study] | None = None,
     conventions: tuple[str, ...] = CONVENTIONS,
     sweeps: Path | None = None,
-    quiet: bool = False,
+    progress: bool | None = None,
     cluster: Any = None,
     physics: str = "auto",
 ) -> dict:
@@ -593,7 +593,9 @@ def run_report(
     table (default: the plan's). study_list: default every study. cluster: compute the region
     maps' chunks on a Dask cluster (a spec as ``sweep --cluster`` takes, or a Client; one
     connection serves every map; the tables and time series run here). physics: the
-    batched backend's physics path (auto, mjx or c).
+    batched backend's physics path (auto, mjx or c). progress: the bars (as every runner's,
+    runs.progress.wanted: None where someone watches, True always, False never); False also
+    drops the numbered stage lines and the maps' lines (the command's ``-q``).
     """
     study_list = list(catalog.STUDIES) if study_list is None else study_list
     run = start_report(
@@ -604,12 +606,12 @@ def run_report(
         study_list=study_list,
         conventions=conventions,
         sweeps=sweeps,
-        quiet=quiet,
+        progress=progress,
         physics=physics,
     )
     client = local = None
     if cluster is not None:
-        client, local = cluster_mod.connect(cluster, (lambda _m: None) if quiet else print)
+        client, local = cluster_mod.connect(cluster, run.sweep_log or (lambda _m: None))
         run.batches.cluster = client
     try:
         for convention in conventions:
