@@ -49,7 +49,8 @@ COMMANDS = {
     "report": ["report", "--scale", "tiny", "--studies", "backward"],
     "explore": ["sweep", "--forces", "0,80", "--durations", "0.1,0.5", *T_END],  # its map
 }
-CLICK = "/api/run?map=&force=80&duration=0.5"  # explore: the cell clicked
+CELL = (80.0, 0.5)  # explore: the cell clicked (force N, duration s)
+CLICK = f"/api/run?map=&force={CELL[0]:g}&duration={CELL[1]:g}"
 ERRNOS = (errno.ENOSPC, errno.EIO, errno.EROFS)
 
 
@@ -232,7 +233,7 @@ def kept_frame(folder: Path):
     """The clicked cell's kept run (its columns; the attrs hold when it was computed)."""
     import pandas as pd
 
-    path = folder / "explore" / "80.0_0.5.parquet"
+    path = folder / "explore" / f"{CELL[0]}_{CELL[1]}.parquet"  # as explore names it
     return pd.read_parquet(path) if path.exists() else None
 
 
@@ -275,7 +276,7 @@ def explore_faults(args, library: Path) -> int:
             half = kept_frame(folder) if (folder / "explore").exists() else None
             if half is not None and not half.equals(clean):
                 problem = "a kept run differs"
-        status2, data2, code2, _ = serve(folder, library, args.out / f"{name}.rerun.log")
+        status2, *_ = serve(folder, library, args.out / f"{name}.rerun.log")
         again = kept_frame(folder)
         same = status2 == 200 and again is not None and again.equals(clean)
         if not same and not problem:
@@ -327,22 +328,20 @@ def main() -> int:
     cold = cold_cache(argv, args.out, library, clean)
     paths = entries(args.out / "counted.log", "open")
     written = entries(args.out / "counted.log", "write")
-    sites = sorted({site(p, args.out / "counted", cache) for p in paths.values()})
+    named = {k: site(p, args.out / "counted", cache) for k, p in paths.items()}  # k -> site
+    sites = sorted(set(named.values()))
     n = len(paths) if not args.limit else min(args.limit, len(paths))
     chosen = list(range(1, n + 1))
     if args.per_site:
         firsts = {}
         for k in sorted(paths):
-            firsts.setdefault((site(paths[k], args.out / "counted", cache), k in written), k)
-        named = {k: site(p, args.out / "counted", cache) for k, p in paths.items()}
+            firsts.setdefault((named[k], k in written), k)
         chosen = roles_first(sorted(firsts.values()), named, written)
     if args.sites:
-        chosen = [k for k in chosen if re.search(args.sites, site(paths[k], args.out / "counted",
-                                                                  cache))]
+        chosen = [k for k in chosen if re.search(args.sites, named[k])]
     if args.done:
         passed = done_before(args.done)
-        chosen = [k for k in chosen
-                  if (site(paths[k], args.out / "counted", cache), k in written) not in passed]
+        chosen = [k for k in chosen if (named[k], k in written) not in passed]
     index, shards = (int(v) for v in args.shard.split("/"))
     chosen = chosen[index - 1::shards]
     print(f"{args.command}: {len(paths)} files opened for writing ({len(written)} written "
