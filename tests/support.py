@@ -13,6 +13,7 @@ several floors use. Heavy imports (JAX, the package's floors) happen inside the 
                          a made-up region frame (one row per cell), for figures and studies
     run_cli, assert_refused
                          a command's exit code and stderr, and the one-line refusal rule
+    docs_script          a script of docs/scripts/ as a module (its functions, not its main)
 """
 
 from __future__ import annotations
@@ -91,6 +92,17 @@ def extra_module(name: str, extra: str):
         return importlib.import_module(name)
     except ImportError:
         unavailable(f'{name} is not installed (pip install -e ".[{extra}]")')
+
+
+def docs_script(name: str):
+    """``docs/scripts/NAME.py`` loaded as a module (the scripts are not a package): its
+    functions and tables, without running its ``main``."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, REPO / "docs" / "scripts" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 # -- a stand-in rollout ---------------------------------------------------------------------------

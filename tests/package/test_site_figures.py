@@ -4,18 +4,11 @@ is (no figure pasted without its command), and each figure the script lists is o
 
 from __future__ import annotations
 
-import importlib.util
-
-from support import REPO
-
-SCRIPT = REPO / "docs" / "scripts" / "site_figures.py"
+from support import REPO, docs_script
 
 
 def _commands() -> dict:
-    spec = importlib.util.spec_from_file_location("site_figures", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.COMMANDS
+    return docs_script("site_figures").COMMANDS
 
 
 def test_every_site_figure_has_the_command_that_draws_it():

@@ -9,14 +9,11 @@ reason said). The slow run: each command's full enumeration is the script's."""
 
 from __future__ import annotations
 
-import importlib.util
 import shutil
 import sys
-from pathlib import Path
 
 import pytest
-
-SCRIPT = Path(__file__).resolve().parents[2] / "docs" / "scripts" / "write_faults.py"
+from support import docs_script
 
 pytestmark = [
     pytest.mark.slow,
@@ -27,15 +24,8 @@ pytestmark = [
 ]
 
 
-def _script():
-    spec = importlib.util.spec_from_file_location("write_faults", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_every_write_of_a_simulate_run_faulted(tmp_path, monkeypatch, capsys):
-    script = _script()
+    script = docs_script("write_faults")
     monkeypatch.setattr(
         sys,
         "argv",
@@ -51,7 +41,7 @@ def test_every_write_of_an_explore_click_faulted(tmp_path, monkeypatch, capsys):
     """explore's click keeps its run in the folder (3 opens: made, written, synced): each
     faulted, the click is still answered with the run and a note naming the cause and the
     file, the server stops on Ctrl-C, and a later server keeps the run whole (about 3 min)."""
-    script = _script()
+    script = docs_script("write_faults")
     monkeypatch.setattr(
         sys, "argv", ["write_faults.py", "--command", "explore", "--out", str(tmp_path)]
     )
@@ -64,7 +54,7 @@ def test_every_write_of_an_explore_click_faulted(tmp_path, monkeypatch, capsys):
 def test_the_harness_fails_a_run_that_hides_a_failed_write(tmp_path):
     """The verdict is not vacuous: a run that exits 0 after a fault struck its table, or
     whose one line names neither the file nor the cause, is a failure."""
-    script = _script()
+    script = docs_script("write_faults")
     out = tmp_path / "out"
     out.mkdir()
 

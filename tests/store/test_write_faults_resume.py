@@ -5,17 +5,7 @@ The harness's runs themselves are the slow run's (tests/store/test_write_faults.
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
-SCRIPT = Path(__file__).resolve().parents[2] / "docs" / "scripts" / "write_faults.py"
-
-
-def _script():
-    spec = importlib.util.spec_from_file_location("write_faults", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from support import docs_script
 
 
 def test_an_earlier_table_names_the_faults_it_passed(tmp_path):
@@ -31,7 +21,7 @@ def test_an_earlier_table_names_the_faults_it_passed(tmp_path):
         "| 191 | OUT/b/.lock | EROFS | 0 |  | 0 | yes | ok |\n"
         "0 failed of 4\n"
     )
-    passed = _script().done_before([earlier])
+    passed = docs_script("write_faults").done_before([earlier])
     assert passed == {
         ("OUT/a/.region.parquet.*.tmp", False),
         ("OUT/a/.region.parquet.*.tmp", True),
