@@ -305,48 +305,47 @@ def test_report_saves_its_tables(out):
     assert signed.force.min() < 0 < signed.force.max()
 
 
-@pytest.mark.parametrize("quiet", [True, False])
-def test_a_quiet_report_prints_its_page_alone(tmp_path, capsys, monkeypatch, quiet):
-    """``-q``, only warnings and errors: the report's work runs quiet (no numbered stages, no
-    maps' lines, no bars) and the command prints the page's path alone (was: the stages on
-    stdout and "tables saved in ..." on stderr whatever -q said, so a failed write at the last
-    stage ended in two lines). The work and the page are stand-ins: this is the wiring."""
-    seen = {}
+@pytest.fixture
+def report_work(monkeypatch) -> dict:
+    """mb.report's work and page replaced by stand-ins: what it handed the work (``progress``)
+    is recorded in the dict returned; the page is ``out/report.html``, unwritten."""
+    from mjx_balance import api
+
+    seen: dict = {}
 
     def work(out, *args, progress=None, **kwargs):
         seen["progress"] = progress
         return {"seconds": 1.0}
 
-    from mjx_balance import api
-
     monkeypatch.setattr(api, "run_report", work)
     monkeypatch.setattr(api, "build_report", lambda out: out / "report.html")
+    return seen
+
+
+@pytest.mark.parametrize("quiet", [True, False])
+def test_a_quiet_report_prints_its_page_alone(tmp_path, capsys, report_work, quiet):
+    """``-q``, only warnings and errors: the report's work runs quiet (no numbered stages, no
+    maps' lines, no bars) and the command prints the page's path alone (was: the stages on
+    stdout and "tables saved in ..." on stderr whatever -q said, so a failed write at the last
+    stage ended in two lines). The work and the page are stand-ins: this is the wiring."""
     out = tmp_path / "report"
     argv = ["report", "--scale", "tiny", "--studies", "none", "--out", str(out)]
     assert main((["-q"] if quiet else []) + argv) == 0
     captured = capsys.readouterr()
-    assert seen == {"progress": False if quiet else None}
+    assert report_work == {"progress": False if quiet else None}
     assert captured.out == f"wrote {out / 'report.html'}\n"
     assert (captured.err == "") if quiet else (f"tables saved in {out}" in captured.err)
 
 
 @pytest.mark.parametrize("progress", [None, True, False])
-def test_the_reports_progress_reaches_its_work_as_given(tmp_path, monkeypatch, progress):
+def test_the_reports_progress_reaches_its_work_as_given(tmp_path, report_work, progress):
     """``mb.report(progress=...)`` means what it means on every API function (None where
     someone watches, True always, False never) and reaches the work as given (was: True read
     as None, the bars only on a terminal). The work and the page are stand-ins."""
-    seen = {}
-
-    def work(out, *args, progress=None, **kwargs):
-        seen["progress"] = progress
-        return {"seconds": 1.0}
-
     from mjx_balance import api
 
-    monkeypatch.setattr(api, "run_report", work)
-    monkeypatch.setattr(api, "build_report", lambda out: out / "report.html")
     api.report(out=tmp_path / "report", scale="tiny", studies="none", progress=progress, say=print)
-    assert seen == {"progress": progress}
+    assert report_work == {"progress": progress}
 
 
 def test_sensitivity_section_runs_every_reading_and_reuses_the_experiments_tables(out, page):
