@@ -289,6 +289,14 @@ def explore_faults(args, library: Path) -> int:
     return 1 if failures else 0
 
 
+def shard(text: str) -> tuple[int, int]:
+    """``I/N`` read as (I, N), 1 <= I <= N; else the option is refused in one line."""
+    found = re.fullmatch(r"(\d+)/(\d+)", text)
+    if not found or not 1 <= int(found.group(1)) <= int(found.group(2)):
+        raise argparse.ArgumentTypeError(f"{text!r} is not I/N with 1 <= I <= N")
+    return int(found.group(1)), int(found.group(2))
+
+
 def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("--command", choices=sorted(COMMANDS), default="sweep")
@@ -298,7 +306,7 @@ def main() -> int:
                         help="fault each write site's first open written through and its first "
                         "open not written through, instead of every open; each file name's "
                         "first before the rest")
-    parser.add_argument("--shard", default="1/1",
+    parser.add_argument("--shard", type=shard, default="1/1",
                         help="I/N: fault only the I-th of every N chosen opens (harnesses side "
                         "by side, each with its own --out)")
     parser.add_argument("--sites", default="",
@@ -308,6 +316,9 @@ def main() -> int:
                         help="earlier harnesses' printed output: skip the faults their tables "
                         "passed (the same site, written through or not)")
     args = parser.parse_args()
+    missing = [str(p) for p in args.done if not p.is_file()]
+    if missing:  # before the folder is cleared and the clean runs made
+        parser.error(f"--done: no such file: {', '.join(missing)}")
     shutil.rmtree(args.out, ignore_errors=True)
     args.out.mkdir(parents=True)
     library = shim(Path(tempfile.mkdtemp(dir=args.out)))
@@ -342,7 +353,7 @@ def main() -> int:
     if args.done:
         passed = done_before(args.done)
         chosen = [k for k in chosen if (named[k], k in written) not in passed]
-    index, shards = (int(v) for v in args.shard.split("/"))
+    index, shards = args.shard
     chosen = chosen[index - 1::shards]
     print(f"{args.command}: {len(paths)} files opened for writing ({len(written)} written "
           f"through), {len(sites)} write sites, {len(clean)} tables; faulting "
